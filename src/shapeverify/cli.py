@@ -1,0 +1,264 @@
+"""The ``shapeverify`` command line (the only module that talks to the terminal).
+
+Exit codes of ``shapeverify inspect``: 0 the part passes, 1 it fails the tolerance, 2 error
+(bad input, failed registration, unreadable file). Other commands: 0 success, 2 error.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import sys
+import time
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+from rich.console import Console
+from rich.logging import RichHandler
+from rich.table import Table
+
+app = typer.Typer(
+    add_completion=False,
+    no_args_is_help=True,
+    help="Shape verification of free-form parts against their CAD model. Lengths in mm.",
+)
+console = Console(stderr=True)
+out = Console()
+
+EXIT_PASS, EXIT_FAIL, EXIT_ERROR = 0, 1, 2
+
+
+def _setup_logging(verbose: bool) -> None:
+    logging.basicConfig(
+        level=logging.INFO if verbose else logging.WARNING,
+        format="%(message)s",
+        handlers=[RichHandler(console=console, show_path=False)],
+    )
+
+
+@contextlib.contextmanager
+def _stage(name: str):
+    """Show a spinner while a stage runs, then a tick with its duration."""
+    t0 = time.perf_counter()
+    with console.status(f"[bold]{name}…"):
+        yield
+    console.print(f"[green]✓[/green] {name} [dim]({time.perf_counter() - t0:.2f} s)[/dim]")
+
+
+def _fail(message: str) -> None:
+    console.print(f"[bold red]error:[/bold red] {message}")
+    raise typer.Exit(EXIT_ERROR)
+
+
+def _guard(fn, *args, **kwargs):
+    """Run ``fn``; turn expected input errors into a one-line message and exit code 2."""
+    from shapeverify.errors import ShapeVerifyError
+
+    try:
+        return fn(*args, **kwargs)
+    except (ShapeVerifyError, ValueError, FileNotFoundError, OSError) as exc:
+        _fail(str(exc))
+
+
+@app.callback()
+def _main(verbose: bool = typer.Option(False, "--verbose", "-v", help="Log progress details.")):
+    _setup_logging(verbose)
+
+
+@app.command()
+def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges), mesh, point cloud or .svm/.svmodel")):
+    """Print a summary of a model: faces, units, size."""
+    from shapeverify.pipeline import PREPARED_SUFFIX
+
+    if model.suffix.lower() == PREPARED_SUFFIX:
+        from shapeverify.nearest import load_prepared
+        with _stage(f"Loading {model.name}"):
+            prep = _guard(load_prepared, model)
+        m = prep.model
+    else:
+        from shapeverify.cad.load import load_model
+        with _stage(f"Importing {model.name}"):
+            m = _guard(load_model, model)
+        prep = None
+    out.print(model_summary_table(m, title=str(model)))
+    if prep is not None:
+        out.print(f"prepared: {len(prep.points.points):,} model points at {prep.spacing:.3g} mm spacing, "
+                  f"max distance {prep.max_distance:.3g} mm")
+
+
+def model_summary_table(m, title: str) -> Table:
+    import numpy as np
+
+    lo, hi = m.bounds
+    t = Table(title=title, show_header=False)
+    t.add_row("kind", m.kind)
+    t.add_row("faces", str(len(m.faces)))
+    if m.kind == "cad":
+        rational = sum(1 for f in m.faces if f.surface.rational)
+        holes = sum(1 for f in m.faces if len(f.loops) > 1)
+        t.add_row("rational faces", str(rational))
+        t.add_row("faces with holes", str(holes))
+    if m.vertices is not None:
+        t.add_row("vertices", f"{len(m.vertices):,}")
+    t.add_row("file unit", f"{m.unit} (x{m.scale_to_mm:g} to mm)")
+    t.add_row("bounding box [mm]", f"{np.array2string(lo, precision=2)} .. {np.array2string(hi, precision=2)}")
+    t.add_row("size (diagonal) [mm]", f"{m.size:.3f}")
+    return t
+
+
+@app.command()
+def prepare(
+    model: Path = typer.Argument(..., help="CAD file, mesh or point cloud"),
+    output: Path = typer.Option(..., "-o", "--output", help="Output .svm file"),
+    spacing: Optional[float] = typer.Option(None, help="Model-point spacing [mm] (default: from the model size)"),
+    max_distance: Optional[float] = typer.Option(None, help="Largest distance served by the grid tree [mm]"),
+):
+    """Import a model and pre-compute its closest-point structure (once per model)."""
+    from shapeverify.pipeline import load_reference
+
+    prep = _guard(load_reference, model, spacing=spacing, max_distance=max_distance, stage=_stage)
+    with _stage(f"Writing {output.name}"):
+        _guard(prep.save, output)
+    out.print(f"{output}: {len(prep.points.points):,} model points, spacing {prep.spacing:.3g} mm, "
+              f"max distance {prep.max_distance:.3g} mm")
+
+
+@app.command()
+def inspect(
+    model: Path = typer.Argument(..., help="Prepared model (.svm, fastest) or CAD/mesh file"),
+    scan: Path = typer.Argument(..., help="Scan: .ply .xyz .txt .csv .npy .pcd (mm)"),
+    tolerance: Optional[float] = typer.Option(None, help="Symmetric tolerance ±MM"),
+    lower: Optional[float] = typer.Option(None, help="Lower limit [mm] (negative: into the material)"),
+    upper: Optional[float] = typer.Option(None, help="Upper limit [mm]"),
+    max_distance: Optional[float] = typer.Option(None, help="Points farther from the CAD are not evaluated [mm]"),
+    json_path: Optional[Path] = typer.Option(None, "--json", help="Write the result as JSON"),
+    report: Optional[Path] = typer.Option(None, "--report", help="Write the HTML report"),
+    png: Optional[Path] = typer.Option(None, "--png", help="Write a PNG summary"),
+    colored: Optional[Path] = typer.Option(None, "--colored", help="Write a PLY coloured by deviation"),
+    db: Optional[Path] = typer.Option(None, "--db", help="Append the result to this SQLite history"),
+    part: Optional[str] = typer.Option(None, "--part", help="Part id stored in the history"),
+):
+    """Register a scan to the model, compute deviations and decide pass/fail.
+
+    Exit code: 0 pass, 1 fail, 2 error.
+    """
+    from shapeverify.pipeline import run_inspection
+
+    if tolerance is None and lower is None and upper is None:
+        _fail("give --tolerance MM (or --lower/--upper limits in mm)")
+    result, outputs = _guard(
+        run_inspection, model, scan, tolerance=tolerance, max_distance=max_distance,
+        lower=lower, upper=upper, json_path=json_path, report_path=report, png_path=png,
+        colored_path=colored, db_path=db, part=part, stage=_stage)
+    _print_result(result)
+    for label, path in (("JSON", outputs.json), ("report", outputs.report), ("PNG", outputs.png),
+                        ("coloured PLY", outputs.colored)):
+        if path is not None:
+            out.print(f"{label}: {path}")
+    if outputs.record_id is not None:
+        out.print(f"history record {outputs.record_id} in {db}")
+    raise typer.Exit({"pass": EXIT_PASS, "fail": EXIT_FAIL}.get(result.verdict, EXIT_ERROR))
+
+
+def _print_result(result) -> None:
+    d = result.to_dict()
+    colour = {"pass": "green", "fail": "red"}.get(result.verdict, "yellow")
+    out.print(f"[bold {colour}]verdict: {result.verdict.upper()}[/bold {colour}]")
+    for reason in d.get("reasons", []) or []:
+        out.print(f"  {reason}")
+    reg = d.get("registration", {})
+    dev = d.get("deviation", {})
+    t = Table(title="Deviation from CAD [mm]")
+    t.add_column("statistic")
+    t.add_column("value", justify="right")
+    for key in ("n", "mean", "std", "min", "max", "p05", "p95", "in_tolerance_fraction"):
+        if key in dev:
+            v = dev[key]
+            t.add_row(key, f"{v:,}" if isinstance(v, int) else f"{v:.4f}")
+    out.print(t)
+    if reg:
+        out.print(f"registration: rms {reg.get('rms', float('nan')):.4f} mm, {reg.get('iterations')} iterations, "
+                  f"converged {reg.get('converged')}, inliers {100 * reg.get('inlier_fraction', 0):.1f} %")
+    regions = d.get("regions") or []
+    if regions:
+        rt = Table(title="Defect regions")
+        for col in ("#", "points", "area [mm²]", "extreme [mm]", "centroid [mm]"):
+            rt.add_column(col)
+        for i, r in enumerate(regions[:20]):
+            c = r.get("centroid", [0, 0, 0])
+            rt.add_row(str(i + 1), str(r.get("n")), f"{r.get('area', 0):.1f}", f"{r.get('extreme', 0):+.3f}",
+                       f"({c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f})")
+        out.print(rt)
+
+
+@app.command()
+def history(
+    db: Path = typer.Option(..., "--db", help="SQLite history file"),
+    part: Optional[str] = typer.Option(None, "--part", help="Only this part id"),
+    limit: int = typer.Option(50, help="Most recent N records"),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="Write trend charts (PNG)"),
+):
+    """List past inspections and draw trend charts for process control."""
+    from shapeverify.report.history import HistoryDB, plot_trend
+
+    if not db.exists():
+        _fail(f"{db}: no such history file (create one with `shapeverify inspect ... --db {db}`)")
+    with HistoryDB(db) as h:
+        rows = h.query(part=part, limit=limit)
+    t = Table(title=f"{db} ({len(rows)} records)")
+    for col in ("id", "time", "part", "verdict", "mean [mm]", "p95 [mm]", "max [mm]"):
+        t.add_column(col)
+    for r in rows:
+        t.add_row(str(r["id"]), str(r["time"]), str(r.get("part") or ""), r["verdict"],
+                  f"{r.get('mean', float('nan')):.4f}", f"{r.get('p95', float('nan')):.4f}",
+                  f"{r.get('max', float('nan')):.4f}")
+    out.print(t)
+    if plot:
+        plot_trend(rows, plot)
+        out.print(f"trend chart: {plot}")
+
+
+@app.command()
+def unwrap(
+    input: Path = typer.Argument(..., help="Wrapped phase: .npy, .png or .tif"),
+    output: Path = typer.Option(..., "-o", "--output", help="Unwrapped phase (.npy)"),
+    method: str = typer.Option("auto", help="auto | quality | ls | wls | lp"),
+    mask: Optional[Path] = typer.Option(None, help="Mask image/array (nonzero = valid)"),
+    plot: Optional[Path] = typer.Option(None, help="Write a PNG of wrapped and unwrapped phase"),
+):
+    """Unwrap a wrapped phase map (radians)."""
+    from shapeverify.phase.io import unwrap_file
+
+    with _stage(f"Unwrapping {input.name}"):
+        summary = _guard(unwrap_file, input, output, method=method, mask_path=mask, plot_path=plot)
+    for k, v in summary.items():
+        out.print(f"{k}: {v}")
+
+
+@app.command()
+def fit(
+    points: Path = typer.Argument(..., help="Points: .ply .xyz .txt .csv .npy .pcd"),
+    output: Path = typer.Option(..., "-o", "--output", help=".step, .igs/.iges or .json"),
+    surface: bool = typer.Option(False, "--surface", help="Fit a surface (default: a curve)"),
+    ctrl: List[int] = typer.Option([10], "--ctrl", help="Control points: N (curve) or NU NV (surface)"),
+    degree: int = typer.Option(3, help="Degree"),
+):
+    """Fit a NURBS curve or surface to points by orthogonal distance and write it out."""
+    from shapeverify.fitting.export import fit_points_file
+
+    n = tuple(ctrl) if surface else ctrl[0]
+    if surface and len(n) == 1:
+        n = (n[0], n[0])
+    with _stage(f"Fitting {'surface' if surface else 'curve'} to {points.name}"):
+        summary = _guard(fit_points_file, points, output, surface=surface, ctrl=n, degree=degree)
+    for k, v in summary.items():
+        out.print(f"{k}: {v}")
+
+
+def main() -> None:  # pragma: no cover - entry point
+    app()
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,144 @@
+"""The one place that wires the stages together: file -> model -> prepared -> inspection -> outputs.
+
+Front ends (``cli.py``, the service) call these functions; the stages themselves never call each
+other's front ends. Each function takes an optional ``stage`` callback, a context-manager factory
+``stage(name)`` that the command line turns into a progress line; the library itself never prints.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import logging
+import time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Callable, ContextManager
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+Stage = Callable[[str], ContextManager]
+
+PREPARED_SUFFIX = ".svm"
+
+
+def _no_stage(name: str) -> ContextManager:
+    return contextlib.nullcontext()
+
+
+def file_hash(path: str | Path) -> str:
+    """SHA-256 of a file's bytes (hex), used to tie history records to the exact model file."""
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def load_reference(path: str | Path, spacing: float | None = None,
+                   max_distance: float | None = None, stage: Stage | None = None):
+    """Load a prepared model (``.svm``) or import and prepare a CAD/mesh/point-cloud model.
+
+    Parameters
+    ----------
+    path : str or Path
+        ``.svm`` (prepared, fastest), or any model file ``shapeverify.load_model`` reads.
+    spacing, max_distance : float, optional
+        Model-point spacing and maximum query distance in mm for preparation (ignored for ``.svm``).
+
+    Returns
+    -------
+    prepared : shapeverify.nearest.Prepared
+    """
+    from shapeverify.cad.load import load_model
+    from shapeverify.nearest import load_prepared, prepare
+
+    stage = stage or _no_stage
+    path = Path(path)
+    if path.suffix.lower() == PREPARED_SUFFIX:
+        with stage(f"Loading prepared model {path.name}"):
+            return load_prepared(path)
+    with stage(f"Importing {path.name}"):
+        model = load_model(path)
+    with stage(f"Preparing closest-point structure ({len(model.faces)} faces)"):
+        return prepare(model, spacing=spacing, max_distance=max_distance)
+
+
+@dataclass
+class InspectionOutputs:
+    """Where the outputs of one inspection were written (None: not requested)."""
+
+    json: Path | None = None
+    report: Path | None = None
+    png: Path | None = None
+    colored: Path | None = None
+    record_id: int | None = None
+    timings: dict = field(default_factory=dict)
+
+
+def run_inspection(model_path: str | Path, scan_path: str | Path, tolerance: float,
+                   max_distance: float | None = None, lower: float | None = None,
+                   upper: float | None = None, json_path=None, report_path=None, png_path=None,
+                   colored_path=None, db_path=None, part: str | None = None,
+                   stage: Stage | None = None):
+    """Inspect one scan against one model and write the requested outputs.
+
+    Returns
+    -------
+    result : shapeverify.inspection.InspectionResult
+    outputs : InspectionOutputs
+    """
+    import json
+
+    from shapeverify.inspection import inspect
+    from shapeverify.io.points import read_points
+
+    stage = stage or _no_stage
+    out = InspectionOutputs()
+    t0 = time.perf_counter()
+    prep = load_reference(model_path, stage=stage)
+    out.timings["load_model_s"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    with stage(f"Reading scan {Path(scan_path).name}"):
+        scan = read_points(scan_path)
+    out.timings["read_scan_s"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    with stage(f"Registering and inspecting {len(scan):,} points"):
+        result = inspect(prep, scan, tolerance=tolerance, max_distance=max_distance,
+                         lower=lower, upper=upper)
+    out.timings["inspect_s"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    if json_path:
+        out.json = Path(json_path)
+        payload = result.to_dict()
+        payload["files"] = {"model": str(model_path), "scan": str(scan_path)}
+        payload["timings"] = {**payload.get("timings", {}), **out.timings}
+        out.json.write_text(json.dumps(payload, indent=2))
+    if report_path:
+        from shapeverify.report.html import write_html_report
+        with stage("Writing HTML report"):
+            out.report = Path(write_html_report(result, prep, scan, report_path))
+    if png_path:
+        from shapeverify.report.png import write_png_summary
+        with stage("Writing PNG summary"):
+            out.png = Path(write_png_summary(result, scan, png_path))
+    if colored_path:
+        from shapeverify.report.ply import write_colored_ply
+        out.colored = Path(write_colored_ply(result, scan, colored_path))
+    if db_path:
+        from shapeverify.report.history import HistoryDB
+        with HistoryDB(db_path) as db:
+            out.record_id = db.add(result, part=part, model_hash=file_hash(model_path))
+    out.timings["outputs_s"] = time.perf_counter() - t0
+    return result, out
+
+
+def transform_points(T: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Apply a 4x4 rigid transform to (N, 3) points: ``R @ p + t`` row-wise."""
+    T = np.asarray(T, dtype=np.float64)
+    return points @ T[:3, :3].T + T[:3, 3]
