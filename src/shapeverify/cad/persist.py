@@ -1,0 +1,237 @@
+"""Save a model to one ``.svmodel`` file and load it back (so the CAD import happens once).
+
+The file is a plain ``.npz`` archive (``numpy.savez``, uncompressed, loaded without pickle):
+every face's arrays are concatenated into a few flat arrays with offsets, so loading costs a
+handful of reads and one object construction per face.  Arrays round-trip bit for bit.
+
+Layout (F faces, L loops, K loop vertices; format version 1)
+-------------------------------------------------------------
+``meta``            uint8 JSON: format tag, version, unit, source, kind, counts
+``scale_to_mm``     (1,) float64
+``degrees``         (F, 2) int64       (degree_u, degree_v)
+``shapes``          (F, 2) int64       control-net shape (nu, nv)
+``reversed``        (F,) bool
+``rational``        (F,) bool
+``knots_u``/``knots_v``   concatenated knot vectors, with ``knots_u_len``/``knots_v_len`` (F,)
+``control``         (sum nu*nv, 3) float64, row-major per face
+``weights``         (sum over rational faces of nu*nv,) float64
+``face_nloops``     (F,) int64        loops per face (outer first)
+``loop_len``        (L,) int64        vertices per loop
+``loops``           (K, 2) float64;   ``loop_free`` (K,) bool
+``vertices``, ``triangles``, ``cloud_normals``   present only when the model has them.
+
+:func:`model_to_arrays` / :func:`model_from_arrays` expose the same dictionary so that other
+files (e.g. a prepared closest-point structure) can embed a model.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import zipfile
+from pathlib import Path
+
+import numpy as np
+
+from shapeverify.errors import CADImportError, EmptyModelError
+
+__all__ = ["save_model", "load_saved_model", "model_to_arrays", "model_from_arrays",
+           "FORMAT_TAG", "FORMAT_VERSION"]
+
+FORMAT_TAG = "shapeverify-model"
+FORMAT_VERSION = 1
+
+
+def model_to_arrays(model) -> dict:
+    """Flatten a :class:`~shapeverify.cad.model.Model` into a dict of numpy arrays (no objects).
+
+    Parameters
+    ----------
+    model : Model
+
+    Returns
+    -------
+    dict[str, numpy.ndarray]
+        See the module docstring for the keys.
+    """
+    faces = model.faces
+    surfs = [f.surface for f in faces]
+    meta = {"format": FORMAT_TAG, "version": FORMAT_VERSION, "unit": model.unit,
+            "source": model.source, "kind": model.kind, "n_faces": len(faces)}
+    a = {
+        "meta": np.frombuffer(json.dumps(meta).encode("utf-8"), dtype=np.uint8),
+        "scale_to_mm": np.array([model.scale_to_mm], dtype=np.float64),
+        "degrees": np.array([[s.degree_u, s.degree_v] for s in surfs], np.int64).reshape(-1, 2),
+        "shapes": np.array([s.control.shape[:2] for s in surfs], np.int64).reshape(-1, 2),
+        "reversed": np.array([f.reversed for f in faces], dtype=bool),
+        "rational": np.array([s.weights is not None for s in surfs], dtype=bool),
+        "knots_u": _cat([s.knots_u for s in surfs], (0,)),
+        "knots_u_len": np.array([len(s.knots_u) for s in surfs], np.int64),
+        "knots_v": _cat([s.knots_v for s in surfs], (0,)),
+        "knots_v_len": np.array([len(s.knots_v) for s in surfs], np.int64),
+        "control": _cat([s.control.reshape(-1, 3) for s in surfs], (0, 3)),
+        "weights": _cat([s.weights.ravel() for s in surfs if s.weights is not None], (0,)),
+        "face_nloops": np.array([len(f.loops) for f in faces], np.int64),
+        "loop_len": np.array([len(lp) for f in faces for lp in f.loops], np.int64),
+        "loops": _cat([np.asarray(lp, np.float64) for f in faces for lp in f.loops], (0, 2)),
+        "loop_free": _cat([np.asarray(fr, bool) for f in faces for fr in f.loop_free], (0,),
+                          bool),
+    }
+    for name in ("vertices", "triangles", "cloud_normals"):
+        arr = getattr(model, name)
+        if arr is not None:
+            a[name] = np.asarray(arr)
+    return a
+
+
+def model_from_arrays(a, where: str = "<arrays>"):
+    """Rebuild a :class:`~shapeverify.cad.model.Model` from :func:`model_to_arrays` output.
+
+    Parameters
+    ----------
+    a : mapping of str -> numpy.ndarray (a dict or an open ``NpzFile``)
+    where : str
+        Name used in error messages (the file path).
+
+    Raises
+    ------
+    CADImportError
+        Missing keys, wrong format tag or version, inconsistent sizes.
+    EmptyModelError
+        A CAD model with no faces.
+    """
+    from shapeverify.cad.model import Face, Model
+    from shapeverify.cad.nurbs import NurbsSurface
+
+    try:
+        meta = json.loads(bytes(np.asarray(a["meta"], dtype=np.uint8)).decode("utf-8"))
+    except (KeyError, ValueError, UnicodeDecodeError) as exc:
+        raise CADImportError(f"{where}: not a shapeverify model file (no readable 'meta': "
+                             f"{exc})") from None
+    if meta.get("format") != FORMAT_TAG:
+        raise CADImportError(f"{where}: not a shapeverify model file (format tag "
+                             f"{meta.get('format')!r})")
+    if meta.get("version") != FORMAT_VERSION:
+        raise CADImportError(f"{where}: model file version {meta.get('version')!r} is not "
+                             f"supported (this shapeverify reads version {FORMAT_VERSION}); "
+                             "re-import the CAD file")
+    try:
+        deg, shp = a["degrees"], a["shapes"]
+        rev, rat = a["reversed"], a["rational"]
+        ku, kul = a["knots_u"], a["knots_u_len"]
+        kv, kvl = a["knots_v"], a["knots_v_len"]
+        ctrl, wts = a["control"], a["weights"]
+        nloops, llen = a["face_nloops"], a["loop_len"]
+        loops, lfree = a["loops"], a["loop_free"]
+        scale = float(a["scale_to_mm"][0])
+        opt = {k: (a[k] if k in a else None) for k in ("vertices", "triangles", "cloud_normals")}
+    except KeyError as exc:
+        raise CADImportError(f"{where}: model file is missing array {exc}") from None
+    n = int(meta.get("n_faces", -1))
+    if not (len(deg) == len(shp) == len(rev) == len(rat) == len(kul) == len(kvl)
+            == len(nloops) == n):
+        raise CADImportError(f"{where}: model file is inconsistent (face arrays of different "
+                             f"lengths, expected {n})")
+    if meta.get("kind") == "cad" and n == 0:
+        raise EmptyModelError(f"{where}: the saved CAD model has no faces")
+    ncp = shp[:, 0] * shp[:, 1]
+    ku_off = _offsets(kul)
+    kv_off = _offsets(kvl)
+    c_off = _offsets(ncp)
+    w_off = _offsets(np.where(rat, ncp, 0))
+    l_off = _offsets(nloops)
+    v_off = _offsets(llen)
+    if (ku_off[-1] != len(ku) or kv_off[-1] != len(kv) or c_off[-1] != len(ctrl)
+            or w_off[-1] != len(wts) or l_off[-1] != len(llen) or v_off[-1] != len(loops)
+            or len(lfree) != len(loops)):
+        raise CADImportError(f"{where}: model file is inconsistent (array sizes do not match "
+                             "the offsets)")
+    faces = []
+    try:
+        for i in range(n):
+            nu, nv = int(shp[i, 0]), int(shp[i, 1])
+            w = wts[w_off[i]:w_off[i + 1]].reshape(nu, nv) if rat[i] else None
+            surf = NurbsSurface(int(deg[i, 0]), int(deg[i, 1]), ku[ku_off[i]:ku_off[i + 1]],
+                                kv[kv_off[i]:kv_off[i + 1]],
+                                ctrl[c_off[i]:c_off[i + 1]].reshape(nu, nv, 3), w)
+            lps = tuple(loops[v_off[j]:v_off[j + 1]] for j in range(l_off[i], l_off[i + 1]))
+            frs = tuple(lfree[v_off[j]:v_off[j + 1]] for j in range(l_off[i], l_off[i + 1]))
+            faces.append(Face(surf, lps, frs, bool(rev[i])))
+        return Model(faces=tuple(faces), unit=meta["unit"], scale_to_mm=scale,
+                     source=meta["source"], kind=meta["kind"], **opt)
+    except ValueError as exc:
+        raise CADImportError(f"{where}: model file holds invalid data ({exc})") from None
+
+
+def save_model(model, path) -> Path:
+    """Write ``model`` to one file (by convention ``*.svmodel``; read it with
+    :func:`load_saved_model` or ``sv.load_model``).
+
+    The file is written to a temporary name and renamed, so a crash never leaves half a file.
+
+    Parameters
+    ----------
+    model : Model
+    path : str or os.PathLike
+
+    Returns
+    -------
+    pathlib.Path
+        The written path.
+    """
+    path = Path(path)
+    arrays = model_to_arrays(model)
+    tmp = path.with_name(path.name + ".tmp")
+    try:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, **arrays)
+        os.replace(tmp, path)
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+    return path
+
+
+def load_saved_model(path):
+    """Read a model written by :func:`save_model`.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+
+    Returns
+    -------
+    Model
+        Same faces, unit, scale, source and kind; every array bitwise equal to the saved one.
+
+    Raises
+    ------
+    FileNotFoundError
+        The file does not exist.
+    CADImportError
+        Empty, truncated or foreign file; unsupported format version.
+    EmptyModelError
+        A saved CAD model without faces.
+    """
+    path = Path(path)
+    if not path.exists():
+        import errno
+        raise FileNotFoundError(errno.ENOENT, f"{path}: file not found", str(path))
+    if path.stat().st_size == 0:
+        raise CADImportError(f"{path}: model file is empty (0 bytes)")
+    try:
+        with np.load(path, allow_pickle=False) as z:
+            arrays = {k: z[k] for k in z.files}
+    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
+        raise CADImportError(f"{path}: not a readable shapeverify model file ({exc})") from None
+    return model_from_arrays(arrays, str(path))
+
+
+def _cat(arrays, empty_shape, dtype=np.float64):
+    return np.concatenate(arrays) if arrays else np.empty(empty_shape, dtype)
+
+
+def _offsets(counts):
+    out = np.zeros(len(counts) + 1, np.int64)
+    np.cumsum(counts, out=out[1:])
+    return out

@@ -1,0 +1,163 @@
+"""Read triangle meshes (``.stl`` ascii/binary, ``.ply`` with faces, ``.obj``).
+
+All readers return ``(vertices (V, 3) float64, triangles (T, 3) int32)``.  Polygons are
+triangulated as fans ``(p0, pi, pi+1)``.  STL stores a triangle soup; exactly coincident vertices
+are merged so that the mesh is connected (needed to find its free edges).  A mesh is a reference
+model, so problems raise :class:`~shapeverify.errors.CADImportError` (corrupt file),
+:class:`~shapeverify.errors.EmptyModelError` (no triangles) or
+:class:`~shapeverify.errors.UnsupportedFormatError` (unknown extension), with the file name
+and what is wrong.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+
+from shapeverify.errors import CADImportError, EmptyModelError, ScanError, UnsupportedFormatError
+from shapeverify.io.points import _check_file, read_ply_full
+
+__all__ = ["read_mesh", "MESH_EXTENSIONS"]
+
+logger = logging.getLogger(__name__)
+
+#: File extensions :func:`read_mesh` understands.
+MESH_EXTENSIONS = (".stl", ".ply", ".obj")
+
+
+def read_mesh(path):
+    """Read a triangle mesh.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        ``.stl`` (ascii or binary), ``.ply`` with a face element, ``.obj`` (``v`` and ``f`` lines;
+        ``f`` entries as ``v``, ``v/vt``, ``v//vn`` or ``v/vt/vn``; negative indices count back
+        from the last vertex defined so far).
+
+    Returns
+    -------
+    vertices : (V, 3) float64
+    triangles : (T, 3) int32
+        Indices into ``vertices``.
+
+    Raises
+    ------
+    FileNotFoundError
+        The file does not exist.
+    UnsupportedFormatError
+        Unknown extension.
+    CADImportError
+        Empty (0 bytes), truncated or malformed file; non-finite vertex coordinates; indices
+        out of range.
+    EmptyModelError
+        The file holds no triangles (e.g. a PLY point cloud).
+    """
+    try:
+        path = _check_file(path)
+    except ScanError as exc:  # empty file: a broken model file, not a broken scan
+        raise CADImportError(str(exc)) from None
+    ext = path.suffix.lower()
+    if ext == ".stl":
+        v, t = _read_stl(path)
+    elif ext == ".ply":
+        try:
+            ply = read_ply_full(path)
+        except ScanError as exc:
+            raise CADImportError(str(exc)) from None
+        if ply.faces is None or len(ply.faces) == 0:
+            raise EmptyModelError(f"{path}: PLY file has no faces (a point cloud, not a mesh)")
+        v, t = ply.vertices, ply.faces
+    elif ext == ".obj":
+        v, t = _read_obj(path)
+    else:
+        raise UnsupportedFormatError(f"{path}: unsupported mesh extension {path.suffix!r}; "
+                                     f"supported: {', '.join(MESH_EXTENSIONS)}")
+    if len(t) == 0:
+        raise EmptyModelError(f"{path}: mesh has no triangles")
+    if not np.isfinite(v).all():
+        bad = int((~np.isfinite(v).all(axis=1)).sum())
+        raise CADImportError(f"{path}: {bad} mesh vertices have NaN or infinite coordinates")
+    return np.ascontiguousarray(v, dtype=np.float64), np.ascontiguousarray(t, dtype=np.int32)
+
+
+# ---------------------------------------------------------------------------------------- STL
+_STL_REC = np.dtype([("n", "<f4", (3,)), ("v", "<f4", (3, 3)), ("attr", "<u2")])
+
+
+def _read_stl(path: Path):
+    data = path.read_bytes()
+    n_bin = int(np.frombuffer(data, "<u4", 1, 80)[0]) if len(data) >= 84 else -1
+    is_binary = n_bin >= 0 and len(data) == 84 + 50 * n_bin
+    if not is_binary and data.lstrip()[:5].lower() != b"solid":
+        if n_bin >= 0 and len(data) > 84 + 50 * n_bin:
+            is_binary = True  # trailing bytes after a valid binary body: tolerated
+        else:
+            raise CADImportError(f"{path}: not an STL file (neither 'solid ...' text nor a binary "
+                            f"STL of consistent size: header says {max(n_bin, 0)} triangles, "
+                            f"file has {len(data)} bytes)")
+    if is_binary:
+        rec = np.frombuffer(data, _STL_REC, n_bin, 84)
+        corners = rec["v"].reshape(-1, 3).astype(np.float64)
+    else:
+        tok = np.array(data.split())
+        idx = np.flatnonzero(tok == b"vertex")
+        if idx.size == 0:
+            raise CADImportError(f"{path}: ascii STL without any 'vertex' line")
+        if idx.size % 3:
+            raise CADImportError(f"{path}: ascii STL has {idx.size} vertices, not a multiple of 3")
+        if idx[-1] + 3 >= tok.size:
+            raise CADImportError(f"{path}: truncated ascii STL")
+        try:
+            corners = tok[(idx[:, None] + np.arange(1, 4))].astype(np.float64)
+        except ValueError:
+            raise CADImportError(f"{path}: malformed ascii STL: a 'vertex' line without three "
+                            "numbers") from None
+    return _merge_soup(corners)
+
+
+def _merge_soup(corners: np.ndarray):
+    """Triangle soup (3T, 3) -> shared vertices (exactly equal coordinates merged)."""
+    if len(corners) == 0:
+        return np.empty((0, 3)), np.empty((0, 3), np.int32)
+    verts, inv = np.unique(corners, axis=0, return_inverse=True)
+    return verts, inv.reshape(-1, 3).astype(np.int32)
+
+
+# ---------------------------------------------------------------------------------------- OBJ
+def _read_obj(path: Path):
+    verts: list[list[float]] = []
+    tris: list[tuple[int, int, int]] = []
+    with open(path, "r", encoding="utf-8", errors="replace") as fh:
+        for lineno, line in enumerate(fh, start=1):
+            if line.startswith("v "):
+                tok = line.split()
+                try:
+                    verts.append([float(tok[1]), float(tok[2]), float(tok[3])])
+                except (IndexError, ValueError):
+                    raise CADImportError(f"{path}:{lineno}: malformed vertex line "
+                                    f"{line.strip()[:80]!r} (need 'v x y z')") from None
+            elif line.startswith("f "):
+                tok = line.split()[1:]
+                if len(tok) < 3:
+                    raise CADImportError(f"{path}:{lineno}: face with fewer than 3 vertices")
+                nv = len(verts)
+                try:
+                    ids = [int(t.split("/", 1)[0]) for t in tok]
+                except ValueError:
+                    raise CADImportError(f"{path}:{lineno}: malformed face line "
+                                    f"{line.strip()[:80]!r}") from None
+                ids = [i - 1 if i > 0 else nv + i for i in ids]
+                if any(i < 0 or i >= nv or j == 0 for i, j in
+                       zip(ids, (int(t.split('/', 1)[0]) for t in tok))):
+                    raise CADImportError(f"{path}:{lineno}: face index out of range "
+                                    f"(1..{nv} or -1..-{nv}): {line.strip()[:80]!r}")
+                for k in range(1, len(ids) - 1):
+                    tris.append((ids[0], ids[k], ids[k + 1]))
+    if not verts:
+        raise CADImportError(f"{path}: OBJ file has no vertices ('v' lines)")
+    if not tris:
+        raise EmptyModelError(f"{path}: OBJ file has no faces ('f' lines)")
+    return np.array(verts, dtype=np.float64), np.array(tris, dtype=np.int32)
