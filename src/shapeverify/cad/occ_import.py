@@ -1,0 +1,672 @@
+"""STEP and IGES import through OpenCASCADE (OCP): every face becomes a trimmed NURBS :class:`Face`.
+
+This module holds all of the project's OpenCASCADE code for reading CAD files; everything
+downstream works on the numpy data of :class:`shapeverify.cad.model.Model`.
+
+What :func:`read_cad` does, per face (thesis §7.3):
+
+* **Surface.** A B-spline face is taken as it is; any other face (plane, cylinder, cone, sphere,
+  torus, surface of revolution or extrusion, offset surface, ...) is converted with
+  ``BRepBuilderAPI_NurbsConvert``, and its trimming curves come from the converted face so that they
+  live in the converted surface's parameters.  Periodic B-splines are made non-periodic (or cut to
+  the face's parameter range when the face straddles the period's seam).  The control points,
+  weights and full knot vectors (multiplicities expanded) become a :class:`NurbsSurface`.
+* **Trimming loops.** The face's wires, outer wire first (``BRepTools.OuterWire_s``), each a chain
+  of the edges' 2D curves on the surface (pcurves) in wire order.  Every pcurve is sampled
+  adaptively: an interval is split while the 3D deviation at its parameter midpoint -- between the
+  edge and the straight 3D chord, and between the edge and the image of the straight (u, v) chord
+  -- exceeds ``chord_tol`` (default 0.002 mm).  Degenerated edges (the 2D image of a pole) are kept.
+* **Orientation.** ``reversed`` is True for faces whose orientation is ``TopAbs_REVERSED``.
+* **Free edges.** A segment is free when its edge belongs to this face only (``TopExp`` edge -> face
+  map; seam and degenerated edges are never free) *and* no other edge, of any face, passes within
+  the gap tolerance of the segment's midpoint (``max(gap_tol, 1e-5 * model size, 2 * the edge's
+  tolerance)``).  The second test matters for IGES files, whose faces are usually not sewn: every
+  edge of an unsewn model belongs to one face only, and a seam is two separate edges, although
+  nearly all of them touch another edge.
+
+Units: OpenCASCADE's readers convert the file's coordinates to the session length unit, which this
+module pins to millimetres; the model records the unit the file declared and its size in mm
+(``scale_to_mm``).  The geometry held in the model is therefore always in mm.
+
+References
+----------
+Bergström (2011), thesis §7.3; Piegl & Tiller, The NURBS Book, 2nd ed., ch. 2-4 (knot vectors);
+OpenCASCADE Technology 7.x/8.x reference manual (STEPControl, IGESControl, BRep_Tool, TopExp).
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import CADImportError, EmptyModelError, UnsupportedFormatError
+from .model import Face, Model
+from .nurbs import NurbsCurve, NurbsSurface
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["read_cad", "CAD_SUFFIXES"]
+
+#: file suffix -> format read by :func:`read_cad`
+CAD_SUFFIXES = {".step": "step", ".stp": "step", ".igs": "iges", ".iges": "iges"}
+
+# STEP length-unit names as OpenCASCADE reports them (SI prefix + metre, or a conversion-based
+# unit's name) -> millimetres per unit
+_SI_PREFIX_MM = {"": 1e3, "exa": 1e21, "peta": 1e18, "tera": 1e15, "giga": 1e12, "mega": 1e9,
+                 "kilo": 1e6, "hecto": 1e5, "deca": 1e4, "deka": 1e4, "deci": 1e2, "centi": 10.0,
+                 "milli": 1.0, "micro": 1e-3, "nano": 1e-6, "pico": 1e-9}
+_NAMED_MM = {"inch": 25.4, "in": 25.4, "foot": 304.8, "ft": 304.8, "mile": 1609344.0,
+             "yard": 914.4, "mil": 0.0254, "micron": 1e-3, "microinch": 2.54e-5,
+             "mm": 1.0, "cm": 10.0, "m": 1e3, "km": 1e6}
+_PLURAL = {"inches": "inch", "feet": "foot", "miles": "mile", "yards": "yard", "mils": "mil",
+           "microns": "micron"}
+
+# boundaries of two faces closer than this fraction of the model size count as touching
+_GAP_REL = 1e-5
+
+_OCP_READY = False
+
+
+def _init_ocp() -> None:
+    """Silence OpenCASCADE's console output and pin its session length unit to mm (once)."""
+    global _OCP_READY
+    if _OCP_READY:
+        return
+    from OCP.Interface import Interface_Static
+    from OCP.Message import Message, Message_PrinterOStream
+
+    Message.DefaultMessenger_s().RemovePrinters(Message_PrinterOStream.get_type_descriptor_s())
+    Interface_Static.SetCVal_s("xstep.cascade.unit", "MM")
+    _OCP_READY = True
+
+
+# ------------------------------------------------------------------------------------ reading
+def _check_path(path) -> tuple[Path, str]:
+    p = Path(path)
+    fmt = CAD_SUFFIXES.get(p.suffix.lower())
+    if fmt is None:
+        raise UnsupportedFormatError(
+            f"{p}: unsupported CAD file extension {p.suffix!r}; read_cad reads "
+            f"{', '.join(sorted(CAD_SUFFIXES))}")
+    if not p.exists():
+        raise FileNotFoundError(2, "CAD file not found", str(p))
+    if not p.is_file():
+        raise CADImportError(f"{p}: not a regular file")
+    if p.stat().st_size == 0:
+        raise CADImportError(f"{p}: the file is empty (0 bytes)")
+    if fmt == "iges":
+        _check_iges_terminated(p)
+    return p, fmt
+
+
+def _check_iges_terminated(p: Path) -> None:
+    """An IGES file ends with its Terminate line ('T' in column 73); OpenCASCADE silently reads
+    what it can of a truncated file, so check that the end is there."""
+    with open(p, "rb") as fh:
+        fh.seek(max(0, p.stat().st_size - 400))
+        tail = fh.read().decode("latin-1").rstrip("\r\n\x00 \t\x1a")
+    last = tail.splitlines()[-1] if tail else ""
+    if len(last) < 73 or last[72] != "T":
+        raise CADImportError(f"{p}: not a readable IGES file (it does not end with the "
+                             "Terminate section); is it truncated or corrupt?")
+
+
+def _step_unit(reader) -> tuple[str, float]:
+    from OCP.collections import Sequence_TCollection_AsciiString as Seq
+
+    lengths, angles, solids = Seq(), Seq(), Seq()
+    reader.FileUnits(lengths, angles, solids)
+    names = sorted({lengths.Value(i).ToCString() for i in range(1, lengths.Length() + 1)})
+    if not names:
+        logger.warning("STEP file declares no length unit; assuming mm")
+        return "mm", 1.0
+    if len(names) > 1:
+        logger.warning("STEP file declares several length units %s; reporting the first "
+                       "(OpenCASCADE converts each representation to mm)", names)
+    name = names[0]
+    key = name.lower().replace("meter", "metre")
+    key = _PLURAL.get(key, key)
+    if key.endswith("metre") and key[:-5] in _SI_PREFIX_MM:
+        scale = _SI_PREFIX_MM[key[:-5]]
+    else:
+        scale = _NAMED_MM.get(key, float("nan"))
+    if not np.isfinite(scale):
+        logger.warning("STEP length unit %r not recognised; OpenCASCADE converted the geometry "
+                       "to mm but its factor is unknown (scale_to_mm = nan)", name)
+    return name, scale
+
+
+def _iges_unit(reader) -> tuple[str, float]:
+    from OCP.UnitsMethods import UnitsMethods
+
+    g = reader.IGESModel().GlobalSection()
+    flag = g.UnitFlag()
+    name = g.UnitName().ToCString() if g.UnitName() is not None else ""
+    if flag == 3:  # unit named in the global section; OpenCASCADE computed its value
+        scale = float(g.UnitValue()) * float(g.CascadeUnit())
+    else:
+        scale = float(UnitsMethods.GetLengthFactorValue_s(flag))
+    return (name or f"IGES unit flag {flag}"), scale
+
+
+def _read_shape(path: Path, fmt: str):
+    """Read a STEP/IGES file; return (shape, unit name, mm per unit)."""
+    from OCP.IFSelect import IFSelect_RetDone
+    from OCP.IGESControl import IGESControl_Reader
+    from OCP.STEPControl import STEPControl_Reader
+
+    reader = STEPControl_Reader() if fmt == "step" else IGESControl_Reader()
+    try:
+        status = reader.ReadFile(os.fspath(path))
+    except Exception as exc:  # OCP raises Standard_Failure subclasses on some broken files
+        raise CADImportError(f"{path}: not a readable {fmt.upper()} file ({exc})") from exc
+    if status != IFSelect_RetDone:
+        raise CADImportError(
+            f"{path}: not a readable {fmt.upper()} file (OpenCASCADE reader status "
+            f"{status.name.replace('IFSelect_Ret', '')}); is the file corrupt or truncated?")
+    n_roots = reader.NbRootsForTransfer()
+    if n_roots == 0:
+        raise EmptyModelError(f"{path}: the {fmt.upper()} file holds no shapes")
+    unit, scale = _step_unit(reader) if fmt == "step" else _iges_unit(reader)
+    try:
+        reader.TransferRoots()
+        shape = reader.OneShape()
+    except Exception as exc:
+        raise CADImportError(f"{path}: OpenCASCADE could not convert the {fmt.upper()} "
+                             f"entities to shapes ({exc})") from exc
+    if shape is None or shape.IsNull():
+        raise CADImportError(f"{path}: none of the {n_roots} root entities of the "
+                             f"{fmt.upper()} file could be converted to a shape; "
+                             "is the file truncated or corrupt?")
+    return shape, unit, scale
+
+
+# ----------------------------------------------------------------------------------- surfaces
+def _array1(a) -> np.ndarray:
+    return np.array([a.Value(i) for i in range(a.Lower(), a.Upper() + 1)], dtype=np.float64)
+
+
+def _to_bspline_face(face, index: int, path: Path):
+    """(face whose surface is a Geom_BSplineSurface, that surface, converted?)."""
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_NurbsConvert
+    from OCP.Geom import Geom_BSplineSurface
+    from OCP.TopoDS import TopoDS
+
+    surf = BRep_Tool.Surface_s(face)
+    if isinstance(surf, Geom_BSplineSurface):
+        return face, surf, None
+    conv = BRepBuilderAPI_NurbsConvert(face, True)
+    work = TopoDS.Face(conv.Shape())
+    surf = BRep_Tool.Surface_s(work)
+    if not isinstance(surf, Geom_BSplineSurface):
+        raise CADImportError(f"{path}: face {index} ({type(surf).__name__}) could not be "
+                             "converted to a B-spline surface")
+    return work, surf, conv
+
+
+def _nurbs_surface(surf, face) -> NurbsSurface:
+    """Geom_BSplineSurface -> NurbsSurface (non-periodic, full knot vectors)."""
+    from OCP.BRepTools import BRepTools
+
+    if surf.IsUPeriodic() or surf.IsVPeriodic():
+        surf = surf.Copy()
+        u0, u1, v0, v1 = surf.Bounds()
+        a0, a1, b0, b1 = BRepTools.UVBounds_s(face)
+        tol_u, tol_v = 1e-9 * max(1.0, u1 - u0), 1e-9 * max(1.0, v1 - v0)
+        inside_u = a0 >= u0 - tol_u and a1 <= u1 + tol_u
+        inside_v = b0 >= v0 - tol_v and b1 <= v1 + tol_v
+        if (surf.IsUPeriodic() and not inside_u) or (surf.IsVPeriodic() and not inside_v):
+            # the face straddles the seam of the period: cut the surface to the face's range
+            su = (a0, a1) if surf.IsUPeriodic() and not inside_u else (u0, u1)
+            sv = (b0, b1) if surf.IsVPeriodic() and not inside_v else (v0, v1)
+            surf.Segment(su[0], su[1], sv[0], sv[1])
+        if surf.IsUPeriodic():
+            surf.SetUNotPeriodic()
+        if surf.IsVPeriodic():
+            surf.SetVNotPeriodic()
+    nu, nv = surf.NbUPoles(), surf.NbVPoles()
+    poles = surf.Poles()
+    ctrl = np.array([[poles.Value(i, j).Coord() for j in range(1, nv + 1)]
+                     for i in range(1, nu + 1)], dtype=np.float64)
+    weights = None
+    if surf.IsURational() or surf.IsVRational():
+        weights = np.array([[surf.Weight(i, j) for j in range(1, nv + 1)]
+                            for i in range(1, nu + 1)], dtype=np.float64)
+    return NurbsSurface(surf.UDegree(), surf.VDegree(), _array1(surf.UKnotSequence()),
+                        _array1(surf.VKnotSequence()), ctrl, weights)
+
+
+# ---------------------------------------------------------------------------------- pcurves
+class _PCurve:
+    """Vectorized evaluation of an edge's 2D curve on a face over its parameter range."""
+
+    def __init__(self, c2d, t0: float, t1: float, degenerated: bool, shift=None):
+        from OCP.Geom2d import Geom2d_BSplineCurve, Geom2d_Line, Geom2d_TrimmedCurve
+
+        self.t0, self.t1 = t0, t1
+        self.shift = shift  # (2,) added to every (u, v), or None
+        self.degenerated = degenerated
+        self.curve = None  # NurbsCurve, when the pcurve is a B-spline
+        self.line = None   # (origin, direction), when the pcurve is a line
+        base = c2d
+        while isinstance(base, Geom2d_TrimmedCurve):
+            base = base.BasisCurve()
+        self.n_init = 16
+        if isinstance(base, Geom2d_Line):
+            lin = base.Lin2d()
+            self.line = (np.array(lin.Location().Coord()), np.array(lin.Direction().Coord()))
+            self.n_init = 4
+        elif isinstance(base, Geom2d_BSplineCurve) and not base.IsPeriodic():
+            n = base.NbPoles()
+            ctrl = np.array([base.Pole(i).Coord() for i in range(1, n + 1)], dtype=np.float64)
+            w = (np.array([base.Weight(i) for i in range(1, n + 1)], dtype=np.float64)
+                 if base.IsRational() else None)
+            self.curve = NurbsCurve(base.Degree(), _array1(base.KnotSequence()), ctrl, w)
+            knots = np.unique(self.curve.knots)
+            lo, hi = min(t0, t1), max(t0, t1)
+            spans = int(np.count_nonzero((knots > lo) & (knots < hi))) + 1
+            self.n_init = int(np.clip(2 * spans, 8, 256))
+        else:
+            self._c2d = c2d
+
+    def __call__(self, t: np.ndarray) -> np.ndarray:
+        if self.line is not None:
+            o, d = self.line
+            uv = o + t[:, None] * d
+        elif self.curve is not None:
+            a, b = self.curve.domain
+            uv = self.curve.evaluate(np.clip(t, a, b))
+        else:
+            c = self._c2d
+            uv = np.array([c.Value(float(x)).Coord() for x in t], dtype=np.float64).reshape(-1, 2)
+        return uv if self.shift is None else uv + self.shift
+
+
+def _seam_shift(face, wire, surface: NurbsSurface):
+    """(2,) shift that moves an outer wire spanning a whole period back onto the surface domain.
+
+    ``BRepBuilderAPI_NurbsConvert`` of a periodic face whose seam is not at the start of its
+    surface's period (e.g. a full cylinder with u in [pi/2, 5 pi/2]) returns a non-periodic
+    B-spline on [pi/2, 5 pi/2] but leaves the outer wire's pcurves offset by a few hundredths
+    of the period; a closed direction whose outer wire spans exactly the domain's width, but
+    offset, is shifted back.  Returns None when nothing needs to move.
+    """
+    from OCP.BRepTools import BRepTools
+
+    a0, a1, b0, b1 = BRepTools.UVBounds_s(face, wire)
+    dom = surface.domain
+    shift = np.zeros(2)
+    for axis, (lo, hi), (a, b) in ((0, dom[0], (a0, a1)), (1, dom[1], (b0, b1))):
+        width = hi - lo
+        if (abs((b - a) - width) <= 1e-6 * width and 1e-9 * width < abs(a - lo) < 0.25 * width
+                and _closed(surface, axis)):
+            shift[axis] = lo - a
+    if not shift.any():
+        return None
+    logger.debug("outer wire offset from its closed surface's domain by %s; shifted back", -shift)
+    return shift
+
+
+def _closed(surface: NurbsSurface, axis: int) -> bool:
+    """Whether the surface's two domain edges across ``axis`` coincide in 3D."""
+    (u0, u1), (v0, v1) = surface.domain
+    t = np.linspace(0.0, 1.0, 7)
+    if axis == 0:
+        a = surface.evaluate(np.full(7, u0), v0 + t * (v1 - v0))
+        b = surface.evaluate(np.full(7, u1), v0 + t * (v1 - v0))
+    else:
+        a = surface.evaluate(u0 + t * (u1 - u0), np.full(7, v0))
+        b = surface.evaluate(u0 + t * (u1 - u0), np.full(7, v1))
+    size = float(np.ptp(surface.control.reshape(-1, 3), axis=0).max())
+    return bool(np.abs(a - b).max() <= 1e-7 * max(size, 1e-300))
+
+
+def _sample_edges(pcurves: list[_PCurve], surface: NurbsSurface, tol: float,
+                  max_rounds: int = 30):
+    """Adaptively sample the pcurves of one face; returns per edge (params, uv (n,2), xyz (n,3))."""
+    (su0, su1), (sv0, sv1) = surface.domain
+
+    def surf(uv):
+        return surface.evaluate(np.clip(uv[:, 0], su0, su1), np.clip(uv[:, 1], sv0, sv1))
+
+    ts, uvs = [], []
+    for pc in pcurves:
+        n = 1 if (pc.line is not None and pc.degenerated) else pc.n_init
+        t = np.linspace(pc.t0, pc.t1, n + 1)
+        ts.append(t)
+        uvs.append(pc(t))
+    counts = [t.shape[0] for t in ts]
+    xyzs = np.split(surf(np.concatenate(uvs)), np.cumsum(counts)[:-1])
+    active = [i for i, pc in enumerate(pcurves) if not pc.degenerated]
+    for _ in range(max_rounds):
+        if not active:
+            break
+        tm = [0.5 * (ts[i][:-1] + ts[i][1:]) for i in active]
+        uvm = [pcurves[i](t) for i, t in zip(active, tm)]
+        uvc = [0.5 * (uvs[i][:-1] + uvs[i][1:]) for i in active]
+        m = [t.shape[0] for t in tm]
+        both = surf(np.concatenate(uvm + uvc))
+        k = sum(m)
+        xm = np.split(both[:k], np.cumsum(m)[:-1])
+        xc = np.split(both[k:], np.cumsum(m)[:-1])
+        still = []
+        for j, i in enumerate(active):
+            x = xyzs[i]
+            dev = np.maximum(np.linalg.norm(xm[j] - 0.5 * (x[:-1] + x[1:]), axis=1),
+                             np.linalg.norm(xm[j] - xc[j], axis=1))
+            bad = np.flatnonzero(dev > tol)
+            if bad.size == 0:
+                continue
+            ts[i] = np.insert(ts[i], bad + 1, tm[j][bad])
+            uvs[i] = np.insert(uvs[i], bad + 1, uvm[j][bad], axis=0)
+            xyzs[i] = np.insert(x, bad + 1, xm[j][bad], axis=0)
+            still.append(i)
+        active = still
+    else:
+        if active:
+            logger.warning("pcurve sampling stopped after %d refinement rounds with %d edges "
+                           "still above the chordal tolerance %g mm", max_rounds, len(active), tol)
+    return ts, uvs, xyzs
+
+
+# ------------------------------------------------------------------------------------ faces
+def _edge_face_map(shape):
+    from OCP.collections import (
+        IndexedDataMap_TopoDS_Shape_List_TopoDS_Shape_TopTools_ShapeMapHasher as EdgeFaces)
+    from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE
+    from OCP.TopExp import TopExp
+
+    m = EdgeFaces()
+    TopExp.MapShapesAndUniqueAncestors_s(shape, TopAbs_EDGE, TopAbs_FACE, m)
+    return m
+
+
+def _wire_edges(wire, face):
+    """Edges of a wire in connection order (falls back to storage order)."""
+    from OCP.BRepTools import BRepTools_WireExplorer
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    ordered = []
+    wexp = BRepTools_WireExplorer(wire, face)
+    while wexp.More():
+        ordered.append(wexp.Current())
+        wexp.Next()
+    stored = []
+    exp = TopExp_Explorer(wire, TopAbs_EDGE)
+    while exp.More():
+        stored.append(TopoDS.Edge(exp.Current()))
+        exp.Next()
+    if len(ordered) == len(stored):
+        return ordered
+    logger.debug("wire explorer visited %d of %d edges; using storage order",
+                 len(ordered), len(stored))
+    return stored
+
+
+def _face_loops(work_face, orig_face, conv, surface: NurbsSurface, edge_faces, tol: float,
+                index: int, path: Path):
+    """Trimming loops of a face: per loop uv (k, 2), xyz (k, 3), topologically free flags (k,),
+    the tolerances (k,) of the segments' edges and the segments' edge numbers (k,) within the
+    face."""
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepTools import BRepTools
+    from OCP.ShapeFix import ShapeFix_Edge
+    from OCP.TopAbs import TopAbs_EDGE, TopAbs_REVERSED, TopAbs_WIRE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    # edges of the converted face -> edges of the original shape (for the edge -> face map)
+    originals = None
+    if conv is not None:
+        originals = []
+        exp = TopExp_Explorer(orig_face, TopAbs_EDGE)
+        while exp.More():
+            e = exp.Current()
+            originals.append((conv.ModifiedShape(e), e))
+            exp.Next()
+
+    def is_free(edge) -> bool:
+        if BRep_Tool.Degenerated_s(edge) or BRep_Tool.IsClosed_s(edge, work_face):
+            return False
+        key = edge
+        if originals is not None:
+            key = next((o for n, o in originals if n.IsSame(edge)), None)
+            if key is None:
+                return False
+        idx = edge_faces.FindIndex(key)
+        return idx > 0 and edge_faces.FindFromIndex(idx).Size() == 1
+
+    outer = BRepTools.OuterWire_s(work_face)
+    wires = [] if outer.IsNull() else [outer]
+    exp = TopExp_Explorer(work_face, TopAbs_WIRE)
+    while exp.More():
+        w = TopoDS.Wire(exp.Current())
+        if not (wires and w.IsSame(wires[0])):
+            wires.append(w)
+        exp.Next()
+    if not wires:
+        raise CADImportError(f"{path}: face {index} has no boundary wire")
+
+    loops_uv, loops_xyz, loops_free, loops_tol, loops_edge = [], [], [], [], []
+    n_edges = 0
+    fixer = None
+    for w_index, wire in enumerate(wires):
+        shift = (_seam_shift(work_face, wire, surface)
+                 if w_index == 0 and conv is not None else None)
+        pcurves, free, etol = [], [], []
+        for edge in _wire_edges(wire, work_face):
+            c2d = BRep_Tool.CurveOnSurface_s(edge, work_face, 0.0, 0.0)
+            if c2d is None:
+                if fixer is None:
+                    fixer = ShapeFix_Edge()
+                fixer.FixAddPCurve(edge, work_face, False)
+                c2d = BRep_Tool.CurveOnSurface_s(edge, work_face, 0.0, 0.0)
+            if c2d is None:
+                raise CADImportError(f"{path}: an edge of face {index} has no curve on the "
+                                     "face's surface (pcurve) and none could be computed")
+            f, l = BRep_Tool.Range_s(edge, work_face)
+            if edge.Orientation() == TopAbs_REVERSED:
+                f, l = l, f
+            pcurves.append(_PCurve(c2d, f, l, BRep_Tool.Degenerated_s(edge), shift))
+            free.append(is_free(edge))
+            etol.append(BRep_Tool.Tolerance_s(edge))
+        if not pcurves:
+            continue
+        _, uvs, xyzs = _sample_edges(pcurves, surface, tol)
+        # drop each edge's last vertex: it (nearly) coincides with the next edge's first one,
+        # and the loop is closed implicitly; vertex j starts segment j, owned by its edge
+        uv = np.concatenate([a[:-1] for a in uvs])
+        xyz = np.concatenate([a[:-1] for a in xyzs])
+        fr = np.concatenate([np.full(a.shape[0] - 1, fl) for a, fl in zip(uvs, free)])
+        tl = np.concatenate([np.full(a.shape[0] - 1, t) for a, t in zip(uvs, etol)])
+        ed = np.concatenate([np.full(a.shape[0] - 1, n_edges + j) for j, a in enumerate(uvs)])
+        n_edges += len(uvs)
+        if uv.shape[0] < 2:
+            continue
+        loops_uv.append(uv)
+        loops_xyz.append(xyz)
+        loops_free.append(fr)
+        loops_tol.append(tl)
+        loops_edge.append(ed)
+    if not loops_uv:
+        raise CADImportError(f"{path}: face {index} has no usable trimming loop")
+    return loops_uv, loops_xyz, loops_free, loops_tol, loops_edge
+
+
+def _gap_to_other_edges(seg_a, seg_b, seg_edge, query, radius: np.ndarray, piece: float,
+                        k: int = 16, chunk: int = 50_000) -> np.ndarray:
+    """Distance from the midpoints of segments ``query`` to the nearest segment of another edge.
+
+    seg_a, seg_b : (S, 3) segment end points (all faces' trimming loops in 3D)
+    seg_edge : (S,) int, a global edge id per segment (seam copies of one edge have distinct ids)
+    query : (Q,) int, segments to test;  radius : (Q,) search radius (larger gaps give inf)
+    piece : float, segments are cut into pieces no longer than this for the search; the k nearest
+        pieces within ``radius + piece / 2`` of a midpoint are examined exactly.
+    """
+    from scipy.spatial import cKDTree
+
+    n = np.maximum(1, np.ceil(np.linalg.norm(seg_b - seg_a, axis=1) / piece).astype(np.int64))
+    seg = np.repeat(np.arange(seg_a.shape[0]), n)
+    nn = np.repeat(n, n)
+    j = np.arange(seg.shape[0]) - np.repeat(np.cumsum(n) - n, n)
+    d = (seg_b - seg_a)[seg]
+    pa = seg_a[seg] + (j / nn)[:, None] * d
+    pb = seg_a[seg] + ((j + 1) / nn)[:, None] * d
+    owner = seg_edge[seg]
+    tree = cKDTree(0.5 * (pa + pb))
+    k = min(k, pa.shape[0])
+    out = np.full(query.shape[0], np.inf)
+    for c0 in range(0, query.shape[0], chunk):
+        qi = query[c0:c0 + chunk]
+        mid = 0.5 * (seg_a[qi] + seg_b[qi])
+        # one query per distinct radius would be exact; the largest radius is a superset
+        _, cand = tree.query(mid, k=k, distance_upper_bound=float(radius[c0:c0 + chunk].max())
+                             + 0.5 * piece)
+        cand = cand.reshape(qi.shape[0], k)
+        found = cand < pa.shape[0]
+        cand = np.where(found, cand, 0)
+        ok = found & (owner[cand] != seg_edge[qi][:, None])
+        rows, cols = np.nonzero(ok)
+        c = cand[rows, cols]
+        q = mid[rows]
+        ab = pb[c] - pa[c]
+        t = np.clip(np.einsum("ij,ij->i", q - pa[c], ab)
+                    / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0.0, 1.0)
+        dist = np.linalg.norm(pa[c] + t[:, None] * ab - q, axis=1)
+        best = np.full(qi.shape[0], np.inf)
+        np.minimum.at(best, rows, dist)
+        out[c0:c0 + chunk] = best
+    return out
+
+
+def _clear_touching(all_xyz, all_free, all_edge, all_tol, gap_tol: float) -> None:
+    """Clear the free flag of segments that another edge (of any face) passes within the gap
+    tolerance of: max(gap_tol, 1e-5 * model size, 2 * the edge's own tolerance)."""
+    loops = [lp for lps in all_xyz for lp in lps]
+    seg_a = np.concatenate(loops)
+    seg_b = np.concatenate([np.roll(lp, -1, axis=0) for lp in loops])
+    free = np.concatenate([f for fr in all_free for f in fr])
+    edge = np.concatenate([e for es in all_edge for e in es])
+    tol = np.concatenate([t for ts in all_tol for t in ts])
+    query = np.flatnonzero(free)
+    if query.size == 0:
+        return
+    size = float(np.linalg.norm(seg_a.max(axis=0) - seg_a.min(axis=0)))
+    limit = np.maximum(max(gap_tol, _GAP_REL * size), 2.0 * tol[query])
+    length = np.linalg.norm(seg_b - seg_a, axis=1)
+    piece = max(2.0 * float(np.median(length)), 1e-6 * size, 1e-9)
+    gap = _gap_to_other_edges(seg_a, seg_b, edge, query, limit, piece)
+    free[query[gap <= limit]] = False
+    pos = 0
+    for fr in all_free:
+        for f in fr:
+            f[:] = free[pos:pos + f.shape[0]]
+            pos += f.shape[0]
+
+
+def read_cad(path, *, chord_tol: float = 0.002, gap_tol: float = 0.02) -> Model:
+    """Read a STEP (.step/.stp) or IGES (.igs/.iges) file into a trimmed-NURBS :class:`Model`.
+
+    Parameters
+    ----------
+    path : str or Path
+    chord_tol : float, optional
+        Largest 3D deviation (mm) allowed between a face's true boundary and its sampled trimming
+        polyline (default 0.002 mm).
+    gap_tol : float, optional
+        Edges that pass within ``gap_tol`` mm of another edge (or within 1e-5 of the model size, or
+        twice the edge's own tolerance, whichever is largest) are taken to be shared even if the
+        file does not say so (unsewn IGES faces); default 0.02 mm.  0 trusts the file's topology.
+
+    Returns
+    -------
+    Model
+        ``kind="cad"``, one :class:`Face` per face of the file (``TopExp_Explorer`` order), in mm;
+        ``unit`` and ``scale_to_mm`` give the length unit the file declared.
+
+    Raises
+    ------
+    FileNotFoundError
+        If ``path`` does not exist.
+    UnsupportedFormatError
+        If the extension is not .step/.stp/.igs/.iges.
+    CADImportError
+        If the file is empty, corrupt, truncated, or its geometry cannot be converted.
+    EmptyModelError
+        If the file holds no shapes, or shapes without faces (only wires or points).
+
+    Examples
+    --------
+    >>> import tempfile, pathlib
+    >>> from shapeverify.cad.examples import example_part_step
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     model = read_cad(example_part_step(pathlib.Path(d) / "panel.step"))
+    >>> len(model.faces), model.unit, model.scale_to_mm
+    (1, 'millimetre', 1.0)
+    """
+    if not (chord_tol > 0 and np.isfinite(chord_tol)):
+        raise ValueError(f"chord_tol must be a positive number of mm, got {chord_tol!r}")
+    if not (gap_tol >= 0 and np.isfinite(gap_tol)):
+        raise ValueError(f"gap_tol must be a non-negative number of mm, got {gap_tol!r}")
+    path, fmt = _check_path(path)
+    t_start = time.perf_counter()
+    _init_ocp()
+    from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    shape, unit, scale = _read_shape(path, fmt)
+    t_read = time.perf_counter()
+    faces = []
+    exp = TopExp_Explorer(shape, TopAbs_FACE)
+    while exp.More():
+        faces.append(TopoDS.Face(exp.Current()))
+        exp.Next()
+    if not faces:
+        raise EmptyModelError(f"{path}: the {fmt.upper()} file holds no faces (only "
+                              f"{shape.ShapeType().name.replace('TopAbs_', '').lower()} "
+                              "geometry without surfaces)")
+    edge_faces = _edge_face_map(shape)
+
+    surfaces, rev, all_uv, all_xyz, all_free, all_tol, all_edge = [], [], [], [], [], [], []
+    edge_base = 0
+    n_converted = 0
+    for i, face in enumerate(faces):
+        work, gsurf, conv = _to_bspline_face(face, i, path)
+        n_converted += conv is not None
+        try:
+            surface = _nurbs_surface(gsurf, work)
+        except ValueError as exc:
+            raise CADImportError(f"{path}: face {i} has an invalid B-spline surface: {exc}") from exc
+        uv, xyz, fr, tl, ed = _face_loops(work, face, conv, surface, edge_faces, chord_tol, i,
+                                          path)
+        all_edge.append([e + edge_base for e in ed])
+        edge_base += 1 + max(int(e.max()) for e in ed)
+        surfaces.append(surface)
+        rev.append(face.Orientation() == TopAbs_REVERSED)
+        all_uv.append(uv)
+        all_xyz.append(xyz)
+        all_free.append(fr)
+        all_tol.append(tl)
+    t_faces = time.perf_counter()
+
+    if gap_tol > 0:
+        _clear_touching(all_xyz, all_free, all_edge, all_tol, gap_tol)
+    model = Model(faces=tuple(Face(s, tuple(uv), tuple(fr), r)
+                              for s, uv, fr, r in zip(surfaces, all_uv, all_free, rev)),
+                  unit=unit, scale_to_mm=scale, source=str(path), kind="cad")
+    t_end = time.perf_counter()
+    n_seg = sum(lp.shape[0] for uv in all_uv for lp in uv)
+    n_free = sum(int(f.sum()) for fr in all_free for f in fr)
+    logger.info("%s: %d faces (%d converted to NURBS), unit %s (%g mm), %d trim segments "
+                "(%d on free edges); read %.2f s, faces %.2f s, total %.2f s",
+                path.name, len(faces), n_converted, unit, scale, n_seg, n_free,
+                t_read - t_start, t_faces - t_read, t_end - t_start)
+    return model
