@@ -51,8 +51,8 @@ def tessellate_face(face, max_edge: float, max_per_side: int = 400):
     """Tessellate one trimmed face on a parameter grid, keeping triangles inside the trims.
 
     A triangle is kept when any of its three vertices or its centroid is inside the trimmed
-    domain, so the tessellation covers the face up to its trimming curves (it may overhang them by
-    one cell; exact computations check the trims again).
+    domain, or a trimming loop passes through its grid cell, so the tessellation covers the whole
+    face (it overhangs the trims by up to one cell; exact computations check the trims again).
 
     Returns
     -------
@@ -69,6 +69,20 @@ def tessellate_face(face, max_edge: float, max_per_side: int = 400):
     inside_v = face.contains(uv)
     centroids = uv[tris].mean(axis=1)
     keep = inside_v[tris].any(axis=1) | face.contains(centroids)
+    # cells that a trimming loop passes through: a sliver of the face may lie in a cell whose
+    # corners and centroids are all outside (a thin strip along a shared edge)
+    cell = np.zeros((nu - 1, nv - 1), dtype=bool)
+    for loop in face.loops:
+        closed = np.vstack([loop, loop[:1]])
+        seg = np.diff(closed, axis=0)
+        cu, cv = (us[-1] - us[0]) / (nu - 1), (vs[-1] - vs[0]) / (nv - 1)
+        steps = np.maximum(1, np.ceil(np.max(np.abs(seg) / [cu, cv], axis=1) * 2)).astype(int)
+        pts = np.concatenate([closed[k] + seg[k] * np.linspace(0, 1, steps[k], endpoint=False)[:, None]
+                              for k in range(len(seg))])
+        iu = np.clip(np.searchsorted(us, pts[:, 0], side="right") - 1, 0, nu - 2)
+        iv = np.clip(np.searchsorted(vs, pts[:, 1], side="right") - 1, 0, nv - 2)
+        cell[iu, iv] = True
+    keep |= np.concatenate([cell.ravel(), cell.ravel()])
     tris = tris[keep]
     used = np.unique(tris)
     remap = np.full(len(uv), -1, dtype=np.int64)

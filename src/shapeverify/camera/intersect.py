@@ -16,7 +16,7 @@ import numpy as np
 from shapeverify.camera import _kernels
 
 NEWTON_TOL = 1e-10  # mm: residual |S(u, v) - (o + t d)| at convergence
-MAX_RETRIES = 6
+BARY_TOL = 0.05  # seed triangles are widened by 5 % so that rays through a chordal gap still get a seed
 
 
 @dataclass(frozen=True, eq=False)
@@ -31,6 +31,7 @@ class RayHits:
     face : (N,) int64, -1 where no hit
     uv : (N, 2) float64, NaN where no hit
     normals : (N, 3) float64, outward unit normals, NaN where no hit
+    derivatives : (N, 6) float64, Su and Sv at the hit (used by the small-motion update)
     """
 
     hit: np.ndarray
@@ -39,6 +40,7 @@ class RayHits:
     face: np.ndarray
     uv: np.ndarray
     normals: np.ndarray
+    derivatives: np.ndarray
 
     def __repr__(self) -> str:
         return f"RayHits(rays={len(self.hit):,}, hits={int(self.hit.sum()):,})"
@@ -56,10 +58,13 @@ class RayScene:
         if len(model.faces) == 0:
             raise ValueError("the model has no faces to intersect")
         self.model = model
-        self.tess = tessellate_model(model, max_edge=max_edge)
+        self.max_edge = model.size / 200.0 if max_edge is None else float(max_edge)
+        self.tess = tessellate_model(model, max_edge=self.max_edge)
+        self.trims = pack_trims(model.faces)
         self.packed = pack_surfaces([f.surface for f in model.faces])
         self.pk = self.packed.kernel_args
         self.domains = np.ascontiguousarray(self.packed.domains)
+        self.reversed = np.array([f.reversed for f in model.faces], dtype=bool)
         self.pmax = int(self.packed.degrees[:, 0].max())
         self.qmax = int(self.packed.degrees[:, 1].max())
         v, t = self.tess.vertices, self.tess.triangles
@@ -70,63 +75,60 @@ class RayScene:
         return f"RayScene(faces={len(self.model.faces)}, {self.tess!r})"
 
     # ------------------------------------------------------------------ exact pieces
-    def _finish(self, origins, directions, face, uv, t) -> RayHits:
-        from shapeverify.cad.nurbs import evaluate_packed
-
+    def _finish(self, face, uv, t, pn) -> RayHits:
+        """Assemble RayHits from kernel outputs; pn (N, 12) holds point, unit Su x Sv, Su, Sv."""
         hit = face >= 0
-        n = len(face)
-        points = np.full((n, 3), np.nan)
-        normals = np.full((n, 3), np.nan)
-        if hit.any():
-            d = evaluate_packed(self.packed, face[hit], uv[hit], order=1)
-            points[hit] = d[:, 0, 0]
-            nrm = np.cross(d[:, 1, 0], d[:, 0, 1])
-            nrm /= np.linalg.norm(nrm, axis=1, keepdims=True)
-            flip = np.array([self.model.faces[f].reversed for f in face[hit]])
-            nrm[flip] *= -1
-            normals[hit] = nrm
+        points = np.where(hit[:, None], pn[:, :3], np.nan)
+        sign = np.where(self.reversed[np.maximum(face, 0)], -1.0, 1.0)
+        normals = np.where(hit[:, None], pn[:, 3:6] * sign[:, None], np.nan)
         uv = np.where(hit[:, None], uv, np.nan)
-        return RayHits(hit, points, np.where(hit, t, np.inf), np.where(hit, face, -1), uv, normals)
-
-    def _check_trims(self, face, uv) -> np.ndarray:
-        """Boolean mask: the (face, uv) lies inside its face's trimmed domain."""
-        ok = np.zeros(len(face), dtype=bool)
-        for f in np.unique(face[face >= 0]):
-            sel = face == f
-            ok[sel] = self.model.faces[f].contains(uv[sel])
-        return ok
+        return RayHits(hit, points, np.where(hit, t, np.inf), np.where(hit, face, -1), uv, normals,
+                       pn[:, 6:12].copy())
 
     def intersect(self, origins, directions) -> RayHits:
         """First exact hit of every ray (see :func:`intersect_rays`)."""
         o, d = _check_rays(origins, directions)
+        return self._intersect(o, d)
+
+    def _intersect(self, o, d) -> RayHits:
         n = len(o)
-        face = np.full(n, -1, np.int64)
+        face = np.empty(n, np.int64)
         uv = np.zeros((n, 2))
         t = np.full(n, np.inf)
-        tmin = np.zeros(n)
-        todo = np.arange(n)
-        for _ in range(MAX_RETRIES):
-            if len(todo) == 0:
-                break
-            f_, uv_, t_, tri_ = (np.empty(len(todo), np.int64), np.zeros((len(todo), 2)),
-                                 np.zeros(len(todo)), np.empty(len(todo), np.int64))
-            _kernels.intersect_many(o[todo], d[todo], tmin[todo], self.tess.vertices, self.tess.triangles,
-                                    self.tess.triangle_face, self.tess.uv, self.bvh, self.pk, self.domains,
-                                    self.pmax, self.qmax, NEWTON_TOL, f_, uv_, t_, tri_)
-            good = f_ >= 0
-            if good.any():
-                inside = self._check_trims(f_[good], uv_[good])
-                idx = np.flatnonzero(good)
-                f_[idx[~inside]] = -2  # outside the trims: look beyond
-            accept = f_ >= 0
-            face[todo[accept]] = f_[accept]
-            uv[todo[accept]] = uv_[accept]
-            t[todo[accept]] = t_[accept]
-            retry = f_ == -2
-            # continue the search just beyond the rejected seed triangle
-            tmin[todo[retry]] = np.maximum(t_[retry], tmin[todo[retry]]) + 1e-9 * (1 + np.abs(t_[retry]))
-            todo = todo[retry]
-        return self._finish(o, d, face, uv, t)
+        pn = np.zeros((n, 12))
+        _kernels.intersect_many(o, d, np.zeros(n), self.tess.vertices, self.tess.triangles,
+                                self.tess.triangle_face, self.tess.uv, self.bvh, self.pk, self.domains,
+                                self.trims, self.pmax, self.qmax, NEWTON_TOL, 0.5 * self.max_edge,
+                                BARY_TOL, face, uv, t, pn)
+        return self._finish(face, uv, t, pn)
+
+
+def pack_trims(faces) -> tuple:
+    """The trimming loops of all faces as flat arrays for :func:`_kernels.inside_trims`.
+
+    Each face's segments are bucketed into slabs along v (as :class:`shapeverify.cad.trim.TrimDomain`
+    does for one face), so a test costs the segments of one slab.
+    """
+    from shapeverify.cad._trim_kernels import build_bins
+
+    seg_off, x0, y0, x1, y1, vmin, vmax, inv_dv, bin_off, bin_start, bin_segs = ([0], [], [], [], [], [], [],
+                                                                                 [], [0], [], [])
+    for face in faces:
+        a = np.concatenate(face.loops)
+        b = np.concatenate([np.roll(lp, -1, axis=0) for lp in face.loops])
+        n_bins = int(np.clip(len(a) // 2, 1, 4096))
+        lo_v, hi_v, inv, starts, segs = build_bins(np.ascontiguousarray(a[:, 1]), np.ascontiguousarray(b[:, 1]), n_bins)
+        x0.append(a[:, 0]), y0.append(a[:, 1]), x1.append(b[:, 0]), y1.append(b[:, 1])
+        vmin.append(lo_v), vmax.append(hi_v), inv_dv.append(inv)
+        bin_start.append(starts + sum(len(x) for x in bin_segs))
+        bin_segs.append(segs)
+        seg_off.append(seg_off[-1] + len(a))
+        bin_off.append(bin_off[-1] + len(starts))
+    cat = lambda xs, dt: np.ascontiguousarray(np.concatenate(xs), dtype=dt)  # noqa: E731
+    return (np.asarray(seg_off, np.int64), cat(x0, np.float64), cat(y0, np.float64), cat(x1, np.float64),
+            cat(y1, np.float64), np.asarray(vmin, np.float64), np.asarray(vmax, np.float64),
+            np.asarray(inv_dv, np.float64), np.asarray(bin_off, np.int64), cat(bin_start, np.int64),
+            cat(bin_segs, np.int64))
 
 
 def _check_rays(origins, directions) -> tuple[np.ndarray, np.ndarray]:

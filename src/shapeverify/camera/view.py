@@ -12,6 +12,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.ndimage import binary_dilation
 
 from shapeverify.camera import _kernels
 from shapeverify.camera.intersect import NEWTON_TOL, RayHits, RayScene, scene_for
@@ -28,9 +29,9 @@ def _rigid(T, name="T") -> np.ndarray:
     return T
 
 
-def _rays_in_model(camera: PinholeCamera, T_world_model: np.ndarray):
-    """All pixel rays of the camera expressed in model coordinates."""
-    o, d = camera.pixel_rays()
+def _rays_in_model(camera: PinholeCamera, T_world_model: np.ndarray, rays=None):
+    """All pixel rays of the camera (or the given world-frame ``rays``) in model coordinates."""
+    o, d = camera.pixel_rays() if rays is None else rays
     Tinv = np.linalg.inv(T_world_model)
     R, t = Tinv[:3, :3], Tinv[:3, 3]
     return np.ascontiguousarray(o @ R.T + t), np.ascontiguousarray(d @ R.T)
@@ -53,6 +54,7 @@ class View:
     T_world_model: np.ndarray
     hits: RayHits
     unstable: np.ndarray
+    rays_world: tuple = None
 
     def __repr__(self) -> str:
         return f"View({self.camera.width}x{self.camera.height}, hits={int(self.hits.hit.sum()):,})"
@@ -62,39 +64,65 @@ class View:
         return render_images(self.camera, self.hits, self.T_world_model)
 
 
-def _unstable_pixels(hits: RayHits, shape, depth_jump: float) -> np.ndarray:
-    face = hits.face.reshape(shape)
-    t = np.where(hits.hit, hits.distances, np.inf).reshape(shape)
-    un = np.zeros(shape, dtype=bool)
+def _unstable_pixels(hits: RayHits, directions: np.ndarray, shape, footprint: np.ndarray) -> np.ndarray:
+    """Pixels where occlusion may change under a small motion.
+
+    A pixel is unstable when a 4-neighbour differs in hit/miss, when the neighbour's depth is not
+    continued by this pixel's tangent plane (an occlusion edge: the predicted depth along the
+    neighbour's ray misses the stored one by more than two pixel footprints), or at grazing
+    incidence (|cos| < 0.1).
+    """
+    H, W = shape
+    hit = hits.hit.reshape(H, W)
+    t = np.where(hits.hit, hits.distances, 0.0).reshape(H, W)
+    d = directions.reshape(H, W, 3)
+    n = np.where(hits.hit[:, None], hits.normals, 0.0).reshape(H, W, 3)
+    fp = footprint.reshape(H, W)
+    cos = np.abs(np.einsum("ijk,ijk->ij", d, n))
+    un = hit & (cos < 0.1)
     for axis in (0, 1):
-        df = np.diff(face, axis=axis) != 0
-        with np.errstate(invalid="ignore"):
-            dt = ~(np.abs(np.diff(t, axis=axis)) <= depth_jump)
-        edge = df | dt
-        sl_a = [slice(None), slice(None)]
-        sl_b = [slice(None), slice(None)]
-        sl_a[axis] = slice(0, -1)
-        sl_b[axis] = slice(1, None)
-        un[tuple(sl_a)] |= edge
-        un[tuple(sl_b)] |= edge
+        a = tuple(slice(0, -1) if k == axis else slice(None) for k in (0, 1))
+        b = tuple(slice(1, None) if k == axis else slice(None) for k in (0, 1))
+        edge = hit[a] != hit[b]
+        both = hit[a] & hit[b]
+        with np.errstate(divide="ignore", invalid="ignore"):
+            # depth along b's ray predicted by a's tangent plane, and vice versa
+            num_a = t[a] * np.einsum("ijk,ijk->ij", d[a], n[a])
+            pred_b = num_a / np.einsum("ijk,ijk->ij", d[b], n[a])
+            num_b = t[b] * np.einsum("ijk,ijk->ij", d[b], n[b])
+            pred_a = num_b / np.einsum("ijk,ijk->ij", d[a], n[b])
+            tol = 2.0 * np.maximum(fp[a], fp[b])
+            jump = both & ~((np.abs(pred_b - t[b]) <= tol) & (np.abs(pred_a - t[a]) <= tol))
+        edge |= jump
+        un[a] |= edge
+        un[b] |= edge
     return un.ravel()
 
 
-def make_view(prep, camera: PinholeCamera, T_world_model=None, depth_jump: float | None = None) -> View:
-    """Intersect every pixel ray with the model at pose ``T_world_model`` (default identity).
-
-    ``depth_jump`` (mm) marks neighbouring pixels whose depths differ more than this as a
-    discontinuity (default: 20 times the pixel footprint at the median depth).
-    """
+def make_view(prep, camera: PinholeCamera, T_world_model=None) -> View:
+    """Intersect every pixel ray with the model at pose ``T_world_model`` (default identity)."""
     scene = scene_for(prep)
     T = np.eye(4) if T_world_model is None else _rigid(T_world_model, "T_world_model")
-    o, d = _rays_in_model(camera, T)
+    rays_world = camera.pixel_rays()
+    o, d = _rays_in_model(camera, T, rays_world)
     hits = scene.intersect(o, d)
-    if depth_jump is None:
-        med = np.median(hits.distances[hits.hit]) if hits.hit.any() else 1.0
-        depth_jump = 20.0 * med / camera.fx
-    unstable = _unstable_pixels(hits, (camera.height, camera.width), depth_jump)
-    return View(scene, camera, T, hits, unstable)
+    footprint = np.where(hits.hit, hits.distances, 0.0) / min(camera.fx, camera.fy)
+    unstable = _unstable_pixels(hits, d, (camera.height, camera.width), footprint)
+    return View(scene, camera, T, hits, unstable, rays_world)
+
+
+def _motion_pixels(view: View, T: np.ndarray) -> float:
+    """Largest image displacement (pixels) of the model's bounding-box corners under T."""
+    lo, hi = view.scene.model.bounds
+    corners = np.array([[x, y, z] for x in (lo[0], hi[0]) for y in (lo[1], hi[1]) for z in (lo[2], hi[2])])
+    Tv = view.T_world_model
+    before = corners @ Tv[:3, :3].T + Tv[:3, 3]
+    after = before @ T[:3, :3].T + T[:3, 3]
+    p0, z0 = view.camera.project(before)
+    p1, z1 = view.camera.project(after)
+    if np.any(z0 <= 0) or np.any(z1 <= 0):
+        return float(max(view.camera.width, view.camera.height))
+    return float(np.max(np.linalg.norm(p1 - p0, axis=1)))
 
 
 def depth_map(view: View, T) -> RayHits:
@@ -110,30 +138,40 @@ def depth_map(view: View, T) -> RayHits:
     T = _rigid(T)
     scene = view.scene
     T_new = T @ view.T_world_model
-    o, d = _rays_in_model(view.camera, T_new)
+    o, d = _rays_in_model(view.camera, T_new, view.rays_world)
     h = view.hits
     n = len(h.hit)
     ok = np.zeros(n, dtype=bool)
     uv = np.zeros((n, 2))
     t = np.zeros(n)
-    faces = np.where(h.hit & ~view.unstable, h.face, -1).astype(np.int64)
+    pn = np.zeros((n, 12))
+    # occlusion can change only near the stored view's discontinuities, within the motion's reach
+    reach = int(np.ceil(_motion_pixels(view, T))) + 1
+    H, W = view.camera.height, view.camera.width
+    if reach >= max(H, W):
+        unstable = np.ones(n, dtype=bool)
+    else:
+        unstable = binary_dilation(view.unstable.reshape(H, W), iterations=reach).ravel()
+    faces = np.where(h.hit & ~unstable, h.face, -1).astype(np.int64)
     seed_uv = np.where(h.hit[:, None], h.uv, 0.0)
     seed_t = np.where(h.hit, h.distances, 0.0)
-    _kernels.update_many(o, d, faces, np.ascontiguousarray(seed_uv), seed_t, scene.pk, scene.domains,
-                         scene.pmax, scene.qmax, NEWTON_TOL, ok, uv, t)
-    idx = np.flatnonzero(ok)
-    if len(idx):
-        inside = scene._check_trims(faces[idx], uv[idx])
-        ok[idx[~inside]] = False
+    stored = np.zeros((n, 12))
+    stored[:, :3] = np.where(h.hit[:, None], h.points, 0.0)
+    stored[:, 6:] = h.derivatives
+    _kernels.update_many(o, d, faces, np.ascontiguousarray(seed_uv), seed_t, stored, scene.pk, scene.domains,
+                         scene.trims, scene.pmax, scene.qmax, NEWTON_TOL, ok, uv, t, pn)
     face = np.where(ok, faces, -1)
-    # recompute: failed seeds, unstable pixels; stored misses stay misses unless unstable
-    redo = (h.hit & ~ok) | view.unstable
-    if redo.any():
-        fresh = scene.intersect(o[redo], d[redo])
+    # recompute: failed seeds and pixels on a stored discontinuity; other stored misses stay misses
+    redo = np.flatnonzero((h.hit & ~ok) | unstable)
+    if len(redo):
+        fresh = scene._intersect(o[redo], d[redo])
         face[redo] = fresh.face
         uv[redo] = np.where(fresh.hit[:, None], fresh.uv, 0.0)
         t[redo] = fresh.distances
-    return scene._finish(o, d, face, uv, np.where(face >= 0, t, np.inf))
+        pn[redo, :3] = fresh.points
+        pn[redo, 3:6] = fresh.normals * np.where(scene.reversed[np.maximum(fresh.face, 0)], -1.0, 1.0)[:, None]
+        pn[redo, 6:] = fresh.derivatives
+    return scene._finish(face, uv, np.where(face >= 0, t, np.inf), pn)
 
 
 def render_images(camera: PinholeCamera, hits: RayHits, T_world_model=None) -> dict:

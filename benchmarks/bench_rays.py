@@ -1,0 +1,112 @@
+"""Rays per second: exact ray–CAD intersection (fresh and small-motion update) vs Open3D RaycastingScene.
+
+Run: .venv/bin/python benchmarks/bench_rays.py [--size 1024] [--model ../shared/data/cad/impeller.igs]
+
+Open3D (bench extra) intersects a tessellation of the same model; its depth error is measured
+against our exact hits on the pixels both hit. Single thread for ours (numba, no parallel).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from shapeverify.cad.load import load_model
+from shapeverify.camera import PinholeCamera, depth_map, make_view
+from shapeverify.camera.intersect import scene_for
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--size", type=int, default=1024)
+    ap.add_argument("--model", default=str(ROOT.parent / "shared/data/cad/impeller.igs"))
+    args = ap.parse_args()
+
+    t0 = time.perf_counter()
+    model = load_model(args.model)
+    t_load = time.perf_counter() - t0
+    lo, hi = model.bounds
+    c = (lo + hi) / 2
+    size = np.linalg.norm(hi - lo)
+    cam = PinholeCamera.look_at(c + np.array([0.3, -0.6, 0.75]) * size, c, up=(0, 0, 1), fov_deg=45,
+                                width=args.size, height=args.size)
+    t0 = time.perf_counter()
+    scene = scene_for(model)
+    t_scene = time.perf_counter() - t0
+
+    small = PinholeCamera.look_at(c + np.array([0.3, -0.6, 0.75]) * size, c, up=(0, 0, 1), fov_deg=45,
+                                  width=32, height=32)
+    make_view(model, small)  # JIT warm-up
+    n = args.size * args.size
+
+    t0 = time.perf_counter()
+    view = make_view(model, cam)
+    t_fresh = time.perf_counter() - t0
+    hits = view.hits
+
+    ang = np.radians(0.05)
+    T = np.eye(4)
+    T[:3, :3] = [[np.cos(ang), -np.sin(ang), 0], [np.sin(ang), np.cos(ang), 0], [0, 0, 1]]
+    T[:3, 3] = [0.02, -0.01, 0.03]
+    depth_map(view, T)  # warm-up of the update kernel
+    t0 = time.perf_counter()
+    upd = depth_map(view, T)
+    t_upd = time.perf_counter() - t0
+    fresh_moved = make_view(model, cam, T).hits
+    both = upd.hit & fresh_moved.hit
+    upd_err = np.abs(upd.distances[both] - fresh_moved.distances[both]).max() if both.any() else np.nan
+    mismatch = int((upd.hit != fresh_moved.hit).sum())
+
+    rows = [("shapeverify exact, fresh", n / t_fresh, 0.0),
+            ("shapeverify exact, small-motion update", n / t_upd, upd_err)]
+    o3d_note = ""
+    try:
+        import open3d as o3d
+
+        tess = scene.tess
+        mesh = o3d.t.geometry.TriangleMesh()
+        mesh.vertex.positions = o3d.core.Tensor(tess.vertices.astype(np.float32))
+        mesh.triangle.indices = o3d.core.Tensor(tess.triangles.astype(np.int32))
+        rs = o3d.t.geometry.RaycastingScene(nthreads=1) if "nthreads" in o3d.t.geometry.RaycastingScene.__init__.__doc__ else o3d.t.geometry.RaycastingScene()
+        rs.add_triangles(mesh)
+        o, d = cam.pixel_rays()
+        rays = o3d.core.Tensor(np.hstack([o, d]).astype(np.float32))
+        rs.cast_rays(rays)
+        t0 = time.perf_counter()
+        ans = rs.cast_rays(rays)
+        t_o3d = time.perf_counter() - t0
+        t_hit = ans["t_hit"].numpy().astype(np.float64)
+        ok = np.isfinite(t_hit) & hits.hit
+        err = np.abs(t_hit[ok] - hits.distances[ok])
+        rows.append((f"Open3D RaycastingScene ({len(tess.triangles):,} triangles, float32)", n / t_o3d,
+                     float(np.percentile(err, 99))))
+        o3d_note = f"Open3D depth error vs exact: median {np.median(err):.2e} mm, p99 {np.percentile(err, 99):.2e} mm, max {err.max():.2e} mm"
+    except Exception as exc:  # open3d is optional (bench extra)
+        o3d_note = f"Open3D not run: {exc}"
+
+    lines = [
+        f"model {Path(args.model).name}: {len(model.faces)} faces, load {t_load:.2f} s, ray scene build {t_scene:.2f} s "
+        f"({len(scene.tess.triangles):,} seed triangles); image {args.size}x{args.size}, {int(hits.hit.sum()):,} hits",
+        "",
+        "| method | rays/s | depth error [mm] |",
+        "|---|---:|---:|",
+    ]
+    for name, rate, err in rows:
+        lines.append(f"| {name} | {rate / 1e6:.3f} M | {err:.1e} |")
+    lines += ["", f"update vs fresh at the moved pose: max |dt| {upd_err:.1e} mm, hit/miss mismatches {mismatch}",
+              o3d_note, f"ratio update/Open3D and fresh/Open3D in the table; cores: {os.cpu_count()}"]
+    text = "\n".join(lines)
+    print(text)
+    out = ROOT / "benchmarks" / "results_rays.md"
+    out.write_text("## Rays (issue 6)\n\nCommand: `.venv/bin/python benchmarks/bench_rays.py --size "
+                   f"{args.size}`\n\n{text}\n")
+
+
+if __name__ == "__main__":
+    main()
