@@ -55,6 +55,7 @@ class View:
     hits: RayHits
     unstable: np.ndarray
     rays_world: tuple = None
+    seeds: tuple = None  # (uv (N, 2), t (N,), stored (N, 12)) packed once for depth_map
 
     def __repr__(self) -> str:
         return f"View({self.camera.width}x{self.camera.height}, hits={int(self.hits.hit.sum()):,})"
@@ -108,7 +109,13 @@ def make_view(prep, camera: PinholeCamera, T_world_model=None) -> View:
     hits = scene.intersect(o, d)
     footprint = np.where(hits.hit, hits.distances, 0.0) / min(camera.fx, camera.fy)
     unstable = _unstable_pixels(hits, d, (camera.height, camera.width), footprint)
-    return View(scene, camera, T, hits, unstable, rays_world)
+    n = len(hits.hit)
+    stored = np.zeros((n, 12))
+    stored[:, :3] = np.where(hits.hit[:, None], hits.points, 0.0)
+    stored[:, 6:] = hits.derivatives
+    seeds = (np.ascontiguousarray(np.where(hits.hit[:, None], hits.uv, 0.0)),
+             np.where(hits.hit, hits.distances, 0.0), stored)
+    return View(scene, camera, T, hits, unstable, rays_world, seeds)
 
 
 def _motion_pixels(view: View, T: np.ndarray) -> float:
@@ -153,12 +160,8 @@ def depth_map(view: View, T) -> RayHits:
     else:
         unstable = binary_dilation(view.unstable.reshape(H, W), iterations=reach).ravel()
     faces = np.where(h.hit & ~unstable, h.face, -1).astype(np.int64)
-    seed_uv = np.where(h.hit[:, None], h.uv, 0.0)
-    seed_t = np.where(h.hit, h.distances, 0.0)
-    stored = np.zeros((n, 12))
-    stored[:, :3] = np.where(h.hit[:, None], h.points, 0.0)
-    stored[:, 6:] = h.derivatives
-    _kernels.update_many(o, d, faces, np.ascontiguousarray(seed_uv), seed_t, stored, scene.pk, scene.domains,
+    seed_uv, seed_t, stored = view.seeds
+    _kernels.update_many(o, d, faces, seed_uv, seed_t, stored, scene.pk, scene.domains,
                          scene.trims, scene.pmax, scene.qmax, NEWTON_TOL, ok, uv, t, pn)
     face = np.where(ok, faces, -1)
     # recompute: failed seeds and pixels on a stored discontinuity; other stored misses stay misses
