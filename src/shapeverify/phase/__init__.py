@@ -18,11 +18,13 @@ Methods (``method=``):
 
 With ``reference=`` (a predicted unwrapped phase, e.g. from the CAD model) the method is
 applied to ``W(psi - reference)`` and steps larger than ``pi`` are recovered
-(:func:`unwrap_with_reference`; the predict-unwrap-register loop is :func:`iterate_unwrap`).
+(:func:`unwrap_with_reference`; the predict-unwrap-register loop is :func:`iterate_unwrap`,
+wired to the camera and registration modules for a CAD model in :func:`unwrap_with_cad`).
 """
 
 from __future__ import annotations
 
+from .cad import HolographySetup, predict_phase, unwrap_with_cad
 from .fringes import PhaseShift, fringe_images, phase_shift, temporal_unwrap
 from .holography import (depth_per_fringe, phase_difference, phase_to_depth, phase_to_points,
                          points_to_phase, synthetic_wavelength)
@@ -39,7 +41,7 @@ __all__ = [
     "wrap", "unwrap", "unwrap_1d", "residues", "pseudo_correlation", "METHODS",
     "unwrap_quality", "unwrap_filtered", "unwrap_ls", "unwrap_wls", "unwrap_lp",
     "solve_poisson_dct", "unwrap_with_reference", "ReferenceUnwrap", "iterate_unwrap",
-    "IterativeUnwrap",
+    "IterativeUnwrap", "HolographySetup", "predict_phase", "unwrap_with_cad",
     "synthetic_wavelength", "depth_per_fringe", "phase_difference", "phase_to_depth",
     "phase_to_points", "points_to_phase",
     "phase_shift", "PhaseShift", "fringe_images", "temporal_unwrap",
