@@ -22,9 +22,11 @@ demo: $(STAMP)
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
 
+# benchmarks against named peers (installs the bench extra: Open3D, splipy, geomdl, pykdtree)
 bench: $(STAMP)
 	$(BIN)/python -m pip install --quiet -e ".[dev,bench]"
-	$(BIN)/python benchmarks/bench_nurbs.py
+	for b in benchmarks/bench_*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done
+	$(BIN)/python benchmarks/collect_results.py
 
 clean:
 	rm -rf $(VENV) build *.egg-info src/*.egg-info

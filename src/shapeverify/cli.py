@@ -102,7 +102,8 @@ def model_summary_table(m, title: str) -> Table:
     if m.vertices is not None:
         t.add_row("vertices", f"{len(m.vertices):,}")
     t.add_row("file unit", f"{m.unit} (x{m.scale_to_mm:g} to mm)")
-    t.add_row("bounding box [mm]", f"{np.array2string(lo, precision=2)} .. {np.array2string(hi, precision=2)}")
+    t.add_row("bounding box [mm]", f"{np.array2string(lo, precision=2, suppress_small=True)} .. "
+                                   f"{np.array2string(hi, precision=2, suppress_small=True)}")
     t.add_row("size (diagonal) [mm]", f"{m.size:.3f}")
     return t
 
@@ -254,6 +255,65 @@ def fit(
         summary = _guard(fit_points_file, points, output, surface=surface, ctrl=n, degree=degree)
     for k, v in summary.items():
         out.print(f"{k}: {v}")
+
+
+@app.command()
+def serve(
+    models: List[Path] = typer.Argument(..., help="Prepared models (.svm); the file stem is the model name"),
+    host: str = typer.Option("127.0.0.1", help="Address to bind (loopback by default)"),
+    port: int = typer.Option(8000, help="Port"),
+    db: Path = typer.Option(Path("history.sqlite"), "--db", help="SQLite history (WAL mode)"),
+    token: Optional[str] = typer.Option(None, "--token", envvar="SHAPEVERIFY_TOKEN",
+                                        help="Require 'Authorization: Bearer TOKEN' on every request"),
+    max_body_mb: float = typer.Option(64.0, help="Largest accepted scan upload [MB] (413 above)"),
+    time_limit: float = typer.Option(60.0, help="Per-request time limit [s] (504 above)"),
+):
+    """Serve inspections over HTTP with the prepared models kept in memory."""
+    import uvicorn
+
+    from shapeverify.service import ServiceConfig, create_app, load_models, warm_up
+
+    with _stage(f"Loading {len(models)} prepared model(s)"):
+        loaded, hashes = _guard(load_models, models)
+    with _stage("Warming up (JIT compilation)"):
+        warm_up(loaded)
+    config = ServiceConfig(models=loaded, model_hashes=hashes, db_path=db, token=token,
+                           max_body_bytes=int(max_body_mb * 1024 * 1024), time_limit_s=time_limit)
+    console.print(f"serving {sorted(loaded)} on http://{host}:{port} (history: {db}); "
+                  f"API docs at http://{host}:{port}/docs")
+    uvicorn.run(create_app(config), host=host, port=port, log_level="warning")
+
+
+@app.command()
+def batch(
+    model: Path = typer.Argument(..., help="Prepared model (.svm)"),
+    scans_dir: Path = typer.Argument(..., help="Folder of scans"),
+    out_dir: Path = typer.Option(..., "--out", help="Output folder (JSON per scan, summary.csv)"),
+    tolerance: float = typer.Option(..., help="Symmetric tolerance ±MM"),
+    max_distance: Optional[float] = typer.Option(None, help="[mm]"),
+    scheduler: Optional[str] = typer.Option(None, help="Existing Dask scheduler address (default: local cluster)"),
+    workers: int = typer.Option(2, help="Local worker processes"),
+    reports: bool = typer.Option(False, "--reports", help="Also write an HTML report per scan"),
+    db: Optional[Path] = typer.Option(None, "--db", help="Append every result to this SQLite history"),
+):
+    """Inspect every scan in a folder in parallel on Dask (resumable)."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
+
+    from shapeverify.batch import run_batch
+
+    with Progress("[progress.description]{task.description}", BarColumn(), MofNCompleteColumn(),
+                  TimeRemainingColumn(), console=console) as bar:
+        task = bar.add_task("inspecting", total=None)
+
+        def tick(done: int, total: int, name: str) -> None:
+            bar.update(task, completed=done, total=total, description=name)
+
+        summary = _guard(run_batch, model, scans_dir, out_dir, tolerance=tolerance, max_distance=max_distance,
+                         scheduler=scheduler, workers=workers, reports=reports, db_path=db, progress=tick)
+    s = summary
+    out.print(f"{s.total} scans ({s.skipped} already done): {s.passed} pass, {s.failed} fail, "
+              f"{s.errors} error; {s.scans_per_minute:.1f} scans/min; summary: {s.summary_csv}")
+    raise typer.Exit(EXIT_ERROR if s.errors else (EXIT_FAIL if s.failed else EXIT_PASS))
 
 
 def main() -> None:  # pragma: no cover - entry point

@@ -29,7 +29,7 @@ def main(outdir: str = "demo-output") -> int:
     from shapeverify.cli import model_summary_table
     from shapeverify.io.points import write_ply
     from shapeverify.nearest import prepare
-    from shapeverify.simulate import simulate_scan
+    from shapeverify.simulate import DENT, virtual_scan
 
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
@@ -44,14 +44,15 @@ def main(outdir: str = "demo-output") -> int:
     console.print(f"[bold]2.[/bold] prepared {len(prep.points.points):,} model points "
                   f"({prep.spacing:.2f} mm spacing) -> {svm}")
 
-    sim = simulate_scan(model, n_points=30_000, dents=[{"depth": 0.4, "radius": 15.0}],
-                        noise=0.02, rng=2011)
+    # a single-shot optical scan: noise, a shadow, a reflection blob, 5 % outliers, a 0.4 mm dent,
+    # and the misalignment of a rough fixture (4 degrees, 8 mm)
+    sim = virtual_scan(model, pixel=1.2, noise=0.02, shadows=1, blobs=1, outlier_fraction=0.05,
+                       dents=[(0.4, 15.0)], motion=(4.0, 8.0), rng=2011)
     scan_path = out / "scan.ply"
-    write_ply(scan_path, sim.points)
-    dent = np.asarray(sim.dents[0]["center"]) if sim.dents else None
-    console.print(f"[bold]3.[/bold] simulated scan: {len(sim.points):,} points with a 0.4 mm dent"
-                  + (f" at {np.array2string(dent, precision=1)} mm (model frame)" if dent is not None else "")
-                  + f" -> {scan_path}")
+    write_ply(scan_path, sim.scan)
+    dent = sim.points[sim.labels == DENT].mean(axis=0)
+    console.print(f"[bold]3.[/bold] simulated scan: {len(sim.scan):,} points ({sim.counts()}) with a "
+                  f"0.4 mm dent at {np.array2string(dent, precision=1, suppress_small=True)} mm (model frame) -> {scan_path}")
 
     cmd = [sys.executable, "-m", "shapeverify.cli", "inspect", str(svm), str(scan_path),
            "--tolerance", "0.2", "--report", str(out / "report.html"), "--png", str(out / "summary.png"),
