@@ -57,8 +57,17 @@ def _guard(fn, *args, **kwargs):
 
     try:
         return fn(*args, **kwargs)
-    except (ShapeVerifyError, ValueError, FileNotFoundError, OSError) as exc:
+    except FileNotFoundError as exc:
+        _fail(f"{exc.filename or exc}: no such file")
+    except (ShapeVerifyError, ValueError, OSError) as exc:
         _fail(str(exc))
+
+
+def _require_files(*paths: Path) -> None:
+    """Fail fast, before any slow work, when an input file does not exist."""
+    for p in paths:
+        if not p.exists():
+            _fail(f"{p}: no such file")
 
 
 @app.callback()
@@ -71,6 +80,7 @@ def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges
     """Print a summary of a model: faces, units, size."""
     from shapeverify.pipeline import PREPARED_SUFFIX
 
+    _require_files(model)
     if model.suffix.lower() == PREPARED_SUFFIX:
         from shapeverify.nearest import load_prepared
         with _stage(f"Loading {model.name}"):
@@ -118,6 +128,7 @@ def prepare(
     """Import a model and pre-compute its closest-point structure (once per model)."""
     from shapeverify.pipeline import load_reference
 
+    _require_files(model)
     prep = _guard(load_reference, model, spacing=spacing, max_distance=max_distance, stage=_stage)
     with _stage(f"Writing {output.name}"):
         _guard(prep.save, output)
@@ -148,6 +159,7 @@ def inspect(
 
     if tolerance is None and lower is None and upper is None:
         _fail("give --tolerance MM (or --lower/--upper limits in mm)")
+    _require_files(model, scan)
     result, outputs = _guard(
         run_inspection, model, scan, tolerance=tolerance, max_distance=max_distance,
         lower=lower, upper=upper, json_path=json_path, report_path=report, png_path=png,
@@ -266,22 +278,27 @@ def serve(
     token: Optional[str] = typer.Option(None, "--token", envvar="SHAPEVERIFY_TOKEN",
                                         help="Require 'Authorization: Bearer TOKEN' on every request"),
     max_body_mb: float = typer.Option(64.0, help="Largest accepted scan upload [MB] (413 above)"),
-    time_limit: float = typer.Option(60.0, help="Per-request time limit [s] (504 above)"),
+    time_limit: float = typer.Option(60.0, help="Per-request time limit [s] (504 above; nothing is stored)"),
+    threads: int = typer.Option(2, help="Inspection threads per server process"),
+    workers: int = typer.Option(1, help="Server processes sharing the port (use the number of cores)"),
+    keep_scans: bool = typer.Option(True, "--keep-scans/--no-keep-scans",
+                                    help="Store each scan beside the history (GET /report/{id} needs it)"),
 ):
     """Serve inspections over HTTP with the prepared models kept in memory."""
-    import uvicorn
+    from shapeverify.service import serve as run_server
 
-    from shapeverify.service import ServiceConfig, create_app, load_models, warm_up
+    if max_body_mb <= 0 or time_limit <= 0 or threads < 1 or workers < 1:
+        _fail("--max-body-mb and --time-limit must be > 0; --threads and --workers >= 1")
 
-    with _stage(f"Loading {len(models)} prepared model(s)"):
-        loaded, hashes = _guard(load_models, models)
-    with _stage("Warming up (JIT compilation)"):
-        warm_up(loaded)
-    config = ServiceConfig(models=loaded, model_hashes=hashes, db_path=db, token=token,
-                           max_body_bytes=int(max_body_mb * 1024 * 1024), time_limit_s=time_limit)
-    console.print(f"serving {sorted(loaded)} on http://{host}:{port} (history: {db}); "
-                  f"API docs at http://{host}:{port}/docs")
-    uvicorn.run(create_app(config), host=host, port=port, log_level="warning")
+    def ready(loaded: dict) -> None:
+        console.print(f"[green]✓[/green] serving {sorted(loaded)} on http://{host}:{port} "
+                      f"(history: {db}; {workers} process(es) x {threads} thread(s)); "
+                      f"API docs at http://{host}:{port}/docs")
+
+    console.print(f"loading and warming up {len(models)} prepared model(s)…")
+    _guard(run_server, models, host=host, port=port, db_path=db, token=token,
+           max_body_bytes=int(max_body_mb * 1024 * 1024), time_limit_s=time_limit, threads=threads,
+           workers=workers, keep_scans=keep_scans, on_ready=ready)
 
 
 @app.command()
@@ -295,8 +312,9 @@ def batch(
     workers: int = typer.Option(2, help="Local worker processes"),
     reports: bool = typer.Option(False, "--reports", help="Also write an HTML report per scan"),
     db: Optional[Path] = typer.Option(None, "--db", help="Append every result to this SQLite history"),
+    retry_errors: bool = typer.Option(False, "--retry-errors", help="Inspect again the scans that failed before"),
 ):
-    """Inspect every scan in a folder in parallel on Dask (resumable)."""
+    """Inspect every scan in a folder in parallel on Dask (resumable: done scans are skipped)."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
 
     from shapeverify.batch import run_batch
@@ -309,7 +327,8 @@ def batch(
             bar.update(task, completed=done, total=total, description=name)
 
         summary = _guard(run_batch, model, scans_dir, out_dir, tolerance=tolerance, max_distance=max_distance,
-                         scheduler=scheduler, workers=workers, reports=reports, db_path=db, progress=tick)
+                         scheduler=scheduler, workers=workers, reports=reports, db_path=db,
+                         retry_errors=retry_errors, progress=tick)
     s = summary
     out.print(f"{s.total} scans ({s.skipped} already done): {s.passed} pass, {s.failed} fail, "
               f"{s.errors} error; {s.scans_per_minute:.1f} scans/min; summary: {s.summary_csv}")
