@@ -1,0 +1,193 @@
+"""Signed deviations of scan points from the trimmed CAD surface (thesis Paper III).
+
+A scan point ``p`` (scan coordinates) is first mapped into model coordinates,
+``q = R @ p + t`` with ``T_model_scan = [[R, t], [0, 1]]``, then projected exactly onto the
+trimmed CAD faces (``prep.closest(q, exact=True)``).  Its deviation is the signed distance
+``±|q - foot|``, positive on the outward-normal side (material added), negative inside
+(material missing).  On the interior of a face the closest-point condition makes ``q - foot``
+parallel to the face normal, so this is exactly the deviation *along the CAD normal*; at an edge
+shared by two faces it is the distance to the edge (the usual "closest distance" deviation).
+
+A point is *not evaluated* (value NaN) when
+
+* ``TOO_FAR``: it is farther than ``max_distance`` from the model (background, fixture, gross
+  outlier), or the closest-point search found no foot point at all;
+* ``ON_BOUNDARY``: its foot point lies on a free edge of the model (the part's outer boundary),
+  i.e. the scan extends past the CAD surface there and the distance says nothing about the shape.
+
+References
+----------
+Bergström (2011), thesis chapter 3 and Paper III (shape verification with projected fringes).
+"""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import numpy as np
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["Deviations", "deviations", "EVALUATED", "TOO_FAR", "ON_BOUNDARY", "REASON_NAMES",
+           "transform_points"]
+
+#: Reason codes in :attr:`Deviations.reason`.
+EVALUATED, TOO_FAR, ON_BOUNDARY = 0, 1, 2
+REASON_NAMES = {EVALUATED: "evaluated", TOO_FAR: "too_far", ON_BOUNDARY: "on_boundary"}
+
+
+def transform_points(T: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Apply a 4x4 rigid transform row-wise: ``R @ p + t`` for every row ``p`` of ``points``."""
+    return points @ T[:3, :3].T + T[:3, 3]
+
+
+def _readonly(a: np.ndarray) -> np.ndarray:
+    a = np.ascontiguousarray(a)
+    a.setflags(write=False)
+    return a
+
+
+@dataclass(frozen=True, repr=False, eq=False)
+class Deviations:
+    """Signed deviations of N scan points from the CAD model (mm).
+
+    Attributes
+    ----------
+    values : (N,) float64
+        Signed deviation, + outside the material (along the outward CAD normal); NaN where not
+        evaluated.
+    evaluated : (N,) bool
+    reason : (N,) int8
+        ``EVALUATED`` (0), ``TOO_FAR`` (1) or ``ON_BOUNDARY`` (2).
+    face : (N,) int32
+        Face of the foot point (triangle index for mesh models, -1 for point-cloud models or when
+        no foot point was found).
+    foot_points : (N, 3) float64
+        Closest points on the CAD surface (model coordinates).
+    normals : (N, 3) float64
+        Outward unit normals at the foot points.
+    points_model : (N, 3) float64
+        The scan points mapped into model coordinates.
+    max_distance : float
+        Distance limit used for ``TOO_FAR`` (``inf``: none).
+    """
+
+    values: np.ndarray
+    evaluated: np.ndarray
+    reason: np.ndarray
+    face: np.ndarray
+    foot_points: np.ndarray
+    normals: np.ndarray
+    points_model: np.ndarray
+    max_distance: float
+
+    @property
+    def n(self) -> int:
+        """Number of scan points."""
+        return int(self.values.shape[0])
+
+    @property
+    def n_evaluated(self) -> int:
+        return int(np.count_nonzero(self.evaluated))
+
+    @property
+    def n_too_far(self) -> int:
+        return int(np.count_nonzero(self.reason == TOO_FAR))
+
+    @property
+    def n_on_boundary(self) -> int:
+        return int(np.count_nonzero(self.reason == ON_BOUNDARY))
+
+    def counts(self) -> dict:
+        """``{"evaluated": .., "too_far": .., "on_boundary": ..}`` point counts."""
+        return {"evaluated": self.n_evaluated, "too_far": self.n_too_far,
+                "on_boundary": self.n_on_boundary}
+
+    def __repr__(self) -> str:
+        v = self.values[self.evaluated]
+        rng = f", range [{v.min():+.4f}, {v.max():+.4f}] mm" if v.size else ""
+        return (f"Deviations(n={self.n}, evaluated={self.n_evaluated}, too_far={self.n_too_far}, "
+                f"on_boundary={self.n_on_boundary}{rng})")
+
+
+def deviations(scan, prep, T_model_scan=None, max_distance: float | None = None) -> Deviations:
+    """Signed deviation of every scan point from the trimmed CAD surface.
+
+    Parameters
+    ----------
+    scan : (N, 3) array_like
+        Scan points in scan coordinates (mm).
+    prep : shapeverify.nearest.Prepared
+        Prepared model; only ``prep.closest(points, exact=True)`` is used.
+    T_model_scan : (4, 4) array_like, optional
+        Rigid transform from scan to model coordinates (``model = R @ scan + t``); identity if None.
+    max_distance : float, optional
+        Points farther than this (mm) from the model are not evaluated (``TOO_FAR``).
+        None: no limit beyond what ``prep.closest`` itself serves.
+
+    Returns
+    -------
+    Deviations
+
+    Raises
+    ------
+    ValueError
+        If ``scan`` is not (N, 3) with finite values, ``T_model_scan`` is not a finite 4x4
+        matrix, or ``max_distance`` is not a positive number.
+
+    Examples
+    --------
+    >>> dev = deviations(scan, prep, reg.T_model_scan, max_distance=1.0)   # doctest: +SKIP
+    >>> dev.values[dev.evaluated].std()                                     # doctest: +SKIP
+    """
+    scan = np.asarray(scan, dtype=np.float64)
+    if scan.ndim != 2 or scan.shape[1] != 3:
+        raise ValueError(f"scan must be an (N, 3) array of points, got shape {scan.shape}")
+    if not np.all(np.isfinite(scan)):
+        bad = int(np.count_nonzero(~np.isfinite(scan).all(axis=1)))
+        raise ValueError(f"scan contains {bad} points with NaN/inf coordinates; drop them first "
+                         "(scan = scan[np.isfinite(scan).all(axis=1)])")
+    T = np.eye(4) if T_model_scan is None else np.asarray(T_model_scan, dtype=np.float64)
+    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+        raise ValueError(f"T_model_scan must be a finite 4x4 matrix, got shape {T.shape}")
+    if max_distance is None:
+        max_distance = np.inf
+    else:
+        max_distance = float(max_distance)
+        if not max_distance > 0:
+            raise ValueError(f"max_distance must be > 0 mm (or None for no limit), got {max_distance}")
+    return _deviations(scan, prep, T, max_distance)
+
+
+def _deviations(scan: np.ndarray, prep, T: np.ndarray, max_distance: float) -> Deviations:
+    """Kernel of :func:`deviations`: trusts its (validated) input."""
+    q = transform_points(T, scan)
+    n = q.shape[0]
+    if n == 0:
+        empty3 = np.zeros((0, 3))
+        return Deviations(_readonly(np.zeros(0)), _readonly(np.zeros(0, bool)),
+                          _readonly(np.zeros(0, np.int8)), _readonly(np.zeros(0, np.int32)),
+                          _readonly(empty3), _readonly(empty3), _readonly(empty3), max_distance)
+    near = prep.closest(q, exact=True)
+    d = np.asarray(near.distances, dtype=np.float64)
+    found = np.isfinite(d)
+    reason = np.full(n, EVALUATED, dtype=np.int8)
+    too_far = ~found | (np.abs(np.where(found, d, 0.0)) > max_distance)
+    reason[too_far] = TOO_FAR
+    on_boundary = np.asarray(near.on_boundary, dtype=bool) & ~too_far
+    reason[on_boundary] = ON_BOUNDARY
+    evaluated = reason == EVALUATED
+    values = np.where(evaluated, d, np.nan)
+    logger.debug("deviations: %d points, %d evaluated, %d too far, %d on boundary",
+                 n, int(evaluated.sum()), int(too_far.sum()), int(on_boundary.sum()))
+    return Deviations(
+        values=_readonly(values),
+        evaluated=_readonly(evaluated),
+        reason=_readonly(reason),
+        face=_readonly(np.asarray(near.face, dtype=np.int32)),
+        foot_points=_readonly(np.asarray(near.points, dtype=np.float64)),
+        normals=_readonly(np.asarray(near.normals, dtype=np.float64)),
+        points_model=_readonly(q),
+        max_distance=max_distance,
+    )

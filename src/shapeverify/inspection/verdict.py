@@ -1,0 +1,304 @@
+"""Tolerances, deviation statistics and the pass / fail / error verdict.
+
+The verdict rules (:func:`decide`), in order:
+
+1. ``error`` if the registration is not trustworthy: it did not converge, or its inlier
+   fraction is below ``min_inlier_fraction`` (default 0.5);
+2. ``error`` if too few scan points could be evaluated: none at all, or fewer than
+   ``min_evaluated_fraction`` (default 0.5) of the scan (the scan is not of this part, or not
+   where the model is);
+3. ``fail`` if there is at least one defect region (a connected cluster of out-of-tolerance
+   points, see :mod:`shapeverify.inspection.regions`);
+4. ``pass`` otherwise.  Isolated out-of-tolerance points (measurement outliers) are counted and
+   reported but do not fail the part.
+
+A failed registration therefore never gives ``pass``.
+
+References
+----------
+Bergström (2011), Paper III; ISO 1101 (profile of a surface: a tolerance zone between two offset
+surfaces, here ``lower <= deviation <= upper`` along the CAD normal).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Mapping
+
+import numpy as np
+
+__all__ = ["Tolerance", "Statistics", "statistics", "per_face_statistics", "decide",
+           "VERDICTS"]
+
+VERDICTS = ("pass", "fail", "error")
+
+
+def _limit(x, name: str) -> float:
+    try:
+        v = float(x)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number (mm), got {x!r}") from None
+    if math.isnan(v):
+        raise ValueError(f"{name} must not be NaN")
+    return v
+
+
+def _check_pair(lower: float, upper: float, what: str) -> tuple[float, float]:
+    lower, upper = _limit(lower, f"{what} lower limit"), _limit(upper, f"{what} upper limit")
+    if lower > 0:
+        raise ValueError(f"{what} lower limit is a signed deviation and must be <= 0 mm, got "
+                         f"{lower:g}; did you mean {-lower:g}?")
+    if upper < 0:
+        raise ValueError(f"{what} upper limit must be >= 0 mm, got {upper:g}; did you mean {-upper:g}?")
+    if not lower < upper:
+        raise ValueError(f"{what} tolerance zone [{lower:g}, {upper:g}] mm is empty")
+    return lower, upper
+
+
+@dataclass(frozen=True)
+class Tolerance:
+    """Tolerance zone ``lower <= deviation <= upper`` (mm), optionally different per face.
+
+    Parameters
+    ----------
+    lower : float
+        Lower limit, signed, <= 0 (material missing), e.g. -0.2.
+    upper : float
+        Upper limit, >= 0 (material added), e.g. 0.2.
+    per_face : mapping {face index: (lower, upper)} or tuple of (face, lower, upper), optional
+        Overrides for individual faces.
+
+    Examples
+    --------
+    >>> Tolerance.symmetric(0.2)
+    Tolerance(lower=-0.2, upper=0.2, per_face=())
+    >>> Tolerance(-0.1, 0.3, per_face={4: (-0.05, 0.05)}).limits_for(4)
+    (-0.05, 0.05)
+    """
+
+    lower: float
+    upper: float
+    per_face: tuple = ()
+
+    def __post_init__(self):
+        lo, hi = _check_pair(self.lower, self.upper, "tolerance")
+        object.__setattr__(self, "lower", lo)
+        object.__setattr__(self, "upper", hi)
+        items = self.per_face.items() if isinstance(self.per_face, Mapping) else self.per_face
+        faces = []
+        for item in items:
+            if isinstance(self.per_face, Mapping):
+                f, (flo, fhi) = item
+            else:
+                f, flo, fhi = item
+            if isinstance(f, bool) or not isinstance(f, (int, np.integer)) or f < 0:
+                raise ValueError(f"per-face tolerance keys must be face indices >= 0, got {f!r}")
+            flo, fhi = _check_pair(flo, fhi, f"face {int(f)}")
+            faces.append((int(f), flo, fhi))
+        faces.sort()
+        if len({f for f, _, _ in faces}) != len(faces):
+            raise ValueError("per-face tolerance lists a face twice")
+        object.__setattr__(self, "per_face", tuple(faces))
+
+    @classmethod
+    def symmetric(cls, tolerance: float, per_face: Mapping | None = None) -> "Tolerance":
+        """``±tolerance``; ``per_face`` values may be numbers (symmetric) or (lower, upper)."""
+        t = _limit(tolerance, "tolerance")
+        if not t > 0:
+            raise ValueError(f"tolerance must be > 0 mm, got {t:g}")
+        pf = {}
+        for f, v in (per_face or {}).items():
+            pf[f] = (-abs(float(v)), abs(float(v))) if np.isscalar(v) else tuple(v)
+        return cls(-t, t, pf)
+
+    @classmethod
+    def from_args(cls, tolerance=None, lower=None, upper=None, per_face=None) -> "Tolerance":
+        """Build from the ``inspect`` arguments: ``lower``/``upper`` override ``±tolerance``.
+
+        Raises
+        ------
+        ValueError
+            If neither a tolerance nor both limits are given.
+        """
+        if isinstance(tolerance, Tolerance):
+            if lower is None and upper is None and per_face is None:
+                return tolerance
+            base_lo, base_hi = tolerance.lower, tolerance.upper
+        elif tolerance is not None:
+            t = _limit(tolerance, "tolerance")
+            if not t > 0:
+                raise ValueError(f"tolerance must be > 0 mm, got {t:g}")
+            base_lo, base_hi = -t, t
+        else:
+            base_lo = base_hi = None
+        lo = base_lo if lower is None else lower
+        hi = base_hi if upper is None else upper
+        if lo is None or hi is None:
+            raise ValueError("give a tolerance (±mm) or both lower and upper limits (mm)")
+        pf = {}
+        for f, v in (per_face or {}).items():
+            pf[f] = (-abs(float(v)), abs(float(v))) if np.isscalar(v) else tuple(v)
+        return cls(lo, hi, pf)
+
+    @property
+    def is_symmetric(self) -> bool:
+        return self.lower == -self.upper and all(lo == -hi for _, lo, hi in self.per_face)
+
+    @property
+    def max_abs(self) -> float:
+        """Largest |limit| over all faces (for colour scales)."""
+        vals = [abs(self.lower), abs(self.upper)] + [max(abs(lo), abs(hi)) for _, lo, hi in self.per_face]
+        return float(max(vals))
+
+    def limits_for(self, face: int) -> tuple[float, float]:
+        for f, lo, hi in self.per_face:
+            if f == face:
+                return lo, hi
+        return self.lower, self.upper
+
+    def limits(self, face: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Per-point limits ``(lower (N,), upper (N,))`` for points on faces ``face (N,)``."""
+        face = np.asarray(face)
+        lo = np.full(face.shape, self.lower)
+        hi = np.full(face.shape, self.upper)
+        for f, flo, fhi in self.per_face:
+            m = face == f
+            lo[m], hi[m] = flo, fhi
+        return lo, hi
+
+    def within(self, values: np.ndarray, face: np.ndarray) -> np.ndarray:
+        """(N,) bool: ``lower <= value <= upper`` (False for NaN)."""
+        lo, hi = self.limits(face)
+        with np.errstate(invalid="ignore"):
+            return (values >= lo) & (values <= hi)
+
+    def to_dict(self) -> dict:
+        d = {"lower": self.lower, "upper": self.upper, "symmetric": self.is_symmetric}
+        if self.is_symmetric:
+            d["tolerance"] = self.upper
+        if self.per_face:
+            d["per_face"] = {str(f): [lo, hi] for f, lo, hi in self.per_face}
+        return d
+
+
+@dataclass(frozen=True)
+class Statistics:
+    """Summary of signed deviations (mm); NaN fields when ``n == 0``."""
+
+    n: int
+    mean: float
+    std: float
+    rms: float
+    min: float
+    max: float
+    p05: float
+    p95: float
+    in_tolerance_fraction: float
+    n_above: int = 0   # points above the upper limit
+    n_below: int = 0   # points below the lower limit
+
+    def to_dict(self) -> dict:
+        return {k: (None if isinstance(v, float) and math.isnan(v) else v)
+                for k, v in self.__dict__.items()}
+
+    def __repr__(self) -> str:
+        return (f"Statistics(n={self.n}, mean={self.mean:+.4f}, std={self.std:.4f}, "
+                f"min={self.min:+.4f}, max={self.max:+.4f}, p05={self.p05:+.4f}, p95={self.p95:+.4f}, "
+                f"in_tolerance={100 * self.in_tolerance_fraction:.2f}%)")
+
+
+def statistics(values: np.ndarray, within: np.ndarray | None = None,
+               above: np.ndarray | None = None) -> Statistics:
+    """Statistics of evaluated deviations.
+
+    Parameters
+    ----------
+    values : (n,) float64
+        Finite deviations (only the evaluated ones).
+    within : (n,) bool, optional
+        Which values are inside their tolerance zone.
+    above : (n,) bool, optional
+        Which of the out-of-tolerance values lie above the upper limit (the rest: below).
+    """
+    n = int(values.shape[0])
+    if n == 0:
+        nan = float("nan")
+        return Statistics(0, nan, nan, nan, nan, nan, nan, nan, nan)
+    p05, p95 = np.percentile(values, [5.0, 95.0])
+    n_in = n if within is None else int(np.count_nonzero(within))
+    if within is None:
+        n_above = n_below = 0
+    else:
+        out = ~within
+        n_above = int(np.count_nonzero(out & above)) if above is not None else 0
+        n_below = int(np.count_nonzero(out)) - n_above
+    return Statistics(
+        n=n, mean=float(values.mean()), std=float(values.std()),
+        rms=float(np.sqrt(np.mean(values * values))), min=float(values.min()),
+        max=float(values.max()), p05=float(p05), p95=float(p95),
+        in_tolerance_fraction=n_in / n, n_above=n_above, n_below=n_below)
+
+
+def per_face_statistics(values: np.ndarray, face: np.ndarray, within: np.ndarray,
+                        above: np.ndarray) -> dict[int, Statistics]:
+    """:func:`statistics` for each face that has evaluated points: ``{face: Statistics}``."""
+    order = np.argsort(face, kind="stable")
+    f_sorted = face[order]
+    faces, starts = np.unique(f_sorted, return_index=True)
+    bounds = np.append(starts, f_sorted.shape[0])
+    out = {}
+    for k, f in enumerate(faces):
+        idx = order[bounds[k]:bounds[k + 1]]
+        out[int(f)] = statistics(values[idx], within[idx], above[idx])
+    return out
+
+
+def decide(registration, deviations, regions, *, min_inlier_fraction: float = 0.5,
+           min_evaluated_fraction: float = 0.5) -> tuple[str, tuple[str, ...]]:
+    """The verdict and its reasons (see the module docstring for the rules).
+
+    Parameters
+    ----------
+    registration : object with ``converged``, ``inlier_fraction``, ``iterations``, ``message``
+    deviations : Deviations
+    regions : sequence of DefectRegion
+
+    Returns
+    -------
+    verdict : {'pass', 'fail', 'error'}
+    reasons : tuple of str
+        Human-readable reasons (empty list never for 'error' or 'fail').
+    """
+    errors = []
+    if registration is not None:
+        if not bool(registration.converged):
+            msg = getattr(registration, "message", "") or ""
+            errors.append(f"registration did not converge after {registration.iterations} iterations"
+                          + (f" ({msg})" if msg else ""))
+        inl = float(registration.inlier_fraction)
+        if not inl >= min_inlier_fraction:
+            errors.append(f"registration inlier fraction {100 * inl:.1f} % is below the required "
+                          f"{100 * min_inlier_fraction:.0f} % (scan does not match the model)")
+    n, n_eval = deviations.n, deviations.n_evaluated
+    if n_eval == 0:
+        errors.append(f"no scan point lies within {deviations.max_distance:g} mm of the model "
+                      f"({deviations.n_too_far} too far, {deviations.n_on_boundary} past the outer boundary)")
+    elif n_eval < min_evaluated_fraction * n:
+        errors.append(f"only {n_eval} of {n} scan points ({100 * n_eval / n:.1f} %) could be evaluated "
+                      f"({deviations.n_too_far} farther than {deviations.max_distance:g} mm, "
+                      f"{deviations.n_on_boundary} past the outer boundary); "
+                      "is this the right scan and model?")
+    if errors:
+        return "error", tuple(errors)
+    if regions:
+        reasons = [f"{len(regions)} defect region{'s' if len(regions) > 1 else ''} out of tolerance"]
+        for i, r in enumerate(regions[:5]):
+            c = r.centroid
+            reasons.append(f"region {i + 1}: {r.n} points, {r.area:.1f} mm², extreme {r.extreme:+.3f} mm "
+                           f"at ({c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f}) on face(s) "
+                           f"{', '.join(str(f) for f in r.faces[:5])}")
+        if len(regions) > 5:
+            reasons.append(f"... and {len(regions) - 5} more regions")
+        return "fail", tuple(reasons)
+    return "pass", ()

@@ -1,0 +1,342 @@
+"""The HTML inspection report: one self-contained file that opens offline in any browser.
+
+Contents: a verdict banner with its reasons; an interactive 3D view (plotly) of the scan points in
+model coordinates, coloured by deviation on a diverging scale centred at 0 and clipped at
+``2 x`` the tolerance (the tolerance limits are marked on the colour bar), over the shaded CAD
+surface; the histogram of deviations with the tolerance limits; tables of statistics, defect
+regions, registration and per-face statistics.  plotly.js is embedded in the file (no CDN), so the
+report works without a network.  Lengths are in mm throughout.
+
+Scans with more than ``max_points`` evaluated points are subsampled for the 3D view (all
+out-of-tolerance points are kept; the page says so); the histogram and tables use every point.
+"""
+
+from __future__ import annotations
+
+import datetime as _dt
+import html
+import logging
+import math
+from pathlib import Path
+
+import numpy as np
+
+from .ply import CMAP, color_limit
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["write_html_report", "render_html", "cad_mesh"]
+
+_VERDICT_COLOURS = {"pass": "#1b7f3b", "fail": "#b3261e", "error": "#a15c00"}
+_MAX_TRIANGLES = 120_000
+_MAX_NOT_EVALUATED = 10_000
+
+
+def _fmt(x, digits: int = 4, signed: bool = False) -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "–"
+    if isinstance(x, (bool, np.bool_)):
+        return "yes" if x else "no"
+    if isinstance(x, (int, np.integer)):
+        return f"{int(x):,}"
+    return f"{float(x):+.{digits}f}" if signed else f"{float(x):.{digits}f}"
+
+
+def _table(rows, header=None, cls="kv") -> str:
+    out = [f'<table class="{cls}">']
+    if header:
+        out.append("<tr>" + "".join(f"<th>{html.escape(str(h))}</th>" for h in header) + "</tr>")
+    for row in rows:
+        out.append("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>")
+    out.append("</table>")
+    return "".join(out)
+
+
+def cad_mesh(model, max_triangles: int = _MAX_TRIANGLES):
+    """A coarse triangulation of the model for drawing: ``(vertices (V, 3), triangles (T, 3))``.
+
+    CAD faces are tessellated on a parameter grid per face (triangles inside the trims kept);
+    a mesh model is drawn as is (decimated by dropping triangles if huge).  Returns None for a
+    point-cloud model or when there is nothing to draw.
+    """
+    if model is None or getattr(model, "kind", None) == "points":
+        return None
+    from ..cad.tessellate import tessellate_model
+
+    if getattr(model, "kind", None) == "cad" and len(model.faces) == 0:
+        return None
+    edge = model.size / 60.0
+    for _ in range(6):
+        tess = tessellate_model(model, max_edge=edge, max_per_side=60)
+        if len(tess.triangles) <= max_triangles or model.kind == "mesh":
+            break
+        edge *= 1.6
+    verts, tris = tess.vertices, tess.triangles
+    if len(tris) > max_triangles:          # a huge mesh: draw a subset of its triangles
+        tris = tris[:: int(math.ceil(len(tris) / max_triangles))]
+    return np.asarray(verts, np.float32), np.asarray(tris, np.int32)
+
+
+def _subsample(result, max_points: int, rng):
+    """Indices of evaluated points for the 3D view: all out-of-tolerance ones plus a random rest."""
+    dev = result.deviations
+    ev = np.flatnonzero(dev.evaluated)
+    if ev.size <= max_points:
+        return ev, False
+    within = result.tolerance.within(dev.values, dev.face)
+    out = ev[~within[ev]]
+    inside = ev[within[ev]]
+    k = max(0, max_points - out.size)
+    pick = rng.choice(inside, size=min(k, inside.size), replace=False) if k else inside[:0]
+    return np.sort(np.concatenate([out, pick])), True
+
+
+def _figure_3d(result, model, idx, c_lim):
+    import plotly.graph_objects as go
+
+    dev = result.deviations
+    tol = result.tolerance
+    traces = []
+    mesh = cad_mesh(model)
+    if mesh is not None:
+        v, t = mesh
+        traces.append(go.Mesh3d(
+            x=v[:, 0], y=v[:, 1], z=v[:, 2], i=t[:, 0], j=t[:, 1], k=t[:, 2],
+            color="#b8bcc2", opacity=0.55, flatshading=False, name="CAD surface",
+            showlegend=True, hoverinfo="skip",
+            lighting=dict(ambient=0.55, diffuse=0.7, specular=0.15, roughness=0.6)))
+    p = dev.points_model[idx].astype(np.float32)
+    vals = dev.values[idx].astype(np.float32)
+    ticks = sorted({-c_lim, tol.lower, 0.0, tol.upper, c_lim})
+    labels = {tol.lower: f"{tol.lower:+.3g} lower", tol.upper: f"{tol.upper:+.3g} upper", 0.0: "0"}
+    ticktext = [labels.get(x, f"{x:+.3g}") for x in ticks]
+    traces.append(go.Scatter3d(
+        x=p[:, 0], y=p[:, 1], z=p[:, 2], mode="markers", name="scan (deviation)",
+        marker=dict(size=2, color=vals, colorscale=CMAP, cmin=-c_lim, cmax=c_lim, cmid=0.0,
+                    colorbar=dict(title=dict(text="deviation [mm]"), tickvals=ticks,
+                                  ticktext=ticktext, len=0.8)),
+        customdata=vals,
+        hovertemplate="deviation %{customdata:+.4f} mm<br>x %{x:.2f} y %{y:.2f} z %{z:.2f} mm"
+                      "<extra></extra>"))
+    ne = np.flatnonzero(~dev.evaluated)
+    if ne.size:
+        ne = ne[:: int(math.ceil(ne.size / _MAX_NOT_EVALUATED))]
+        q = dev.points_model[ne].astype(np.float32)
+        traces.append(go.Scatter3d(
+            x=q[:, 0], y=q[:, 1], z=q[:, 2], mode="markers", name="not evaluated",
+            marker=dict(size=1.5, color="#8a8a8a"), hoverinfo="skip", visible="legendonly"))
+    if result.regions:
+        c = np.array([r.centroid for r in result.regions], dtype=np.float64)
+        traces.append(go.Scatter3d(
+            x=c[:, 0], y=c[:, 1], z=c[:, 2], mode="markers+text", name="defect regions",
+            marker=dict(size=5, color="black", symbol="diamond"),
+            text=[f"R{i + 1} {r.extreme:+.3f}" for i, r in enumerate(result.regions)],
+            textposition="top center", hoverinfo="text"))
+    fig = go.Figure(traces)
+    axis = lambda name: dict(title=dict(text=f"{name} [mm]"), backgroundcolor="white")  # noqa: E731
+    fig.update_layout(
+        scene=dict(aspectmode="data", xaxis=axis("x"), yaxis=axis("y"), zaxis=axis("z"),
+                   camera=dict(eye=dict(x=1.5, y=1.5, z=1.4))),
+        margin=dict(l=0, r=0, t=30, b=0), height=640,
+        legend=dict(orientation="h", yanchor="bottom", y=1.0, x=0.0))
+    return fig
+
+
+def _figure_hist(result, c_lim):
+    import plotly.graph_objects as go
+
+    dev = result.deviations
+    tol = result.tolerance
+    v = dev.values[dev.evaluated]
+    span = max(1.5 * c_lim, float(np.percentile(np.abs(v), 99.5)) * 1.05) if v.size else c_lim
+    shown = v[np.abs(v) <= span]
+    size = 2.0 * span / 120
+    bins = dict(start=-span, end=span, size=size)
+    inside = (shown >= tol.lower) & (shown <= tol.upper)
+    fig = go.Figure([
+        go.Histogram(x=shown[inside].astype(np.float32), xbins=bins, marker_color="#4c72b0",
+                     name="in tolerance", hovertemplate="%{x} mm: %{y} points<extra></extra>"),
+        go.Histogram(x=shown[~inside].astype(np.float32), xbins=bins, marker_color="#d6604d",
+                     name="out of tolerance", hovertemplate="%{x} mm: %{y} points<extra></extra>"),
+    ])
+    lines = [(tol.lower, f"lower {tol.lower:+.3g} mm", "#b3261e"),
+             (tol.upper, f"upper {tol.upper:+.3g} mm", "#b3261e"), (0.0, "", "#333333")]
+    for x, label, colour in lines:
+        fig.add_vline(x=x, line=dict(color=colour, dash="dash" if label else "dot", width=2),
+                      annotation_text=label, annotation_position="top")
+    note = f" ({v.size - shown.size:,} points beyond ±{span:.3g} mm not drawn)" if shown.size < v.size else ""
+    fig.update_layout(
+        xaxis=dict(title=dict(text="signed deviation [mm] (+ material added, − missing)"),
+                   range=[-span, span]),
+        yaxis=dict(title=dict(text="points")), bargap=0.02, height=380, barmode="stack",
+        margin=dict(l=60, r=20, t=50, b=50), showlegend=True,
+        legend=dict(orientation="h", yanchor="bottom", y=0.9, x=0.0),
+        title=dict(text=f"Histogram of {v.size:,} evaluated deviations{note}", x=0.5,
+                   font=dict(size=14)))
+    return fig
+
+
+_CSS = """
+body{font-family:system-ui,-apple-system,Segoe UI,Roboto,sans-serif;margin:0;color:#1d1d1f;background:#f6f7f9}
+main{max-width:1200px;margin:0 auto;padding:16px 24px 48px}
+.banner{color:#fff;padding:18px 24px;border-radius:8px;margin:12px 0}
+.banner h1{margin:0;font-size:28px;letter-spacing:.04em}
+.banner ul{margin:8px 0 0 18px;padding:0}
+.grid{display:grid;grid-template-columns:repeat(auto-fit,minmax(320px,1fr));gap:16px}
+.card{background:#fff;border-radius:8px;padding:12px 16px;box-shadow:0 1px 3px rgba(0,0,0,.08);margin-top:16px}
+h2{font-size:17px;margin:4px 0 10px}
+table{border-collapse:collapse;font-size:14px}
+td,th{padding:3px 10px;border-bottom:1px solid #e5e5e5;text-align:right}
+td:first-child,th:first-child{text-align:left}
+.note{color:#555;font-size:13px}
+"""
+
+
+def render_html(result, model=None, *, max_points: int = 50_000, title: str | None = None,
+                rng=0) -> str:
+    """The report as one HTML string (see :func:`write_html_report`)."""
+    import plotly.io as pio
+
+    rng = np.random.default_rng(rng)
+    d = result.to_dict()
+    tol = result.tolerance
+    c_lim = color_limit(tol)
+    idx, subsampled = _subsample(result, max_points, rng)
+    fig3d = _figure_3d(result, model, idx, c_lim)
+    fighist = _figure_hist(result, c_lim)
+    cfg = {"displaylogo": False, "responsive": True}
+    div3d = pio.to_html(fig3d, full_html=False, include_plotlyjs=True, div_id="view3d", config=cfg)
+    divhist = pio.to_html(fighist, full_html=False, include_plotlyjs=False, div_id="histogram",
+                          config=cfg)
+
+    verdict = result.verdict
+    reasons = "".join(f"<li>{html.escape(r)}</li>" for r in result.reasons)
+    source = html.escape(str(getattr(model, "source", "") or ""))
+    title = title or f"Shape inspection: {verdict.upper()}"
+    s = d["deviation"]
+    stats_rows = [
+        ("evaluated points", _fmt(s["n"])), ("mean [mm]", _fmt(s["mean"], signed=True)),
+        ("std [mm]", _fmt(s["std"])), ("RMS [mm]", _fmt(s["rms"])),
+        ("min [mm]", _fmt(s["min"], signed=True)), ("max [mm]", _fmt(s["max"], signed=True)),
+        ("p05 [mm]", _fmt(s["p05"], signed=True)), ("p95 [mm]", _fmt(s["p95"], signed=True)),
+        ("in tolerance", "–" if s["in_tolerance_fraction"] is None
+         else f"{100 * s['in_tolerance_fraction']:.2f} %"),
+        ("above upper / below lower", f"{s['n_above']:,} / {s['n_below']:,}"),
+    ]
+    ne = d["not_evaluated"]
+    tol_text = (f"±{tol.upper:.4g} mm" if tol.lower == -tol.upper
+                else f"[{tol.lower:+.4g}, {tol.upper:+.4g}] mm")
+    input_rows = [
+        ("tolerance", tol_text + (f" ({len(tol.per_face)} face overrides)" if tol.per_face else "")),
+        ("scan points", _fmt(d["n_points"])),
+        ("not evaluated: too far", f"{ne['too_far']:,} (> {_fmt(d['max_distance'], 3)} mm)"),
+        ("not evaluated: past outer boundary", f"{ne['on_boundary']:,}"),
+        ("measurement outliers", f"{d['outliers']['n']:,} ({d['outliers']['n_low_weight']:,} "
+                                 "rejected by the registration)"),
+        ("point spacing [mm]", _fmt(d["spacing"], 3)),
+    ]
+    r = d["registration"]
+    reg_rows = [("converged", _fmt(r["converged"])), ("iterations", _fmt(r["iterations"])),
+                ("RMS [mm]", _fmt(r["rms"])),
+                ("inlier fraction", "–" if r["inlier_fraction"] is None
+                 else f"{100 * r['inlier_fraction']:.1f} %")]
+    if r.get("message"):
+        reg_rows.append(("message", html.escape(r["message"])))
+    T = np.asarray(d["T_model_scan"])
+    t_html = "<pre>" + "\n".join(" ".join(f"{x:+.6f}" for x in row) for row in T) + "</pre>"
+    if result.regions:
+        reg_tab = _table(
+            [(f"R{i + 1}", _fmt(g.n), _fmt(g.area, 2), _fmt(g.extreme, 4, True),
+              _fmt(g.extreme_raw, 4, True), ", ".join(f"{c:.2f}" for c in g.centroid),
+              html.escape(", ".join(str(f) for f in g.faces[:10])), g.side)
+             for i, g in enumerate(result.regions)],
+            header=("region", "points", "area [mm²]", "extreme [mm]", "largest single [mm]",
+                    "centroid x, y, z [mm]", "faces", "side"), cls="regions")
+    else:
+        reg_tab = '<p class="note">No defect regions: no connected cluster of out-of-tolerance points.</p>'
+    pf = sorted(result.per_face.items(), key=lambda kv: kv[1].in_tolerance_fraction)
+    pf_tab = _table(
+        [(str(f), _fmt(st.n), _fmt(st.mean, 4, True), _fmt(st.std), _fmt(st.min, 4, True),
+          _fmt(st.max, 4, True), f"{100 * st.in_tolerance_fraction:.2f} %") for f, st in pf],
+        header=("face", "points", "mean [mm]", "std [mm]", "min [mm]", "max [mm]", "in tolerance"),
+        cls="perface")
+    timings = " · ".join(f"{html.escape(k)} {v:.3f} s" for k, v in result.timings.items())
+    sub_note = (f"The 3D view shows {idx.size:,} of {result.deviations.n_evaluated:,} evaluated points "
+                "(all out-of-tolerance points and a random sample of the others); statistics and "
+                "the histogram use every point." if subsampled else
+                f"The 3D view shows all {idx.size:,} evaluated points.")
+    now = _dt.datetime.now().astimezone().isoformat(timespec="seconds")
+    try:
+        from importlib.metadata import version
+        sv_version = version("shapeverify")
+    except Exception:  # pragma: no cover - not installed as a distribution
+        sv_version = "?"
+    return f"""<!DOCTYPE html>
+<html lang="en"><head><meta charset="utf-8">
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<title>{html.escape(title)}</title><style>{_CSS}</style></head>
+<body><main>
+<div class="banner" id="verdict" style="background:{_VERDICT_COLOURS.get(verdict, '#555')}">
+<h1>{html.escape(verdict.upper())}</h1>
+<div>tolerance {html.escape(tol_text)} · {_fmt(s['n'])} evaluated points · all lengths in mm</div>
+{f'<ul>{reasons}</ul>' if reasons else ''}</div>
+<div class="grid">
+<div class="card"><h2>Deviation statistics (mm)</h2>{_table(stats_rows)}</div>
+<div class="card"><h2>Inspection</h2>{_table(input_rows)}</div>
+<div class="card"><h2>Registration</h2>{_table(reg_rows)}
+<div class="note">T_model_scan (model = R · scan + t, mm):</div>{t_html}</div>
+</div>
+<div class="card"><h2>3D view: scan coloured by deviation from CAD (mm)</h2><p class="note">{sub_note} Colours: blue = material missing,
+red = material added, clipped at ±{c_lim:.3g} mm (2 × tolerance). Grey surface: CAD model.
+Drag to rotate, scroll to zoom; click legend entries to show or hide layers.</p>{div3d}</div>
+<div class="card"><h2>Histogram</h2>{divhist}</div>
+<div class="card"><h2>Defect regions</h2><p class="note">Connected clusters of at least the
+minimum number of out-of-tolerance points; "extreme" is the noise-averaged peak deviation,
+"largest single" the most extreme measured point. Positions in model coordinates (mm).</p>{reg_tab}</div>
+<div class="card"><details><summary><b>Per-face statistics</b> ({len(pf)} faces, worst first)</summary>
+{pf_tab}</details></div>
+<p class="note">Model: {source or '–'} · generated {now} by shapeverify {html.escape(sv_version)}
+· timings: {timings} · units: mm</p>
+</main></body></html>
+"""
+
+
+def write_html_report(result, prep=None, scan=None, path="report.html", *,
+                      max_points: int = 50_000, title: str | None = None, rng=0) -> Path:
+    """Write the self-contained HTML report of an inspection.
+
+    Parameters
+    ----------
+    result : InspectionResult
+    prep : Prepared or Model, optional
+        Its model (``prep.model``, or ``prep`` itself if it is a model) is drawn as the grey CAD
+        surface; omitted for point-cloud models or when None.
+    scan : (N, 3) array_like, optional
+        The scan as passed to ``inspect``; only its length is checked (the report draws
+        ``result.deviations.points_model``).
+    path : str or Path
+    max_points : int
+        Largest number of points in the 3D view (default 50,000).
+    title : str, optional
+    rng : seed for the subsampling (repeatable by default).
+
+    Returns
+    -------
+    pathlib.Path
+
+    Raises
+    ------
+    ValueError
+        If ``scan`` does not have as many points as the inspection, or ``max_points < 1``.
+    """
+    if max_points < 1:
+        raise ValueError(f"max_points must be >= 1, got {max_points}")
+    if scan is not None and len(scan) != result.deviations.n:
+        raise ValueError(f"scan has {len(scan)} points but the inspection has "
+                         f"{result.deviations.n}; pass the scan that was inspected")
+    model = getattr(prep, "model", prep)
+    text = render_html(result, model, max_points=max_points, title=title, rng=rng)
+    path = Path(path)
+    path.write_text(text, encoding="utf-8")
+    logger.info("HTML report written to %s (%.1f MB)", path, len(text) / 1e6)
+    return path

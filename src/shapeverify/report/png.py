@@ -1,0 +1,203 @@
+"""A static one-page PNG summary of an inspection (for e-mail and tickets).
+
+Verdict banner with its reasons, two views of the scan points coloured by deviation (same colour
+scale as the HTML report: ``RdBu_r`` centred at 0, clipped at ``2 x`` the tolerance), the
+histogram with the tolerance limits and the key statistics.  Drawn with matplotlib's Agg canvas
+directly (no pyplot, no global backend state), so it works headless and in threads.
+"""
+
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+
+from .ply import CMAP, color_limit
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["write_png_summary"]
+
+_VERDICT_COLOURS = {"pass": "#1b7f3b", "fail": "#b3261e", "error": "#a15c00"}
+
+
+_AXES = ("x", "y", "z")
+
+
+def _view_frames(p: np.ndarray):
+    """Two orthographic views of the points: ``[(title, labels, R (3, 3)), ...]``; a view's rows
+    are the screen x, screen y and depth (towards the viewer) directions.
+
+    View 1 looks along the smallest principal axis of the points (at the part's main surface),
+    snapped to the nearest model axis when within 25 degrees of it (then its screen axes are model
+    axes and are labelled so); view 2 is an oblique view, view 1 turned 35 degrees and tilted 50.
+    """
+    c = p - p.mean(axis=0)
+    _, _, vt = np.linalg.svd(c[:: max(1, len(c) // 5000)], full_matrices=False)
+    n = vt[2] if vt.shape[0] == 3 else np.array([0.0, 0.0, 1.0])
+    k = int(np.argmax(np.abs(n)))
+    if abs(n[k]) > np.cos(np.radians(25.0)):
+        i, j = [(1, 2), (2, 0), (0, 1)][k]         # right-handed screen axes for the view along +k
+        top = np.eye(3)[[i, j, k]]
+        labels = (f"{_AXES[i]} [mm]", f"{_AXES[j]} [mm]")
+        title = f"view along the {_AXES[k]} axis"
+    else:
+        e1, e2 = vt[0], vt[1]
+        top = np.stack([e1, e2, np.cross(e1, e2)])
+        labels = ("principal axis 1 [mm]", "principal axis 2 [mm]")
+        title = "view along the smallest principal axis"
+    a, b = np.radians(50.0), np.radians(35.0)
+    tilt = np.array([[1, 0, 0], [0, np.cos(a), -np.sin(a)], [0, np.sin(a), np.cos(a)]])
+    turn = np.array([[np.cos(b), -np.sin(b), 0], [np.sin(b), np.cos(b), 0], [0, 0, 1]])
+    return [(title, labels, top), ("oblique view", ("mm", "mm"), tilt @ turn @ top)]
+
+
+def write_png_summary(result, scan=None, path="summary.png", *, max_points: int = 20_000,
+                      dpi: int = 110, rng=0) -> Path:
+    """Write the PNG summary of an inspection.
+
+    Parameters
+    ----------
+    result : InspectionResult
+    scan : (N, 3) array_like, optional
+        The scan as passed to ``inspect``; only its length is checked.
+    path : str or Path
+    max_points : int
+        Points drawn per view (random subsample, all out-of-tolerance points kept).
+    dpi : int
+    rng : seed of the subsample.
+
+    Returns
+    -------
+    pathlib.Path
+
+    Raises
+    ------
+    ValueError
+        If ``scan`` does not have as many points as the inspection.
+    """
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.colors import Normalize
+    from matplotlib.figure import Figure
+    from matplotlib.patches import Rectangle
+
+    dev = result.deviations
+    if scan is not None and len(scan) != dev.n:
+        raise ValueError(f"scan has {len(scan)} points but the inspection has {dev.n}; pass the "
+                         "scan that was inspected")
+    rng = np.random.default_rng(rng)
+    tol = result.tolerance
+    c_lim = color_limit(tol)
+    ev = np.flatnonzero(dev.evaluated)
+    if ev.size > max_points:
+        within = tol.within(dev.values, dev.face)[ev]
+        out, inside = ev[~within], ev[within]
+        k = max(0, max_points - out.size)
+        ev = np.concatenate([out, rng.choice(inside, size=min(k, inside.size), replace=False)])
+    p = dev.points_model[ev]
+    v = dev.values[ev]
+    ne = np.flatnonzero(~dev.evaluated)
+    pn = dev.points_model[ne[:: max(1, ne.size // 5000)]]   # not evaluated: grey, for context
+
+    fig = Figure(figsize=(12, 8.6), dpi=dpi)
+    FigureCanvasAgg(fig)
+    gs = fig.add_gridspec(3, 3, height_ratios=[0.5, 2.4, 1.5], width_ratios=[1, 1, 0.75],
+                          hspace=0.3, wspace=0.18, left=0.06, right=0.98, top=0.97, bottom=0.07)
+    colour = _VERDICT_COLOURS.get(result.verdict, "#555555")
+    ax = fig.add_subplot(gs[0, :])
+    ax.set_axis_off()
+    ax.add_patch(Rectangle((0, 0), 1, 1, transform=ax.transAxes, color=colour))
+    tol_text = (f"±{tol.upper:.4g} mm" if tol.lower == -tol.upper
+                else f"[{tol.lower:+.4g}, {tol.upper:+.4g}] mm")
+    ax.text(0.015, 0.62, result.verdict.upper(), color="white", fontsize=26, weight="bold",
+            va="center", transform=ax.transAxes)
+    reason = result.reasons[0] if result.reasons else "all deviations within tolerance"
+    ax.text(0.17, 0.68, f"tolerance {tol_text}  ·  {dev.n_evaluated:,} of {dev.n:,} points evaluated"
+            f"  ·  {len(result.regions)} defect region(s)", color="white", fontsize=12,
+            va="center", transform=ax.transAxes)
+    ax.text(0.17, 0.3, reason if len(reason) <= 150 else reason[:147] + "...", color="white",
+            fontsize=10, va="center", transform=ax.transAxes)
+
+    norm = Normalize(-c_lim, c_lim)
+    p_all = p if len(p) >= 3 else np.vstack([p, pn])
+    frames = (_view_frames(p_all) if len(p_all) >= 3 else
+              [("view along z", ("x [mm]", "y [mm]"), np.eye(3))] * 2)
+    sc = None
+    for col, (name, labels, R) in enumerate(frames):
+        a2 = fig.add_subplot(gs[1, col])
+        # view 1 in model coordinates, view 2 about the centre of the points
+        origin = np.zeros(3) if col == 0 or len(p_all) == 0 else p_all.mean(axis=0)
+        if len(pn):
+            qn = (pn - origin) @ R.T
+            a2.scatter(qn[:, 0], qn[:, 1], c="#c8c8c8", s=1.0, linewidths=0, rasterized=True,
+                       label="not evaluated")
+        if len(p):
+            q = (p - origin) @ R.T
+            order = np.argsort(q[:, 2])                   # painter's order: far points first
+            sc = a2.scatter(q[order, 0], q[order, 1], c=v[order], cmap=CMAP, norm=norm, s=1.5,
+                            linewidths=0, rasterized=True)
+            for i, g in enumerate(result.regions[:9]):
+                gx, gy, _ = (g.centroid - origin) @ R.T
+                a2.annotate(f"R{i + 1}", (gx, gy), xytext=(6, 6), textcoords="offset points",
+                            fontsize=9, weight="bold")
+        a2.set_aspect("equal", adjustable="datalim")
+        a2.set_title(name, fontsize=10)
+        a2.set_xlabel(labels[0], fontsize=8)
+        a2.set_ylabel(labels[1], fontsize=8)
+        a2.tick_params(labelsize=7)
+    host = fig.add_subplot(gs[1, 2])
+    host.set_axis_off()
+    if sc is not None:
+        cax = host.inset_axes([0.0, 0.05, 0.06, 0.9])
+        cb = fig.colorbar(sc, cax=cax)
+        cb.set_label("deviation [mm]")
+        cb.set_ticks(sorted({-c_lim, tol.lower, 0.0, tol.upper, c_lim}))
+        for y in (tol.lower, tol.upper):
+            cb.ax.axhline(y, color="black", linewidth=1.5)
+
+    s = result.statistics
+    ah = fig.add_subplot(gs[2, :2])
+    vals = dev.values[dev.evaluated]
+    if vals.size:
+        span = max(1.5 * c_lim, float(np.percentile(np.abs(vals), 99.5)) * 1.05)
+        _, edges, patches = ah.hist(vals, bins=120, range=(-span, span), color="#4c72b0")
+        centres = 0.5 * (edges[:-1] + edges[1:])
+        for c, patch in zip(centres, patches):
+            if c < tol.lower or c > tol.upper:
+                patch.set_facecolor("#d6604d")
+        ah.set_xlim(-span, span)
+    for x in (tol.lower, tol.upper):
+        ah.axvline(x, color="#b3261e", linestyle="--", linewidth=1.5)
+    ah.axvline(0.0, color="#333333", linestyle=":", linewidth=1)
+    ah.set_xlabel("signed deviation [mm] (+ material added, − missing; dashed: tolerance limits)")
+    ah.set_ylabel("points")
+
+    lines = [("mean", s.mean), ("std", s.std), ("RMS", s.rms), ("min", s.min), ("max", s.max),
+             ("p05", s.p05), ("p95", s.p95)]
+    text = "deviation statistics [mm]\n"
+    if s.n:
+        text += "\n".join(f"{k:>4s} {val:+9.4f}" for k, val in lines)
+        text += f"\nin tolerance {100 * s.in_tolerance_fraction:.2f} %\nevaluated {s.n:,} points"
+    else:
+        text += "no points evaluated"
+    n_ne = dev.n - dev.n_evaluated
+    if n_ne:
+        text += f"\nnot evaluated {n_ne:,} (grey)"
+    host.text(0.36, 0.95, text, family="monospace", fontsize=9, va="top", transform=host.transAxes)
+
+    at = fig.add_subplot(gs[2, 2])
+    at.set_axis_off()
+    reg = result.registration
+    text = (f"registration: rms {float(reg.rms):.4f} mm\n  {int(reg.iterations)} iterations, "
+            f"converged {bool(reg.converged)}\n  inliers {100 * float(reg.inlier_fraction):.1f} %")
+    text += f"\n\ndefect regions: {len(result.regions)}"
+    for i, g in enumerate(result.regions[:4]):
+        text += f"\n  R{i + 1}: {g.extreme:+.3f} mm, {g.area:.1f} mm², {g.n} pts"
+    text += f"\nmeasurement outliers: {result.outliers.n}"
+    at.text(0.0, 1.0, text, family="monospace", fontsize=9, va="top", transform=at.transAxes)
+
+    path = Path(path)
+    fig.savefig(path, dpi=dpi)
+    logger.info("PNG summary written to %s", path)
+    return path
