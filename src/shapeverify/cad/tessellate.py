@@ -47,12 +47,13 @@ def _grid_counts(surface, max_edge: float, max_per_side: int) -> tuple[np.ndarra
     return np.linspace(u0, u1, nu), np.linspace(v0, v1, nv)
 
 
-def tessellate_face(face, max_edge: float, max_per_side: int = 400):
+def tessellate_face(face, max_edge: float, max_per_side: int = 400, cover: bool = True):
     """Tessellate one trimmed face on a parameter grid, keeping triangles inside the trims.
 
     A triangle is kept when any of its three vertices or its centroid is inside the trimmed
     domain, or a trimming loop passes through its grid cell, so the tessellation covers the whole
     face (it overhangs the trims by up to one cell; exact computations check the trims again).
+    With ``cover=False`` (for drawing) only triangles whose centroid is inside are kept.
 
     Returns
     -------
@@ -66,9 +67,11 @@ def tessellate_face(face, max_edge: float, max_per_side: int = 400):
     a = (i * nv + j).ravel()
     b, c, d = a + nv, a + nv + 1, a + 1
     tris = np.concatenate([np.column_stack([a, b, c]), np.column_stack([a, c, d])])
-    inside_v = face.contains(uv)
     centroids = uv[tris].mean(axis=1)
-    keep = inside_v[tris].any(axis=1) | face.contains(centroids)
+    keep = face.contains(centroids)
+    if not cover:
+        return _compact(face, uv, tris[keep])
+    keep |= face.contains(uv)[tris].any(axis=1)
     # cells that a trimming loop passes through: a sliver of the face may lie in a cell whose
     # corners and centroids are all outside (a thin strip along a shared edge)
     cell = np.zeros((nu - 1, nv - 1), dtype=bool)
@@ -83,7 +86,13 @@ def tessellate_face(face, max_edge: float, max_per_side: int = 400):
         iv = np.clip(np.searchsorted(vs, pts[:, 1], side="right") - 1, 0, nv - 2)
         cell[iu, iv] = True
     keep |= np.concatenate([cell.ravel(), cell.ravel()])
-    tris = tris[keep]
+    return _compact(face, uv, tris[keep])
+
+
+def _compact(face, uv, tris):
+    """Drop unused grid vertices and evaluate the rest on the exact surface."""
+    if len(tris) == 0:
+        return np.zeros((0, 3)), np.zeros((0, 3), np.int64), np.zeros((0, 2))
     used = np.unique(tris)
     remap = np.full(len(uv), -1, dtype=np.int64)
     remap[used] = np.arange(len(used))
@@ -92,7 +101,8 @@ def tessellate_face(face, max_edge: float, max_per_side: int = 400):
     return verts, remap[tris], uv
 
 
-def tessellate_model(model, max_edge: float | None = None, max_per_side: int = 400) -> Tessellation:
+def tessellate_model(model, max_edge: float | None = None, max_per_side: int = 400,
+                     cover: bool = True) -> Tessellation:
     """Tessellate every face of a CAD model (or wrap a mesh model's triangles).
 
     Parameters
@@ -100,6 +110,9 @@ def tessellate_model(model, max_edge: float | None = None, max_per_side: int = 4
     model : shapeverify.cad.model.Model
     max_edge : float, optional
         Target triangle edge length in mm (default: model size / 200).
+    cover : bool
+        True (seeds): cover every face completely, overhanging its trims; False (drawing): keep
+        the triangles whose centroid lies inside the trims.
 
     Raises
     ------
@@ -120,7 +133,7 @@ def tessellate_model(model, max_edge: float | None = None, max_per_side: int = 4
     V, T, UV, VF, TF = [], [], [], [], []
     offset = 0
     for f, face in enumerate(model.faces):
-        verts, tris, uv = tessellate_face(face, max_edge, max_per_side)
+        verts, tris, uv = tessellate_face(face, max_edge, max_per_side, cover)
         V.append(verts)
         T.append(tris + offset)
         UV.append(uv)

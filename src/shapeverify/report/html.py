@@ -67,7 +67,7 @@ def cad_mesh(model, max_triangles: int = _MAX_TRIANGLES):
         return None
     edge = model.size / 60.0
     for _ in range(6):
-        tess = tessellate_model(model, max_edge=edge, max_per_side=60)
+        tess = tessellate_model(model, max_edge=edge, max_per_side=60, cover=False)
         if len(tess.triangles) <= max_triangles or model.kind == "mesh":
             break
         edge *= 1.6
