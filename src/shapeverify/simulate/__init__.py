@@ -1,0 +1,6 @@
+"""Simulation: a virtual optical scanner with realistic defects and the truth of every point."""
+from .scanner import (BLOB, DENT, INLIER, LABELS, OUTLIER, Accuracy, VirtualScan, random_motion,
+                      virtual_scan)
+
+__all__ = ["virtual_scan", "VirtualScan", "Accuracy", "random_motion", "INLIER", "OUTLIER",
+           "BLOB", "DENT", "LABELS"]
