@@ -1,0 +1,587 @@
+"""numba kernels of the Distance Varying Grid tree: build classification and queries (private).
+
+Model point records
+-------------------
+One 128-byte record per model point, 64-byte aligned (two cache lines), everything a fast
+query reads.  The record array ``rec`` is (N + 1, 16) float64; the kernels get four views of
+the same memory: ``rf`` float64 (N+1, 16), ``ri`` int32 (N+1, 32), ``rh`` int16 (N+1, 64),
+``rs`` float32 (N+1, 32).
+
+===========  ==========================  ==============================================
+bytes        view [columns]              content
+===========  ==========================  ==============================================
+0-24         rf[0:3]                     x, y, z
+24-56        ri[6:14]                    the 8 graph neighbours (the point itself where
+                                         there are fewer)
+56-104       rh[28:52]                   neighbour k's offset from the point, quantised:
+                                         ``rh[28 + 3k + c] * rs[26]``
+104-108      rs[26]                      that quantisation step
+108-116      rs[27:29]                   unit normal, octahedral code
+116-120      rh[58:60]                   tangent_u, octahedral code / 32767
+120-128      rs[30:32]                   patch half extents along tangent_u, tangent_v
+===========  ==========================  ==============================================
+
+Row N is a sentinel far away (1e30).  With the offsets a walk step (which neighbour is
+closest?) reads only the current record; the record of the chosen neighbour is then read to
+confirm with exact coordinates, so every move strictly decreases the exact distance.
+
+Tree layout
+-----------
+One int32 array ``nodes``.  The first ``nx * ny * nz`` entries are the top grid, cell
+(ix, iy, iz) at ``(ix * ny + iy) * nz + iz``.  A node code ``c``:
+
+* ``c >= 0``   internal cell; its 8 children are ``nodes[c + octant]``,
+  ``octant = bx | by << 1 | bz << 2`` (b = 1 for the upper half along that axis);
+* ``c == -1``  FAR: farther than the maximum distance (the caller falls back to a kd-tree);
+* ``c <= -2``  leaf, ``m = -c - 2``: if ``m < N`` the single seed model point ``m``, else a seed
+  list at ``lists[m - N]`` = count, then the indices.
+
+A query descends from the top grid by doubling its fractional cell coordinate (exact in binary
+floating point), walks greedily from the leaf's seed (from each seed of a multi-seed leaf) to a
+local minimum of the distance.  :func:`query_block` runs blocks of queries stage by stage and
+prefetches the next stage's cache lines, so the memory latencies of different queries overlap.
+Scratch space is allocated once per call, never per query point.  All kernels trust their input.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from llvmlite import ir
+from numba import njit, types
+from numba.core import cgutils
+from numba.extending import intrinsic
+
+FAR = -1
+K = 8          # neighbours per model point
+BLOCK = 32     # queries in flight in query_block
+SENTINEL = 1e30
+# record layout (see the module docstring)
+NBR = 6        # ri column of the first neighbour
+OFF = 28       # rh column of the first offset
+QSTEP = 26     # rs column of the offset step
+NRM = 27       # rs columns of the octahedral normal
+TAN = 58       # rh columns of the octahedral tangent
+EXT = 30       # rs columns of the half extents
+_I16 = 1.0 / 32767.0
+
+
+@intrinsic
+def prefetch(typingctx, arr, i):
+    """Prefetch the cache line of flat element ``i`` of ``arr`` (llvm.prefetch, read, keep)."""
+    sig = types.void(arr, i)
+
+    def codegen(context, builder, signature, args):
+        aryty = signature.args[0]
+        ary = context.make_array(aryty)(context, builder, args[0])
+        ptr = builder.gep(ary.data, [args[1]])
+        i8p = ir.IntType(8).as_pointer()
+        i32 = ir.IntType(32)
+        fnty = ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32])
+        fn = cgutils.get_or_insert_function(builder.module, fnty, "llvm.prefetch.p0i8")
+        builder.call(fn, [builder.bitcast(ptr, i8p), ir.Constant(i32, 0), ir.Constant(i32, 3),
+                          ir.Constant(i32, 1)])
+        return context.get_dummy_value()
+
+    return sig, codegen
+
+
+@njit(cache=True, inline="always")
+def _fetch(rf, j):
+    """Prefetch both cache lines of record j."""
+    prefetch(rf, j * 16)
+    prefetch(rf, j * 16 + 8)
+
+
+@njit(cache=True, inline="always")
+def _d2(q0, q1, q2, rf, j):
+    a = rf[j, 0] - q0
+    b = rf[j, 1] - q1
+    c = rf[j, 2] - q2
+    return a * a + b * b + c * c
+
+
+@njit(cache=True, inline="always")
+def _ring(q0, q1, q2, b, rf, rh, rs):
+    """Neighbour slot k of b that looks closest to q (from the quantised offsets) and its
+    estimated squared distance."""
+    r0 = q0 - rf[b, 0]
+    r1 = q1 - rf[b, 1]
+    r2 = q2 - rf[b, 2]
+    s = np.float64(rs[b, QSTEP])
+    best = 0
+    bd = np.inf
+    for k in range(K):
+        e0 = r0 - s * rh[b, OFF + 3 * k]
+        e1 = r1 - s * rh[b, OFF + 3 * k + 1]
+        e2 = r2 - s * rh[b, OFF + 3 * k + 2]
+        d = e0 * e0 + e1 * e1 + e2 * e2
+        lt = d < bd
+        bd = d if lt else bd
+        best = k if lt else best
+    return best, bd
+
+
+@njit(cache=True)
+def walk(q0, q1, q2, b, rf, ri, rh, rs, max_moves):
+    """Greedy descent on the neighbour graph from model point ``b``.
+
+    Each round picks the neighbour that looks closest (quantised offsets) and moves there if it
+    is strictly closer in exact coordinates.  Returns (index, squared distance, moves).
+    """
+    db = _d2(q0, q1, q2, rf, b)
+    moves = 0
+    while moves < max_moves:
+        k, de = _ring(q0, q1, q2, b, rf, rh, rs)
+        if not de < db:
+            break
+        j = ri[b, NBR + k]
+        dj = _d2(q0, q1, q2, rf, j)
+        if not dj < db:
+            break
+        b = j
+        db = dj
+        moves += 1
+    return b, db, moves
+
+
+@njit(cache=True)
+def locate(q0, q1, q2, origin, s0, dims, nodes):
+    """Leaf code of the cell holding (q0, q1, q2); FAR outside the top grid."""
+    fx = (q0 - origin[0]) / s0
+    fy = (q1 - origin[1]) / s0
+    fz = (q2 - origin[2]) / s0
+    if not (fx >= 0.0 and fy >= 0.0 and fz >= 0.0):
+        return FAR
+    ix = int(fx)
+    iy = int(fy)
+    iz = int(fz)
+    if ix >= dims[0] or iy >= dims[1] or iz >= dims[2]:
+        return FAR
+    c = nodes[(ix * dims[1] + iy) * dims[2] + iz]
+    fx -= ix
+    fy -= iy
+    fz -= iz
+    while c >= 0:
+        fx += fx
+        fy += fy
+        fz += fz
+        bx = 1 if fx >= 1.0 else 0
+        by = 1 if fy >= 1.0 else 0
+        bz = 1 if fz >= 1.0 else 0
+        fx -= bx
+        fy -= by
+        fz -= bz
+        c = nodes[c + (bx | (by << 1) | (bz << 2))]
+    return c
+
+
+@njit(cache=True)
+def leaf_nearest(q0, q1, q2, code, n_points, lists, rf, ri, rh, rs, max_moves):
+    """Nearest model point from a leaf code (not FAR): walk from each seed, keep the closest.
+
+    Returns (index, squared distance, largest number of moves of a walk).
+    """
+    m = -code - 2
+    if m < n_points:
+        return walk(q0, q1, q2, m, rf, ri, rh, rs, max_moves)
+    off = m - n_points
+    best = -1
+    bd = np.inf
+    mv = 0
+    for s in range(1, lists[off] + 1):
+        b, d, k = walk(q0, q1, q2, lists[off + s], rf, ri, rh, rs, max_moves)
+        mv = max(mv, k)
+        if d < bd:
+            bd = d
+            best = b
+    return best, bd, mv
+
+
+# ------------------------------------------------------------------------ tangent patches
+@njit(cache=True, inline="always")
+def oct_decode(x, y):
+    """Unit vector from its octahedral code (x, y) in [-1, 1]^2."""
+    z = 1.0 - abs(x) - abs(y)
+    if z < 0.0:
+        x, y = (1.0 - abs(y)) * (1.0 if x >= 0.0 else -1.0), \
+               (1.0 - abs(x)) * (1.0 if y >= 0.0 else -1.0)
+    inv = 1.0 / np.sqrt(x * x + y * y + z * z)
+    return x * inv, y * inv, z * inv
+
+
+@njit(cache=True, inline="always")
+def frame(b, rs, rh):
+    """(normal, tangent_u, tangent_v, half_u, half_v) of model point b (tangent_u made
+    orthogonal to the normal after decoding)."""
+    n0, n1, n2 = oct_decode(np.float64(rs[b, NRM]), np.float64(rs[b, NRM + 1]))
+    u0, u1, u2 = oct_decode(rh[b, TAN] * _I16, rh[b, TAN + 1] * _I16)
+    c = u0 * n0 + u1 * n1 + u2 * n2
+    u0 -= c * n0
+    u1 -= c * n1
+    u2 -= c * n2
+    lu = np.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    if lu > 0.0:
+        u0 /= lu
+        u1 /= lu
+        u2 /= lu
+    v0 = n1 * u2 - n2 * u1
+    v1 = n2 * u0 - n0 * u2
+    v2 = n0 * u1 - n1 * u0
+    return (n0, n1, n2, u0, u1, u2, v0, v1, v2, np.float64(rs[b, EXT]),
+            np.float64(rs[b, EXT + 1]))
+
+
+@njit(cache=True)
+def decode_frames(rs, rh, out):
+    """out (N, 11): normal, tangent_u, tangent_v, half_u, half_v of every model point."""
+    for b in range(out.shape[0]):
+        f = frame(b, rs, rh)
+        for c in range(11):
+            out[b, c] = f[c]
+
+
+@njit(cache=True)
+def decode_normals(idx, rs, rh, out):
+    """out (M, 3): unit normals of model points idx (M,)."""
+    for i in range(idx.shape[0]):
+        n0, n1, n2 = oct_decode(np.float64(rs[idx[i], NRM]), np.float64(rs[idx[i], NRM + 1]))
+        out[i, 0] = n0
+        out[i, 1] = n1
+        out[i, 2] = n2
+
+
+@njit(cache=True, inline="always")
+def _project_one(q0, q1, q2, b, rf, rh, rs):
+    """Project q onto the tangent patch of model point b, clamped to its half extents.
+
+    Returns (foot x, y, z, signed distance, clamped, normal x, y, z): the distance is
+    (q - p) . n inside the patch, else |q - foot| with the sign of (q - p) . n.
+    """
+    p0 = rf[b, 0]
+    p1 = rf[b, 1]
+    p2 = rf[b, 2]
+    r0 = q0 - p0
+    r1 = q1 - p1
+    r2 = q2 - p2
+    n0, n1, n2 = oct_decode(np.float64(rs[b, NRM]), np.float64(rs[b, NRM + 1]))
+    u0, u1, u2 = oct_decode(rh[b, TAN] * _I16, rh[b, TAN + 1] * _I16)
+    # tangent_u off the tangent plane by the quantisation (~1e-4): remove that part; the
+    # length changes by ~1e-8, no need to renormalise
+    k = u0 * n0 + u1 * n1 + u2 * n2
+    u0 -= k * n0
+    u1 -= k * n1
+    u2 -= k * n2
+    v0 = n1 * u2 - n2 * u1
+    v1 = n2 * u0 - n0 * u2
+    v2 = n0 * u1 - n1 * u0
+    hu = np.float64(rs[b, EXT])
+    hv = np.float64(rs[b, EXT + 1])
+    a = r0 * u0 + r1 * u1 + r2 * u2
+    c = r0 * v0 + r1 * v1 + r2 * v2
+    h = r0 * n0 + r1 * n1 + r2 * n2
+    ac = min(max(a, -hu), hu)
+    cc = min(max(c, -hv), hv)
+    clamped = ac != a or cc != c
+    a = ac
+    c = cc
+    f0 = p0 + a * u0 + c * v0
+    f1 = p1 + a * u1 + c * v1
+    f2 = p2 + a * u2 + c * v2
+    d = h
+    if clamped:
+        e0 = q0 - f0
+        e1 = q1 - f1
+        e2 = q2 - f2
+        d = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+        if h < 0.0:
+            d = -d
+    return f0, f1, f2, d, clamped, n0, n1, n2
+
+
+@njit(cache=True)
+def project_patches(Q, idx, rf, rh, rs, out_foot, out_dist, out_clamped, out_normal):
+    """Fast-mode answer for known nearest model points ``idx`` (all >= 0)."""
+    for i in range(Q.shape[0]):
+        f0, f1, f2, d, cl, n0, n1, n2 = _project_one(Q[i, 0], Q[i, 1], Q[i, 2], idx[i],
+                                                     rf, rh, rs)
+        out_foot[i, 0] = f0
+        out_foot[i, 1] = f1
+        out_foot[i, 2] = f2
+        out_dist[i] = d
+        out_clamped[i] = cl
+        out_normal[i, 0] = n0
+        out_normal[i, 1] = n1
+        out_normal[i, 2] = n2
+
+
+@njit(cache=True)
+def query_block(Q, origin, s0, dims, nodes, lists, rf, ri, rh, rs, max_moves, patches,
+                out_idx, out_d2, out_foot, out_dist, out_clamped, out_normal,
+                rows, boundary, out_face, out_uv, out_onb):
+    """Nearest model point of every query (``out_idx = -1`` where the tree says FAR).
+
+    With ``patches`` also the tangent-patch projection (foot, signed distance, clamped,
+    normal) for the answered queries, and when ``rows`` is not empty the nearest point's face,
+    (u, v) and on_boundary (as :func:`gather_rows`).  Queries run in blocks of BLOCK, one
+    stage at a time (top grid, one tree level, seed, each walk round), prefetching what the
+    next stage reads.
+    """
+    n = rf.shape[0] - 1
+    nq = Q.shape[0]
+    rows_f = rows.view(np.float32)
+    fx = np.empty(BLOCK)
+    fy = np.empty(BLOCK)
+    fz = np.empty(BLOCK)
+    code = np.empty(BLOCK, dtype=np.int64)
+    best = np.empty(BLOCK, dtype=np.int64)
+    cand = np.empty(BLOCK, dtype=np.int64)
+    bd = np.empty(BLOCK)
+    act = np.empty(BLOCK, dtype=np.bool_)
+    inv = 1.0 / s0
+    for s in range(0, nq, BLOCK):
+        m = min(BLOCK, nq - s)
+        # top grid
+        for t in range(m):
+            i = s + t
+            x = (Q[i, 0] - origin[0]) * inv
+            y = (Q[i, 1] - origin[1]) * inv
+            z = (Q[i, 2] - origin[2]) * inv
+            code[t] = FAR
+            if x >= 0.0 and y >= 0.0 and z >= 0.0:
+                ix = int(x)
+                iy = int(y)
+                iz = int(z)
+                if ix < dims[0] and iy < dims[1] and iz < dims[2]:
+                    fx[t] = x - ix
+                    fy[t] = y - iy
+                    fz[t] = z - iz
+                    code[t] = nodes[(ix * dims[1] + iy) * dims[2] + iz]
+        # descend one level per sweep
+        more = True
+        while more:
+            more = False
+            for t in range(m):
+                c = code[t]
+                if c >= 0:
+                    x = fx[t] + fx[t]
+                    y = fy[t] + fy[t]
+                    z = fz[t] + fz[t]
+                    bx = 1 if x >= 1.0 else 0
+                    by = 1 if y >= 1.0 else 0
+                    bz = 1 if z >= 1.0 else 0
+                    fx[t] = x - bx
+                    fy[t] = y - by
+                    fz[t] = z - bz
+                    c = nodes[c + (bx | (by << 1) | (bz << 2))]
+                    code[t] = c
+                    more = more or c >= 0
+        # seeds; the rare multi-seed leaves are answered at once
+        for t in range(m):
+            c = code[t]
+            act[t] = False
+            best[t] = -1
+            if c == FAR:
+                continue
+            mm = -c - 2
+            if mm < n:
+                best[t] = mm
+                act[t] = True
+                _fetch(rf, mm)
+            else:
+                i = s + t
+                b, d, _ = leaf_nearest(Q[i, 0], Q[i, 1], Q[i, 2], c, n, lists, rf, ri, rh, rs,
+                                       max_moves)
+                best[t] = b
+                bd[t] = d
+        for t in range(m):
+            if act[t]:
+                i = s + t
+                bd[t] = _d2(Q[i, 0], Q[i, 1], Q[i, 2], rf, best[t])
+        # walk: the neighbour that looks closest, then confirm with its exact coordinates
+        moves = 0
+        more = True
+        while more and moves < max_moves:
+            more = False
+            moves += 1
+            for t in range(m):
+                if act[t]:
+                    i = s + t
+                    b = best[t]
+                    k, de = _ring(Q[i, 0], Q[i, 1], Q[i, 2], b, rf, rh, rs)
+                    if de < bd[t]:
+                        j = ri[b, NBR + k]
+                        cand[t] = j
+                        _fetch(rf, j)
+                        more = True
+                    else:
+                        act[t] = False
+            if more:
+                for t in range(m):
+                    if act[t]:
+                        i = s + t
+                        j = cand[t]
+                        d = _d2(Q[i, 0], Q[i, 1], Q[i, 2], rf, j)
+                        if d < bd[t]:
+                            best[t] = j
+                            bd[t] = d
+                        else:
+                            act[t] = False
+        with_rows = patches and rows.shape[0] > 0
+        if with_rows:
+            for t in range(m):
+                if best[t] >= 0:
+                    prefetch(rows, best[t] * 4)
+        for t in range(m):
+            b = best[t]
+            i = s + t
+            out_idx[i] = b
+            if b < 0:
+                out_d2[i] = np.inf
+                continue
+            out_d2[i] = bd[t]
+            if patches:
+                f0, f1, f2, d, cl, n0, n1, n2 = _project_one(Q[i, 0], Q[i, 1], Q[i, 2], b,
+                                                             rf, rh, rs)
+                out_foot[i, 0] = f0
+                out_foot[i, 1] = f1
+                out_foot[i, 2] = f2
+                out_dist[i] = d
+                out_clamped[i] = cl
+                out_normal[i, 0] = n0
+                out_normal[i, 1] = n1
+                out_normal[i, 2] = n2
+                if with_rows:
+                    out_face[i] = rows[b, 0]
+                    out_uv[i, 0] = rows_f[b, 1]
+                    out_uv[i, 1] = rows_f[b, 2]
+                    out_onb[i] = cl and boundary[b]
+
+
+@njit(cache=True)
+def gather_rows(idx, rows, boundary, clamped, out_face, out_uv, out_onb):
+    """Fast-mode face, (u, v) and on_boundary of each query's nearest model point.
+
+    rows (N, 4) int32: face, u, v (float32 bits), other; on_boundary = boundary & clamped
+    (the boundary flag is read only for clamped projections).
+    """
+    uv = rows.view(np.float32)
+    n = idx.shape[0]
+    for i in range(n):
+        if i + 16 < n:
+            prefetch(rows, idx[i + 16] * 4)
+        b = idx[i]
+        out_face[i] = rows[b, 0]
+        out_uv[i, 0] = uv[b, 1]
+        out_uv[i, 1] = uv[b, 2]
+        out_onb[i] = clamped[i] and boundary[b]
+
+
+# ------------------------------------------------------------------------------------- build
+# the 7 extra samples of a cell in half-cell units: centre, then the 6 face centres
+EXTRA = np.array([[1, 1, 1], [0, 1, 1], [2, 1, 1], [1, 0, 1], [1, 2, 1], [1, 1, 0], [1, 1, 2]],
+                 dtype=np.int64)
+
+
+@njit(cache=True)
+def classify(cells, origin, size, samples, nn_idx, nn_d, rf, ri, rh, rs, max_distance,
+             max_moves, out_kind, out_seed):
+    """First pass over the cells of one level: FAR (0), single-seed leaf (1) or failed (2).
+
+    cells : (M, 3) int64 integer cell coordinates at this level (cell size ``size``).
+    samples : (M, 8) int64 row of each cell's 8 vertices (octant order) in ``nn_idx`` /
+        ``nn_d`` (exact nearest model point and distance; inf beyond the query bound).
+
+    A cell is FAR when every vertex is farther than ``max_distance + r`` (r = half diagonal):
+    every point of the cell is within r of a vertex, so none is within ``max_distance``.  The
+    seed is the end of a walk towards the centre from the nearest point of the closest vertex.
+    The cell is a single-seed leaf when the walk from the seed reaches the exact nearest point
+    of every vertex within ``max_moves`` moves; else it has failed (see :func:`classify_multi`).
+    """
+    r = 0.5 * np.sqrt(3.0) * size
+    tol = 1e-12 * size
+    for m in range(cells.shape[0]):
+        dmin = np.inf
+        vmin = 0
+        for o in range(8):
+            d = nn_d[samples[m, o]]
+            if d < dmin:
+                dmin = d
+                vmin = o
+        out_seed[m] = -1
+        if not (dmin <= max_distance + r):
+            out_kind[m] = 0
+            continue
+        c0 = origin[0] + size * (cells[m, 0] + 0.5)
+        c1 = origin[1] + size * (cells[m, 1] + 0.5)
+        c2 = origin[2] + size * (cells[m, 2] + 0.5)
+        seed, _, _ = walk(c0, c1, c2, nn_idx[samples[m, vmin]], rf, ri, rh, rs, 64)
+        out_seed[m] = seed
+        out_kind[m] = 1
+        for o in range(8):
+            q0 = origin[0] + size * (cells[m, 0] + (o & 1))
+            q1 = origin[1] + size * (cells[m, 1] + ((o >> 1) & 1))
+            q2 = origin[2] + size * (cells[m, 2] + ((o >> 2) & 1))
+            _, d2, mv = walk(q0, q1, q2, seed, rf, ri, rh, rs, max_moves + 1)
+            if mv > max_moves or np.sqrt(d2) > nn_d[samples[m, o]] * (1.0 + 1e-12) + tol:
+                out_kind[m] = 2
+                break
+
+
+@njit(cache=True, inline="always")
+def _seeded_ok(q0, q1, q2, seeds, cnt, rf, ri, rh, rs, max_moves, d_exact, tol):
+    """Whether the query procedure (a walk from each seed) finds the exact nearest point."""
+    bd = np.inf
+    mv = 0
+    for s in range(cnt):
+        _, d2, k = walk(q0, q1, q2, seeds[s], rf, ri, rh, rs, max_moves + 1)
+        mv = max(mv, k)
+        bd = min(bd, d2)
+    return mv <= max_moves and np.sqrt(bd) <= d_exact * (1.0 + 1e-12) + tol
+
+
+@njit(cache=True)
+def classify_multi(cells, origin, size, samples, nn_idx, nn_d, extra, xn_idx, xn_d, first_seed,
+                   rf, ri, rh, rs, max_moves, max_seeds, last_level, out_kind, out_seeds,
+                   out_nseeds):
+    """Second pass over the cells that failed :func:`classify`: multi-seed leaf (1) or refine (2).
+
+    Seeds: the cell's seed plus the exact nearest point of each vertex that the query
+    procedure (a walk of at most ``max_moves`` from each seed) still gets wrong.  The leaf
+    is accepted when it has at most ``max_seeds`` seeds and the procedure is right at all 8
+    vertices and at the 7 extra samples (centre and face centres, ``extra`` (M, 7) rows into
+    ``xn_idx`` / ``xn_d``).  On the last level the cell is always a leaf; it keeps the
+    nearest points of failing extra samples as further seeds (out_seeds has 16 columns).
+    """
+    tol = 1e-12 * size
+    h = 0.5 * size
+    cap = out_seeds.shape[1]
+    for m in range(cells.shape[0]):
+        seeds = out_seeds[m]
+        seeds[0] = first_seed[m]
+        cnt = 1
+        ok = True
+        for rnd in range(2):
+            for o in range(8):
+                q0 = origin[0] + size * (cells[m, 0] + (o & 1))
+                q1 = origin[1] + size * (cells[m, 1] + ((o >> 1) & 1))
+                q2 = origin[2] + size * (cells[m, 2] + ((o >> 2) & 1))
+                iv = samples[m, o]
+                if not _seeded_ok(q0, q1, q2, seeds, cnt, rf, ri, rh, rs, max_moves, nn_d[iv],
+                                  tol):
+                    if rnd == 0 and cnt < cap:
+                        seeds[cnt] = nn_idx[iv]
+                        cnt += 1
+                    else:
+                        ok = False
+        for e in range(7):
+            q0 = origin[0] + h * (2 * cells[m, 0] + EXTRA[e, 0])
+            q1 = origin[1] + h * (2 * cells[m, 1] + EXTRA[e, 1])
+            q2 = origin[2] + h * (2 * cells[m, 2] + EXTRA[e, 2])
+            ix = extra[m, e]
+            if not _seeded_ok(q0, q1, q2, seeds, cnt, rf, ri, rh, rs, max_moves, xn_d[ix], tol):
+                ok = False
+                if last_level and cnt < cap:
+                    seeds[cnt] = xn_idx[ix]
+                    cnt += 1
+        out_nseeds[m] = cnt
+        out_kind[m] = 1 if (ok and cnt <= max_seeds) or last_level else 2

@@ -1,0 +1,381 @@
+"""``prepare(model)``: the closest-point structure of a model, its answers, and its file.
+
+:func:`prepare` samples the model (:meth:`Model.sample`), orders the model points along a
+Morton curve, links each to its 8 nearest neighbours and builds the DVG tree
+(:mod:`shapeverify.nearest.dvg`).  :meth:`Prepared.closest` answers
+
+* fast (``exact=False``): the projection onto the tangent patch of the nearest model point,
+  clamped to the patch (Paper I §4); the error falls with the square of the spacing;
+* exact (``exact=True``): refined on the model itself (:mod:`shapeverify.nearest.exact`).
+
+Defaults (``size`` = bounding-box diagonal of the model, mm)
+-------------------------------------------------------------
+``spacing = clip(size / 500, 0.01, 10)`` mm and ``max_distance = 0.03 * size`` (3 % of the
+size, at least 2 spacings).  Queries farther than ``max_distance`` from the model are still
+answered exactly, by a kd-tree (slower).
+
+Memory (:attr:`Prepared.nbytes`) per model point: a 128-byte record (coordinates, 8
+neighbours with quantised offsets, the tangent patch), a 16-byte row (face, (u, v) in float32
+-- the start of the exact refinement --, the other-face link), the boundary flag and the tree
+(typically 10-50 bytes).
+
+The ``.svm`` file is one uncompressed ``.npz`` archive (read without pickle): these arrays
+plus the model (:func:`shapeverify.cad.persist.model_to_arrays`).
+
+References
+----------
+P. Bergström, O. Edlund, I. Söderkvist, "Repeated surface registration for on-line use",
+Int. J. Adv. Manuf. Technol. 54 (2011) 677-689 (Paper I of the thesis).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+import time
+import zipfile
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from . import dvg as _dvg
+from .exact import for_model
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["Closest", "Prepared", "prepare", "load_prepared", "default_spacing",
+           "default_max_distance", "FORMAT_TAG", "FORMAT_VERSION"]
+
+FORMAT_TAG = "shapeverify-prepared"
+FORMAT_VERSION = 1
+
+
+def default_spacing(size: float) -> float:
+    """Model point spacing used when none is given: size / 500, clipped to [0.01, 10] mm."""
+    return float(np.clip(size / 500.0, 0.01, 10.0))
+
+
+def default_max_distance(size: float, spacing: float) -> float:
+    """Tree reach used when none is given: 3 % of the size, at least 2 spacings."""
+    return float(max(0.03 * size, 2.0 * spacing))
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class Closest:
+    """Closest points on the model for N query points.
+
+    Attributes
+    ----------
+    points : (N, 3) float64       foot points on the model
+    normals : (N, 3) float64      outward unit normals at the foot points
+    distances : (N,) float64      signed distances, + on the normal's side (outside)
+    face : (N,) int32             face (CAD), triangle (mesh) or -1 (point cloud)
+    uv : (N, 2) float64           surface parameters of the foot (fast mode: those of the
+                                  nearest model point, stored in float32); barycentric for
+                                  meshes; 0 for clouds
+    index : (N,) int64            nearest model point (row of ``Prepared.points``)
+    on_boundary : (N,) bool       foot on a free edge of the model (the part's outline)
+    """
+
+    points: np.ndarray
+    normals: np.ndarray
+    distances: np.ndarray
+    face: np.ndarray
+    uv: np.ndarray
+    index: np.ndarray
+    on_boundary: np.ndarray
+
+    def __len__(self) -> int:
+        return self.distances.shape[0]
+
+    def __repr__(self) -> str:
+        n = len(self)
+        if n == 0:
+            return "Closest(n=0)"
+        d = self.distances
+        return (f"Closest(n={n}, distance=[{d.min():.4g}, {d.max():.4g}] mm, "
+                f"mean |d|={np.abs(d).mean():.4g} mm, on_boundary={int(self.on_boundary.sum())})")
+
+
+class Prepared:
+    """A model prepared for closest-point queries (use :func:`prepare` or :func:`load_prepared`).
+
+    Attributes
+    ----------
+    model : Model
+    spacing : float               model point spacing (mm)
+    max_distance : float          reach of the DVG tree (mm)
+    tree : DVGTree
+    points : ModelPoints          the model points in the order ``Closest.index`` refers to
+                                  (Morton order, not that of ``model.sample``), rebuilt on each
+                                  access from the compact storage: normals to ~1e-7,
+                                  tangent_u to ~1e-4 rad, (u, v) in float32 precision
+    """
+
+    def __init__(self, model, fast: _dvg.DVG, rows: np.ndarray, boundary: np.ndarray,
+                 spacing: float, max_distance: float):
+        self.model = model
+        self._fast = fast
+        # one 16-byte row per model point: face (int32), u, v (float32), other-face point
+        # (int32, -1 if none): what the fast and exact answers read besides the record
+        self._rows = rows
+        self._face = rows[:, 0]
+        self._uv = rows.view(np.float32)[:, 1:3]
+        self._other = rows[:, 3]
+        self._boundary = boundary
+        self.spacing = float(spacing)
+        self.max_distance = float(max_distance)
+        self._exact = None
+
+    # ---------------------------------------------------------------------------- views
+    @property
+    def tree(self) -> _dvg.DVGTree:
+        return self._fast.tree
+
+    @property
+    def n_points(self) -> int:
+        return self._rows.shape[0]
+
+    @property
+    def points(self):
+        from shapeverify.cad.model import ModelPoints
+
+        fr = self._fast.frames()
+        return ModelPoints(points=np.array(self._fast.points), normals=fr[:, 0:3],
+                           face=self._face, uv=self._uv, tangent_u=fr[:, 3:6],
+                           tangent_v=fr[:, 6:9], half_extent=fr[:, 9:11],
+                           boundary=self._boundary, spacing=self.spacing)
+
+    @property
+    def nbytes(self) -> int:
+        """Bytes held by the closest-point structure (model points, patches, tree).
+
+        The CAD model itself (NURBS faces) is not counted, nor the tables the exact mode
+        builds on first use (:attr:`exact_nbytes`).
+        """
+        return int(self._fast.nbytes + self._rows.nbytes + self._boundary.nbytes)
+
+    @property
+    def memory_per_point(self) -> float:
+        """:attr:`nbytes` per model point."""
+        return self.nbytes / max(1, self.n_points)
+
+    @property
+    def exact_nbytes(self) -> int:
+        """Bytes of the exact-mode tables (0 until the first exact query)."""
+        return int(getattr(self._exact, "nbytes", 0))
+
+    # -------------------------------------------------------------------------- queries
+    def closest(self, points, exact: bool = False) -> Closest:
+        """Closest points on the model.
+
+        Parameters
+        ----------
+        points : (N, 3) array_like (a single (3,) point is accepted)
+        exact : bool
+            False: projection onto the tangent patch of the nearest model point (fast,
+            error of order spacing^2 x curvature).  True: refined on the model (NURBS point
+            inversion with trims, triangles, or the nearest cloud point).
+
+        Returns
+        -------
+        Closest
+
+        Raises
+        ------
+        ValueError
+            If ``points`` is not (N, 3) or holds NaN or inf.
+        """
+        q = _dvg.check_points(points, "points")
+        if exact:
+            return self._closest_exact(q)
+        idx, _, foot, dist, _, normals, face, uv, onb = self._fast.query(q, True, self._rows,
+                                                                          self._boundary)
+        return Closest(foot, normals, dist, face, uv, idx, onb)
+
+    def _closest_exact(self, q: np.ndarray) -> Closest:
+        if self._exact is None:
+            t0 = time.perf_counter()
+            self._exact = for_model(self.model, self.spacing)
+            logger.debug("exact refiner for %s ready in %.2f s", self.model.kind,
+                         time.perf_counter() - t0)
+        idx, _ = self._fast.nearest(q)
+        foot, normals, dist, face, uv, onb = self._exact.refine(
+            q, idx, self._fast, self._face, self._uv, self._other)
+        return Closest(foot, normals, dist, face, uv, idx, onb)
+
+    # ----------------------------------------------------------------------------- file
+    def save(self, path) -> None:
+        """Write everything (model included) to one ``.svm`` file (uncompressed npz, no
+        pickle); :func:`load_prepared` reads it back.
+
+        Raises
+        ------
+        OSError
+            If the file cannot be written.
+        """
+        from shapeverify.cad.persist import model_to_arrays
+
+        meta = {"format": FORMAT_TAG, "version": FORMAT_VERSION, "spacing": self.spacing,
+                "max_distance": self.max_distance, "n_points": self.n_points}
+        arrays = {"meta": np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8),
+                  "rec": self._fast.rec, "rows": self._rows, "boundary": self._boundary}
+        arrays.update({f"tree_{k}": np.asarray(v) for k, v in self._fast.tree.arrays().items()})
+        arrays.update({f"model_{k}": v for k, v in model_to_arrays(self.model).items()})
+        path = Path(os.fspath(path))
+        with open(path, "wb") as fh:
+            np.savez(fh, **arrays)
+
+    def __repr__(self) -> str:
+        return (f"Prepared(model={self.model!r}, n_points={self.n_points}, "
+                f"spacing={self.spacing:.4g} mm, max_distance={self.max_distance:.4g} mm, "
+                f"{self.memory_per_point:.0f} bytes/point, depth={self.tree.depth})")
+
+
+def _frames(mp) -> np.ndarray:
+    return np.concatenate([mp.normals, mp.tangent_u, mp.half_extent], axis=1)
+
+
+def _other_face_points(points, face, spacing, kd, radius: float = 3.0, k: int = 32):
+    """For each model point, the nearest model point of another face within radius * spacing.
+
+    (N,) int32, -1 where there is none.  Exact mode tries those faces too, so that a query
+    near a face border is refined on every face that can hold its closest point.
+    """
+    n = points.shape[0]
+    other = np.full(n, -1, dtype=np.int32)
+    kk = min(k, n)
+    if kk < 2:
+        return other
+    for lo in range(0, n, 1 << 18):
+        hi = min(n, lo + (1 << 18))
+        d, j = kd.query(points[lo:hi], k=kk, distance_upper_bound=radius * spacing)
+        j = j.reshape(hi - lo, kk)
+        valid = j < n
+        jj = np.where(valid, j, 0)
+        diff = valid & (face[jj] != face[lo:hi, None])
+        first = np.argmax(diff, axis=1)
+        has = diff[np.arange(hi - lo), first]
+        other[lo:hi] = np.where(has, jj[np.arange(hi - lo), first], -1)
+    return other
+
+
+def prepare(model, spacing: float | None = None, max_distance: float | None = None) -> Prepared:
+    """Prepare a model for fast closest-point queries (Paper I).
+
+    Parameters
+    ----------
+    model : Model
+        CAD, mesh or point-cloud model (:func:`shapeverify.load_model`).
+    spacing : float, optional
+        Model point spacing in mm; default ``clip(model.size / 500, 0.01, 10)``.
+    max_distance : float, optional
+        Queries within this distance (mm) are answered by the DVG tree, farther ones by a
+        kd-tree; default ``max(0.03 * model.size, 2 * spacing)``.
+
+    Returns
+    -------
+    Prepared
+
+    Raises
+    ------
+    ValueError
+        If ``spacing`` or ``max_distance`` is not a finite number > 0, or the model yields no
+        model points.
+
+    Examples
+    --------
+    >>> from shapeverify.cad.nurbs import sphere
+    >>> from shapeverify.cad.model import Face, Model
+    >>> f = Face(sphere(10.0), (np.array([[0, 0], [1, 0], [1, 1], [0, 1.]]),),
+    ...          (np.zeros(4, bool),))
+    >>> prep = prepare(Model(faces=(f,), source="sphere"), spacing=1.0, max_distance=3.0)
+    >>> near = prep.closest([[0.0, 0.0, 12.0]], exact=True)
+    >>> round(float(near.distances[0]), 9)
+    2.0
+    """
+    for name, val in (("spacing", spacing), ("max_distance", max_distance)):
+        if val is not None:
+            try:
+                ok = np.isfinite(float(val)) and float(val) > 0
+            except (TypeError, ValueError):
+                ok = False
+            if not ok:
+                raise ValueError(f"{name} must be a finite number > 0 (mm), got {val!r}; "
+                                 "or None for the default")
+    t0 = time.perf_counter()
+    size = model.size
+    h = default_spacing(size) if spacing is None else float(spacing)
+    maxd = default_max_distance(size, h) if max_distance is None else float(max_distance)
+    mp = model.sample(h)
+    if len(mp) == 0:
+        raise ValueError(f"{model!r} gave no model points at spacing {h} mm")
+    t1 = time.perf_counter()
+    order = _dvg.morton_order(mp.points, h)
+    fast = _dvg.DVG.build(mp.points[order], h, maxd, _frames(mp)[order])
+    face = np.ascontiguousarray(mp.face[order])
+    rows = np.empty((len(mp), 4), dtype=np.int32)
+    rows[:, 0] = face
+    rows.view(np.float32)[:, 1:3] = mp.uv[order]
+    rows[:, 3] = (_other_face_points(fast.points, face, h, fast.kd()) if model.kind == "cad"
+                  else -1)
+    t2 = time.perf_counter()
+    prep = Prepared(model, fast, rows, np.ascontiguousarray(mp.boundary[order]), h, maxd)
+    logger.info("prepared %d model points (spacing %.4g mm, max distance %.4g mm): sampling "
+                "%.2f s, tree %.2f s, %.0f bytes/point", len(mp), h, maxd, t1 - t0, t2 - t1,
+                prep.memory_per_point)
+    return prep
+
+
+def load_prepared(path) -> Prepared:
+    """Read a ``.svm`` file written by :meth:`Prepared.save`.
+
+    Raises
+    ------
+    FileNotFoundError
+        The file does not exist.
+    ValueError
+        Not a prepared-model file, an unsupported version, or inconsistent arrays.
+    """
+    from shapeverify.cad.persist import model_from_arrays
+
+    path = Path(os.fspath(path))
+    if not path.is_file():
+        raise FileNotFoundError(f"no such prepared-model file: {path}")
+    try:
+        z = np.load(path, allow_pickle=False)
+    except (ValueError, OSError, zipfile.BadZipFile) as exc:
+        raise ValueError(f"{path}: not a prepared-model (.svm) file ({exc})") from None
+    with z:
+        files = set(z.files)
+        try:
+            meta = json.loads(bytes(z["meta"]).decode())
+        except (KeyError, ValueError, UnicodeDecodeError):
+            raise ValueError(f"{path}: not a prepared-model (.svm) file (no readable meta)") \
+                from None
+        if meta.get("format") != FORMAT_TAG:
+            raise ValueError(f"{path}: not a prepared-model (.svm) file (format "
+                             f"{meta.get('format')!r})")
+        if meta.get("version") != FORMAT_VERSION:
+            raise ValueError(f"{path}: .svm version {meta.get('version')!r} is not supported "
+                             f"(this shapeverify reads {FORMAT_VERSION}); prepare the model again")
+        need = {"rec", "rows", "boundary"}
+        if not need <= files:
+            raise ValueError(f"{path}: .svm file is missing {sorted(need - files)}")
+        rec0 = z["rec"]
+        rec = _dvg.aligned_empty(rec0.shape, np.float64)
+        rec[...] = rec0
+        tree = _dvg.DVGTree.from_arrays({k[5:]: z[k] for k in files if k.startswith("tree_")})
+        rows = np.ascontiguousarray(z["rows"], dtype=np.int32)
+        boundary = np.ascontiguousarray(z["boundary"], dtype=np.bool_)
+        model = model_from_arrays({k[6:]: z[k] for k in files if k.startswith("model_")},
+                                  where=str(path))
+    n = int(meta["n_points"])
+    if not (rec.shape == (n + 1, 16) and rows.shape == (n, 4) and boundary.shape == (n,)
+            and tree.n_points == n):
+        raise ValueError(f"{path}: .svm file is inconsistent (arrays do not all hold {n} "
+                         "model points)")
+    return Prepared(model, _dvg.DVG(rec, tree), rows, boundary, float(meta["spacing"]),
+                    float(meta["max_distance"]))
