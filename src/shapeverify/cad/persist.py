@@ -81,6 +81,8 @@ def model_to_arrays(model) -> dict:
         arr = getattr(model, name)
         if arr is not None:
             a[name] = np.asarray(arr)
+    if model.faces or model.vertices is not None:
+        a["bounds"] = np.asarray(model.bounds, dtype=np.float64)  # trim-following: costly to redo
     return a
 
 
@@ -157,8 +159,13 @@ def model_from_arrays(a, where: str = "<arrays>"):
             lps = tuple(loops[v_off[j]:v_off[j + 1]] for j in range(l_off[i], l_off[i + 1]))
             frs = tuple(lfree[v_off[j]:v_off[j + 1]] for j in range(l_off[i], l_off[i + 1]))
             faces.append(Face(surf, lps, frs, bool(rev[i])))
-        return Model(faces=tuple(faces), unit=meta["unit"], scale_to_mm=scale,
-                     source=meta["source"], kind=meta["kind"], **opt)
+        model = Model(faces=tuple(faces), unit=meta["unit"], scale_to_mm=scale,
+                      source=meta["source"], kind=meta["kind"], **opt)
+        if "bounds" in a and np.shape(a["bounds"]) == (2, 3):
+            b = np.array(a["bounds"], dtype=np.float64)
+            b.setflags(write=False)
+            model.__dict__["bounds"] = b  # prime Model.bounds (a cached_property) with the stored box
+        return model
     except ValueError as exc:
         raise CADImportError(f"{where}: model file holds invalid data ({exc})") from None
 
