@@ -256,6 +256,9 @@ def fit(
     surface: bool = typer.Option(False, "--surface", help="Fit a surface (default: a curve)"),
     ctrl: List[int] = typer.Option([10], "--ctrl", help="Control points: N (curve) or NU NV (surface)"),
     degree: int = typer.Option(3, help="Degree"),
+    method: str = typer.Option("odr", help="odr (Gauss-Newton, orthogonal distance) | varpro | fixed"),
+    smoothing: float = typer.Option(0.0, help="Smoothness weight (needed when the points leave parts "
+                                              "of the parameter domain empty)"),
 ):
     """Fit a NURBS curve or surface to points by orthogonal distance and write it out."""
     from shapeverify.fitting.export import fit_points_file
@@ -264,7 +267,8 @@ def fit(
     if surface and len(n) == 1:
         n = (n[0], n[0])
     with _stage(f"Fitting {'surface' if surface else 'curve'} to {points.name}"):
-        summary = _guard(fit_points_file, points, output, surface=surface, ctrl=n, degree=degree)
+        summary = _guard(fit_points_file, points, output, surface=surface, ctrl=n, degree=degree,
+                         method=method, smoothing=smoothing)
     for k, v in summary.items():
         out.print(f"{k}: {v}")
 
@@ -278,7 +282,7 @@ def serve(
     token: Optional[str] = typer.Option(None, "--token", envvar="SHAPEVERIFY_TOKEN",
                                         help="Require 'Authorization: Bearer TOKEN' on every request"),
     max_body_mb: float = typer.Option(64.0, help="Largest accepted scan upload [MB] (413 above)"),
-    time_limit: float = typer.Option(60.0, help="Per-request time limit [s] (504 above; nothing is stored)"),
+    time_limit: float = typer.Option(60.0, help="Per-request time limit in seconds (504 above; nothing is stored)"),
     threads: int = typer.Option(2, help="Inspection threads per server process"),
     workers: int = typer.Option(1, help="Server processes sharing the port (use the number of cores)"),
     keep_scans: bool = typer.Option(True, "--keep-scans/--no-keep-scans",

@@ -29,6 +29,7 @@ import errno
 import logging
 import re
 import struct
+import tokenize
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -333,10 +334,14 @@ def _ply_header(path: Path, data: bytes):
         elif tok[0] == "element":
             if len(tok) != 3 or not tok[2].isdigit():
                 raise ScanError(f"{bad}: expected 'element NAME COUNT'")
+            if any(e.name == tok[1] for e in elements):
+                raise ScanError(f"{bad}: element {tok[1]!r} declared twice")
             elements.append(_PlyElement(tok[1], int(tok[2]), []))
         elif tok[0] == "property":
             if not elements:
                 raise ScanError(f"{bad}: property before any element")
+            if any(p[0] == tok[-1] for p in elements[-1].props):
+                raise ScanError(f"{bad}: property {tok[-1]!r} declared twice")
             if len(tok) == 3 and tok[1] in _PLY_TYPES:
                 elements[-1].props.append((tok[2], _PLY_TYPES[tok[1]]))
             elif (len(tok) == 5 and tok[1] == "list" and tok[2] in _PLY_TYPES
@@ -363,6 +368,9 @@ def _read_ply(path: Path, want_faces: bool) -> PlyData:
         if c not in vnames:
             raise ScanError(f"{path}: PLY vertex element has no '{c}' property "
                             f"(properties: {', '.join(vnames) or 'none'})")
+        if len(vel.props[vnames.index(c)]) != 2:
+            raise ScanError(f"{path}: PLY vertex property '{c}' is a list; it must be a scalar "
+                            "(e.g. 'property float x')")
     if vel.count == 0:
         raise ScanError(f"{path}: PLY file has no vertices (element vertex 0)")
     wanted = {"vertex"} | ({"face"} if want_faces else set())
@@ -389,7 +397,8 @@ def _read_ply(path: Path, want_faces: bool) -> PlyData:
 
     v = values["vertex"]
     vertices = np.column_stack([np.asarray(v[c], dtype=np.float64) for c in "xyz"])
-    props = {k: a for k, a in v.items() if k not in ("x", "y", "z") and a.ndim == 1}
+    props = {k: a for k, a in v.items()
+             if k not in ("x", "y", "z") and isinstance(a, np.ndarray) and a.ndim == 1}
     faces = None
     if want_faces and "face" in values and elements[names.index("face")].count > 0:
         fel = elements[names.index("face")]
@@ -430,8 +439,8 @@ def _ply_ascii_element(path, el: _PlyElement, lines: list) -> dict:
                 col += 1
             else:
                 cnt = table[:, col]
-                k = int(cnt[0])
-                if not np.all(cnt == k) or col + 1 + k > table.shape[1]:
+                k = int(cnt[0]) if np.isfinite(cnt[0]) and 0 <= cnt[0] <= table.shape[1] else -1
+                if k < 0 or not np.all(cnt == k) or col + 1 + k > table.shape[1]:
                     ok = False
                     break
                 out[p[0]] = table[:, col + 1: col + 1 + k]
@@ -450,6 +459,8 @@ def _ply_ascii_element(path, el: _PlyElement, lines: list) -> dict:
                     j += 1
                 else:
                     k = int(tok[j])
+                    if k < 0:
+                        raise ValueError
                     cols[p[0]].append(np.array(tok[j + 1: j + 1 + k], dtype=np.float64))
                     if len(cols[p[0]][-1]) != k:
                         raise IndexError
@@ -491,10 +502,15 @@ def _ply_binary_element(path, el: _PlyElement, data: bytes, offset: int, endian:
                 pos += np.dtype(p[1]).itemsize
             else:
                 k = int(np.frombuffer(data, endian + p[1], 1, pos)[0])
+                if k < 0 or k * np.dtype(p[2]).itemsize > len(data):
+                    raise ScanError(f"{path}: malformed PLY: list '{p[0]}' of element "
+                                    f"{el.name!r} has length {k}")
                 fields.append((f"c{j}", endian + p[1]))
                 fields.append((f"f{j}", endian + p[2], (k,)))
                 pos += np.dtype(p[1]).itemsize + k * np.dtype(p[2]).itemsize
-    except ValueError:
+    except ValueError as exc:
+        if isinstance(exc, ScanError):
+            raise
         raise ScanError(f"{path}: truncated PLY in element {el.name!r}") from None
     dt = np.dtype(fields)
     end = offset + el.count * dt.itemsize
@@ -519,7 +535,7 @@ def _ply_binary_element(path, el: _PlyElement, data: bytes, offset: int, endian:
                     k = struct.unpack_from(endian + _STRUCT[p[1]], data, pos)[0]
                     pos += np.dtype(p[1]).itemsize
                     isz = np.dtype(p[2]).itemsize
-                    if pos + k * isz > len(data):
+                    if k < 0 or pos + k * isz > len(data):
                         raise struct.error
                     out[p[0]].append(np.frombuffer(data, endian + p[2], k, pos))
                     pos += k * isz
@@ -606,16 +622,42 @@ def _is_numeric_row(line: str, delim) -> bool:
 
 
 # ---------------------------------------------------------------------------------------- NPY
+def _check_npy_size(path: Path) -> None:
+    """Refuse a .npy whose header promises more data than the file holds (before numpy
+    allocates an array of the promised size)."""
+    fmt = np.lib.format
+    with open(path, "rb") as fh:
+        major, _ = fmt.read_magic(fh)
+        read_header = fmt.read_array_header_1_0 if major == 1 else fmt.read_array_header_2_0
+        shape, _, dtype = read_header(fh)
+        body = path.stat().st_size - fh.tell()
+    if dtype.hasobject:
+        raise ScanError(f"{path}: .npy holds Python objects; save a numeric array instead")
+    count = 1
+    for n in shape:
+        count *= int(n)
+    if count * dtype.itemsize > body:
+        raise ScanError(f"{path}: truncated .npy: header declares shape {shape} of {dtype} "
+                        f"({count * dtype.itemsize} bytes), the file holds {body} bytes of data")
+
+
 def _read_npy(path: Path) -> np.ndarray:
     try:
+        _check_npy_size(path)
         arr = np.load(path, allow_pickle=False)
-    except (ValueError, OSError, EOFError) as exc:
+    except (ValueError, OSError, EOFError, SyntaxError, TypeError, RecursionError,
+            tokenize.TokenError) as exc:  # numpy parses the header with tokenize + ast
+        if isinstance(exc, ScanError):
+            raise
         raise ScanError(f"{path}: not a readable .npy array ({exc})") from None
     if arr.dtype.names:
         if not all(c in arr.dtype.names for c in "xyz"):
             raise ScanError(f"{path}: structured array without fields x, y, z "
                             f"(fields: {', '.join(arr.dtype.names)})")
-        arr = np.column_stack([arr[c].ravel().astype(np.float64) for c in "xyz"])
+        try:
+            arr = np.column_stack([arr[c].ravel().astype(np.float64) for c in "xyz"])
+        except (ValueError, TypeError) as exc:
+            raise ScanError(f"{path}: fields x, y, z are not numeric scalars ({exc})") from None
     if not (np.issubdtype(arr.dtype, np.integer) or np.issubdtype(arr.dtype, np.floating)):
         raise ScanError(f"{path}: array dtype {arr.dtype} is not numeric")
     if arr.ndim != 2 or arr.shape[1] < 3:
@@ -669,6 +711,16 @@ def _read_pcd(path: Path) -> np.ndarray:
             raise ScanError(f"{path}: PCD has no field '{c}' (fields: {' '.join(fields)})")
     if npts == 0:
         raise ScanError(f"{path}: PCD contains no points (POINTS 0)")
+    for c in "xyz":
+        if counts[fields.index(c)] != 1:
+            raise ScanError(f"{path}: PCD field '{c}' has COUNT {counts[fields.index(c)]}; "
+                            "x, y and z must be single values (COUNT 1)")
+    if npts < 0 or min(counts) < 1:
+        raise ScanError(f"{path}: malformed PCD header: POINTS ({npts}) and COUNT "
+                        f"({' '.join(map(str, counts))}) must be positive")
+    if sum(c * s for c, s in zip(counts, sizes)) > len(data):
+        raise ScanError(f"{path}: malformed PCD header: COUNT {' '.join(map(str, counts))} "
+                        f"is larger than the whole file")
     codes = []
     for f, s, t in zip(fields, sizes, types):
         if t not in "FIU" or s not in (1, 2, 4, 8) or (t == "F" and s not in (4, 8)):

@@ -1,0 +1,324 @@
+"""Batch inspection of a folder of scans on Dask distributed (a LocalCluster or an existing cluster).
+
+The prepared model is sent to every worker once (a broadcast scatter of the ``.svm`` bytes, loaded
+once per worker process and cached there); each task gets one scan's bytes, so workers need no
+shared file system, and the client keeps only a bounded number of scans in flight. Results are
+written by the client, in this order: the history row (if ``db_path``), then the scan's JSON
+(atomically), then ``summary.csv`` at the end. A scan whose JSON exists is skipped on the next run
+(resumable); a scan whose row was stored but whose JSON was not (the client died in between) gets
+its JSON from that row instead of a second row, so every scan has at most one row per model. A
+scan that cannot be read or inspected -- or whose worker dies -- is recorded with the verdict
+``error`` and its reason (JSON, CSV and history), and the batch goes on.
+"""
+
+from __future__ import annotations
+
+import csv
+import hashlib
+import json
+import logging
+import os
+import sqlite3
+import tempfile
+import time
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Callable
+
+log = logging.getLogger(__name__)
+
+SCAN_SUFFIXES = (".ply", ".xyz", ".txt", ".csv", ".npy", ".pcd")
+_WORKER_MODELS: dict = {}  # sha256 -> Prepared, one per worker process
+_CSV_COLUMNS = ["scan", "verdict", "n_points", "mean_mm", "std_mm", "min_mm", "max_mm", "p95_mm",
+                "in_tolerance_fraction", "n_regions", "rms_registration_mm", "record_id", "error"]
+
+
+def _prepared_from_bytes(svm: bytes, digest: str):
+    """Load (once per process) the prepared model shipped as bytes."""
+    prep = _WORKER_MODELS.get(digest)
+    if prep is None:
+        from shapeverify.nearest import load_prepared
+
+        fd, path = tempfile.mkstemp(suffix=".svm")
+        try:
+            with os.fdopen(fd, "wb") as fh:
+                fh.write(svm)
+            prep = load_prepared(path)
+        finally:
+            os.unlink(path)
+        _WORKER_MODELS[digest] = prep
+    return prep
+
+
+def _content_type(name: str) -> str:
+    return {".npy": "application/x-npy", ".ply": "application/ply", ".pcd": "application/x-pcd",
+            ".csv": "text/csv"}.get(Path(name).suffix.lower(), "text/plain")
+
+
+def inspect_bytes(svm: bytes, digest: str, name: str, scan: bytes, tolerance: float,
+                  max_distance: float | None, report: bool) -> dict:
+    """One batch task: inspect one scan (its file bytes) and return a JSON-ready dict.
+
+    Never raises for a bad scan: the result then has ``verdict='error'`` and ``error``.
+    """
+    t0 = time.perf_counter()
+    out = {"scan": name}
+    try:
+        from shapeverify.inspection import inspect
+        from shapeverify.service.body import parse_scan
+
+        prep = _prepared_from_bytes(svm, digest)
+        points = parse_scan(scan, content_type=_content_type(name), name=name)
+        result = inspect(prep, points, tolerance=tolerance, max_distance=max_distance)
+        out.update(result.to_dict())
+        if report:
+            from shapeverify.report.html import write_html_report
+
+            with tempfile.TemporaryDirectory() as tmp:
+                path = write_html_report(result, prep, points, Path(tmp) / "r.html", title=name)
+                out["_report_html"] = Path(path).read_text(encoding="utf-8")
+    except Exception as exc:  # a failing scan is a result, not a crash of the batch
+        out.update(_error(name, exc))
+    out["worker_seconds"] = time.perf_counter() - t0
+    return out
+
+
+def _error(name: str, exc: BaseException) -> dict:
+    msg = f"{type(exc).__name__}: {str(exc).replace(tempfile.gettempdir(), '')}"
+    return {"scan": name, "verdict": "error", "reasons": [msg], "error": msg, "T_model_scan": None}
+
+
+class _Stored:
+    """A result dict in the form :meth:`HistoryDB.add` takes."""
+
+    def __init__(self, data: dict):
+        self.data = data
+
+    def to_dict(self) -> dict:
+        return {k: v for k, v in self.data.items() if k not in ("worker_seconds", "record_id")}
+
+
+@dataclass(frozen=True)
+class BatchSummary:
+    """What a batch run did (``total`` scans in the folder, ``skipped`` already done before)."""
+
+    total: int
+    skipped: int
+    passed: int
+    failed: int
+    errors: int
+    seconds: float
+    summary_csv: Path
+
+    @property
+    def scans_per_minute(self) -> float:
+        done = self.total - self.skipped
+        return 60.0 * done / self.seconds if self.seconds > 0 else float("nan")
+
+
+def _write_json(path: Path, data: dict) -> None:
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(data, indent=2))
+    os.replace(tmp, path)  # complete or absent: a half-written JSON would be skipped as done
+
+
+def _stored_row(db_path: Path, part: str, digest: str, name: str) -> dict | None:
+    """The history row a previous, interrupted run stored for this scan, if any."""
+    if not db_path.exists():
+        return None
+    con = sqlite3.connect(str(db_path), timeout=30.0)
+    try:
+        row = con.execute(
+            "SELECT id, result_json FROM inspections WHERE part = ? AND model_hash = ? "
+            "ORDER BY id DESC", (part, digest)).fetchall()
+    except sqlite3.OperationalError:  # no table yet
+        return None
+    finally:
+        con.close()
+    for rid, text in row:
+        data = json.loads(text)
+        if data.get("scan") == name and data.get("batch"):
+            data["record_id"] = rid
+            return data
+    return None
+
+
+def _local_cluster(workers: int):
+    """A LocalCluster of single-threaded worker processes, *without* dask's default
+    ``MALLOC_TRIM_THRESHOLD_=65536`` for the workers: that setting also freezes glibc's mmap
+    threshold, so every large temporary array is mmapped and unmapped again, which makes an
+    inspection about 1.5x slower (measured in benchmarks/bench_service.py)."""
+    import dask
+    from distributed import LocalCluster
+
+    with dask.config.set({"distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_": None}):
+        return LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                            dashboard_address=None, silence_logs=logging.ERROR)
+
+
+def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, tolerance: float,
+              max_distance: float | None = None, scheduler: str | None = None, workers: int = 2,
+              reports: bool = False, db_path: str | Path | None = None, retry_errors: bool = False,
+              progress: Callable[[int, int, str], None] | None = None) -> BatchSummary:
+    """Inspect every scan in ``scans_dir`` against the prepared model ``svm_path`` on Dask.
+
+    Parameters
+    ----------
+    svm_path : path
+        Prepared model (``shapeverify prepare``).
+    scans_dir : path
+        Folder of scans (``.ply .xyz .txt .csv .npy .pcd``; not recursive).
+    out_dir : path
+        Output folder: ``<scan stem>.json`` per scan (``.html`` with ``reports``), ``summary.csv``.
+    tolerance, max_distance : float
+        As for :func:`shapeverify.inspect` (mm).
+    scheduler : str, optional
+        Address of an existing Dask scheduler (``tcp://host:8786``); default: a LocalCluster
+        with ``workers`` single-threaded worker processes. (Start the workers of your own
+        cluster with ``distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_: null`` in
+        the dask config, or ``--no-nanny``: dask's default makes inspections ~1.5x slower.)
+    db_path : path, optional
+        Append every result (errors too) to this SQLite history; ``part`` is the scan's stem.
+    retry_errors : bool
+        Inspect again the scans whose earlier result is an error (default: skip them too).
+    progress : callable, optional
+        ``progress(done, total, scan_name)`` after each scan of this run.
+
+    Returns
+    -------
+    BatchSummary
+
+    Raises
+    ------
+    FileNotFoundError
+        Missing model or folder.
+    ValueError
+        A folder without scans, two scans with the same stem, or ``tolerance <= 0``.
+    """
+    from distributed import Client, as_completed
+
+    svm_path, scans_dir, out_dir = Path(svm_path), Path(scans_dir), Path(out_dir)
+    if not svm_path.is_file():
+        raise FileNotFoundError(f"{svm_path}: prepared model not found (make one with `shapeverify prepare`)")
+    if not scans_dir.is_dir():
+        raise FileNotFoundError(f"{scans_dir}: not a folder of scans")
+    if not tolerance > 0:
+        raise ValueError(f"tolerance must be > 0 mm, got {tolerance}")
+    scans = sorted(p for p in scans_dir.iterdir() if p.is_file() and p.suffix.lower() in SCAN_SUFFIXES)
+    if not scans:
+        raise ValueError(f"{scans_dir}: no scan files ({', '.join(SCAN_SUFFIXES)})")
+    stems = [p.stem for p in scans]
+    dup = sorted({s for s in stems if stems.count(s) > 1})
+    if dup:
+        raise ValueError(f"{scans_dir}: several scans share the name(s) {dup} (one JSON per stem); rename them")
+    out_dir.mkdir(parents=True, exist_ok=True)
+    svm = svm_path.read_bytes()
+    digest = hashlib.sha256(svm).hexdigest()
+    db_path = Path(db_path) if db_path is not None else None
+
+    def done_before(p: Path) -> bool:
+        f = out_dir / f"{p.stem}.json"
+        if not f.exists():
+            return False
+        if not retry_errors:
+            return True
+        try:
+            return json.loads(f.read_text()).get("verdict") != "error"
+        except ValueError:
+            return False
+
+    todo = [p for p in scans if not done_before(p)]
+    t0 = time.perf_counter()
+    db = None
+    if db_path is not None:
+        from shapeverify.report.history import HistoryDB
+
+        db = HistoryDB(db_path)
+        recovered = []
+        for p in todo:  # stored by an interrupted run, JSON missing: no second row
+            row = _stored_row(db_path, p.stem, digest, p.name)
+            if row is not None and (row.get("verdict") != "error" or not retry_errors):
+                _write_json(out_dir / f"{p.stem}.json", row)
+                recovered.append(p)
+        todo = [p for p in todo if p not in recovered]
+
+    def record(res: dict) -> None:
+        html = res.pop("_report_html", None)
+        stem = Path(res["scan"]).stem
+        res["batch"] = {"model": svm_path.name, "model_sha256": digest}
+        if html is not None:
+            (out_dir / f"{stem}.html").write_text(html, encoding="utf-8")
+        if db is not None:
+            res["record_id"] = db.add(_Stored(res), part=stem, model_hash=digest)
+        _write_json(out_dir / f"{stem}.json", res)
+
+    n_done = 0
+    try:
+        if todo:
+            cluster = None
+            if scheduler:
+                client = Client(scheduler)
+            else:
+                cluster = _local_cluster(max(1, int(workers)))
+                client = Client(cluster)
+            try:
+                n_workers = max(1, len(client.scheduler_info().get("workers", {})))
+                svm_future = client.scatter(svm, broadcast=True)  # once per worker, not per task
+                pending = iter(todo)
+                in_flight = as_completed()
+                names = {}
+
+                def submit_next() -> bool:
+                    p = next(pending, None)
+                    if p is None:
+                        return False
+                    fut = client.submit(inspect_bytes, svm_future, digest, p.name, p.read_bytes(),
+                                        tolerance, max_distance, reports, pure=False,
+                                        key=f"inspect-{digest[:8]}-{p.name}-{time.time_ns()}")
+                    names[fut.key] = p.name
+                    in_flight.add(fut)
+                    return True
+
+                for _ in range(2 * n_workers + 2):  # bounded: scan bytes of a few tasks in memory
+                    if not submit_next():
+                        break
+                for fut in in_flight:
+                    name = names.pop(fut.key)
+                    try:
+                        res = fut.result()
+                    except Exception as exc:  # the worker died (or the task could not run)
+                        res = _error(name, exc)
+                    fut.release()
+                    record(res)
+                    n_done += 1
+                    if progress:
+                        progress(n_done, len(todo), name)
+                    submit_next()
+            finally:
+                client.close()
+                if cluster is not None:
+                    cluster.close()
+    finally:
+        if db is not None:
+            db.close()
+
+    rows = []
+    for p in scans:
+        f = out_dir / f"{p.stem}.json"
+        if f.exists():
+            rows.append(json.loads(f.read_text()))
+    summary_csv = out_dir / "summary.csv"
+    tmp = summary_csv.with_suffix(".csv.tmp")
+    with open(tmp, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(_CSV_COLUMNS)
+        for r in rows:
+            d, reg = r.get("deviation") or {}, r.get("registration") or {}
+            w.writerow([r.get("scan"), r.get("verdict"), r.get("n_points"), d.get("mean"), d.get("std"),
+                        d.get("min"), d.get("max"), d.get("p95"), d.get("in_tolerance_fraction"),
+                        len(r.get("regions") or []), reg.get("rms"), r.get("record_id"), r.get("error", "")])
+    os.replace(tmp, summary_csv)
+    verdicts = [r.get("verdict") for r in rows]
+    return BatchSummary(total=len(scans), skipped=len(scans) - len(todo), passed=verdicts.count("pass"),
+                        failed=verdicts.count("fail"), errors=verdicts.count("error"),
+                        seconds=time.perf_counter() - t0, summary_csv=summary_csv)

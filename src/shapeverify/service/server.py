@@ -1,0 +1,119 @@
+"""Start-up of the service: load the prepared models once and warm up the JIT before serving.
+
+``serve`` loads and warms up the models in the starting process *before* the port is bound, so
+a model that cannot be loaded stops the start with a message and the first request does not pay
+for numba compilation. With ``workers > 1`` uvicorn runs that many worker processes on the same
+port (the only way past the GIL on a multi-core machine); each loads the models again (numba's
+on-disk cache, filled by the warm-up of the starting process, makes that quick), and requests
+that arrive while a worker is still loading wait in the listen backlog. All processes write the
+same SQLite history (WAL mode; one transaction per record).
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import os
+from pathlib import Path
+
+import numpy as np
+
+log = logging.getLogger(__name__)
+
+_ENV = "SHAPEVERIFY_SERVICE_CONFIG"  # settings handed to uvicorn's worker processes
+
+
+def load_models(paths) -> tuple[dict, dict]:
+    """Load prepared models (``.svm``); names are the file stems.
+
+    Returns
+    -------
+    models : dict name -> Prepared
+    hashes : dict name -> sha256 of the file
+
+    Raises
+    ------
+    ValueError
+        A file that is not ``.svm``, two models with the same name, or no model at all.
+    FileNotFoundError
+        A missing file.
+    """
+    from shapeverify.nearest import load_prepared
+    from shapeverify.pipeline import file_hash
+
+    models, hashes = {}, {}
+    for p in map(Path, paths):
+        if p.suffix.lower() != ".svm":
+            raise ValueError(f"{p}: the service serves prepared models (.svm); "
+                             f"run `shapeverify prepare {p} -o {p.stem}.svm` first")
+        if p.stem in models:
+            raise ValueError(f"two models are named {p.stem!r}; rename one file")
+        models[p.stem] = load_prepared(p)
+        hashes[p.stem] = file_hash(p)
+    if not models:
+        raise ValueError("no model given: pass at least one .svm file")
+    return models, hashes
+
+
+def warm_up(models: dict) -> None:
+    """Run one small inspection per model so that every numba kernel is compiled before serving."""
+    from shapeverify.inspection import inspect
+
+    for name, prep in models.items():
+        pts = prep.points.points
+        idx = np.random.default_rng(0).choice(len(pts), size=min(2000, len(pts)), replace=False)
+        try:
+            inspect(prep, pts[idx], tolerance=1.0)
+        except Exception as exc:  # warm-up must not stop the service; the first request will tell
+            log.warning("warm-up of %s failed: %s", name, exc)
+
+
+def serve(model_paths, *, host: str = "127.0.0.1", port: int = 8000, db_path="history.sqlite",
+          token: str | None = None, max_body_bytes: int = 64 * 1024 * 1024, time_limit_s: float = 60.0,
+          threads: int = 2, workers: int = 1, keep_scans: bool = True, log_level: str = "warning",
+          on_ready=None) -> None:
+    """Load and warm up the models, then serve HTTP until interrupted (blocks).
+
+    Parameters
+    ----------
+    model_paths : list of path
+        Prepared models (``.svm``); the file stems are the model names.
+    threads : int
+        Inspection threads per process.
+    workers : int
+        Server processes (uvicorn workers) sharing the port.
+    on_ready : callable(models: dict), optional
+        Called after loading and warm-up, before the port is bound (the CLI prints a line).
+    """
+    import uvicorn
+
+    from shapeverify.service.app import ServiceConfig, create_app
+
+    models, hashes = load_models(model_paths)
+    warm_up(models)
+    if on_ready is not None:
+        on_ready(models)
+    settings = dict(model_paths=[str(Path(p).resolve()) for p in model_paths],
+                    db_path=str(Path(db_path).resolve()), token=token, max_body_bytes=int(max_body_bytes),
+                    time_limit_s=float(time_limit_s), threads=int(threads), keep_scans=bool(keep_scans))
+    if workers <= 1:
+        config = ServiceConfig(models=models, model_hashes=hashes, db_path=Path(db_path), token=token,
+                               max_body_bytes=int(max_body_bytes), time_limit_s=float(time_limit_s),
+                               threads=int(threads), keep_scans=bool(keep_scans))
+        uvicorn.run(create_app(config), host=host, port=port, log_level=log_level)
+        return
+    del models
+    os.environ[_ENV] = json.dumps(settings)
+    uvicorn.run("shapeverify.service.server:app_from_env", factory=True, host=host, port=port,
+                workers=int(workers), log_level=log_level)
+
+
+def app_from_env():
+    """uvicorn factory for worker processes: the settings come from ``$SHAPEVERIFY_SERVICE_CONFIG``."""
+    from shapeverify.service.app import ServiceConfig, create_app
+
+    s = json.loads(os.environ[_ENV])
+    models, hashes = load_models(s.pop("model_paths"))
+    warm_up(models)
+    s["db_path"] = Path(s["db_path"])
+    return create_app(ServiceConfig(models=models, model_hashes=hashes, **s))
