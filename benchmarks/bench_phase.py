@@ -6,7 +6,7 @@ small map, so numba compilation is not counted) and the fraction of pixels whose
 differs from the most common one (i.e. pixels unwrapped to the wrong fringe, compared with the
 noise-free surface).
 
-Run:  .venv/bin/python benchmarks/bench_unwrap.py [--size 1024] [--out benchmarks/results_unwrap.md]
+Run:  .venv/bin/python benchmarks/bench_phase.py [--size 1024] [--out benchmarks/results_phase.md]
 """
 
 from __future__ import annotations
@@ -53,7 +53,7 @@ def timed(fn, *args, **kw):
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--size", type=int, default=1024)
-    ap.add_argument("--out", default=str(Path(__file__).with_name("results_unwrap.md")))
+    ap.add_argument("--out", default=str(Path(__file__).with_name("results_phase.md")))
     ap.add_argument("--skip-lp", action="store_true", help="skip the (slow) minimum Lp-norm method")
     args = ap.parse_args()
     n = args.size
@@ -114,7 +114,7 @@ def main():
     lines = [
         "# Phase unwrapping benchmark",
         "",
-        f"Command: `.venv/bin/python benchmarks/bench_unwrap.py --size {n}`"
+        f"Command: `.venv/bin/python benchmarks/bench_phase.py --size {n}`"
         + (" --skip-lp" if args.skip_lp else ""),
         "",
         f"Field: {n} x {n} smooth surface, {true.max() - true.min():.1f} rad peak to valley, wrapped, "
