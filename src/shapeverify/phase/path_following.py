@@ -12,7 +12,7 @@ Two public functions:
   which has almost no residues, is unwrapped by reliability sorting, and the result is made
   congruent with the data: ``phi = phi_s + W(psi - phi_s)``.  Every pixel keeps its measured
   value modulo ``2*pi``; only the multiple ``n`` comes from the smoothed map.  This is far more
-  robust to noise than reliability sorting on the raw data (see benchmarks/results_unwrap.md), and
+  robust to noise than reliability sorting on the raw data (see benchmarks/results_phase.md), and
   it is exact on noise-free data because a residue-free map skips the smoothing.
 
 References
