@@ -362,3 +362,31 @@ def update_many(origins, directions, faces, uvs, ts, stored, pk, domains, trims,
         out_uv[r, 0] = u
         out_uv[r, 1] = v
         out_t[r] = t
+
+
+@njit(cache=True)
+def finish(face, uv, t, pn, reversed_, out_points, out_normals, out_uv, out_t, out_face, out_deriv):
+    """Assemble per-ray results in one pass: NaN/inf/-1 where no hit, normals oriented outward."""
+    for r in range(face.shape[0]):
+        f = face[r]
+        if f < 0:
+            out_face[r] = -1
+            out_t[r] = np.inf
+            for k in range(3):
+                out_points[r, k] = np.nan
+                out_normals[r, k] = np.nan
+            out_uv[r, 0] = np.nan
+            out_uv[r, 1] = np.nan
+            for k in range(6):
+                out_deriv[r, k] = pn[r, 6 + k]
+            continue
+        s = -1.0 if reversed_[f] else 1.0
+        out_face[r] = f
+        out_t[r] = t[r]
+        for k in range(3):
+            out_points[r, k] = pn[r, k]
+            out_normals[r, k] = s * pn[r, 3 + k]
+        out_uv[r, 0] = uv[r, 0]
+        out_uv[r, 1] = uv[r, 1]
+        for k in range(6):
+            out_deriv[r, k] = pn[r, 6 + k]

@@ -77,13 +77,13 @@ class RayScene:
     # ------------------------------------------------------------------ exact pieces
     def _finish(self, face, uv, t, pn) -> RayHits:
         """Assemble RayHits from kernel outputs; pn (N, 12) holds point, unit Su x Sv, Su, Sv."""
-        hit = face >= 0
-        points = np.where(hit[:, None], pn[:, :3], np.nan)
-        sign = np.where(self.reversed[np.maximum(face, 0)], -1.0, 1.0)
-        normals = np.where(hit[:, None], pn[:, 3:6] * sign[:, None], np.nan)
-        uv = np.where(hit[:, None], uv, np.nan)
-        return RayHits(hit, points, np.where(hit, t, np.inf), np.where(hit, face, -1), uv, normals,
-                       pn[:, 6:12].copy())
+        n = len(face)
+        points, normals, uv_out = np.empty((n, 3)), np.empty((n, 3)), np.empty((n, 2))
+        t_out, face_out, deriv = np.empty(n), np.empty(n, np.int64), np.empty((n, 6))
+        _kernels.finish(np.ascontiguousarray(face, dtype=np.int64), np.ascontiguousarray(uv),
+                        np.ascontiguousarray(t, dtype=np.float64), np.ascontiguousarray(pn), self.reversed,
+                        points, normals, uv_out, t_out, face_out, deriv)
+        return RayHits(face_out >= 0, points, t_out, face_out, uv_out, normals, deriv)
 
     def intersect(self, origins, directions) -> RayHits:
         """First exact hit of every ray (see :func:`intersect_rays`)."""

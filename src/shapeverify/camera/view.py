@@ -34,7 +34,9 @@ def _rays_in_model(camera: PinholeCamera, T_world_model: np.ndarray, rays=None):
     o, d = camera.pixel_rays() if rays is None else rays
     Tinv = np.linalg.inv(T_world_model)
     R, t = Tinv[:3, :3], Tinv[:3, 3]
-    return np.ascontiguousarray(o @ R.T + t), np.ascontiguousarray(d @ R.T)
+    o_model = np.empty_like(o)
+    o_model[:] = R @ o[0] + t  # every pixel ray starts at the projection centre
+    return o_model, np.ascontiguousarray(d @ R.T)
 
 
 @dataclass(frozen=True, eq=False)
@@ -164,6 +166,7 @@ def depth_map(view: View, T) -> RayHits:
     _kernels.update_many(o, d, faces, seed_uv, seed_t, stored, scene.pk, scene.domains,
                          scene.trims, scene.pmax, scene.qmax, NEWTON_TOL, ok, uv, t, pn)
     face = np.where(ok, faces, -1)
+    t = np.where(ok, t, np.inf)
     # recompute: failed seeds and pixels on a stored discontinuity; other stored misses stay misses
     redo = np.flatnonzero((h.hit & ~ok) | unstable)
     if len(redo):
@@ -174,7 +177,7 @@ def depth_map(view: View, T) -> RayHits:
         pn[redo, :3] = fresh.points
         pn[redo, 3:6] = fresh.normals * np.where(scene.reversed[np.maximum(fresh.face, 0)], -1.0, 1.0)[:, None]
         pn[redo, 6:] = fresh.derivatives
-    return scene._finish(face, uv, np.where(face >= 0, t, np.inf), pn)
+    return scene._finish(face, uv, t, pn)
 
 
 def render_images(camera: PinholeCamera, hits: RayHits, T_world_model=None) -> dict:
