@@ -380,7 +380,7 @@ def test_prepare_arguments(sphere_model):
         with pytest.raises(ValueError, match="max_distance"):
             prepare(sphere_model, spacing=1.0, max_distance=bad)
     assert default_spacing(100.0) == pytest.approx(0.2)
-    assert default_spacing(1e6) == 10.0 and default_spacing(1.0) == 0.01
+    assert default_spacing(4e4) == pytest.approx(80.0) and default_spacing(0.0) == 1.0
     assert default_max_distance(100.0, 0.2) == pytest.approx(3.0)
     assert default_max_distance(1.0, 0.1) == pytest.approx(0.2)
 

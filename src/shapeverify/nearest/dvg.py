@@ -276,7 +276,7 @@ _CORNER = np.array([[o & 1, (o >> 1) & 1, (o >> 2) & 1] for o in range(8)], dtyp
 
 def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
                kd: cKDTree | None = None, max_moves: int = 2, max_seeds: int = 4,
-               multi_size: float | None = None,
+               multi_size: float | None = None, tree_budget: float = 52.0,
                max_top_cells: int = 1 << 22, finest: float | None = None,
                workers: int = -1) -> DVGTree:
     """Build the DVG tree over model point records (:func:`make_records`).
@@ -298,6 +298,10 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         Most seeds of a multi-seed leaf above the last level.
     multi_size : float, optional
         Largest cell that may become a multi-seed leaf (default 2 h).
+    tree_budget : float
+        Bytes per model point the tree may take: when refining the failed cells of a level
+        would exceed it, they become multi-seed leaves instead (as on the last level; the
+        answers stay verified at their samples, the queries get a little slower).
     workers : int
         Threads for the exact kd-tree queries at the cell vertices (build time only).
 
@@ -354,7 +358,11 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         code[single] = -(first[single] + 2)
         fail = np.flatnonzero(kind == 2)
         n_multi = 0
-        if fail.size and size > multi_size and level < max_level:
+        # refining the failed cells adds 8 nodes each and, on the next level, seed lists
+        # (about 8 more int32 per refined cell); beyond the budget this level is the last
+        last = level == max_level or (
+            level > 0 and 4 * (n_nodes + n_list + 16 * fail.size) > tree_budget * n)
+        if fail.size and size > multi_size and not last:
             kind[fail] = 2
         elif fail.size:
             fc = cells[fail]
@@ -374,7 +382,7 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
             _kernels.classify_multi(fc, origin, size, samples[fail], nn_i, nn_d,
                                     np.ascontiguousarray(einv.reshape(-1, 7), dtype=np.int64),
                                     xn_i, xn_d, first[fail], *RV, int(max_moves),
-                                    int(max_seeds), level == max_level, fkind, fseeds, fn)
+                                    int(max_seeds), last, fkind, fseeds, fn)
             kind[fail] = fkind
             ok = fkind == 1
             mi = fail[ok]
@@ -390,8 +398,8 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         base = n_nodes - blocks[-1].shape[0]
         blocks[-1][slots - base] = code
         logger.debug("DVG level %d: %d cells (size %.4g): %d far, %d leaves (%d multi-seed), "
-                     "%d refined", level, m, size, int((kind == 0).sum()), int(leaf.sum()),
-                     n_multi, ref.size)
+                     "%d refined%s", level, m, size, int((kind == 0).sum()), int(leaf.sum()),
+                     n_multi, ref.size, " (last level)" if last else "")
         if ref.size:
             blocks.append(np.full(8 * ref.size, _kernels.FAR, dtype=np.int32))
             slots = (n_nodes + 8 * np.arange(ref.size, dtype=np.int64)[:, None]

@@ -10,8 +10,8 @@ Morton curve, links each to its 8 nearest neighbours and builds the DVG tree
 
 Defaults (``size`` = bounding-box diagonal of the model, mm)
 -------------------------------------------------------------
-``spacing = clip(size / 500, 0.01, 10)`` mm and ``max_distance = 0.03 * size`` (3 % of the
-size, at least 2 spacings).  Queries farther than ``max_distance`` from the model are still
+``spacing = size / 500`` and ``max_distance = 0.03 * size`` (3 % of the size = 15 spacings,
+at least 2 spacings).  Queries farther than ``max_distance`` from the model are still
 answered exactly, by a kd-tree (slower).
 
 Memory (:attr:`Prepared.nbytes`) per model point: a 128-byte record (coordinates, 8
@@ -53,8 +53,12 @@ FORMAT_VERSION = 1
 
 
 def default_spacing(size: float) -> float:
-    """Model point spacing used when none is given: size / 500, clipped to [0.01, 10] mm."""
-    return float(np.clip(size / 500.0, 0.01, 10.0))
+    """Model point spacing used when none is given: size / 500 (1 mm for a model of size 0).
+
+    Relative to the size, so that any part gets a similar number of model points (a sheet
+    about 1e5, a solid part a few 1e5).
+    """
+    return float(size / 500.0) if size > 0 else 1.0
 
 
 def default_max_distance(size: float, spacing: float) -> float:
@@ -270,7 +274,7 @@ def prepare(model, spacing: float | None = None, max_distance: float | None = No
     model : Model
         CAD, mesh or point-cloud model (:func:`shapeverify.load_model`).
     spacing : float, optional
-        Model point spacing in mm; default ``clip(model.size / 500, 0.01, 10)``.
+        Model point spacing in mm; default ``model.size / 500``.
     max_distance : float, optional
         Queries within this distance (mm) are answered by the DVG tree, farther ones by a
         kd-tree; default ``max(0.03 * model.size, 2 * spacing)``.
