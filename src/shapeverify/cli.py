@@ -93,7 +93,7 @@ def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges
         prep = None
     out.print(model_summary_table(m, title=str(model)))
     if prep is not None:
-        out.print(f"prepared: {len(prep.points.points):,} model points at {prep.spacing:.3g} mm spacing, "
+        out.print(f"prepared: {prep.n_points:,} model points at {prep.spacing:.3g} mm spacing, "
                   f"max distance {prep.max_distance:.3g} mm")
 
 
@@ -132,7 +132,7 @@ def prepare(
     prep = _guard(load_reference, model, spacing=spacing, max_distance=max_distance, stage=_stage)
     with _stage(f"Writing {output.name}"):
         _guard(prep.save, output)
-    out.print(f"{output}: {len(prep.points.points):,} model points, spacing {prep.spacing:.3g} mm, "
+    out.print(f"{output}: {prep.n_points:,} model points, spacing {prep.spacing:.3g} mm, "
               f"max distance {prep.max_distance:.3g} mm")
 
 

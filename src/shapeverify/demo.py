@@ -41,7 +41,7 @@ def main(outdir: str = "demo-output") -> int:
     prep = prepare(model)
     svm = out / "panel.svm"
     prep.save(svm)
-    console.print(f"[bold]2.[/bold] prepared {len(prep.points.points):,} model points "
+    console.print(f"[bold]2.[/bold] prepared {prep.n_points:,} model points "
                   f"({prep.spacing:.2f} mm spacing) -> {svm}")
 
     # a single-shot optical scan: noise, a shadow, a reflection blob, 5 % outliers, a 0.4 mm dent,
