@@ -21,7 +21,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .ply import CMAP, color_limit
+from .ply import CMAP, check_scan_length, color_limit
 
 logger = logging.getLogger(__name__)
 
@@ -331,9 +331,7 @@ def write_html_report(result, prep=None, scan=None, path="report.html", *,
     """
     if max_points < 1:
         raise ValueError(f"max_points must be >= 1, got {max_points}")
-    if scan is not None and len(scan) != result.deviations.n:
-        raise ValueError(f"scan has {len(scan)} points but the inspection has "
-                         f"{result.deviations.n}; pass the scan that was inspected")
+    check_scan_length(result, scan)
     model = getattr(prep, "model", prep)
     text = render_html(result, model, max_points=max_points, title=title, rng=rng)
     path = Path(path)

@@ -20,6 +20,14 @@ NOT_EVALUATED_RGB = (0.6, 0.6, 0.6)
 CMAP = "RdBu_r"
 
 
+def check_scan_length(result, scan) -> None:
+    """Raise ValueError unless ``scan`` (or None) has one row per inspected point."""
+    n = result.deviations.n
+    if scan is not None and len(scan) != n:
+        raise ValueError(f"scan has {len(scan)} points but the inspection has {n}; pass the "
+                         "scan that was inspected")
+
+
 def color_limit(tolerance) -> float:
     """Half-range of the colour scale: ``2 x`` the largest |tolerance limit| (mm)."""
     return 2.0 * float(tolerance.max_abs)
@@ -60,10 +68,8 @@ def write_colored_ply(result, scan=None, path="deviations.ply", *, binary: bool 
     """
     from ..io.points import write_ply
 
+    check_scan_length(result, scan)
     dev = result.deviations
-    if scan is not None and len(scan) != dev.n:
-        raise ValueError(f"scan has {len(scan)} points but the inspection has {dev.n}; pass the "
-                         "scan that was inspected")
     rgb = deviation_colors(dev.values, color_limit(result.tolerance))
     colors = np.rint(rgb * 255.0).astype(np.uint8)
     return Path(write_ply(path, dev.points_model, normals=None, colors=colors,

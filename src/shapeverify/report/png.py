@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-from .ply import CMAP, color_limit
+from .ply import CMAP, check_scan_length, color_limit
 
 logger = logging.getLogger(__name__)
 
@@ -82,10 +82,8 @@ def write_png_summary(result, scan=None, path="summary.png", *, max_points: int 
     from matplotlib.figure import Figure
     from matplotlib.patches import Rectangle
 
+    check_scan_length(result, scan)
     dev = result.deviations
-    if scan is not None and len(scan) != dev.n:
-        raise ValueError(f"scan has {len(scan)} points but the inspection has {dev.n}; pass the "
-                         "scan that was inspected")
     rng = np.random.default_rng(rng)
     tol = result.tolerance
     c_lim = color_limit(tol)
