@@ -29,9 +29,9 @@ def _rigid(T, name="T") -> np.ndarray:
     return T
 
 
-def _rays_in_model(camera: PinholeCamera, T_world_model: np.ndarray, rays=None):
-    """All pixel rays of the camera (or the given world-frame ``rays``) in model coordinates."""
-    o, d = camera.pixel_rays() if rays is None else rays
+def _rays_in_model(T_world_model: np.ndarray, rays):
+    """The camera's pixel rays (world frame, from ``camera.pixel_rays()``) in model coordinates."""
+    o, d = rays
     Tinv = np.linalg.inv(T_world_model)
     R, t = Tinv[:3, :3], Tinv[:3, 3]
     o_model = np.empty_like(o)
@@ -107,7 +107,7 @@ def make_view(prep, camera: PinholeCamera, T_world_model=None) -> View:
     scene = scene_for(prep)
     T = np.eye(4) if T_world_model is None else _rigid(T_world_model, "T_world_model")
     rays_world = camera.pixel_rays()
-    o, d = _rays_in_model(camera, T, rays_world)
+    o, d = _rays_in_model(T, rays_world)
     hits = scene.intersect(o, d)
     footprint = np.where(hits.hit, hits.distances, 0.0) / min(camera.fx, camera.fy)
     unstable = _unstable_pixels(hits, d, (camera.height, camera.width), footprint)
@@ -147,7 +147,7 @@ def depth_map(view: View, T) -> RayHits:
     T = _rigid(T)
     scene = view.scene
     T_new = T @ view.T_world_model
-    o, d = _rays_in_model(view.camera, T_new, view.rays_world)
+    o, d = _rays_in_model(T_new, view.rays_world)
     h = view.hits
     n = len(h.hit)
     ok = np.zeros(n, dtype=bool)
