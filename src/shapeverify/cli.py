@@ -259,6 +259,9 @@ def fit(
     method: str = typer.Option("odr", help="odr (Gauss-Newton, orthogonal distance) | varpro | fixed"),
     smoothing: float = typer.Option(0.0, help="Smoothness weight (needed when the points leave parts "
                                               "of the parameter domain empty)"),
+    slide_stiffness: float = typer.Option(100.0, help="Resistance of the control points to sliding along "
+                                                      "the shape (0: plain orthogonal distance, which "
+                                                      "folds to follow noisy data)"),
 ):
     """Fit a NURBS curve or surface to points by orthogonal distance and write it out."""
     from shapeverify.fitting.export import fit_points_file
@@ -268,7 +271,7 @@ def fit(
         n = (n[0], n[0])
     with _stage(f"Fitting {'surface' if surface else 'curve'} to {points.name}"):
         summary = _guard(fit_points_file, points, output, surface=surface, ctrl=n, degree=degree,
-                         method=method, smoothing=smoothing)
+                         method=method, smoothing=smoothing, slide_stiffness=slide_stiffness)
     for k, v in summary.items():
         out.print(f"{k}: {v}")
 

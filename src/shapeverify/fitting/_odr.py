@@ -4,7 +4,8 @@ curves and surfaces (private).
 Unknowns: the global parameters ``theta`` (control points, then the weights of a rational shape)
 and one foot-point parameter vector ``t_i`` (1 for a curve, 2 for a surface) per data point.
 Residuals ``r_i = S(t_i; theta) - x_i``; the objective is ``sum_i ||r_i||^2 + theta^T P theta``
-(``P``: optional smoothness penalty on the control points).
+(``P``: optional smoothness penalty on the control points; with the sliding prior of _slide.py
+the penalty is ``theta^T P theta - 2 b^T theta + c``, a quadratic about an anchor).
 
 The Jacobian has the block structure of Paper VI: ``[J_theta | blockdiag(T_i)]`` with ``T_i`` the
 tangent(s) at the foot point.  Eliminating each point's small block ``T_i^T T_i`` (Schur
@@ -171,10 +172,23 @@ def evaluate(prob, theta: np.ndarray, t: np.ndarray, second: bool = False) -> Ev
 
 
 def cost_of(prob, theta: np.ndarray, r: np.ndarray) -> float:
+    """``||r||^2`` plus the penalty ``theta^T P theta - 2 b^T theta + c`` (b, c: see _slide.py)."""
     c = float(np.einsum("ij,ij->", r, r))
     if prob.penalty is not None:
         c += float(theta @ (prob.penalty @ theta))
+        b = getattr(prob, "penalty_b", None)
+        if b is not None:
+            c += prob.penalty_c - 2.0 * float(b @ theta)
     return c
+
+
+def penalty_gradient(prob, theta: np.ndarray) -> np.ndarray | float:
+    """Half the penalty's gradient, ``P theta - b`` (0 without a penalty)."""
+    if prob.penalty is None:
+        return 0.0
+    g = prob.penalty @ theta
+    b = getattr(prob, "penalty_b", None)
+    return g if b is None else g - b
 
 
 def _inv_small(D: np.ndarray) -> np.ndarray:
@@ -333,8 +347,7 @@ def reduced_step(prob, theta: np.ndarray, ev: Evaluation, lam: float, damp_theta
     idx = prob.idx_cell
     g = np.bincount(idx.ravel(), weights=cellg.ravel(), minlength=M)
     dg = np.bincount(idx.ravel(), weights=celld.ravel(), minlength=M)
-    if prob.penalty is not None:
-        g = g + prob.penalty @ theta
+    g = g + penalty_gradient(prob, theta)
     damp = np.zeros(M)
     top = float(dg.max()) if dg.size else 1.0
     floor = 1e-12 * top
@@ -356,8 +369,7 @@ def reduced_step(prob, theta: np.ndarray, ev: Evaluation, lam: float, damp_theta
     dt = -np.einsum("nab,nb->na", Dinv, lin)
     # predicted decrease of ||r||^2 (+ penalty) by the quadratic model: lam d^T D d - g^T d
     g_full = np.bincount(idx_pt.ravel(), weights=ev.grad_local().ravel(), minlength=M)
-    if prob.penalty is not None:
-        g_full = g_full + prob.penalty @ theta
+    g_full = g_full + penalty_gradient(prob, theta)
     q = gn.shape[1]
     dDd = float(np.sum(damp * keep * dtheta ** 2)) + \
         lam * float(np.einsum("na,nab,nb->", dt, gn * np.eye(q)[None], dt))

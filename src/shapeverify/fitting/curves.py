@@ -40,9 +40,12 @@ import scipy.sparse
 import scipy.sparse.linalg
 
 from ..cad.nurbs import NurbsCurve
-from . import _kernels, _odr
+from . import _kernels, _odr, _slide
 
 logger = logging.getLogger(__name__)
+
+#: default of ``slide_stiffness`` (see _slide.py)
+SLIDE_STIFFNESS = 100.0
 
 __all__ = ["CurveFit", "fit_curve", "chord_length_params", "approximation_knots", "uniform_knots",
            "project_to_curve"]
@@ -276,6 +279,7 @@ class _CurveProblem:
         else:
             self.penalty = None
         self.lo, self.hi = float(U[p]), float(U[n])
+        self.slide = None                # the sliding prior, installed by _slide.Slide
 
     def unpack(self, theta):
         n, d = self.n, self.d
@@ -318,6 +322,8 @@ class _CurveProblem:
         G = (Phi.T @ Phi).tocsr()
         if self.smoothing > 0:
             G = G + self.smoothing * (self.D2.T @ self.D2)
+        if self.slide is not None:
+            return _slide.coupled_control(self, G, Phi.T @ self.x, _solve_spd, "fit_curve")
         return _solve_spd(G, Phi.T @ self.x, "fit_curve")
 
     def relinearise(self, theta, t):
@@ -328,7 +334,7 @@ class _CurveProblem:
 # ----------------------------------------------------------------------------------------------
 # public entry point
 # ----------------------------------------------------------------------------------------------
-def _check_common(method, max_iterations, tolerance, smoothing, parametrization):
+def _check_common(method, max_iterations, tolerance, smoothing, parametrization, slide_stiffness=0.0):
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; choose one of {METHODS}")
     if parametrization not in ("chord", "centripetal"):
@@ -339,12 +345,15 @@ def _check_common(method, max_iterations, tolerance, smoothing, parametrization)
         raise ValueError(f"tolerance must be a positive number, got {tolerance!r}")
     if not (np.isfinite(smoothing) and smoothing >= 0):
         raise ValueError(f"smoothing must be a finite number >= 0, got {smoothing!r}")
+    if not (np.isfinite(slide_stiffness) and slide_stiffness >= 0):
+        raise ValueError(f"slide_stiffness must be a finite number >= 0, got {slide_stiffness!r}")
 
 
 def fit_curve(points, degree: int = 3, n_ctrl: int | None = None, rational: bool = False,
               method: str = "odr", knots=None, params=None, parametrization: str = "chord",
               smoothing: float = 0.0, max_iterations: int = 100,
-              tolerance: float = 1e-10, second_order: bool | None = None) -> CurveFit:
+              tolerance: float = 1e-10, second_order: bool | None = None,
+              slide_stiffness: float = SLIDE_STIFFNESS) -> CurveFit:
     """Fit a B-spline / NURBS curve to ordered points.
 
     Parameters
@@ -369,6 +378,15 @@ def fit_curve(points, degree: int = 3, n_ctrl: int | None = None, rational: bool
     max_iterations : int
     tolerance : float
         Stop when an iteration decreases the objective by less than ``tolerance`` times its value.
+    slide_stiffness : float >= 0
+        ``odr`` / ``varpro``: resistance of the control points to sliding along the curve, away
+        from the fixed-parameter fit.  Sliding changes the shape only to second order, so the
+        data hardly determine it; unchecked, the control points bunch up over hundreds of
+        iterations and the curve folds to follow the noise.  A Gaussian prior on each control
+        point's tangential drift, with standard deviation ``spacing / sqrt(slide_stiffness)``
+        (default: a tenth of the mean control-point spacing) scaled by the noise, holds them;
+        moves normal to the curve are free, and the prior shrinks with the residuals (exact data
+        are still reproduced to rounding).  0 gives the plain ODR objective.
     second_order : bool, optional
         Include the foot-point curvature terms (``r . C''`` and ``r . dR/dt``) in the
         Levenberg-Marquardt matrix: exact Newton for a non-rational curve (Gauss-Newton for the
@@ -406,7 +424,7 @@ def fit_curve(points, degree: int = 3, n_ctrl: int | None = None, rational: bool
         raise ValueError(f"fit_curve: points must have shape (N, 2) or (N, 3), got {x.shape}")
     if not np.all(np.isfinite(x)):
         raise ValueError("fit_curve: points contain NaN or inf; remove them before fitting")
-    _check_common(method, max_iterations, tolerance, smoothing, parametrization)
+    _check_common(method, max_iterations, tolerance, smoothing, parametrization, slide_stiffness)
     if isinstance(degree, bool) or not isinstance(degree, (int, np.integer)) or degree < 1:
         raise ValueError(f"fit_curve: degree must be an integer >= 1, got {degree!r}")
     N = x.shape[0]
@@ -452,8 +470,13 @@ def fit_curve(points, degree: int = 3, n_ctrl: int | None = None, rational: bool
         hist = np.array([_odr.cost_of(prob, theta, _odr.evaluate(prob, theta, t0).r)])
         return _result(curve, t, dist, 0, True, method, hist)
     t, _ = project_to_curve(prob.curve(theta), x, t0)
-    theta, t, it, ok, hist = _odr.solve(prob, theta, t, method, max_iterations, tolerance,
-                                        second_order)
+    slide = None
+    if slide_stiffness > 0:
+        P0, _ = prob.unpack(theta)
+        slide = _slide.Slide(prob, theta, _slide.curve_frames(prob.curve(theta)),
+                             _slide.mean_spacing(P0), slide_stiffness)
+    theta, t, it, ok, hist = _slide.solve(prob, theta, t, method, max_iterations, tolerance,
+                                          second_order, slide)
     curve = prob.curve(theta)
     t, dist = project_to_curve(curve, x, t, iterations=5)
     if not ok:

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..cad.nurbs import NurbsCurve, NurbsSurface
-from .curves import fit_curve
+from .curves import SLIDE_STIFFNESS, fit_curve
 from .surfaces import fit_surface
 
 logger = logging.getLogger(__name__)
@@ -57,7 +57,8 @@ def nurbs_from_dict(data: dict):
 
 
 def fit_points_file(points_path, out_path, surface: bool = False, ctrl=None, degree: int = 3,
-                    method: str = "odr", smoothing: float = 0.0, max_iterations: int = 100) -> dict:
+                    method: str = "odr", smoothing: float = 0.0, max_iterations: int = 100,
+                    slide_stiffness: float = SLIDE_STIFFNESS) -> dict:
     """Fit a NURBS curve (ordered points) or surface to a points file and write it.
 
     Parameters
@@ -79,6 +80,8 @@ def fit_points_file(points_path, out_path, surface: bool = False, ctrl=None, deg
         See :func:`fit_curve` / :func:`fit_surface` (needed when the points leave parts of the
         parameter rectangle empty).
     max_iterations : int
+    slide_stiffness : float
+        See :func:`fit_curve` (0: the plain orthogonal-distance objective).
 
     Returns
     -------
@@ -109,7 +112,8 @@ def fit_points_file(points_path, out_path, surface: bool = False, ctrl=None, deg
             if len(ctrl) != 2:
                 raise ValueError(f"ctrl for a surface must be one or two integers, got {ctrl}")
         fit = fit_surface(x, degrees=(degree, degree), n_ctrl=ctrl, method=method,
-                          smoothing=smoothing, max_iterations=max_iterations)
+                          smoothing=smoothing, max_iterations=max_iterations,
+                          slide_stiffness=slide_stiffness)
         shape = fit.surface
     else:
         if ctrl is not None and not isinstance(ctrl, (int, np.integer)):
@@ -118,7 +122,7 @@ def fit_points_file(points_path, out_path, surface: bool = False, ctrl=None, deg
                 raise ValueError(f"ctrl for a curve must be one integer, got {ctrl}")
             ctrl = int(vals[0])
         fit = fit_curve(x, degree=degree, n_ctrl=ctrl, method=method, smoothing=smoothing,
-                        max_iterations=max_iterations)
+                        max_iterations=max_iterations, slide_stiffness=slide_stiffness)
         shape = fit.curve
         ctrl = int(shape.control.shape[0])
     summary = {"kind": "surface" if surface else "curve", "points": int(N),

@@ -28,8 +28,8 @@ import scipy.sparse
 import scipy.spatial
 
 from ..cad.nurbs import NurbsSurface
-from . import _odr
-from .curves import (_basis, _check_common, _fmt, _second_difference, _solve_spd,
+from . import _odr, _slide
+from .curves import (SLIDE_STIFFNESS, _basis, _check_common, _fmt, _second_difference, _solve_spd,
                      approximation_knots, chord_length_params)
 
 logger = logging.getLogger(__name__)
@@ -207,6 +207,7 @@ class _SurfaceProblem:
             self.penalty = None
         self.lo = np.array([U[p], V[q]], np.float64)
         self.hi = np.array([U[nu], V[nv]], np.float64)
+        self.slide = None                # the sliding prior, installed by _slide.Slide
 
     def unpack(self, theta):
         n = self.n
@@ -260,6 +261,9 @@ class _SurfaceProblem:
         G = (Phi.T @ Phi).tocsr()
         if self.R is not None:
             G = G + self.smoothing * self.R
+        if self.slide is not None:
+            return _slide.coupled_control(self, G, Phi.T @ self.x, _solve_spd,
+                                          "fit_surface").reshape(self.nu, self.nv, 3)
         return _solve_spd(G, Phi.T @ self.x, "fit_surface").reshape(self.nu, self.nv, 3)
 
     def relinearise(self, theta, uv):
@@ -303,7 +307,7 @@ def _knots(given, t, n_ctrl, degree, name):
 def fit_surface(points, degrees=(3, 3), n_ctrl=(8, 8), rational: bool = False,
                 method: str = "odr", knots=None, params=None, parametrization: str = "chord",
                 smoothing: float = 0.0, max_iterations: int = 100, tolerance: float = 1e-10,
-                second_order: bool | None = None) -> SurfaceFit:
+                second_order: bool | None = None, slide_stiffness: float = SLIDE_STIFFNESS) -> SurfaceFit:
     """Fit a tensor-product B-spline / NURBS surface to points.
 
     Parameters
@@ -324,6 +328,9 @@ def fit_surface(points, degrees=(3, 3), n_ctrl=(8, 8), rational: bool = False,
         Adds ``smoothing * sum ||second differences of the control net along u and v||^2``;
         needed when parts of the parameter domain hold no points.
     max_iterations, tolerance, second_order : as in :func:`shapeverify.fitting.fit_curve`.
+    slide_stiffness : float >= 0
+        As in :func:`shapeverify.fitting.fit_curve`: resistance of the control points to sliding
+        along the surface (two tangent directions per control point); 0 gives plain ODR.
 
     Returns
     -------
@@ -350,7 +357,7 @@ def fit_surface(points, degrees=(3, 3), n_ctrl=(8, 8), rational: bool = False,
         raise ValueError(f"fit_surface: points must have shape (N, 3) or (ku, kv, 3), got {x.shape}")
     if not np.all(np.isfinite(x)):
         raise ValueError("fit_surface: points contain NaN or inf; remove them before fitting")
-    _check_common(method, max_iterations, tolerance, smoothing, parametrization)
+    _check_common(method, max_iterations, tolerance, smoothing, parametrization, slide_stiffness)
     p, q = _pair(degrees, "degrees")
     nu, nv = _pair(n_ctrl, "n_ctrl")
     if p < 1 or q < 1:
@@ -402,8 +409,13 @@ def fit_surface(points, degrees=(3, 3), n_ctrl=(8, 8), rational: bool = False,
         hist = np.array([_odr.cost_of(prob, theta, _odr.evaluate(prob, theta, uv0).r)])
         return _result(surf, uv, dist, 0, True, method, hist)
     uv, _ = project_to_surface(prob.surface(theta), flat, uv0)
-    theta, uv, it, ok, hist = _odr.solve(prob, theta, uv, method, max_iterations, tolerance,
-                                         second_order)
+    slide = None
+    if slide_stiffness > 0:
+        P0, _ = prob.unpack(theta)
+        slide = _slide.Slide(prob, theta, _slide.surface_frames(prob.surface(theta)),
+                             _slide.mean_spacing(P0), slide_stiffness)
+    theta, uv, it, ok, hist = _slide.solve(prob, theta, uv, method, max_iterations, tolerance,
+                                           second_order, slide)
     surf = prob.surface(theta)
     uv, dist = project_to_surface(surf, flat, uv, iterations=5)
     if not ok:
