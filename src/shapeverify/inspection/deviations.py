@@ -27,6 +27,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._arrays import count_nonfinite_rows
+
 logger = logging.getLogger(__name__)
 
 __all__ = ["Deviations", "deviations", "EVALUATED", "TOO_FAR", "ON_BOUNDARY", "REASON_NAMES",
@@ -144,8 +146,8 @@ def deviations(scan, prep, T_model_scan=None, max_distance: float | None = None)
     scan = np.asarray(scan, dtype=np.float64)
     if scan.ndim != 2 or scan.shape[1] != 3:
         raise ValueError(f"scan must be an (N, 3) array of points, got shape {scan.shape}")
-    if not np.all(np.isfinite(scan)):
-        bad = int(np.count_nonzero(~np.isfinite(scan).all(axis=1)))
+    bad = count_nonfinite_rows(scan)
+    if bad:
         raise ValueError(f"scan contains {bad} points with NaN/inf coordinates; drop them first "
                          "(scan = scan[np.isfinite(scan).all(axis=1)])")
     T = np.eye(4) if T_model_scan is None else np.asarray(T_model_scan, dtype=np.float64)

@@ -8,6 +8,7 @@ import time
 
 import numpy as np
 
+from .. import _arrays
 from ..errors import EmptyModelError, ScanError
 from .deviations import _deviations
 from .regions import MIN_POINTS, find_regions
@@ -26,7 +27,8 @@ _UNITS = ((1000.0, "metres"), (25.4, "inches"), (10.0, "centimetres"), (1e-3, "m
 
 
 def _bbox_diagonal(points: np.ndarray) -> float:
-    return float(np.linalg.norm(points.max(axis=0) - points.min(axis=0)))
+    lo, hi = _arrays.bounds(points)
+    return float(np.linalg.norm(hi - lo))
 
 
 def check_scan(scan, model_size: float | None = None) -> np.ndarray:
@@ -51,8 +53,8 @@ def check_scan(scan, model_size: float | None = None) -> np.ndarray:
         raise ScanError(f"scan must be an (N, 3) array of x, y, z points, got shape {scan.shape}")
     if scan.shape[0] == 0:
         raise ScanError("the scan is empty (0 points); nothing to inspect")
-    finite = np.isfinite(scan).all(axis=1)
-    if not finite.all():
+    if _arrays.count_nonfinite_rows(scan):
+        finite = np.isfinite(scan).all(axis=1)
         raise ScanError(f"the scan has {int((~finite).sum())} of {scan.shape[0]} points with NaN/inf "
                         "coordinates; remove them first (scan = scan[np.isfinite(scan).all(axis=1)])")
     if scan.shape[0] < MIN_SCAN_POINTS:
@@ -201,7 +203,7 @@ def _check_near(scan: np.ndarray, init, model) -> None:
     if T.shape != (4, 4) or not np.all(np.isfinite(T)):
         return                                   # register() reports a bad init itself
     q = scan @ T[:3, :3].T + T[:3, 3]
-    lo, hi = q.min(axis=0), q.max(axis=0)
+    lo, hi = _arrays.bounds(q)
     mlo, mhi = np.asarray(bounds[0]), np.asarray(bounds[1])
     gap = float(np.linalg.norm(np.maximum(0.0, np.maximum(mlo - hi, lo - mhi))))
     size = float(np.linalg.norm(mhi - mlo))

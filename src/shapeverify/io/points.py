@@ -35,6 +35,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .._arrays import count_nonfinite_rows
+
 from shapeverify.errors import ScanError, UnsupportedFormatError
 
 __all__ = ["read_points", "read_ply_full", "write_ply", "PlyData", "POINT_EXTENSIONS"]
@@ -273,14 +275,13 @@ def write_ply(path, points, normals=None, colors=None, scalars=None, binary=True
 
 def drop_nonfinite(points: np.ndarray, path) -> np.ndarray:
     """Drop rows with a NaN/inf coordinate (logging their count); error if nothing is left."""
-    ok = np.isfinite(points).all(axis=1)
-    n_bad = int(len(ok) - np.count_nonzero(ok))
+    n_bad = count_nonfinite_rows(points) if points.ndim == 2 else 0
     if len(points) == 0:
         raise ScanError(f"{path}: contains no points")
     if n_bad:
         logger.warning("%s: dropped %d of %d rows with NaN or infinite coordinates",
                        path, n_bad, len(points))
-        points = points[ok]
+        points = points[np.isfinite(points).all(axis=1)]
         if len(points) == 0:
             raise ScanError(f"{path}: all {n_bad} points have NaN or infinite coordinates")
     return np.ascontiguousarray(points, dtype=np.float64)

@@ -40,7 +40,7 @@ _MAX_HALVING = 40
 #   mu[mu_off[f] + i] = centre of span i (same for v with bv/mv); coefficient rows
 #   coef[c_off[f] + ((i * n_v + j) * (p + 1) + a) * (q + 1) + b] = (wx, wy, wz, w) of
 #   (u - mu_i)^a (v - mv_j)^b on span (i, j).  Homogeneous, divided back with the quotient rule.
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _span(x, br, lo, hi):
     """Index i of the span [br[lo+i], br[lo+i+1]] holding x (clamped to the ends)."""
     a = lo
@@ -58,7 +58,7 @@ def _span(x, br, lo, hi):
     return a - lo
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _eval(tab, f, u, v, out, work):
     """out[k, l] = d^(k+l)S/du^k dv^l at (u, v) for k + l <= 2 (out (3, 3, 3))."""
     deg, bu, bu_off, mu, mu_off, bv, bv_off, mv, mv_off, coef, c_off = tab
@@ -146,7 +146,7 @@ def _eval(tab, f, u, v, out, work):
         out[0, 2, c] = (work[r + 5, c] - 2.0 * wv * Sv - wvv * S) * iw
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def eval_many(tab, faces, u, v, work_rows, out):
     """out[i] = derivatives (3, 3, 3) of face faces[i] at (u[i], v[i]) (see :func:`_eval`)."""
     work = np.empty((work_rows, 4))
@@ -154,7 +154,7 @@ def eval_many(tab, faces, u, v, work_rows, out):
         _eval(tab, faces[i], u[i], v[i], out[i], work)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _dist2_at(tab, f, u, v, q0, q1, q2, out, work):
     _eval(tab, f, u, v, out, work)
     a = out[0, 0, 0] - q0
@@ -163,7 +163,7 @@ def _dist2_at(tab, f, u, v, q0, q1, q2, out, work):
     return a * a + b * b + c * c
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _wrap(x, lo, hi, closed):
     if closed:  # into [lo, hi): the seam belongs to the start of the domain
         if x < lo or x >= hi:
@@ -174,7 +174,7 @@ def _wrap(x, lo, hi, closed):
     return min(max(x, lo), hi)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def newton_face(tab, domains, closed, f, u, v, q0, q1, q2, out, work):
     """Point inversion on face f's surface from (u, v): (u, v, squared distance, at_bound).
 
@@ -273,7 +273,7 @@ def newton_face(tab, domains, closed, f, u, v, q0, q1, q2, out, work):
     return u, v, d0, at_bound
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def inside(f, u, v, bin_off, bin_lo, bin_hi, bin_inv, bin_start, bin_xy):
     """Even-odd test of (u, v) against the trimming loops of face f (slab bins along v).
 
@@ -298,7 +298,7 @@ def inside(f, u, v, bin_off, bin_lo, bin_hi, bin_inv, bin_start, bin_xy):
     return res
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _chord_d2(q0, q1, q2, a3, b3, s):
     e0 = b3[s, 0] - a3[s, 0]
     e1 = b3[s, 1] - a3[s, 1]
@@ -316,7 +316,7 @@ def _chord_d2(q0, q1, q2, a3, b3, s):
     return d0 * d0 + d1 * d1 + d2 * d2, t
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def newton_segment(tab, domains, f, s, t, x0, y0, x1, y1, q0, q1, q2, out, work):
     """Closest point to q on the image S(uv(t)) of trimming segment s, t in [0, 1].
 
@@ -390,7 +390,7 @@ def newton_segment(tab, domains, f, s, t, x0, y0, x1, y1, q0, q1, q2, out, work)
     return t, u, v, d0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _normal(out, rev, b, rh, rs):
     """Outward unit normal from the derivatives in ``out``; where Su x Sv vanishes (a pole),
     the normal of model point b."""
@@ -408,7 +408,7 @@ def _normal(out, rev, b, rh, rs):
     return n0 / ln, n1 / ln, n2 / ln
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def two_closest_chords(q0, q1, q2, f, a3, b3, ch_off, ch_seg, ch_c, ch_r, lb):
     """The two trimming segments of face f whose 3D chords are closest to q.
 
@@ -456,7 +456,7 @@ def two_closest_chords(q0, q1, q2, f, a3, b3, ch_off, ch_seg, ch_c, ch_r, lb):
     return s1, t1, d1, s2, t2, d2
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domains, closed,
                rev,
                seg_off, x0, y0, x1, y1, a3, b3, sag, free, ch_off, ch_seg, ch_c, ch_r,
@@ -579,7 +579,7 @@ def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domai
 
 
 # ---------------------------------------------------------------------------------- meshes
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def closest_on_triangle(q0, q1, q2, a0, a1, a2, b0, b1, b2, c0, c1, c2):
     """Closest point of triangle abc to q (Ericson §5.1.5): (x, y, z, feature).
 
@@ -630,7 +630,7 @@ def closest_on_triangle(q0, q1, q2, a0, a1, a2, b0, b1, b2, c0, c1, c2):
     return (a0 + ab0 * v + ac0 * w, a1 + ab1 * v + ac1 * w, a2 + ab2 * v + ac2 * w, 0)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _corner_angle(verts, tri, t, k):
     """Interior angle of triangle t at its corner k."""
     a = tri[t, k]
@@ -650,7 +650,7 @@ def _corner_angle(verts, tri, t, k):
     return np.arccos(min(1.0, max(-1.0, cs)))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def refine_mesh(Q, cand_ptr, cand, verts, tri, tri_n, dist, feat,
                 out_foot, out_normal, out_dist, out_face, out_uv):
     """Exact closest point of each query over its candidate triangles.

@@ -85,14 +85,14 @@ def prefetch(typingctx, arr, i):
     return sig, codegen
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _fetch(rf, j):
     """Prefetch both cache lines of record j."""
     prefetch(rf, j * 16)
     prefetch(rf, j * 16 + 8)
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _d2(q0, q1, q2, rf, j):
     a = rf[j, 0] - q0
     b = rf[j, 1] - q1
@@ -100,7 +100,7 @@ def _d2(q0, q1, q2, rf, j):
     return a * a + b * b + c * c
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _ring(q0, q1, q2, b, rf, rh, rs):
     """Neighbour slot k of b that looks closest to q (from the quantised offsets) and its
     estimated squared distance."""
@@ -121,7 +121,7 @@ def _ring(q0, q1, q2, b, rf, rh, rs):
     return best, bd
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def walk(q0, q1, q2, b, rf, ri, rh, rs, max_moves):
     """Greedy descent on the neighbour graph from model point ``b``.
 
@@ -144,7 +144,7 @@ def walk(q0, q1, q2, b, rf, ri, rh, rs, max_moves):
     return b, db, moves
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def locate(q0, q1, q2, origin, s0, dims, nodes):
     """Leaf code of the cell holding (q0, q1, q2); FAR outside the top grid."""
     fx = (q0 - origin[0]) / s0
@@ -175,7 +175,7 @@ def locate(q0, q1, q2, origin, s0, dims, nodes):
     return c
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def leaf_nearest(q0, q1, q2, code, n_points, lists, rf, ri, rh, rs, max_moves):
     """Nearest model point from a leaf code (not FAR): walk from each seed, keep the closest.
 
@@ -198,7 +198,7 @@ def leaf_nearest(q0, q1, q2, code, n_points, lists, rf, ri, rh, rs, max_moves):
 
 
 # ------------------------------------------------------------------------ tangent patches
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def oct_decode(x, y):
     """Unit vector from its octahedral code (x, y) in [-1, 1]^2."""
     z = 1.0 - abs(x) - abs(y)
@@ -209,7 +209,7 @@ def oct_decode(x, y):
     return x * inv, y * inv, z * inv
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def frame(b, rs, rh):
     """(normal, tangent_u, tangent_v, half_u, half_v) of model point b (tangent_u made
     orthogonal to the normal after decoding)."""
@@ -231,7 +231,7 @@ def frame(b, rs, rh):
             np.float64(rs[b, EXT + 1]))
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def decode_frames(rs, rh, out):
     """out (N, 11): normal, tangent_u, tangent_v, half_u, half_v of every model point."""
     for b in range(out.shape[0]):
@@ -240,7 +240,7 @@ def decode_frames(rs, rh, out):
             out[b, c] = f[c]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def decode_normals(idx, rs, rh, out):
     """out (M, 3): unit normals of model points idx (M,)."""
     for i in range(idx.shape[0]):
@@ -250,7 +250,7 @@ def decode_normals(idx, rs, rh, out):
         out[i, 2] = n2
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _project_one(q0, q1, q2, b, rf, rh, rs):
     """Project q onto the tangent patch of model point b, clamped to its half extents.
 
@@ -298,7 +298,7 @@ def _project_one(q0, q1, q2, b, rf, rh, rs):
     return f0, f1, f2, d, clamped, n0, n1, n2
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def project_patches(Q, idx, rf, rh, rs, out_foot, out_dist, out_clamped, out_normal):
     """Fast-mode answer for known nearest model points ``idx`` (all >= 0)."""
     for i in range(Q.shape[0]):
@@ -314,7 +314,7 @@ def project_patches(Q, idx, rf, rh, rs, out_foot, out_dist, out_clamped, out_nor
         out_normal[i, 2] = n2
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def query_block(Q, origin, s0, dims, nodes, lists, rf, ri, rh, rs, max_moves, patches,
                 out_idx, out_d2, out_foot, out_dist, out_clamped, out_normal,
                 rows, boundary, out_face, out_uv, out_onb):
@@ -457,7 +457,7 @@ def query_block(Q, origin, s0, dims, nodes, lists, rf, ri, rh, rs, max_moves, pa
                     out_onb[i] = cl and boundary[b]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def gather_rows(idx, rows, boundary, clamped, out_face, out_uv, out_onb):
     """Fast-mode face, (u, v) and on_boundary of each query's nearest model point.
 
@@ -482,7 +482,7 @@ EXTRA = np.array([[1, 1, 1], [0, 1, 1], [2, 1, 1], [1, 0, 1], [1, 2, 1], [1, 1, 
                  dtype=np.int64)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def classify(cells, origin, size, samples, nn_idx, nn_d, rf, ri, rh, rs, max_distance,
              max_moves, out_kind, out_seed):
     """First pass over the cells of one level: FAR (0), single-seed leaf (1) or failed (2).
@@ -527,7 +527,7 @@ def classify(cells, origin, size, samples, nn_idx, nn_d, rf, ri, rh, rs, max_dis
                 break
 
 
-@njit(cache=True, inline="always")
+@njit(cache=True, nogil=True, inline="always")
 def _seeded_ok(q0, q1, q2, seeds, cnt, rf, ri, rh, rs, max_moves, d_exact, tol):
     """Whether the query procedure (a walk from each seed) finds the exact nearest point."""
     bd = np.inf
@@ -539,7 +539,7 @@ def _seeded_ok(q0, q1, q2, seeds, cnt, rf, ri, rh, rs, max_moves, d_exact, tol):
     return mv <= max_moves and np.sqrt(bd) <= d_exact * (1.0 + 1e-12) + tol
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def classify_multi(cells, origin, size, samples, nn_idx, nn_d, extra, xn_idx, xn_d, first_seed,
                    rf, ri, rh, rs, max_moves, max_seeds, last_level, out_kind, out_seeds,
                    out_nseeds):

@@ -59,6 +59,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
+from .._arrays import count_nonfinite_rows
 from . import _kernels
 
 logger = logging.getLogger(__name__)
@@ -88,8 +89,8 @@ def check_points(points, name: str = "points", allow_empty: bool = True) -> np.n
                          "pass one row of x, y, z per point")
     if a.shape[0] == 0 and not allow_empty:
         raise ValueError(f"{name} is empty; at least one point is needed")
-    bad = ~np.isfinite(a).all(axis=1)
-    if bad.any():
+    if count_nonfinite_rows(a):
+        bad = ~np.isfinite(a).all(axis=1)
         raise ValueError(f"{name} has {int(bad.sum())} row(s) with NaN or inf (first: row "
                          f"{int(np.flatnonzero(bad)[0])}); remove or fill them first")
     return np.ascontiguousarray(a)

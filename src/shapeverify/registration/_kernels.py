@@ -3,7 +3,7 @@ import numpy as np
 from numba import njit
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def plane_system(X, Y, N, w, center, H, g):
     """Accumulate ``H = sum w J^T J`` and ``g = sum w r J`` of the point-to-plane step.
 
@@ -38,7 +38,7 @@ def plane_system(X, Y, N, w, center, H, g):
             H[a, b] = H[b, a]
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def move_and_residuals(P, R, t, Y, N, valid, clamped, X, d):
     """X = P R^T + t and the signed distances to fixed closest points (0 where not valid).
 
@@ -63,7 +63,7 @@ def move_and_residuals(P, R, t, Y, N, valid, clamped, X, d):
             d[k] = 0.0
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def weighted_centroid(X, w):
     c = np.zeros(3)
     s = 0.0
@@ -75,7 +75,7 @@ def weighted_centroid(X, w):
     return c / s
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def plane_information_indexed(M, MN, idx, valid, w, center, H):
     """``H = sum w J^T J`` with ``J = [((m - c) x n)^T, n^T]`` at the model points ``M[idx]``
     (normals ``MN[idx]``) instead of the feet: exact surface points for the degeneracy test."""

@@ -28,6 +28,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._arrays import count_nonfinite_rows
+
 from . import _irls
 from ._irls import IterationRecord
 from .losses import get_loss
@@ -135,8 +137,8 @@ def _check_scan(scan) -> np.ndarray:
     if P.shape[0] < 6:
         raise ScanError(f"scan has {P.shape[0]} points; registration needs at least 6 "
                         "(six pose parameters)")
-    bad = ~np.isfinite(P).all(axis=1)
-    if bad.any():
+    if count_nonfinite_rows(P):
+        bad = ~np.isfinite(P).all(axis=1)
         raise ScanError(f"scan has {int(bad.sum())} rows with NaN/inf (first at row "
                         f"{int(np.flatnonzero(bad)[0])}); drop them, e.g. "
                         "scan[np.isfinite(scan).all(axis=1)]")

@@ -14,6 +14,7 @@ from __future__ import annotations
 import json
 import logging
 import os
+import socket
 from pathlib import Path
 
 import numpy as np
@@ -104,8 +105,32 @@ def serve(model_paths, *, host: str = "127.0.0.1", port: int = 8000, db_path="hi
         return
     del models
     os.environ[_ENV] = json.dumps(settings)
-    uvicorn.run("shapeverify.service.server:app_from_env", factory=True, host=host, port=port,
-                workers=int(workers), log_level=log_level)
+    from uvicorn.supervisors import Multiprocess
+
+    config = uvicorn.Config("shapeverify.service.server:app_from_env", factory=True, host=host,
+                            port=port, workers=int(workers), log_level=log_level)
+    Multiprocess(config, sockets=[listen_socket(host, port)]).run()
+
+
+def listen_socket(host: str, port: int) -> socket.socket:
+    """The shared listening socket of the worker processes, created with ``IPPROTO_TCP``.
+
+    uvicorn's own ``bind_socket`` creates it with protocol 0; the connections it accepts inherit
+    that, and asyncio then skips ``TCP_NODELAY`` on them (it checks ``sock.proto``).  With Nagle's
+    algorithm on, a response written in two parts waits for the client's delayed ACK: +40 ms
+    per request (measured: sequential p50 120 ms with 2 workers against 76 ms with 1).
+    """
+    family = socket.AF_INET6 if ":" in host else socket.AF_INET
+    sock = socket.socket(family, socket.SOCK_STREAM, socket.IPPROTO_TCP)
+    sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    try:
+        sock.bind((host, port))
+    except OSError as exc:
+        sock.close()
+        raise OSError(f"cannot listen on {host}:{port}: {exc.strerror or exc}; is the port already "
+                      "in use? choose another with --port") from exc
+    sock.set_inheritable(True)
+    return sock
 
 
 def app_from_env():
