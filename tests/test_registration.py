@@ -466,3 +466,25 @@ def test_bunny_045_to_000(shared_data):
     cm = T_true[:3, :3] @ c + T_true[:3, 3]
     trans = np.linalg.norm(dT[:3, :3] @ cm + dT[:3, 3] - cm)
     assert ang < 0.3 and trans < 0.5, (ang, trans, reg)
+
+
+@pytest.mark.parametrize("name", sorted(LOSSES))
+def test_fused_weights_equal_the_loss_formulas(name):
+    """The one-pass numba weighting of the built-in losses equals losses.py's numpy formulas."""
+    from shapeverify.registration import _irls
+    from shapeverify.registration.losses import Loss
+
+    rng = np.random.default_rng(3)
+    d = rng.standard_t(3, size=4000) * 0.1
+    valid = rng.random(4000) > 0.1
+    d[~valid] = 0.0
+    Z = np.zeros((4000, 3))
+    args = (Z, Z, Z, d, valid, np.zeros(4000, np.int64), np.zeros(4000, bool))
+    fused = _irls.weigh(*args, LOSSES[name], None, 1e-6)
+    own = LOSSES[name]
+    plain = _irls.weigh(*args, Loss(own.name, own.c, own.redescending, own._rho, own._w), None, 1e-6)
+    assert fused.sigma == plain.sigma
+    np.testing.assert_allclose(fused.w, plain.w, rtol=0, atol=1e-15)
+    assert abs(fused.objective - plain.objective) <= 1e-14 * abs(plain.objective)
+    assert abs(fused.rms - plain.rms) <= 1e-14
+    assert np.array_equal(fused.inliers, plain.inliers)

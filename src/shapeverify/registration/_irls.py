@@ -40,7 +40,7 @@ from typing import NamedTuple
 import numpy as np
 
 from . import _kernels
-from .losses import Loss, robust_scale
+from .losses import LOSSES, MAD_TO_SIGMA, Loss, robust_scale
 from .rigid import (
     DEGENERATE_RTOL, compose_step, rodrigues, rotation_vector, solve_step, weighted_rigid_fit,
 )
@@ -136,12 +136,23 @@ def weigh(X, Y, N, d, valid, idx, clamped, loss: Loss, scale, floor) -> Eval:
         raise RegistrationError(
             f"only {nv} scan points have a closest model point off the model's free boundary; "
             "give a better init (e.g. init='principal-axes') or check the model and units")
-    sigma = float(scale) if scale is not None else robust_scale(d[valid], floor)
-    w = np.where(valid, loss.weight(d, sigma), 0.0)
-    objective = float(loss.rho(d[valid], sigma).mean())
-    inl = valid & (np.abs(d) <= loss.c * sigma)
-    rms = float(np.sqrt(np.mean(d[inl] ** 2))) if inl.any() else float("nan")
-    return Eval(X, Y, N, d, valid, w, sigma, objective, rms, inl, loss, idx, clamped)
+    code = _kernels.LOSS_CODES.get(loss.name) if LOSSES.get(loss.name) is loss else None
+    if code is None:   # a loss of the caller's own: the numpy formulas
+        sigma = float(scale) if scale is not None else robust_scale(d[valid], floor)
+        w = np.where(valid, loss.weight(d, sigma), 0.0)
+        objective = float(loss.rho(d[valid], sigma).mean())
+        inl = valid & (np.abs(d) <= loss.c * sigma)
+        rms = float(np.sqrt(np.mean(d[inl] ** 2))) if inl.any() else float("nan")
+        return Eval(X, Y, N, d, valid, w, sigma, objective, rms, inl, loss, idx, clamped)
+    # the built-in losses in one numba pass (the same formulas as losses.py)
+    if scale is not None:
+        sigma = float(scale)
+    else:
+        sigma = float(max(MAD_TO_SIGMA * np.median(_kernels.abs_valid(d, valid)), floor))
+    w = np.empty(d.shape[0])
+    inl = np.empty(d.shape[0], dtype=np.bool_)
+    objective, rms, _ = _kernels.weigh_residuals(code, d, valid, loss.c * sigma, w, inl)
+    return Eval(X, Y, N, d, valid, w, sigma, float(objective), float(rms), inl, loss, idx, clamped)
 
 
 def evaluate(P, prep, R, t, loss, scale, floor, exact) -> Eval:

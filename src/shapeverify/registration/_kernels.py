@@ -103,3 +103,69 @@ def plane_information_indexed(M, MN, idx, valid, w, center, H):
     for a in range(6):
         for b in range(a):
             H[a, b] = H[b, a]
+
+
+#: loss codes of :func:`weigh_residuals` (registration.losses.LOSSES)
+LOSS_CODES = {"l2": 0, "huber": 1, "tukey": 2, "cauchy": 3, "welsch": 4}
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _rho_w(code, r, k):
+    """(rho(r), w(r)) of the loss ``code`` with tuning constant k (losses.py, same formulas)."""
+    if code == 0:
+        return 0.5 * r * r, 1.0
+    if code == 1:
+        a = abs(r)
+        if a <= k:
+            return 0.5 * r * r, 1.0
+        return k * a - 0.5 * k * k, k / max(a, 1e-300)
+    u2 = (r / k) ** 2
+    if code == 2:
+        if u2 < 1.0:
+            return (k * k / 6.0) * (1.0 - (1.0 - u2) ** 3), (1.0 - u2) ** 2
+        return k * k / 6.0, 0.0
+    if code == 3:
+        return 0.5 * k * k * np.log1p(u2), 1.0 / (1.0 + u2)
+    e = np.exp(-u2)
+    return 0.5 * k * k * (1.0 - e), e
+
+
+@njit(cache=True, nogil=True)
+def abs_valid(d, valid):
+    """|d| of the valid entries (for the median)."""
+    out = np.empty(d.shape[0])
+    m = 0
+    for i in range(d.shape[0]):
+        if valid[i]:
+            out[m] = abs(d[i])
+            m += 1
+    return out[:m]
+
+
+@njit(cache=True, nogil=True)
+def weigh_residuals(code, d, valid, k, w, inl):
+    """IRLS weights ``w`` (0 where invalid), inlier flags ``inl`` (|d| <= k), and
+    (mean rho over valid, RMS of the inliers, number valid) in one pass."""
+    s_rho = 0.0
+    s2 = 0.0
+    n_in = 0
+    n_val = 0
+    for i in range(d.shape[0]):
+        if not valid[i]:
+            w[i] = 0.0
+            inl[i] = False
+            continue
+        r = d[i]
+        rho, wi = _rho_w(code, r, k)
+        w[i] = wi
+        s_rho += rho
+        n_val += 1
+        if abs(r) <= k:
+            inl[i] = True
+            s2 += r * r
+            n_in += 1
+        else:
+            inl[i] = False
+    mean_rho = s_rho / n_val if n_val else np.nan
+    rms = np.sqrt(s2 / n_in) if n_in else np.nan
+    return mean_rho, rms, n_val
