@@ -1,8 +1,8 @@
 """In-process time of one inspection (register + deviations + verdict) of a 30,000-point scan,
 and the time of writing each report, separately.  Goal (issue 5): inspect <= 0.2 s.
 
-Model: a 120 x 90 mm bicubic free-form panel of two trimmed faces (the test model of
-tests/test_inspection.py), prepared once.  Scan: the virtual scanner (noise 0.02 mm, 1 % outliers,
+Model: a 120 x 90 mm bicubic free-form panel of two trimmed faces (``shapeverify.cad.examples.wavy_panel``,
+the test model of tests/test_inspection.py), prepared once.  Scan: the virtual scanner (noise 0.02 mm, 1 % outliers,
 a reflection blob, a 0.4 mm dent, a 3 degree / 2 mm fixture misalignment).
 
 Peer, same process, same scan: Open3D 0.18+ (bench extra) -- point-to-plane ICP
@@ -19,7 +19,6 @@ from __future__ import annotations
 import argparse
 import datetime
 import platform
-import sys
 import tempfile
 import time
 from pathlib import Path
@@ -27,7 +26,6 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "tests"))
 
 
 def _median_time(fn, repeat: int):
@@ -78,7 +76,7 @@ def main() -> None:
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results_inspection.md"))
     args = ap.parse_args()
 
-    from test_inspection import wavy_panel
+    from shapeverify.cad.examples import wavy_panel
 
     from shapeverify.inspection import inspect
     from shapeverify.nearest import prepare

@@ -15,6 +15,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
+from shapeverify.cad.examples import wavy_panel
 from shapeverify.errors import ScanError
 from shapeverify.inspection import (
     EVALUATED, ON_BOUNDARY, TOO_FAR, InspectionResult, Tolerance, check_scan, decide, deviations,
@@ -310,29 +311,7 @@ def test_model_without_surface_points_is_rejected():
 
 # ============================================================================ real pipeline
 # Exact NURBS geometry, the real closest-point search (nearest/), registration and the
-# virtual scanner (simulate/).
-def wavy_panel(split: bool = True):
-    """A 120 x 90 mm bicubic free-form panel (z = 6 sin(x/25) cos(y/30) at the control points);
-    with ``split`` two faces sharing the edge u = 0.5, otherwise one face. All outer edges free."""
-    from shapeverify.cad.model import Face, Model
-    from shapeverify.cad.nurbs import NurbsSurface
-
-    nu, nv = 7, 6
-    xs, ys = np.linspace(0, 120, nu), np.linspace(0, 90, nv)
-    X, Y = np.meshgrid(xs, ys, indexing="ij")
-    ctrl = np.stack([X, Y, 6 * np.sin(X / 25.0) * np.cos(Y / 30.0)], axis=-1)
-    ku = np.r_[[0.0] * 4, np.linspace(0, 1, nu - 2)[1:-1], [1.0] * 4]
-    kv = np.r_[[0.0] * 4, np.linspace(0, 1, nv - 2)[1:-1], [1.0] * 4]
-    surf = NurbsSurface(3, 3, ku, kv, ctrl)
-    if not split:
-        loop = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
-        return Model((Face(surf, (loop,), (np.ones(4, bool),)),), source="wavy panel")
-    a = np.array([[0, 0], [0.5, 0], [0.5, 1], [0, 1]], float)
-    b = np.array([[0.5, 0], [1, 0], [1, 1], [0.5, 1]], float)
-    return Model((Face(surf, (a,), (np.array([True, False, True, True]),)),
-                  Face(surf, (b,), (np.array([True, True, True, False]),))), source="wavy panel")
-
-
+# virtual scanner (simulate/).  The panel: shapeverify.cad.examples.wavy_panel.
 @pytest.fixture(scope="module")
 def panel_prep():
     from shapeverify.nearest import prepare

@@ -24,7 +24,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["panel_height", "panel_shape", "example_part_step", "PANEL_SIZE", "PANEL_HOLE"]
+__all__ = ["panel_height", "panel_shape", "example_part_step", "wavy_panel", "PANEL_SIZE", "PANEL_HOLE"]
 
 #: (length along x, width along y) of the panel in mm
 PANEL_SIZE = (300.0, 200.0)
@@ -130,3 +130,32 @@ def example_part_step(path, holes=(PANEL_HOLE,)) -> Path:
     text = re.sub(r"PRODUCT\('[^']*',\s*'[^']*'", f"PRODUCT('{_NAME}','{_NAME}'", text)
     path.write_text(text)
     return path
+
+
+def wavy_panel(split: bool = True):
+    """A 120 x 90 mm bicubic free-form panel (z = 6 sin(x/25) cos(y/30) at the control points).
+
+    With ``split`` two trimmed faces sharing the edge u = 0.5, otherwise one face; all outer
+    edges are free.  The small in-memory model of the inspection tests and benchmark.
+
+    Returns
+    -------
+    shapeverify.cad.model.Model
+    """
+    from .model import Face, Model
+    from .nurbs import NurbsSurface
+
+    nu, nv = 7, 6
+    xs, ys = np.linspace(0, 120, nu), np.linspace(0, 90, nv)
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    ctrl = np.stack([X, Y, 6 * np.sin(X / 25.0) * np.cos(Y / 30.0)], axis=-1)
+    ku = np.r_[[0.0] * 4, np.linspace(0, 1, nu - 2)[1:-1], [1.0] * 4]
+    kv = np.r_[[0.0] * 4, np.linspace(0, 1, nv - 2)[1:-1], [1.0] * 4]
+    surf = NurbsSurface(3, 3, ku, kv, ctrl)
+    if not split:
+        loop = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+        return Model((Face(surf, (loop,), (np.ones(4, bool),)),), source="wavy panel")
+    a = np.array([[0, 0], [0.5, 0], [0.5, 1], [0, 1]], float)
+    b = np.array([[0.5, 0], [1, 0], [1, 1], [0.5, 1]], float)
+    return Model((Face(surf, (a,), (np.array([True, False, True, True]),)),
+                  Face(surf, (b,), (np.array([True, True, True, False]),))), source="wavy panel")
