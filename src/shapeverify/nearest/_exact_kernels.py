@@ -2,11 +2,11 @@
 
 CAD faces
 ---------
-Surfaces come packed (:class:`shapeverify.cad.nurbs.PackedSurfaces`, the 7 ``kernel_args``)
-and are evaluated with ``shapeverify.cad._kernels.surface_derivs_packed_ws``.  Trimming loops
-are flat segment arrays (see :mod:`shapeverify.nearest.exact`): per face ``f`` the segments
-``seg_off[f]:seg_off[f+1]`` with end points ``(x0, y0) -> (x1, y1)`` in (u, v), their 3D end
-points ``a3``, ``b3`` and a ``free`` flag, and slab bins along v for the even-odd test.
+Surfaces come as tables of polynomial patches (``tab``, :func:`shapeverify.nearest.exact.
+power_tables`), evaluated by :func:`_eval`.  Trimming loops are flat segment arrays (see
+:mod:`shapeverify.nearest.exact`): per face ``f`` the segments ``seg_off[f]:seg_off[f+1]``
+with end points ``(x0, y0) -> (x1, y1)`` in (u, v), their 3D end points ``a3``, ``b3`` and a
+``free`` flag, and slab bins along v for the even-odd test.
 
 Meshes
 ------
@@ -14,6 +14,13 @@ Triangles ``tri`` (T, 3) into ``verts`` (V, 3), unit normals ``tri_n``, and the 
 around each vertex (CSR ``vt_ptr``, ``vt_idx``).
 
 All kernels trust their input and allocate scratch space once per call, not per point.
+
+Speed notes (:func:`refine_cad`, a few hundred ns per point): the per-point path (Newton on a
+face, the trim test, the normal) is inlined into one function, since a call that passes a
+dozen arrays costs about as much as a surface evaluation, and works on views of the arrays
+without reference counting (:func:`_borrow`; every array passed into a callee otherwise costs
+two atomic operations per call).  The surface derivatives travel as tuples of floats, not in
+a scratch array.  The model point records of the next queries are prefetched.
 
 References
 ----------
@@ -27,11 +34,40 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
+from numba.core import cgutils
+from numba.extending import intrinsic
 
-from ._kernels import frame
+from ._kernels import frame, prefetch
 
 _MAX_NEWTON = 50
 _MAX_HALVING = 40
+_PREFETCH = 4  # queries ahead whose model point records are prefetched
+# states of newton_face between two evaluations
+_STEP = 0      # at a new iterate: take it, then compute the next step
+_TRIAL = 1     # at a line-search trial point: take it if the distance did not grow
+_LAST = 2      # at the last (converged) iterate: take it and stop
+_RESTORE = 3   # back at the current iterate after a failed line search: stop
+_ZERO18 = (0.0,) * 18
+
+
+@intrinsic
+def _borrow(typingctx, arr):
+    """A view of ``arr`` without its memory-info pointer, which numba's reference counting
+    skips (NRT_incref / NRT_decref return at once on a null pointer).
+
+    Only for arrays that outlive every use of the view: here the arguments of a kernel,
+    which the caller holds for the whole call.  The view must not be returned or stored.
+    """
+    def codegen(context, builder, signature, args):
+        src = context.make_array(signature.args[0])(context, builder, args[0])
+        dst = context.make_array(signature.return_type)(context, builder)
+        for name in ("nitems", "itemsize", "data", "shape", "strides"):
+            setattr(dst, name, getattr(src, name))
+        dst.meminfo = cgutils.get_null_value(dst.meminfo.type)
+        dst.parent = cgutils.get_null_value(dst.parent.type)
+        return dst._getvalue()
+
+    return arr(arr), codegen
 
 
 # ------------------------------------------------------------------------------ CAD faces
@@ -40,6 +76,8 @@ _MAX_HALVING = 40
 #   mu[mu_off[f] + i] = centre of span i (same for v with bv/mv); coefficient rows
 #   coef[c_off[f] + ((i * n_v + j) * (p + 1) + a) * (q + 1) + b] = (wx, wy, wz, w) of
 #   (u - mu_i)^a (v - mv_j)^b on span (i, j).  Homogeneous, divided back with the quotient rule.
+# Derivatives travel as 18-tuples D: S = D[0:3], S_u = D[3:6], S_v = D[6:9], S_uu = D[9:12],
+# S_uv = D[12:15], S_vv = D[15:18] (x, y, z each).
 @njit(cache=True, nogil=True, inline="always")
 def _span(x, br, lo, hi):
     """Index i of the span [br[lo+i], br[lo+i+1]] holding x (clamped to the ends)."""
@@ -58,108 +96,198 @@ def _span(x, br, lo, hi):
     return a - lo
 
 
-@njit(cache=True, nogil=True)
-def _eval(tab, f, u, v, out, work):
-    """out[k, l] = d^(k+l)S/du^k dv^l at (u, v) for k + l <= 2 (out (3, 3, 3))."""
+@njit(cache=True, nogil=True, inline="always")
+def _span_near(x, br, lo, hi, g):
+    """:func:`_span`, trying span g first (the span of a nearby point, -1 for none); the same
+    answer, since the spans are non-empty."""
+    if g >= 0 and br[lo + g] <= x and x < br[lo + g + 1]:
+        return g
+    return _span(x, br, lo, hi)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _eval(tab, f, u, v, order, gi, gj):
+    """Derivatives of face f's surface at (u, v): (D, i, j).
+
+    D: the 18-tuple described above; ``order`` 2: up to the second derivatives, ``order`` 1:
+    S, S_u and S_v only (D[9:] = 0).  (i, j): the knot span of (u, v); (gi, gj): a guess for
+    it (-1: none), e.g. the span of the previous Newton iterate.
+
+    Horner along v within each coefficient row of the span, fed straight into Horner along u
+    (no scratch array); the four homogeneous components run as independent chains
+    (instruction-level parallelism), and each derivative chain starts at its first non-zero
+    term instead of multiplying zeros.  The same operations in the same order as a two-pass
+    evaluation through a scratch array, so the same values to the last bit.
+    """
     deg, bu, bu_off, mu, mu_off, bv, bv_off, mv, mv_off, coef, c_off = tab
     p = deg[f, 0]
     q = deg[f, 1]
     nsv = bv_off[f + 1] - bv_off[f] - 1
-    i = _span(u, bu, bu_off[f], bu_off[f + 1])
-    j = _span(v, bv, bv_off[f], bv_off[f + 1])
+    i = _span_near(u, bu, bu_off[f], bu_off[f + 1], gi)
+    j = _span_near(v, bv, bv_off[f], bv_off[f + 1], gj)
     s = u - mu[mu_off[f] + i]
     t = v - mv[mv_off[f] + j]
     base = c_off[f] + (i * nsv + j) * (p + 1) * (q + 1)
-    # work rows a*3 + k: k-th t-derivative of sum_b C[a, b] t^b; the 4 homogeneous
-    # components run as independent Horner chains (instruction-level parallelism)
-    for a in range(p + 1):
+    # x<k><l> (and y, z, w): d^(k+l)/du^k dv^l of the homogeneous surface (wx, wy, wz, w),
+    # but x20 (like a row's rx2) is half the second derivative (a Taylor coefficient)
+    x00 = y00 = z00 = w00 = 0.0
+    x10 = y10 = z10 = w10 = 0.0
+    x20 = y20 = z20 = w20 = 0.0
+    x01 = y01 = z01 = w01 = 0.0
+    x11 = y11 = z11 = w11 = 0.0
+    x02 = y02 = z02 = w02 = 0.0
+    for a in range(p, -1, -1):
+        # row a along v: value (r0), first (r1) and half the second (r2) t-derivative
         row = base + a * (q + 1)
-        x0 = coef[row + q, 0]
-        y0 = coef[row + q, 1]
-        z0 = coef[row + q, 2]
-        w0 = coef[row + q, 3]
-        x1 = y1 = z1 = w1 = 0.0
-        x2 = y2 = z2 = w2 = 0.0
+        rx0 = coef[row + q, 0]
+        ry0 = coef[row + q, 1]
+        rz0 = coef[row + q, 2]
+        rw0 = coef[row + q, 3]
+        rx1 = ry1 = rz1 = rw1 = 0.0
+        rx2 = ry2 = rz2 = rw2 = 0.0
         for b in range(q - 1, -1, -1):
-            x2 = x2 * t + x1
-            y2 = y2 * t + y1
-            z2 = z2 * t + z1
-            w2 = w2 * t + w1
-            x1 = x1 * t + x0
-            y1 = y1 * t + y0
-            z1 = z1 * t + z0
-            w1 = w1 * t + w0
-            x0 = x0 * t + coef[row + b, 0]
-            y0 = y0 * t + coef[row + b, 1]
-            z0 = z0 * t + coef[row + b, 2]
-            w0 = w0 * t + coef[row + b, 3]
-        k = a * 3
-        work[k, 0] = x0
-        work[k, 1] = y0
-        work[k, 2] = z0
-        work[k, 3] = w0
-        work[k + 1, 0] = x1
-        work[k + 1, 1] = y1
-        work[k + 1, 2] = z1
-        work[k + 1, 3] = w1
-        work[k + 2, 0] = 2.0 * x2
-        work[k + 2, 1] = 2.0 * y2
-        work[k + 2, 2] = 2.0 * z2
-        work[k + 2, 3] = 2.0 * w2
-    # along u: H[k][l] homogeneous d^(k+l)/du^k dv^l
-    for c in range(4):
-        h0 = work[p * 3, c]
-        h0s = 0.0
-        h0ss = 0.0
-        h1 = work[p * 3 + 1, c]
-        h1s = 0.0
-        h2 = work[p * 3 + 2, c]
-        for a in range(p - 1, -1, -1):
-            h0ss = h0ss * s + h0s
-            h0s = h0s * s + h0
-            h0 = h0 * s + work[a * 3, c]
-            h1s = h1s * s + h1
-            h1 = h1 * s + work[a * 3 + 1, c]
-            h2 = h2 * s + work[a * 3 + 2, c]
-        work[3 * (p + 1), c] = h0
-        work[3 * (p + 1) + 1, c] = h0s
-        work[3 * (p + 1) + 2, c] = 2.0 * h0ss
-        work[3 * (p + 1) + 3, c] = h1
-        work[3 * (p + 1) + 4, c] = h1s
-        work[3 * (p + 1) + 5, c] = h2
-    r = 3 * (p + 1)
-    iw = 1.0 / work[r, 3]
-    wu = work[r + 1, 3]
-    wuu = work[r + 2, 3]
-    wv = work[r + 3, 3]
-    wuv = work[r + 4, 3]
-    wvv = work[r + 5, 3]
-    for c in range(3):
-        S = work[r, c] * iw
-        Su = (work[r + 1, c] - wu * S) * iw
-        Sv = (work[r + 3, c] - wv * S) * iw
-        out[0, 0, c] = S
-        out[1, 0, c] = Su
-        out[0, 1, c] = Sv
-        out[2, 0, c] = (work[r + 2, c] - 2.0 * wu * Su - wuu * S) * iw
-        out[1, 1, c] = (work[r + 4, c] - wu * Sv - wv * Su - wuv * S) * iw
-        out[0, 2, c] = (work[r + 5, c] - 2.0 * wv * Sv - wvv * S) * iw
+            if order == 2:
+                if b < q - 2:
+                    rx2 = rx2 * t + rx1
+                    ry2 = ry2 * t + ry1
+                    rz2 = rz2 * t + rz1
+                    rw2 = rw2 * t + rw1
+                elif b == q - 2:
+                    rx2 = rx1
+                    ry2 = ry1
+                    rz2 = rz1
+                    rw2 = rw1
+            if b < q - 1:
+                rx1 = rx1 * t + rx0
+                ry1 = ry1 * t + ry0
+                rz1 = rz1 * t + rz0
+                rw1 = rw1 * t + rw0
+            else:
+                rx1 = rx0
+                ry1 = ry0
+                rz1 = rz0
+                rw1 = rw0
+            rx0 = rx0 * t + coef[row + b, 0]
+            ry0 = ry0 * t + coef[row + b, 1]
+            rz0 = rz0 * t + coef[row + b, 2]
+            rw0 = rw0 * t + coef[row + b, 3]
+        # along u
+        if order == 2:
+            if a < p - 2:
+                x20 = x20 * s + x10
+                y20 = y20 * s + y10
+                z20 = z20 * s + z10
+                w20 = w20 * s + w10
+            elif a == p - 2:
+                x20 = x10
+                y20 = y10
+                z20 = z10
+                w20 = w10
+            if a < p - 1:
+                x11 = x11 * s + x01
+                y11 = y11 * s + y01
+                z11 = z11 * s + z01
+                w11 = w11 * s + w01
+            elif a == p - 1:
+                x11 = x01
+                y11 = y01
+                z11 = z01
+                w11 = w01
+            if a < p:
+                x02 = x02 * s + 2.0 * rx2
+                y02 = y02 * s + 2.0 * ry2
+                z02 = z02 * s + 2.0 * rz2
+                w02 = w02 * s + 2.0 * rw2
+            else:
+                x02 = 2.0 * rx2
+                y02 = 2.0 * ry2
+                z02 = 2.0 * rz2
+                w02 = 2.0 * rw2
+        if a < p - 1:
+            x10 = x10 * s + x00
+            y10 = y10 * s + y00
+            z10 = z10 * s + z00
+            w10 = w10 * s + w00
+        elif a == p - 1:
+            x10 = x00
+            y10 = y00
+            z10 = z00
+            w10 = w00
+        if a < p:
+            x00 = x00 * s + rx0
+            y00 = y00 * s + ry0
+            z00 = z00 * s + rz0
+            w00 = w00 * s + rw0
+            x01 = x01 * s + rx1
+            y01 = y01 * s + ry1
+            z01 = z01 * s + rz1
+            w01 = w01 * s + rw1
+        else:
+            x00 = rx0
+            y00 = ry0
+            z00 = rz0
+            w00 = rw0
+            x01 = rx1
+            y01 = ry1
+            z01 = rz1
+            w01 = rw1
+    # back from homogeneous coordinates (quotient rule)
+    iw = 1.0 / w00
+    Sx = x00 * iw
+    Sy = y00 * iw
+    Sz = z00 * iw
+    Sux = (x10 - w10 * Sx) * iw
+    Suy = (y10 - w10 * Sy) * iw
+    Suz = (z10 - w10 * Sz) * iw
+    Svx = (x01 - w01 * Sx) * iw
+    Svy = (y01 - w01 * Sy) * iw
+    Svz = (z01 - w01 * Sz) * iw
+    if order == 1:
+        return (Sx, Sy, Sz, Sux, Suy, Suz, Svx, Svy, Svz,
+                0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0), i, j
+    wu2 = 2.0 * w10
+    wv2 = 2.0 * w01
+    wuu = 2.0 * w20
+    return (Sx, Sy, Sz, Sux, Suy, Suz, Svx, Svy, Svz,
+            (2.0 * x20 - wu2 * Sux - wuu * Sx) * iw,
+            (2.0 * y20 - wu2 * Suy - wuu * Sy) * iw,
+            (2.0 * z20 - wu2 * Suz - wuu * Sz) * iw,
+            (x11 - w10 * Svx - w01 * Sux - w11 * Sx) * iw,
+            (y11 - w10 * Svy - w01 * Suy - w11 * Sy) * iw,
+            (z11 - w10 * Svz - w01 * Suz - w11 * Sz) * iw,
+            (x02 - wv2 * Svx - w02 * Sx) * iw,
+            (y02 - wv2 * Svy - w02 * Sy) * iw,
+            (z02 - wv2 * Svz - w02 * Sz) * iw), i, j
 
 
 @njit(cache=True, nogil=True)
-def eval_many(tab, faces, u, v, work_rows, out):
-    """out[i] = derivatives (3, 3, 3) of face faces[i] at (u[i], v[i]) (see :func:`_eval`)."""
-    work = np.empty((work_rows, 4))
+def _eval_call(tab, f, u, v, order):
+    """:func:`_eval` as a call, for the rare paths (one inlined copy is enough)."""
+    return _eval(tab, f, u, v, order, -1, -1)[0]
+
+
+@njit(cache=True, nogil=True)
+def eval_many(tab, faces, u, v, out):
+    """out[i, k, l] = d^(k+l)S/du^k dv^l (k + l <= 2) of face faces[i] at (u[i], v[i]).
+
+    ``out`` (N, 3, 3, 3); entries with k + l > 2 are left as they are.
+    """
     for i in range(u.shape[0]):
-        _eval(tab, faces[i], u[i], v[i], out[i], work)
+        D = _eval(tab, faces[i], u[i], v[i], 2, -1, -1)[0]
+        for c in range(3):
+            out[i, 0, 0, c] = D[c]
+            out[i, 1, 0, c] = D[3 + c]
+            out[i, 0, 1, c] = D[6 + c]
+            out[i, 2, 0, c] = D[9 + c]
+            out[i, 1, 1, c] = D[12 + c]
+            out[i, 0, 2, c] = D[15 + c]
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _dist2_at(tab, f, u, v, q0, q1, q2, out, work):
-    _eval(tab, f, u, v, out, work)
-    a = out[0, 0, 0] - q0
-    b = out[0, 0, 1] - q1
-    c = out[0, 0, 2] - q2
+def _dist2(D, q0, q1, q2):
+    a = D[0] - q0
+    b = D[1] - q1
+    c = D[2] - q2
     return a * a + b * b + c * c
 
 
@@ -174,16 +302,22 @@ def _wrap(x, lo, hi, closed):
     return min(max(x, lo), hi)
 
 
-@njit(cache=True, nogil=True)
-def newton_face(tab, domains, closed, f, u, v, q0, q1, q2, out, work):
-    """Point inversion on face f's surface from (u, v): (u, v, squared distance, at_bound).
+@njit(cache=True, nogil=True, inline="always")
+def newton_face(tab, domains, closed, f, u, v, q0, q1, q2):
+    """Point inversion on face f's surface from (u, v): (u, v, squared distance, at_bound, D).
 
     Newton on the gradient of |S(u, v) - q|^2 / 2 with the exact Hessian (Gauss-Newton when
     it is not positive definite), a backtracking line search, and the box constraint of the
     surface domain handled by an active set (a parameter on a bound that would leave the
     domain is frozen and the other one is solved in 1D).  Closed directions wrap around.
-    ``out`` holds the order-2 derivatives at the returned (u, v) on exit; ``at_bound`` says
-    that (u, v) lies on an edge of the (not closed) domain, where the trims may run.
+    ``D``: the derivatives at the returned (u, v) -- S, S_u and S_v always, the second
+    derivatives unless the last step was a converged Newton step; ``at_bound`` says that
+    (u, v) lies on an edge of the (not closed) domain, where the trims may run.
+
+    The surface is evaluated at one place (a loop over evaluations whose state says what the
+    point is: a new iterate, a line-search trial, the last iterate, or the current iterate
+    again after a failed line search), so its inlined code exists once; the last evaluation
+    skips the second derivatives.
     """
     u0 = domains[f, 0, 0]
     u1 = domains[f, 0, 1]
@@ -191,26 +325,64 @@ def newton_face(tab, domains, closed, f, u, v, q0, q1, q2, out, work):
     v1 = domains[f, 1, 1]
     cu = closed[f, 0]
     cv = closed[f, 1]
-    d0 = _dist2_at(tab, f, u, v, q0, q1, q2, out, work)
+    scale = 1.0 + abs(q0) + abs(q1) + abs(q2)
+    ue = u
+    ve = v
+    order = 2
+    state = _STEP
+    D = _ZERO18
+    d0 = 0.0
     prev = 0.0
-    for it in range(_MAX_NEWTON):
-        r0 = out[0, 0, 0] - q0
-        r1 = out[0, 0, 1] - q1
-        r2 = out[0, 0, 2] - q2
-        su0 = out[1, 0, 0]
-        su1 = out[1, 0, 1]
-        su2 = out[1, 0, 2]
-        sv0 = out[0, 1, 0]
-        sv1 = out[0, 1, 1]
-        sv2 = out[0, 1, 2]
+    du = 0.0
+    dv = 0.0
+    step3 = 0.0
+    t = 1.0
+    halvings = 0
+    it = 0
+    si = -1
+    sj = -1
+    while True:
+        D, si, sj = _eval(tab, f, ue, ve, order, si, sj)
+        d = _dist2(D, q0, q1, q2)
+        if state == _TRIAL:
+            if not d <= d0:
+                halvings += 1
+                if halvings < _MAX_HALVING:
+                    t *= 0.5
+                    ue = _wrap(u + t * du, u0, u1, cu)
+                    ve = _wrap(v + t * dv, v0, v1, cv)
+                else:  # no descent: back to the current iterate, and stop
+                    ue = u
+                    ve = v
+                    order = 1
+                    state = _RESTORE
+                continue
+            prev = t * step3
+        elif state == _RESTORE:
+            break
+        u = ue
+        v = ve
+        d0 = d
+        if state == _LAST or it == _MAX_NEWTON:
+            break
+        it += 1
+        r0 = D[0] - q0
+        r1 = D[1] - q1
+        r2 = D[2] - q2
+        su0 = D[3]
+        su1 = D[4]
+        su2 = D[5]
+        sv0 = D[6]
+        sv1 = D[7]
+        sv2 = D[8]
         gu = r0 * su0 + r1 * su1 + r2 * su2
         gv = r0 * sv0 + r1 * sv1 + r2 * sv2
         guu = su0 * su0 + su1 * su1 + su2 * su2
         gvv = sv0 * sv0 + sv1 * sv1 + sv2 * sv2
         guv = su0 * sv0 + su1 * sv1 + su2 * sv2
-        a = guu + r0 * out[2, 0, 0] + r1 * out[2, 0, 1] + r2 * out[2, 0, 2]
-        b = guv + r0 * out[1, 1, 0] + r1 * out[1, 1, 1] + r2 * out[1, 1, 2]
-        c = gvv + r0 * out[0, 2, 0] + r1 * out[0, 2, 1] + r2 * out[0, 2, 2]
+        a = guu + r0 * D[9] + r1 * D[10] + r2 * D[11]
+        b = guv + r0 * D[12] + r1 * D[13] + r2 * D[14]
+        c = gvv + r0 * D[15] + r1 * D[16] + r2 * D[17]
         if not (a > 0.0 and a * c - b * b > 0.0):
             a = guu
             b = guv
@@ -236,44 +408,32 @@ def newton_face(tab, domains, closed, f, u, v, q0, q1, q2, out, work):
             break
         step3 = np.sqrt((su0 * du + sv0 * dv) ** 2 + (su1 * du + sv1 * dv) ** 2
                         + (su2 * du + sv2 * dv) ** 2)
-        scale = 1.0 + abs(q0) + abs(q1) + abs(q2)
         if step3 <= 1e-5 * scale:
             # quadratic convergence region: take the full step (rounding makes the
-            # distance useless as a merit function this close to the minimum)
-            u = _wrap(u + du, u0, u1, cu)
-            v = _wrap(v + dv, v0, v1, cv)
-            d0 = _dist2_at(tab, f, u, v, q0, q1, q2, out, work)
-            # next step ~ C step^2 with C estimated from the last two steps
+            # distance useless as a merit function this close to the minimum); the next
+            # step ~ C step^2 with C estimated from the last two steps
+            ue = _wrap(u + du, u0, u1, cu)
+            ve = _wrap(v + dv, v0, v1, cv)
             if step3 <= 1e-9 * scale or (prev > 0.0 and step3 * step3 * step3
                                          <= 1e-13 * scale * prev * prev):
-                break
-            prev = step3
-            continue
-        t = 1.0
-        accepted = False
-        un = u
-        vn = v
-        dn = d0
-        for _ in range(_MAX_HALVING):
-            un = _wrap(u + t * du, u0, u1, cu)
-            vn = _wrap(v + t * dv, v0, v1, cv)
-            dn = _dist2_at(tab, f, un, vn, q0, q1, q2, out, work)
-            if dn <= d0:
-                accepted = True
-                break
-            t *= 0.5
-        if not accepted:
-            _eval(tab, f, u, v, out, work)
-            break
-        u = un
-        v = vn
-        d0 = dn
-        prev = t * step3
+                order = 1
+                state = _LAST
+            else:
+                order = 2
+                state = _STEP
+                prev = step3
+        else:
+            t = 1.0
+            halvings = 0
+            ue = _wrap(u + t * du, u0, u1, cu)
+            ve = _wrap(v + t * dv, v0, v1, cv)
+            order = 2
+            state = _TRIAL
     at_bound = (not cu and (u <= u0 or u >= u1)) or (not cv and (v <= v0 or v >= v1))
-    return u, v, d0, at_bound
+    return u, v, d0, at_bound, D
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, inline="always")
 def inside(f, u, v, bin_off, bin_lo, bin_hi, bin_inv, bin_start, bin_xy):
     """Even-odd test of (u, v) against the trimming loops of face f (slab bins along v).
 
@@ -317,11 +477,11 @@ def _chord_d2(q0, q1, q2, a3, b3, s):
 
 
 @njit(cache=True, nogil=True)
-def newton_segment(tab, domains, f, s, t, x0, y0, x1, y1, q0, q1, q2, out, work):
+def newton_segment(tab, domains, f, s, t, x0, y0, x1, y1, q0, q1, q2):
     """Closest point to q on the image S(uv(t)) of trimming segment s, t in [0, 1].
 
     uv(t) = (x0, y0) + t ((x1, y1) - (x0, y0)), clamped to the surface domain.  Newton in t
-    with a line search.  Returns (t, u, v, squared distance); ``out`` holds the derivatives.
+    with a line search.  Returns (t, u, v, squared distance).
     """
     u0 = domains[f, 0, 0]
     u1 = domains[f, 0, 1]
@@ -333,21 +493,21 @@ def newton_segment(tab, domains, f, s, t, x0, y0, x1, y1, q0, q1, q2, out, work)
     dv = y1[s] - av
     u = min(max(au + t * du, u0), u1)
     v = min(max(av + t * dv, v0), v1)
-    d0 = _dist2_at(tab, f, u, v, q0, q1, q2, out, work)
+    D = _eval_call(tab, f, u, v, 2)
+    d0 = _dist2(D, q0, q1, q2)
     for it in range(_MAX_NEWTON):
-        r0 = out[0, 0, 0] - q0
-        r1 = out[0, 0, 1] - q1
-        r2 = out[0, 0, 2] - q2
-        D0 = out[1, 0, 0] * du + out[0, 1, 0] * dv
-        D1 = out[1, 0, 1] * du + out[0, 1, 1] * dv
-        D2 = out[1, 0, 2] * du + out[0, 1, 2] * dv
+        r0 = D[0] - q0
+        r1 = D[1] - q1
+        r2 = D[2] - q2
+        D0 = D[3] * du + D[6] * dv
+        D1 = D[4] * du + D[7] * dv
+        D2 = D[5] * du + D[8] * dv
         g = r0 * D0 + r1 * D1 + r2 * D2
         DD = D0 * D0 + D1 * D1 + D2 * D2
         H = DD
-        for c in range(3):
-            r = out[0, 0, c] - (q0 if c == 0 else (q1 if c == 1 else q2))
-            H += r * (out[2, 0, c] * du * du + 2.0 * out[1, 1, c] * du * dv
-                      + out[0, 2, c] * dv * dv)
+        H += r0 * (D[9] * du * du + 2.0 * D[12] * du * dv + D[15] * dv * dv)
+        H += r1 * (D[10] * du * du + 2.0 * D[13] * du * dv + D[16] * dv * dv)
+        H += r2 * (D[11] * du * du + 2.0 * D[14] * du * dv + D[17] * dv * dv)
         if not H > 0.0:
             H = DD
         if not H > 0.0:
@@ -361,8 +521,10 @@ def newton_segment(tab, domains, f, s, t, x0, y0, x1, y1, q0, q1, q2, out, work)
             t = min(max(t + dt, 0.0), 1.0)
             u = min(max(au + t * du, u0), u1)
             v = min(max(av + t * dv, v0), v1)
-            d0 = _dist2_at(tab, f, u, v, q0, q1, q2, out, work)
-            if step <= 1e-9 * scale:
+            last = step <= 1e-9 * scale
+            D = _eval_call(tab, f, u, v, 1 if last else 2)
+            d0 = _dist2(D, q0, q1, q2)
+            if last:
                 break
             continue
         lam = 1.0
@@ -371,35 +533,37 @@ def newton_segment(tab, domains, f, s, t, x0, y0, x1, y1, q0, q1, q2, out, work)
         un = u
         vn = v
         dn = d0
+        Dn = D
         for _ in range(_MAX_HALVING):
             tn = min(max(t + lam * dt, 0.0), 1.0)
             un = min(max(au + tn * du, u0), u1)
             vn = min(max(av + tn * dv, v0), v1)
-            dn = _dist2_at(tab, f, un, vn, q0, q1, q2, out, work)
+            Dn = _eval_call(tab, f, un, vn, 2)
+            dn = _dist2(Dn, q0, q1, q2)
             if dn <= d0:
                 accepted = True
                 break
             lam *= 0.5
         if not accepted:
-            _eval(tab, f, u, v, out, work)
             break
         t = tn
         u = un
         v = vn
         d0 = dn
+        D = Dn
     return t, u, v, d0
 
 
-@njit(cache=True, nogil=True)
-def _normal(out, rev, b, rh, rs):
-    """Outward unit normal from the derivatives in ``out``; where Su x Sv vanishes (a pole),
-    the normal of model point b."""
-    n0 = out[1, 0, 1] * out[0, 1, 2] - out[1, 0, 2] * out[0, 1, 1]
-    n1 = out[1, 0, 2] * out[0, 1, 0] - out[1, 0, 0] * out[0, 1, 2]
-    n2 = out[1, 0, 0] * out[0, 1, 1] - out[1, 0, 1] * out[0, 1, 0]
+@njit(cache=True, nogil=True, inline="always")
+def _normal(D, rev, b, rh, rs):
+    """Outward unit normal from the derivatives D; where Su x Sv vanishes (a pole), the
+    normal of model point b."""
+    n0 = D[4] * D[8] - D[5] * D[7]
+    n1 = D[5] * D[6] - D[3] * D[8]
+    n2 = D[3] * D[7] - D[4] * D[6]
     ln = np.sqrt(n0 * n0 + n1 * n1 + n2 * n2)
-    su = np.sqrt(out[1, 0, 0] ** 2 + out[1, 0, 1] ** 2 + out[1, 0, 2] ** 2)
-    sv = np.sqrt(out[0, 1, 0] ** 2 + out[0, 1, 1] ** 2 + out[0, 1, 2] ** 2)
+    su = np.sqrt(D[3] ** 2 + D[4] ** 2 + D[5] ** 2)
+    sv = np.sqrt(D[6] ** 2 + D[7] ** 2 + D[8] ** 2)
     if not ln > 1e-10 * su * sv or ln == 0.0:
         fr = frame(b, rs, rh)
         return fr[0], fr[1], fr[2]
@@ -460,7 +624,7 @@ def two_closest_chords(q0, q1, q2, f, a3, b3, ch_off, ch_seg, ch_c, ch_r, lb):
 def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domains, closed,
                rev,
                seg_off, x0, y0, x1, y1, a3, b3, sag, free, ch_off, ch_seg, ch_c, ch_r,
-               bin_off, bin_lo, bin_hi, bin_inv, bin_start, bin_xy, work_size,
+               bin_off, bin_lo, bin_hi, bin_inv, bin_start, bin_xy,
                out_foot, out_normal, out_dist, out_face, out_uv, out_onb):
     """Exact closest point on the trimmed faces around each query's nearest model point.
 
@@ -481,8 +645,34 @@ def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domai
     """
     n = pt_face.shape[0]
     K = nbr.shape[1]
-    out = np.empty((3, 3, 3))
-    work = np.empty((work_size, 4))
+    multi = domains.shape[0] > 1
+    # the arguments outlive the call: views without reference counting for the callees
+    tab = (_borrow(tab[0]), _borrow(tab[1]), _borrow(tab[2]), _borrow(tab[3]),
+           _borrow(tab[4]), _borrow(tab[5]), _borrow(tab[6]), _borrow(tab[7]),
+           _borrow(tab[8]), _borrow(tab[9]), _borrow(tab[10]))
+    domains = _borrow(domains)
+    closed = _borrow(closed)
+    rh = _borrow(rh)
+    rs = _borrow(rs)
+    x0 = _borrow(x0)
+    y0 = _borrow(y0)
+    x1 = _borrow(x1)
+    y1 = _borrow(y1)
+    a3 = _borrow(a3)
+    b3 = _borrow(b3)
+    ch_off = _borrow(ch_off)
+    ch_seg = _borrow(ch_seg)
+    ch_c = _borrow(ch_c)
+    ch_r = _borrow(ch_r)
+    bin_off = _borrow(bin_off)
+    bin_lo = _borrow(bin_lo)
+    bin_hi = _borrow(bin_hi)
+    bin_inv = _borrow(bin_inv)
+    bin_start = _borrow(bin_start)
+    bin_xy = _borrow(bin_xy)
+    # flat element strides of the per-point rows, for prefetching
+    rf_row = rf.strides[0] // rf.itemsize
+    uv_row = pt_uv.strides[0] // pt_uv.itemsize
     cf = np.empty(K + 2, dtype=np.int64)
     cj = np.empty(K + 2, dtype=np.int64)
     cd = np.empty(K + 2)
@@ -490,7 +680,15 @@ def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domai
     for f in range(ch_off.shape[0] - 1):
         max_ch = max(max_ch, ch_off[f + 1] - ch_off[f])
     lb = np.empty(max_ch)
-    for i in range(Q.shape[0]):
+    m = Q.shape[0]
+    for i in range(m):
+        # the model point data of the queries ahead (their records are read at random)
+        if i + _PREFETCH < m:
+            bb = idx[i + _PREFETCH]
+            prefetch(rf, bb * rf_row)
+            prefetch(pt_face, bb)
+            prefetch(pt_uv, bb * uv_row)
+            prefetch(aux, bb)
         q0 = Q[i, 0]
         q1 = Q[i, 1]
         q2 = Q[i, 2]
@@ -499,8 +697,8 @@ def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domai
         cf[0] = pt_face[b]
         cj[0] = b
         cd[0] = (rf[b, 0] - q0) ** 2 + (rf[b, 1] - q1) ** 2 + (rf[b, 2] - q2) ** 2
-        # faces of the neighbours and of the other-face point of b
-        for k in range(K + 1):
+        # faces of the neighbours and of the other-face point of b (none on a one-face model)
+        for k in range(K + 1 if multi else 0):
             j = nbr[b, k] if k < K else aux[b]
             if j < 0 or j >= n:
                 continue
@@ -528,8 +726,9 @@ def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domai
             f = cf[c]
             if c > 0 and not primary_on_edge and cd[c] > near:
                 continue
-            u, v, d2, edge = newton_face(tab, domains, closed, f, np.float64(pt_uv[cj[c], 0]),
-                                         np.float64(pt_uv[cj[c], 1]), q0, q1, q2, out, work)
+            u, v, d2, edge, D = newton_face(tab, domains, closed, f,
+                                            np.float64(pt_uv[cj[c], 0]),
+                                            np.float64(pt_uv[cj[c], 1]), q0, q1, q2)
             onb = False
             if edge or not inside(f, u, v, bin_off, bin_lo, bin_hi, bin_inv, bin_start,
                                   bin_xy):
@@ -541,11 +740,11 @@ def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domai
                 d2 = np.inf
                 if s1 >= 0 and np.sqrt(e1) - sag[s1] < np.sqrt(best):
                     _, u, v, d2 = newton_segment(tab, domains, f, s1, t1, x0, y0, x1, y1,
-                                                 q0, q1, q2, out, work)
+                                                 q0, q1, q2)
                     onb = free[s1]
                 if s2 >= 0 and np.sqrt(e2) - sag[s2] < np.sqrt(min(best, d2)):
                     _, ub, vb, db = newton_segment(tab, domains, f, s2, t2, x0, y0, x1, y1,
-                                                   q0, q1, q2, out, work)
+                                                   q0, q1, q2)
                     if db < d2:
                         u = ub
                         v = vb
@@ -553,15 +752,15 @@ def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domai
                         onb = free[s2]
                 if not d2 < best:
                     continue
-                _eval(tab, f, u, v, out, work)
+                D = _eval_call(tab, f, u, v, 1)
                 if c == 0:
                     primary_on_edge = True
             if d2 < best:
                 best = d2
-                p0 = out[0, 0, 0]
-                p1 = out[0, 0, 1]
-                p2 = out[0, 0, 2]
-                n0, n1, n2 = _normal(out, rev[f], b, rh, rs)
+                p0 = D[0]
+                p1 = D[1]
+                p2 = D[2]
+                n0, n1, n2 = _normal(D, rev[f], b, rh, rs)
                 out_foot[i, 0] = p0
                 out_foot[i, 1] = p1
                 out_foot[i, 2] = p2

@@ -276,7 +276,6 @@ class ExactCAD:
         self.ch_seg = np.array(ch_seg, dtype=np.int64)
         self.ch_c = np.array(ch_c, dtype=np.float64).reshape(-1, 3)
         self.ch_r = np.array(ch_r, dtype=np.float64)
-        self.work_size = 3 * (int(self.tab[0][:, 0].max()) + 1) + 6
 
     def derivatives(self, faces, uv) -> np.ndarray:
         """Derivatives (N, 3, 3, 3) from the patch tables, ``[:, k, l]`` = d^(k+l)S/du^k dv^l
@@ -286,7 +285,7 @@ class ExactCAD:
         uv = np.asarray(uv, dtype=np.float64)
         out = np.zeros((faces.shape[0], 3, 3, 3))
         _exact_kernels.eval_many(self.tab, faces, np.ascontiguousarray(uv[:, 0]),
-                                 np.ascontiguousarray(uv[:, 1]), self.work_size, out)
+                                 np.ascontiguousarray(uv[:, 1]), out)
         return out
 
     @property
@@ -313,7 +312,7 @@ class ExactCAD:
                                   self.ch_off,
                                   self.ch_seg, self.ch_c, self.ch_r, self.bin_off,
                                   self.bin_lo, self.bin_hi, self.bin_inv, self.bin_start,
-                                  self.bin_xy, self.work_size, foot, normal, dist, face, uv,
+                                  self.bin_xy, foot, normal, dist, face, uv,
                                   onb)
         return foot, normal, dist, face, uv, onb
 
