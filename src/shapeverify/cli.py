@@ -286,8 +286,11 @@ def serve(
                                         help="Require 'Authorization: Bearer TOKEN' on every request"),
     max_body_mb: float = typer.Option(64.0, help="Largest accepted scan upload [MB] (413 above)"),
     time_limit: float = typer.Option(60.0, help="Per-request time limit in seconds (504 above; nothing is stored)"),
-    threads: int = typer.Option(2, help="Inspection threads per server process"),
-    workers: int = typer.Option(1, help="Server processes sharing the port (use the number of cores)"),
+    threads: int = typer.Option(2, help="Inspections run at once per server process (one per core: the "
+                                        "numeric kernels release Python's lock)"),
+    workers: int = typer.Option(1, help="Server processes sharing the port (keep-alive connections stay "
+                                        "with one process, so few clients may load them unevenly; "
+                                        "prefer --threads on one machine)"),
     keep_scans: bool = typer.Option(True, "--keep-scans/--no-keep-scans",
                                     help="Store each scan beside the history (GET /report/{id} needs it)"),
 ):
