@@ -38,8 +38,11 @@ def _bounds(a, lo, hi):
 
 def count_nonfinite_rows(a: np.ndarray) -> int:
     """Rows of the 2-D float array ``a`` holding a NaN or an infinity."""
-    if a.size == 0 or np.isfinite(a.sum()):      # a sum is finite only if every value is
+    if a.size == 0:
         return 0
+    with np.errstate(invalid="ignore", over="ignore"):   # inf - inf, huge + huge
+        if np.isfinite(a.sum()):                # a sum is finite only if every value is
+            return 0
     return int(_count_nonfinite_rows(np.ascontiguousarray(a, dtype=np.float64)))
 
 

@@ -665,7 +665,8 @@ def _read_npy(path: Path) -> np.ndarray:
         raise ScanError(f"{path}: array has shape {arr.shape}; expected (N, 3) or (N, >=3)")
     if arr.shape[0] == 0:
         raise ScanError(f"{path}: contains no points (shape {arr.shape})")
-    return np.asarray(arr[:, :3], dtype=np.float64)
+    with np.errstate(invalid="ignore", over="ignore"):   # NaN/inf are dropped and reported later
+        return np.asarray(arr[:, :3], dtype=np.float64)
 
 
 # ---------------------------------------------------------------------------------------- PCD
@@ -735,7 +736,8 @@ def _read_pcd(path: Path) -> np.ndarray:
             raise ScanError(f"{path}: truncated PCD: {npts} points need {need} bytes, "
                             f"{len(data) - pos} present")
         rec = np.frombuffer(data, dtype=dt, count=npts, offset=pos)
-        return np.column_stack([rec[f"f{fields.index(c)}"].astype(np.float64) for c in "xyz"])
+        with np.errstate(invalid="ignore", over="ignore"):   # NaN/inf: dropped and reported later
+            return np.column_stack([rec[f"f{fields.index(c)}"].astype(np.float64) for c in "xyz"])
     text = data[pos:].decode("ascii", "replace").splitlines()
     try:
         table = np.loadtxt(text, dtype=np.float64, ndmin=2)
