@@ -352,3 +352,38 @@ def test_history_survives_sigkill(panel, tmp_path):
         assert r.status_code == 200 and r.json()["record_id"] > max(ids)
     finally:
         srv2.stop()
+
+
+def test_worker_socket_gets_tcp_nodelay():
+    """--workers N: the shared socket is TCP (protocol IPPROTO_TCP), so asyncio sets TCP_NODELAY
+    on every accepted connection (uvicorn's own socket has protocol 0 and did not get it: each
+    response then waited for the client's delayed ACK, +40 ms)."""
+    import asyncio
+
+    from shapeverify.service.server import listen_socket
+
+    sock = listen_socket("127.0.0.1", 0)
+    port = sock.getsockname()[1]
+    seen = []
+
+    async def main():
+        def handler(reader, writer):
+            s = writer.get_extra_info("socket")
+            seen.append(s.getsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY))
+            writer.close()
+
+        server = await asyncio.start_server(handler, sock=sock)
+        async with server:
+            r, w = await asyncio.open_connection("127.0.0.1", port)
+            await r.read()
+            w.close()
+
+    asyncio.run(main())
+    assert seen and seen[0] != 0
+    with pytest.raises(OSError, match="already in use|--port"):
+        busy = listen_socket("127.0.0.1", 0)
+        try:
+            busy.listen()
+            listen_socket("127.0.0.1", busy.getsockname()[1]).listen()
+        finally:
+            busy.close()
