@@ -43,6 +43,7 @@ from scipy.spatial import cKDTree  # noqa: E402
 
 from shapeverify.cad.model import Face, Model  # noqa: E402
 from shapeverify.cad.nurbs import NurbsSurface  # noqa: E402
+from shapeverify.cad.occ_write import to_occ  # noqa: E402
 from shapeverify.nearest import load_prepared, prepare  # noqa: E402
 from shapeverify.nearest.dvg import morton_order  # noqa: E402
 
@@ -76,35 +77,6 @@ def freeform_model():
     return Model(faces=(Face(srf, (rect,), (np.ones(4, bool),)),), source="free-form sheet")
 
 
-def occ_surface(s):
-    from OCP.collections import Array1_double, Array1_int, Array2_double, Array2_gp_Pnt
-    from OCP.Geom import Geom_BSplineSurface
-    from OCP.gp import gp_Pnt
-
-    nu, nv = s.control.shape[:2]
-    poles = Array2_gp_Pnt(1, nu, 1, nv)
-    for i in range(nu):
-        for j in range(nv):
-            poles.SetValue(i + 1, j + 1, gp_Pnt(*map(float, s.control[i, j])))
-
-    def km(U):
-        k, m = np.unique(U, return_counts=True)
-        K, M = Array1_double(1, len(k)), Array1_int(1, len(k))
-        for i, (a, b) in enumerate(zip(k, m)):
-            K.SetValue(i + 1, float(a))
-            M.SetValue(i + 1, int(b))
-        return K, M
-
-    (Ku, Mu), (Kv, Mv) = km(s.knots_u), km(s.knots_v)
-    if s.weights is None:
-        return Geom_BSplineSurface(poles, Ku, Kv, Mu, Mv, s.degree_u, s.degree_v)
-    W = Array2_double(1, nu, 1, nv)
-    for i in range(nu):
-        for j in range(nv):
-            W.SetValue(i + 1, j + 1, float(s.weights[i, j]))
-    return Geom_BSplineSurface(poles, W, Ku, Kv, Mu, Mv, s.degree_u, s.degree_v)
-
-
 def ocp_projection(model, q, near, repeat_note=""):
     """Time OCP's GeomAPI_ProjectPointOnSurf per point; agreement on interior feet."""
     from OCP.GeomAPI import GeomAPI_ProjectPointOnSurf
@@ -116,7 +88,7 @@ def ocp_projection(model, q, near, repeat_note=""):
     for k in range(q.shape[0]):
         f = int(near.face[k])
         if f not in occ:
-            occ[f] = occ_surface(model.faces[f].surface)
+            occ[f] = to_occ(model.faces[f].surface)
         w0 = time.process_time()
         pr = GeomAPI_ProjectPointOnSurf(gp_Pnt(*map(float, q[k])), occ[f])
         ok = pr.NbPoints() > 0

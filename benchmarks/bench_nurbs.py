@@ -34,6 +34,7 @@ import numpy as np  # noqa: E402
 
 from shapeverify.cad import _kernels  # noqa: E402
 from shapeverify.cad.nurbs import NurbsSurface  # noqa: E402
+from shapeverify.cad.occ_write import to_occ  # noqa: E402
 
 P_DEG = 3
 N_CTRL = 20
@@ -135,32 +136,6 @@ def numpy_derivs(surf: NurbsSurface, u, v, chunk=100_000):
 
 
 # ------------------------------------------------------------------------------- peers
-def ocp_surface(surf: NurbsSurface):
-    from OCP.collections import Array1_double, Array1_int, Array2_double, Array2_gp_Pnt
-    from OCP.Geom import Geom_BSplineSurface
-    from OCP.gp import gp_Pnt
-
-    nu, nv = surf.control.shape[:2]
-    poles = Array2_gp_Pnt(1, nu, 1, nv)
-    weights = Array2_double(1, nu, 1, nv)
-    for i in range(nu):
-        for j in range(nv):
-            poles.SetValue(i + 1, j + 1, gp_Pnt(*map(float, surf.control[i, j])))
-            weights.SetValue(i + 1, j + 1, float(surf.weights[i, j]))
-
-    def knots(U):
-        k, m = np.unique(U, return_counts=True)
-        ka, ma = Array1_double(1, len(k)), Array1_int(1, len(k))
-        for i, (x, c) in enumerate(zip(k, m)):
-            ka.SetValue(i + 1, float(x))
-            ma.SetValue(i + 1, int(c))
-        return ka, ma
-
-    ku, mu = knots(surf.knots_u)
-    kv, mv = knots(surf.knots_v)
-    return Geom_BSplineSurface(poles, weights, ku, kv, mu, mv, surf.degree_u, surf.degree_v)
-
-
 def ocp_derivs(occ, u, v):
     from OCP.gp import gp_Pnt, gp_Vec
 
@@ -266,7 +241,7 @@ def main(argv=None) -> int:
         lambda: rel_err(res["np"], ref))
 
     try:
-        occ = ocp_surface(surf)
+        occ = to_occ(surf)
         m = min(args.ocp_n, N)
         add(f"OCP Geom_BSplineSurface.D1, Python loop ({m:,} pts)", m,
             lambda: res.__setitem__("occ", ocp_derivs(occ, u[:m], v[:m])), 2,

@@ -241,38 +241,11 @@ def test_point_cloud_exact_is_the_nearest_cloud_point():
 
 
 # ----------------------------------------------------------------- real CAD vs OCP
-def _occ_surface(s):
-    from OCP.collections import Array1_double, Array1_int, Array2_double, Array2_gp_Pnt
-    from OCP.Geom import Geom_BSplineSurface
-    from OCP.gp import gp_Pnt
-
-    nu, nv = s.control.shape[:2]
-    poles = Array2_gp_Pnt(1, nu, 1, nv)
-    for i in range(nu):
-        for j in range(nv):
-            poles.SetValue(i + 1, j + 1, gp_Pnt(*map(float, s.control[i, j])))
-
-    def km(U):
-        k, m = np.unique(U, return_counts=True)
-        K, M = Array1_double(1, len(k)), Array1_int(1, len(k))
-        for i, (a, b) in enumerate(zip(k, m)):
-            K.SetValue(i + 1, float(a))
-            M.SetValue(i + 1, int(b))
-        return K, M
-
-    (Ku, Mu), (Kv, Mv) = km(s.knots_u), km(s.knots_v)
-    if s.weights is None:
-        return Geom_BSplineSurface(poles, Ku, Kv, Mu, Mv, s.degree_u, s.degree_v)
-    W = Array2_double(1, nu, 1, nv)
-    for i in range(nu):
-        for j in range(nv):
-            W.SetValue(i + 1, j + 1, float(s.weights[i, j]))
-    return Geom_BSplineSurface(poles, W, Ku, Kv, Mu, Mv, s.degree_u, s.degree_v)
-
-
 def _against_ocp(model, prep, n, reach, rng, tol):
     from OCP.GeomAPI import GeomAPI_ProjectPointOnSurf
     from OCP.gp import gp_Pnt
+
+    from shapeverify.cad.occ_write import to_occ
 
     mp = prep.points
     i = rng.integers(0, prep.n_points, n)
@@ -286,7 +259,7 @@ def _against_ocp(model, prep, n, reach, rng, tol):
         f = int(near.face[k])
         if near.on_boundary[k]:
             continue
-        occ.setdefault(f, _occ_surface(model.faces[f].surface))
+        occ.setdefault(f, to_occ(model.faces[f].surface))
         proj = GeomAPI_ProjectPointOnSurf(gp_Pnt(*map(float, q[k])), occ[f])
         if proj.NbPoints() == 0:
             continue

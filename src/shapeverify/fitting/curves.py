@@ -30,7 +30,6 @@ problems", BIT 15 (1975).
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 from dataclasses import dataclass
 
@@ -41,6 +40,7 @@ import scipy.sparse.linalg
 
 from ..cad.nurbs import NurbsCurve
 from . import _kernels, _odr, _slide
+from ._element_base import _Repr
 
 logger = logging.getLogger(__name__)
 
@@ -53,16 +53,8 @@ __all__ = ["CurveFit", "fit_curve", "chord_length_params", "approximation_knots"
 METHODS = ("fixed", "odr", "varpro")
 
 
-def _fmt(v) -> str:
-    if isinstance(v, np.ndarray):
-        return f"<{v.dtype} array {v.shape}>"
-    if isinstance(v, float):
-        return f"{v:.6g}"
-    return repr(v)
-
-
 @dataclass(frozen=True, repr=False)
-class CurveFit:
+class CurveFit(_Repr):
     """Result of :func:`fit_curve`.
 
     Attributes
@@ -85,10 +77,6 @@ class CurveFit:
     converged: bool
     method: str
     history: np.ndarray
-
-    def __repr__(self) -> str:
-        parts = [f"{f.name}={_fmt(getattr(self, f.name))}" for f in dataclasses.fields(self)]
-        return f"CurveFit({', '.join(parts)})"
 
 
 # ----------------------------------------------------------------------------------------------

@@ -19,7 +19,6 @@ Bergström (2011), thesis ch. 11-12, Papers VI and VII.
 
 from __future__ import annotations
 
-import dataclasses
 import logging
 from dataclasses import dataclass
 
@@ -29,7 +28,8 @@ import scipy.spatial
 
 from ..cad.nurbs import NurbsSurface
 from . import _odr, _slide
-from .curves import (SLIDE_STIFFNESS, _basis, _check_common, _fmt, _second_difference, _solve_spd,
+from ._element_base import _Repr
+from .curves import (SLIDE_STIFFNESS, _basis, _check_common, _second_difference, _solve_spd,
                      approximation_knots, chord_length_params)
 
 logger = logging.getLogger(__name__)
@@ -38,7 +38,7 @@ __all__ = ["SurfaceFit", "fit_surface", "surface_params", "project_to_surface"]
 
 
 @dataclass(frozen=True, repr=False)
-class SurfaceFit:
+class SurfaceFit(_Repr):
     """Result of :func:`fit_surface`.
 
     Attributes
@@ -61,10 +61,6 @@ class SurfaceFit:
     converged: bool
     method: str
     history: np.ndarray
-
-    def __repr__(self) -> str:
-        parts = [f"{f.name}={_fmt(getattr(self, f.name))}" for f in dataclasses.fields(self)]
-        return f"SurfaceFit({', '.join(parts)})"
 
 
 # ----------------------------------------------------------------------------------------------
