@@ -233,13 +233,12 @@ def null_directions(ev: "Eval", mp, H, center, radius) -> np.ndarray:
     if lam[0] >= _SUSPECT * lam[-1]:
         return np.zeros((0, 6))
     if mp is not None and np.all(ev.index[ev.valid] >= 0):
-        Hq = np.empty((6, 6))
         # a regular subset is enough for a relative eigenvalue test against 1e-6 (an exact
         # degeneracy stays exact); the full gather from the model's points cost 2 ms per 30k
         s = slice(None, None, max(1, ev.index.shape[0] // INFO_POINTS))
-        _kernels.plane_information_indexed(mp[0], mp[1], np.ascontiguousarray(ev.index[s]),
-                                           np.ascontiguousarray(ev.valid[s]),
-                                           np.ascontiguousarray(ev.w[s]), center, Hq)
+        i = np.where(ev.valid[s], ev.index[s], 0)
+        M = mp[0][i]
+        Hq, _ = system(M, M, mp[1][i], np.where(ev.valid[s], ev.w[s], 0.0), center)
     else:
         Hq, _ = system(ev.Y, ev.Y, ev.N, ev.w, center)
     lam, V = np.linalg.eigh(Hq * np.outer(D, D))

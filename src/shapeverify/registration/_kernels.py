@@ -75,36 +75,6 @@ def weighted_centroid(X, w):
     return c / s
 
 
-@njit(cache=True, nogil=True)
-def plane_information_indexed(M, MN, idx, valid, w, center, H):
-    """``H = sum w J^T J`` with ``J = [((m - c) x n)^T, n^T]`` at the model points ``M[idx]``
-    (normals ``MN[idx]``) instead of the feet: exact surface points for the degeneracy test."""
-    H[:, :] = 0.0
-    j = np.empty(6)
-    for k in range(idx.shape[0]):
-        wk = w[k]
-        if wk == 0.0 or not valid[k]:
-            continue
-        i = idx[k]
-        qx = M[i, 0] - center[0]
-        qy = M[i, 1] - center[1]
-        qz = M[i, 2] - center[2]
-        nx, ny, nz = MN[i, 0], MN[i, 1], MN[i, 2]
-        j[0] = qy * nz - qz * ny
-        j[1] = qz * nx - qx * nz
-        j[2] = qx * ny - qy * nx
-        j[3] = nx
-        j[4] = ny
-        j[5] = nz
-        for a in range(6):
-            wa = wk * j[a]
-            for b in range(a, 6):
-                H[a, b] += wa * j[b]
-    for a in range(6):
-        for b in range(a):
-            H[a, b] = H[b, a]
-
-
 #: loss codes of :func:`weigh_residuals` (registration.losses.LOSSES)
 LOSS_CODES = {"l2": 0, "huber": 1, "tukey": 2, "cauchy": 3, "welsch": 4}
 
