@@ -15,8 +15,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, ContextManager
 
-import numpy as np
-
 log = logging.getLogger(__name__)
 
 Stage = Callable[[str], ContextManager]
@@ -136,9 +134,3 @@ def run_inspection(model_path: str | Path, scan_path: str | Path, tolerance: flo
             out.record_id = db.add(result, part=part, model_hash=file_hash(model_path))
     out.timings["outputs_s"] = time.perf_counter() - t0
     return result, out
-
-
-def transform_points(T: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Apply a 4x4 rigid transform to (N, 3) points: ``R @ p + t`` row-wise."""
-    T = np.asarray(T, dtype=np.float64)
-    return points @ T[:3, :3].T + T[:3, 3]

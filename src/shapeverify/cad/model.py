@@ -29,6 +29,7 @@ from functools import cached_property
 
 import numpy as np
 
+from .._arrays import readonly as _readonly
 from .nurbs import NurbsSurface
 from .trim import TrimDomain, check_loops
 
@@ -44,12 +45,6 @@ def _uv_array(uv) -> np.ndarray:
     if p.ndim != 2 or p.shape[1] != 2:
         raise ValueError(f"uv must have shape (N, 2), got {p.shape}")
     return p
-
-
-def _readonly(a: np.ndarray) -> np.ndarray:
-    a = np.ascontiguousarray(a)
-    a.setflags(write=False)
-    return a
 
 
 @dataclass(frozen=True, eq=False, repr=False)

@@ -20,6 +20,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._arrays import readonly as _readonly
 from . import _kernels
 
 logger = logging.getLogger(__name__)
@@ -41,12 +42,6 @@ __all__ = [
 
 
 # ------------------------------------------------------------------------------- validation
-def _readonly(a: np.ndarray) -> np.ndarray:
-    a = np.ascontiguousarray(a)
-    a.setflags(write=False)
-    return a
-
-
 def _check_degree(p, name: str) -> int:
     if isinstance(p, bool) or not isinstance(p, (int, np.integer)) or p < 1:
         raise ValueError(f"{name} must be an integer >= 1, got {p!r}")

@@ -28,26 +28,16 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._arrays import count_nonfinite_rows
+from .._arrays import readonly as _readonly
+from ..registration.rigid import apply_transform
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["Deviations", "deviations", "EVALUATED", "TOO_FAR", "ON_BOUNDARY", "REASON_NAMES",
-           "transform_points"]
+__all__ = ["Deviations", "deviations", "EVALUATED", "TOO_FAR", "ON_BOUNDARY", "REASON_NAMES"]
 
 #: Reason codes in :attr:`Deviations.reason`.
 EVALUATED, TOO_FAR, ON_BOUNDARY = 0, 1, 2
 REASON_NAMES = {EVALUATED: "evaluated", TOO_FAR: "too_far", ON_BOUNDARY: "on_boundary"}
-
-
-def transform_points(T: np.ndarray, points: np.ndarray) -> np.ndarray:
-    """Apply a 4x4 rigid transform row-wise: ``R @ p + t`` for every row ``p`` of ``points``."""
-    return points @ T[:3, :3].T + T[:3, 3]
-
-
-def _readonly(a: np.ndarray) -> np.ndarray:
-    a = np.ascontiguousarray(a)
-    a.setflags(write=False)
-    return a
 
 
 @dataclass(frozen=True, repr=False, eq=False)
@@ -164,7 +154,7 @@ def deviations(scan, prep, T_model_scan=None, max_distance: float | None = None)
 
 def _deviations(scan: np.ndarray, prep, T: np.ndarray, max_distance: float) -> Deviations:
     """Kernel of :func:`deviations`: trusts its (validated) input."""
-    q = transform_points(T, scan)
+    q = apply_transform(T, scan)
     n = q.shape[0]
     if n == 0:
         empty3 = np.zeros((0, 3))
