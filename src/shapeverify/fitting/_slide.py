@@ -70,15 +70,16 @@ def surface_frames(surf) -> np.ndarray:
 
 
 class Slide:
-    """The prior of the module docstring for one problem: anchor, frames, data weights."""
+    """The prior of the module docstring for one problem: anchor, tangent frames, spacing."""
 
-    def __init__(self, prob, theta0: np.ndarray, frames: np.ndarray,
-                 spacing: float, stiffness: float):
+    def __init__(self, prob, theta0: np.ndarray, stiffness: float):
         n, d = prob.n, prob.d
         self.prob, self.stiffness = prob, float(stiffness)
         self.theta0 = theta0.copy()
-        self.frames = frames
-        self.ell2 = max(float(spacing), 1e-300) ** 2
+        # the anchor shape: a curve (one foot-point parameter) or a surface (two)
+        frames = (curve_frames(prob.curve(theta0)) if prob.q == 1
+                  else surface_frames(prob.surface(theta0)))
+        self.ell2 = max(mean_spacing(prob.unpack(theta0)[0]), 1e-300) ** 2
         # block j: T_j T_j^T on the coordinates of control point j
         TT = np.einsum("jak,jbk->jab", frames, frames)                    # (n, d, d)
         rows = (np.arange(n)[:, None, None] * d + np.arange(d)[None, :, None]).repeat(d, 2)
@@ -120,14 +121,15 @@ def mean_spacing(P: np.ndarray) -> float:
 
 
 def solve(prob, theta: np.ndarray, t: np.ndarray, method: str, max_iterations: int,
-          tolerance: float, second_order: bool, slide: Slide | None):
-    """:func:`_odr.solve` with the sliding prior (``slide``; None: without).
+          tolerance: float, second_order: bool, stiffness: float):
+    """:func:`_odr.solve` with the sliding prior about ``theta`` (``stiffness`` 0: without).
 
     Returns (theta, t, iterations, converged, history); the history runs on into the plain
     objective when the prior is dropped for data that turned out to be exact.
     """
-    if slide is None:
+    if stiffness <= 0:
         return _odr.solve(prob, theta, t, method, max_iterations, tolerance, second_order)
+    slide = Slide(prob, theta, stiffness)
     N = prob.x.shape[0]
     ev = _odr.evaluate(prob, theta, t)
     sigma2 = float(np.einsum("ij,ij->", ev.r, ev.r)) / N

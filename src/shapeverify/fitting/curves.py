@@ -458,13 +458,8 @@ def fit_curve(points, degree: int = 3, n_ctrl: int | None = None, rational: bool
         hist = np.array([_odr.cost_of(prob, theta, _odr.evaluate(prob, theta, t0).r)])
         return _result(curve, t, dist, 0, True, method, hist)
     t, _ = project_to_curve(prob.curve(theta), x, t0)
-    slide = None
-    if slide_stiffness > 0:
-        P0, _ = prob.unpack(theta)
-        slide = _slide.Slide(prob, theta, _slide.curve_frames(prob.curve(theta)),
-                             _slide.mean_spacing(P0), slide_stiffness)
     theta, t, it, ok, hist = _slide.solve(prob, theta, t, method, max_iterations, tolerance,
-                                          second_order, slide)
+                                          second_order, slide_stiffness)
     curve = prob.curve(theta)
     t, dist = project_to_curve(curve, x, t, iterations=5)
     if not ok:

@@ -405,13 +405,8 @@ def fit_surface(points, degrees=(3, 3), n_ctrl=(8, 8), rational: bool = False,
         hist = np.array([_odr.cost_of(prob, theta, _odr.evaluate(prob, theta, uv0).r)])
         return _result(surf, uv, dist, 0, True, method, hist)
     uv, _ = project_to_surface(prob.surface(theta), flat, uv0)
-    slide = None
-    if slide_stiffness > 0:
-        P0, _ = prob.unpack(theta)
-        slide = _slide.Slide(prob, theta, _slide.surface_frames(prob.surface(theta)),
-                             _slide.mean_spacing(P0), slide_stiffness)
     theta, uv, it, ok, hist = _slide.solve(prob, theta, uv, method, max_iterations, tolerance,
-                                           second_order, slide)
+                                           second_order, slide_stiffness)
     surf = prob.surface(theta)
     uv, dist = project_to_surface(surf, flat, uv, iterations=5)
     if not ok:
