@@ -20,6 +20,7 @@ from __future__ import annotations
 __all__ = [
     "ShapeVerifyError",
     "CADImportError",
+    "ModelFileError",
     "UnsupportedFormatError",
     "EmptyModelError",
     "ScanError",
@@ -33,6 +34,13 @@ class ShapeVerifyError(Exception):
 
 class CADImportError(ShapeVerifyError, ValueError):
     """A CAD file could not be read: corrupt, empty, truncated, or not what its extension says."""
+
+
+class ModelFileError(CADImportError):
+    """A saved model (``.svmodel``) or prepared model (``.svm``) is damaged, truncated or foreign.
+
+    The message names the file and says how to make it again (``shapeverify prepare``).
+    """
 
 
 class UnsupportedFormatError(ShapeVerifyError, ValueError):

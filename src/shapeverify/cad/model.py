@@ -203,6 +203,15 @@ class Model:
         Mesh triangles (indices into ``vertices``).
     cloud_normals : (V, 3) float64 or None
         Normals of a point-cloud model, when the file had them.
+    n_faces_in_file : int or None
+        How many faces the source CAD file declares (None: not known, e.g. a model built in
+        code, a mesh, or a ``.svmodel`` written before this field existed).  More than
+        ``len(faces)`` when faces could not be read (see ``skipped_faces`` and
+        :attr:`n_missing_faces`).
+    skipped_faces : tuple of str
+        One line per face of the file that is not in ``faces``, saying which and why
+        (e.g. ``"face 3: no usable trimming loop"`` or ``"#17: referenced by CLOSED_SHELL #16
+        but not in the file"``); empty when every face was read.
 
     Raises
     ------
@@ -218,6 +227,8 @@ class Model:
     vertices: np.ndarray | None = None
     triangles: np.ndarray | None = None
     cloud_normals: np.ndarray | None = None
+    n_faces_in_file: int | None = None
+    skipped_faces: tuple = ()
 
     def __post_init__(self):
         if self.kind not in _KINDS:
@@ -230,6 +241,12 @@ class Model:
         object.__setattr__(self, "unit", str(self.unit))
         object.__setattr__(self, "scale_to_mm", float(self.scale_to_mm))
         object.__setattr__(self, "source", str(self.source))
+        if self.n_faces_in_file is not None:
+            n = int(self.n_faces_in_file)
+            if n < len(faces):
+                raise ValueError(f"n_faces_in_file ({n}) is less than the {len(faces)} faces held")
+            object.__setattr__(self, "n_faces_in_file", n)
+        object.__setattr__(self, "skipped_faces", tuple(str(s) for s in self.skipped_faces))
         object.__setattr__(self, "vertices", _opt_array(self.vertices, np.float64, "vertices"))
         object.__setattr__(self, "triangles", _opt_array(self.triangles, np.int32, "triangles"))
         object.__setattr__(self, "cloud_normals",
@@ -266,6 +283,11 @@ class Model:
         return b
 
     @property
+    def n_missing_faces(self) -> int:
+        """Faces the source file declares that are not in the model (0 when not known)."""
+        return 0 if self.n_faces_in_file is None else self.n_faces_in_file - len(self.faces)
+
+    @property
     def size(self) -> float:
         """Bounding-box diagonal in mm."""
         return float(np.linalg.norm(self.bounds[1] - self.bounds[0]))
@@ -284,6 +306,8 @@ class Model:
         what = (f"faces={len(self.faces)}" if self.kind == "cad" else
                 f"vertices={self.vertices.shape[0]}"
                 + (f", triangles={self.triangles.shape[0]}" if self.triangles is not None else ""))
+        if self.n_missing_faces:
+            what += f" (of {self.n_faces_in_file} in the file)"
         return (f"Model(kind={self.kind!r}, {what}, unit={self.unit!r}, "
                 f"scale_to_mm={self.scale_to_mm:g}, source={self.source!r})")
 

@@ -43,7 +43,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..errors import CADImportError, EmptyModelError, UnsupportedFormatError
+from ..errors import CADImportError, EmptyModelError, ShapeVerifyError, UnsupportedFormatError
 from .model import Face, Model
 from .nurbs import NurbsCurve, NurbsSurface
 
@@ -571,7 +571,8 @@ def _clear_touching(all_xyz, all_free, all_edge, all_tol, gap_tol: float) -> Non
             pos += f.shape[0]
 
 
-def read_cad(path, *, chord_tol: float = 0.002, gap_tol: float = 0.02) -> Model:
+def read_cad(path, *, chord_tol: float = 0.002, gap_tol: float = 0.02, isolated: bool = True,
+             timeout: float | None = None) -> Model:
     """Read a STEP (.step/.stp) or IGES (.igs/.iges) file into a trimmed-NURBS :class:`Model`.
 
     Parameters
@@ -584,12 +585,21 @@ def read_cad(path, *, chord_tol: float = 0.002, gap_tol: float = 0.02) -> Model:
         Edges that pass within ``gap_tol`` mm of another edge (or within 1e-5 of the model size, or
         twice the edge's own tolerance, whichever is largest) are taken to be shared even if the
         file does not say so (unsewn IGES faces); default 0.02 mm.  0 trusts the file's topology.
+    isolated : bool, optional
+        Run OpenCASCADE in the importer child process (:mod:`shapeverify.cad.occ_worker`, the
+        default), so that a crash of the native library on a damaged file raises
+        :class:`CADImportError` instead of killing this process.  ``False`` imports in this
+        process (faster by the start of the child on a first import; for debugging).
+    timeout : float, optional
+        With ``isolated``: seconds after which the import is stopped (default: no limit).
 
     Returns
     -------
     Model
         ``kind="cad"``, one :class:`Face` per face of the file (``TopExp_Explorer`` order), in mm;
-        ``unit`` and ``scale_to_mm`` give the length unit the file declared.
+        ``unit`` and ``scale_to_mm`` give the length unit the file declared;
+        ``n_faces_in_file`` the faces the file declares and ``skipped_faces`` why any of them
+        is missing (each is also named in a logged warning).
 
     Raises
     ------
@@ -598,7 +608,8 @@ def read_cad(path, *, chord_tol: float = 0.002, gap_tol: float = 0.02) -> Model:
     UnsupportedFormatError
         If the extension is not .step/.stp/.igs/.iges.
     CADImportError
-        If the file is empty, corrupt, truncated, or its geometry cannot be converted.
+        If the file is empty, corrupt, truncated, none of its faces can be converted, OpenCASCADE
+        raises, or the importer crashes (the message names the file and the signal).
     EmptyModelError
         If the file holds no shapes, or shapes without faces (only wires or points).
 
@@ -608,14 +619,33 @@ def read_cad(path, *, chord_tol: float = 0.002, gap_tol: float = 0.02) -> Model:
     >>> from shapeverify.cad.examples import example_part_step
     >>> with tempfile.TemporaryDirectory() as d:
     ...     model = read_cad(example_part_step(pathlib.Path(d) / "panel.step"))
-    >>> len(model.faces), model.unit, model.scale_to_mm
-    (1, 'millimetre', 1.0)
+    >>> len(model.faces), model.n_faces_in_file, model.unit, model.scale_to_mm
+    (1, 1, 'millimetre', 1.0)
     """
     if not (chord_tol > 0 and np.isfinite(chord_tol)):
         raise ValueError(f"chord_tol must be a positive number of mm, got {chord_tol!r}")
     if not (gap_tol >= 0 and np.isfinite(gap_tol)):
         raise ValueError(f"gap_tol must be a non-negative number of mm, got {gap_tol!r}")
+    if timeout is not None and not (timeout > 0):
+        raise ValueError(f"timeout must be a positive number of seconds or None, got {timeout!r}")
     path, fmt = _check_path(path)
+    if isolated:
+        from .occ_worker import read_cad_isolated
+
+        return read_cad_isolated(path, chord_tol=chord_tol, gap_tol=gap_tol, timeout=timeout)
+    try:
+        return _read_cad_here(path, fmt, chord_tol, gap_tol)
+    except (ShapeVerifyError, OSError):
+        raise
+    except Exception as exc:  # noqa: BLE001 - OpenCASCADE raises Standard_Failure & co.
+        raise CADImportError(f"{path}: OpenCASCADE could not read the file "
+                             f"({type(exc).__name__}: {exc})") from exc
+
+
+def _read_cad_here(path: Path, fmt: str, chord_tol: float, gap_tol: float) -> Model:
+    """The import itself, in this process."""
+    from .face_count import declared_faces
+
     t_start = time.perf_counter()
     _init_ocp()
     from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
@@ -638,15 +668,23 @@ def read_cad(path, *, chord_tol: float = 0.002, gap_tol: float = 0.02) -> Model:
     surfaces, rev, all_uv, all_xyz, all_free, all_tol, all_edge = [], [], [], [], [], [], []
     edge_base = 0
     n_converted = 0
+    skipped = []
     for i, face in enumerate(faces):
-        work, gsurf, conv = _to_bspline_face(face, i, path)
-        n_converted += conv is not None
         try:
-            surface = _nurbs_surface(gsurf, work)
-        except ValueError as exc:
-            raise CADImportError(f"{path}: face {i} has an invalid B-spline surface: {exc}") from exc
-        uv, xyz, fr, tl, ed = _face_loops(work, face, conv, surface, edge_faces, chord_tol, i,
-                                          path)
+            work, gsurf, conv = _to_bspline_face(face, i, path)
+            try:
+                surface = _nurbs_surface(gsurf, work)
+            except ValueError as exc:
+                raise CADImportError(f"{path}: face {i} has an invalid B-spline surface: "
+                                     f"{exc}") from exc
+            uv, xyz, fr, tl, ed = _face_loops(work, face, conv, surface, edge_faces, chord_tol,
+                                              i, path)
+        except Exception as exc:  # noqa: BLE001 - one bad face does not spoil the others
+            why = str(exc).replace(f"{path}: ", "") if isinstance(exc, ShapeVerifyError) \
+                else f"{type(exc).__name__}: {exc}"
+            skipped.append(f"face {i}: {why}")
+            continue
+        n_converted += conv is not None
         all_edge.append([e + edge_base for e in ed])
         edge_base += 1 + max(int(e.max()) for e in ed)
         surfaces.append(surface)
@@ -656,17 +694,37 @@ def read_cad(path, *, chord_tol: float = 0.002, gap_tol: float = 0.02) -> Model:
         all_free.append(fr)
         all_tol.append(tl)
     t_faces = time.perf_counter()
+    if not surfaces:
+        raise CADImportError(f"{path}: none of the {len(faces)} faces could be converted "
+                             f"({'; '.join(skipped[:3])}{' ...' if len(skipped) > 3 else ''})")
+
+    try:
+        declared, notes = declared_faces(path, fmt)
+    except (OSError, ValueError) as exc:  # the count is advice; the import stands without it
+        logger.debug("%s: could not count the faces the file declares: %s", path, exc)
+        declared, notes = len(faces), []
+    n_in_file = max(declared, len(faces))
+    if n_in_file > len(faces):
+        untransferred = n_in_file - len(faces)
+        skipped.extend(notes[:untransferred])
+        if untransferred > len(notes):
+            skipped.append(f"{untransferred - len(notes)} face(s) declared in the file that "
+                           "OpenCASCADE could not turn into faces (broken or missing entities)")
+    if skipped:
+        logger.warning("%s: %d of the %d faces in the file were not loaded: %s", path,
+                       n_in_file - len(surfaces), n_in_file, "; ".join(skipped))
 
     if gap_tol > 0:
         _clear_touching(all_xyz, all_free, all_edge, all_tol, gap_tol)
     model = Model(faces=tuple(Face(s, tuple(uv), tuple(fr), r)
                               for s, uv, fr, r in zip(surfaces, all_uv, all_free, rev)),
-                  unit=unit, scale_to_mm=scale, source=str(path), kind="cad")
+                  unit=unit, scale_to_mm=scale, source=str(path), kind="cad",
+                  n_faces_in_file=n_in_file, skipped_faces=tuple(skipped))
     t_end = time.perf_counter()
     n_seg = sum(lp.shape[0] for uv in all_uv for lp in uv)
     n_free = sum(int(f.sum()) for fr in all_free for f in fr)
     logger.info("%s: %d faces (%d converted to NURBS), unit %s (%g mm), %d trim segments "
                 "(%d on free edges); read %.2f s, faces %.2f s, total %.2f s",
-                path.name, len(faces), n_converted, unit, scale, n_seg, n_free,
+                path.name, len(surfaces), n_converted, unit, scale, n_seg, n_free,
                 t_read - t_start, t_faces - t_read, t_end - t_start)
     return model

@@ -28,15 +28,27 @@ from __future__ import annotations
 
 import json
 import os
+import struct
 import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
 
-from shapeverify.errors import CADImportError, EmptyModelError
+from shapeverify.errors import EmptyModelError, ModelFileError
 
 __all__ = ["save_model", "load_saved_model", "model_to_arrays", "model_from_arrays",
-           "FORMAT_TAG", "FORMAT_VERSION"]
+           "FORMAT_TAG", "FORMAT_VERSION", "DAMAGED_FILE_ERRORS"]
+
+#: what numpy, zipfile and the array checks raise on a damaged, truncated or foreign archive
+#: (bit flips fail zipfile's CRC check: ``BadZipFile``; truncation: ``BadZipFile``/``EOFError``;
+#: wrong shapes or dtypes: ``ValueError``/``IndexError``/``TypeError``)
+DAMAGED_FILE_ERRORS = (ValueError, KeyError, IndexError, TypeError, AttributeError, OSError,
+                       EOFError, zipfile.BadZipFile, zlib.error, struct.error, OverflowError,
+                       MemoryError)
+
+_REDO = ("make it again from the CAD file (`shapeverify prepare CAD -o MODEL.svm`, or "
+         "`load_model(CAD).save(PATH)` for a .svmodel)")
 
 FORMAT_TAG = "shapeverify-model"
 FORMAT_VERSION = 1
@@ -57,7 +69,8 @@ def model_to_arrays(model) -> dict:
     faces = model.faces
     surfs = [f.surface for f in faces]
     meta = {"format": FORMAT_TAG, "version": FORMAT_VERSION, "unit": model.unit,
-            "source": model.source, "kind": model.kind, "n_faces": len(faces)}
+            "source": model.source, "kind": model.kind, "n_faces": len(faces),
+            "n_faces_in_file": model.n_faces_in_file, "skipped_faces": list(model.skipped_faces)}
     a = {
         "meta": np.frombuffer(json.dumps(meta).encode("utf-8"), dtype=np.uint8),
         "scale_to_mm": np.array([model.scale_to_mm], dtype=np.float64),
@@ -97,7 +110,7 @@ def model_from_arrays(a, where: str = "<arrays>"):
 
     Raises
     ------
-    CADImportError
+    ModelFileError
         Missing keys, wrong format tag or version, inconsistent sizes.
     EmptyModelError
         A CAD model with no faces.
@@ -108,13 +121,13 @@ def model_from_arrays(a, where: str = "<arrays>"):
     try:
         meta = json.loads(bytes(np.asarray(a["meta"], dtype=np.uint8)).decode("utf-8"))
     except (KeyError, ValueError, UnicodeDecodeError) as exc:
-        raise CADImportError(f"{where}: not a shapeverify model file (no readable 'meta': "
+        raise ModelFileError(f"{where}: not a shapeverify model file (no readable 'meta': "
                              f"{exc})") from None
     if meta.get("format") != FORMAT_TAG:
-        raise CADImportError(f"{where}: not a shapeverify model file (format tag "
+        raise ModelFileError(f"{where}: not a shapeverify model file (format tag "
                              f"{meta.get('format')!r})")
     if meta.get("version") != FORMAT_VERSION:
-        raise CADImportError(f"{where}: model file version {meta.get('version')!r} is not "
+        raise ModelFileError(f"{where}: model file version {meta.get('version')!r} is not "
                              f"supported (this shapeverify reads version {FORMAT_VERSION}); "
                              "re-import the CAD file")
     try:
@@ -128,11 +141,11 @@ def model_from_arrays(a, where: str = "<arrays>"):
         scale = float(a["scale_to_mm"][0])
         opt = {k: (a[k] if k in a else None) for k in ("vertices", "triangles", "cloud_normals")}
     except KeyError as exc:
-        raise CADImportError(f"{where}: model file is missing array {exc}") from None
+        raise ModelFileError(f"{where}: model file is missing array {exc}") from None
     n = int(meta.get("n_faces", -1))
     if not (len(deg) == len(shp) == len(rev) == len(rat) == len(kul) == len(kvl)
             == len(nloops) == n):
-        raise CADImportError(f"{where}: model file is inconsistent (face arrays of different "
+        raise ModelFileError(f"{where}: model file is inconsistent (face arrays of different "
                              f"lengths, expected {n})")
     if meta.get("kind") == "cad" and n == 0:
         raise EmptyModelError(f"{where}: the saved CAD model has no faces")
@@ -146,7 +159,7 @@ def model_from_arrays(a, where: str = "<arrays>"):
     if (ku_off[-1] != len(ku) or kv_off[-1] != len(kv) or c_off[-1] != len(ctrl)
             or w_off[-1] != len(wts) or l_off[-1] != len(llen) or v_off[-1] != len(loops)
             or len(lfree) != len(loops)):
-        raise CADImportError(f"{where}: model file is inconsistent (array sizes do not match "
+        raise ModelFileError(f"{where}: model file is inconsistent (array sizes do not match "
                              "the offsets)")
     faces = []
     try:
@@ -160,14 +173,16 @@ def model_from_arrays(a, where: str = "<arrays>"):
             frs = tuple(lfree[v_off[j]:v_off[j + 1]] for j in range(l_off[i], l_off[i + 1]))
             faces.append(Face(surf, lps, frs, bool(rev[i])))
         model = Model(faces=tuple(faces), unit=meta["unit"], scale_to_mm=scale,
-                      source=meta["source"], kind=meta["kind"], **opt)
+                      source=meta["source"], kind=meta["kind"],
+                      n_faces_in_file=meta.get("n_faces_in_file"),
+                      skipped_faces=tuple(meta.get("skipped_faces") or ()), **opt)
         if "bounds" in a and np.shape(a["bounds"]) == (2, 3):
             b = np.array(a["bounds"], dtype=np.float64)
             b.setflags(write=False)
             model.__dict__["bounds"] = b  # prime Model.bounds (a cached_property) with the stored box
         return model
-    except ValueError as exc:
-        raise CADImportError(f"{where}: model file holds invalid data ({exc})") from None
+    except (ValueError, IndexError, TypeError) as exc:
+        raise ModelFileError(f"{where}: model file holds invalid data ({exc})") from None
 
 
 def save_model(model, path) -> Path:
@@ -215,8 +230,9 @@ def load_saved_model(path):
     ------
     FileNotFoundError
         The file does not exist.
-    CADImportError
-        Empty, truncated or foreign file; unsupported format version.
+    ModelFileError
+        Empty, truncated, damaged (bit flips fail the archive's CRC check) or foreign file;
+        unsupported format version.  The message names the file and says how to make it again.
     EmptyModelError
         A saved CAD model without faces.
     """
@@ -225,13 +241,18 @@ def load_saved_model(path):
         import errno
         raise FileNotFoundError(errno.ENOENT, f"{path}: file not found", str(path))
     if path.stat().st_size == 0:
-        raise CADImportError(f"{path}: model file is empty (0 bytes)")
+        raise ModelFileError(f"{path}: model file is empty (0 bytes); {_REDO}")
     try:
         with np.load(path, allow_pickle=False) as z:
             arrays = {k: z[k] for k in z.files}
-    except (ValueError, OSError, EOFError, zipfile.BadZipFile) as exc:
-        raise CADImportError(f"{path}: not a readable shapeverify model file ({exc})") from None
-    return model_from_arrays(arrays, str(path))
+        return model_from_arrays(arrays, str(path))
+    except ModelFileError as exc:
+        raise ModelFileError(f"{exc}; {_REDO}") from None
+    except EmptyModelError:
+        raise
+    except DAMAGED_FILE_ERRORS as exc:
+        raise ModelFileError(f"{path}: not a readable shapeverify model file, damaged or "
+                             f"truncated ({type(exc).__name__}: {exc}); {_REDO}") from None
 
 
 def _cat(arrays, empty_shape, dtype=np.float64):

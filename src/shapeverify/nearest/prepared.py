@@ -340,34 +340,54 @@ def load_prepared(path) -> Prepared:
     ------
     FileNotFoundError
         The file does not exist.
-    ValueError
-        Not a prepared-model file, an unsupported version, or inconsistent arrays.
+    ModelFileError
+        (a :class:`ValueError`) Not a prepared-model file, damaged (bit flips fail the archive's
+        CRC check) or truncated, an unsupported version, or inconsistent arrays.  The message
+        names the file and says to run ``shapeverify prepare`` again.
     """
-    from shapeverify.cad.persist import model_from_arrays
+    from shapeverify.cad.persist import DAMAGED_FILE_ERRORS
+    from shapeverify.errors import EmptyModelError, ModelFileError
 
     path = Path(os.fspath(path))
     if not path.is_file():
-        raise FileNotFoundError(f"no such prepared-model file: {path}")
+        import errno
+        raise FileNotFoundError(errno.ENOENT, f"no such prepared-model file: {path}", str(path))
+    redo = "run `shapeverify prepare CAD -o MODEL.svm` again to make a new one"
+    try:
+        return _load_prepared(path)
+    except (ModelFileError, EmptyModelError) as exc:
+        raise ModelFileError(f"{exc}; {redo}") from None
+    except DAMAGED_FILE_ERRORS as exc:
+        raise ModelFileError(f"{path}: not a readable prepared-model (.svm) file, damaged or "
+                             f"truncated ({type(exc).__name__}: {exc}); {redo}") from None
+
+
+def _load_prepared(path: Path) -> Prepared:
+    from shapeverify.cad.persist import model_from_arrays
+    from shapeverify.errors import ModelFileError
+
+    if path.stat().st_size == 0:
+        raise ModelFileError(f"{path}: the prepared-model (.svm) file is empty (0 bytes)")
     try:
         z = np.load(path, allow_pickle=False)
     except (ValueError, OSError, zipfile.BadZipFile) as exc:
-        raise ValueError(f"{path}: not a prepared-model (.svm) file ({exc})") from None
+        raise ModelFileError(f"{path}: not a prepared-model (.svm) file ({exc})") from None
     with z:
         files = set(z.files)
         try:
             meta = json.loads(bytes(z["meta"]).decode())
         except (KeyError, ValueError, UnicodeDecodeError):
-            raise ValueError(f"{path}: not a prepared-model (.svm) file (no readable meta)") \
+            raise ModelFileError(f"{path}: not a prepared-model (.svm) file (no readable meta)") \
                 from None
         if meta.get("format") != FORMAT_TAG:
-            raise ValueError(f"{path}: not a prepared-model (.svm) file (format "
-                             f"{meta.get('format')!r})")
+            raise ModelFileError(f"{path}: not a prepared-model (.svm) file (format "
+                                 f"{meta.get('format')!r})")
         if meta.get("version") != FORMAT_VERSION:
-            raise ValueError(f"{path}: .svm version {meta.get('version')!r} is not supported "
-                             f"(this shapeverify reads {FORMAT_VERSION}); prepare the model again")
+            raise ModelFileError(f"{path}: .svm version {meta.get('version')!r} is not supported "
+                                 f"(this shapeverify reads {FORMAT_VERSION})")
         need = {"rec", "rows", "boundary"}
         if not need <= files:
-            raise ValueError(f"{path}: .svm file is missing {sorted(need - files)}")
+            raise ModelFileError(f"{path}: .svm file is missing {sorted(need - files)}")
         rec0 = z["rec"]
         rec = _dvg.aligned_empty(rec0.shape, np.float64)
         rec[...] = rec0
@@ -379,7 +399,12 @@ def load_prepared(path) -> Prepared:
     n = int(meta["n_points"])
     if not (rec.shape == (n + 1, 16) and rows.shape == (n, 4) and boundary.shape == (n,)
             and tree.n_points == n):
-        raise ValueError(f"{path}: .svm file is inconsistent (arrays do not all hold {n} "
-                         "model points)")
+        raise ModelFileError(f"{path}: .svm file is inconsistent (arrays do not all hold {n} "
+                             "model points)")
+    # indices that the numeric kernels follow without bounds checks must be in range
+    lists, other = tree.lists, rows[:, 3]
+    if ((lists.size and (lists.min() < 0 or lists.max() > n))
+            or (n and (other.min() < -1 or other.max() >= n))):
+        raise ModelFileError(f"{path}: .svm file is inconsistent (point indices out of range)")
     return Prepared(model, _dvg.DVG(rec, tree), rows, boundary, float(meta["spacing"]),
                     float(meta["max_distance"]))
