@@ -1,0 +1,25 @@
+"""Inspection plans: datum alignments, GD&T characteristics with uncertainty, reports, SPC.
+
+>>> from shapeverify.characteristics import evaluate_plan, load_plan      # doctest: +SKIP
+>>> res = evaluate_plan(prep, scan, load_plan("plan.yaml"))              # doctest: +SKIP
+>>> [c.to_dict() for c in res.characteristics]                           # doctest: +SKIP
+
+Modules: :mod:`.plan` (the YAML plan and its schema), :mod:`.features` (holes, planes,
+cylinders of the CAD topology), :mod:`.alignment` (best fit on faces, constrained, RPS, datums),
+:mod:`.holes` (measuring a hole on a scan), :mod:`.zones` (minimum-zone flatness, ISO 14253-1
+decisions), :mod:`.evaluate` (the characteristics), :mod:`.pdf` (PDF report), :mod:`.spc`
+(characteristic history, Cp/Cpk, run charts, CSV), :mod:`.parts` (small test parts).
+"""
+from .alignment import (AlignmentResult, align, best_fit, constrained_fit, datum_alignment,
+                        rps_alignment)
+from .evaluate import CharacteristicResult, PlanResult, evaluate_plan
+from .features import Feature, features_table, find_feature, model_features
+from .holes import HoleMeasurement, measure_hole
+from .plan import Plan, PlanError, load_plan, parse_plan
+from .zones import decide, minimum_zone_flatness
+
+__all__ = ["evaluate_plan", "PlanResult", "CharacteristicResult", "Plan", "PlanError",
+           "load_plan", "parse_plan", "model_features", "features_table", "find_feature",
+           "Feature", "align", "best_fit", "constrained_fit", "rps_alignment",
+           "datum_alignment", "AlignmentResult", "measure_hole", "HoleMeasurement",
+           "minimum_zone_flatness", "decide"]

@@ -1,0 +1,581 @@
+"""Alignments the way parts are fixtured: best fit on faces, constrained, RPS, datum features.
+
+Every alignment returns an :class:`AlignmentResult`: the pose ``T_model_scan`` (model = R @ scan
++ t), its covariance in the parameterisation of :class:`shapeverify.registration.Registration`
+(``e = (rotation vector rad, translation mm)`` acting on the left, model frame, about the model
+origin), its residuals, and which degrees of freedom it determined (``dof_fitted``) or held at
+the start pose (``dof_locked``).
+
+* :func:`best_fit` -- robust point-to-plane Gauss-Newton (IRLS, Tukey by default, scale
+  ``1.4826 median |r|``) on the points whose exact closest CAD point lies on the named faces.
+* :func:`constrained_fit` -- the same in the free degrees of freedom only.  The pose is
+  ``T = M(p) @ T0`` with ``M(p) = [R(p), c + t - R(p) c]``, ``R(p) = Rz(rz) Ry(ry) Rx(rx)``
+  about the centre ``c`` and ``t = (tx, ty, tz)``; the locked parameters are exactly 0, so the
+  locked coordinates do not move (e.g. ``free: [tz, rz]`` keeps x, y and the tilt of the start).
+* :func:`rps_alignment` -- reference points (RPS): each locks one to three model axes at a point;
+  a point at a hole is measured as the hole's centre (:func:`.holes.measure_hole`), any other as
+  the scan's local plane where the locked axis through the point meets it.  The six (or more)
+  lock equations are solved by Gauss-Newton; residuals are the remaining differences (zero for
+  exactly six independent locks, the 3-2-1 rule).
+* :func:`datum_alignment` -- datum features A (plane), B (hole/cylinder axis or plane), C
+  (hole/cylinder axis or plane) fitted on the scan (robust fits of :mod:`shapeverify.fitting`,
+  Tukey loss) define a frame; the pose maps the measured frame onto the CAD's.  A fixes 3 DOFs
+  (its normal and offset), B 2, C 1.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..registration.losses import MAD_TO_SIGMA, get_loss
+from ..registration.rigid import apply_transform, compose_step, invert_transform, make_transform
+from .features import find_feature, model_features
+from .holes import measure_hole
+from .plan import DOF_NAMES
+
+__all__ = ["AlignmentResult", "best_fit", "constrained_fit", "rps_alignment", "datum_alignment",
+           "euler_pose", "face_indices", "align"]
+
+logger = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class AlignmentResult:
+    """Result of an alignment.
+
+    Attributes
+    ----------
+    T_model_scan : (4, 4) float64
+    covariance : (6, 6) float64
+        Pose covariance (e = (omega rad, tau mm), left, model frame, about the origin); zero in
+        the locked directions (the fixture's own uncertainty is not known).
+    residuals : (k,) float64
+        Per point (best fit: signed distances of the weighted points), per lock (RPS) or per
+        datum (RMS of its fit), mm.
+    rms : float
+        RMS of ``residuals`` (best fit: of the inliers), mm.
+    dof_fitted, dof_locked : tuple of str
+        Degrees of freedom the data determined / held at the start pose.
+    kind : str
+        'best_fit', 'constrained', 'rps' or 'datums'.
+    details : dict
+        Alignment-specific facts (JSON-ready): iterations, points used, lock residuals...
+    """
+
+    T_model_scan: np.ndarray
+    covariance: np.ndarray
+    residuals: np.ndarray
+    rms: float
+    dof_fitted: tuple
+    dof_locked: tuple
+    kind: str
+    details: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        return {"type": self.kind, "T_model_scan": self.T_model_scan.tolist(),
+                "rms": float(self.rms), "dof_fitted": list(self.dof_fitted),
+                "dof_locked": list(self.dof_locked),
+                "pose_std": [float(np.sqrt(max(v, 0.0))) if np.isfinite(v) else None
+                             for v in np.diag(self.covariance)],
+                **self.details}
+
+    def __repr__(self) -> str:
+        return (f"AlignmentResult(kind={self.kind!r}, rms={self.rms:.4g}, "
+                f"dof_fitted={list(self.dof_fitted)}, dof_locked={list(self.dof_locked)})")
+
+
+# ------------------------------------------------------------------------------ poses
+def _rx(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[1, 0, 0], [0, c, -s], [0, s, c]])
+
+
+def _ry(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, 0, s], [0, 1, 0], [-s, 0, c]])
+
+
+def _rz(a):
+    c, s = np.cos(a), np.sin(a)
+    return np.array([[c, -s, 0], [s, c, 0], [0, 0, 1]])
+
+
+def _drot(p):
+    """R(p) and its derivatives dR/drx, dR/dry, dR/drz (R = Rz Ry Rx)."""
+    X, Y, Z = _rx(p[0]), _ry(p[1]), _rz(p[2])
+    K = [np.array([[0, 0, 0], [0, 0, -1], [0, 1, 0]]), np.array([[0, 0, 1], [0, 0, 0], [-1, 0, 0]]),
+         np.array([[0, -1, 0], [1, 0, 0], [0, 0, 0]])]
+    R = Z @ Y @ X
+    return R, (Z @ Y @ X @ K[0], Z @ Y @ K[1] @ X, Z @ K[2] @ Y @ X)
+
+
+def euler_pose(p, center=(0.0, 0.0, 0.0)) -> np.ndarray:
+    """``M(p)`` (4, 4) for ``p = (rx, ry, rz, tx, ty, tz)`` (rad, mm): rotation
+    ``Rz Ry Rx`` about ``center``, then translation."""
+    p = np.asarray(p, np.float64)
+    c = np.asarray(center, np.float64)
+    R, _ = _drot(p)
+    return make_transform(R, c + p[3:] - R @ c)
+
+
+def _p_to_e(p, center, free) -> np.ndarray:
+    """(6, k): d e / d p_free at p (e the left, origin-based pose perturbation)."""
+    R, dR = _drot(p)
+    c = np.asarray(center, np.float64)
+    t = p[3:]
+    cols = []
+    for j in free:
+        if j < 3:
+            W = dR[j] @ R.T
+            w = np.array([W[2, 1], W[0, 2], W[1, 0]])
+            cols.append(np.r_[w, np.cross(c + t, w)])
+        else:
+            cols.append(np.r_[np.zeros(3), np.eye(3)[j - 3]])
+    return np.array(cols).T
+
+
+def face_indices(model, faces) -> np.ndarray | None:
+    """Face indices of a plan's ``faces`` entry ('all' -> None; ids, names or ints)."""
+    if faces is None or faces == "all":
+        return None
+    feats = model_features(model) if getattr(model, "kind", None) == "cad" else []
+    out = []
+    for f in faces:
+        if isinstance(f, (int, np.integer)):
+            k = int(f)
+        else:
+            k = find_feature(feats, f, kind="face").face
+        if not 0 <= k < len(model.faces):
+            raise ValueError(f"face {f} does not exist: the model has {len(model.faces)} faces "
+                             f"(0..{len(model.faces) - 1})")
+        out.append(k)
+    return np.unique(np.array(out, np.int64))
+
+
+# ------------------------------------------------------------------------------ best fits
+def _gauss_newton(scan, prep, T0, free, center, faces, loss, max_iterations, tol, reach):
+    P = np.asarray(scan, np.float64)
+    lossobj = get_loss(loss)
+    X0 = apply_transform(T0, P)
+    c = np.asarray(center, np.float64)
+    p = np.zeros(6)
+    free = list(free)
+    size = float(getattr(prep.model, "size", 1.0))
+    floor = 1e-6 * max(size, 1.0)
+    it, converged = 0, False
+    for it in range(1, max_iterations + 1):
+        R, dR = _drot(p)
+        X = (X0 - c) @ R.T + c + p[3:]
+        cl = prep.closest(X, exact=True)
+        r = cl.distances
+        valid = ~cl.on_boundary & (np.abs(r) <= reach)
+        if faces is not None:
+            valid &= np.isin(cl.face, faces)
+        if np.count_nonzero(valid) < 2 * len(free) + 3:
+            raise ValueError(f"only {int(np.count_nonzero(valid))} scan points lie on the "
+                             "alignment faces within reach; check the face list and the start pose")
+        sigma = max(MAD_TO_SIGMA * float(np.median(np.abs(r[valid]))), floor)
+        w = np.where(valid, lossobj.weight(r, sigma), 0.0)
+        J = np.empty((P.shape[0], len(free)))
+        for k, j in enumerate(free):
+            d = (X0 - c) @ dR[j].T if j < 3 else np.broadcast_to(np.eye(3)[j - 3], X0.shape)
+            J[:, k] = np.einsum("ij,ij->i", cl.normals, d)
+        Jw = J * w[:, None]
+        H = Jw.T @ J
+        g = Jw.T @ r
+        scale = np.sqrt(np.maximum(np.diag(H), 1e-300))
+        Hs = H / np.outer(scale, scale)
+        lam = np.linalg.eigvalsh(Hs)
+        if lam[0] <= 1e-9 * lam[-1]:
+            names = [DOF_NAMES[j] for j in free]
+            raise ValueError(f"the alignment faces do not determine the free degrees of freedom "
+                             f"{names} (flat or cylindrical geometry); lock some or add faces")
+        step = -np.linalg.solve(Hs, g / scale) / scale
+        p[free] += step
+        move = np.abs(step) * np.array([size if j < 3 else 1.0 for j in free])
+        if np.max(move) < tol * max(size, 1.0):
+            converged = True
+            break
+    # final state at the converged p (same weights), sandwich covariance in p
+    R, dR = _drot(p)
+    X = (X0 - c) @ R.T + c + p[3:]
+    cl = prep.closest(X, exact=True)
+    r = cl.distances
+    valid = ~cl.on_boundary & (np.abs(r) <= reach)
+    if faces is not None:
+        valid &= np.isin(cl.face, faces)
+    sigma = max(MAD_TO_SIGMA * float(np.median(np.abs(r[valid]))), floor)
+    w = np.where(valid, lossobj.weight(r, sigma), 0.0)
+    J = np.empty((P.shape[0], len(free)))
+    for k, j in enumerate(free):
+        d = (X0 - c) @ dR[j].T if j < 3 else np.broadcast_to(np.eye(3)[j - 3], X0.shape)
+        J[:, k] = np.einsum("ij,ij->i", cl.normals, d)
+    Jw = J * w[:, None]
+    Hinv = np.linalg.inv(Jw.T @ J)
+    Jb = J * (w * r)[:, None]
+    Cp = Hinv @ (Jb.T @ Jb) @ Hinv
+    A = _p_to_e(p, c, free)
+    cov = A @ Cp @ A.T
+    T = euler_pose(p, c) @ T0
+    inl = valid & (np.abs(r) <= lossobj.c * sigma)
+    rms = float(np.sqrt(np.mean(r[inl] ** 2))) if inl.any() else float("nan")
+    return T, 0.5 * (cov + cov.T), r[valid], rms, p, it, converged, int(valid.sum()), sigma
+
+
+def _reach(prep, reach):
+    if reach is not None:
+        return float(reach)
+    return float(max(getattr(prep, "max_distance", 1.0), 3.0 * prep.spacing))
+
+
+def best_fit(scan, prep, faces=None, init=None, loss: str = "tukey", max_iterations: int = 50,
+             tolerance: float = 1e-9, reach: float | None = None, rng=None) -> AlignmentResult:
+    """Free 6-DOF robust best fit, on all faces or on the faces named.
+
+    Parameters
+    ----------
+    scan : (N, 3) float64
+        Scan points (scan frame, mm).
+    prep : Prepared
+    faces : None, 'all' or sequence of face ids ('face:3', 3, a face name)
+        Only points whose exact closest CAD point lies on these faces count.
+    init : (4, 4) or None
+        Start pose; None: the free registration :func:`shapeverify.register` (all faces).
+    loss : str
+        Robust loss of :mod:`shapeverify.registration.losses`.
+    reach : float, optional
+        Points farther than this from the CAD are ignored (default: ``prep.max_distance``).
+
+    Returns
+    -------
+    AlignmentResult
+    """
+    from ..registration import register
+
+    fidx = face_indices(prep.model, faces)
+    if init is None:
+        T0 = register(scan, prep, loss=loss, rng=rng).T_model_scan
+    else:
+        T0 = _check_T(init)
+    T, cov, res, rms, p, it, ok, n, sigma = _gauss_newton(
+        scan, prep, T0, range(6), np.zeros(3), fidx, loss, max_iterations, tolerance,
+        _reach(prep, reach))
+    return AlignmentResult(T, cov, res, rms, DOF_NAMES, (), "best_fit",
+                           {"iterations": it, "converged": ok, "n_points": n, "scale": sigma,
+                            "faces": "all" if fidx is None else fidx.tolist()})
+
+
+def constrained_fit(scan, prep, free, init=None, center=(0.0, 0.0, 0.0), faces=None,
+                    loss: str = "tukey", max_iterations: int = 50, tolerance: float = 1e-9,
+                    reach: float | None = None) -> AlignmentResult:
+    """Best fit in the free degrees of freedom only; the locked ones stay at ``init``.
+
+    Parameters
+    ----------
+    free : sequence of {'rx', 'ry', 'rz', 'tx', 'ty', 'tz'}
+        Rotations about the model axes through ``center``, translations along them.
+    init : (4, 4) or None
+        The fixture's pose (None: identity, the scan is already in the model frame).
+    center : (3,)
+        Centre of the rotations (model frame, mm).
+
+    Returns
+    -------
+    AlignmentResult
+        ``details['parameters']``: the six parameters of ``M(p)`` (locked ones exactly 0).
+
+    Raises
+    ------
+    ValueError
+        Unknown DOF names, or free DOFs the faces do not determine.
+    """
+    names = list(free)
+    bad = [f for f in names if f not in DOF_NAMES]
+    if bad or not names:
+        raise ValueError(f"free must name degrees of freedom from {DOF_NAMES}, got {names}")
+    idx = sorted(DOF_NAMES.index(f) for f in set(names))
+    T0 = np.eye(4) if init is None else _check_T(init)
+    fidx = face_indices(prep.model, faces)
+    T, cov, res, rms, p, it, ok, n, sigma = _gauss_newton(
+        scan, prep, T0, idx, center, fidx, loss, max_iterations, tolerance, _reach(prep, reach))
+    locked = tuple(d for d in DOF_NAMES if DOF_NAMES.index(d) not in idx)
+    return AlignmentResult(T, cov, res, rms, tuple(DOF_NAMES[j] for j in idx), locked,
+                           "constrained",
+                           {"iterations": it, "converged": ok, "n_points": n, "scale": sigma,
+                            "parameters": dict(zip(DOF_NAMES, map(float, p))),
+                            "center": [float(x) for x in center]})
+
+
+def _check_T(T) -> np.ndarray:
+    T = np.asarray(T, np.float64)
+    if T.shape != (4, 4) or not np.isfinite(T).all():
+        raise ValueError(f"a pose must be a finite (4, 4) matrix, got shape {T.shape}")
+    R = T[:3, :3]
+    if not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0:
+        raise ValueError("a pose must be rigid (orthonormal rotation, det +1)")
+    return T
+
+
+# ------------------------------------------------------------------------------ RPS
+def _local_plane(X, at, axis, radius):
+    """Robust plane of the scan points near the line ``at + s axis`` (model frame)."""
+    q = X - at
+    along = q @ axis
+    lat = np.linalg.norm(q - np.outer(along, axis), axis=1)
+    m = (lat <= radius) & (np.abs(along) <= max(3.0 * radius, 5.0))
+    if np.count_nonzero(m) < 6:
+        raise ValueError(f"only {int(np.count_nonzero(m))} scan points within {radius:g} mm of "
+                         f"the RPS point {np.round(at, 3).tolist()}; is that area scanned?")
+    from ..fitting import fit_plane
+
+    pl = fit_plane(X[m], loss="tukey")
+    u = pl.rms / np.sqrt(np.count_nonzero(m))
+    return pl.point, pl.normal, u, int(np.count_nonzero(m))
+
+
+def rps_alignment(scan, prep, points, init=None, radius: float = 4.0, max_iterations: int = 20,
+                  tolerance: float = 1e-10) -> AlignmentResult:
+    """RPS (reference point system) alignment; 3-2-1 is six single locks.
+
+    Parameters
+    ----------
+    scan : (N, 3); prep : Prepared
+    points : sequence of plan ``RpsPoint`` (or dicts with ``at``, ``lock`` and optionally
+        ``feature``, ``radius``, ``name``)
+        ``lock``: the model axes ('x', 'y', 'z') whose coordinate the point fixes.
+    init : (4, 4) or None
+        Start pose (None: the free best fit, only to find the points' neighbourhoods).
+    radius : float
+        Default neighbourhood radius of a surface point (mm).
+
+    Returns
+    -------
+    AlignmentResult
+        ``residuals``: one per lock (measured - nominal coordinate, mm);
+        ``details['locks']``: name, axis, residual and the uncertainty of each lock.
+
+    Raises
+    ------
+    ValueError
+        Fewer than six independent locks (the message names the undetermined directions), a
+        lock along a surface (a surface point can only lock an axis across it), or points not
+        scanned.
+    """
+    from ..registration import register
+
+    pts = [p if isinstance(p, dict) else p.model_dump() for p in points]
+    feats = model_features(prep.model) if prep.model.kind == "cad" else []
+    T = register(scan, prep).T_model_scan if init is None else _check_T(init)
+    P = np.asarray(scan, np.float64)
+    spec = []
+    for k, p in enumerate(pts):
+        at = np.asarray(p["at"], np.float64)
+        hole = None
+        if p.get("feature"):
+            hole = find_feature(feats, p["feature"], kind="hole")
+        else:
+            holes = [f for f in feats if f.kind == "hole"]
+            if holes:
+                h = find_feature(holes, near=at, kind="hole")
+                if np.linalg.norm(h.center - at) <= 0.5 * h.diameter:
+                    hole = h
+        spec.append((p.get("name") or f"P{k + 1}", at, [("xyz".index(a)) for a in p["lock"]],
+                     hole, float(p.get("radius") or radius)))
+    n_locks = sum(len(s[2]) for s in spec)
+    rows, res, unc, info = None, None, None, []
+    for it in range(1, max_iterations + 1):
+        X = apply_transform(T, P)
+        rows, res, unc, info = [], [], [], []
+        for name, at, axes, hole, rad in spec:
+            if hole is not None:
+                hm = measure_hole(X, hole.center, hole.axis, hole.diameter)
+                c = hm.center
+                for k in axes:
+                    e = np.eye(3)[k]
+                    rows.append(np.r_[np.cross(c, e), e])
+                    res.append((c - at)[k])
+                    unc.append(max(hm.u_center, 1e-6))
+                    info.append((name, "xyz"[k], "hole"))
+            else:
+                for k in axes:
+                    a = np.eye(3)[k]
+                    p0, n, u, _ = _local_plane(X, at, a, rad)
+                    na = n @ a
+                    if abs(na) < 0.2:
+                        raise ValueError(f"RPS point {name} locks {'xyz'[k]}, which runs along the "
+                                         "surface there (|normal . axis| < 0.2); lock the axis "
+                                         "across the surface or use a hole")
+                    s = n @ (p0 - at) / na
+                    # ds/de: the plane moves rigidly (p0 -> p0 + w x p0 + tau, n -> n + w x n)
+                    g_w = (np.cross(p0, n) + np.cross(p0 - at - s * a, n)) / na
+                    g_t = n / na
+                    rows.append(np.r_[g_w, g_t])
+                    res.append(s)
+                    unc.append(max(u / abs(na), 1e-6))
+                    info.append((name, "xyz"[k], "surface"))
+        J = np.array(rows)
+        r = np.array(res)
+        Wh = 1.0 / np.array(unc)
+        Js = J * Wh[:, None]
+        sv = np.linalg.svd(Js, compute_uv=False)
+        if Js.shape[0] < 6 or sv[-1] <= 1e-9 * sv[0]:
+            _, _, Vt = np.linalg.svd(J)
+            raise ValueError(f"the {n_locks} RPS locks do not fix all six degrees of freedom "
+                             f"(undetermined pose direction e = {np.round(Vt[-1], 3).tolist()}); "
+                             "3-2-1: lock z at three points, x and y at a hole, y at another")
+        delta, *_ = np.linalg.lstsq(Js, -r * Wh, rcond=None)
+        R, t = compose_step(T[:3, :3], T[:3, 3], delta, np.zeros(3))
+        T = make_transform(R, t)
+        if np.max(np.abs(delta[3:])) + prep.model.size * np.max(np.abs(delta[:3])) < tolerance * \
+                max(prep.model.size, 1.0):
+            break
+    Js = J * Wh[:, None]
+    cov = np.linalg.pinv(Js.T @ Js)
+    r = np.array(res)
+    locks = [{"point": nm, "axis": ax, "kind": kd, "residual": float(v), "uncertainty": float(u)}
+             for (nm, ax, kd), v, u in zip(info, r, unc)]
+    return AlignmentResult(T, 0.5 * (cov + cov.T), r, float(np.sqrt(np.mean(r * r))), DOF_NAMES,
+                           (), "rps", {"iterations": it, "locks": locks})
+
+
+# ------------------------------------------------------------------------------ datums
+def _frame(z, zp, elems) -> np.ndarray:
+    """Right-handed datum frame (4, 4): primary plane (normal z through zp), then elements.
+
+    ``elems``: the secondary and tertiary datums as (kind, point, direction): ('axis', the
+    point where the axis meets plane A, axis) or ('plane', a point on it, its normal).
+    B an axis: origin where it meets A; x towards C's axis point (C a plane: along C's normal).
+    B a plane: x along B's normal (in A); origin on the line A-B where plane C cuts it, or
+    nearest to C's axis point (no C: nearest to B's point).
+    """
+    z = z / np.linalg.norm(z)
+    (k2, p2, n2), rest = elems[0], elems[1:]
+    c3 = rest[0] if rest else None
+    if k2 == "axis":
+        O = p2
+        if c3 is None:
+            x = np.eye(3)[int(np.argmin(np.abs(z)))]
+        else:
+            x = (c3[1] - O) if c3[0] == "axis" else c3[2]
+    else:
+        x = n2
+    x = x - (x @ z) * z
+    if np.linalg.norm(x) < 1e-9:
+        raise ValueError("the secondary/tertiary datums do not fix the rotation about the "
+                         "primary plane's normal (parallel to it, or coincident)")
+    x /= np.linalg.norm(x)
+    y = np.cross(z, x)
+    if k2 == "plane":
+        if c3 is not None and c3[0] == "plane":
+            third_n, third_p = c3[2], c3[1]
+        else:
+            third_n, third_p = y, (p2 if c3 is None else c3[1])
+        A = np.array([z, n2, third_n])
+        O = np.linalg.solve(A, np.array([z @ zp, n2 @ p2, third_n @ third_p]))
+    return make_transform(np.column_stack([x, y, z]), O)
+
+
+def _measure_datum(f, X, cl, prep, feats, sigma):
+    from ..fitting import fit_cylinder, fit_plane
+
+    if f.kind == "hole":
+        hm = measure_hole(X, f.center, f.axis, f.diameter)
+        return "axis", hm.center, f.axis, hm.u_center
+    m = (cl.face == f.face) & ~cl.on_boundary & (np.abs(cl.distances) <= max(1.0, 8 * sigma))
+    if np.count_nonzero(m) < 10:
+        raise ValueError(f"datum {f.id}: only {int(np.count_nonzero(m))} scan points on it")
+    if f.kind == "plane":
+        pl = fit_plane(X[m], loss="tukey")
+        n = pl.normal if pl.normal @ f.axis > 0 else -pl.normal
+        return "plane", pl.point, n, pl.rms
+    if f.kind == "cylinder":
+        cy = fit_cylinder(X[m], loss="tukey", axis=f.axis)
+        a = cy.axis if cy.axis @ f.axis > 0 else -cy.axis
+        return "axis", cy.point, a, cy.rms
+    raise ValueError(f"datum {f.id} is a {f.kind} face; datums are planes, holes or cylinders")
+
+
+def _pierce(kind, p, a, zp, z):
+    """Point where an axis meets the primary plane (zp, z); planes pass through."""
+    if kind != "axis":
+        return p
+    s = ((zp - p) @ z) / (a @ z)
+    return p + s * a
+
+
+def datum_alignment(scan, prep, primary, secondary, tertiary=None, init=None,
+                    iterations: int = 3) -> AlignmentResult:
+    """Datum-feature alignment: plane A, then axis or plane B, then axis or plane C.
+
+    The datum frame: z = A's normal; the origin where B's axis meets A (B a plane: the corner of
+    A, B and C, or A and B with C an axis); x towards C's axis (or along B's/C's normal).  The
+    same frame is built from the CAD features and from the elements fitted on the scan (in the
+    model frame of the current pose); the pose maps the measured frame onto the nominal one.
+    Repeated ``iterations`` times (the point selection follows the pose).
+
+    Parameters
+    ----------
+    primary, secondary, tertiary : str
+        Feature ids ('face:0', 'hole:1', 'cylinder:3').
+
+    Returns
+    -------
+    AlignmentResult
+        ``residuals``: RMS of each datum's fit (mm).
+    """
+    from ..registration import register
+
+    model = prep.model
+    feats = model_features(model)
+    refs = [r for r in (primary, secondary, tertiary) if r is not None]
+    F = [find_feature(feats, r, kind="face" if i else "plane") for i, r in enumerate(refs)]
+    if F[0].kind != "plane":
+        raise ValueError(f"the primary datum {F[0].id} must be a plane, it is a {F[0].kind}")
+    T = register(scan, prep).T_model_scan if init is None else _check_T(init)
+    P = np.asarray(scan, np.float64)
+    z_nom, zp_nom = F[0].axis, F[0].center
+
+    def nominal(f):
+        if f.kind == "plane":
+            return "plane", f.center, f.axis
+        return "axis", _pierce("axis", f.center, f.axis, zp_nom, z_nom), f.axis
+
+    Fn = _frame(z_nom, zp_nom, [nominal(f) for f in F[1:]])
+    fits = []
+    for _ in range(iterations):
+        X = apply_transform(T, P)
+        cl = prep.closest(X, exact=True)
+        sigma = MAD_TO_SIGMA * float(np.median(np.abs(cl.distances)))
+        fits = [_measure_datum(f, X, cl, prep, feats, sigma) for f in F]
+        _, zp, z, _ = fits[0]
+        elems = [(k, _pierce(k, p, a, zp, z), a) for k, p, a, _ in fits[1:]]
+        Fm = _frame(z, zp, elems)
+        T = Fn @ invert_transform(Fm) @ T
+    res = np.array([u for *_, u in fits])
+    dof = ["A: tz rx ry", "B: " + ("tx ty" if F[1].kind != "plane" else "tx rz")]
+    if len(F) > 2:
+        dof.append("C: " + ("rz" if F[1].kind != "plane" else "ty"))
+    # the frame's uncertainty is small against the best fit's; report the free fit's covariance
+    bf = best_fit(scan, prep, init=T, max_iterations=1)
+    return AlignmentResult(T, bf.covariance, res, float(np.sqrt(np.mean(res ** 2))), tuple(dof),
+                           (), "datums", {"datums": [f.id for f in F]})
+
+
+def align(scan, prep, alignment, init=None, rng=None) -> AlignmentResult:
+    """Run a plan's alignment (a plan alignment model or a dict with ``type``)."""
+    a = alignment if isinstance(alignment, dict) else alignment.model_dump()
+    kind = a["type"]
+    if kind == "best_fit":
+        return best_fit(scan, prep, faces=a.get("faces"), init=init, loss=a.get("loss", "tukey"),
+                        rng=rng)
+    if kind == "constrained":
+        return constrained_fit(scan, prep, a["free"], init=init, center=a.get("center", (0, 0, 0)),
+                               faces=a.get("faces"), loss=a.get("loss", "tukey"))
+    if kind == "rps":
+        return rps_alignment(scan, prep, a["points"], init=init)
+    if kind == "datums":
+        return datum_alignment(scan, prep, a["primary"], a["secondary"], a.get("tertiary"),
+                               init=init)
+    raise ValueError(f"unknown alignment type {kind!r}")

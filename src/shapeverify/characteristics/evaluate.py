@@ -1,0 +1,486 @@
+"""Evaluate an inspection plan: alignment, then every characteristic with its uncertainty.
+
+Definitions (ISO 1101; lengths in mm, model frame after the plan's alignment)
+------------------------------------------------------------------------------
+The *evaluated points* of a face group are the scan points whose exact closest CAD point
+(``prep.closest(x, exact=True)``) lies on a face of the group, not on the model's free boundary,
+with ``|d| <= max_distance`` (``d`` the signed distance along the outward CAD normal;
+``max_distance`` from the plan, default ``prep.max_distance``).
+
+* **surface_profile** (ISO 1101 §18.6, profile of a surface): the zone is bounded by two surfaces
+  offset ±t/2 from the true profile.  With a datum reference (``datum: true``, default) the
+  profile is located by the plan's alignment; measured value ``2 max_i |d_i|`` over the
+  evaluated points (the width of the narrowest zone centred on the CAD that holds them all),
+  nominal 0, limits ``[0, t]``.  Without a datum (``datum: false``) the zone may float: the
+  group is first best-fitted on its own (robust 6-DOF, :func:`.alignment.best_fit`), then the
+  same value is taken.
+* **flatness** (ISO 1101 §18.2): minimum-zone value of the evaluated points of the planar face
+  (:func:`.zones.minimum_zone_flatness`, exact), limits ``[0, t]``.
+* **hole** diameter and position (ISO 1101 §18.12 position of an axis): the hole is measured by
+  :func:`.holes.measure_hole` (edge-point circle for the centre, count-based bias correction for
+  the diameter); position value ``2 |Δ⊥|`` with Δ⊥ the measured centre's offset from the nominal
+  perpendicular to the nominal axis (the diameter of the smallest cylindrical zone about the true
+  position that holds the measured axis), limits ``[0, t]``; diameter deviation = measured -
+  nominal, limits ±tol.
+* **cylinder** diameter: robust least-squares cylinder (Tukey) of the evaluated points of the
+  cylindrical face; deviation = measured - nominal.
+* **check_point**: deviation at a point = mean ``d`` of the evaluated points within ``radius``
+  of the CAD point closest to ``at`` (same face), nominal 0.
+
+Uncertainty and decision (ISO 14253-1)
+--------------------------------------
+``uncertainty`` is the expanded uncertainty ``U = k u`` (``k = coverage_factor``, default 2,
+about 95 %) from two sources combined in quadrature: the pose (the alignment's 6x6 covariance,
+propagated through the characteristic's dependence on the pose: ``g^T C g`` with
+``g = [q x n, n]`` for a displacement of point q along n) and the scan noise (the scatter of the
+points that make the value: ``s / sqrt(n)`` for means; the hole's edge scatter; a single point's
+noise ``s`` for extreme values).  Verdict: ``pass`` inside ``[lower + U, upper - U]``, ``fail``
+outside ``[lower - U, upper + U]``, else ``undecided`` (:func:`.zones.decide`).  Zone widths
+(profile, flatness, position) have only the upper limit.
+"""
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..registration.losses import MAD_TO_SIGMA
+from ..registration.rigid import apply_transform
+from .alignment import AlignmentResult, align, best_fit, face_indices
+from .features import find_feature, model_features
+from .holes import measure_hole, plane_basis
+from .plan import Plan, load_plan
+from .zones import decide, minimum_zone_flatness, worst_verdict
+
+__all__ = ["CharacteristicResult", "PlanResult", "evaluate_plan", "evaluate_characteristics"]
+
+logger = logging.getLogger(__name__)
+
+
+def _f(x):
+    return _jsonable(x)
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class CharacteristicResult:
+    """One evaluated characteristic (see the module docstring for the definitions).
+
+    ``nominal``, ``measured``, ``deviation``, ``lower``, ``upper``, ``uncertainty`` are floats
+    (mm), or dicts for a hole (``nominal``/``measured``: ``{"center": [x, y, z], "diameter":
+    d}``; the others keyed ``diameter`` and ``position``).  ``uncertainty`` is expanded (k).
+    ``verdict``: 'pass' | 'fail' | 'undecided'.  ``details``: definition-specific facts
+    (points used, min/max, the measured normal, the reason when not measured...).
+    """
+
+    name: str
+    type: str
+    nominal: object
+    measured: object
+    deviation: object
+    lower: object
+    upper: object
+    uncertainty: object
+    verdict: str
+    details: dict = field(default_factory=dict)
+
+    def to_dict(self) -> dict:
+        """``{name, type, nominal, measured, deviation, lower, upper, uncertainty, verdict,
+        details}`` with plain floats/lists (NaN -> None)."""
+        return {"name": self.name, "type": self.type, "nominal": _f(self.nominal),
+                "measured": _f(self.measured), "deviation": _f(self.deviation),
+                "lower": _f(self.lower), "upper": _f(self.upper),
+                "uncertainty": _f(self.uncertainty), "verdict": self.verdict,
+                "details": _jsonable(self.details)}
+
+    def __repr__(self) -> str:
+        m = self.measured
+        ms = (f"{m:.4g}" if isinstance(m, float) else
+              "{…}" if isinstance(m, dict) else repr(m))
+        return f"CharacteristicResult({self.name!r}, {self.type}, measured={ms}, verdict={self.verdict!r})"
+
+
+def _jsonable(d):
+    if isinstance(d, dict):
+        return {str(k): _jsonable(v) for k, v in d.items()}
+    if isinstance(d, (list, tuple)):
+        return [_jsonable(v) for v in d]
+    if isinstance(d, np.ndarray):
+        return _jsonable(d.tolist())
+    if isinstance(d, (np.integer,)):
+        return int(d)
+    if isinstance(d, (float, np.floating)):
+        return float(d) if np.isfinite(d) else None
+    return d
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class PlanResult:
+    """Result of :func:`evaluate_plan`.
+
+    Attributes
+    ----------
+    plan : Plan
+    alignment : AlignmentResult
+    characteristics : tuple of CharacteristicResult
+    verdict : str
+        Worst of the characteristics' verdicts ('pass' when there are none... and nothing
+        failed): 'pass' | 'fail' | 'undecided'.
+    points : (N, 3) float64
+        Scan points in the model frame (after the alignment).
+    deviations : (N,) float64
+        Signed deviation along the CAD normal (NaN where not evaluated).
+    face : (N,) int32
+        Face of each point's closest CAD point.
+    evaluated : (N,) bool
+        Within max_distance, not past the model's free boundary.
+    noise : float
+        Robust scale of the deviations (mm), ``1.4826 median |d|``.
+    section : dict or None
+        The plan's cross-section: ``s`` (position along the section line, mm), ``deviation``,
+        ``points`` (model frame), ``direction``, ``plane`` (point, normal).
+    timings : dict
+    """
+
+    plan: Plan
+    alignment: AlignmentResult
+    characteristics: tuple
+    verdict: str
+    points: np.ndarray = field(repr=False)
+    deviations: np.ndarray = field(repr=False)
+    face: np.ndarray = field(repr=False)
+    evaluated: np.ndarray = field(repr=False)
+    noise: float = float("nan")
+    section: dict | None = None
+    timings: dict = field(default_factory=dict)
+
+    def __getitem__(self, name: str) -> CharacteristicResult:
+        for c in self.characteristics:
+            if c.name == name:
+                return c
+        raise KeyError(f"no characteristic {name!r}; have {[c.name for c in self.characteristics]}")
+
+    def to_dict(self) -> dict:
+        """JSON-ready: ``verdict``, ``alignment`` (type, T_model_scan, rms, dofs...),
+        ``characteristics`` (list of :meth:`CharacteristicResult.to_dict`), ``noise``,
+        ``coverage_factor``, ``units``."""
+        return {"verdict": self.verdict, "units": "mm",
+                "coverage_factor": float(self.plan.coverage_factor),
+                "alignment": _jsonable(self.alignment.to_dict()),
+                "characteristics": [c.to_dict() for c in self.characteristics],
+                "noise": _f(self.noise), "timings": _jsonable(self.timings)}
+
+    def __repr__(self) -> str:
+        return (f"PlanResult(verdict={self.verdict!r}, alignment={self.alignment.kind!r}, "
+                f"characteristics={len(self.characteristics)}, "
+                f"{', '.join(f'{c.name}={c.verdict}' for c in self.characteristics[:8])})")
+
+
+# ------------------------------------------------------------------------------ helpers
+def _pose_var(cov, q, n) -> float:
+    """Variance of the displacement of model point q along n caused by the pose."""
+    g = np.r_[np.cross(q, n), n]
+    C = np.where(np.isfinite(cov), cov, 0.0)
+    return float(max(g @ C @ g, 0.0))
+
+
+class _Scan:
+    """The aligned scan with its closest CAD points (computed once)."""
+
+    def __init__(self, prep, scan, T, max_distance):
+        self.prep = prep
+        self.X = apply_transform(T, scan)
+        cl = prep.closest(self.X, exact=True)
+        self.cl = cl
+        self.d = cl.distances
+        self.face = cl.face
+        self.ok = ~cl.on_boundary & (np.abs(cl.distances) <= max_distance)
+        dv = self.d[self.ok]
+        self.noise = float(MAD_TO_SIGMA * np.median(np.abs(dv - np.median(dv)))) if dv.size else \
+            float("nan")
+
+    def on(self, faces) -> np.ndarray:
+        return self.ok if faces is None else self.ok & np.isin(self.face, faces)
+
+
+def _not_measured(c, reason: str) -> CharacteristicResult:
+    logger.warning("characteristic %s not measured: %s", c.name, reason)
+    return CharacteristicResult(c.name, c.type, None, None, None, None, None, None, "undecided",
+                                {"reason": reason})
+
+
+def _profile(c, S: _Scan, al: AlignmentResult, k: float, prep, scan, max_distance):
+    fidx = face_indices(prep.model, c.faces)
+    m = S.on(fidx)
+    d, X, nrm = S.d, S.X, S.cl.normals
+    cov = al.covariance
+    details = {"datum": bool(c.datum)}
+    if not c.datum:
+        bf = best_fit(scan, prep, faces=c.faces, init=al.T_model_scan, reach=max_distance)
+        S2 = _Scan(prep, scan, bf.T_model_scan, max_distance)
+        m, d, X, nrm, cov = S2.on(fidx), S2.d, S2.X, S2.cl.normals, bf.covariance
+        details["T_model_scan"] = bf.T_model_scan.tolist()
+    if np.count_nonzero(m) == 0:
+        return _not_measured(c, "no scan points on the profile's faces")
+    dm = d[m]
+    i = int(np.argmax(np.abs(dm)))
+    value = 2.0 * float(abs(dm[i]))
+    j = np.flatnonzero(m)[i]
+    u = np.sqrt(_pose_var(cov, X[j], nrm[j]) + S.noise ** 2)
+    U = 2.0 * k * u  # the value is twice the extreme deviation
+    lo, hi = _zone_limits(c)
+    details.update({"n": int(m.sum()), "min": float(dm.min()), "max": float(dm.max()),
+                    "max_abs": float(abs(dm[i])), "at": X[j].tolist(),
+                    "faces": "all" if fidx is None else fidx.tolist()})
+    return CharacteristicResult(c.name, c.type, 0.0, value, value, lo, hi, U,
+                                decide(value, None, hi, U), details)
+
+
+def _zone_limits(c):
+    if c.tol is not None:
+        return 0.0, float(c.tol)
+    return 0.0, float(c.upper - c.lower)
+
+
+def _face_feature(c, feats, S: _Scan, kind):
+    if c.feature is not None:
+        return find_feature(feats, c.feature, kind=kind)
+    if kind in ("flatness", "plane"):
+        fi = int(S.prep.closest(np.asarray([c.near], float), exact=True).face[0])
+        f = feats[fi]
+        if f.kind != "plane":
+            raise ValueError(f"{c.name}: the face nearest to {c.near} is face:{fi}, a {f.kind} "
+                             "face; flatness needs a planar face (give feature: face:N)")
+        return f
+    return find_feature(feats, near=c.near, kind=kind)
+
+
+def _flatness(c, S: _Scan, feats, k):
+    f = _face_feature(c, feats, S, "flatness")
+    m = S.on([f.face])
+    if np.count_nonzero(m) < 3:
+        return _not_measured(c, f"fewer than 3 scan points on {f.id}")
+    P = S.X[m]
+    width, n = minimum_zone_flatness(P, f.axis)
+    u = S.noise
+    U = k * u
+    return CharacteristicResult(c.name, c.type, 0.0, width, width, 0.0, float(c.tol), U,
+                                decide(width, None, float(c.tol), U),
+                                {"feature": f.id, "n": int(m.sum()), "normal": n.tolist(),
+                                 "definition": "minimum zone"})
+
+
+def _hole(c, S: _Scan, feats, al, k):
+    f = _face_feature(c, feats, S, "hole")
+    try:
+        hm = measure_hole(S.X, f.center, f.axis, f.diameter)
+    except ValueError as exc:
+        return _not_measured(c, str(exc))
+    e1, e2 = plane_basis(f.axis)
+    delta = hm.center - f.center
+    dperp = delta - (delta @ f.axis) * f.axis
+    pos = 2.0 * float(np.linalg.norm(dperp))
+    var = np.array([hm.u_center ** 2 + _pose_var(al.covariance, hm.center, e) for e in (e1, e2)])
+    if np.linalg.norm(dperp) > 1e-12:
+        w = np.array([dperp @ e1, dperp @ e2]) / np.linalg.norm(dperp)
+        u_rad = float(np.sqrt(w ** 2 @ var))
+    else:
+        u_rad = float(np.sqrt(var.mean()))
+    U_pos = 2.0 * k * u_rad
+    U_d = k * hm.u_diameter
+    verdicts, lower, upper = {}, {}, {}
+    dd = hm.diameter - f.diameter
+    if c.diameter is not None:
+        lo, hi = c.diameter.limits()
+        verdicts["diameter"] = decide(dd, lo, hi, U_d)
+        lower["diameter"], upper["diameter"] = lo, hi
+    if c.position is not None:
+        verdicts["position"] = decide(pos, None, float(c.position.tol), U_pos)
+        lower["position"], upper["position"] = 0.0, float(c.position.tol)
+    return CharacteristicResult(
+        c.name, c.type, {"center": f.center.tolist(), "diameter": float(f.diameter)},
+        {"center": hm.center.tolist(), "diameter": float(hm.diameter)},
+        {"center": delta.tolist(), "position": pos, "diameter": float(dd)}, lower, upper,
+        {"center": float(k * np.sqrt(var.max())), "position": U_pos, "diameter": U_d},
+        worst_verdict(verdicts.values()),
+        {"feature": f.id, "verdicts": verdicts, "axis": f.axis.tolist(),
+         "edge_diameter": hm.edge_diameter, "bias": hm.bias, "spacing": hm.spacing,
+         "n_edge": hm.n_edge, "edge_points": hm.edge_points.tolist()})
+
+
+def _cylinder(c, S: _Scan, feats, k):
+    from ..fitting import fit_cylinder
+
+    f = _face_feature(c, feats, S, "cylinder")
+    m = S.on([f.face])
+    if np.count_nonzero(m) < 20:
+        return _not_measured(c, f"only {int(m.sum())} scan points on {f.id}")
+    P = S.X[m]
+    cy = fit_cylinder(P, loss="tukey", axis=f.axis)
+    a = cy.axis
+    # linearised covariance of the radius (axis point in the plane, tilt, radius)
+    q = P - cy.point
+    h = q @ a
+    radial = q - np.outer(h, a)
+    rn = np.linalg.norm(radial, axis=1)
+    u_dir = radial / np.where(rn > 0, rn, 1.0)[:, None]
+    e1, e2 = plane_basis(a)
+    J = np.column_stack([-(u_dir @ e1), -(u_dir @ e2), -(u_dir @ e1) * h, -(u_dir @ e2) * h,
+                         -np.ones(len(P))])
+    w = cy.weights
+    r = cy.residuals
+    Jw = J * w[:, None]
+    try:
+        Hinv = np.linalg.inv(Jw.T @ J)
+        Jb = J * (w * r)[:, None]
+        u_R = float(np.sqrt(max((Hinv @ (Jb.T @ Jb) @ Hinv)[4, 4], 0.0)))
+    except np.linalg.LinAlgError:
+        u_R = float("inf")
+    meas = 2.0 * cy.radius
+    dev = meas - f.diameter
+    lo, hi = c.diameter.limits()
+    U = k * 2.0 * u_R
+    return CharacteristicResult(c.name, c.type, float(f.diameter), meas, dev, lo, hi, U,
+                                decide(dev, lo, hi, U),
+                                {"feature": f.id, "n": int(m.sum()), "axis": a.tolist(),
+                                 "rms": cy.rms})
+
+
+def _check_point(c, S: _Scan, al, k):
+    at = np.asarray(c.at, np.float64)
+    foot = S.prep.closest(at[None], exact=True)
+    q, n, fc = foot.points[0], foot.normals[0], int(foot.face[0])
+    m = S.ok & (S.face == fc) & (np.linalg.norm(S.cl.points - q, axis=1) <= c.radius)
+    nm = int(np.count_nonzero(m))
+    if nm == 0:
+        return _not_measured(c, f"no scan points within {c.radius:g} mm of the check point "
+                                f"{np.round(q, 3).tolist()}")
+    dm = S.d[m]
+    value = float(dm.mean())
+    s = float(dm.std(ddof=1)) if nm > 1 else S.noise
+    s = max(s, S.noise) if nm < 5 else s
+    u = np.sqrt(_pose_var(al.covariance, q, n) + s * s / nm)
+    lo, hi = c.limits()
+    U = k * float(u)
+    return CharacteristicResult(c.name, c.type, 0.0, value, value, lo, hi, U,
+                                decide(value, lo, hi, U),
+                                {"point": q.tolist(), "normal": n.tolist(), "face": fc, "n": nm,
+                                 "std": s})
+
+
+def _section(sec, S: _Scan):
+    p0 = np.asarray(sec.point, np.float64)
+    n = np.asarray(sec.normal, np.float64)
+    n = n / np.linalg.norm(n)
+    m = S.ok & (np.abs((S.X - p0) @ n) <= 0.5 * sec.width)
+    if not m.any():
+        return {"name": sec.name, "s": [], "deviation": [], "points": np.zeros((0, 3)),
+                "plane": [p0.tolist(), n.tolist()], "direction": None}
+    Q = S.X[m] - p0
+    Q = Q - np.outer(Q @ n, n)
+    _, _, vt = np.linalg.svd(Q - Q.mean(axis=0), full_matrices=False)
+    dirn = vt[0] if vt[0][np.argmax(np.abs(vt[0]))] > 0 else -vt[0]
+    s = Q @ dirn
+    o = np.argsort(s)
+    return {"name": sec.name, "s": s[o], "deviation": S.d[m][o], "points": S.X[m][o],
+            "normals": S.cl.normals[m][o], "plane": [p0.tolist(), n.tolist()],
+            "direction": dirn.tolist()}
+
+
+def evaluate_characteristics(prep, scan, plan, alignment: AlignmentResult):
+    """Evaluate a plan's characteristics at a given alignment (see :func:`evaluate_plan`).
+
+    Returns
+    -------
+    (tuple of CharacteristicResult, _Scan, section dict or None)
+    """
+    plan = load_plan(plan)
+    md = float(plan.max_distance or getattr(prep, "max_distance", 1.0))
+    S = _Scan(prep, scan, alignment.T_model_scan, md)
+    feats = model_features(prep.model) if prep.model.kind == "cad" else []
+    k = float(plan.coverage_factor)
+    out = []
+    for c in plan.characteristics:
+        try:
+            if c.type == "surface_profile":
+                r = _profile(c, S, alignment, k, prep, scan, md)
+            elif c.type == "flatness":
+                r = _flatness(c, S, feats, k)
+            elif c.type == "hole":
+                r = _hole(c, S, feats, alignment, k)
+            elif c.type == "cylinder":
+                r = _cylinder(c, S, feats, k)
+            else:
+                r = _check_point(c, S, alignment, k)
+        except ValueError as exc:
+            if "feature" in str(exc) or "face" in str(exc):
+                raise ValueError(f"characteristic {c.name!r}: {exc}") from None
+            r = _not_measured(c, str(exc))
+        out.append(r)
+    sec = None if plan.section is None else _section(plan.section, S)
+    return tuple(out), S, sec
+
+
+def evaluate_plan(prep, scan, plan=None, registration=None, init=None, rng=None) -> PlanResult:
+    """Align a scan the plan's way and evaluate every characteristic of the plan.
+
+    Parameters
+    ----------
+    prep : Prepared
+        The prepared CAD model (:func:`shapeverify.prepare`).
+    scan : (N, 3) float64
+        Scan points (scan frame, mm).
+    plan : Plan, dict, path of a YAML file, YAML text or None
+        None: free best fit and a surface profile of all faces needs a tolerance, so only the
+        alignment is done (no characteristics).
+    registration : Registration, optional
+        An existing free registration of this scan; reused (pose and covariance) when the
+        plan's alignment is a best fit on all faces, and as the start pose otherwise.
+    init : (4, 4), optional
+        Start pose / fixture pose (constrained fits keep the locked DOFs of it).
+    rng : None, int or Generator
+        Seeds the free registration's random subsets.
+
+    Returns
+    -------
+    PlanResult
+
+    Raises
+    ------
+    PlanError
+        An invalid plan (line and key named).
+    ValueError
+        A feature the plan names does not exist, or the alignment cannot be solved.
+
+    Examples
+    --------
+    >>> res = evaluate_plan(prep, scan, "plan.yaml")          # doctest: +SKIP
+    >>> res["H1"].measured["diameter"], res["H1"].verdict      # doctest: +SKIP
+    """
+    from ..inspection.inspect import check_scan
+
+    t0 = time.perf_counter()
+    plan = Plan.default() if plan is None else load_plan(plan)
+    P = check_scan(scan, getattr(prep.model, "size", None))
+    a = plan.alignment
+    start = init
+    if start is None and registration is not None:
+        start = registration.T_model_scan
+    if a.type == "best_fit" and a.faces == "all" and registration is not None:
+        reg = registration
+        al = AlignmentResult(np.asarray(reg.T_model_scan), np.asarray(reg.covariance),
+                             np.zeros(0), float(reg.rms), tuple(
+                                 "rx ry rz tx ty tz".split()), (), "best_fit",
+                             {"iterations": int(reg.iterations), "converged": bool(reg.converged),
+                              "source": "registration"})
+    else:
+        al = align(P, prep, a, init=start, rng=rng)
+    t1 = time.perf_counter()
+    chars, S, sec = evaluate_characteristics(prep, P, plan, al)
+    t2 = time.perf_counter()
+    dev = np.where(S.ok, S.d, np.nan)
+    verdict = worst_verdict([c.verdict for c in chars]) if chars else "pass"
+    return PlanResult(plan=plan, alignment=al, characteristics=chars, verdict=verdict,
+                      points=S.X, deviations=dev, face=S.face, evaluated=S.ok, noise=S.noise,
+                      section=sec, timings={"alignment": t1 - t0, "characteristics": t2 - t1})

@@ -1,0 +1,258 @@
+"""CAD features from the topology of a model: holes, planar and cylindrical faces.
+
+* **faces** ``face:i`` (i = index in ``model.faces``): each classified ``plane``, ``cylinder``
+  or ``freeform`` by fitting a plane / a cylinder (:mod:`shapeverify.fitting`) to a grid of
+  points on the trimmed face (planar when every point is within ``1e-6 * size`` of the plane,
+  cylindrical within ``1e-5 * radius``).
+* **holes** ``hole:k``: every inner trim loop (``loops[1:]``) of a face whose 3-D points lie on a
+  circle or, for a hole cut through a curved sheet, on a right circular cylinder.  The axis is
+  the circle's normal (or the cylinder's axis), the diameter that of the circle/cylinder, and the
+  centre the point where the axis pierces the face's (untrimmed) surface.  Numbered in the order
+  (face index, loop index), so the ids are stable for a given model.
+
+Face names come from ``model.face_names`` when the model carries them (a tuple of str or None
+per face); otherwise ``name`` is None.
+
+Example
+-------
+>>> from shapeverify.cad.examples import wavy_panel
+>>> [f.id for f in model_features(wavy_panel())]
+['face:0', 'face:1']
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..fitting import fit_circle, fit_cylinder, fit_plane
+
+__all__ = ["Feature", "model_features", "find_feature", "features_table", "hole_center_on_face"]
+
+logger = logging.getLogger(__name__)
+
+_GRID = 16
+
+
+@dataclass(frozen=True, eq=False)
+class Feature:
+    """One CAD feature (model frame, mm).
+
+    Attributes
+    ----------
+    id : str            ``'hole:3'``, ``'face:12'``
+    kind : str          ``'hole'``, ``'plane'``, ``'cylinder'`` or ``'freeform'``
+    face : int          face index (for a hole: the face whose inner loop it is)
+    center : (3,)       hole: centre (axis through the face); plane: centroid of the grid
+                        points; cylinder: axis point closest to them; freeform: centroid
+    axis : (3,) or None hole/cylinder: unit axis (for a hole oriented like the face's outward
+                        normal); plane: unit outward normal
+    diameter : float or None   hole/cylinder diameter (mm)
+    loop : int or None  index of the hole's loop in ``model.faces[face].loops``
+    name : str or None  face name from the CAD file, when known
+    form_error : float  largest distance of the face/loop points from the fitted element (mm)
+    """
+
+    id: str
+    kind: str
+    face: int
+    center: np.ndarray = field(repr=False)
+    axis: np.ndarray | None = field(default=None, repr=False)
+    diameter: float | None = None
+    loop: int | None = None
+    name: str | None = None
+    form_error: float = 0.0
+
+    def to_dict(self) -> dict:
+        """JSON-ready dict: id, kind, face, name, center, axis, diameter, form_error."""
+        return {"id": self.id, "kind": self.kind, "face": self.face, "name": self.name,
+                "center": [float(x) for x in self.center],
+                "axis": None if self.axis is None else [float(x) for x in self.axis],
+                "diameter": None if self.diameter is None else float(self.diameter),
+                "loop": self.loop, "form_error": float(self.form_error)}
+
+
+def _face_grid(face, n: int = _GRID) -> tuple[np.ndarray, np.ndarray]:
+    (a0, a1), (b0, b1) = face.uv_bounds
+    g = np.stack(np.meshgrid(np.linspace(a0, a1, n), np.linspace(b0, b1, n)), -1).reshape(-1, 2)
+    g = g[face.contains(g)]
+    if g.shape[0] < 8:  # a thin face: sample its loops' vertices as well
+        g = np.concatenate([g, np.concatenate(face.loops)])
+    return face.evaluate(g), face.normal(g)
+
+
+def _dense_loop(loop: np.ndarray, per_segment: int = 2) -> np.ndarray:
+    nxt = np.roll(loop, -1, axis=0)
+    t = np.arange(per_segment)[:, None, None] / per_segment
+    return (loop[None] * (1 - t) + nxt[None] * t).transpose(1, 0, 2).reshape(-1, 2)
+
+
+def hole_center_on_face(face, point, axis, uv0=None, iterations: int = 30) -> np.ndarray:
+    """Where the line ``point + s * axis`` pierces the (untrimmed) surface of ``face``.
+
+    Newton iterations on ``(S(u, v) - point) x axis = 0`` (least squares in u, v); falls back
+    to ``point`` when they do not converge (a line tangent to the surface).
+    """
+    p = np.asarray(point, np.float64)
+    a = np.asarray(axis, np.float64) / np.linalg.norm(axis)
+    surf = face.surface
+    (u0, u1), (v0, v1) = surf.domain
+    if uv0 is None:
+        (a0, a1), (b0, b1) = face.uv_bounds
+        g = np.stack(np.meshgrid(np.linspace(a0, a1, 24), np.linspace(b0, b1, 24)), -1)
+        g = g.reshape(-1, 2)
+        x = surf.evaluate(g[:, 0], g[:, 1]) - p
+        off = np.linalg.norm(x - np.outer(x @ a, a), axis=1)
+        uv = g[int(np.argmin(off))].copy()
+    else:
+        uv = np.asarray(uv0, np.float64).copy()
+    for _ in range(iterations):
+        d = surf.derivatives(uv[:1], uv[1:], order=1)[0]
+        r = d[0, 0] - p
+        r = r - (r @ a) * a
+        J = np.column_stack([d[1, 0] - (d[1, 0] @ a) * a, d[0, 1] - (d[0, 1] @ a) * a])
+        step, *_ = np.linalg.lstsq(J, -r, rcond=None)
+        uv = np.array([np.clip(uv[0] + step[0], u0, u1), np.clip(uv[1] + step[1], v0, v1)])
+        if np.linalg.norm(step) < 1e-14 * (1 + np.abs(uv).max()):
+            break
+    q = surf.evaluate(uv[:1], uv[1:])[0]
+    off = (q - p) - ((q - p) @ a) * a
+    if np.linalg.norm(off) > 1e-6 * (1 + np.linalg.norm(q)):
+        return p
+    return p + ((q - p) @ a) * a
+
+
+def _hole(face, loop: np.ndarray, size: float):
+    uv = _dense_loop(loop)
+    X = face.evaluate(uv)
+    if X.shape[0] < 6:
+        return None
+    circ = fit_circle(X)
+    err = float(np.max(np.abs(circ.residuals)))
+    tol = 1e-4 * circ.radius + 1e-7 * size
+    axis, radius, centre = circ.normal, circ.radius, circ.center
+    if not err <= tol:
+        try:
+            cyl = fit_cylinder(X, axis=circ.normal)
+        except ValueError:
+            return None
+        cerr = float(np.max(np.abs(cyl.residuals)))
+        if not cerr <= tol or cyl.radius > size:
+            return None
+        axis, radius, err = cyl.axis, cyl.radius, cerr
+        centre = cyl.point + ((X - cyl.point) @ axis).mean() * axis
+    # orient the axis like the face's outward normal around the hole
+    nrm = face.normal(uv).mean(axis=0)
+    if axis @ nrm < 0:
+        axis = -axis
+    centre = hole_center_on_face(face, centre, axis)
+    return centre, axis, 2.0 * float(radius), err
+
+
+def _classify(face, size: float):
+    X, N = _face_grid(face)
+    pl = fit_plane(X)
+    perr = float(np.max(np.abs(pl.residuals)))
+    if perr <= 1e-6 * size + 1e-9:
+        n = pl.normal if pl.normal @ N.mean(axis=0) >= 0 else -pl.normal
+        return "plane", pl.point, n, None, perr
+    try:
+        cyl = fit_cylinder(X)
+        cerr = float(np.max(np.abs(cyl.residuals)))
+        if cerr <= 1e-5 * cyl.radius + 1e-9 and cyl.radius < 10 * size:
+            return "cylinder", cyl.point, cyl.axis, 2.0 * cyl.radius, cerr
+    except ValueError:
+        pass
+    return "freeform", X.mean(axis=0), None, None, perr
+
+
+def model_features(model) -> list:
+    """All features of a CAD model: one per face (``face:i``), then the holes (``hole:k``).
+
+    Parameters
+    ----------
+    model : Model or Prepared
+        A CAD model (``kind == 'cad'``); a Prepared model's ``.model`` is used.
+
+    Returns
+    -------
+    list of Feature
+        Faces in index order, then holes in (face, loop) order.  Cached on the model object.
+
+    Raises
+    ------
+    ValueError
+        For a mesh or point-cloud model (no CAD topology).
+    """
+    model = getattr(model, "model", model)
+    if getattr(model, "kind", None) != "cad":
+        raise ValueError(f"features need a CAD model with faces (got a {getattr(model, 'kind', '?')!r} "
+                         "model); load the STEP/IGES file, not a mesh")
+    cached = getattr(model, "_sv_features", None)
+    if cached is not None:
+        return list(cached)
+    size = model.size
+    names = getattr(model, "face_names", None)
+    out, holes = [], []
+    for i, f in enumerate(model.faces):
+        name = None if names is None else names[i]
+        kind, c, ax, dia, err = _classify(f, size)
+        out.append(Feature(f"face:{i}", kind, i, np.asarray(c), None if ax is None else
+                           np.asarray(ax), dia, None, name, err))
+        for j, lp in enumerate(f.loops[1:], start=1):
+            h = _hole(f, lp, size)
+            if h is not None:
+                holes.append((i, j, name, h))
+    for k, (i, j, name, (c, ax, dia, err)) in enumerate(holes):
+        out.append(Feature(f"hole:{k}", "hole", i, c, ax, dia, j, name, err))
+    try:
+        object.__setattr__(model, "_sv_features", tuple(out))
+    except (AttributeError, TypeError):  # pragma: no cover - a model without a __dict__
+        pass
+    logger.debug("model features: %d faces, %d holes", len(model.faces), len(holes))
+    return out
+
+
+_KINDS_FOR = {"hole": ("hole",), "cylinder": ("cylinder",), "flatness": ("plane",),
+              "plane": ("plane",), "face": ("plane", "cylinder", "freeform")}
+
+
+def find_feature(features, ref=None, near=None, kind: str = "face"):
+    """Pick a feature by id (``'hole:3'``, ``'face:2'``, a face name) or the one of ``kind``
+    closest to ``near`` (3,).
+
+    For ``near``, the distance to a hole or cylinder is from its centre (axis point); to a face
+    from its nearest grid point.
+
+    Raises
+    ------
+    ValueError
+        Unknown id or name, or no feature of that kind (the message lists what exists).
+    """
+    feats = list(features)
+    if ref is not None:
+        ref = str(ref)
+        for f in feats:
+            if f.id == ref or (f.name is not None and f.name == ref):
+                if kind in _KINDS_FOR and f.kind not in _KINDS_FOR[kind] and f.kind != "hole":
+                    raise ValueError(f"{ref} is a {f.kind} feature, but a {kind} is needed")
+                return f
+        if ref.startswith(("plane:", "cylinder:")):  # alias: plane:12 = face:12
+            return find_feature(feats, "face:" + ref.split(":")[1], None, kind)
+        have = [f.id for f in feats if f.kind in _KINDS_FOR.get(kind, (kind,))]
+        raise ValueError(f"no feature {ref!r} in the model; {kind} features: "
+                         f"{', '.join(have[:30]) or 'none'} (see `shapeverify info --features`)")
+    kinds = _KINDS_FOR.get(kind, (kind,))
+    cand = [f for f in feats if f.kind in kinds]
+    if not cand:
+        raise ValueError(f"the model has no {'/'.join(kinds)} feature to match near={near}")
+    p = np.asarray(near, np.float64)
+    d = [float(np.linalg.norm(f.center - p)) for f in cand]
+    return cand[int(np.argmin(d))]
+
+
+def features_table(model) -> list:
+    """The rows of ``shapeverify info --features``: one dict per feature (see
+    :meth:`Feature.to_dict`), faces first, then holes."""
+    return [f.to_dict() for f in model_features(model)]

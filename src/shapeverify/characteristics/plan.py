@@ -1,0 +1,414 @@
+"""The inspection plan (``plan.yaml``): alignment, characteristics and tolerances, validated.
+
+A plan says how the part is aligned (the way it is fixtured) and what is measured on it.  It is
+read from YAML and validated with pydantic; an error names the file, the line and the key:
+``plan.yaml, line 6, key 'characteristics[0].diameter.tol': Input should be a valid number``.
+
+The minimum contract (scripts depend on it; everything else is optional)::
+
+    units: mm
+    alignment: {type: best_fit}          # best_fit [faces: [...]] | constrained {free: [tx, ty, rz]}
+                                         # | rps {points: [{at: [x, y, z], lock: [z]}, ...]}
+                                         # | datums {primary: face:0, secondary: hole:1, tertiary: hole:2}
+    characteristics:
+      - {name: H1, type: hole, near: [70, 55, 0], diameter: {tol: 0.2}, position: {tol: 0.3}}
+      - {name: SKIN, type: surface_profile, faces: all, tol: 0.2}
+
+Further characteristic types: ``flatness`` (``feature: face:3`` or ``near``, ``tol``),
+``cylinder`` (``feature``/``near``, ``diameter: {tol}``), ``check_point`` (``at``, ``tol`` or
+``lower``/``upper``, ``radius``).  ``section`` (optional): a cross-section plane
+``{point: [x, y, z], normal: [nx, ny, nz], width: 1.0}`` for the PDF report.
+
+Tolerance conventions (ISO 1101)
+--------------------------------
+* ``surface_profile`` and ``flatness``: ``tol`` is the *width* t of the tolerance zone; the
+  measured value is a zone width too (see :mod:`shapeverify.characteristics.evaluate`).
+* ``position``: ``tol`` is the diameter of the cylindrical tolerance zone of the axis.
+* ``diameter`` and ``check_point``: ``tol`` is symmetric (±tol); ``lower``/``upper`` give
+  asymmetric limits (deviations, mm).
+
+Lengths in millimetres.
+"""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+from typing import Annotated, Literal, Optional, Union
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+
+from ..errors import ShapeVerifyError
+
+__all__ = ["Plan", "PlanError", "load_plan", "parse_plan", "Tol", "DOF_NAMES"]
+
+#: the six rigid degrees of freedom, in the order of the alignment's parameter vector
+DOF_NAMES = ("rx", "ry", "rz", "tx", "ty", "tz")
+_AXES = ("x", "y", "z")
+
+Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+FeatureId = Annotated[str, Field(pattern=r"^(hole|face|cylinder|plane):\d+$")]
+
+
+class PlanError(ShapeVerifyError, ValueError):
+    """An inspection plan that cannot be read or does not follow the schema.
+
+    The message names the file, line and key (``where``); ``line`` is 1-based or None.
+    """
+
+    def __init__(self, message: str, line: int | None = None, key: str | None = None):
+        super().__init__(message)
+        self.line = line
+        self.key = key
+
+
+class _Strict(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class Tol(_Strict):
+    """Limits of a deviation: ``tol`` (symmetric ±tol, or a zone width, see module doc) or
+    ``lower``/``upper`` (mm)."""
+
+    tol: Optional[float] = Field(default=None, gt=0)
+    lower: Optional[float] = None
+    upper: Optional[float] = None
+
+    @model_validator(mode="after")
+    def _one_form(self):
+        if self.tol is None and (self.lower is None or self.upper is None):
+            raise ValueError("give tol (> 0) or both lower and upper")
+        if self.tol is not None and (self.lower is not None or self.upper is not None):
+            raise ValueError("give either tol or lower/upper, not both")
+        if self.tol is None and not self.lower < self.upper:
+            raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
+        return self
+
+    def limits(self) -> tuple[float, float]:
+        """(lower, upper) of a symmetric tolerance (±tol) or the given limits."""
+        if self.tol is not None:
+            return -self.tol, self.tol
+        return float(self.lower), float(self.upper)
+
+
+# ------------------------------------------------------------------------------ alignments
+class BestFit(_Strict):
+    """Free 6-DOF best fit on all faces or on named faces (a local best fit)."""
+
+    type: Literal["best_fit"]
+    faces: Union[Literal["all"], list[Union[FeatureId, int, str]]] = "all"
+    loss: Literal["tukey", "huber", "cauchy", "welsch", "l2"] = "tukey"
+
+
+class Constrained(_Strict):
+    """Best fit in the free degrees of freedom only; the others stay at the start pose.
+
+    ``free``: names from ``rx ry rz tx ty tz`` (rotations about the model axes through
+    ``center``, translations along them).
+    """
+
+    type: Literal["constrained"]
+    free: list[Literal["rx", "ry", "rz", "tx", "ty", "tz"]] = Field(min_length=1)
+    faces: Union[Literal["all"], list[Union[FeatureId, int, str]]] = "all"
+    center: Vec3 = Field(default_factory=lambda: [0.0, 0.0, 0.0])
+    loss: Literal["tukey", "huber", "cauchy", "welsch", "l2"] = "tukey"
+
+    @field_validator("free")
+    @classmethod
+    def _unique(cls, v):
+        if len(set(v)) != len(v):
+            raise ValueError(f"free lists a degree of freedom twice: {v}")
+        return v
+
+
+class RpsPoint(_Strict):
+    """A reference point: nominal position ``at`` (model frame) and the axes it locks.
+
+    A point at a hole (``feature: hole:N``, or ``at`` within a radius of a hole's centre) is
+    measured as the hole's centre; any other point as the scan's surface at ``at``.
+    """
+
+    at: Vec3
+    lock: list[Literal["x", "y", "z"]] = Field(min_length=1, max_length=3)
+    name: Optional[str] = None
+    feature: Optional[FeatureId] = None
+    radius: Optional[float] = Field(default=None, gt=0)
+
+
+class Rps(_Strict):
+    """RPS alignment: reference points with the axes each one locks (3-2-1 is six locks)."""
+
+    type: Literal["rps"]
+    points: list[RpsPoint] = Field(min_length=1)
+
+    @model_validator(mode="after")
+    def _six(self):
+        n = sum(len(p.lock) for p in self.points)
+        if n < 6:
+            raise ValueError(f"the RPS points lock {n} coordinates; a rigid pose needs at least 6 "
+                             "(3-2-1: lock [z] at three points, [x, y] at one, [y] at another)")
+        return self
+
+
+class Datums(_Strict):
+    """Datum-feature alignment: primary plane, secondary axis/plane, tertiary axis/plane."""
+
+    type: Literal["datums"]
+    primary: FeatureId
+    secondary: FeatureId
+    tertiary: Optional[FeatureId] = None
+
+
+Alignment = Annotated[Union[BestFit, Constrained, Rps, Datums], Field(discriminator="type")]
+
+
+# ------------------------------------------------------------------------------ characteristics
+class _Char(_Strict):
+    name: str = Field(min_length=1)
+
+
+class _Located(_Char):
+    feature: Optional[FeatureId] = None
+    near: Optional[Vec3] = None
+
+    @model_validator(mode="after")
+    def _where(self):
+        if (self.feature is None) == (self.near is None):
+            raise ValueError("give exactly one of feature (e.g. 'hole:3') or near: [x, y, z]")
+        return self
+
+
+class Hole(_Located):
+    """Diameter and/or position of a hole (circular inner trim loop of a face)."""
+
+    type: Literal["hole"]
+    diameter: Optional[Tol] = None
+    position: Optional[Tol] = None
+
+    @model_validator(mode="after")
+    def _something(self):
+        if self.diameter is None and self.position is None:
+            raise ValueError("a hole needs diameter: {tol: ...} and/or position: {tol: ...}")
+        if self.position is not None and self.position.tol is None:
+            raise ValueError("position takes tol (the diameter of the tolerance zone)")
+        return self
+
+
+class SurfaceProfile(_Char, Tol):
+    """Profile of a surface (ISO 1101) of a face group; ``datum: false`` fits the group first."""
+
+    type: Literal["surface_profile"]
+    faces: Union[Literal["all"], list[Union[FeatureId, int, str]]] = "all"
+    datum: bool = True
+
+
+class Flatness(_Located):
+    type: Literal["flatness"]
+    tol: float = Field(gt=0)
+
+
+class Cylinder(_Located):
+    type: Literal["cylinder"]
+    diameter: Tol
+
+
+class CheckPoint(_Char, Tol):
+    """Deviation along the CAD normal at a named point (mean of the scan within ``radius``)."""
+
+    type: Literal["check_point"]
+    at: Vec3
+    radius: float = Field(default=2.0, gt=0)
+
+
+Characteristic = Annotated[Union[Hole, SurfaceProfile, Flatness, Cylinder, CheckPoint],
+                           Field(discriminator="type")]
+
+
+class Section(_Strict):
+    """A cross-section plane for the report: points within ``width``/2 of the plane."""
+
+    point: Vec3
+    normal: Vec3
+    width: float = Field(default=1.0, gt=0)
+    name: str = "section"
+
+
+class Plan(_Strict):
+    """A validated inspection plan (see the module docstring for the YAML form)."""
+
+    units: Literal["mm"] = "mm"
+    part: Optional[str] = None
+    alignment: Alignment = Field(default_factory=lambda: BestFit(type="best_fit"))
+    characteristics: list[Characteristic] = Field(default_factory=list)
+    section: Optional[Section] = None
+    max_distance: Optional[float] = Field(default=None, gt=0)
+    coverage_factor: float = Field(default=2.0, gt=0)
+
+    @model_validator(mode="after")
+    def _unique_names(self):
+        seen = set()
+        for c in self.characteristics:
+            if c.name in seen:
+                raise ValueError(f"characteristic name {c.name!r} is used twice; names must be "
+                                 "unique")
+            seen.add(c.name)
+        return self
+
+    @classmethod
+    def default(cls) -> "Plan":
+        """Today's behaviour without a plan: free best fit, nothing else."""
+        return cls()
+
+
+# ------------------------------------------------------------------------------ YAML with lines
+def _construct(node, path: tuple, lines: dict):
+    """Plain Python data from a YAML node, recording the line of every key path."""
+    lines.setdefault(path, node.start_mark.line + 1)
+    if isinstance(node, yaml.MappingNode):
+        out = {}
+        for k, v in node.value:
+            key = yaml.safe_load(yaml.serialize(k)) if not isinstance(k, yaml.ScalarNode) \
+                else _scalar(k)
+            lines[path + (key,)] = k.start_mark.line + 1
+            out[key] = _construct(v, path + (key,), lines)
+        return out
+    if isinstance(node, yaml.SequenceNode):
+        return [_construct(v, path + (i,), lines) for i, v in enumerate(node.value)]
+    return _scalar(node)
+
+
+_RESOLVER = yaml.SafeLoader
+
+
+def _scalar(node):
+    loader = yaml.SafeLoader("")
+    try:
+        return loader.construct_object(node, deep=True)
+    finally:
+        loader.dispose()
+
+
+def _where(loc: tuple, data, lines: dict) -> tuple[tuple, int | None]:
+    """The data path of a pydantic error location (union tags dropped) and its line."""
+    path, cur = [], data
+    for part in loc:
+        if isinstance(cur, dict) and part in cur:
+            path.append(part)
+            cur = cur[part]
+        elif isinstance(cur, list) and isinstance(part, int) and part < len(cur):
+            path.append(part)
+            cur = cur[part]
+        elif isinstance(cur, dict) and isinstance(part, str) and part not in cur:
+            # a discriminator tag ('hole'), or a missing/extra key: keep it only if it is last
+            if part == loc[-1] and part not in _TAGS:
+                path.append(part)
+            continue
+    for k in range(len(path), -1, -1):
+        if tuple(path[:k]) in lines:
+            return tuple(path), lines[tuple(path[:k])]
+    return tuple(path), None
+
+
+_TAGS = {"best_fit", "constrained", "rps", "datums", "hole", "surface_profile", "flatness",
+         "cylinder", "check_point"}
+
+
+def _key_text(path: tuple) -> str:
+    s = ""
+    for p in path:
+        s += f"[{p}]" if isinstance(p, int) else (f".{p}" if s else str(p))
+    return s or "(top level)"
+
+
+def parse_plan(text: str, source: str = "<plan>") -> Plan:
+    """Validate a plan given as YAML text.
+
+    Parameters
+    ----------
+    text : str
+        The YAML document.
+    source : str
+        Name used in error messages (the file name).
+
+    Returns
+    -------
+    Plan
+
+    Raises
+    ------
+    PlanError
+        YAML syntax errors and schema violations; the message names ``source``, the line and
+        the key, and what was expected.
+
+    Examples
+    --------
+    >>> p = parse_plan("units: mm\\nalignment: {type: best_fit}\\ncharacteristics: []")
+    >>> p.alignment.type
+    'best_fit'
+    """
+    try:
+        node = yaml.compose(text, Loader=yaml.SafeLoader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        line = None if mark is None else mark.line + 1
+        raise PlanError(f"{source}, line {line}: not valid YAML: "
+                        f"{getattr(exc, 'problem', None) or exc}", line=line) from None
+    if node is None:
+        raise PlanError(f"{source}: the plan is empty; it needs at least 'units: mm' and "
+                        "'characteristics: [...]'", line=1)
+    lines: dict = {}
+    data = _construct(node, (), lines)
+    return _validate(data, lines, source)
+
+
+def _validate(data, lines: dict, source: str) -> Plan:
+    if not isinstance(data, dict):
+        raise PlanError(f"{source}, line 1: the plan must be a mapping (key: value lines), got "
+                        f"{type(data).__name__}", line=1)
+    try:
+        return Plan.model_validate(data)
+    except ValidationError as exc:
+        msgs, first_line, first_key = [], None, None
+        for err in exc.errors():
+            path, line = _where(tuple(err["loc"]), data, lines)
+            key = _key_text(path)
+            text = err["msg"]
+            if err["type"] == "extra_forbidden":
+                text = "unknown key (check its spelling; see shapeverify.characteristics.plan)"
+            elif err["type"] == "missing":
+                text = "required key is missing"
+            elif err["type"] == "union_tag_invalid":
+                text = f"unknown type {err.get('input', {}).get('type')!r}: " \
+                       f"expected one of {err.get('ctx', {}).get('expected_tags')}" \
+                    if isinstance(err.get("input"), dict) else text
+            msgs.append(f"{source}, line {line}, key '{key}': {text}")
+            if first_line is None:
+                first_line, first_key = line, key
+        raise PlanError("invalid inspection plan:\n  " + "\n  ".join(msgs), line=first_line,
+                        key=first_key) from None
+
+
+def load_plan(plan) -> Plan:
+    """A :class:`Plan` from a Plan, a dict, a YAML file path or YAML text.
+
+    Raises
+    ------
+    PlanError
+        Unreadable or invalid plan (line and key named).
+    FileNotFoundError
+        A path that does not exist.
+    """
+    if isinstance(plan, Plan):
+        return plan
+    if isinstance(plan, dict):
+        return _validate(plan, {(): 1}, "<plan dict>")
+    if isinstance(plan, (str, os.PathLike)):
+        s = os.fspath(plan)
+        if "\n" not in s and (s.endswith((".yaml", ".yml")) or Path(s).exists()):
+            p = Path(s)
+            if not p.exists():
+                raise FileNotFoundError(2, "no such plan file", s)
+            return parse_plan(p.read_text(), source=p.name)
+        return parse_plan(s)
+    raise PlanError(f"plan must be a Plan, a dict, a YAML file or YAML text, got "
+                    f"{type(plan).__name__}")
