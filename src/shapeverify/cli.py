@@ -1,7 +1,8 @@
 """The ``shapeverify`` command line (the only module that talks to the terminal).
 
 Exit codes of ``shapeverify inspect``: 0 the part passes, 1 it fails the tolerance, 2 error
-(bad input, failed registration, unreadable file). Other commands: 0 success, 2 error.
+(bad input, failed registration, unreadable file), 3 incomplete (not enough of the part was
+seen to decide). Other commands: 0 success, 2 error.
 """
 
 from __future__ import annotations
@@ -13,12 +14,30 @@ import time
 from pathlib import Path
 from typing import List, Optional
 
+import click
 import typer
 from rich.console import Console
 from rich.logging import RichHandler
+from rich.markup import escape
 from rich.table import Table
+from typer.core import TyperGroup
+
+class _GuardedGroup(TyperGroup):
+    """Runs every command so that an unexpected exception (a bug) also ends with exit code 2 and
+    one line -- never exit code 1, which ``inspect`` reserves for "the part fails"."""
+
+    def invoke(self, ctx):
+        try:
+            return super().invoke(ctx)
+        except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException,
+                typer.Exit, typer.Abort):
+            raise
+        except Exception as exc:  # noqa: BLE001 - the last line of defence
+            _internal_error(exc, bool(ctx.meta.get(_VERBOSE_KEY)))
+
 
 app = typer.Typer(
+    cls=_GuardedGroup,
     add_completion=False,
     no_args_is_help=True,
     help="Shape verification of free-form parts against their CAD model. Lengths in mm.",
@@ -26,7 +45,9 @@ app = typer.Typer(
 console = Console(stderr=True)
 out = Console()
 
-EXIT_PASS, EXIT_FAIL, EXIT_ERROR = 0, 1, 2
+EXIT_PASS, EXIT_FAIL, EXIT_ERROR, EXIT_INCOMPLETE = 0, 1, 2, 3
+VERDICT_EXIT = {"pass": EXIT_PASS, "fail": EXIT_FAIL, "error": EXIT_ERROR,
+                "incomplete": EXIT_INCOMPLETE}
 
 
 def _setup_logging(verbose: bool) -> None:
@@ -47,19 +68,53 @@ def _stage(name: str):
 
 
 def _fail(message: str) -> None:
-    console.print(f"[bold red]error:[/bold red] {message}")
+    """Print ``error: MESSAGE`` on one line (no markup, no wrapping) and exit with code 2."""
+    console.print(f"[bold red]error:[/bold red] {escape(' '.join(str(message).split()))}",
+                  soft_wrap=True)
     raise typer.Exit(EXIT_ERROR)
 
 
+def _internal_error(exc: BaseException, verbose: bool) -> None:
+    """An exception that is not one of shapeverify's errors: a bug.  One line and exit code 2;
+    the traceback with ``--verbose``."""
+    if verbose:
+        console.print_exception()
+    what = escape(" ".join(f"{type(exc).__name__}: {exc}".split()))
+    hint = "the traceback is above" if verbose else "run with --verbose for the traceback"
+    console.print(f"[bold red]internal error:[/bold red] {what}, {hint}", soft_wrap=True)
+    raise typer.Exit(EXIT_ERROR)
+
+
+def _raised_by_shapeverify(exc: BaseException) -> bool:
+    """Whether a ValueError was raised by shapeverify's own code (a deliberate message about bad
+    input), not inside numpy, scipy or another library (then it is a bug)."""
+    tb = exc.__traceback__
+    if tb is None:
+        return False
+    while tb.tb_next is not None:
+        tb = tb.tb_next
+    return Path(tb.tb_frame.f_code.co_filename).resolve().is_relative_to(_PACKAGE_DIR)
+
+
+_PACKAGE_DIR = Path(__file__).resolve().parent
+_VERBOSE_KEY = "shapeverify.verbose"
+
+
 def _guard(fn, *args, **kwargs):
-    """Run ``fn``; turn expected input errors into a one-line message and exit code 2."""
+    """Run ``fn``; turn shapeverify's errors (and unreadable or missing files) into a one-line
+    message and exit code 2.  Anything else is a bug and propagates to the command group, which
+    reports it as an internal error (also exit code 2)."""
     from shapeverify.errors import ShapeVerifyError
 
     try:
         return fn(*args, **kwargs)
     except FileNotFoundError as exc:
         _fail(f"{exc.filename or exc}: no such file")
-    except (ShapeVerifyError, ValueError, OSError) as exc:
+    except (ShapeVerifyError, OSError) as exc:
+        _fail(str(exc))
+    except ValueError as exc:  # the library's deliberate "bad input" messages
+        if not _raised_by_shapeverify(exc):
+            raise
         _fail(str(exc))
 
 
@@ -71,7 +126,10 @@ def _require_files(*paths: Path) -> None:
 
 
 @app.callback()
-def _main(verbose: bool = typer.Option(False, "--verbose", "-v", help="Log progress details.")):
+def _main(ctx: typer.Context,
+          verbose: bool = typer.Option(False, "--verbose", "-v",
+                                       help="Log progress details; show the traceback of an internal error.")):
+    ctx.meta[_VERBOSE_KEY] = verbose
     _setup_logging(verbose)
 
 
@@ -143,7 +201,13 @@ def inspect(
     tolerance: Optional[float] = typer.Option(None, help="Symmetric tolerance ±MM"),
     lower: Optional[float] = typer.Option(None, help="Lower limit [mm] (negative: into the material)"),
     upper: Optional[float] = typer.Option(None, help="Upper limit [mm]"),
-    max_distance: Optional[float] = typer.Option(None, help="Points farther from the CAD are not evaluated [mm]"),
+    evaluation_distance: Optional[float] = typer.Option(
+        None, "--evaluation-distance", "--max-distance",
+        help="Scan points farther than this from the CAD are not evaluated [mm] "
+             "(default: max(1 mm, 5 x the tolerance))"),
+    faces: Optional[str] = typer.Option(None, "--faces", help="Inspect only these CAD faces, e.g. '0,3,7' (default: all)"),
+    min_coverage: float = typer.Option(0.4, "--min-coverage", help="Least share of the inspected CAD area that must be seen (0..1); below it the verdict is 'incomplete'"),
+    init: Optional[Path] = typer.Option(None, "--init", help="Start pose T_model_scan: a 4x4 in T.json or T.npy (default: found automatically)"),
     json_path: Optional[Path] = typer.Option(None, "--json", help="Write the result as JSON"),
     report: Optional[Path] = typer.Option(None, "--report", help="Write the HTML report"),
     png: Optional[Path] = typer.Option(None, "--png", help="Write a PNG summary"),
@@ -151,18 +215,20 @@ def inspect(
     db: Optional[Path] = typer.Option(None, "--db", help="Append the result to this SQLite history"),
     part: Optional[str] = typer.Option(None, "--part", help="Part id stored in the history"),
 ):
-    """Register a scan to the model, compute deviations and decide pass/fail.
+    """Register a scan to the model, compute deviations and decide the verdict.
 
-    Exit code: 0 pass, 1 fail, 2 error.
+    Exit code: 0 pass, 1 fail, 2 error, 3 incomplete (not enough of the part seen).
     """
     from shapeverify.pipeline import run_inspection
 
     if tolerance is None and lower is None and upper is None:
         _fail("give --tolerance MM (or --lower/--upper limits in mm)")
-    _require_files(model, scan)
+    _require_files(model, scan, *([init] if init is not None else []))
+    T0 = _guard(_read_init, init) if init is not None else None
     result, outputs = _guard(
-        run_inspection, model, scan, tolerance=tolerance, max_distance=max_distance,
-        lower=lower, upper=upper, json_path=json_path, report_path=report, png_path=png,
+        run_inspection, model, scan, tolerance=tolerance, evaluation_distance=evaluation_distance,
+        lower=lower, upper=upper, faces=faces, min_coverage=min_coverage, init=T0,
+        json_path=json_path, report_path=report, png_path=png,
         colored_path=colored, db_path=db, part=part, stage=_stage)
     _print_result(result)
     for label, path in (("JSON", outputs.json), ("report", outputs.report), ("PNG", outputs.png),
@@ -171,12 +237,33 @@ def inspect(
             out.print(f"{label}: {path}")
     if outputs.record_id is not None:
         out.print(f"history record {outputs.record_id} in {db}")
-    raise typer.Exit({"pass": EXIT_PASS, "fail": EXIT_FAIL}.get(result.verdict, EXIT_ERROR))
+    raise typer.Exit(VERDICT_EXIT.get(result.verdict, EXIT_ERROR))
+
+
+def _read_init(path: Path):
+    """A 4x4 start pose from ``T.json`` (nested list, or {"T_model_scan": [...]}) or ``T.npy``."""
+    try:
+        from shapeverify.registration import read_init
+    except ImportError:                      # pragma: no cover - older registration package
+        read_init = None
+    if read_init is not None:
+        return read_init(path)
+    import json
+
+    import numpy as np
+    if path.suffix.lower() == ".npy":
+        T = np.load(path, allow_pickle=False)
+    else:
+        data = json.loads(path.read_text())
+        T = np.asarray(data.get("T_model_scan") if isinstance(data, dict) else data, dtype=float)
+    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+        raise ValueError(f"{path}: the start pose must be a finite 4x4 matrix, got shape {T.shape}")
+    return T
 
 
 def _print_result(result) -> None:
     d = result.to_dict()
-    colour = {"pass": "green", "fail": "red"}.get(result.verdict, "yellow")
+    colour = {"pass": "green", "fail": "red", "incomplete": "magenta"}.get(result.verdict, "yellow")
     out.print(f"[bold {colour}]verdict: {result.verdict.upper()}[/bold {colour}]")
     for reason in d.get("reasons", []) or []:
         out.print(f"  {reason}")
@@ -193,16 +280,28 @@ def _print_result(result) -> None:
     if reg:
         out.print(f"registration: rms {reg.get('rms', float('nan')):.4f} mm, {reg.get('iterations')} iterations, "
                   f"converged {reg.get('converged')}, inliers {100 * reg.get('inlier_fraction', 0):.1f} %")
+    cov = d.get("coverage")
+    if cov:
+        out.print(f"coverage: {100 * cov['fraction']:.1f} % of the inspected area "
+                  f"({cov['covered_area_mm2']:,.0f} of {cov['area_mm2']:,.0f} mm²; at least "
+                  f"{100 * cov['min_coverage']:.0f} % needed)")
+    ex = d.get("excluded") or {}
+    if any(ex.values()):
+        out.print("not in the statistics: " + ", ".join(f"{v:,} {k.replace('_', ' ')}"
+                                                         for k, v in ex.items() if v))
     regions = d.get("regions") or []
     if regions:
-        rt = Table(title="Defect regions")
-        for col in ("#", "points", "area [mm²]", "extreme [mm]", "centroid [mm]"):
+        rt = Table(title="Regions (most severe first)")
+        for col in ("#", "kind", "points", "area [mm²]", "extreme [mm]", "severity [mm³]", "centroid [mm]"):
             rt.add_column(col)
         for i, r in enumerate(regions[:20]):
             c = r.get("centroid", [0, 0, 0])
-            rt.add_row(str(i + 1), str(r.get("n")), f"{r.get('area', 0):.1f}", f"{r.get('extreme', 0):+.3f}",
+            rt.add_row(str(i + 1), r.get("kind", "deviation"), str(r.get("n")), f"{r.get('area', 0):.1f}",
+                       f"{r.get('extreme', 0):+.3f}", f"{r.get('severity', 0):.3g}",
                        f"({c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f})")
         out.print(rt)
+        if len(regions) > 20:
+            out.print(f"... and {len(regions) - 20} more regions (see the JSON)")
 
 
 @app.command()
@@ -346,7 +445,8 @@ def batch(
 
 
 def main() -> None:  # pragma: no cover - entry point
-    app()
+    """Entry point: run the command line (exit codes in the module docstring)."""
+    app(prog_name="shapeverify")
 
 
 if __name__ == "__main__":  # pragma: no cover

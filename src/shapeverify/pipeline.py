@@ -8,6 +8,7 @@ other's front ends. Each function takes an optional ``stage`` callback, a contex
 from __future__ import annotations
 
 import contextlib
+import dataclasses
 import hashlib
 import logging
 import time
@@ -77,11 +78,16 @@ class InspectionOutputs:
 
 
 def run_inspection(model_path: str | Path, scan_path: str | Path, tolerance: float,
-                   max_distance: float | None = None, lower: float | None = None,
+                   evaluation_distance: float | None = None, lower: float | None = None,
                    upper: float | None = None, json_path=None, report_path=None, png_path=None,
                    colored_path=None, db_path=None, part: str | None = None,
-                   stage: Stage | None = None):
+                   stage: Stage | None = None, *, faces=None, min_coverage: float | None = None,
+                   init=None):
     """Inspect one scan against one model and write the requested outputs.
+
+    ``evaluation_distance``, ``faces``, ``min_coverage`` and ``init`` are passed to
+    :func:`shapeverify.inspect` (None: its defaults). The result carries ``inputs`` (part id,
+    scan and model file names, the model file's SHA-256).
 
     Returns
     -------
@@ -105,16 +111,20 @@ def run_inspection(model_path: str | Path, scan_path: str | Path, tolerance: flo
     out.timings["read_scan_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
+    opts = {} if min_coverage is None else {"min_coverage": min_coverage}
     with stage(f"Registering and inspecting {len(scan):,} points"):
-        result = inspect(prep, scan, tolerance=tolerance, max_distance=max_distance,
-                         lower=lower, upper=upper)
+        result = inspect(prep, scan, tolerance=tolerance, evaluation_distance=evaluation_distance,
+                         lower=lower, upper=upper, faces=faces, init=init, **opts)
     out.timings["inspect_s"] = time.perf_counter() - t0
+    model_hash = file_hash(model_path)
+    result = dataclasses.replace(result, inputs={
+        "part": part, "scan": Path(scan_path).name, "model": Path(model_path).name,
+        "model_sha256": model_hash})
 
     t0 = time.perf_counter()
     if json_path:
         out.json = Path(json_path)
         payload = result.to_dict()
-        payload["files"] = {"model": str(model_path), "scan": str(scan_path)}
         payload["timings"] = {**payload.get("timings", {}), **out.timings}
         out.json.write_text(json.dumps(payload, indent=2))
     if report_path:
@@ -131,6 +141,6 @@ def run_inspection(model_path: str | Path, scan_path: str | Path, tolerance: flo
     if db_path:
         from shapeverify.report.history import HistoryDB
         with HistoryDB(db_path) as db:
-            out.record_id = db.add(result, part=part, model_hash=file_hash(model_path))
+            out.record_id = db.add(result, part=part, model_hash=model_hash)
     out.timings["outputs_s"] = time.perf_counter() - t0
     return result, out

@@ -2,20 +2,24 @@
 statistics and defect regions.
 
 Read in this order: :mod:`.deviations` (scan point -> signed deviation along the CAD normal),
-:mod:`.verdict` (tolerances, statistics, the pass / fail / error rules), :mod:`.regions`
-(connected out-of-tolerance clusters vs measurement outliers), :mod:`.result` and
+:mod:`.verdict` (tolerances, statistics, the pass / fail / error / incomplete rules),
+:mod:`.regions` (connected out-of-tolerance surface vs measurement outliers), :mod:`.material`
+(measured surface where the CAD has none), :mod:`.coverage` (how much was seen), :mod:`.result` and
 :mod:`.inspect` (the whole inspection in one call).
 """
 
-from .deviations import EVALUATED, ON_BOUNDARY, TOO_FAR, Deviations, deviations
-from .inspect import check_scan, inspect, inspect_registered
+from .coverage import MIN_COVERAGE, Coverage, compute_coverage
+from .deviations import EVALUATED, ON_BOUNDARY, OUTSIDE_FACES, TOO_FAR, Deviations, deviations
+from .inspect import check_scan, default_evaluation_distance, inspect, inspect_registered
+from .material import find_material
 from .regions import DefectRegion, Outliers, find_regions
 from .result import InspectionResult
 from .verdict import Statistics, Tolerance, decide, per_face_statistics, statistics
 
 __all__ = [
-    "deviations", "Deviations", "EVALUATED", "TOO_FAR", "ON_BOUNDARY",
-    "inspect", "inspect_registered", "check_scan", "InspectionResult",
+    "deviations", "Deviations", "EVALUATED", "TOO_FAR", "ON_BOUNDARY", "OUTSIDE_FACES",
+    "inspect", "inspect_registered", "check_scan", "default_evaluation_distance", "InspectionResult",
+    "Coverage", "compute_coverage", "MIN_COVERAGE", "find_material",
     "Tolerance", "Statistics", "statistics", "per_face_statistics", "decide",
     "find_regions", "DefectRegion", "Outliers",
 ]

@@ -10,10 +10,11 @@ shared by two faces it is the distance to the edge (the usual "closest distance"
 
 A point is *not evaluated* (value NaN) when
 
-* ``TOO_FAR``: it is farther than ``max_distance`` from the model (background, fixture, gross
+* ``TOO_FAR``: it is farther than the evaluation distance from the model (background, fixture, gross
   outlier), or the closest-point search found no foot point at all;
 * ``ON_BOUNDARY``: its foot point lies on a free edge of the model (the part's outer boundary),
-  i.e. the scan extends past the CAD surface there and the distance says nothing about the shape.
+  i.e. the scan extends past the CAD surface there and the distance says nothing about the shape;
+* ``OUTSIDE_FACES``: its foot point lies on a face that is not inspected (``inspect(faces=...)``).
 
 References
 ----------
@@ -33,11 +34,13 @@ from ..registration.rigid import apply_transform
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["Deviations", "deviations", "EVALUATED", "TOO_FAR", "ON_BOUNDARY", "REASON_NAMES"]
+__all__ = ["Deviations", "deviations", "EVALUATED", "TOO_FAR", "ON_BOUNDARY", "OUTSIDE_FACES",
+           "REASON_NAMES"]
 
 #: Reason codes in :attr:`Deviations.reason`.
-EVALUATED, TOO_FAR, ON_BOUNDARY = 0, 1, 2
-REASON_NAMES = {EVALUATED: "evaluated", TOO_FAR: "too_far", ON_BOUNDARY: "on_boundary"}
+EVALUATED, TOO_FAR, ON_BOUNDARY, OUTSIDE_FACES = 0, 1, 2, 3
+REASON_NAMES = {EVALUATED: "evaluated", TOO_FAR: "too_far", ON_BOUNDARY: "on_boundary",
+                OUTSIDE_FACES: "outside_faces"}
 
 
 @dataclass(frozen=True, repr=False, eq=False)
@@ -51,7 +54,7 @@ class Deviations:
         evaluated.
     evaluated : (N,) bool
     reason : (N,) int8
-        ``EVALUATED`` (0), ``TOO_FAR`` (1) or ``ON_BOUNDARY`` (2).
+        ``EVALUATED`` (0), ``TOO_FAR`` (1), ``ON_BOUNDARY`` (2) or ``OUTSIDE_FACES`` (3).
     face : (N,) int32
         Face of the foot point (triangle index for mesh models, -1 for point-cloud models or when
         no foot point was found).
@@ -61,8 +64,8 @@ class Deviations:
         Outward unit normals at the foot points.
     points_model : (N, 3) float64
         The scan points mapped into model coordinates.
-    max_distance : float
-        Distance limit used for ``TOO_FAR`` (``inf``: none).
+    evaluation_distance : float
+        The limit used for ``TOO_FAR`` (``inf``: none), mm.
     """
 
     values: np.ndarray
@@ -72,7 +75,7 @@ class Deviations:
     foot_points: np.ndarray
     normals: np.ndarray
     points_model: np.ndarray
-    max_distance: float
+    evaluation_distance: float
 
     @property
     def n(self) -> int:
@@ -91,10 +94,32 @@ class Deviations:
     def n_on_boundary(self) -> int:
         return int(np.count_nonzero(self.reason == ON_BOUNDARY))
 
+    @property
+    def n_outside_faces(self) -> int:
+        return int(np.count_nonzero(self.reason == OUTSIDE_FACES))
+
+    @property
+    def max_distance(self) -> float:
+        """Old name of :attr:`evaluation_distance`."""
+        return self.evaluation_distance
+
     def counts(self) -> dict:
-        """``{"evaluated": .., "too_far": .., "on_boundary": ..}`` point counts."""
+        """``{"evaluated": .., "too_far": .., "on_boundary": .., "outside_faces": ..}`` point counts."""
         return {"evaluated": self.n_evaluated, "too_far": self.n_too_far,
-                "on_boundary": self.n_on_boundary}
+                "on_boundary": self.n_on_boundary, "outside_faces": self.n_outside_faces}
+
+    def restricted_to(self, faces) -> "Deviations":
+        """These deviations with the points whose foot lies on a face not in ``faces`` marked
+        ``OUTSIDE_FACES`` (not evaluated)."""
+        outside = self.evaluated & ~np.isin(self.face, np.asarray(list(faces), dtype=np.int32))
+        if not outside.any():
+            return self
+        reason = self.reason.copy()
+        reason[outside] = OUTSIDE_FACES
+        evaluated = reason == EVALUATED
+        return Deviations(_readonly(np.where(evaluated, self.values, np.nan)), _readonly(evaluated),
+                          _readonly(reason), self.face, self.foot_points, self.normals,
+                          self.points_model, self.evaluation_distance)
 
     def __repr__(self) -> str:
         v = self.values[self.evaluated]
@@ -103,7 +128,8 @@ class Deviations:
                 f"on_boundary={self.n_on_boundary}{rng})")
 
 
-def deviations(scan, prep, T_model_scan=None, max_distance: float | None = None) -> Deviations:
+def deviations(scan, prep, T_model_scan=None, evaluation_distance: float | None = None, *,
+               max_distance: float | None = None) -> Deviations:
     """Signed deviation of every scan point from the trimmed CAD surface.
 
     Parameters
@@ -114,9 +140,12 @@ def deviations(scan, prep, T_model_scan=None, max_distance: float | None = None)
         Prepared model; only ``prep.closest(points, exact=True)`` is used.
     T_model_scan : (4, 4) array_like, optional
         Rigid transform from scan to model coordinates (``model = R @ scan + t``); identity if None.
-    max_distance : float, optional
+    evaluation_distance : float, optional
         Points farther than this (mm) from the model are not evaluated (``TOO_FAR``).
-        None: no limit beyond what ``prep.closest`` itself serves.
+        None: no limit. (:func:`shapeverify.inspect` uses
+        :func:`shapeverify.inspection.default_evaluation_distance`.)
+    max_distance : float, optional
+        Old name of ``evaluation_distance`` (deprecated).
 
     Returns
     -------
@@ -126,11 +155,11 @@ def deviations(scan, prep, T_model_scan=None, max_distance: float | None = None)
     ------
     ValueError
         If ``scan`` is not (N, 3) with finite values, ``T_model_scan`` is not a finite 4x4
-        matrix, or ``max_distance`` is not a positive number.
+        matrix, or ``evaluation_distance`` is not a positive number.
 
     Examples
     --------
-    >>> dev = deviations(scan, prep, reg.T_model_scan, max_distance=1.0)   # doctest: +SKIP
+    >>> dev = deviations(scan, prep, reg.T_model_scan, evaluation_distance=1.0)   # doctest: +SKIP
     >>> dev.values[dev.evaluated].std()                                     # doctest: +SKIP
     """
     scan = np.asarray(scan, dtype=np.float64)
@@ -143,16 +172,21 @@ def deviations(scan, prep, T_model_scan=None, max_distance: float | None = None)
     T = np.eye(4) if T_model_scan is None else np.asarray(T_model_scan, dtype=np.float64)
     if T.shape != (4, 4) or not np.all(np.isfinite(T)):
         raise ValueError(f"T_model_scan must be a finite 4x4 matrix, got shape {T.shape}")
-    if max_distance is None:
-        max_distance = np.inf
+    if max_distance is not None:
+        if evaluation_distance is not None:
+            raise ValueError("give evaluation_distance only (max_distance is its old name)")
+        evaluation_distance = max_distance
+    if evaluation_distance is None:
+        evaluation_distance = np.inf
     else:
-        max_distance = float(max_distance)
-        if not max_distance > 0:
-            raise ValueError(f"max_distance must be > 0 mm (or None for no limit), got {max_distance}")
-    return _deviations(scan, prep, T, max_distance)
+        evaluation_distance = float(evaluation_distance)
+        if not evaluation_distance > 0:
+            raise ValueError(f"evaluation_distance must be > 0 mm (or None for no limit), got "
+                             f"{evaluation_distance}")
+    return _deviations(scan, prep, T, evaluation_distance)
 
 
-def _deviations(scan: np.ndarray, prep, T: np.ndarray, max_distance: float) -> Deviations:
+def _deviations(scan: np.ndarray, prep, T: np.ndarray, evaluation_distance: float) -> Deviations:
     """Kernel of :func:`deviations`: trusts its (validated) input."""
     q = apply_transform(T, scan)
     n = q.shape[0]
@@ -160,12 +194,12 @@ def _deviations(scan: np.ndarray, prep, T: np.ndarray, max_distance: float) -> D
         empty3 = np.zeros((0, 3))
         return Deviations(_readonly(np.zeros(0)), _readonly(np.zeros(0, bool)),
                           _readonly(np.zeros(0, np.int8)), _readonly(np.zeros(0, np.int32)),
-                          _readonly(empty3), _readonly(empty3), _readonly(empty3), max_distance)
+                          _readonly(empty3), _readonly(empty3), _readonly(empty3), evaluation_distance)
     near = prep.closest(q, exact=True)
     d = np.asarray(near.distances, dtype=np.float64)
     found = np.isfinite(d)
     reason = np.full(n, EVALUATED, dtype=np.int8)
-    too_far = ~found | (np.abs(np.where(found, d, 0.0)) > max_distance)
+    too_far = ~found | (np.abs(np.where(found, d, 0.0)) > evaluation_distance)
     reason[too_far] = TOO_FAR
     on_boundary = np.asarray(near.on_boundary, dtype=bool) & ~too_far
     reason[on_boundary] = ON_BOUNDARY
@@ -181,5 +215,5 @@ def _deviations(scan: np.ndarray, prep, T: np.ndarray, max_distance: float) -> D
         foot_points=_readonly(np.asarray(near.points, dtype=np.float64)),
         normals=_readonly(np.asarray(near.normals, dtype=np.float64)),
         points_model=_readonly(q),
-        max_distance=max_distance,
+        evaluation_distance=evaluation_distance,
     )

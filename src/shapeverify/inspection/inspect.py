@@ -1,23 +1,31 @@
-"""One inspection: register the scan, compute deviations, statistics, defect regions, verdict."""
+"""One inspection: register the scan, compute deviations, coverage, regions, statistics, verdict."""
 
 from __future__ import annotations
 
 import logging
 import math
 import time
+import warnings
+from dataclasses import dataclass
 
 import numpy as np
 
+from scipy.spatial import cKDTree
+
 from .. import _arrays
 from ..errors import EmptyModelError, ScanError
+from .coverage import MIN_COVERAGE, compute_coverage
 from .deviations import _deviations
-from .regions import MIN_POINTS, find_regions
+from .material import find_material, floating_surfaces
+from .regions import MIN_POINTS, find_regions, median_spacing
 from .result import InspectionResult
-from .verdict import Tolerance, decide, per_face_statistics, statistics
+from .verdict import (MIN_INLIER_FRACTION, Tolerance, decide, per_face_statistics,
+                      statistics)
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["inspect", "inspect_registered", "check_scan", "MIN_SCAN_POINTS"]
+__all__ = ["inspect", "inspect_registered", "check_scan", "default_evaluation_distance",
+           "MIN_SCAN_POINTS"]
 
 #: A rigid registration has six unknowns.
 MIN_SCAN_POINTS = 6
@@ -88,11 +96,28 @@ def _report(progress, stage: str, fraction: float) -> None:
         progress(stage, fraction)
 
 
-def inspect(prep, scan, tolerance=0.2, max_distance: float | None = 1.0, lower=None, upper=None,
-            init=None, register_kwargs: dict | None = None, progress=None, *, per_face=None,
-            min_region_points: int = MIN_POINTS, min_inlier_fraction: float = 0.5,
-            min_evaluated_fraction: float = 0.5) -> InspectionResult:
-    """Register a scan to the model, compute its deviations and decide pass / fail / error.
+def default_evaluation_distance(tolerance) -> float:
+    """The one default of the evaluation distance (mm): ``max(1 mm, 5 x the largest |limit|)``.
+
+    Scan points farther than this from the CAD surface after registration are not evaluated
+    (background, fixtures, gross outliers); dense such points attached to the part become
+    material regions (:mod:`shapeverify.inspection.material`). The API, the CLI, the service
+    and batch all use this rule when no distance is given.
+
+    >>> default_evaluation_distance(0.2), default_evaluation_distance(0.5)
+    (1.0, 2.5)
+    """
+    tol = tolerance if isinstance(tolerance, Tolerance) else Tolerance.from_args(tolerance)
+    return float(max(1.0, 5.0 * tol.max_abs))
+
+
+def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None, lower=None,
+            upper=None, init=None, register_kwargs: dict | None = None, progress=None, *,
+            faces=None, per_face=None, min_coverage: float = MIN_COVERAGE,
+            min_region_points: int = MIN_POINTS,
+            min_inlier_fraction: float = MIN_INLIER_FRACTION, rng=0,
+            max_distance: float | None = None) -> InspectionResult:
+    """Register a scan to the model, compute its deviations and decide the verdict.
 
     Parameters
     ----------
@@ -102,26 +127,35 @@ def inspect(prep, scan, tolerance=0.2, max_distance: float | None = 1.0, lower=N
         Scan points (mm) in the scanner's frame.
     tolerance : float or Tolerance, optional
         Symmetric tolerance ±mm (default 0.2), or a :class:`Tolerance`.
-    max_distance : float, optional
+    evaluation_distance : float, optional
         Scan points farther than this from the CAD surface after registration are not evaluated
-        (background, fixtures). Default 1.0 mm; None: ``max(1 mm, 5 x the largest |limit|)``.
+        (mm). None: :func:`default_evaluation_distance` (``max(1 mm, 5 x the largest |limit|)``).
     lower, upper : float, optional
         Separate signed limits (mm), overriding ``tolerance``: e.g. ``lower=-0.1, upper=0.3``.
-    init : (4, 4) array_like or 'principal-axes', optional
-        Initial ``T_model_scan`` for the registration (None: identity, i.e. the scan is roughly
-        in the model's frame already; 'principal-axes': coarse global alignment).
+    init : (4, 4) array_like or str, optional
+        Initial ``T_model_scan`` for the registration, or a strategy understood by
+        :func:`shapeverify.register` (None: its default).
     register_kwargs : dict, optional
         More arguments for :func:`shapeverify.register` (``method``, ``loss``, ...).
     progress : callable(stage: str, fraction: float), optional
         Called at the start of each stage ('register', 'deviations', 'regions') and with
         ('done', 1.0) at the end.
+    faces : sequence of int, optional
+        The inspected CAD faces (None: all). Points whose closest CAD point lies on another face
+        are not evaluated, and the coverage is measured on these faces only.
     per_face : dict {face: tolerance or (lower, upper)}, optional
         Per-face tolerance overrides.
+    min_coverage : float
+        Least covered share of the inspected area (0..1, default 0.4) for a pass or fail verdict;
+        below it the verdict is 'incomplete' (see :mod:`shapeverify.inspection.coverage`).
     min_region_points : int
-        Smallest out-of-tolerance cluster that counts as a defect (default 5; see
-        :mod:`shapeverify.inspection.regions`).
-    min_inlier_fraction, min_evaluated_fraction : float
-        Below these the verdict is 'error' (see :mod:`shapeverify.inspection.verdict`).
+        Fewest core points of a defect region (default 5; see :mod:`shapeverify.inspection.regions`).
+    min_inlier_fraction : float
+        Below this registration inlier fraction the verdict is 'error' (default 0.25).
+    rng : int or numpy Generator
+        Seed of the registration's random choices (default 0: the same result every run).
+    max_distance : float, optional
+        Old name of ``evaluation_distance`` (deprecated).
 
     Returns
     -------
@@ -131,12 +165,12 @@ def inspect(prep, scan, tolerance=0.2, max_distance: float | None = 1.0, lower=N
     ------
     ScanError
         Empty scan, NaN coordinates, too few points, a unit mismatch with the model (the message
-        says which factor to apply), or a scan that ``init`` (identity if None) places nowhere
-        near the model (bounding boxes more than half the model's size apart).
+        says which factor to apply), or a scan that an explicit ``init`` places nowhere near the
+        model.
     EmptyModelError
         The prepared model has no surface points.
     ValueError
-        Bad tolerance or max_distance.
+        Bad tolerance, evaluation distance, faces or min_coverage.
     RegistrationError
         The registration could not start (from :func:`shapeverify.register`).
 
@@ -149,31 +183,37 @@ def inspect(prep, scan, tolerance=0.2, max_distance: float | None = 1.0, lower=N
 
     t_start = time.perf_counter()
     timings = {}
-    tol, max_distance = _check_limits(tolerance, lower, upper, per_face, max_distance)
+    opts = _options(prep, tolerance, lower, upper, per_face, evaluation_distance, max_distance,
+                    faces, min_coverage, min_region_points, min_inlier_fraction)
     scan = check_scan(scan, _model_size(prep))
-    if init is None or not isinstance(init, str):
+    if init is not None and not isinstance(init, str):
         _check_near(scan, init, getattr(prep, "model", None))
     timings["validate"] = time.perf_counter() - t_start
 
     _report(progress, "register", 0.0)
     t0 = time.perf_counter()
-    reg = register(scan, prep, init=init, **(register_kwargs or {}))
+    kwargs = dict(register_kwargs or {})
+    kwargs.setdefault("rng", rng)
+    if init is not None:
+        kwargs["init"] = init
+    reg = register(scan, prep, **kwargs)
     timings["register"] = time.perf_counter() - t0
     logger.info("registration: rms %.4g mm, %d iterations, converged %s, inliers %.1f %%",
                 reg.rms, reg.iterations, reg.converged, 100 * reg.inlier_fraction)
 
-    result = _evaluate(prep, scan, reg, tol, max_distance, progress, min_region_points,
-                       min_inlier_fraction, min_evaluated_fraction, timings)
+    result = _evaluate(prep, scan, reg, opts, progress, timings)
     timings["total"] = time.perf_counter() - t_start
     logger.info("inspection: %s (%d regions, %d outliers) in %.3f s", result.verdict,
                 len(result.regions), result.outliers.n, timings["total"])
     return result
 
 
-def inspect_registered(prep, scan, registration, tolerance=0.2, max_distance: float | None = 1.0,
-                       lower=None, upper=None, *, per_face=None, min_region_points: int = MIN_POINTS,
-                       min_inlier_fraction: float = 0.5,
-                       min_evaluated_fraction: float = 0.5) -> InspectionResult:
+def inspect_registered(prep, scan, registration, tolerance=0.2,
+                       evaluation_distance: float | None = None, lower=None, upper=None, *,
+                       faces=None, per_face=None, min_coverage: float = MIN_COVERAGE,
+                       min_region_points: int = MIN_POINTS,
+                       min_inlier_fraction: float = MIN_INLIER_FRACTION,
+                       max_distance: float | None = None) -> InspectionResult:
     """:func:`inspect` for a scan that is already registered (``registration.T_model_scan``).
 
     ``registration`` is any object with ``T_model_scan``, ``rms``, ``iterations``, ``converged``,
@@ -183,11 +223,11 @@ def inspect_registered(prep, scan, registration, tolerance=0.2, max_distance: fl
     """
     t_start = time.perf_counter()
     timings = {}
-    tol, max_distance = _check_limits(tolerance, lower, upper, per_face, max_distance)
+    opts = _options(prep, tolerance, lower, upper, per_face, evaluation_distance, max_distance,
+                    faces, min_coverage, min_region_points, min_inlier_fraction)
     scan = check_scan(scan, _model_size(prep))
     timings["validate"] = time.perf_counter() - t_start
-    result = _evaluate(prep, scan, registration, tol, max_distance, None, min_region_points,
-                       min_inlier_fraction, min_evaluated_fraction, timings)
+    result = _evaluate(prep, scan, registration, opts, None, timings)
     timings["total"] = time.perf_counter() - t_start
     return result
 
@@ -218,14 +258,64 @@ def _check_near(scan: np.ndarray, init, model) -> None:
             "init='principal-axes' for a coarse global alignment")
 
 
-def _check_limits(tolerance, lower, upper, per_face, max_distance):
+@dataclass(frozen=True)
+class _Options:
+    """The checked settings of one inspection."""
+
+    tol: Tolerance
+    evaluation_distance: float
+    faces: tuple | None
+    min_coverage: float
+    min_region_points: int
+    min_inlier_fraction: float
+
+
+def _options(prep, tolerance, lower, upper, per_face, evaluation_distance, max_distance, faces,
+             min_coverage, min_region_points, min_inlier_fraction) -> _Options:
     tol = Tolerance.from_args(tolerance, lower, upper, per_face)
-    if max_distance is None:
-        max_distance = max(1.0, 5.0 * tol.max_abs)
-    max_distance = float(max_distance)
-    if not max_distance > 0:
-        raise ValueError(f"max_distance must be > 0 mm, got {max_distance}")
-    return tol, max_distance
+    if max_distance is not None:
+        if evaluation_distance is not None:
+            raise ValueError("give evaluation_distance only (max_distance is its old name)")
+        warnings.warn("inspect(max_distance=) is now called evaluation_distance=",
+                      DeprecationWarning, stacklevel=3)
+        evaluation_distance = max_distance
+    if evaluation_distance is None:
+        evaluation_distance = default_evaluation_distance(tol)
+    try:
+        evaluation_distance = float(evaluation_distance)
+    except (TypeError, ValueError):
+        raise ValueError(f"evaluation_distance must be a number of mm, got {evaluation_distance!r}") from None
+    if not evaluation_distance > 0:
+        raise ValueError(f"evaluation_distance must be > 0 mm, got {evaluation_distance}")
+    if not 0.0 <= float(min_coverage) <= 1.0:
+        raise ValueError(f"min_coverage is a fraction of the inspected area, 0..1; got {min_coverage!r}")
+    return _Options(tol, evaluation_distance, _check_faces(prep, faces), float(min_coverage),
+                    int(min_region_points), float(min_inlier_fraction))
+
+
+def _check_faces(prep, faces) -> tuple | None:
+    if faces is None or (isinstance(faces, str) and faces.strip().lower() == "all"):
+        return None
+    model = getattr(prep, "model", None)
+    n_faces = len(getattr(model, "faces", ()) or ())
+    if n_faces == 0:
+        raise ValueError("faces= names CAD faces, but this model has none (a mesh or point-cloud "
+                         "reference); inspect all of it instead")
+    if isinstance(faces, str):
+        faces = [f for f in faces.replace(",", " ").split() if f]
+    out = []
+    for f in faces:
+        try:
+            i = int(f)
+        except (TypeError, ValueError):
+            raise ValueError(f"faces must be face numbers 0..{n_faces - 1}, got {f!r}") from None
+        if not 0 <= i < n_faces or (not isinstance(f, str) and i != f):
+            raise ValueError(f"face {f!r} does not exist: the model has faces 0..{n_faces - 1} "
+                             "(see `shapeverify info`)")
+        out.append(i)
+    if not out:
+        raise ValueError("faces= is empty; name at least one face, or leave it out to inspect all")
+    return tuple(sorted(set(out)))
 
 
 def _model_size(prep):
@@ -238,38 +328,73 @@ def _model_size(prep):
     return float(model.size) if model is not None and hasattr(model, "size") else None
 
 
-def _evaluate(prep, scan, reg, tol, max_distance, progress, min_region_points,
-              min_inlier_fraction, min_evaluated_fraction, timings) -> InspectionResult:
-    """Deviations, statistics, regions and verdict of a registered scan (trusted input)."""
+def _strings(items) -> list[str]:
+    """``items`` (None, a tuple of str, or an array of them) as a list of str."""
+    return [] if items is None else [str(x) for x in list(items)]
+
+
+def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionResult:
+    """Deviations, coverage, regions, statistics and verdict of a registered scan."""
     _report(progress, "deviations", 0.6)
     t0 = time.perf_counter()
     T = np.asarray(reg.T_model_scan, dtype=np.float64)
-    dev = _deviations(scan, prep, T, max_distance)
+    dev = _deviations(scan, prep, T, opts.evaluation_distance)
+    if opts.faces is not None:
+        dev = dev.restricted_to(opts.faces)
     timings["deviations"] = time.perf_counter() - t0
 
     _report(progress, "regions", 0.9)
     t0 = time.perf_counter()
+    tol = opts.tol
     ev = dev.evaluated
+    ev_feet = dev.foot_points[ev]
+    spacing = (median_spacing(cKDTree(ev_feet, balanced_tree=False, compact_nodes=False), ev_feet)
+               if ev_feet.shape[0] >= 2 else float("nan"))
     within = tol.within(dev.values, dev.face)
-    v_ev = dev.values[ev]
-    f_ev = dev.face[ev]
-    w_ev = within[ev]
-    above_ev = v_ev > 0
-    stats = statistics(v_ev, w_ev, above_ev)
-    per_face_stats = per_face_statistics(v_ev, f_ev, w_ev, above_ev) if v_ev.size else {}
     weights = getattr(reg, "weights", None)
     if weights is not None and np.shape(weights) != (scan.shape[0],):
         weights = None
-    regions, outliers, spacing = find_regions(dev.foot_points, dev.values, ev, within, dev.face,
-                                              dev.normals, weights, min_points=min_region_points)
-    verdict, reasons = decide(reg, dev, regions, min_inlier_fraction=min_inlier_fraction,
-                              min_evaluated_fraction=min_evaluated_fraction)
-    if verdict == "pass" and outliers.n:
-        reasons = (f"{outliers.n} isolated out-of-tolerance points treated as measurement outliers "
-                   f"({outliers.n_low_weight} rejected by the registration)",)
+    regions, outliers, _ = find_regions(dev.foot_points, dev.values, ev, within, dev.face,
+                                        dev.normals, weights, min_points=opts.min_region_points,
+                                        spacing=spacing, limits=tol.limits(dev.face))
+    material = find_material(dev, spacing, tol.upper)
+    regions = sorted(regions + material, key=lambda r: -r.severity)
     timings["regions"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    coverage = compute_coverage(prep, ev_feet, spacing, faces=opts.faces,
+                                model_size=_model_size(prep), min_coverage=opts.min_coverage)
+    timings["coverage"] = time.perf_counter() - t0
+
+    inl = ev.copy()
+    inl[outliers.indices] = False
+    v, f, w = dev.values[inl], dev.face[inl], within[inl]
+    stats = statistics(v, w, v > 0)
+    per_face_stats = per_face_statistics(v, f, w, v > 0) if v.size else {}
+    n_material = int(sum(r.n for r in material))
+    excluded = {"too_far": dev.n_too_far - n_material, "material": n_material,
+                "on_boundary": dev.n_on_boundary, "outside_faces": dev.n_outside_faces,
+                "outliers": outliers.n}
+
+    verdict, reasons, rule = decide(reg, dev, regions, coverage,
+                                    min_inlier_fraction=opts.min_inlier_fraction)
+    notes = []
+    if outliers.n:
+        notes.append(f"{outliers.n} isolated out-of-tolerance points treated as measurement "
+                     f"outliers ({outliers.n_low_weight} rejected by the registration) and left "
+                     "out of the statistics")
+    for fs in floating_surfaces(dev, spacing)[:3]:
+        c = fs["centroid"]
+        notes.append(f"{fs['n']} scan points form a surface {fs['height'][0]:.2f}-{fs['height'][1]:.2f} mm "
+                     f"above the CAD around ({c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f}) mm, beyond the "
+                     f"evaluation distance ({opts.evaluation_distance:g} mm): a reflection or a "
+                     "foreign object? (not evaluated; raise the evaluation distance to evaluate it)")
+    for d in _strings(getattr(reg, "undetermined", ())):
+        notes.append(f"the scan does not fix the pose along: {d} (the deviations do not depend on it)")
+    notes += [f"registration: {w}" for w in _strings(getattr(reg, "warnings", ()))]
     _report(progress, "done", 1.0)
     return InspectionResult(
-        verdict=verdict, reasons=tuple(reasons), registration=reg, deviations=dev,
+        verdict=verdict, reasons=tuple(reasons) + tuple(notes), registration=reg, deviations=dev,
         statistics=stats, per_face=per_face_stats, regions=tuple(regions), outliers=outliers,
-        tolerance=tol, timings=timings, spacing=spacing)
+        tolerance=tol, timings=timings, spacing=spacing, coverage=coverage, rule=rule,
+        excluded=excluded)

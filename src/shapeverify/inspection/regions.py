@@ -1,29 +1,34 @@
-"""Defect regions: connected clusters of out-of-tolerance scan points.
+"""Regions: connected clusters of out-of-tolerance scan points, and measurement outliers.
 
 All neighbourhoods here are taken between *foot points* (the scan points projected onto the CAD
 surface): a spike 1 mm off the surface still has its neighbours around it.
-Out-of-tolerance points are linked when their foot points on the CAD surface are closer than
-``radius = 2.5 x`` the scan's median point spacing and they deviate to the same side (above the
-upper limit / below the lower limit); the connected components of that radius graph
-(``scipy.spatial.cKDTree.query_pairs`` + ``scipy.sparse.csgraph.connected_components``) are the
-candidate regions.
 
-A cluster with fewer than ``min_points`` points (default 5) is *not* a defect but a group of
-**measurement outliers**: a single spike (typically a point the registration gave weight ~ 0)
-or a pair of them cannot be told apart from scanner noise, reflections or dust at the scan's
-density.  Raise ``min_points`` for noisy scanners; lower it for sparse scans.
+**Defect or outlier.**  A defect is a place where the *surface* is out of tolerance, not a few
+points: an out-of-tolerance point is a **core** point when the median deviation of the evaluated
+points around it (its 9 nearest within ``3 x`` the scan's median spacing, itself included) is
+beyond the same limit.  Scattered bad points among good ones (uniform outliers, dust, spikes) are
+never core.  Out-of-tolerance points are linked when their foot points are closer than
+``LINK_FACTOR = 2.5 x`` the spacing and they deviate to the same side; a connected component with
+at least ``min_points`` core points (default 5) is a defect region, every other out-of-tolerance
+point is a measurement outlier (counted, excluded from the statistics, never failing the part).
 
 For each region:
 
 * ``n``: number of points; ``area``: sum over its points of the local surface area per point,
   ``pi r^2 / (number of evaluated scan points within r)`` with ``r = 2 x spacing`` (mm^2);
-* ``extreme``: the extreme signed deviation, estimated robustly: the point of largest
-  neighbourhood-median |deviation| is located, then a quadratic ``d(x, y)`` is fitted by
-  least squares (with 3-sigma spike rejection) to the deviations within ``4 x spacing`` in the
-  tangent plane there and its extremum (or its value at the point) is taken.  This averages out scanner noise that would bias
-  the single largest value outwards; ``extreme_raw`` is that single largest measured value;
+* ``extreme``: the signed deviation at the region's worst point, taken from its neighbourhood so
+  that one noisy point does not set it: the core point of largest neighbourhood-median
+  |deviation| is located, a quadratic ``d(x, y)`` is fitted by least squares (3-sigma spike
+  rejection) to the deviations within ``4 x spacing`` in the tangent plane there, and its
+  extremum is taken when it lies beyond the region's limit, the neighbourhood median otherwise.
+  ``extreme`` therefore always lies outside the tolerance, on the region's side;
+  ``extreme_raw`` is the single largest measured value (same side, at least as large);
+* ``severity``: the out-of-tolerance volume ``sum_i a_i (|d_i| - |limit_i|)`` (mm^3) over the
+  region's points (``a_i`` the area per point): large and far-out regions first.  Regions are
+  returned most severe first, so a real dent comes before specks in a reflection;
 * ``centroid``: mean of its foot points (model coordinates, mm); ``extreme_point``: where the
-  extreme is, on the CAD surface's tangent plane; ``faces``: CAD faces it touches.
+  extreme is, on the CAD surface's tangent plane; ``faces``: CAD faces it touches;
+* ``kind``: ``"deviation"`` here; :mod:`.material` adds ``"material"`` regions.
 """
 
 from __future__ import annotations
@@ -51,7 +56,11 @@ LOW_WEIGHT = 1e-3
 
 @dataclass(frozen=True, eq=False)
 class DefectRegion:
-    """One connected out-of-tolerance region (mm, model coordinates)."""
+    """One connected region that fails the part (mm, model coordinates).
+
+    ``kind`` is ``"deviation"`` (out-of-tolerance surface, this module) or ``"material"``
+    (scan surface where the CAD has none, :mod:`shapeverify.inspection.material`).
+    """
 
     n: int
     area: float
@@ -62,16 +71,32 @@ class DefectRegion:
     faces: tuple
     side: str                 # 'above' (material added) or 'below' (material missing)
     indices: np.ndarray       # scan point indices
+    severity: float = 0.0     # out-of-tolerance volume, mm^3
+    kind: str = "deviation"
 
     def to_dict(self) -> dict:
-        return {"n": self.n, "area": self.area, "extreme": self.extreme,
-                "extreme_raw": self.extreme_raw, "centroid": [float(c) for c in self.centroid],
+        return {"kind": self.kind, "n": self.n, "area": self.area, "extreme": self.extreme,
+                "extreme_raw": self.extreme_raw, "severity": self.severity,
+                "centroid": [float(c) for c in self.centroid],
                 "extreme_point": [float(c) for c in self.extreme_point],
                 "faces": [int(f) for f in self.faces], "side": self.side}
 
+    def describe(self) -> str:
+        """One line for a reason or a label, e.g. 'dent: 120 points, 95.2 mm², -0.412 mm ...'."""
+        c = self.centroid
+        what = ("material where the CAD has none" if self.kind == "material" else
+                "material added" if self.side == "above" else "material missing")
+        at = f"({c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f})"
+        faces = ", ".join(str(f) for f in self.faces[:5]) + (" ..." if len(self.faces) > 5 else "")
+        dist = (f"up to {self.extreme:.3f} mm from the CAD surface" if self.kind == "material"
+                else f"extreme {self.extreme:+.3f} mm")
+        return (f"{what}: {self.n} points, {self.area:.1f} mm², {dist} at {at} mm"
+                + (f" on face(s) {faces}" if faces else ""))
+
     def __repr__(self) -> str:
         c = self.centroid
-        return (f"DefectRegion(n={self.n}, area={self.area:.2f} mm², extreme={self.extreme:+.4f} mm, "
+        return (f"DefectRegion(kind={self.kind!r}, n={self.n}, area={self.area:.2f} mm², "
+                f"extreme={self.extreme:+.4f} mm, severity={self.severity:.3g} mm³, "
                 f"centroid=({c[0]:.2f}, {c[1]:.2f}, {c[2]:.2f}), faces={self.faces}, side={self.side!r})")
 
 
@@ -111,7 +136,7 @@ def median_spacing(tree: cKDTree, points: np.ndarray, max_samples: int = 1500) -
 def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
                  within: np.ndarray, face: np.ndarray, normals: np.ndarray,
                  weights: np.ndarray | None = None, min_points: int = MIN_POINTS,
-                 spacing: float | None = None):
+                 spacing: float | None = None, limits=None):
     """Cluster out-of-tolerance points into defect regions and measurement outliers.
 
     Parameters
@@ -132,11 +157,15 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
         Smallest cluster that counts as a defect region.
     spacing : float, optional
         Median point spacing (mm); estimated from the evaluated points if None.
+    limits : ((N,) float64, (N,) float64), optional
+        Per-point lower and upper limits (mm), e.g. from :meth:`Tolerance.limits`; they decide
+        which points are core points and the severity. None: just inside the smallest
+        out-of-tolerance deviation on each side.
 
     Returns
     -------
     regions : list of DefectRegion
-        Sorted by |extreme|, largest first.
+        Most severe first (see the module docstring).
     outliers : Outliers
     spacing : float
         The point spacing used (NaN if it could not be estimated and was not needed).
@@ -154,30 +183,55 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
         # A single evaluated point (or all coincident): nothing can be connected.
         low = _low_weight(weights, out_idx)
         return [], Outliers(out_idx, low), float(spacing)
+    if limits is None:           # the tightest limits consistent with ``within``
+        v_out = values[out_idx]
+        hi = v_out[v_out > 0].min(initial=np.inf)
+        lo = v_out[v_out <= 0].max(initial=-np.inf)
+        limits = (np.full(values.shape, np.nextafter(lo, 0.0)), np.full(values.shape, np.nextafter(hi, 0.0)))
+    lo_lim, hi_lim = limits
 
-    radius = LINK_FACTOR * spacing
     p_out = points[out_idx]
     above = values[out_idx] > 0
-    pairs = cKDTree(p_out).query_pairs(radius, output_type="ndarray")
+    med = _neighbourhood_median(tree, ev_idx, values, p_out, 3.0 * spacing)
+    with np.errstate(invalid="ignore"):
+        core = np.where(above, med > hi_lim[out_idx], med < lo_lim[out_idx])
+
+    pairs = cKDTree(p_out).query_pairs(LINK_FACTOR * spacing, output_type="ndarray")
     if pairs.size:
         pairs = pairs[above[pairs[:, 0]] == above[pairs[:, 1]]]
     m = out_idx.size
     graph = coo_matrix((np.ones(pairs.shape[0], np.int8), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
     n_comp, labels = connected_components(graph, directed=False)
-    sizes = np.bincount(labels, minlength=n_comp)
+    n_core = np.bincount(labels, weights=core.astype(np.float64), minlength=n_comp)
 
-    small = sizes[labels] < min_points
+    small = n_core[labels] < min_points
     outliers = Outliers(out_idx[small], _low_weight(weights, out_idx[small]))
 
     regions = []
     r_area = 2.0 * spacing
-    for comp in np.flatnonzero(sizes >= min_points):
-        idx = out_idx[labels == comp]
-        regions.append(_describe(idx, points, values, face, normals, tree, ev_idx, spacing, r_area))
-    regions.sort(key=lambda r: -abs(r.extreme))
+    for comp in np.flatnonzero(n_core >= min_points):
+        sel = labels == comp
+        regions.append(_describe(out_idx[sel], med[sel], core[sel], points, values, face, normals,
+                                 tree, ev_idx, spacing, r_area, lo_lim, hi_lim))
+    regions.sort(key=lambda r: (-r.severity, -abs(r.extreme)))
     logger.debug("regions: %d out-of-tolerance points -> %d regions, %d outliers (spacing %.3g mm)",
                  out_idx.size, len(regions), outliers.n, spacing)
     return regions, outliers, float(spacing)
+
+
+def _neighbourhood_median(tree, ev_idx, values, p, radius, k: int = 9) -> np.ndarray:
+    """Median deviation of the (up to) ``k`` nearest evaluated points within ``radius`` of each
+    row of ``p`` (itself included when ``p`` are evaluated foot points); the point's own nearest
+    value when fewer than 3 neighbours are found."""
+    kk = min(k, ev_idx.size)
+    d, j = tree.query(p, k=kk, distance_upper_bound=radius)
+    d = d.reshape(len(p), kk)
+    j = j.reshape(len(p), kk)
+    ok = np.isfinite(d)
+    v = np.where(ok, values[ev_idx[np.minimum(j, ev_idx.size - 1)]], np.nan)
+    with np.errstate(all="ignore"):
+        med = np.nanmedian(np.where(ok.sum(axis=1, keepdims=True) >= 3, v, v[:, :1]), axis=1)
+    return med
 
 
 def _low_weight(weights, idx):
@@ -186,30 +240,33 @@ def _low_weight(weights, idx):
     return np.asarray(weights)[idx] < LOW_WEIGHT
 
 
-def _describe(idx, points, values, face, normals, tree, ev_idx, spacing, r_area) -> DefectRegion:
-    """Size, area, robust extreme and position of one region (scan indices ``idx``)."""
+def _describe(idx, med, core, points, values, face, normals, tree, ev_idx, spacing, r_area,
+              lo_lim, hi_lim) -> DefectRegion:
+    """Size, area, severity, extreme and position of one region (scan indices ``idx``)."""
     p = points[idx]
     v = values[idx]
     counts = tree.query_ball_point(p, r_area, return_length=True)
-    area = float(np.sum(np.pi * r_area ** 2 / np.maximum(counts, 1)))
-    k_raw = int(np.argmax(np.abs(v)))
-    extreme_raw = float(v[k_raw])
+    a = np.pi * r_area ** 2 / np.maximum(counts, 1)
+    area = float(np.sum(a))
+    above = bool(v[0] > 0)
+    limit = hi_lim[idx] if above else lo_lim[idx]
+    severity = float(np.sum(a * np.maximum(np.abs(v) - np.abs(limit), 0.0)))
+    extreme_raw = float(v[int(np.argmax(np.abs(v)))])
 
-    # Locate the extreme on neighbourhood medians (robust to spikes) among the most extreme points.
-    cand = np.flatnonzero(np.abs(v) >= np.quantile(np.abs(v), 0.8))
-    if cand.size > 400:
-        cand = cand[np.argsort(-np.abs(v[cand]))[:400]]
-    ev_values = values[ev_idx]
-    nbrs = tree.query_ball_point(p[cand], 2.0 * spacing, return_sorted=False)
-    med = np.array([np.median(ev_values[nb]) if len(nb) >= 5 else 0.0 for nb in nbrs])
-    k = int(cand[np.argmax(np.abs(med))])
+    # The worst core point by its neighbourhood median, refined by a local quadratic.
+    ci = np.flatnonzero(core)
+    k = int(ci[np.argmax(np.abs(med[ci]))])
+    fallback = float(med[k])
     extreme, at = _quadratic_peak(points[idx[k]], normals[idx[k]], tree, ev_idx, points, values,
-                                  4.0 * spacing, float(med[np.argmax(np.abs(med))]))
+                                  4.0 * spacing, fallback)
+    beyond = extreme > limit[k] if above else extreme < limit[k]
+    if not beyond or abs(extreme) > abs(extreme_raw):
+        extreme, at = fallback, points[idx[k]].copy()
     return DefectRegion(
-        n=int(idx.size), area=area, extreme=extreme, extreme_raw=extreme_raw,
+        n=int(idx.size), area=area, extreme=float(extreme), extreme_raw=extreme_raw,
         centroid=p.mean(axis=0), extreme_point=at,
         faces=tuple(int(f) for f in np.unique(face[idx])),
-        side="above" if extreme_raw > 0 else "below", indices=idx)
+        side="above" if above else "below", indices=idx, severity=severity)
 
 
 def _quadratic_peak(center, normal, tree, ev_idx, points, values, radius, fallback):

@@ -32,17 +32,19 @@ class InspectionResult:
 
     Attributes
     ----------
-    verdict : {'pass', 'fail', 'error'}
+    verdict : {'pass', 'fail', 'error', 'incomplete'}
     reasons : tuple of str
-        Why the verdict is 'fail' or 'error' (empty for a clean 'pass').
+        Why: the first names the rule that decided; notes (outliers, undetermined pose
+        directions, registration warnings) follow.
     registration : Registration
         Result of :func:`shapeverify.register` (``T_model_scan``, ``rms``, ``weights``, ...).
     deviations : Deviations
     statistics : Statistics
-        Over all evaluated points.
+        Over the evaluated inliers: evaluated points less the measurement outliers (what the
+        part is); ``excluded`` counts the rest and why.
     per_face : dict {face: Statistics}
     regions : tuple of DefectRegion
-        Largest |extreme| first.
+        Deviation and material regions (``kind``), most severe first.
     outliers : Outliers
         Out-of-tolerance points in no region (measurement outliers).
     tolerance : Tolerance
@@ -50,6 +52,16 @@ class InspectionResult:
     spacing : float
         Median scan point spacing used for the regions (mm; NaN if not needed).
     units : str
+    coverage : Coverage or None
+        How much of the inspected CAD area was seen (:mod:`shapeverify.inspection.coverage`).
+    rule : str
+        The verdict rule that decided (:func:`shapeverify.inspection.decide`).
+    excluded : dict
+        Scan points not in the statistics, by reason: ``too_far``, ``material``,
+        ``on_boundary``, ``outside_faces``, ``outliers``.
+    inputs : dict
+        What was inspected: ``part``, ``scan`` (file name), ``model`` (file), ``model_sha256``
+        when known (set by :mod:`shapeverify.pipeline`).
     """
 
     verdict: str
@@ -64,6 +76,16 @@ class InspectionResult:
     timings: dict = field(default_factory=dict)
     spacing: float = float("nan")
     units: str = "mm"
+    coverage: object = None
+    rule: str = ""
+    excluded: dict = field(default_factory=dict)
+    inputs: dict = field(default_factory=dict)
+
+    @property
+    def decision(self) -> dict:
+        """``{"verdict", "rule", "reason"}``: why the verdict is what it is."""
+        return {"verdict": self.verdict, "rule": self.rule,
+                "reason": self.reasons[0] if self.reasons else ""}
 
     @property
     def T_model_scan(self) -> np.ndarray:
@@ -80,32 +102,41 @@ class InspectionResult:
         msg = getattr(r, "message", None)
         if msg:
             d["message"] = str(msg)
+        for key in ("undetermined", "warnings"):
+            vals = getattr(r, key, None)
+            if vals:
+                d[key] = [str(v) for v in vals]
         return d
 
     def to_dict(self, per_face: bool = True) -> dict:
         """JSON-ready summary (no per-point arrays).
 
-        Keys: ``verdict``, ``reasons``, ``units``, ``T_model_scan`` (4x4 nested list),
-        ``registration`` (rms, iterations, converged, inlier_fraction[, message]),
-        ``deviation`` (n, mean, std, rms, min, max, p05, p95, in_tolerance_fraction, n_above,
-        n_below), ``tolerance`` (lower, upper, symmetric[, tolerance][, per_face]),
-        ``not_evaluated`` (too_far, on_boundary, total), ``n_points``, ``max_distance``,
-        ``regions`` (list), ``outliers`` (n, n_low_weight), ``spacing``, ``timings``
-        (seconds per stage) and, if ``per_face``, ``per_face`` ({face: statistics}).
+        Keys: ``verdict``, ``decision`` (verdict, rule, reason), ``reasons``, ``inputs``
+        (part, scan, model, model_sha256), ``units``, ``T_model_scan`` (4x4 nested list),
+        ``registration`` (rms, iterations, converged, inlier_fraction[, message, undetermined,
+        warnings]), ``deviation`` (statistics of the evaluated inliers: n, mean, std, rms, min,
+        max, p05, p95, in_tolerance_fraction, n_above, n_below), ``tolerance`` (lower, upper,
+        symmetric[, tolerance][, per_face]), ``coverage`` (fraction, area_mm2, per_face, gaps,
+        ...), ``n_points``, ``excluded`` (too_far, material, on_boundary, outside_faces,
+        outliers), ``evaluation_distance``, ``regions`` (list, most severe first, each with
+        ``kind``), ``outliers`` (n, n_low_weight), ``spacing``, ``timings`` (seconds per stage)
+        and, if ``per_face``, ``per_face`` ({face: statistics}).
         """
         dev = self.deviations
         d = {
             "verdict": self.verdict,
+            "decision": self.decision,
             "reasons": list(self.reasons),
+            "inputs": dict(self.inputs),
             "units": self.units,
             "T_model_scan": [[float(v) for v in row] for row in self.T_model_scan],
             "registration": self.registration_dict(),
             "deviation": {k: _num(v) for k, v in self.statistics.to_dict().items()},
             "tolerance": self.tolerance.to_dict(),
+            "coverage": None if self.coverage is None else self.coverage.to_dict(),
             "n_points": dev.n,
-            "not_evaluated": {"too_far": dev.n_too_far, "on_boundary": dev.n_on_boundary,
-                              "total": dev.n - dev.n_evaluated},
-            "max_distance": _num(dev.max_distance),
+            "excluded": {k: int(v) for k, v in self.excluded.items()},
+            "evaluation_distance": _num(dev.evaluation_distance),
             "regions": [{k: (_num(v) if not isinstance(v, (list, str)) else v)
                          for k, v in r.to_dict().items()} for r in self.regions],
             "outliers": self.outliers.to_dict(),
@@ -122,4 +153,6 @@ class InspectionResult:
         return (f"InspectionResult(verdict={self.verdict!r}, n={self.deviations.n}, "
                 f"evaluated={s.n}, mean={s.mean:+.4f}, std={s.std:.4f}, min={s.min:+.4f}, "
                 f"max={s.max:+.4f} {self.units}, regions={len(self.regions)}, "
-                f"outliers={self.outliers.n}, reasons={len(self.reasons)})")
+                f"outliers={self.outliers.n}, coverage="
+                f"{float('nan') if self.coverage is None else self.coverage.fraction:.3f}, "
+                f"rule={self.rule!r})")

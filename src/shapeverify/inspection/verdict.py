@@ -1,18 +1,23 @@
-"""Tolerances, deviation statistics and the pass / fail / error verdict.
+"""Tolerances, deviation statistics and the verdict.
 
-The verdict rules (:func:`decide`), in order:
+The verdict rules (:func:`decide`), in order; the first that applies decides, and its name is
+the result's ``rule``:
 
-1. ``error`` if the registration is not trustworthy: it did not converge, or its inlier
-   fraction is below ``min_inlier_fraction`` (default 0.5);
-2. ``error`` if too few scan points could be evaluated: none at all, or fewer than
-   ``min_evaluated_fraction`` (default 0.5) of the scan (the scan is not of this part, or not
-   where the model is);
-3. ``fail`` if there is at least one defect region (a connected cluster of out-of-tolerance
-   points, see :mod:`shapeverify.inspection.regions`);
-4. ``pass`` otherwise.  Isolated out-of-tolerance points (measurement outliers) are counted and
-   reported but do not fail the part.
+1. ``error`` (rule ``registration``): the registration is not trustworthy: it did not converge,
+   or its inlier fraction is below ``min_inlier_fraction`` (default 0.25);
+2. ``error`` (rule ``no_data``): no scan point lies within the evaluation distance of the
+   inspected CAD faces (wrong scan, wrong model, or a scan nowhere near the part);
+3. ``incomplete`` (rule ``coverage``): less than ``min_coverage`` (default 40 %) of the inspected
+   CAD area has evaluated scan points near it (:mod:`.coverage`). A part that was not seen is never
+   passed and never failed; the reasons say how much was seen, where the largest gap is, and
+   whether out-of-tolerance regions were found in what was seen;
+4. ``fail`` (rule ``regions``): at least one region fails the part: a connected out-of-tolerance
+   surface area (``kind="deviation"``, :mod:`.regions`) or measured material where the CAD has
+   none (``kind="material"``, :mod:`.material`);
+5. ``pass`` (rule ``within_tolerance``) otherwise. Isolated out-of-tolerance points (measurement
+   outliers) are counted and reported but do not fail the part.
 
-A failed registration therefore never gives ``pass``.
+Exit codes of ``shapeverify inspect``: 0 pass, 1 fail, 2 error, 3 incomplete.
 
 References
 ----------
@@ -29,9 +34,11 @@ from typing import Mapping
 import numpy as np
 
 __all__ = ["Tolerance", "Statistics", "statistics", "per_face_statistics", "decide",
-           "VERDICTS"]
+           "VERDICTS", "MIN_INLIER_FRACTION"]
 
-VERDICTS = ("pass", "fail", "error")
+VERDICTS = ("pass", "fail", "error", "incomplete")
+#: Default least inlier fraction of the registration.
+MIN_INLIER_FRACTION = 0.25
 
 
 def _limit(x, name: str) -> float:
@@ -254,21 +261,26 @@ def per_face_statistics(values: np.ndarray, face: np.ndarray, within: np.ndarray
     return out
 
 
-def decide(registration, deviations, regions, *, min_inlier_fraction: float = 0.5,
-           min_evaluated_fraction: float = 0.5) -> tuple[str, tuple[str, ...]]:
-    """The verdict and its reasons (see the module docstring for the rules).
+def decide(registration, deviations, regions, coverage=None, *,
+           min_inlier_fraction: float = MIN_INLIER_FRACTION) -> tuple[str, tuple[str, ...], str]:
+    """The verdict, its reasons and the rule that decided (see the module docstring).
 
     Parameters
     ----------
     registration : object with ``converged``, ``inlier_fraction``, ``iterations``, ``message``
+        (None: the pose was given, nothing to check)
     deviations : Deviations
     regions : sequence of DefectRegion
+        Deviation and material regions, most severe first.
+    coverage : Coverage, optional
+        None: the coverage rule is not applied.
 
     Returns
     -------
-    verdict : {'pass', 'fail', 'error'}
+    verdict : {'pass', 'fail', 'error', 'incomplete'}
     reasons : tuple of str
-        Human-readable reasons (empty list never for 'error' or 'fail').
+        Why; the first says which rule decided.
+    rule : {'registration', 'no_data', 'coverage', 'regions', 'within_tolerance'}
     """
     errors = []
     if registration is not None:
@@ -280,25 +292,35 @@ def decide(registration, deviations, regions, *, min_inlier_fraction: float = 0.
         if not inl >= min_inlier_fraction:
             errors.append(f"registration inlier fraction {100 * inl:.1f} % is below the required "
                           f"{100 * min_inlier_fraction:.0f} % (scan does not match the model)")
+    if errors:
+        return "error", tuple(errors), "registration"
     n, n_eval = deviations.n, deviations.n_evaluated
     if n_eval == 0:
-        errors.append(f"no scan point lies within {deviations.max_distance:g} mm of the model "
-                      f"({deviations.n_too_far} too far, {deviations.n_on_boundary} past the outer boundary)")
-    elif n_eval < min_evaluated_fraction * n:
-        errors.append(f"only {n_eval} of {n} scan points ({100 * n_eval / n:.1f} %) could be evaluated "
-                      f"({deviations.n_too_far} farther than {deviations.max_distance:g} mm, "
-                      f"{deviations.n_on_boundary} past the outer boundary); "
-                      "is this the right scan and model?")
-    if errors:
-        return "error", tuple(errors)
+        return "error", (f"no scan point lies within {deviations.max_distance:g} mm (the evaluation "
+                         f"distance) of the inspected CAD faces ({deviations.n_too_far} of {n} too "
+                         f"far, {deviations.n_on_boundary} past the CAD's edges); is this the right "
+                         "scan and model?",), "no_data"
+    listed = [f"region {i + 1}: {r.describe()}" for i, r in enumerate(regions[:5])]
+    if len(regions) > 5:
+        listed.append(f"... and {len(regions) - 5} more regions")
+    if coverage is not None and not coverage.sufficient:
+        why = (f"incomplete: only {100 * coverage.fraction:.1f} % of the inspected CAD area "
+               f"({coverage.covered_area:.0f} of {coverage.area:.0f} mm²) has evaluated scan points; "
+               f"at least {100 * coverage.min_coverage:.0f} % must be seen to pass or fail the part")
+        gap = coverage.describe_gap()
+        reasons = [why] + ([gap] if gap else [])
+        if regions:
+            reasons.append(f"{len(regions)} region{'s' if len(regions) > 1 else ''} out of tolerance "
+                           "in the part that was seen:")
+            reasons += listed
+        return "incomplete", tuple(reasons), "coverage"
     if regions:
-        reasons = [f"{len(regions)} defect region{'s' if len(regions) > 1 else ''} out of tolerance"]
-        for i, r in enumerate(regions[:5]):
-            c = r.centroid
-            reasons.append(f"region {i + 1}: {r.n} points, {r.area:.1f} mm², extreme {r.extreme:+.3f} mm "
-                           f"at ({c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f}) on face(s) "
-                           f"{', '.join(str(f) for f in r.faces[:5])}")
-        if len(regions) > 5:
-            reasons.append(f"... and {len(regions) - 5} more regions")
-        return "fail", tuple(reasons)
-    return "pass", ()
+        n_mat = sum(1 for r in regions if getattr(r, "kind", "deviation") == "material")
+        n_dev = len(regions) - n_mat
+        parts = ([f"{n_dev} out-of-tolerance region{'s' if n_dev != 1 else ''}"] if n_dev else []) + \
+                ([f"{n_mat} region{'s' if n_mat != 1 else ''} of material the CAD does not have"]
+                 if n_mat else [])
+        return "fail", tuple([f"fail: {' and '.join(parts)} (most severe first)"] + listed), "regions"
+    seen = f"; {100 * coverage.fraction:.1f} % of the inspected area seen" if coverage is not None else ""
+    return "pass", (f"pass: all {n_eval} evaluated points are within tolerance except isolated "
+                    f"measurement outliers{seen}",), "within_tolerance"

@@ -1,0 +1,175 @@
+"""Unexplained material: measured surface where the CAD model has none.
+
+A scan point farther than the evaluation distance from every CAD face is usually background, a
+fixture or a gross outlier, and is not evaluated.  But when many such points form a **dense
+surface attached to the measured part**, the part has material the model does not: a hole that
+was never pierced, an extra flange, an edge left untrimmed.  Such a cluster is a region of
+``kind="material"`` and fails the part.
+
+The rule (all distances in mm, ``s`` = the scan's median point spacing on the part):
+
+1. candidates: points *too far* (farther than the evaluation distance from the CAD) that lie
+   **beside** the CAD rather than above it: their offset from the closest CAD point runs along
+   the surface (within ``MAX_NORMAL_SHARE`` of it along the normal, i.e. their closest CAD point
+   is on an edge: past a hole's rim, past the outline), and points past a free edge within the
+   evaluation distance (``on_boundary``), which bridge a hole's rim.  Points far *above* a face
+   (offset along its normal) are not material the CAD lacks but a surface floating over the
+   part -- a reflection, a foreign object, or a bump beyond the evaluation distance; dense such
+   clusters are reported by :func:`floating_surfaces` as notes, and their points stay excluded;
+2. candidates closer than ``LINK_FACTOR x s`` (in space) are linked; a connected component is a
+   material region when it holds at least ``MIN_MATERIAL_POINTS`` too-far points, is **dense**
+   (at least 80 % of its points have 2 linked neighbours: a surface, not scattered outliers), and
+   **joins the part without a step**: its points within ``LINK_FACTOR x s`` of an evaluated scan
+   point continue that point's surface (median slope ``|offset along the CAD normal| / |offset
+   along the surface|`` at most ``MAX_JOIN_SLOPE``, about 30 degrees).  Material that was never
+   removed continues the part; a surface floating over it with a step at its rim -- a
+   reflection, a foreign object, background -- is not material of the part (its points stay
+   "too far" and are counted as excluded);
+3. its ``extreme`` is the largest distance of its points from the CAD; ``centroid`` the mean of its
+   too-far points (model coordinates: for a missing hole, where the hole should be); ``area`` from
+   the local point density; ``severity`` the volume ``sum a_i (d_i - upper limit)``.
+
+Points over a missing hole within the evaluation distance of the hole's rim are past a free
+edge and so not evaluated either: a hole smaller than twice the evaluation distance leaves no
+too-far points and cannot be found this way (lower the evaluation distance).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.sparse import coo_matrix
+from scipy.sparse.csgraph import connected_components
+from scipy.spatial import cKDTree
+
+from .deviations import ON_BOUNDARY, TOO_FAR
+from .regions import LINK_FACTOR, DefectRegion
+
+__all__ = ["find_material", "floating_surfaces", "MIN_MATERIAL_POINTS"]
+
+#: Fewest too-far points of a material region.
+MIN_MATERIAL_POINTS = 10
+#: Largest median slope (normal / tangential offset) where material joins the part.
+MAX_JOIN_SLOPE = 0.6
+#: Largest share of a candidate's offset from the CAD that may lie along the CAD normal.
+MAX_NORMAL_SHARE = 0.5
+
+
+def find_material(dev, spacing: float, upper_limit: float,
+                  min_points: int = MIN_MATERIAL_POINTS) -> list[DefectRegion]:
+    """Material regions of an inspection (see the module docstring).
+
+    Parameters
+    ----------
+    dev : Deviations
+    spacing : float
+        Median scan point spacing on the part (mm).
+    upper_limit : float
+        The tolerance's upper limit (mm), for the severity.
+    min_points : int
+        Fewest too-far points of a region.
+
+    Returns
+    -------
+    list of DefectRegion
+        ``kind="material"``, most severe first.
+    """
+    if not (np.isfinite(spacing) and spacing > 0):
+        return []
+    too_far = dev.reason == TOO_FAR
+    if np.count_nonzero(too_far) < min_points or dev.n_evaluated == 0:
+        return []
+    beside, dist = _beside(dev)
+    cand = np.flatnonzero((too_far & beside) | (dev.reason == ON_BOUNDARY))
+    if cand.size < min_points:
+        return []
+    link = LINK_FACTOR * spacing
+    p = dev.points_model[cand]
+    tree = cKDTree(p)
+    pairs = tree.query_pairs(link, output_type="ndarray")
+    m = cand.size
+    graph = coo_matrix((np.ones(pairs.shape[0], np.int8), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
+    n_comp, labels = connected_components(graph, directed=False)
+    degree = np.bincount(pairs.ravel(), minlength=m)
+    is_far = (too_far & beside)[cand]
+    n_far = np.bincount(labels, weights=is_far.astype(np.float64), minlength=n_comp)
+    comps = np.flatnonzero(n_far >= min_points)
+    if comps.size == 0:
+        return []
+    ev_idx = np.flatnonzero(dev.evaluated)
+    ev_tree = cKDTree(dev.points_model[ev_idx])
+    r_area = 2.0 * spacing
+    out = []
+    for c in comps:
+        sel = np.flatnonzero(labels == c)
+        if np.mean(degree[sel] >= 2) < 0.8:
+            continue                                       # scattered: outliers, not a surface
+        if not _joins_part(p[sel], ev_tree, ev_idx, dev, link, spacing):
+            continue                                       # detached, or a step: not material
+        far = sel[is_far[sel]]
+        counts = tree.query_ball_point(p[far], r_area, return_length=True)
+        a = np.pi * r_area ** 2 / np.maximum(counts, 1)
+        idx = cand[far]
+        d = dist[idx]
+        k = int(np.argmax(d))
+        out.append(DefectRegion(
+            n=int(idx.size), area=float(a.sum()), extreme=float(d[k]), extreme_raw=float(d[k]),
+            centroid=dev.points_model[idx].mean(axis=0), extreme_point=dev.points_model[idx[k]].copy(),
+            faces=tuple(int(f) for f in np.unique(dev.face[idx]) if f >= 0), side="above",
+            indices=idx, severity=float(np.sum(a * np.maximum(d - abs(upper_limit), 0.0))),
+            kind="material"))
+    out.sort(key=lambda r: -r.severity)
+    return out
+
+
+def _beside(dev):
+    """``(beside (N,) bool, distance (N,))``: offset from the foot point mostly along the surface."""
+    delta = dev.points_model - dev.foot_points
+    with np.errstate(invalid="ignore"):
+        dist = np.linalg.norm(delta, axis=1)
+        along_n = np.abs(np.einsum("ij,ij->i", delta, dev.normals))
+        beside = np.isfinite(dist) & (along_n <= MAX_NORMAL_SHARE * dist)
+    return beside, dist
+
+
+def floating_surfaces(dev, spacing: float, min_points: int = 3 * MIN_MATERIAL_POINTS) -> list[dict]:
+    """Dense clusters of too-far points *above* the CAD faces (offset along the normal).
+
+    Returns ``[{"n", "centroid", "faces", "height": [min, max]}]`` (mm, model frame), largest
+    first: a reflection, a foreign object, or a deviation beyond the evaluation distance.
+    """
+    if not (np.isfinite(spacing) and spacing > 0):
+        return []
+    beside, dist = _beside(dev)
+    idx = np.flatnonzero((dev.reason == TOO_FAR) & ~beside & np.isfinite(dist))
+    if idx.size < min_points:
+        return []
+    p = dev.points_model[idx]
+    pairs = cKDTree(p).query_pairs(LINK_FACTOR * spacing, output_type="ndarray")
+    m = idx.size
+    graph = coo_matrix((np.ones(pairs.shape[0], np.int8), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
+    n_comp, labels = connected_components(graph, directed=False)
+    sizes = np.bincount(labels, minlength=n_comp)
+    out = []
+    for c in np.argsort(-sizes, kind="stable"):
+        if sizes[c] < min_points:
+            break
+        sel = idx[labels == c]
+        out.append({"n": int(sel.size),
+                    "centroid": [float(x) for x in dev.points_model[sel].mean(axis=0)],
+                    "faces": [int(f) for f in np.unique(dev.face[sel]) if f >= 0],
+                    "height": [float(dist[sel].min()), float(dist[sel].max())]})
+    return out
+
+
+def _joins_part(p, ev_tree, ev_idx, dev, link: float, spacing: float) -> bool:
+    """True when the points ``p`` near the evaluated part continue its surface (no step)."""
+    d, j = ev_tree.query(p, k=1, distance_upper_bound=link)
+    near = np.isfinite(d)
+    if not near.any():
+        return False
+    k = ev_idx[j[near]]
+    delta = p[near] - dev.points_model[k]
+    dn = np.abs(np.einsum("ij,ij->i", delta, dev.normals[k]))
+    dt = np.sqrt(np.maximum(np.einsum("ij,ij->i", delta, delta) - dn * dn, 0.0))
+    slope = dn / np.maximum(dt, 0.5 * spacing)
+    return bool(np.median(slope) <= MAX_JOIN_SLOPE)
