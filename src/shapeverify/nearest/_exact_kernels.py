@@ -37,6 +37,7 @@ from numba import njit
 from numba.core import cgutils
 from numba.extending import intrinsic
 
+from . import _patch_kernels
 from ._kernels import frame, prefetch
 
 _MAX_NEWTON = 50
@@ -625,6 +626,7 @@ def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domai
                rev,
                seg_off, x0, y0, x1, y1, a3, b3, sag, free, ch_off, ch_seg, ch_c, ch_r,
                bin_off, bin_lo, bin_hi, bin_inv, bin_start, bin_xy,
+               p_face, p_centre, p_axes, p_half, p_uv, n_lo, n_hi, n_child, n_first, n_count,
                out_foot, out_normal, out_dist, out_face, out_uv, out_onb):
     """Exact closest point on the trimmed faces around each query's nearest model point.
 
@@ -641,6 +643,10 @@ def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domai
     ended on the boundary (the closest point may be across a shared edge), or when their
     candidate point is at most ``spacing`` farther from the query than the nearest model
     point (concave corners, and the rare query whose nearest model point the tree missed).
+    Then every patch of every face (:mod:`shapeverify.nearest.patches`) whose oriented
+    bounding box is closer than the best foot so far is tried too, Newton started at the
+    patch's centre (unless a foot already found on that face lies in the patch's parameter
+    box): the seeds only make the search fast, the bounds make it complete.
     The closest candidate wins; its distance is signed by the face's outward normal.
     """
     n = pt_face.shape[0]
@@ -676,6 +682,24 @@ def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domai
     cf = np.empty(K + 2, dtype=np.int64)
     cj = np.empty(K + 2, dtype=np.int64)
     cd = np.empty(K + 2)
+    n_patch = p_face.shape[0]
+    walk = n_patch > 0
+    pk = np.empty(K + 2 + n_patch, dtype=np.int64)
+    pd = np.empty(K + 2 + n_patch)
+    sf = np.empty(K + 2 + n_patch, dtype=np.int64)
+    su = np.empty(K + 2 + n_patch)
+    sv = np.empty(K + 2 + n_patch)
+    stack = np.empty(_patch_kernels.STACK, dtype=np.int64)
+    searched = np.full(domains.shape[0], -1, dtype=np.int64)
+    p_centre = _borrow(p_centre)
+    p_axes = _borrow(p_axes)
+    p_half = _borrow(p_half)
+    p_uv = _borrow(p_uv)
+    n_lo = _borrow(n_lo)
+    n_hi = _borrow(n_hi)
+    n_child = _borrow(n_child)
+    n_first = _borrow(n_first)
+    n_count = _borrow(n_count)
     max_ch = 1
     for f in range(ch_off.shape[0] - 1):
         max_ch = max(max_ch, ch_off[f + 1] - ch_off[f])
@@ -722,16 +746,54 @@ def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domai
         near = (np.sqrt(cd[0]) + spacing) ** 2
         best = np.inf
         primary_on_edge = False
-        for c in range(nc):
-            f = cf[c]
-            if c > 0 and not primary_on_edge and cd[c] > near:
+        ns = 0
+        nt = nc
+        walked = not walk
+        c = -1
+        while True:
+            c += 1
+            if c == nt:
+                if walked:
+                    break
+                # the patches that can still hold a closer foot
+                walked = True
+                nt = _patch_kernels.candidates(q0, q1, q2, best, p_centre, p_axes, p_half,
+                                               n_lo, n_hi, n_child, n_first, n_count, stack,
+                                               pk, pd, nc)
+                c -= 1
                 continue
-            u, v, d2, edge, D = newton_face(tab, domains, closed, f,
-                                            np.float64(pt_uv[cj[c], 0]),
-                                            np.float64(pt_uv[cj[c], 1]), q0, q1, q2)
+            if c < nc:
+                f = cf[c]
+                if c > 0 and not primary_on_edge and cd[c] > near:
+                    continue
+                us = np.float64(pt_uv[cj[c], 0])
+                vs = np.float64(pt_uv[cj[c], 1])
+            else:
+                k = pk[c]
+                if not pd[c] < best:
+                    continue
+                f = p_face[k]
+                seen = False
+                for r in range(ns):
+                    if (sf[r] == f and p_uv[k, 0] <= su[r] <= p_uv[k, 1]
+                            and p_uv[k, 2] <= sv[r] <= p_uv[k, 3]):
+                        seen = True
+                        break
+                if seen:
+                    continue
+                us = 0.5 * (p_uv[k, 0] + p_uv[k, 1])
+                vs = 0.5 * (p_uv[k, 2] + p_uv[k, 3])
+            u, v, d2, edge, D = newton_face(tab, domains, closed, f, us, vs, q0, q1, q2)
             onb = False
+            sf[ns] = f
+            su[ns] = u
+            sv[ns] = v
+            ns += 1
             if edge or not inside(f, u, v, bin_off, bin_lo, bin_hi, bin_inv, bin_start,
                                   bin_xy):
+                if searched[f] == i:
+                    continue  # this face's boundary was searched for this query already
+                searched[f] = i
                 # the two closest chords of the face's trimming polylines
                 s1, t1, e1, s2, t2, e2 = two_closest_chords(q0, q1, q2, f, a3, b3, ch_off,
                                                             ch_seg, ch_c, ch_r, lb)

@@ -37,12 +37,14 @@ from scipy.spatial import cKDTree
 
 from . import _exact_kernels
 from .dvg import record_views, views
+from .patches import PatchBounds
 
 logger = logging.getLogger(__name__)
 
 __all__ = ["ExactCAD", "ExactMesh", "ExactCloud", "for_model"]
 
 _CHUNK = 16  # trimming segments per bounding sphere in the boundary search
+_PATCH = 4.0  # longest control-polygon edge of a bounded patch / model point spacing
 
 
 def _bins(y0: np.ndarray, y1: np.ndarray, n_bins: int):
@@ -276,6 +278,9 @@ class ExactCAD:
         self.ch_seg = np.array(ch_seg, dtype=np.int64)
         self.ch_c = np.array(ch_c, dtype=np.float64).reshape(-1, 3)
         self.ch_r = np.array(ch_r, dtype=np.float64)
+        # bounds of every face, patch by patch: the search over them makes the answer global
+        self.patches = PatchBounds(faces, self.tab, (self.seg_off, self.x0, self.y0, self.x1,
+                                                     self.y1), _PATCH * self.spacing)
 
     def derivatives(self, faces, uv) -> np.ndarray:
         """Derivatives (N, 3, 3, 3) from the patch tables, ``[:, k, l]`` = d^(k+l)S/du^k dv^l
@@ -294,7 +299,15 @@ class ExactCAD:
                                    self.y0, self.x1, self.y1, self.a3, self.b3, self.sag,
                                    self.free, self.bin_start, self.bin_xy, self.ch_off, self.ch_seg,
                                    self.ch_c, self.ch_r]
-        return int(sum(a.nbytes for a in arrays))
+        return int(sum(a.nbytes for a in arrays)) + self.patches.nbytes
+
+    #: False: try only the faces around the nearest model point (the search before the patch
+    #: bounds; for tests and benchmarks that measure what the bounds change)
+    complete = True
+
+    def _patch_arrays(self):
+        arrays = self.patches.arrays()
+        return arrays if self.complete else tuple(a[:0] for a in arrays)
 
     def refine(self, q, idx, fast, pt_face, pt_uv, aux):
         n = q.shape[0]
@@ -312,8 +325,8 @@ class ExactCAD:
                                   self.ch_off,
                                   self.ch_seg, self.ch_c, self.ch_r, self.bin_off,
                                   self.bin_lo, self.bin_hi, self.bin_inv, self.bin_start,
-                                  self.bin_xy, foot, normal, dist, face, uv,
-                                  onb)
+                                  self.bin_xy, *self._patch_arrays(), foot, normal, dist,
+                                  face, uv, onb)
         return foot, normal, dist, face, uv, onb
 
 

@@ -1,0 +1,246 @@
+"""Bounds of every trimmed CAD face, small patch by small patch, for the exact closest point.
+
+The exact mode (:mod:`shapeverify.nearest.exact`) starts from the faces met around the
+nearest model point; those seeds are almost always right, but a face whose model points are
+not among them (thinned away at a seam, or just beyond the seed's reach) could still hold a
+closer point.  :class:`PatchBounds` makes the search complete: every face is cut into small
+patches with a *rigorous* bound, and after the seeded faces have given a best distance, every
+patch whose bound can still beat it is tried (:func:`shapeverify.nearest._patch_kernels.
+candidates`).
+
+How a patch is bounded
+----------------------
+Each non-empty knot span of a face's NURBS surface is one rational polynomial patch (the
+power tables of :func:`shapeverify.nearest.exact.power_tables`).  It is clipped to the
+parameter box of the face's outer trimming loop and cut into sub-boxes whose control
+polygons are at most ``size`` (mm) long; on each sub-box the polynomial is converted to its
+Bernstein (Bézier) form.  With positive weights, the patch lies in the convex hull of its
+Bézier control points (Piegl & Tiller §3.4, §4.4), hence in their oriented bounding box (axes:
+the net's mean u and v directions and their normal), inflated by a rounding margin.  A trimmed
+face is a subset of its surface, so the bound holds for it too.  Sub-boxes that lie wholly
+outside the trims (no trimming segment crosses them and their centre is outside) are dropped.
+
+The patches are ordered in a bounding-volume hierarchy (median splits, axis-aligned node
+boxes) that the query walks with the best squared distance found so far.
+
+References
+----------
+Piegl & Tiller, The NURBS Book, 2nd ed. (1997), §3.4 and §4.4 (convex hull property),
+eq. (5.38)-(5.41) (power basis and Bernstein form).
+"""
+
+from __future__ import annotations
+
+import logging
+from math import comb
+
+import numpy as np
+
+from . import _patch_kernels
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["PatchBounds"]
+
+_MAX_SUB = 64       # sub-boxes per knot span and direction
+_LEAF = 4           # patches per hierarchy leaf
+
+
+def _binom(n: int) -> np.ndarray:
+    return np.array([[comb(a, k) for k in range(n + 1)] for a in range(n + 1)], dtype=float)
+
+
+def _bernstein_matrices(p: int, s0: np.ndarray, ds: np.ndarray) -> np.ndarray:
+    """(m, p+1, p+1): Bernstein coefficients on [s0, s0 + ds] of the power-basis polynomial
+    ``sum_a c_a s^a`` are ``M @ c``."""
+    C = _binom(p)
+    a = np.arange(p + 1)
+    e = a[None, :] - a[:, None]                     # (k, a): power of s0
+    ok = e >= 0
+    Ck = np.where(ok, C.T, 0.0)                     # C(a, k) at [k, a]
+    A = (Ck[None] * np.where(ok[None], s0[:, None, None] ** np.maximum(e, 0)[None], 0.0)
+         * ds[:, None, None] ** a[None, :, None])
+    Bm = np.where(a[None, :] <= a[:, None], C / C[p][None, :], 0.0)  # [m, k] = C(m,k)/C(p,k)
+    return np.einsum("mk,xka->xma", Bm, A)
+
+
+def _nets(Cs, p, q, us, vs):
+    """Bézier nets of one span's polynomial Cs (p+1, q+1, 4) on the sub-intervals
+    us (X, 2), vs (Y, 2) of its local parameters: (X, Y, p+1, q+1, 4) homogeneous."""
+    Mu = _bernstein_matrices(p, us[:, 0], us[:, 1] - us[:, 0])
+    Mv = _bernstein_matrices(q, vs[:, 0], vs[:, 1] - vs[:, 0])
+    return np.einsum("xma,ylb,abw->xymlw", Mu, Mv, Cs)
+
+
+def _obb(P: np.ndarray, margin: float):
+    """Oriented boxes of control nets P (M, p+1, q+1, 3): (centre (M, 3), axes (M, 3, 3) rows,
+    half extents (M, 3))."""
+    m = P.shape[0]
+    eu = P[:, -1, 0] + P[:, -1, -1] - P[:, 0, 0] - P[:, 0, -1]
+    ev = P[:, 0, -1] + P[:, -1, -1] - P[:, 0, 0] - P[:, -1, 0]
+    axes = np.zeros((m, 3, 3))
+    lu = np.linalg.norm(eu, axis=1)
+    a1 = np.where(lu[:, None] > 0, eu / np.where(lu > 0, lu, 1.0)[:, None], 0.0)
+    n = np.cross(a1, ev)
+    ln = np.linalg.norm(n, axis=1)
+    a3 = np.where(ln[:, None] > 0, n / np.where(ln > 0, ln, 1.0)[:, None], 0.0)
+    a2 = np.cross(a3, a1)
+    good = (lu > 0) & (ln > 1e-12 * (lu * np.linalg.norm(ev, axis=1) + 1e-300))
+    axes[:, 0] = np.where(good[:, None], a1, [1.0, 0.0, 0.0])
+    axes[:, 1] = np.where(good[:, None], a2, [0.0, 1.0, 0.0])
+    axes[:, 2] = np.where(good[:, None], a3, [0.0, 0.0, 1.0])
+    pts = P.reshape(m, -1, 3)
+    ref = pts[:, 0]
+    loc = np.einsum("mkc,mac->mka", pts - ref[:, None], axes)
+    lo = loc.min(axis=1)
+    hi = loc.max(axis=1)
+    mid = 0.5 * (lo + hi)
+    centre = ref + np.einsum("ma,mac->mc", mid, axes)
+    half = 0.5 * (hi - lo) * (1.0 + 1e-9) + margin
+    return centre, axes, half
+
+
+class PatchBounds:
+    """Small patches of every CAD face with oriented bounding boxes, in a hierarchy.
+
+    Parameters
+    ----------
+    faces : sequence of Face
+    tab : power tables of the faces' surfaces (:func:`~shapeverify.nearest.exact.power_tables`)
+    seg : (seg_off (F+1,), x0, y0, x1, y1) trimming segments per face in (u, v)
+    size : float
+        Longest control-polygon edge of a patch (mm); about 4 model point spacings.
+
+    Attributes (patch k, in hierarchy order)
+    ----------------------------------------
+    face (K,) int32, centre (K, 3), axes (K, 3, 3) (rows: unit axes), half (K, 3),
+    uvbox (K, 4) (u0, u1, v0, v1); hierarchy nodes ``node_lo``/``node_hi`` (M, 3),
+    ``node_child`` (M,) (first child, -1 for a leaf), ``node_first``/``node_count`` (M,).
+    """
+
+    def __init__(self, faces, tab, seg, size: float):
+        deg, bu, bu_off, mu, mu_off, bv, bv_off, mv, mv_off, coef, c_off = tab
+        seg_off, x0, y0, x1, y1 = seg
+        ctrl = np.concatenate([f.surface.control.reshape(-1, 3) for f in faces])
+        extent = float(np.abs(ctrl).max()) + 1.0
+        margin = 1e-9 * extent
+        size = float(size)
+        F, Cn, Ax, Hf, UV = [], [], [], [], []
+        n_bad = 0
+        for fi, face in enumerate(faces):
+            p, q = int(deg[fi, 0]), int(deg[fi, 1])
+            b_u = bu[bu_off[fi]:bu_off[fi + 1]]
+            b_v = bv[bv_off[fi]:bv_off[fi + 1]]
+            m_u = mu[mu_off[fi]:mu_off[fi + 1]]
+            m_v = mv[mv_off[fi]:mv_off[fi + 1]]
+            nsu, nsv = b_u.shape[0] - 1, b_v.shape[0] - 1
+            C = coef[c_off[fi]:c_off[fi + 1]].reshape(nsu, nsv, p + 1, q + 1, 4)
+            (ua, ub), (va, vb) = face.surface.domain
+            if len(face.loops) and len(face.loops[0]):
+                lo_l = face.loops[0].min(axis=0)
+                hi_l = face.loops[0].max(axis=0)
+                ua, ub = max(ua, lo_l[0]), min(ub, hi_l[0])
+                va, vb = max(va, lo_l[1]), min(vb, hi_l[1])
+            for i in range(nsu):
+                u0, u1 = max(b_u[i], ua), min(b_u[i + 1], ub)
+                if not u1 > u0 and not (u1 == u0 and nsu == 1):
+                    continue
+                for j in range(nsv):
+                    v0, v1 = max(b_v[j], va), min(b_v[j + 1], vb)
+                    if not v1 > v0 and not (v1 == v0 and nsv == 1):
+                        continue
+                    Cs = C[i, j]
+                    one = _nets(Cs, p, q, np.array([[u0, u1]]) - m_u[i],
+                                np.array([[v0, v1]]) - m_v[j])[0, 0]
+                    w = one[..., 3]
+                    if not np.all(w > 0):
+                        n_bad += 1
+                    P = one[..., :3] / np.where(w > 0, w, 1.0)[..., None]
+                    lu = np.linalg.norm(np.diff(P, axis=0), axis=2).sum(axis=0).max()
+                    lv = np.linalg.norm(np.diff(P, axis=1), axis=2).sum(axis=1).max()
+                    ku = int(np.clip(np.ceil(lu / size), 1, _MAX_SUB))
+                    kv = int(np.clip(np.ceil(lv / size), 1, _MAX_SUB))
+                    tu = np.linspace(u0, u1, ku + 1)
+                    tv = np.linspace(v0, v1, kv + 1)
+                    us = np.column_stack([tu[:-1], tu[1:]])
+                    vs = np.column_stack([tv[:-1], tv[1:]])
+                    nets = _nets(Cs, p, q, us - m_u[i], vs - m_v[j]).reshape(
+                        ku * kv, p + 1, q + 1, 4)
+                    w = nets[..., 3]
+                    P = nets[..., :3] / np.where(w > 0, w, 1.0)[..., None]
+                    c, a, h = _obb(P, margin)
+                    # a non-positive weight voids the convex hull property: never prune it
+                    h[~np.all(w.reshape(w.shape[0], -1) > 0, axis=1)] = np.inf
+                    Cn.append(c)
+                    Ax.append(a)
+                    Hf.append(h)
+                    UV.append(np.column_stack([np.repeat(us, kv, axis=0),
+                                               np.tile(vs, (ku, 1))]))
+                    F.append(np.full(ku * kv, fi, dtype=np.int32))
+        if n_bad:
+            logger.warning("%d knot spans with non-positive weights: their patches are never "
+                           "pruned (slower exact queries)", n_bad)
+        face_id = np.concatenate(F)
+        centre = np.concatenate(Cn)
+        axes = np.concatenate(Ax)
+        half = np.concatenate(Hf)
+        uvbox = np.ascontiguousarray(np.concatenate(UV)[:, [0, 1, 2, 3]])
+        # drop sub-boxes wholly outside the trims
+        keep = np.ones(face_id.shape[0], dtype=np.bool_)
+        centres_uv = np.column_stack([0.5 * (uvbox[:, 0] + uvbox[:, 1]),
+                                      0.5 * (uvbox[:, 2] + uvbox[:, 3])])
+        crossed = np.zeros(face_id.shape[0], dtype=np.bool_)
+        _patch_kernels.crossed_by_trims(face_id, uvbox, seg_off, x0, y0, x1, y1, crossed)
+        for fi, face in enumerate(faces):
+            sel = np.flatnonzero((face_id == fi) & ~crossed)
+            if sel.size and len(face.loops):
+                keep[sel] = np.asarray(face.contains(centres_uv[sel]), dtype=bool)
+        n_all = face_id.shape[0]
+        face_id, centre, axes, half, uvbox = (a[keep] for a in (face_id, centre, axes, half,
+                                                                 uvbox))
+        # hierarchy
+        ext = np.abs(axes).transpose(0, 2, 1) @ half[:, :, None]   # AABB half extents
+        ext = np.where(np.isfinite(half).all(axis=1)[:, None], ext[:, :, 0], np.inf)
+        box_lo = np.ascontiguousarray(centre - ext)
+        box_hi = np.ascontiguousarray(centre + ext)
+        m = face_id.shape[0]
+        cap = 2 * m + 1  # leaves hold >= 2 patches (halves of > _LEAF), so <= m leaves
+        order = np.arange(m, dtype=np.int64)
+        nlo = np.empty((cap, 3))
+        nhi = np.empty((cap, 3))
+        child = np.empty(cap, dtype=np.int64)
+        first = np.empty(cap, dtype=np.int64)
+        count = np.empty(cap, dtype=np.int64)
+        n_nodes = _patch_kernels.build_bvh(np.ascontiguousarray(centre), box_lo, box_hi,
+                                           order, _LEAF, nlo, nhi, child, first, count)
+        self.face = np.ascontiguousarray(face_id[order])
+        self.centre = np.ascontiguousarray(centre[order])
+        self.axes = np.ascontiguousarray(axes[order])
+        self.half = np.ascontiguousarray(half[order])
+        self.uvbox = np.ascontiguousarray(uvbox[order])
+        self.node_lo = nlo[:n_nodes].copy()
+        self.node_hi = nhi[:n_nodes].copy()
+        self.node_child = child[:n_nodes].copy()
+        self.node_first = first[:n_nodes].copy()
+        self.node_count = count[:n_nodes].copy()
+        logger.debug("patch bounds: %d patches (%d outside the trims dropped), %d nodes, "
+                     "size %.4g mm", m, n_all - m, n_nodes, size)
+
+    def __len__(self) -> int:
+        return int(self.face.shape[0])
+
+    def arrays(self) -> tuple:
+        """The arrays the kernels read, in their argument order."""
+        return (self.face, self.centre, self.axes, self.half, self.uvbox, self.node_lo,
+                self.node_hi, self.node_child, self.node_first, self.node_count)
+
+    @property
+    def nbytes(self) -> int:
+        return int(sum(a.nbytes for a in self.arrays()))
+
+    def lower_bounds(self, q) -> np.ndarray:
+        """(N, K) lower bounds of the distance (mm) from each query to each patch (tests)."""
+        q = np.asarray(q, dtype=np.float64).reshape(-1, 3)
+        d = q[:, None, :] - self.centre[None]
+        loc = np.abs(np.einsum("nkc,kac->nka", d, self.axes)) - self.half[None]
+        return np.sqrt((np.maximum(loc, 0.0) ** 2).sum(axis=2))
