@@ -1,0 +1,417 @@
+"""numba kernels for minimum-cost-flow unwrapping (private; they trust their input).
+
+Grid conventions as :mod:`shapeverify.phase._kernels` (flat pixel ``p = i*W + j``; horizontal
+edge ``e = i*(W-1) + j`` joins ``(i, j)``-``(i, j+1)``; vertical edge ``nh + i*W + j`` joins
+``(i, j)``-``(i+1, j)``).  ``jumps[e]`` is the integer ``n[b] - n[a]`` the wrapped gradient implies.
+
+Dual graph (Costantini 1998): node ``v = i*(W-1) + j`` is the elementary loop with top-left pixel
+``(i, j)``; node ``G = (H-1)*(W-1)`` is the ground (everything outside the image).  The loop's
+charge is ``jx(i,j) + jy(i,j+1) - jx(i+1,j) - jy(i,j)`` (integer; equal to the residue of the
+wrapped phase).  A correction ``k`` on horizontal edge ``(i, j)`` adds ``+k`` to loop ``(i, j)``
+and ``-k`` to loop ``(i-1, j)``; on vertical edge ``(i, j)`` it adds ``+k`` to loop ``(i, j-1)``
+and ``-k`` to loop ``(i, j)``.  One unit of flow along a dual arc ``A -> B`` lowers A's charge by
+one and raises B's: flows are the corrections, and the minimum-cost flow that cancels every
+charge is the L1 (weighted) unwrapping.
+
+The solver is successive shortest paths with node potentials (Dijkstra on reduced costs, one unit
+per augmentation from an excess node to the nearest deficit node), exact for the linear
+per-direction costs used here (Ahuja, Magnanti & Orlin 1993, Ch. 9.7).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+TWO_PI = 2.0 * np.pi
+PI = np.pi
+
+
+@njit(cache=True, nogil=True)
+def loop_charges(jumps, H, W):
+    """Integer charge of every elementary loop, plus the ground's balancing charge (last)."""
+    nh = H * (W - 1)
+    M = (H - 1) * (W - 1)
+    q = np.zeros(M + 1, np.int64)
+    tot = 0
+    for i in range(H - 1):
+        for j in range(W - 1):
+            c = (np.int64(jumps[i * (W - 1) + j]) + jumps[nh + i * W + j + 1]
+                 - jumps[(i + 1) * (W - 1) + j] - jumps[nh + i * W + j])
+            q[i * (W - 1) + j] = c
+            tot += c
+    q[M] = -tot
+    return q
+
+
+@njit(cache=True, nogil=True)
+def _arc(v, d, H, W):
+    """Arc ``d`` (0 up, 1 down, 2 left, 3 right) of dual node v: (edge, dk, other node).
+
+    ``dk`` is the change of the edge's correction when one unit flows along the arc.
+    """
+    Wl = W - 1
+    G = (H - 1) * Wl
+    nh = H * Wl
+    i = v // Wl
+    j = v - i * Wl
+    if d == 0:       # across horizontal edge (i, j) to loop (i-1, j)
+        return i * Wl + j, -1, (G if i == 0 else v - Wl)
+    if d == 1:       # across horizontal edge (i+1, j) to loop (i+1, j)
+        return (i + 1) * Wl + j, 1, (G if i + 1 == H - 1 else v + Wl)
+    if d == 2:       # across vertical edge (i, j) to loop (i, j-1)
+        return nh + i * W + j, 1, (G if j == 0 else v - 1)
+    return nh + i * W + j + 1, -1, (G if j + 1 == W - 1 else v + 1)
+
+
+@njit(cache=True, nogil=True)
+def ground_arcs(H, W):
+    """Arcs of the ground node: (edge, dk, other node) for every border edge (int64 (K, 3))."""
+    Wl = W - 1
+    nh = H * Wl
+    K = 2 * Wl + 2 * (H - 1)
+    out = np.empty((K, 3), np.int64)
+    k = 0
+    for j in range(Wl):
+        out[k, 0] = j                              # top row: ground is "up" of loop (0, j)
+        out[k, 1] = 1
+        out[k, 2] = j
+        k += 1
+        out[k, 0] = (H - 1) * Wl + j               # bottom row: ground is "down" of loop (H-2, j)
+        out[k, 1] = -1
+        out[k, 2] = (H - 2) * Wl + j
+        k += 1
+    for i in range(H - 1):
+        out[k, 0] = nh + i * W                     # left column: ground is "left" of loop (i, 0)
+        out[k, 1] = -1
+        out[k, 2] = i * Wl
+        k += 1
+        out[k, 0] = nh + i * W + W - 1             # right column: ground is "right" of (i, W-2)
+        out[k, 1] = 1
+        out[k, 2] = i * Wl + Wl - 1
+        k += 1
+    return out
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _cost(cp, cm, flow, e, dk):
+    """Cost of changing edge e's correction by dk (+-1) given its current net correction."""
+    f = flow[e]
+    if dk > 0:
+        return cp[e] if f >= 0 else -cm[e]
+    return cm[e] if f <= 0 else -cp[e]
+
+
+@njit(cache=True, nogil=True)
+def _heap_push(hk, hv, n, key, val):
+    k = n
+    hk[k] = key
+    hv[k] = val
+    while k > 0:
+        p = (k - 1) >> 1
+        if hk[p] <= hk[k]:
+            break
+        hk[p], hk[k] = hk[k], hk[p]
+        hv[p], hv[k] = hv[k], hv[p]
+        k = p
+    return n + 1
+
+
+@njit(cache=True, nogil=True)
+def _heap_pop(hk, hv, n):
+    key = hk[0]
+    val = hv[0]
+    n -= 1
+    hk[0] = hk[n]
+    hv[0] = hv[n]
+    k = 0
+    while True:
+        c = 2 * k + 1
+        if c >= n:
+            break
+        if c + 1 < n and hk[c + 1] < hk[c]:
+            c += 1
+        if hk[k] <= hk[c]:
+            break
+        hk[c], hk[k] = hk[k], hk[c]
+        hv[c], hv[k] = hv[k], hv[c]
+        k = c
+    return key, val, n
+
+
+@njit(cache=True, nogil=True)
+def _search(s, q, cp, cm, flow, pot, dist, stamp, done, pred_e, pred_d, pred_v, hk, hv, settled,
+            garcs, it, limit, H, W):
+    """One Dijkstra on reduced costs from s; augment one unit to the nearest deficit node.
+
+    Returns the number of settled nodes, or -1 if more than `limit` nodes were settled first
+    (then nothing is changed), or -2 if no deficit is reachable.
+    """
+    G = (H - 1) * (W - 1)
+    cap = hk.shape[0]
+    dist[s] = 0.0
+    stamp[s] = it
+    done[s] = False
+    nheap = _heap_push(hk, hv, 0, 0.0, s)
+    nset = 0
+    t = -1
+    D = 0.0
+    while nheap > 0:
+        du, u, nheap = _heap_pop(hk, hv, nheap)
+        if done[u] or du > dist[u]:
+            continue
+        done[u] = True
+        settled[nset] = u
+        nset += 1
+        if q[u] < 0:
+            t = u
+            D = du
+            break
+        if nset > limit:
+            return -1
+        pu = pot[u]
+        na = garcs.shape[0] if u == G else 4
+        for a in range(na):
+            if u == G:
+                e = garcs[a, 0]
+                dk = garcs[a, 1]
+                v = garcs[a, 2]
+            else:
+                e, dk, v = _arc(u, a, H, W)
+            c = _cost(cp, cm, flow, e, dk) + pu - pot[v]
+            if c < 0.0:
+                c = 0.0          # rounding of the potentials
+            nd = du + c
+            if stamp[v] != it:
+                stamp[v] = it
+                done[v] = False
+            elif done[v] or nd >= dist[v]:
+                continue
+            dist[v] = nd
+            pred_e[v] = e
+            pred_d[v] = dk
+            pred_v[v] = u
+            if nheap >= cap:
+                raise RuntimeError("min_cost_flow: heap overflow")
+            nheap = _heap_push(hk, hv, nheap, nd, v)
+    if t < 0:
+        return -2
+    for k in range(nset):
+        v = settled[k]
+        pot[v] += dist[v] - D
+    v = t
+    while v != s:
+        flow[pred_e[v]] += pred_d[v]
+        v = pred_v[v]
+    q[s] -= 1
+    q[t] += 1
+    return nset
+
+
+@njit(cache=True, nogil=True)
+def min_cost_flow(q, cp, cm, H, W):
+    """Net integer correction per edge that cancels all charges `q` at minimum cost.
+
+    Successive shortest paths with potentials, one unit per path.  The sources are served in
+    passes with a growing limit on the search size (64, 512, ... nodes, then none): near pairs
+    first, far ones last, so that the zero-reduced-cost trees left behind by long paths are
+    crossed by few later searches.  A search stopped by the limit changes nothing (the potentials
+    stay valid), so the result is the exact minimum whatever the order.
+
+    Parameters
+    ----------
+    q : (M+1,) int64
+        Loop charges and the ground's (from :func:`loop_charges`); modified in place (ends 0).
+    cp, cm : (E,) float64 >= 0
+        Cost of a correction of +1 / -1 on each edge.
+
+    Returns
+    -------
+    flow : (E,) int32 net corrections; augmentations : int; settled : int (search work)
+    """
+    M = (H - 1) * (W - 1)
+    N = M + 1
+    E = cp.shape[0]
+    flow = np.zeros(E, np.int32)
+    pot = np.zeros(N)
+    dist = np.empty(N)
+    stamp = np.full(N, -1, np.int64)
+    done = np.zeros(N, np.bool_)
+    pred_e = np.empty(N, np.int64)
+    pred_d = np.empty(N, np.int8)
+    pred_v = np.empty(N, np.int64)
+    garcs = ground_arcs(H, W)
+    cap = 4 * N + garcs.shape[0] + 16
+    hk = np.empty(cap)
+    hv = np.empty(cap, np.int64)
+    settled = np.empty(N, np.int64)
+    n_aug = 0
+    work = 0
+    it = 0
+    limit = 64
+    while True:
+        last = limit >= N
+        lim = N + 1 if last else limit
+        pending = 0
+        for s in range(N):
+            while q[s] > 0:
+                it += 1
+                r = _search(s, q, cp, cm, flow, pot, dist, stamp, done, pred_e, pred_d, pred_v,
+                            hk, hv, settled, garcs, it, lim, H, W)
+                if r == -2:
+                    raise RuntimeError("min_cost_flow: no deficit reachable (charges do not balance)")
+                if r == -1:
+                    work += lim
+                    pending += 1
+                    break
+                work += r
+                n_aug += 1
+        if last or pending == 0:
+            break
+        limit *= 8
+    return flow, n_aug, work
+
+
+@njit(cache=True, nogil=True)
+def _box1(a, r, axis):
+    """Running sum of `a` over 2r+1 samples along `axis` (zero outside)."""
+    h, w = a.shape
+    out = np.empty((h, w))
+    if axis == 1:
+        for i in range(h):
+            s = 0.0
+            for j in range(min(r, w)):
+                s += a[i, j]
+            for j in range(w):
+                if j + r < w:
+                    s += a[i, j + r]
+                if j - r - 1 >= 0:
+                    s -= a[i, j - r - 1]
+                out[i, j] = s
+    else:
+        acc = np.zeros(w)
+        for i in range(min(r, h)):
+            for j in range(w):
+                acc[j] += a[i, j]
+        for i in range(h):
+            if i + r < h:
+                for j in range(w):
+                    acc[j] += a[i + r, j]
+            if i - r - 1 >= 0:
+                for j in range(w):
+                    acc[j] -= a[i - r - 1, j]
+            for j in range(w):
+                out[i, j] = acc[j]
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _box2(a, ri, rj):
+    return _box1(_box1(a, ri, 0), rj, 1)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _angle_diff(br, bi, ar, ai):
+    """angle(b * conj(a)) of two phasor sums."""
+    return np.arctan2(bi * ar - br * ai, br * ar + bi * ai)
+
+
+@njit(cache=True, nogil=True)
+def step_anomaly(psi, mask, b):
+    """Per edge: the phase step across it seen by adjacent boxes, minus the smooth trend.
+
+    Along the axis of the edge (columns for a horizontal edge ``(i, j)-(i, j+1)``, rows for a
+    vertical one) four ``(2b+1)^2`` boxes of ``exp(i psi)`` sit side by side, two on each side:
+    ``A | Bl || Br | C`` with the edge between ``Bl`` and ``Br``.  With ``D`` the phase difference
+    between neighbouring boxes, ``S = W(D(Bl, Br) - median(D(A, Bl), D(Bl, Br), D(Br, C)))``: the
+    median is the local trend (a step that lies between ``A`` and ``Bl`` or ``Br`` and ``C`` is
+    outvoted), so a smooth phase gives ``S ~ 0`` with the noise reduced by the box size, and a
+    discontinuity ``s`` on the edge gives ``W(s)``, falling off over ``2b+1`` pixels on either
+    side.  Boxes are cut at the border; edges with a masked end get NaN.  Returns (E,) float64.
+    """
+    H, W = psi.shape
+    nh = H * (W - 1)
+    c = np.zeros((H, W))
+    s = np.zeros((H, W))
+    for i in range(H):
+        for j in range(W):
+            if mask[i, j]:
+                c[i, j] = np.cos(psi[i, j])
+                s[i, j] = np.sin(psi[i, j])
+    bc = _box2(c, b, b)
+    bs = _box2(s, b, b)
+    out = np.empty(nh + (H - 1) * W)
+    L = 2 * b + 1
+    for axis in range(2):
+        h = H if axis == 0 else H - 1
+        w = W - 1 if axis == 0 else W
+        n_along = W if axis == 0 else H
+        base = 0 if axis == 0 else nh
+        for i in range(h):
+            for j in range(w):
+                e = base + i * w + j
+                i1, j1 = (i, j + 1) if axis == 0 else (i + 1, j)
+                if not (mask[i, j] and mask[i1, j1]):
+                    out[e] = np.nan
+                    continue
+                k0 = j if axis == 0 else i
+                kl = max(k0 - b, 0)
+                kr = min(k0 + 1 + b, n_along - 1)
+                ka = kl - L
+                kc = kr + L
+                if axis == 0:
+                    lr, li, rr, ri = bc[i, kl], bs[i, kl], bc[i, kr], bs[i, kr]
+                else:
+                    lr, li, rr, ri = bc[kl, j], bs[kl, j], bc[kr, j], bs[kr, j]
+                dm = _angle_diff(rr, ri, lr, li)
+                has_a = ka >= 0
+                has_c = kc <= n_along - 1
+                da = 0.0
+                dc = 0.0
+                if has_a:
+                    ar, ai = (bc[i, ka], bs[i, ka]) if axis == 0 else (bc[ka, j], bs[ka, j])
+                    da = _angle_diff(lr, li, ar, ai) * (kr - kl) / L
+                if has_c:
+                    cr, ci = (bc[i, kc], bs[i, kc]) if axis == 0 else (bc[kc, j], bs[kc, j])
+                    dc = _angle_diff(cr, ci, rr, ri) * (kr - kl) / L
+                if not has_a:
+                    da = dc
+                if not has_c:
+                    dc = da
+                if has_a or has_c:
+                    # median of (da, dm, dc)
+                    lo = min(da, dc)
+                    hi = max(da, dc)
+                    med = lo if dm < lo else (hi if dm > hi else dm)
+                else:
+                    med = 0.0
+                d = dm - med
+                out[e] = d - TWO_PI * np.floor((d + PI) / TWO_PI)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def robust_costs(d, w, sigma, log_beta, eps):
+    """Costs of a +1 / -1 correction from anomalies d (NaN = masked edge, cost eps).
+
+    ``c(k) = log(exp(-d^2/2s^2) + beta) - log(exp(-(d + 2 pi k)^2/2s^2) + beta)``: the
+    log-likelihood ratio under a mixture of Gaussian noise (``s = sigma``) and a uniform
+    discontinuity term of weight `beta`; an edge whose anomaly is many sigma off is almost free
+    to cut, a smooth one costs about ``-log(beta)``.  Scaled by the edge weight `w`.
+    """
+    E = d.shape[0]
+    cp = np.empty(E)
+    cm = np.empty(E)
+    s2 = 2.0 * sigma * sigma
+    for e in range(E):
+        x = d[e]
+        if not np.isfinite(x):
+            cp[e] = eps
+            cm[e] = eps
+            continue
+        b0 = np.logaddexp(-x * x / s2, log_beta)
+        yp = x + TWO_PI
+        ym = x - TWO_PI
+        cp[e] = (b0 - np.logaddexp(-yp * yp / s2, log_beta)) * w[e] + eps
+        cm[e] = (b0 - np.logaddexp(-ym * ym / s2, log_beta)) * w[e] + eps
+    return cp, cm
