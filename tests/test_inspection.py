@@ -31,7 +31,12 @@ class PlanePrep:
     def __init__(self, L=100.0, W=60.0):
         self.L, self.W = L, W
         self.model = SimpleNamespace(size=float(np.hypot(L, W)))
-        self.points = SimpleNamespace(points=np.zeros((4, 3)))
+        x, y = np.meshgrid(np.arange(0.5, L, 1.0), np.arange(0.5, W, 1.0))   # model points, 1 mm
+        pts = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
+        self.points = SimpleNamespace(points=pts, face=(pts[:, 0] > L / 2).astype(np.int32),
+                                      spacing=1.0)
+        self.spacing = 1.0
+        self.n_points = len(pts)
         self.calls = []
 
     def closest(self, q, exact=False):
@@ -142,7 +147,7 @@ def test_deviations_values_reasons_and_transform():
     assert np.isnan(dev.values[[2, 3]]).all()
     np.testing.assert_array_equal(dev.reason, [EVALUATED, EVALUATED, TOO_FAR, ON_BOUNDARY,
                                                EVALUATED])
-    assert dev.counts() == {"evaluated": 3, "too_far": 1, "on_boundary": 1}
+    assert dev.counts() == {"evaluated": 3, "too_far": 1, "on_boundary": 1, "outside_faces": 0}
     assert dev.face.tolist()[:2] == [0, 1]
     assert "evaluated=3" in repr(dev) and len(repr(dev)) < 200
     with pytest.raises(ValueError):
@@ -153,7 +158,7 @@ def test_deviations_values_reasons_and_transform():
     (np.zeros((4, 2)), None, None, r"\(N, 3\)"),
     (np.array([[0, 0, np.nan]]), None, None, "NaN"),
     (np.zeros((4, 3)), np.eye(3), None, "4x4"),
-    (np.zeros((4, 3)), None, 0.0, "max_distance"),
+    (np.zeros((4, 3)), None, 0.0, "evaluation_distance"),
 ])
 def test_deviations_rejects_bad_input(scan, T, md, match):
     with pytest.raises(ValueError, match=match):
@@ -200,8 +205,9 @@ def test_small_clusters_are_outliers_and_opposite_sides_are_not_merged():
     v = np.zeros(x.size)
     i = lambda px, py: int(np.flatnonzero((pts[:, 0] == px) & (pts[:, 1] == py))[0])  # noqa: E731
     three = [i(2, 2), i(2.5, 2), i(3, 2)]                                # 3 < min_points
-    block_hi = [i(10 + a, 10 + b) for a in (0, 0.5, 1.0) for b in (0, 0.5)]   # 6 points above
-    block_lo = [i(11.5 + a, 10 + b) for a in (0, 0.5, 1.0) for b in (0, 0.5)]  # 6 adjacent, below
+    steps = (0, 0.5, 1.0, 1.5)
+    block_hi = [i(10 + a, 10 + b) for a in steps for b in steps]    # 4 x 4 points above
+    block_lo = [i(12 + a, 10 + b) for a in steps for b in steps]    # 4 x 4 adjacent, below
     v[three] = 0.5
     v[block_hi] = 0.5
     v[block_lo] = -0.5
@@ -226,16 +232,18 @@ def test_failed_registration_is_error_never_pass():
     assert _inspect_plane(scan, tolerance=0.2).verdict == "pass"
     r = _inspect_plane(scan, tolerance=0.2, converged=False)
     assert r.verdict == "error" and "did not converge" in r.reasons[0]
-    r = _inspect_plane(scan, tolerance=0.2, inlier_fraction=0.3)
-    assert r.verdict == "error" and "inlier fraction 30.0 %" in r.reasons[0]
+    r = _inspect_plane(scan, tolerance=0.2, inlier_fraction=0.2)
+    assert r.verdict == "error" and "inlier fraction 20.0 %" in r.reasons[0]
+    assert r.rule == "registration"
 
 
-def test_scan_mostly_away_from_the_model_is_error():
+def test_scan_mostly_away_from_the_model_is_incomplete_and_wholly_away_is_error():
     rng = np.random.default_rng(2)
     scan, _ = dented_grid(rng, depth=0.0, n_out=0)
-    scan[: int(0.7 * len(scan)), 2] += 5.0          # 70 % of the points 5 mm off
+    scan[scan[:, 0] < 75, 2] += 5.0                 # 3/4 of the part 5 mm off: not seen
     r = _inspect_plane(scan, tolerance=0.2)
-    assert r.verdict == "error" and "could be evaluated" in r.reasons[0]
+    assert r.verdict == "incomplete" and r.rule == "coverage"
+    assert 0.2 < r.coverage.fraction < 0.3 and "of the inspected CAD area" in r.reasons[0]
     scan[:, 2] += 5.0
     r = _inspect_plane(scan, tolerance=0.2)
     assert r.verdict == "error" and "no scan point lies within 1 mm" in r.reasons[0]
@@ -245,12 +253,22 @@ def test_decide_rules_directly():
     dev = SimpleNamespace(n=100, n_evaluated=100, n_too_far=0, n_on_boundary=0, max_distance=1.0)
     ok = SimpleNamespace(converged=True, inlier_fraction=0.9, iterations=5, message="")
     region = SimpleNamespace(n=12, area=3.0, extreme=-0.31, centroid=np.array([1.0, 2, 3]),
-                             faces=(4,))
-    assert decide(ok, dev, []) == ("pass", ())
-    verdict, reasons = decide(ok, dev, [region])
-    assert verdict == "fail" and "extreme -0.310 mm at (1.0, 2.0, 3.0)" in reasons[1]
+                             faces=(4,), kind="deviation",
+                             describe=lambda: "material missing: 12 points, 3.0 mm², extreme "
+                                              "-0.310 mm at (1.0, 2.0, 3.0) mm on face(s) 4")
+    verdict, reasons, rule = decide(ok, dev, [])
+    assert (verdict, rule) == ("pass", "within_tolerance") and reasons[0].startswith("pass:")
+    verdict, reasons, rule = decide(ok, dev, [region])
+    assert (verdict, rule) == ("fail", "regions")
+    assert "extreme -0.310 mm at (1.0, 2.0, 3.0)" in reasons[1]
     bad = SimpleNamespace(converged=False, inlier_fraction=0.9, iterations=100, message="hit max")
-    assert decide(bad, dev, [region])[0] == "error"
+    assert decide(bad, dev, [region])[:3:2] == ("error", "registration")
+    # a part that was not seen is never passed and never failed, even with a region in view
+    unseen = SimpleNamespace(sufficient=False, fraction=0.03, covered_area=30.0, area=1000.0,
+                             min_coverage=0.4, describe_gap=lambda: "the largest unseen area ...")
+    verdict, reasons, rule = decide(ok, dev, [region], unseen)
+    assert (verdict, rule) == ("incomplete", "coverage") and "only 3.0 %" in reasons[0]
+    assert any("region 1" in r for r in reasons)
 
 
 # ----------------------------------------------------------------------------- input checks
@@ -285,16 +303,19 @@ def test_result_to_dict_is_json_with_the_documented_keys():
     res = _inspect_plane(scan, tolerance=0.2)
     assert isinstance(res, InspectionResult)
     d = json.loads(json.dumps(res.to_dict(), allow_nan=False))
-    for key in ("verdict", "T_model_scan", "registration", "deviation", "tolerance", "timings",
-                "regions", "not_evaluated", "units"):
+    for key in ("verdict", "decision", "reasons", "inputs", "coverage", "T_model_scan",
+                "registration", "deviation", "tolerance", "timings", "regions", "excluded",
+                "evaluation_distance", "units"):
         assert key in d
+    assert d["decision"]["rule"] == "regions" and d["regions"][0]["kind"] == "deviation"
+    assert sum(d["excluded"].values()) == d["n_points"] - d["deviation"]["n"]
     assert d["units"] == "mm" and d["verdict"] == "fail"
     assert np.asarray(d["T_model_scan"]).shape == (4, 4)
     assert set(d["registration"]) >= {"rms", "iterations", "converged", "inlier_fraction"}
     assert set(d["deviation"]) >= {"n", "mean", "std", "min", "max", "p05", "p95",
                                    "in_tolerance_fraction"}
-    assert d["deviation"]["n"] == len(scan)
-    assert set(d["regions"][0]) >= {"n", "area", "extreme", "centroid", "faces"}
+    assert d["deviation"]["n"] == len(scan) - d["outliers"]["n"]       # the evaluated inliers
+    assert set(d["regions"][0]) >= {"n", "area", "extreme", "centroid", "faces", "severity"}
     assert d["tolerance"]["tolerance"] == 0.2
     assert "verdict='fail'" in repr(res) and len(repr(res)) < 300
 
@@ -304,6 +325,7 @@ def test_model_without_surface_points_is_rejected():
 
     prep = PlanePrep()
     prep.points = SimpleNamespace(points=np.zeros((0, 3)))
+    prep.n_points = 0
     with pytest.raises(EmptyModelError, match="no surface points"):
         inspect_registered(prep, np.eye(3).repeat(3, axis=0) + np.arange(9)[:, None],
                            fake_registration(9))
@@ -405,7 +427,7 @@ def test_inspect_rejects_metres_far_and_empty_scans(panel_prep, simulated):
     vs, _ = simulated
     with pytest.raises(ScanError, match="multiply its coordinates by 1000"):
         inspect(panel_prep, vs.scan / 1000.0, tolerance=0.2)
-    with pytest.raises(ScanError, match="nowhere near the model"):
-        inspect(panel_prep, vs.scan + [0.0, 0.0, 500.0], tolerance=0.2)
+    with pytest.raises(ScanError, match="nowhere near the model"):     # an explicit start
+        inspect(panel_prep, vs.scan + [0.0, 0.0, 500.0], tolerance=0.2, init=np.eye(4))
     with pytest.raises(ScanError, match="empty"):
         inspect(panel_prep, np.zeros((0, 3)), tolerance=0.2)

@@ -3,14 +3,16 @@
 The verdict rules (:func:`decide`), in order; the first that applies decides, and its name is
 the result's ``rule``:
 
-1. ``error`` (rule ``registration``): the registration is not trustworthy: it did not converge,
-   or its inlier fraction is below ``min_inlier_fraction`` (default 0.25);
-2. ``error`` (rule ``no_data``): no scan point lies within the evaluation distance of the
-   inspected CAD faces (wrong scan, wrong model, or a scan nowhere near the part);
-3. ``incomplete`` (rule ``coverage``): less than ``min_coverage`` (default 40 %) of the inspected
+1. ``error`` (rule ``no_data``): no scan point lies within the evaluation distance of the
+   inspected CAD faces (wrong scan, wrong model, failed registration, or a scan nowhere near the
+   part);
+2. ``incomplete`` (rule ``coverage``): less than ``min_coverage`` (default 40 %) of the inspected
    CAD area has evaluated scan points near it (:mod:`.coverage`). A part that was not seen is never
-   passed and never failed; the reasons say how much was seen, where the largest gap is, and
-   whether out-of-tolerance regions were found in what was seen;
+   passed and never failed; the reasons say how much was seen, where the largest gap is, whether
+   out-of-tolerance regions were found in what was seen, and any registration problem (a small
+   patch often cannot fix the pose: that too is a matter of not having seen enough);
+3. ``error`` (rule ``registration``): the registration is not trustworthy: it did not converge,
+   or its inlier fraction is below ``min_inlier_fraction`` (default 0.25);
 4. ``fail`` (rule ``regions``): at least one region fails the part: a connected out-of-tolerance
    surface area (``kind="deviation"``, :mod:`.regions`) or measured material where the CAD has
    none (``kind="material"``, :mod:`.material`);
@@ -292,14 +294,12 @@ def decide(registration, deviations, regions, coverage=None, *,
         if not inl >= min_inlier_fraction:
             errors.append(f"registration inlier fraction {100 * inl:.1f} % is below the required "
                           f"{100 * min_inlier_fraction:.0f} % (scan does not match the model)")
-    if errors:
-        return "error", tuple(errors), "registration"
     n, n_eval = deviations.n, deviations.n_evaluated
     if n_eval == 0:
         return "error", (f"no scan point lies within {deviations.max_distance:g} mm (the evaluation "
                          f"distance) of the inspected CAD faces ({deviations.n_too_far} of {n} too "
                          f"far, {deviations.n_on_boundary} past the CAD's edges); is this the right "
-                         "scan and model?",), "no_data"
+                         "scan and model?",) + tuple(errors), "no_data"
     listed = [f"region {i + 1}: {r.describe()}" for i, r in enumerate(regions[:5])]
     if len(regions) > 5:
         listed.append(f"... and {len(regions) - 5} more regions")
@@ -308,12 +308,14 @@ def decide(registration, deviations, regions, coverage=None, *,
                f"({coverage.covered_area:.0f} of {coverage.area:.0f} mm²) has evaluated scan points; "
                f"at least {100 * coverage.min_coverage:.0f} % must be seen to pass or fail the part")
         gap = coverage.describe_gap()
-        reasons = [why] + ([gap] if gap else [])
+        reasons = [why] + ([gap] if gap else []) + errors
         if regions:
             reasons.append(f"{len(regions)} region{'s' if len(regions) > 1 else ''} out of tolerance "
                            "in the part that was seen:")
             reasons += listed
         return "incomplete", tuple(reasons), "coverage"
+    if errors:
+        return "error", tuple(errors), "registration"
     if regions:
         n_mat = sum(1 for r in regions if getattr(r, "kind", "deviation") == "material")
         n_dev = len(regions) - n_mat

@@ -31,7 +31,7 @@ logger = logging.getLogger(__name__)
 
 __all__ = ["HistoryDB", "plot_trend", "control_limits", "STAT_COLUMNS"]
 
-SCHEMA_VERSION = 1
+SCHEMA_VERSION = 2     # 2: verdict 'incomplete' allowed
 STAT_COLUMNS = ("n", "mean", "std", "rms", "min", "max", "p05", "p95", "in_tolerance_fraction")
 _ROW_COLUMNS = ("id", "part", "time", "model_hash", "verdict") + STAT_COLUMNS + ("n_regions",)
 
@@ -41,7 +41,7 @@ CREATE TABLE IF NOT EXISTS inspections (
     part TEXT,
     time TEXT NOT NULL,
     model_hash TEXT,
-    verdict TEXT NOT NULL CHECK (verdict IN ('pass', 'fail', 'error')),
+    verdict TEXT NOT NULL CHECK (verdict IN ('pass', 'fail', 'error', 'incomplete')),
     {", ".join(f"{c} {'INTEGER' if c == 'n' else 'REAL'}" for c in STAT_COLUMNS)},
     n_regions INTEGER,
     transform TEXT NOT NULL,
@@ -92,12 +92,24 @@ class HistoryDB:
             logger.warning("%s: SQLite WAL mode unavailable (journal_mode=%s)", self.path, mode)
         self._con.execute("PRAGMA synchronous=NORMAL")
         version = self._con.execute("PRAGMA user_version").fetchone()[0]
-        if version not in (0, SCHEMA_VERSION):
+        if version not in (0, 1, SCHEMA_VERSION):
             raise ValueError(f"{self.path}: history schema version {version} is newer than this "
                              f"shapeverify understands ({SCHEMA_VERSION})")
         with self._con:
+            if version == 1:
+                self._migrate_v1()
             self._con.executescript(_SCHEMA)
             self._con.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+
+    def _migrate_v1(self) -> None:
+        """Version 1 refused the verdict 'incomplete' (a CHECK constraint): copy the rows into
+        a table of the current schema (SQLite cannot alter a constraint in place)."""
+        self._con.execute("ALTER TABLE inspections RENAME TO inspections_v1")
+        self._con.execute("DROP INDEX IF EXISTS inspections_part")
+        self._con.executescript(_SCHEMA)
+        self._con.execute("INSERT INTO inspections SELECT * FROM inspections_v1")
+        self._con.execute("DROP TABLE inspections_v1")
+        logger.info("%s: history upgraded from schema version 1 to %d", self.path, SCHEMA_VERSION)
 
     # -- context manager -------------------------------------------------------------------
     def __enter__(self) -> "HistoryDB":

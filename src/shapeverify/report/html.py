@@ -27,7 +27,7 @@ logger = logging.getLogger(__name__)
 
 __all__ = ["write_html_report", "render_html", "cad_mesh"]
 
-_VERDICT_COLOURS = {"pass": "#1b7f3b", "fail": "#b3261e", "error": "#a15c00"}
+_VERDICT_COLOURS = {"pass": "#1b7f3b", "fail": "#b3261e", "error": "#a15c00", "incomplete": "#6a3d9a"}
 _MAX_TRIANGLES = 120_000
 _MAX_NOT_EVALUATED = 10_000
 
@@ -125,10 +125,16 @@ def _figure_3d(result, model, idx, c_lim):
         traces.append(go.Scatter3d(
             x=q[:, 0], y=q[:, 1], z=q[:, 2], mode="markers", name="not evaluated",
             marker=dict(size=1.5, color="#8a8a8a"), hoverinfo="skip", visible="legendonly"))
+    cov = getattr(result, "coverage", None)
+    if cov is not None and (~cov.covered).any():
+        u = cov.points[~cov.covered].astype(np.float32)
+        traces.append(go.Scatter3d(
+            x=u[:, 0], y=u[:, 1], z=u[:, 2], mode="markers", name="CAD area not seen (no scan data)",
+            marker=dict(size=2, color="#9e9e9e"), hoverinfo="skip"))
     if result.regions:
         c = np.array([r.centroid for r in result.regions], dtype=np.float64)
         traces.append(go.Scatter3d(
-            x=c[:, 0], y=c[:, 1], z=c[:, 2], mode="markers+text", name="defect regions",
+            x=c[:, 0], y=c[:, 1], z=c[:, 2], mode="markers+text", name="regions (R1 most severe)",
             marker=dict(size=5, color="black", symbol="diamond"),
             text=[f"R{i + 1} {r.extreme:+.3f}" for i, r in enumerate(result.regions)],
             textposition="top center", hoverinfo="text"))
@@ -223,16 +229,29 @@ def render_html(result, model=None, *, max_points: int = 50_000, title: str | No
          else f"{100 * s['in_tolerance_fraction']:.2f} %"),
         ("above upper / below lower", f"{s['n_above']:,} / {s['n_below']:,}"),
     ]
-    ne = d["not_evaluated"]
+    ex = d.get("excluded") or {}
+    cov = d.get("coverage")
+    inp = d.get("inputs") or {}
     tol_text = (f"±{tol.upper:.4g} mm" if tol.lower == -tol.upper
                 else f"[{tol.lower:+.4g}, {tol.upper:+.4g}] mm")
+    dec = d.get("decision") or {}
     input_rows = [
+        ("part", html.escape(str(inp.get("part") or "–"))),
+        ("scan file", html.escape(str(inp.get("scan") or "–"))),
+        ("model file", html.escape(str(inp.get("model") or source or "–"))),
+        ("decided by rule", html.escape(str(dec.get("rule") or "–"))),
         ("tolerance", tol_text + (f" ({len(tol.per_face)} face overrides)" if tol.per_face else "")),
+        ("coverage", "–" if not cov else
+         f"{100 * cov['fraction']:.1f} % of {cov['area_mm2']:,.0f} mm² (at least "
+         f"{100 * cov['min_coverage']:.0f} % needed)"),
         ("scan points", _fmt(d["n_points"])),
-        ("not evaluated: too far", f"{ne['too_far']:,} (> {_fmt(d['max_distance'], 3)} mm)"),
-        ("not evaluated: past outer boundary", f"{ne['on_boundary']:,}"),
-        ("measurement outliers", f"{d['outliers']['n']:,} ({d['outliers']['n_low_weight']:,} "
-                                 "rejected by the registration)"),
+        ("excluded: too far", f"{ex.get('too_far', 0):,} (> {_fmt(d['evaluation_distance'], 3)} mm, "
+                              "the evaluation distance)"),
+        ("excluded: in material regions", f"{ex.get('material', 0):,}"),
+        ("excluded: past the CAD's edges", f"{ex.get('on_boundary', 0):,}"),
+        ("excluded: on faces not inspected", f"{ex.get('outside_faces', 0):,}"),
+        ("excluded: measurement outliers", f"{d['outliers']['n']:,} ({d['outliers']['n_low_weight']:,} "
+                                           "rejected by the registration)"),
         ("point spacing [mm]", _fmt(d["spacing"], 3)),
     ]
     r = d["registration"]
@@ -246,14 +265,16 @@ def render_html(result, model=None, *, max_points: int = 50_000, title: str | No
     t_html = "<pre>" + "\n".join(" ".join(f"{x:+.6f}" for x in row) for row in T) + "</pre>"
     if result.regions:
         reg_tab = _table(
-            [(f"R{i + 1}", _fmt(g.n), _fmt(g.area, 2), _fmt(g.extreme, 4, True),
-              _fmt(g.extreme_raw, 4, True), ", ".join(f"{c:.2f}" for c in g.centroid),
+            [(f"R{i + 1}", g.kind, _fmt(g.n), _fmt(g.area, 2), _fmt(g.extreme, 4, True),
+              _fmt(g.extreme_raw, 4, True), _fmt(g.severity, 3),
+              ", ".join(f"{c:.2f}" for c in g.centroid),
               html.escape(", ".join(str(f) for f in g.faces[:10])), g.side)
              for i, g in enumerate(result.regions)],
-            header=("region", "points", "area [mm²]", "extreme [mm]", "largest single [mm]",
-                    "centroid x, y, z [mm]", "faces", "side"), cls="regions")
+            header=("region", "kind", "points", "area [mm²]", "extreme [mm]", "largest single [mm]",
+                    "severity [mm³]", "centroid x, y, z [mm]", "faces", "side"), cls="regions")
     else:
-        reg_tab = '<p class="note">No defect regions: no connected cluster of out-of-tolerance points.</p>'
+        reg_tab = ('<p class="note">No regions: no connected out-of-tolerance surface and no '
+                   'material where the CAD has none.</p>')
     pf = sorted(result.per_face.items(), key=lambda kv: kv[1].in_tolerance_fraction)
     pf_tab = _table(
         [(str(f), _fmt(st.n), _fmt(st.mean, 4, True), _fmt(st.std), _fmt(st.min, 4, True),
@@ -278,7 +299,8 @@ def render_html(result, model=None, *, max_points: int = 50_000, title: str | No
 <body><main>
 <div class="banner" id="verdict" style="background:{_VERDICT_COLOURS.get(verdict, '#555')}">
 <h1>{html.escape(verdict.upper())}</h1>
-<div>tolerance {html.escape(tol_text)} · {_fmt(s['n'])} evaluated points · all lengths in mm</div>
+<div>part {html.escape(str(inp.get('part') or '–'))} · scan {html.escape(str(inp.get('scan') or '–'))} ·
+tolerance {html.escape(tol_text)} · {_fmt(s['n'])} evaluated points · rule {html.escape(str(dec.get('rule') or '–'))} · all lengths in mm</div>
 {f'<ul>{reasons}</ul>' if reasons else ''}</div>
 <div class="grid">
 <div class="card"><h2>Deviation statistics (mm)</h2>{_table(stats_rows)}</div>
@@ -287,12 +309,16 @@ def render_html(result, model=None, *, max_points: int = 50_000, title: str | No
 <div class="note">T_model_scan (model = R · scan + t, mm):</div>{t_html}</div>
 </div>
 <div class="card"><h2>3D view: scan coloured by deviation from CAD (mm)</h2><p class="note">{sub_note} Colours: blue = material missing,
-red = material added, clipped at ±{c_lim:.3g} mm (2 × tolerance). Grey surface: CAD model.
+red = material added, clipped at ±{c_lim:.3g} mm (2 × tolerance). Grey surface: CAD model; grey
+dots: CAD area the scan did not see (no evaluated points near it).
 Drag to rotate, scroll to zoom; click legend entries to show or hide layers.</p>{div3d}</div>
 <div class="card"><h2>Histogram</h2>{divhist}</div>
-<div class="card"><h2>Defect regions</h2><p class="note">Connected clusters of at least the
-minimum number of out-of-tolerance points; "extreme" is the noise-averaged peak deviation,
-"largest single" the most extreme measured point. Positions in model coordinates (mm).</p>{reg_tab}</div>
+<div class="card"><h2>Regions (most severe first)</h2><p class="note">"deviation": connected
+out-of-tolerance surface; "extreme" is the deviation at its worst point taken from the point's
+neighbourhood (always beyond the limit), "largest single" the most extreme measured point.
+"material": measured surface where the CAD has none (e.g. a hole not pierced); "extreme" is its
+largest distance from the CAD. Severity: the out-of-tolerance volume (mm³), which orders the
+regions. Positions in model coordinates (mm).</p>{reg_tab}</div>
 <div class="card"><details><summary><b>Per-face statistics</b> ({len(pf)} faces, worst first)</summary>
 {pf_tab}</details></div>
 <p class="note">Model: {source or '–'} · generated {now} by shapeverify {html.escape(sv_version)}

@@ -19,7 +19,7 @@ logger = logging.getLogger(__name__)
 
 __all__ = ["write_png_summary"]
 
-_VERDICT_COLOURS = {"pass": "#1b7f3b", "fail": "#b3261e", "error": "#a15c00"}
+_VERDICT_COLOURS = {"pass": "#1b7f3b", "fail": "#b3261e", "error": "#a15c00", "incomplete": "#6a3d9a"}
 
 
 _AXES = ("x", "y", "z")
@@ -97,6 +97,11 @@ def write_png_summary(result, scan=None, path="summary.png", *, max_points: int 
     v = dev.values[ev]
     ne = np.flatnonzero(~dev.evaluated)
     pn = dev.points_model[ne[:: max(1, ne.size // 5000)]]   # not evaluated: grey, for context
+    cov = getattr(result, "coverage", None)
+    # the CAD itself, drawn under the scan: seen area light, unseen area darker grey, so that
+    # missing data cannot be mistaken for a hole in the part
+    cad_pts = cov.points if cov is not None else np.zeros((0, 3))
+    cad_seen = cov.covered if cov is not None else np.zeros(0, bool)
 
     fig = Figure(figsize=(12, 8.6), dpi=dpi)
     FigureCanvasAgg(fig)
@@ -111,10 +116,16 @@ def write_png_summary(result, scan=None, path="summary.png", *, max_points: int 
     ax.text(0.015, 0.62, result.verdict.upper(), color="white", fontsize=26, weight="bold",
             va="center", transform=ax.transAxes)
     reason = result.reasons[0] if result.reasons else "all deviations within tolerance"
-    ax.text(0.17, 0.68, f"tolerance {tol_text}  ·  {dev.n_evaluated:,} of {dev.n:,} points evaluated"
-            f"  ·  {len(result.regions)} defect region(s)", color="white", fontsize=12,
-            va="center", transform=ax.transAxes)
-    ax.text(0.17, 0.3, reason if len(reason) <= 150 else reason[:147] + "...", color="white",
+    inp = getattr(result, "inputs", None) or {}
+    ids = "  ·  ".join(f"{k} {inp[k]}" for k in ("part", "scan", "model") if inp.get(k))
+    cov_text = "" if cov is None else f"  ·  coverage {100 * cov.fraction:.1f} %"
+    ax.text(0.17, 0.84, f"tolerance {tol_text}  ·  {dev.n_evaluated:,} of {dev.n:,} points evaluated"
+            f"{cov_text}  ·  {len(result.regions)} region(s)  ·  rule: {getattr(result, 'rule', '') or '–'}",
+            color="white", fontsize=11, va="center", transform=ax.transAxes)
+    if ids:
+        ax.text(0.17, 0.55, ids if len(ids) <= 140 else ids[:137] + "...", color="white",
+                fontsize=9, va="center", transform=ax.transAxes)
+    ax.text(0.17, 0.24, reason if len(reason) <= 150 else reason[:147] + "...", color="white",
             fontsize=10, va="center", transform=ax.transAxes)
 
     norm = Normalize(-c_lim, c_lim)
@@ -126,6 +137,12 @@ def write_png_summary(result, scan=None, path="summary.png", *, max_points: int 
         a2 = fig.add_subplot(gs[1, col])
         # view 1 in model coordinates, view 2 about the centre of the points
         origin = np.zeros(3) if col == 0 or len(p_all) == 0 else p_all.mean(axis=0)
+        if len(cad_pts):
+            qc = (cad_pts - origin) @ R.T
+            a2.scatter(qc[cad_seen, 0], qc[cad_seen, 1], c="#e6e6e6", s=1.0, linewidths=0,
+                       rasterized=True)
+            a2.scatter(qc[~cad_seen, 0], qc[~cad_seen, 1], c="#9e9e9e", s=1.0, linewidths=0,
+                       rasterized=True, label="CAD not seen")
         if len(pn):
             qn = (pn - origin) @ R.T
             a2.scatter(qn[:, 0], qn[:, 1], c="#c8c8c8", s=1.0, linewidths=0, rasterized=True,
@@ -135,10 +152,7 @@ def write_png_summary(result, scan=None, path="summary.png", *, max_points: int 
             order = np.argsort(q[:, 2])                   # painter's order: far points first
             sc = a2.scatter(q[order, 0], q[order, 1], c=v[order], cmap=CMAP, norm=norm, s=1.5,
                             linewidths=0, rasterized=True)
-            for i, g in enumerate(result.regions[:9]):
-                gx, gy, _ = (g.centroid - origin) @ R.T
-                a2.annotate(f"R{i + 1}", (gx, gy), xytext=(6, 6), textcoords="offset points",
-                            fontsize=9, weight="bold")
+            _label_regions(a2, result.regions, origin, R)
         a2.set_aspect("equal", adjustable="datalim")
         a2.set_title(name, fontsize=10)
         a2.set_xlabel(labels[0], fontsize=8)
@@ -189,9 +203,9 @@ def write_png_summary(result, scan=None, path="summary.png", *, max_points: int 
     reg = result.registration
     text = (f"registration: rms {float(reg.rms):.4f} mm\n  {int(reg.iterations)} iterations, "
             f"converged {bool(reg.converged)}\n  inliers {100 * float(reg.inlier_fraction):.1f} %")
-    text += f"\n\ndefect regions: {len(result.regions)}"
+    text += f"\n\nregions (most severe first): {len(result.regions)}"
     for i, g in enumerate(result.regions[:4]):
-        text += f"\n  R{i + 1}: {g.extreme:+.3f} mm, {g.area:.1f} mm², {g.n} pts"
+        text += f"\n  R{i + 1} {g.kind[:3]}: {g.extreme:+.3f} mm, {g.area:.1f} mm², {g.n} pts"
     text += f"\nmeasurement outliers: {result.outliers.n}"
     at.text(0.0, 1.0, text, family="monospace", fontsize=9, va="top", transform=at.transAxes)
 
@@ -199,3 +213,25 @@ def write_png_summary(result, scan=None, path="summary.png", *, max_points: int 
     fig.savefig(path, dpi=dpi)
     logger.info("PNG summary written to %s", path)
     return path
+
+
+def _label_regions(ax, regions, origin, R, most: int = 9) -> None:
+    """Label the most severe regions R1, R2, ...; a label that would sit on an earlier one is
+    left out (its region is still listed in the table)."""
+    placed = []
+    min_gap = 0.04 * _span(ax)
+    for i, g in enumerate(regions[:most]):
+        gx, gy, _ = (g.centroid - origin) @ R.T
+        if any(np.hypot(gx - px, gy - py) < min_gap for px, py in placed):
+            continue
+        placed.append((gx, gy))
+        ax.annotate(f"R{i + 1}", (gx, gy), xytext=(6, 6), textcoords="offset points",
+                    fontsize=9, weight="bold",
+                    arrowprops=dict(arrowstyle="-", color="black", linewidth=0.6))
+
+
+def _span(ax) -> float:
+    """Extent of the data drawn in ``ax`` (its largest side), for the label spacing."""
+    x0, x1 = ax.dataLim.intervalx
+    y0, y1 = ax.dataLim.intervaly
+    return float(max(x1 - x0, y1 - y0, 1e-9))
