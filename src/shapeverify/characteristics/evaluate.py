@@ -274,7 +274,8 @@ def _flatness(c, S: _Scan, feats, k):
 def _hole(c, S: _Scan, feats, al, k):
     f = _face_feature(c, feats, S, "hole")
     try:
-        hm = measure_hole(S.X, f.center, f.axis, f.diameter)
+        hm = measure_hole(S.X, f.center, f.axis, f.diameter, face=S.prep.model.faces[f.face],
+                          deviations=S.d, normals=S.cl.normals)
     except ValueError as exc:
         return _not_measured(c, str(exc))
     e1, e2 = plane_basis(f.axis)

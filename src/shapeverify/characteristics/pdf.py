@@ -1,0 +1,262 @@
+"""PDF report of a plan inspection (matplotlib's PDF backend, ``PdfPages``; no pyplot).
+
+Page 1: header (part id, scan file, model, date, alignment, verdict), colour map of the
+deviations in discrete tolerance bands with the CAD area the scan does not cover in grey, the
+check points as whiskers (a line along the CAD normal, scaled, with the value), and the
+histogram with the tolerance limits.  Page 2: the characteristic table (nominal, measured,
+deviation, limits, uncertainty U, verdict).  Page 3 (when the plan has a ``section``): the
+deviation along the cross-section, with whiskers from the CAD line to each point.
+
+Bands: the band width is the *band tolerance* ``b`` (the half-width t/2 of the plan's first
+surface profile, or ``tolerance``): ``(-inf, -2b, -b, -b/2, b/2, b, 2b, inf)``, green inside
+±b/2, yellow/cyan to ±b, orange/blue to ±2b, red/purple beyond.
+"""
+from __future__ import annotations
+
+import datetime as _dt
+import logging
+from pathlib import Path
+
+import numpy as np
+
+__all__ = ["write_pdf_report", "band_edges", "BAND_COLOURS"]
+
+logger = logging.getLogger(__name__)
+
+#: band colours from most negative to most positive (7 bands)
+BAND_COLOURS = ("#5b2a86", "#2166ac", "#67c5e0", "#3a9e4f", "#f2d43d", "#f08a24", "#b3261e")
+_VERDICT = {"pass": "#1b7f3b", "fail": "#b3261e", "undecided": "#a15c00"}
+
+
+def band_edges(b: float) -> np.ndarray:
+    """Inner band edges (6,) for band tolerance ``b`` (mm): ``b * [-2, -1, -0.5, 0.5, 1, 2]``."""
+    return float(b) * np.array([-2.0, -1.0, -0.5, 0.5, 1.0, 2.0])
+
+
+def _band_tolerance(result, tolerance):
+    if tolerance is not None:
+        return float(tolerance)
+    for c in result.plan.characteristics:
+        if c.type == "surface_profile":
+            t = c.tol if c.tol is not None else (c.upper - c.lower)
+            return 0.5 * float(t)
+    return 0.1
+
+
+def _view(points):
+    c = points.mean(axis=0)
+    _, _, vt = np.linalg.svd((points - c)[:: max(1, len(points) // 5000)], full_matrices=False)
+    n = vt[2]
+    k = int(np.argmax(np.abs(n)))
+    if abs(n[k]) > np.cos(np.radians(25)):
+        i, j = [(1, 2), (2, 0), (0, 1)][k]
+        return np.eye(3)[[i, j, k]], ("xyz"[i] + " [mm]", "xyz"[j] + " [mm]")
+    return np.stack([vt[0], vt[1], np.cross(vt[0], vt[1])]), ("axis 1 [mm]", "axis 2 [mm]")
+
+
+def _fmt(v, digits=4):
+    if v is None:
+        return "-"
+    if isinstance(v, dict):
+        parts = []
+        for k, x in v.items():
+            if k == "center" and isinstance(x, (list, tuple, np.ndarray)):
+                parts.append("c=(" + ", ".join(f"{y:.3f}" for y in x) + ")")
+            elif x is not None:
+                parts.append(f"{'pos' if k == 'position' else k[0]}={x:.{digits}g}")
+        return "\n".join(parts)
+    if isinstance(v, (list, tuple)):
+        return "(" + ", ".join(f"{y:.3f}" for y in v) + ")"
+    return f"{v:.{digits}g}"
+
+
+def write_pdf_report(result, path, prep=None, *, part: str | None = None,
+                     scan_file: str | None = None, model_file: str | None = None,
+                     date: _dt.datetime | str | None = None, tolerance: float | None = None,
+                     max_points: int = 40_000, rng=0) -> Path:
+    """Write the PDF report of a :class:`~shapeverify.characteristics.evaluate.PlanResult`.
+
+    Parameters
+    ----------
+    result : PlanResult
+    path : str or Path
+        Output ``.pdf``.
+    prep : Prepared, optional
+        The model: its points show the CAD area the scan does not cover (grey).
+    part, scan_file, model_file : str, optional
+        Shown in the header (part id default: the plan's ``part``).
+    date : datetime or str, optional
+        Shown in the header and stored as the PDF's dates (default: now, UTC).
+    tolerance : float, optional
+        Band tolerance b (mm); default half the first surface profile's t, else 0.1.
+    max_points : int
+        Points drawn in the colour map (a seeded random subset beyond).
+
+    Returns
+    -------
+    Path
+
+    Raises
+    ------
+    OSError
+        The file cannot be written.
+    """
+    from matplotlib.backends.backend_pdf import PdfPages
+    from matplotlib.colors import BoundaryNorm, ListedColormap
+    from matplotlib.figure import Figure
+
+    path = Path(path)
+    rng = np.random.default_rng(rng)
+    if date is None:
+        date = _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0)
+    stamp = date.isoformat() if isinstance(date, _dt.datetime) else str(date)
+    part = part if part is not None else (result.plan.part or "-")
+    b = _band_tolerance(result, tolerance)
+    edges = band_edges(b)
+    cmap = ListedColormap(BAND_COLOURS)
+    norm = BoundaryNorm(np.r_[-1e9, edges, 1e9], cmap.N)
+    X = result.points
+    dev = result.deviations
+    ok = np.isfinite(dev)
+    idx = np.flatnonzero(ok)
+    if idx.size > max_points:
+        idx = np.sort(rng.choice(idx, max_points, replace=False))
+    R, labels = _view(X[ok] if ok.any() else X)
+
+    meta = {"Title": f"Inspection report {part}", "Creator": "shapeverify",
+            "Subject": f"scan {scan_file or '-'}"}
+    if isinstance(date, _dt.datetime):
+        meta["CreationDate"] = date
+        meta["ModDate"] = date
+    with PdfPages(path, metadata=meta) as pdf:
+        # ---------------------------------------------------------------- page 1
+        fig = Figure(figsize=(8.27, 11.69))
+        v = result.verdict
+        fig.text(0.06, 0.965, "Inspection report", fontsize=17, weight="bold", va="top")
+        fig.text(0.94, 0.965, v.upper(), fontsize=17, weight="bold", va="top", ha="right",
+                 color=_VERDICT.get(v, "black"))
+        al = result.alignment
+        head = [("part", part), ("scan file", scan_file or "-"), ("model", model_file or "-"),
+                ("date", stamp), ("alignment", f"{al.kind} (rms {al.rms:.4f} mm; fitted "
+                                               f"{' '.join(al.dof_fitted)}"
+                                               + (f"; locked {' '.join(al.dof_locked)}"
+                                                  if al.dof_locked else "") + ")"),
+                ("units", "mm; deviations along the CAD normal, + outside the material")]
+        for i, (k, val) in enumerate(head):
+            fig.text(0.06, 0.93 - 0.018 * i, f"{k}:", fontsize=9, weight="bold", va="top")
+            fig.text(0.2, 0.93 - 0.018 * i, str(val), fontsize=9, va="top")
+        ax = fig.add_axes([0.08, 0.38, 0.78, 0.42])
+        if prep is not None:
+            mp = prep.points.points
+            mp = mp[:: max(1, len(mp) // 60000)]
+            P2 = mp @ R.T
+            ax.scatter(P2[:, 0], P2[:, 1], s=0.6, c="#c8c8c8", linewidths=0, rasterized=True,
+                       label="CAD not covered")
+        S2 = X[idx] @ R.T
+        order = np.argsort(S2[:, 2])
+        sc = ax.scatter(S2[order, 0], S2[order, 1], s=1.2, c=dev[idx][order], cmap=cmap,
+                        norm=norm, linewidths=0, rasterized=True)
+        span = np.ptp(S2[:, :2], axis=0).max() if len(S2) else 1.0
+        for c in result.characteristics:
+            if c.type == "check_point" and c.measured is not None:
+                q = np.asarray(c.details["point"])
+                n = np.asarray(c.details["normal"])
+                q2, n2 = q @ R.T, n @ R.T
+                L = 0.08 * span * float(np.clip(c.measured / max(b, 1e-12), -3, 3))
+                end = q2[:2] + L * (n2[:2] / max(np.linalg.norm(n2[:2]), 1e-9)) \
+                    if np.linalg.norm(n2[:2]) > 1e-3 else q2[:2] + [0, L]
+                col = _VERDICT.get(c.verdict, "black")
+                ax.plot([q2[0], end[0]], [q2[1], end[1]], color=col, lw=2)
+                ax.plot(*q2[:2], "o", color=col, ms=3)
+                ax.annotate(f"{c.name} {c.measured:+.3f}", end, fontsize=7, color=col)
+            if c.type == "hole" and c.measured is not None:
+                q2 = np.asarray(c.measured["center"]) @ R.T
+                ax.annotate(c.name, q2[:2], fontsize=7, ha="center", va="center", weight="bold")
+        ax.set_aspect("equal")
+        ax.set_xlabel(labels[0])
+        ax.set_ylabel(labels[1])
+        ax.set_title(f"Deviation map, bands of b = {b:g} mm (grey: CAD not covered by the scan)",
+                     fontsize=10)
+        cax = fig.add_axes([0.88, 0.38, 0.02, 0.42])
+        cb = fig.colorbar(sc, cax=cax, ticks=edges, spacing="uniform")
+        cb.ax.set_yticklabels([f"{e:+.3g}" for e in edges], fontsize=7)
+        cb.set_label("deviation [mm]", fontsize=8)
+        hx = fig.add_axes([0.1, 0.07, 0.8, 0.24])
+        dv = dev[ok]
+        if dv.size:
+            lim = max(3 * b, float(np.percentile(np.abs(dv), 99.5)))
+            bins = np.linspace(-lim, lim, 81)
+            cnt, be = np.histogram(np.clip(dv, -lim, lim), bins)
+            mids = 0.5 * (be[1:] + be[:-1])
+            hx.bar(mids, cnt, width=np.diff(be), color=cmap(norm(mids)), edgecolor="none")
+            for e in (-b, b):
+                hx.axvline(e, color="#b3261e", ls="--", lw=1)
+            hx.set_title(f"Histogram of {dv.size:,} deviations: mean {dv.mean():+.4f}, std "
+                         f"{dv.std():.4f}, min {dv.min():+.4f}, max {dv.max():+.4f} mm",
+                         fontsize=9)
+        hx.set_xlabel("deviation [mm]")
+        hx.set_ylabel("points")
+        pdf.savefig(fig)
+
+        # ---------------------------------------------------------------- page 2
+        fig = Figure(figsize=(11.69, 8.27))
+        fig.text(0.04, 0.95, f"Characteristics — part {part}", fontsize=15, weight="bold")
+        fig.text(0.04, 0.915, f"U: expanded uncertainty (k = {result.plan.coverage_factor:g}); "
+                 "verdict by ISO 14253-1 (undecided: within U of a limit). Zone widths "
+                 "(profile, flatness, position) have an upper limit only. mm.", fontsize=8)
+        cols = ["name", "type", "nominal", "measured", "deviation", "lower", "upper", "U",
+                "verdict"]
+        rows, colours = [], []
+        for c in result.characteristics:
+            rows.append([c.name, c.type, _fmt(c.nominal), _fmt(c.measured), _fmt(c.deviation),
+                         _fmt(c.lower), _fmt(c.upper), _fmt(c.uncertainty, 3), c.verdict])
+            colours.append(_VERDICT.get(c.verdict, "black"))
+        tx = fig.add_axes([0.03, 0.05, 0.94, 0.84])
+        tx.axis("off")
+        if rows:
+            tab = tx.table(cellText=rows, colLabels=cols, loc="upper center", cellLoc="center",
+                           colWidths=[0.08, 0.1, 0.17, 0.17, 0.12, 0.08, 0.08, 0.1, 0.08])
+            tab.auto_set_font_size(False)
+            tab.set_fontsize(7)
+            for i, row in enumerate(rows, start=1):
+                nl = max(str(x).count("\n") for x in row) + 1
+                for j in range(len(cols)):
+                    tab[i, j].set_height(0.03 * nl)
+                tab[i, len(cols) - 1].get_text().set_color(colours[i - 1])
+                tab[i, len(cols) - 1].get_text().set_weight("bold")
+            for j in range(len(cols)):
+                tab[0, j].set_facecolor("#e8e8e8")
+                tab[0, j].set_height(0.035)
+        else:
+            tx.text(0.5, 0.5, "the plan has no characteristics", ha="center")
+        pdf.savefig(fig)
+
+        # ---------------------------------------------------------------- page 3
+        sec = result.section
+        if sec is not None:
+            fig = Figure(figsize=(11.69, 8.27))
+            ax = fig.add_axes([0.08, 0.12, 0.86, 0.74])
+            s = np.asarray(sec["s"], float)
+            d = np.asarray(sec["deviation"], float)
+            fig.text(0.04, 0.94, f"Cross-section {sec['name']}: plane through "
+                     f"{_fmt(sec['plane'][0])} with normal {_fmt(sec['plane'][1])}",
+                     fontsize=12, weight="bold")
+            if s.size:
+                k = max(1, s.size // 400)
+                for si, di in zip(s[::k], d[::k]):
+                    ax.plot([si, si], [0, di], color=cmap(norm(di)), lw=0.8)
+                ax.scatter(s, d, s=3, c=d, cmap=cmap, norm=norm, linewidths=0, zorder=3)
+                ax.axhline(0, color="black", lw=1)
+                for e in (-b, b):
+                    ax.axhline(e, color="#b3261e", ls="--", lw=1)
+                ax.set_title(f"{s.size} points within the section band; whiskers: deviation "
+                             "from the CAD (every point up to 400)", fontsize=9)
+            else:
+                ax.text(0.5, 0.5, "no scan points in the section band", ha="center",
+                        transform=ax.transAxes)
+            ax.set_xlabel("position along the section [mm]")
+            ax.set_ylabel("deviation [mm]")
+            ax.grid(alpha=0.3)
+            pdf.savefig(fig)
+    logger.info("PDF report written to %s", path)
+    return path
