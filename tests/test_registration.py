@@ -200,7 +200,7 @@ def test_issue_scenario_reaches_the_cramer_rao_bound(panel, panel_prep, seed):
     assert np.mean(reg.weights[vs.labels == INLIER] > 0) > 0.98
     assert 0.8 < reg.inlier_fraction < 0.9
     assert reg.scale == pytest.approx(0.02, rel=0.25) and reg.rms < 0.025
-    assert reg.undetermined.shape == (0, 6)
+    assert reg.undetermined_directions.shape == (0, 6)
     assert [h.stage for h in reg.history][0] == "coarse"
     assert [h.stage for h in reg.history][-1] == "final"
     steps = [h for h in reg.history if h.step_translation > 0 or h.step_rotation > 0]
@@ -351,8 +351,8 @@ def test_bad_input_gets_clear_errors(panel, panel_prep):
         register(bad, panel_prep)
     with pytest.raises(ValueError):
         register(good[:, :2], panel_prep)  # ScanError is a ValueError
-    with pytest.raises(RegistrationError, match="max_distance"):
-        register(good + [0.0, 0.0, 1e5], panel_prep)
+    with pytest.raises(RegistrationError, match="max_distance"):   # no global search asked
+        register(good + [0.0, 0.0, 1e5], panel_prep, init="identity")
     with pytest.raises(ValueError, match="method"):
         register(good, panel_prep, method="point-to-line")
     with pytest.raises(ValueError, match="loss"):
@@ -380,12 +380,12 @@ def test_flat_scan_reports_three_undetermined_directions():
     with pytest.warns(DegenerateGeometryWarning, match="3 pose direction"):
         reg = register(vs.scan, prep, rng=0)
     assert reg.converged, reg.message
-    assert reg.undetermined.shape == (3, 6)
+    assert reg.undetermined_directions.shape == (3, 6)
     # what is determined is right: the plate's plane (tilt and height)
     X = vs.scan @ reg.R.T + reg.t
     assert np.sqrt(np.mean(X[vs.inliers][:, 2] ** 2)) < 0.03
     # undetermined: x/y sliding and rotation about z (no tilt, no z translation)
-    np.testing.assert_allclose(reg.undetermined[:, [0, 1, 5]], 0.0, atol=1e-6)
+    np.testing.assert_allclose(reg.undetermined_directions[:, [0, 1, 5]], 0.0, atol=1e-6)
     assert "undetermined" in reg.message
     assert np.max(np.diag(reg.covariance)) > 1e6
 
@@ -405,9 +405,9 @@ def test_cylindrical_scan_reports_two_undetermined_directions():
     with pytest.warns(DegenerateGeometryWarning, match="2 pose direction"):
         reg = register(vs.scan, prep, rng=0)
     assert reg.converged, reg.message
-    assert reg.undetermined.shape == (2, 6)
+    assert reg.undetermined_directions.shape == (2, 6)
     # spanned by the rotation about the axis (z through the origin) and sliding along it
-    np.testing.assert_allclose(reg.undetermined[:, [0, 1, 3, 4]], 0.0, atol=1e-4)
+    np.testing.assert_allclose(reg.undetermined_directions[:, [0, 1, 3, 4]], 0.0, atol=1e-4)
     assert "undetermined" in reg.message
     X = vs.scan[vs.inliers] @ reg.R.T + reg.t
     assert np.std(np.hypot(X[:, 0], X[:, 1]) - 40.0) < 0.03

@@ -3,10 +3,12 @@
 >>> from shapeverify.registration import register, Registration   # doctest: +SKIP
 """
 from .icp import DegenerateGeometryWarning, IterationRecord, Registration, register
-from .initial import InitialAlignment, principal_axes_alignment
+from .global_search import GlobalAlignment, global_alignment
+from .initial import InitialAlignment, principal_axes_alignment, read_init
 from .losses import LOSSES, get_loss, robust_scale
 from .rigid import fisher_information, pose_error
 
 __all__ = ["register", "Registration", "IterationRecord", "DegenerateGeometryWarning",
-           "principal_axes_alignment", "InitialAlignment", "LOSSES", "get_loss",
+           "principal_axes_alignment", "InitialAlignment", "global_alignment",
+           "GlobalAlignment", "read_init", "LOSSES", "get_loss",
            "robust_scale", "fisher_information", "pose_error"]

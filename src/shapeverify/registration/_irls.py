@@ -11,9 +11,12 @@ Two kinds of stage:
   (Gauss-Newton on the local surface model, thesis eq. 12-13) until the pose converges; then
   a fresh matching of a random subset (4,000 points) at the final pose checks that the planes
   are still the closest-point planes: the pose correction the subset's fresh residuals ask for
-  must be below the tolerance, or below 0.1 standard deviation of the subset's own estimate (the
-  resolution of the piecewise tangent-patch closest points of ``exact=False``).  If not,
-  everything is matched again.
+  must be below the tolerance, below 0.1 standard deviation of the subset's own estimate (the
+  resolution of the piecewise tangent-patch closest points of ``exact=False``), or move no
+  scan point by more than :data:`POSE_FRACTION` (0.05) x sigma while changing the objective by
+  less than :data:`OBJECTIVE_RTOL` (1 %): the pose is then at a fixed point of ICP to a small
+  fraction of the noise level.  If not, everything is matched again (at most 4 times; then
+  ``converged`` is False and the message says how far the pose still moves).
 
 Convergence (both), tested before each step with the step that would be taken: the pose
 change still to come, in standard deviations of the pose, is below ``sqrt(tol * n_valid)`` (a
@@ -55,6 +58,11 @@ VERIFY = 4000
 #: the fast closest points are piecewise (tangent patches): re-matching may move the optimum
 #: a little.  Corrections below this many standard deviations of the pose are accepted.
 VERIFY_SIGMA = 0.1
+#: converged: fresh closest points at the final pose ask for a pose increment that moves no
+#: scan point by more than this fraction of the noise level sigma ...
+POSE_FRACTION = 0.05
+#: ... and change the objective (mean rho) by less than this, relative
+OBJECTIVE_RTOL = 0.01
 #: largest contraction factor used to extrapolate the remaining distance
 _QMAX = 0.999
 
@@ -402,18 +410,31 @@ def _mean_rho(ev: Eval, sigma: float) -> float:
     return float(np.mean(ev.loss.rho(ev.d[ev.valid], sigma)))
 
 
-def _verify(P, prep, st: State, ev: Eval, radius, tol, exact, rng, mp) -> bool:
-    """Re-match a random subset at the final pose: are the fixed planes still right?"""
+def pose_increment(theta, radius: float) -> float:
+    """Length (mm) of a pose step theta = (omega rad, tau mm at the centroid):
+    ``|omega| * radius + |tau|``, the largest displacement it gives a point of the scan."""
+    return float(np.linalg.norm(theta[:3]) * radius + np.linalg.norm(theta[3:]))
+
+
+def _verify(P, prep, st: State, ev: Eval, radius, tol, exact, rng, mp):
+    """Re-match a random subset at the final pose: are the fixed planes still right?
+
+    Returns (ok, delta, dobj): ``ok`` when the correction the fresh closest points ask for is
+    below the tolerance, below 0.1 standard deviation of the subset's own estimate, or moves no
+    scan point by more than :data:`POSE_FRACTION` x sigma; ``delta`` that correction (mm, see
+    :func:`pose_increment`); ``dobj`` the relative change of the subset's objective between the
+    fixed planes and the fresh matching.
+    """
     n = P.shape[0]
     S = np.arange(n) if n <= VERIFY else np.sort(rng.choice(n, VERIFY, replace=False))
     _, Yf, Nf, df, vf, _, _ = match(P[S], prep, st.R, st.t, exact)
     if np.mean(vf == ev.valid[S]) < 0.999:
-        return False
+        return False, np.inf, np.inf
     both = vf & ev.valid[S]
     delta = np.where(both, df - ev.d[S], 0.0)
     w = np.where(both, ev.w[S], 0.0)
     if np.count_nonzero(w) < 6:
-        return False
+        return False, np.inf, np.inf
     center = centroid(ev.X, ev.w)
     XS = ev.X[S]
     Hs, gs = system(XS, XS - delta[:, None] * ev.N[S], ev.N[S], w, center)
@@ -422,7 +443,14 @@ def _verify(P, prep, st: State, ev: Eval, radius, tol, exact, rng, mp) -> bool:
     # the correction the re-matched subset asks for, in standard deviations of the subset's
     # own estimate (a pure noise-like correction does not grow with the subset's size)
     m = float(np.sqrt(max(theta @ Hs @ theta, 0.0))) / ev.sigma
-    return m <= max(np.sqrt(tol * both.sum()), VERIFY_SIGMA)
+    inc = pose_increment(theta, radius)
+    rho = ev.loss.rho
+    o_fix = float(np.mean(rho(ev.d[S][both], ev.sigma)))
+    o_new = float(np.mean(rho(df[both], ev.sigma)))
+    dobj = abs(o_new - o_fix) / max(o_fix, 1e-300)
+    ok = (m <= max(np.sqrt(tol * both.sum()), VERIFY_SIGMA)
+          or (inc <= POSE_FRACTION * ev.sigma and dobj <= OBJECTIVE_RTOL))
+    return ok, inc, dobj
 
 
 def stage_final_plane(P, prep, st: State, loss, scale, floor, radius, max_it, tol, exact, rng,
@@ -457,7 +485,10 @@ def stage_final_plane(P, prep, st: State, loss, scale, floor, radius, max_it, to
             st.iterations += 1
             steps += 1
             ev = evaluate_fixed(P, st.R, st.t, Y, N, valid, idx, clamped, loss, scale, floor)
-        if _verify(P, prep, st, ev, radius, tol, exact, rng, mp):
+        ok, inc, dobj = _verify(P, prep, st, ev, radius, tol, exact, rng, mp)
+        if ok:
             return ev, True, ""
-    return ev, False, (f"the closest points still changed after {rounds} re-matchings of all "
-                       "points")
+    return ev, False, (f"the pose is still moving after {rounds} re-matchings of all points: "
+                       f"fresh closest points ask for a further {inc:.3g} mm "
+                       f"({inc / ev.sigma:.2g} sigma; converged means <= {POSE_FRACTION} sigma) "
+                       f"and change the objective by {100 * dobj:.2g} %")

@@ -18,7 +18,10 @@ Stages (see :mod:`shapeverify.registration._irls` for the iterations and the con
    everything only when that asks for a correction); point-to-point re-matches every
    iteration, with Anderson acceleration.
 
-Only the final stage decides ``converged``.
+Only the final stage decides ``converged`` (the test is stated in :func:`register`'s Notes).
+With no start (``init=None``, 'auto'), the identity is kept when the coarse stage from it fits,
+otherwise :mod:`shapeverify.registration.global_search` finds the start.  ``rng`` defaults to
+a fixed seed: identical input gives bit-identical results in every run and process.
 """
 from __future__ import annotations
 
@@ -87,11 +90,24 @@ class Registration:
     scale : float
         Final robust scale sigma (mm).
     message : str
-    undetermined : (k, 6) float64
-        Pose directions the geometry does not determine (k = 0 normally): unit vectors
-        ``e = (rotation vector, translation)`` in the parameterisation of ``covariance``
-        (model frame, about the model origin); e.g. ``(0, 0, 0, 1, 0, 0)`` is sliding along x.
+    undetermined : tuple of str
+        The pose directions the data leave undetermined (empty normally), one readable line
+        each, in model coordinates (mm): e.g. ``"rotation about axis [0.000, 0.000, 1.000]
+        through (0, 0, 0)"`` (a turned part's spin) or ``"translation along [1.000, 0.000,
+        0.000]"`` (a plate's slide).  The deviations do not depend on these motions.
     method, loss : str
+    undetermined_directions : (k, 6) float64
+        The same directions as unit vectors ``e = (rotation vector, translation)`` in the
+        parameterisation of ``covariance`` (model frame, about the model origin); e.g.
+        ``(0, 0, 0, 1, 0, 0)`` is sliding along x.
+    warnings : tuple of str
+        Signs that the pose may not be the right minimum although the iterations stopped (a low
+        inlier fraction, a systematic mean residual, another start that fits about as well).
+        Empty for a clean registration.
+    init : str
+        How the start was found: ``"given"`` (a 4x4 init), ``"identity"``,
+        ``"principal-axes"``, or ``"global: <hypothesis>"`` (see
+        :func:`shapeverify.registration.global_search.global_alignment`).
     """
 
     T_model_scan: np.ndarray
@@ -104,9 +120,12 @@ class Registration:
     history: tuple = field(default=())
     scale: float = float("nan")
     message: str = ""
-    undetermined: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
+    undetermined: tuple = ()
     method: str = "point-to-plane"
     loss: str = "tukey"
+    undetermined_directions: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
+    warnings: tuple = ()
+    init: str = "given"
 
     @property
     def R(self) -> np.ndarray:
@@ -122,8 +141,8 @@ class Registration:
         return (f"Registration(method={self.method!r}, loss={self.loss!r}, rms={self.rms:.4g}, "
                 f"scale={self.scale:.3g}, iterations={self.iterations}, "
                 f"converged={self.converged}, inlier_fraction={self.inlier_fraction:.3f}, "
-                f"n={self.weights.shape[0]}, undetermined={self.undetermined.shape[0]}, "
-                f"message={self.message!r})")
+                f"n={self.weights.shape[0]}, undetermined={len(self.undetermined)}, "
+                f"warnings={len(self.warnings)}, init={self.init!r})")
 
 
 # ------------------------------------------------------------------------------ validation
@@ -145,30 +164,45 @@ def _check_scan(scan) -> np.ndarray:
     return P
 
 
-def _check_init(init, scan, prep, rng) -> np.ndarray:
-    if init is None:
-        return np.eye(4)
-    if isinstance(init, str):
-        key = init.lower().replace("_", "-")
-        if key in ("principal-axes", "pca", "global"):
-            from .initial import principal_axes_alignment
-            return principal_axes_alignment(scan, prep, rng=rng).T_model_scan
-        raise ValueError(f"unknown init {init!r}; use None, a (4, 4) T_model_scan or "
-                         "'principal-axes'")
-    T = np.asarray(init, dtype=np.float64)
+def validate_pose(T, what: str = "init") -> np.ndarray:
+    """A rigid (4, 4) T_model_scan, re-orthonormalised; ValueError naming what is wrong."""
+    T = np.asarray(T, dtype=np.float64)
     if T.shape != (4, 4):
-        raise ValueError(f"init must be a (4, 4) T_model_scan, got shape {T.shape}")
+        raise ValueError(f"{what} must be a (4, 4) T_model_scan, got shape {T.shape}")
     if not np.isfinite(T).all():
-        raise ValueError("init contains NaN/inf")
+        raise ValueError(f"{what} contains NaN/inf")
     R = T[:3, :3]
     if (not np.allclose(T[3], [0, 0, 0, 1], atol=1e-9)
             or not np.allclose(R.T @ R, np.eye(3), atol=1e-6) or np.linalg.det(R) < 0):
-        raise ValueError("init must be a rigid transform: orthonormal R with det +1 and last "
-                         "row [0, 0, 0, 1]")
+        raise ValueError(f"{what} must be a rigid transform: orthonormal R with det +1 and "
+                         "last row [0, 0, 0, 1]")
     U, _, Vt = np.linalg.svd(R)
     T = T.copy()
     T[:3, :3] = U @ Vt
     return T
+
+
+#: names of the automatic starts
+INIT_MODES = ("auto", "identity", "principal-axes", "global")
+_INIT_ALIASES = {"auto": "auto", "none": "auto", "identity": "identity", "eye": "identity",
+                 "principal-axes": "principal-axes", "pca": "principal-axes",
+                 "global": "global"}
+#: "auto" keeps the identity when the coarse stage from it leaves at least this fit
+#: (share of the subset on the surface, :func:`.global_search.fit_score`)
+AUTO_FIT = 0.5
+
+
+def _check_init(init):
+    """('mode', None) for a named start, ('given', T) for a matrix."""
+    if init is None:
+        return "auto", None
+    if isinstance(init, str):
+        key = init.lower().replace("_", "-").strip()
+        if key not in _INIT_ALIASES:
+            raise ValueError(f"unknown init {init!r}; use 'auto' (None), 'identity', "
+                             "'principal-axes', 'global' or a (4, 4) T_model_scan")
+        return _INIT_ALIASES[key], None
+    return "given", validate_pose(init)
 
 
 def _check_method(method) -> str:
@@ -189,10 +223,11 @@ def _describe(undet: np.ndarray) -> list[str]:
         else:
             a = om / np.linalg.norm(om)
             p = np.cross(om, tau) / (om @ om)   # point of the screw axis closest to the origin
+            p = np.where(np.abs(p) < 1e-6, 0.0, p) + 0.0
             pitch = float(tau @ om) / (om @ om)
             txt = ("rotation about axis [%.3f, %.3f, %.3f] through (%.4g, %.4g, %.4g)"
                    % (*a, *p))
-            if abs(pitch) > 1e-9:
+            if abs(pitch) > 1e-6:
                 txt += " with %.4g mm per rad along it" % pitch
             out.append(txt)
     return out
@@ -200,7 +235,7 @@ def _describe(undet: np.ndarray) -> list[str]:
 
 def register(scan, prep, init=None, method: str = "point-to-plane", loss: str = "tukey",
              scale: float | None = None, max_iterations: int = 100, tolerance: float = 1e-7,
-             rng=None) -> Registration:
+             rng=0) -> Registration:
     """Robust ICP: register a scan to a prepared model (IRLS-ICP with automatic scale).
 
     Parameters
@@ -209,9 +244,18 @@ def register(scan, prep, init=None, method: str = "point-to-plane", loss: str = 
         Scan points in scan coordinates (mm), N >= 6.
     prep : Prepared
         From :func:`shapeverify.prepare`; only ``prep.closest(points, exact=...)`` is used.
-    init : (4, 4) float64, 'principal-axes' or None
-        Start pose T_model_scan (None: identity; 'principal-axes': the coarse global
-        alignment of :func:`shapeverify.registration.initial.principal_axes_alignment`).
+    init : None, 'auto', 'identity', 'principal-axes', 'global' or (4, 4) float64
+        The start.  None = 'auto': keep the identity when the scan already overlaps the model
+        (the coarse stage from the identity leaves a fit of at least :data:`AUTO_FIT`: half
+        the coarse subset on the surface, see
+        :func:`~shapeverify.registration.global_search.fit_score`), otherwise run the global
+        search of :func:`~shapeverify.registration.global_search.global_alignment`
+        (principal axes with all axis flips, FPFH + RANSAC, the refined identity; the best
+        fit wins).  'identity': start at the identity, no search.  'principal-axes': the
+        coarse alignment of :func:`~shapeverify.registration.initial.principal_axes_alignment`.
+        'global': always search.  A matrix: the start T_model_scan (e.g. a fixture pose, see
+        :func:`~shapeverify.registration.initial.read_init`).  ``Registration.init`` says
+        which start was used.
     method : {'point-to-plane', 'point-to-point'}
         Rigid step: linearised point-to-plane least squares (thesis eq. 12-13) composed exactly
         onto the pose, or the weighted SVD solution (eq. 7-10) towards the closest points.
@@ -224,14 +268,29 @@ def register(scan, prep, init=None, method: str = "point-to-plane", loss: str = 
         Limit of rigid steps of the final stage (the coarse stage stops at 60);
         ``converged`` is False when the final stage hits it.
     tolerance : float
-        Converged when the objective (at the previous iteration's scale) decreased by less than
-        ``tolerance`` relative, and the pose change still to come -- the last step's length in
-        standard deviations of the pose (``sqrt(v^T H v) / sigma``, ``H = sum w J^T J``),
-        extrapolated by the observed rate of convergence -- is below
-        ``sqrt(tolerance * n_valid)``: a move that would change the objective by less than
-        ``tolerance``.  (1e-7 with 30,000 points: 0.05 standard deviation.)
-    rng : None, int or Generator
-        Seeds the random subsets (coarse stage, verification).
+        Inner stopping rule of each stage: the objective (at the previous iteration's scale)
+        decreased by less than ``tolerance`` relative, and the pose change still to come --
+        the last step's length in standard deviations of the pose (``sqrt(v^T H v) / sigma``,
+        ``H = sum w J^T J``), extrapolated by the observed rate of convergence -- is below
+        ``sqrt(tolerance * n_valid)``.  (1e-7 with 30,000 points: 0.05 standard deviation.)
+    rng : int, Generator or None
+        Seeds the random subsets (coarse stage, verification, global search).  The default
+        (0, also for None) makes the result bit-identical on every run and in every process;
+        the operating system is never asked for entropy.
+
+    Notes
+    -----
+    ``converged`` is True when the robust objective and the pose stopped changing at a
+    minimum: the final stage's inner rule above was met against the matched tangent planes
+    and then fresh closest points at the final pose (a subset of up to 4,000 scan points)
+    ask for a Gauss-Newton correction, in the directions the data determine, that is below
+    0.1 standard deviation of the pose, or moves no scan point by more than 0.05 sigma
+    (``|omega| * r + |tau|``, r the scan's RMS radius, sigma the robust residual scale) while
+    changing the objective by less than 1 %.  Undetermined directions (a turned part's spin,
+    a plate's slide) are projected out of every step, so they never block convergence; they
+    are named in ``Registration.undetermined``.  A pose that met the test but looks like a
+    wrong minimum (few inliers, a systematic mean residual, another hypothesis of the
+    global search fitting about as well) is flagged in ``Registration.warnings``.
 
     Returns
     -------
@@ -244,8 +303,9 @@ def register(scan, prep, init=None, method: str = "point-to-plane", loss: str = 
     ValueError
         Bad method, loss, init, scale, max_iterations or tolerance.
     RegistrationError
-        Fewer than 6 scan points within ``max(prep.max_distance, 0.2 * model size)`` of the
-        model at the start (every point far away), fewer than 6 with a closest point off the
+        With a given start ('identity', 'principal-axes' or a matrix): fewer than 6 scan
+        points within ``max(prep.max_distance, 0.2 * model size)`` of the model at the start
+        (every point far away), fewer than 6 with a closest point off the
         model's free boundary, or the robust loss left fewer than 6 weighted points.
 
     Warns
@@ -281,14 +341,20 @@ def register(scan, prep, init=None, method: str = "point-to-plane", loss: str = 
     tolerance = float(tolerance)
     if not (np.isfinite(tolerance) and tolerance > 0):
         raise ValueError(f"tolerance must be positive, got {tolerance}")
-    rng = np.random.default_rng(rng)
-    T0 = _check_init(init, P, prep, rng)
+    rng = np.random.default_rng(0 if rng is None else rng)
+    mode, T0 = _check_init(init)
+    how = mode
+    if mode == "principal-axes":
+        from .initial import principal_axes_alignment
+        T0 = principal_axes_alignment(P, prep, rng=rng).T_model_scan
+    elif mode in ("auto", "identity"):
+        T0 = np.eye(4)
+        how = "identity"
 
     n = P.shape[0]
     radius = float(np.sqrt(np.mean(np.sum((P - P.mean(axis=0)) ** 2, axis=1))))
     radius = max(radius, 1e-12)
     floor = 1e-9 * radius
-    st = _irls.State(T0[:3, :3].copy(), T0[:3, 3].copy())
     # "far away": beyond the prepared reach and a fifth of the model's size (ICP still works
     # from a start 10 % of the size off, farther than the default max_distance of 3 %)
     max_d = getattr(prep, "max_distance", None)
@@ -300,18 +366,43 @@ def register(scan, prep, init=None, method: str = "point-to-plane", loss: str = 
             raise RegistrationError(
                 f"fewer than 6 scan points lie within {reach:.4g} mm (max_distance="
                 f"{max_d:.4g} mm, or a fifth of the model's size) of the model at the start "
-                "pose: all points are far away.  Give a better init (e.g. "
-                "init='principal-axes'), check the units of scan and model, or prepare with a "
-                "larger max_distance")
+                "pose: all points are far away.  Give a better init (e.g. init='auto' or "
+                "'global'), check the units of scan and model, or prepare with a larger "
+                "max_distance")
 
     def subset(k):
         return P if n <= k else P[np.sort(rng.choice(n, k, replace=False))]
 
     convex = lossobj if lossobj.name in ("l2", "huber") else get_loss("huber")
     cap = min(max_iterations, _STAGE_CAP)
-    # graduation: convex loss on a subset first, then the requested loss on every point
-    _irls.stage_rematch("coarse", subset(COARSE_SUBSET), prep, st, method, convex, scale, floor,
-                        radius, cap, max(_COARSE_TOL, tolerance), False, first=_reachable)
+    S_coarse = subset(COARSE_SUBSET)
+
+    def coarse(T, check):
+        st = _irls.State(T[:3, :3].copy(), T[:3, 3].copy())
+        # graduation: convex loss on a subset first, then the requested loss on every point
+        _irls.stage_rematch("coarse", S_coarse, prep, st, method, convex, scale, floor, radius,
+                            cap, max(_COARSE_TOL, tolerance), False,
+                            first=_reachable if check else None)
+        return st
+
+    ga = None
+    if mode in ("auto", "global"):
+        from .global_search import fit_distance, fit_score, global_alignment
+        st, extra = None, ()
+        if mode == "auto":
+            try:
+                st = coarse(T0, True)
+                T_id = _pose(st)
+                if fit_score(prep, S_coarse, T_id, fit_distance(prep)) < AUTO_FIT:
+                    extra, st = (("identity+icp", T_id),), None
+            except RegistrationError:
+                st = None
+        if st is None:
+            ga = global_alignment(P, prep, rng=rng, extra=extra)
+            how = "global: " + ga.source
+            st = coarse(ga.T_model_scan, False)
+    else:
+        st = coarse(T0, True)
     if method == "point-to-plane":
         ev, converged, why = _irls.stage_final_plane(P, prep, st, lossobj, scale, floor, radius,
                                                 max_iterations, tolerance, False, rng)
@@ -334,16 +425,55 @@ def register(scan, prep, init=None, method: str = "point-to-plane", loss: str = 
     T[:3, :3], T[:3, 3] = st.R, st.t
     msg = (f"converged in {st.iterations} iterations" if converged else
            f"not converged: {why}")
+    desc = tuple(_describe(undet))
+    notes = list(_pose_warnings(ev, w, ga))
     if undet.shape[0]:
-        desc = _describe(undet)
         txt = ("scan geometry leaves %d pose direction(s) undetermined: %s"
                % (undet.shape[0], "; ".join(desc)))
         msg += "; " + txt
         logger.warning(txt)
         warnings.warn(txt, DegenerateGeometryWarning, stacklevel=2)
+    for txt in notes:
+        logger.warning("registration: %s", txt)
     if not converged:
         logger.warning("registration %s", msg)
     return Registration(T_model_scan=T, rms=ev.rms, iterations=st.iterations,
                         converged=converged, weights=w, inlier_fraction=float(ev.inliers.mean()),
                         covariance=cov, history=tuple(st.history), scale=ev.sigma, message=msg,
-                        undetermined=undet, method=method, loss=lossobj.name)
+                        undetermined=desc, method=method, loss=lossobj.name,
+                        undetermined_directions=undet, warnings=tuple(notes), init=how)
+
+
+def _pose(st) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = st.R, st.t
+    return T
+
+
+#: below this inlier fraction the pose is flagged (it may be a wrong minimum)
+WARN_INLIERS = 0.5
+#: a weighted mean residual beyond this many sigma is flagged as systematic
+WARN_MEAN_SIGMA = 0.5
+#: another global hypothesis with at least this share of the best fit is flagged
+WARN_RUNNER_UP = 0.97
+
+
+def _pose_warnings(ev, w, ga):
+    """Signs that the final pose is not the right minimum (see ``Registration.warnings``)."""
+    inl = float(ev.inliers.mean())
+    if inl < WARN_INLIERS:
+        yield (f"only {100 * inl:.0f} % of the scan points are inliers at the final pose: it "
+               "may be a wrong minimum, or the scan shows much that is not on the model")
+    sw = float(w.sum())
+    if sw > 0:
+        mean = float(w @ ev.d) / sw
+        if abs(mean) > WARN_MEAN_SIGMA * ev.sigma:
+            yield (f"the weighted mean residual is {mean:+.3g} mm ({mean / ev.sigma:+.2g} "
+                   "sigma): the scan lies systematically on one side of the model (wrong "
+                   "minimum, wrong scale or units, or a part that differs everywhere)")
+    if ga is not None and ga.runner_up is not None and ga.runner_up[0] >= WARN_RUNNER_UP * ga.fit:
+        f, ang, dn = ga.runner_up
+        yield (f"another start fits nearly as well (fit {f:.3f} vs {ga.fit:.3f}, {ang:.1f} deg "
+               f"away, moving the scan {dn:.3g} mm RMS along the normals): the pose may be a "
+               "symmetric copy of the true one; give init= to choose")
+

@@ -28,7 +28,7 @@ from scipy.spatial import cKDTree
 
 from .rigid import make_transform
 
-__all__ = ["principal_axes_alignment", "InitialAlignment"]
+__all__ = ["principal_axes_alignment", "InitialAlignment", "candidate_poses", "read_init"]
 
 _MAX_MODEL = 20000  # model points used for the axes and the scoring
 
@@ -76,7 +76,28 @@ def _score(tree, S, T) -> float:
     return float(np.median(d))
 
 
-def principal_axes_alignment(scan, prep, rng=None, n_sample: int = 600,
+def candidate_poses(scan: np.ndarray, M: np.ndarray, Nm: np.ndarray) -> list[np.ndarray]:
+    """The principal-axes poses (4, 4): the scan's centroid and axes onto those of the model
+    points M (m, 3) and of their visible halves (outward normals Nm along +-each axis), under
+    all 24 proper signed axis permutations (module docstring)."""
+    cs, Vs = _frame(scan)
+    _, Vm_all = _frame(M)
+    subsets = [M]
+    for k in range(3):
+        for sgn in (1.0, -1.0):
+            sel = (Nm @ (sgn * Vm_all[:, k])) > 0.0
+            if sel.sum() >= 10:
+                subsets.append(M[sel])
+    cands = []
+    for sub in subsets:
+        cm, Vm = _frame(sub)
+        for Q in _proper_maps():
+            R = Vm @ Q @ Vs.T
+            cands.append(make_transform(R, cm - R @ cs))
+    return cands
+
+
+def principal_axes_alignment(scan, prep, rng=0, n_sample: int = 600,
                              n_refine: int = 6) -> InitialAlignment:
     """Coarse T_model_scan from principal axes of the scan and of (visible) model points.
 
@@ -106,7 +127,7 @@ def principal_axes_alignment(scan, prep, rng=None, n_sample: int = 600,
     from .icp import RegistrationError, _check_scan, register
 
     S_all = _check_scan(scan)
-    rng = np.random.default_rng(rng)
+    rng = np.random.default_rng(0 if rng is None else rng)
     S = S_all[rng.choice(S_all.shape[0], min(n_sample, S_all.shape[0]), replace=False)]
     mp = prep.points
     M, Nm = np.asarray(mp.points, np.float64), np.asarray(mp.normals, np.float64)
@@ -114,20 +135,7 @@ def principal_axes_alignment(scan, prep, rng=None, n_sample: int = 600,
         keep = rng.choice(M.shape[0], _MAX_MODEL, replace=False)
         M, Nm = M[keep], Nm[keep]
     tree = cKDTree(M)
-    cs, Vs = _frame(S_all)
-    _, Vm_all = _frame(M)
-    subsets = [M]
-    for k in range(3):
-        for sgn in (1.0, -1.0):
-            sel = (Nm @ (sgn * Vm_all[:, k])) > 0.0
-            if sel.sum() >= 10:
-                subsets.append(M[sel])
-    cands = []
-    for sub in subsets:
-        cm, Vm = _frame(sub)
-        for Q in _proper_maps():
-            R = Vm @ Q @ Vs.T
-            cands.append(make_transform(R, cm - R @ cs))
+    cands = candidate_poses(S_all, M, Nm)
     scores = np.array([_score(tree, S, T) for T in cands])
     order = np.argsort(scores)[:n_refine]
     best_T, best = None, np.inf
@@ -149,3 +157,54 @@ def principal_axes_alignment(scan, prep, rng=None, n_sample: int = 600,
         raise RegistrationError("principal-axes alignment found no candidate pose that brings "
                                 "the scan near the model")
     return InitialAlignment(best_T, best, len(cands))
+
+
+def read_init(path) -> np.ndarray:
+    """Read a start pose T_model_scan (4, 4) from ``T.json`` or ``T.npy``.
+
+    JSON: a 4x4 nested list, or an object ``{"T_model_scan": [[...], ...]}``; ``.npy``: a
+    (4, 4) array.  The matrix must be rigid (orthonormal rotation with det +1, last row
+    ``[0, 0, 0, 1]``, mm); it maps scan coordinates into model coordinates.
+
+    Raises
+    ------
+    FileNotFoundError
+        No such file.
+    ValueError
+        Unknown suffix, unreadable content, or not a rigid 4x4 transform (the message says
+        which).
+    """
+    import json
+    from pathlib import Path
+
+    from .icp import validate_pose
+
+    p = Path(path)
+    if not p.is_file():
+        raise FileNotFoundError(f"init file {str(p)!r} does not exist")
+    suf = p.suffix.lower()
+    if suf == ".json":
+        try:
+            obj = json.loads(p.read_text())
+        except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+            raise ValueError(f"init file {str(p)!r} is not valid JSON: {exc}") from None
+        if isinstance(obj, dict):
+            if "T_model_scan" not in obj:
+                raise ValueError(f"init file {str(p)!r}: a JSON object must hold the key "
+                                 f"'T_model_scan' (found {sorted(obj)[:5]})")
+            obj = obj["T_model_scan"]
+        try:
+            T = np.asarray(obj, dtype=np.float64)
+        except (TypeError, ValueError):
+            raise ValueError(f"init file {str(p)!r}: T_model_scan must be a 4x4 nested list "
+                             "of numbers") from None
+    elif suf == ".npy":
+        try:
+            T = np.load(p, allow_pickle=False)
+        except (ValueError, OSError) as exc:
+            raise ValueError(f"init file {str(p)!r} is not a readable .npy array: {exc}") from None
+        T = np.asarray(T, dtype=np.float64)
+    else:
+        raise ValueError(f"init file {str(p)!r}: use a .json (4x4 nested list or "
+                         "{'T_model_scan': ...}) or a .npy (4, 4) file")
+    return validate_pose(T, f"init file {str(p)!r}")

@@ -1,0 +1,318 @@
+"""Global registration: the pose of a scan given in any frame, with no start.
+
+:func:`global_alignment` generates pose hypotheses from two published methods and keeps the one
+that fits best under one robust objective:
+
+1. *principal axes*: the scan's centroid and principal axes matched with those of the model's
+   points and of its "visible halves" (the model points facing each of the six directions
+   along its principal axes), under all 24 proper axis permutations and sign flips
+   (:mod:`shapeverify.registration.initial`);
+2. *features*: FPFH descriptors (Rusu, Blodow, Beetz, "Fast Point Feature Histograms (FPFH)
+   for 3D registration", ICRA 2009) of a voxel subsample of the scan and of the model points,
+   nearest-descriptor correspondences, and RANSAC over correspondence triples with the
+   edge-length pre-check of Zhou, Park, Koltun ("Fast global registration", ECCV 2016) -- the
+   pipeline of Open3D's ``registration_ransac_based_on_feature_matching``;
+3. the identity (the scan may already be in the model's frame).
+
+Every hypothesis is scored by the *fit* of a fixed subset of scan points: the mean over the
+subset of ``max(0, 1 - (d / tau)^2)`` with ``d`` the point's distance to the model (0 for a
+point whose closest model point is on the model's free boundary), ``tau`` the fit distance
+(:func:`fit_distance`).  This is the truncated (Tukey-like) robust objective: 1 when every
+point lies on the surface, the share of points within ``tau`` otherwise, blind to outliers.
+The best distinct hypotheses are refined by a short Huber ICP on the subset (the coarse stage of
+:func:`~shapeverify.registration.register`), re-scored, and the best refined one wins.
+
+What it cannot do: tell apart poses that the geometry itself cannot (a symmetric part's
+symmetric copies fit equally well; the result says so in ``runner_up``).
+"""
+from __future__ import annotations
+
+import logging
+import time
+import weakref
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from . import _features, _irls
+from .losses import get_loss
+from .rigid import make_transform, rotation_vector
+
+try:
+    from ..errors import RegistrationError
+except ImportError:  # pragma: no cover
+    RegistrationError = ValueError
+
+__all__ = ["global_alignment", "GlobalAlignment", "fit_score", "fit_distance"]
+
+logger = logging.getLogger(__name__)
+
+#: scan points scored per hypothesis (the first SCREEN_POINTS of them screen all hypotheses)
+SCORE_POINTS = 400
+SCREEN_POINTS = 200
+#: voxels across the model's size for the feature subsample
+VOXELS = 40
+#: RANSAC triples tried
+RANSAC_ITERATIONS = 30000
+#: hypotheses refined by ICP
+N_REFINE = 6
+
+
+@dataclass(frozen=True, eq=False, repr=False)
+class GlobalAlignment:
+    """Result of :func:`global_alignment`.
+
+    T_model_scan : (4, 4) the best refined pose; fit : its fit score in [0, 1] (share of the
+    scored scan points on the surface, see the module docstring); source : which hypothesis it
+    came from ('identity', 'principal-axes', 'fpfh-ransac'); n_hypotheses : poses scored;
+    runner_up : (fit, rotation deg, normal displacement mm) of the best refined hypothesis that
+    moves the scan differently (None if none); seconds : wall time.
+    """
+
+    T_model_scan: np.ndarray
+    fit: float
+    source: str
+    n_hypotheses: int
+    runner_up: tuple | None
+    seconds: float
+
+    def __repr__(self) -> str:
+        return (f"GlobalAlignment(fit={self.fit:.3f}, source={self.source!r}, "
+                f"n_hypotheses={self.n_hypotheses}, seconds={self.seconds:.3f})")
+
+
+# ------------------------------------------------------------------------------ model side
+_CACHE: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def _model_size(prep) -> float:
+    size = getattr(getattr(prep, "model", None), "size", None)
+    if size is None or not np.isfinite(size) or size <= 0:
+        mp = _irls.model_points(prep)
+        size = float(np.linalg.norm(np.ptp(mp[0], axis=0)))
+    return float(size)
+
+
+def fit_distance(prep) -> float:
+    """Fit distance tau (mm): ``max(4 x model point spacing, 0.005 x model size)``.
+
+    Generous enough for depth-camera noise, small against the model, so a wrong pose fits
+    only where surfaces happen to cross.
+    """
+    sp = float(getattr(prep, "spacing", 0.0) or 0.0)
+    return max(4.0 * sp, 0.005 * _model_size(prep))
+
+
+def _voxel_subsample(X: np.ndarray, voxel: float) -> np.ndarray:
+    """Index of one point per occupied voxel (the first in scan order: deterministic)."""
+    key = np.floor((X - X.min(axis=0)) / voxel).astype(np.int64)
+    dims = key.max(axis=0) + 1
+    flat = (key[:, 0] * dims[1] + key[:, 1]) * dims[2] + key[:, 2]
+    _, first = np.unique(flat, return_index=True)
+    return np.sort(first)
+
+
+def _normals(X: np.ndarray, tree: cKDTree, k: int = 10) -> np.ndarray:
+    """Unit PCA normals (n, 3) of X from its k nearest neighbours (unoriented)."""
+    k = min(k, X.shape[0])
+    _, nb = tree.query(X, k=k)
+    Q = X[nb] - X[nb].mean(axis=1, keepdims=True)
+    C = np.einsum("nki,nkj->nij", Q, Q)
+    _, V = np.linalg.eigh(C)
+    return np.ascontiguousarray(V[:, :, 0])
+
+
+def _fpfh(X: np.ndarray, Nrm: np.ndarray, tree: cKDTree, radius: float, k: int = 48):
+    k = min(k, X.shape[0])
+    dist, nb = tree.query(X, k=k, distance_upper_bound=radius)
+    nb = np.where(np.isfinite(dist), nb, X.shape[0]).astype(np.int64)
+    dist = np.where(np.isfinite(dist), dist, 0.0)
+    return _features.fpfh(X, Nrm, nb, dist)
+
+
+class _ModelSide:
+    """What the global search needs from the model, built once per Prepared object."""
+
+    def __init__(self, prep):
+        mp = _irls.model_points(prep)
+        if mp is None:
+            raise ValueError("global registration needs prep.points (model points and normals)")
+        M, Nm = mp
+        self.size = _model_size(prep)
+        self.voxel = self.size / VOXELS
+        self.tau = fit_distance(prep)
+        keep = _voxel_subsample(M, self.voxel)
+        self.points = np.ascontiguousarray(M[keep])
+        self.normals = np.ascontiguousarray(Nm[keep])
+        self.tree = cKDTree(self.points)
+        self.features = _fpfh(self.points, self.normals, self.tree, 5.0 * self.voxel)
+        self.ftree = cKDTree(self.features)
+        # all model points (about 5k, a regular subset) for the principal-axes hypotheses
+        s = max(1, M.shape[0] // 5000)
+        self.axes_points, self.axes_normals = M[::s], Nm[::s]
+
+
+def _model_side(prep) -> _ModelSide:
+    try:
+        return _CACHE[prep]
+    except KeyError:
+        side = _CACHE[prep] = _ModelSide(prep)
+        return side
+    except TypeError:   # not weak-referenceable
+        return _ModelSide(prep)
+
+
+# ------------------------------------------------------------------------------ scoring
+def fit_score(prep, S: np.ndarray, T: np.ndarray, tau: float) -> float:
+    """Fit of the scan points S (n, 3) moved by T: mean of ``max(0, 1 - (d/tau)^2)``.
+
+    ``d`` from ``prep.closest`` (fast mode); points whose closest model point is on the
+    model's free boundary count 0.
+    """
+    X = S @ T[:3, :3].T + T[:3, 3]
+    cl = prep.closest(X)
+    d = np.asarray(cl.distances, np.float64)
+    valid = np.isfinite(d) & ~np.asarray(cl.on_boundary, bool)
+    return float(_features.truncated_fit(np.where(valid, d, 0.0), valid, tau))
+
+
+def _quick_fit(tree: cKDTree, S, T, tau) -> float:
+    d, _ = tree.query(S @ T[:3, :3].T + T[:3, 3], distance_upper_bound=tau)
+    d = np.where(np.isfinite(d), d, tau)
+    return float(np.mean(np.maximum(0.0, 1.0 - (d / tau) ** 2)))
+
+
+def refine(S, prep, T, radius, max_it: int = 20) -> np.ndarray:
+    """Short Huber point-to-plane ICP of the subset S from T (the coarse stage)."""
+    st = _irls.State(T[:3, :3].copy(), T[:3, 3].copy())
+    try:
+        _irls.stage_rematch("global", S, prep, st, "point-to-plane", get_loss("huber"), None,
+                            1e-9 * radius, radius, max_it, 1e-4, False)
+    except RegistrationError:   # too few points near the model from this start
+        return T
+    return make_transform(st.R, st.t)
+
+
+# ------------------------------------------------------------------------------ hypotheses
+def _orient_towards_sensor(X: np.ndarray, Nrm: np.ndarray) -> np.ndarray:
+    """Scan normals facing the scanner: towards the origin of the scan frame (the sensor, for a
+    scan in the sensor's frame) when it lies outside the scan's box, else away from the scan's
+    centroid."""
+    lo, hi = X.min(axis=0), X.max(axis=0)
+    outside = np.any((lo > 0.0) | (hi < 0.0))
+    view = -X if outside else X - X.mean(axis=0)
+    s = np.where(np.einsum("ij,ij->i", Nrm, view) < 0, -1.0, 1.0)
+    return Nrm * s[:, None]
+
+
+def feature_hypotheses(P: np.ndarray, side: _ModelSide, rng_seed: int, top: int = 40):
+    """Poses from FPFH correspondences + RANSAC, best inlier counts first (list of 4x4)."""
+    idx = _voxel_subsample(P, side.voxel)
+    if idx.shape[0] < 10:
+        return []
+    X = np.ascontiguousarray(P[idx])
+    tree = cKDTree(X)
+    Nrm = _orient_towards_sensor(X, _normals(X, tree))
+    F = _fpfh(X, Nrm, tree, 5.0 * side.voxel)
+    _, j = side.ftree.query(F, k=1)
+    # mutual nearest descriptors, plus every scan point's nearest (if too few are mutual)
+    _, back = cKDTree(F).query(side.features[j], k=1)
+    mutual = back == np.arange(X.shape[0])
+    sel = mutual if mutual.sum() >= 30 else np.ones_like(mutual)
+    src = np.ascontiguousarray(X[sel])
+    dst = np.ascontiguousarray(side.points[j[sel]])
+    if src.shape[0] < 3:
+        return []
+    counts, poses = _features.ransac(src, dst, RANSAC_ITERATIONS, 1.5 * side.voxel, 0.9,
+                                     rng_seed)
+    order = np.argsort(-counts, kind="stable")[:top]
+    out = []
+    for i in order:
+        R = poses[i, :9].reshape(3, 3)
+        out.append(make_transform(R, poses[i, 9:]))
+    return out
+
+
+def axes_hypotheses(P: np.ndarray, side: _ModelSide):
+    """The principal-axes poses (list of 4x4): see :mod:`.initial`."""
+    from .initial import candidate_poses
+
+    return candidate_poses(P, side.axes_points, side.axes_normals)
+
+
+def _distinct(T1, T2, S, side) -> tuple[float, float]:
+    """(rotation deg, RMS normal displacement mm) between two poses on the points S.
+
+    """
+    dR = T2[:3, :3] @ T1[:3, :3].T
+    ang = float(np.degrees(np.linalg.norm(rotation_vector(dR))))
+    X1 = S @ T1[:3, :3].T + T1[:3, 3]
+    X2 = S @ T2[:3, :3].T + T2[:3, 3]
+    _, j = side.tree.query(X1)
+    dn = np.einsum("ij,ij->i", X2 - X1, side.normals[j])
+    return ang, float(np.sqrt(np.mean(dn ** 2)))
+
+
+def _apart(dist, tq) -> bool:
+    """Two hypotheses differ: 5 degrees apart, or moving the scan by tq along the normals."""
+    return dist[0] > 5.0 or dist[1] > tq
+
+
+def global_alignment(scan, prep, rng=0, extra=()) -> GlobalAlignment:
+    """Find T_model_scan with no start (module docstring: hypotheses, objective, refinement).
+
+    Parameters
+    ----------
+    scan : (N, 3) float64
+        Scan points (mm) in any frame.
+    prep : Prepared
+        Uses ``prep.closest``, ``prep.points``, ``prep.spacing`` and ``prep.model.size``.
+    rng : int or Generator
+        Seeds the scored subset and RANSAC (fixed default: the same answer every run).
+    extra : sequence of (name, (4, 4))
+        More hypotheses (e.g. the identity refined by the caller).
+
+    Returns
+    -------
+    GlobalAlignment
+    """
+    from .icp import _check_scan
+
+    t0 = time.perf_counter()
+    P = _check_scan(scan)
+    rng = np.random.default_rng(rng)
+    side = _model_side(prep)
+    n = P.shape[0]
+    S = P if n <= SCORE_POINTS else P[np.sort(rng.choice(n, SCORE_POINTS, replace=False))]
+    radius = max(float(np.sqrt(np.mean(np.sum((P - P.mean(axis=0)) ** 2, axis=1)))), 1e-12)
+    seed = int(rng.integers(2 ** 31))
+    hyps = [("identity", np.eye(4))] + [(k, np.asarray(T, float)) for k, T in extra]
+    hyps += [("principal-axes", T) for T in axes_hypotheses(P, side)]
+    hyps += [("fpfh-ransac", T) for T in feature_hypotheses(P, side, seed)]
+    tq = 2.0 * side.voxel    # screening: kd-tree on the voxel subsample of the model
+    Sq = S[:SCREEN_POINTS]
+    quick = np.array([_quick_fit(side.tree, Sq, T, tq) for _, T in hyps])
+    order = np.argsort(-quick, kind="stable")
+    chosen = []
+    for i in order:
+        if len(chosen) == N_REFINE:
+            break
+        if all(_apart(_distinct(hyps[i][1], hyps[c][1], Sq, side), tq) for c in chosen):
+            chosen.append(int(i))
+    refined = []
+    for i in chosen:
+        T = refine(S, prep, hyps[i][1], radius)
+        refined.append((fit_score(prep, S, T, side.tau), hyps[i][0], T))
+    refined.sort(key=lambda r: -r[0])
+    best_fit, best_src, best_T = refined[0]
+    runner = None
+    for f, _, T in refined[1:]:
+        ang, dn = _distinct(best_T, T, S, side)
+        if dn > side.tau:
+            runner = (f, ang, dn)
+            break
+    out = GlobalAlignment(best_T, best_fit, best_src, len(hyps), runner,
+                          time.perf_counter() - t0)
+    logger.info("global alignment: %r", out)
+    return out
