@@ -60,7 +60,7 @@ def test_inspect_pass_fail_and_outputs(panel):
                               "--report", str(out / "r.html"), "--png", str(out / "r.png"),
                               "--colored", str(out / "r.ply"), "--db", str(out / "h.sqlite"), "--part", "A2"])
     assert res.exit_code == 1, res.output
-    assert "FAIL" in res.output and "Defect regions" in res.output
+    assert "FAIL" in res.output and "Regions (most severe first)" in res.output
     assert (out / "r.html").stat().st_size > 100_000  # plotly inlined: opens offline
     assert (out / "r.png").read_bytes()[:4] == b"\x89PNG"
     from shapeverify.io.points import read_ply_full
@@ -114,3 +114,81 @@ def test_unwrap_and_fit_commands(tmp_path):
     res = runner.invoke(app, ["fit", str(tmp_path / "curve.xyz"), "--ctrl", "12", "-o", str(tmp_path / "c.json")])
     assert res.exit_code == 0, res.output
     assert json.loads((tmp_path / "c.json").read_text())
+
+
+# ------------------------------------------------------------------ errors are errors (exit 2)
+def _error_lines(output: str) -> list[str]:
+    return [ln for ln in output.splitlines() if "error:" in ln]
+
+
+def _crashing_step(src, dst):
+    """The example panel's STEP without the entity line of one pcurve: OpenCASCADE 8.0.1
+    dereferences the missing line and dies with SIGSEGV."""
+    lines = src.read_text().splitlines(keepends=True)
+    drop = next(i for i, ln in enumerate(lines) if ln.startswith("#682 = LINE("))
+    dst.write_text("".join(lines[:drop] + lines[drop + 1:]))
+    return dst
+
+
+@pytest.mark.parametrize("damage", ["bit flip", "truncated"])
+@pytest.mark.parametrize("command", ["info", "inspect"])
+def test_damaged_svm_is_one_error_line_naming_the_file_and_exit_2(panel, tmp_path, damage, command):
+    data = bytearray((panel / "panel.svm").read_bytes())
+    if damage == "bit flip":
+        data[len(data) // 2] ^= 0x10
+    else:
+        data = data[: len(data) // 3]
+    bad = tmp_path / "damaged.svm"
+    bad.write_bytes(bytes(data))
+    args = ["info", str(bad)] if command == "info" else [
+        "inspect", str(bad), str(panel / "clean.ply"), "--tolerance", "0.2"]
+    res = runner.invoke(app, args)
+    assert res.exit_code == 2, res.output
+    lines = _error_lines(res.output)
+    assert len(lines) == 1, res.output
+    assert "damaged.svm" in lines[0] and "shapeverify prepare" in lines[0]
+    assert "internal error" not in res.output and "Traceback" not in res.output
+
+
+def test_a_step_file_that_crashes_opencascade_is_exit_2_not_a_dead_process(panel, tmp_path):
+    bad = _crashing_step(panel / "panel.step", tmp_path / "broken.step")
+    res = runner.invoke(app, ["info", str(bad)])
+    assert res.exit_code == 2, res.output
+    lines = _error_lines(res.output)
+    assert len(lines) == 1 and "broken.step" in lines[0] and "crashed" in lines[0], res.output
+    res = runner.invoke(app, ["info", str(panel / "panel.step")])  # the importer comes back
+    assert res.exit_code == 0, res.output
+
+
+def test_an_unexpected_exception_is_an_internal_error_exit_2_traceback_with_verbose(
+        panel, monkeypatch):
+    import shapeverify.cad.load
+
+    def bug(path):
+        return {}["no such key"]  # a bug, not a message about the input
+
+    monkeypatch.setattr(shapeverify.cad.load, "load_model", bug)
+    res = runner.invoke(app, ["info", str(panel / "panel.step")])
+    assert res.exit_code == 2, res.output
+    lines = _error_lines(res.output)
+    assert len(lines) == 1 and lines[0].startswith("internal error: KeyError: 'no such key'")
+    assert "--verbose" in lines[0] and "Traceback" not in res.output
+    res = runner.invoke(app, ["--verbose", "info", str(panel / "panel.step")])
+    assert res.exit_code == 2
+    assert "Traceback" in res.output and "in bug" in res.output
+
+
+def test_a_valueerror_is_a_message_from_shapeverify_but_a_bug_from_elsewhere(panel, monkeypatch):
+    res = runner.invoke(app, ["prepare", str(panel / "panel.step"), "-o", str(panel / "x.svm"),
+                              "--spacing", "-1"])
+    assert res.exit_code == 2, res.output
+    assert _error_lines(res.output)[0].startswith("error: ") and "spacing" in res.output
+    import shapeverify.cad.load
+
+    def numpy_bug(path):
+        return np.zeros(3) + np.zeros(4)  # ValueError raised inside numpy: a bug
+
+    monkeypatch.setattr(shapeverify.cad.load, "load_model", numpy_bug)
+    res = runner.invoke(app, ["info", str(panel / "panel.step")])
+    assert res.exit_code == 2
+    assert _error_lines(res.output)[0].startswith("internal error: ValueError")

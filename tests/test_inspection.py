@@ -132,7 +132,7 @@ def test_deviations_values_reasons_and_transform():
     prep = PlanePrep()
     pts = np.array([[10.0, 10.0, 0.15],     # evaluated, +0.15
                      [70.0, 30.0, -0.3],    # evaluated on face 1, -0.3
-                     [50.0, 30.0, 2.5],     # too far (max_distance 1)
+                     [50.0, 30.0, 2.5],     # too far (evaluation distance 1)
                      [-0.5, 30.0, 0.0],     # foot on the outer boundary
                      [10.0, 10.0, 0.0]])
     # the scan frame is the model frame shifted by (1, 2, 3) and turned 90 degrees about z
@@ -140,7 +140,7 @@ def test_deviations_values_reasons_and_transform():
     T = np.eye(4)
     T[:3, :3], T[:3, 3] = R, [1.0, 2.0, 3.0]
     scan = (pts - T[:3, 3]) @ R          # inverse transform: scan = R^T (model - t)
-    dev = deviations(scan, prep, T, max_distance=1.0)
+    dev = deviations(scan, prep, T, evaluation_distance=1.0)
     assert prep.calls == [True]                         # exact closest points
     np.testing.assert_allclose(dev.points_model, pts, atol=1e-12)
     np.testing.assert_allclose(dev.values[[0, 1, 4]], [0.15, -0.3, 0.0], atol=1e-12)
@@ -162,7 +162,7 @@ def test_deviations_values_reasons_and_transform():
 ])
 def test_deviations_rejects_bad_input(scan, T, md, match):
     with pytest.raises(ValueError, match=match):
-        deviations(scan, PlanePrep(), T, max_distance=md)
+        deviations(scan, PlanePrep(), T, evaluation_distance=md)
 
 
 # ----------------------------------------------------------------------------- regions

@@ -181,17 +181,22 @@ def prepare(
     model: Path = typer.Argument(..., help="CAD file, mesh or point cloud"),
     output: Path = typer.Option(..., "-o", "--output", help="Output .svm file"),
     spacing: Optional[float] = typer.Option(None, help="Model-point spacing [mm] (default: from the model size)"),
-    max_distance: Optional[float] = typer.Option(None, help="Largest distance served by the grid tree [mm]"),
+    reach: Optional[float] = typer.Option(None, "--reach", "--max-distance",
+                                          help="Reach of the closest-point structure [mm]: queries "
+                                               "within it are answered by the grid tree, farther ones "
+                                               "more slowly (default: 3 % of the model size)"),
+    model_unit: Optional[str] = typer.Option(None, "--model-unit", help="Unit of an STL/PLY/OBJ/point-cloud model (default mm; CAD files declare theirs)"),
 ):
     """Import a model and pre-compute its closest-point structure (once per model)."""
     from shapeverify.pipeline import load_reference
 
     _require_files(model)
-    prep = _guard(load_reference, model, spacing=spacing, max_distance=max_distance, stage=_stage)
+    prep = _guard(load_reference, model, spacing=spacing, reach=reach, stage=_stage,
+                  model_unit=model_unit)
     with _stage(f"Writing {output.name}"):
         _guard(prep.save, output)
     out.print(f"{output}: {prep.n_points:,} model points, spacing {prep.spacing:.3g} mm, "
-              f"max distance {prep.max_distance:.3g} mm")
+              f"reach {prep.max_distance:.3g} mm")
 
 
 @app.command()
@@ -208,6 +213,8 @@ def inspect(
     faces: Optional[str] = typer.Option(None, "--faces", help="Inspect only these CAD faces, e.g. '0,3,7' (default: all)"),
     min_coverage: float = typer.Option(0.4, "--min-coverage", help="Least share of the inspected CAD area that must be seen (0..1); below it the verdict is 'incomplete'"),
     init: Optional[Path] = typer.Option(None, "--init", help="Start pose T_model_scan: a 4x4 in T.json or T.npy (default: found automatically)"),
+    scan_unit: Optional[str] = typer.Option(None, "--scan-unit", help="Unit of the scan file (mm, cm, m, in, um; default mm)"),
+    model_unit: Optional[str] = typer.Option(None, "--model-unit", help="Unit of an STL/PLY/OBJ/point-cloud model (default mm; CAD files declare theirs)"),
     json_path: Optional[Path] = typer.Option(None, "--json", help="Write the result as JSON"),
     report: Optional[Path] = typer.Option(None, "--report", help="Write the HTML report"),
     png: Optional[Path] = typer.Option(None, "--png", help="Write a PNG summary"),
@@ -228,6 +235,7 @@ def inspect(
     result, outputs = _guard(
         run_inspection, model, scan, tolerance=tolerance, evaluation_distance=evaluation_distance,
         lower=lower, upper=upper, faces=faces, min_coverage=min_coverage, init=T0,
+        scan_unit=scan_unit, model_unit=model_unit,
         json_path=json_path, report_path=report, png_path=png,
         colored_path=colored, db_path=db, part=part, stage=_stage)
     _print_result(result)

@@ -37,15 +37,20 @@ def file_hash(path: str | Path) -> str:
 
 
 def load_reference(path: str | Path, spacing: float | None = None,
-                   max_distance: float | None = None, stage: Stage | None = None):
+                   reach: float | None = None, stage: Stage | None = None, *,
+                   model_unit: str | None = None):
     """Load a prepared model (``.svm``) or import and prepare a CAD/mesh/point-cloud model.
 
     Parameters
     ----------
     path : str or Path
         ``.svm`` (prepared, fastest), or any model file ``shapeverify.load_model`` reads.
-    spacing, max_distance : float, optional
-        Model-point spacing and maximum query distance in mm for preparation (ignored for ``.svm``).
+    spacing, reach : float, optional
+        Model-point spacing and the reach of the closest-point structure (queries within it are
+        answered by the grid tree), mm, for preparation (ignored for ``.svm``).
+    model_unit : str, optional
+        The unit of a mesh or point-cloud reference (STL/PLY/OBJ carry none; default mm), see
+        :mod:`shapeverify.units`.
 
     Returns
     -------
@@ -57,12 +62,18 @@ def load_reference(path: str | Path, spacing: float | None = None,
     stage = stage or _no_stage
     path = Path(path)
     if path.suffix.lower() == PREPARED_SUFFIX:
+        if model_unit not in (None, "mm"):
+            raise ValueError(f"{path.name} is a prepared model, already in mm; give the unit when "
+                             "preparing it (shapeverify prepare MODEL --model-unit ...)")
         with stage(f"Loading prepared model {path.name}"):
             return load_prepared(path)
     with stage(f"Importing {path.name}"):
         model = load_model(path)
+        if model_unit is not None:
+            from shapeverify.units import scale_model
+            model = scale_model(model, model_unit)
     with stage(f"Preparing closest-point structure ({len(model.faces)} faces)"):
-        return prepare(model, spacing=spacing, max_distance=max_distance)
+        return prepare(model, spacing=spacing, max_distance=reach)
 
 
 @dataclass
@@ -82,11 +93,12 @@ def run_inspection(model_path: str | Path, scan_path: str | Path, tolerance: flo
                    upper: float | None = None, json_path=None, report_path=None, png_path=None,
                    colored_path=None, db_path=None, part: str | None = None,
                    stage: Stage | None = None, *, faces=None, min_coverage: float | None = None,
-                   init=None):
+                   init=None, scan_unit: str | None = None, model_unit: str | None = None):
     """Inspect one scan against one model and write the requested outputs.
 
     ``evaluation_distance``, ``faces``, ``min_coverage`` and ``init`` are passed to
-    :func:`shapeverify.inspect` (None: its defaults). The result carries ``inputs`` (part id,
+    :func:`shapeverify.inspect` (None: its defaults); ``scan_unit`` / ``model_unit`` give the
+    units of files that carry none (:mod:`shapeverify.units`). The result carries ``inputs`` (part id,
     scan and model file names, the model file's SHA-256).
 
     Returns
@@ -102,12 +114,15 @@ def run_inspection(model_path: str | Path, scan_path: str | Path, tolerance: flo
     stage = stage or _no_stage
     out = InspectionOutputs()
     t0 = time.perf_counter()
-    prep = load_reference(model_path, stage=stage)
+    prep = load_reference(model_path, stage=stage, model_unit=model_unit)
     out.timings["load_model_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     with stage(f"Reading scan {Path(scan_path).name}"):
         scan = read_points(scan_path)
+        if scan_unit is not None:
+            from shapeverify.units import scale_points
+            scan = scale_points(scan, scan_unit)
     out.timings["read_scan_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()

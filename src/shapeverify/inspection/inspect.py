@@ -14,6 +14,7 @@ from scipy.spatial import cKDTree
 
 from .. import _arrays
 from ..errors import EmptyModelError, ScanError
+from ..units import unit_hint
 from .coverage import MIN_COVERAGE, compute_coverage
 from .deviations import _deviations
 from .material import find_material, floating_surfaces
@@ -379,6 +380,10 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
     verdict, reasons, rule = decide(reg, dev, regions, coverage,
                                     min_inlier_fraction=opts.min_inlier_fraction)
     notes = []
+    model_size = _model_size(prep)
+    hint = unit_hint(_bbox_diagonal(scan), model_size) if model_size else None
+    if hint and verdict != "pass":
+        notes.append(hint)
     if outliers.n:
         notes.append(f"{outliers.n} isolated out-of-tolerance points treated as measurement "
                      f"outliers ({outliers.n_low_weight} rejected by the registration) and left "
