@@ -660,6 +660,14 @@ def _read_cad_here(path: Path, fmt: str, chord_tol: float, gap_tol: float) -> Mo
         faces.append(TopoDS.Face(exp.Current()))
         exp.Next()
     if not faces:
+        try:
+            declared, _ = declared_faces(path, fmt)
+        except (OSError, ValueError):
+            declared = 0
+        if declared:
+            raise CADImportError(f"{path}: the {fmt.upper()} file declares {declared} face(s) but "
+                                 "OpenCASCADE could read none of them; is the file damaged or "
+                                 "truncated? export it again from the CAD system")
         raise EmptyModelError(f"{path}: the {fmt.upper()} file holds no faces (only "
                               f"{shape.ShapeType().name.replace('TopAbs_', '').lower()} "
                               "geometry without surfaces)")
