@@ -170,10 +170,11 @@ def test_auto_handles_steps_below_pi_and_dense_fringes():
     psi = wrap(true + 0.6 * rng.standard_normal(true.shape))
     assert wrong_fraction(unwrap(psi), true) == 0.0
     assert wrong_fraction(unwrap(psi), true) <= wrong_fraction(unwrap_quality(psi), true)
-    # fringes too dense to smooth (2 rad/pixel): auto falls back to plain reliability sorting
+    # fringes too dense to smooth (2 rad/pixel): auto uses the raw residues (no smoothing) and
+    # agrees with plain reliability sorting up to a constant
     true = 2.0 * x + 0.6 * y
     psi = wrap(true + 0.3 * rng.standard_normal(true.shape))
-    assert np.array_equal(unwrap(psi), unwrap_quality(psi))
+    assert len(offset_multiple(unwrap(psi), unwrap_quality(psi))) == 1
     assert wrong_fraction(unwrap(psi), true) < 1e-3
 
 

@@ -7,8 +7,12 @@ Wrapping conventions, masks (True = valid) and congruence: see :mod:`shapeverify
 Methods (``method=``):
 
 =============  ==========================================================================
-``"auto"``     complex-domain smoothing + reliability sorting + congruence (robust to noise;
-               exact on clean data) -- :func:`unwrap_filtered`
+``"auto"``     residue-aware minimum-cost-flow L1 (Costantini 1998) on the complex-smoothed
+               map, costs from the steps seen across each edge, congruent with the data
+               (robust to noise and to faults longer than pi that end inside the image;
+               exact on clean data) -- :func:`unwrap_mcf` (also ``"mcf"``)
+``"filtered"`` complex-domain smoothing + reliability sorting + congruence (the default
+               before; fast, but crosses faults) -- :func:`unwrap_filtered`
 ``"quality"``  reliability-sorting path following (Herráez 2002) -- :func:`unwrap_quality`
 ``"ls"``       unweighted least squares by DCT (Ghiglia & Romero 1994) -- :func:`unwrap_ls`
 ``"wls"``      weighted least squares, DCT-preconditioned CG -- :func:`unwrap_wls`
@@ -29,7 +33,9 @@ from .fringes import PhaseShift, fringe_images, phase_shift, temporal_unwrap
 from .holography import (depth_per_fringe, phase_difference, phase_to_depth, phase_to_points,
                          points_to_phase, synthetic_wavelength)
 from .io import plot_unwrap, read_mask, read_phase, unwrap_file
+from .fields import fault_field, smooth_field
 from .minimum_norm import solve_poisson_dct, unwrap_lp, unwrap_ls, unwrap_wls
+from .network_flow import unwrap_mcf
 from .path_following import pseudo_correlation, unwrap_filtered, unwrap_quality
 from .regularised import (DATA_METHODS, IterativeUnwrap, ReferenceUnwrap, iterate_unwrap,
                           unwrap_data, unwrap_with_reference)
@@ -39,7 +45,8 @@ METHODS = tuple(DATA_METHODS) + ("nearest",)
 
 __all__ = [
     "wrap", "unwrap", "unwrap_1d", "residues", "pseudo_correlation", "METHODS",
-    "unwrap_quality", "unwrap_filtered", "unwrap_ls", "unwrap_wls", "unwrap_lp",
+    "unwrap_quality", "unwrap_filtered", "unwrap_mcf", "unwrap_ls", "unwrap_wls", "unwrap_lp",
+    "fault_field", "smooth_field",
     "solve_poisson_dct", "unwrap_with_reference", "ReferenceUnwrap", "iterate_unwrap",
     "IterativeUnwrap", "HolographySetup", "predict_phase", "unwrap_with_cad",
     "synthetic_wavelength", "depth_per_fringe", "phase_difference", "phase_to_depth",

@@ -317,29 +317,36 @@ def _angle_diff(br, bi, ar, ai):
 
 
 @njit(cache=True, nogil=True)
-def step_anomaly(psi, mask, b):
-    """Per edge: the phase step across it seen by adjacent boxes, minus the smooth trend.
-
-    Along the axis of the edge (columns for a horizontal edge ``(i, j)-(i, j+1)``, rows for a
-    vertical one) four ``(2b+1)^2`` boxes of ``exp(i psi)`` sit side by side, two on each side:
-    ``A | Bl || Br | C`` with the edge between ``Bl`` and ``Br``.  With ``D`` the phase difference
-    between neighbouring boxes, ``S = W(D(Bl, Br) - median(D(A, Bl), D(Bl, Br), D(Br, C)))``: the
-    median is the local trend (a step that lies between ``A`` and ``Bl`` or ``Br`` and ``C`` is
-    outvoted), so a smooth phase gives ``S ~ 0`` with the noise reduced by the box size, and a
-    discontinuity ``s`` on the edge gives ``W(s)``, falling off over ``2b+1`` pixels on either
-    side.  Boxes are cut at the border; edges with a masked end get NaN.  Returns (E,) float64.
-    """
-    H, W = psi.shape
-    nh = H * (W - 1)
-    c = np.zeros((H, W))
-    s = np.zeros((H, W))
+def _lag_angles(bc, bs, L, axis):
+    """angle(B[k + L] conj(B[k])) along `axis` of the box phasor sums (NaN beyond the border)."""
+    H, W = bc.shape
+    out = np.full((H, W), np.nan)
     for i in range(H):
         for j in range(W):
-            if mask[i, j]:
-                c[i, j] = np.cos(psi[i, j])
-                s[i, j] = np.sin(psi[i, j])
-    bc = _box2(c, b, b)
-    bs = _box2(s, b, b)
+            i1, j1 = (i, j + L) if axis == 1 else (i + L, j)
+            if i1 < H and j1 < W:
+                out[i, j] = _angle_diff(bc[i1, j1], bs[i1, j1], bc[i, j], bs[i, j])
+    return out
+
+
+@njit(cache=True, nogil=True)
+def step_anomaly(mask, bc, bs, b):
+    """Per edge: the phase step across it seen by adjacent boxes, minus the smooth trend.
+
+    `bc`, `bs` are the sums of ``cos(psi)``, ``sin(psi)`` (zero where masked) over the
+    ``(2b+1)^2`` box around each pixel (the phasors themselves for ``b = 0``).  Along the axis of
+    the edge (columns for a horizontal edge ``(i, j)-(i, j+1)``, rows for a vertical one) four
+    boxes sit side by side, two on each side: ``A | Bl || Br | C`` with the edge between ``Bl``
+    and ``Br``.  With ``D`` the phase difference between neighbouring boxes,
+    ``S = W(D(Bl, Br) - median(D(A, Bl), D(Bl, Br), D(Br, C)))``: the median is the local trend
+    (a step that lies between ``A`` and ``Bl`` or ``Br`` and ``C`` is outvoted), so a smooth phase
+    gives ``S ~ 0`` with the noise reduced by the box size, and a discontinuity ``s`` on the edge
+    gives ``W(s)``, falling off over ``2b+1`` pixels on either side.  Near the border the boxes
+    are cut and the missing outer difference is replaced by the other one.  Edges with a masked
+    end get NaN.  Returns (E,) float64.
+    """
+    H, W = mask.shape
+    nh = H * (W - 1)
     out = np.empty(nh + (H - 1) * W)
     L = 2 * b + 1
     for axis in range(2):
@@ -347,6 +354,7 @@ def step_anomaly(psi, mask, b):
         w = W - 1 if axis == 0 else W
         n_along = W if axis == 0 else H
         base = 0 if axis == 0 else nh
+        lag = _lag_angles(bc, bs, L, 1 if axis == 0 else 0)
         for i in range(h):
             for j in range(w):
                 e = base + i * w + j
@@ -355,31 +363,32 @@ def step_anomaly(psi, mask, b):
                     out[e] = np.nan
                     continue
                 k0 = j if axis == 0 else i
-                kl = max(k0 - b, 0)
-                kr = min(k0 + 1 + b, n_along - 1)
+                kl = k0 - b
+                kr = k0 + 1 + b
+                if kl >= 0 and kr <= n_along - 1:
+                    dm = lag[i, kl] if axis == 0 else lag[kl, j]
+                else:          # cut at the border: the nearest boxes inside
+                    kl = max(kl, 0)
+                    kr = min(kr, n_along - 1)
+                    if axis == 0:
+                        dm = _angle_diff(bc[i, kr], bs[i, kr], bc[i, kl], bs[i, kl])
+                    else:
+                        dm = _angle_diff(bc[kr, j], bs[kr, j], bc[kl, j], bs[kl, j])
+                    dm *= L / max(kr - kl, 1)
                 ka = kl - L
-                kc = kr + L
-                if axis == 0:
-                    lr, li, rr, ri = bc[i, kl], bs[i, kl], bc[i, kr], bs[i, kr]
-                else:
-                    lr, li, rr, ri = bc[kl, j], bs[kl, j], bc[kr, j], bs[kr, j]
-                dm = _angle_diff(rr, ri, lr, li)
                 has_a = ka >= 0
-                has_c = kc <= n_along - 1
+                has_c = kr + L <= n_along - 1
                 da = 0.0
                 dc = 0.0
                 if has_a:
-                    ar, ai = (bc[i, ka], bs[i, ka]) if axis == 0 else (bc[ka, j], bs[ka, j])
-                    da = _angle_diff(lr, li, ar, ai) * (kr - kl) / L
+                    da = lag[i, ka] if axis == 0 else lag[ka, j]
                 if has_c:
-                    cr, ci = (bc[i, kc], bs[i, kc]) if axis == 0 else (bc[kc, j], bs[kc, j])
-                    dc = _angle_diff(cr, ci, rr, ri) * (kr - kl) / L
+                    dc = lag[i, kr] if axis == 0 else lag[kr, j]
                 if not has_a:
                     da = dc
                 if not has_c:
                     dc = da
                 if has_a or has_c:
-                    # median of (da, dm, dc)
                     lo = min(da, dc)
                     hi = max(da, dc)
                     med = lo if dm < lo else (hi if dm > hi else dm)
@@ -391,27 +400,43 @@ def step_anomaly(psi, mask, b):
 
 
 @njit(cache=True, nogil=True)
-def robust_costs(d, w, sigma, log_beta, eps):
-    """Costs of a +1 / -1 correction from anomalies d (NaN = masked edge, cost eps).
+def robust_costs(d1, sigma1, d0, sigma0, weight0, ew, log_beta, eps):
+    """Costs of a +1 / -1 correction per edge from the anomalies of two scales (NaN = masked).
 
-    ``c(k) = log(exp(-d^2/2s^2) + beta) - log(exp(-(d + 2 pi k)^2/2s^2) + beta)``: the
-    log-likelihood ratio under a mixture of Gaussian noise (``s = sigma``) and a uniform
-    discontinuity term of weight `beta`; an edge whose anomaly is many sigma off is almost free
-    to cut, a smooth one costs about ``-log(beta)``.  Scaled by the edge weight `w`.
+    For each term ``c(k) = log(exp(-x^2/2s^2) + beta) - log(exp(-(x + 2 pi k)^2/2s^2) + beta)``
+    (``x`` the anomaly, ``s`` its noise): the log-likelihood ratio under a mixture of Gaussian
+    noise and a uniform discontinuity term of weight `beta`.  An edge whose anomaly is many noise
+    levels off is almost free to cut, a smooth one costs about ``-log(beta)``.  The box-scale term
+    (d1) plus `weight0` times the pixel-scale term (d0; skipped if weight0 is 0), scaled by the
+    edge weight `ew`, plus `eps`.  Masked edges cost `eps`.
     """
-    E = d.shape[0]
+    E = d1.shape[0]
     cp = np.empty(E)
     cm = np.empty(E)
-    s2 = 2.0 * sigma * sigma
+    beta = np.exp(log_beta)
     for e in range(E):
-        x = d[e]
+        x = d1[e]
         if not np.isfinite(x):
             cp[e] = eps
             cm[e] = eps
             continue
-        b0 = np.logaddexp(-x * x / s2, log_beta)
-        yp = x + TWO_PI
-        ym = x - TWO_PI
-        cp[e] = (b0 - np.logaddexp(-yp * yp / s2, log_beta)) * w[e] + eps
-        cm[e] = (b0 - np.logaddexp(-ym * ym / s2, log_beta)) * w[e] + eps
+        ap = 0.0
+        am = 0.0
+        for t in range(2):
+            if t == 0:
+                s2 = 2.0 * sigma1 * sigma1
+                f = 1.0
+            else:
+                if weight0 <= 0.0:
+                    break
+                x = d0[e]
+                s2 = 2.0 * sigma0 * sigma0
+                f = weight0
+            g0 = np.exp(-x * x / s2) + beta
+            yp = x + TWO_PI
+            ym = x - TWO_PI
+            ap += f * np.log(g0 / (np.exp(-yp * yp / s2) + beta))
+            am += f * np.log(g0 / (np.exp(-ym * ym / s2) + beta))
+        cp[e] = ap * ew[e] + eps
+        cm[e] = am * ew[e] + eps
     return cp, cm

@@ -132,8 +132,14 @@ def unwrap_mcf(psi, mask=None, quality=None, window: int | None = None, beta: fl
         w = int(window)
         if w < 1 or w % 2 == 0 or w != window:
             raise ValueError(f"window must be a positive odd integer, got {window!r}")
+    if parts is None:
+        parts = _kernels.phasor_parts(p, m)
+    c, s, _ = parts
+    b = max(w // 2, 1)
+    bc = _kernels.box_sum(c, b)
+    bs = _kernels.box_sum(s, b)
     if w > 1:
-        ps, _ = smooth_wrapped(p, m, w, parts)
+        ps = np.arctan2(bs, bc) if b == w // 2 else smooth_wrapped(p, m, w, parts)[0]
         ps[~m] = 0.0
     else:
         ps = p
@@ -147,18 +153,10 @@ def unwrap_mcf(psi, mask=None, quality=None, window: int | None = None, beta: fl
             cp = ew + 1e-6
             cm = cp.copy()
         else:
-            cp = np.zeros(ew.size)
-            cm = np.zeros(ew.size)
-            for b in sorted({max(w // 2, 1), 0}):
-                if b == 0 and pixel_weight <= 0:
-                    continue
-                d = _flow.step_anomaly(p, m, b)
-                dv = d[np.isfinite(d)]
-                sigma = max(1.4826 * float(np.median(np.abs(dv))) if dv.size else 0.0, 0.02)
-                a, c = _flow.robust_costs(d, ew, sigma, float(np.log(beta)), 1e-6)
-                f = pixel_weight if b == 0 else 1.0
-                cp += f * a
-                cm += f * c
+            d1 = _flow.step_anomaly(m, bc, bs, b)
+            d0 = _flow.step_anomaly(m, c, s, 0) if pixel_weight > 0 else d1
+            cp, cm = _flow.robust_costs(d1, _noise(d1), d0, _noise(d0), float(pixel_weight), ew,
+                                        float(np.log(beta)), 1e-6)
         flow, n_aug, work = _flow.min_cost_flow(q, cp, cm, H, W)
         log.debug("unwrap_mcf: window %d, %d residues, %d unit paths, %d nodes searched",
                   w, n_res, n_aug, work)
@@ -170,6 +168,13 @@ def unwrap_mcf(psi, mask=None, quality=None, window: int | None = None, beta: fl
     if ps is not p:
         n_s = np.rint((ps + TWO_PI * n_s - p) / TWO_PI)
     return _finish(p, m, n_s)
+
+
+def _noise(d):
+    """Robust noise level of the anomalies (MAD of a regular subsample), floored at 0.02 rad."""
+    v = d[:: max(1, d.size // 200_000)]
+    v = np.abs(v[np.isfinite(v)])
+    return max(1.4826 * float(np.median(v)) if v.size else 0.0, 0.02)
 
 
 def _finish(p, m, n):

@@ -8,7 +8,7 @@ Method (:func:`unwrap_with_reference`)
 --------------------------------------
 1. ``d = W(psi - reference)``: the wrapped disagreement between data and prediction.  Where the
    part follows the model, ``d`` is small and smooth -- the predicted steps are gone from it.
-2. ``d`` is unwrapped by a data-only method (default: :func:`unwrap_filtered`).  This, rather than
+2. ``d`` is unwrapped by a data-only method (default: :func:`unwrap_mcf`).  This, rather than
    taking ``reference + d`` pixel by pixel, makes the result robust to an *approximate* reference:
    a pose error, a wrong phase offset or a slowly varying model error may make ``psi - reference``
    drift by many ``2*pi`` across the map; it is still recovered, because only its local
@@ -44,6 +44,7 @@ import numpy as np
 from scipy import ndimage
 
 from .minimum_norm import unwrap_lp, unwrap_ls, unwrap_wls
+from .network_flow import unwrap_mcf
 from .path_following import unwrap_filtered, unwrap_quality
 from .wrap import TWO_PI, check_map_like, check_phase_map, wrap
 
@@ -54,7 +55,8 @@ __all__ = ["unwrap_with_reference", "ReferenceUnwrap", "iterate_unwrap", "Iterat
 
 #: data-only methods: name -> (function, how `quality` is passed)
 DATA_METHODS = {
-    "auto": (unwrap_filtered, "quality"),
+    "auto": (unwrap_mcf, "quality"),
+    "mcf": (unwrap_mcf, "quality"),
     "filtered": (unwrap_filtered, "quality"),
     "quality": (unwrap_quality, "quality"),
     "ls": (unwrap_ls, None),
