@@ -190,7 +190,8 @@ def write_png_summary(result, scan=None, path="summary.png", *, max_points: int 
     text = "deviation statistics [mm]\n"
     if s.n:
         text += "\n".join(f"{k:>4s} {val:+9.4f}" for k, val in lines)
-        text += f"\nin tolerance {100 * s.in_tolerance_fraction:.2f} %\nevaluated {s.n:,} points"
+        text += (f"\nin tolerance {100 * s.in_tolerance_fraction:.2f} %\nof {s.n:,} evaluated inliers"
+                 f"\n(outliers: {result.outliers.n:,})")
     else:
         text += "no points evaluated"
     n_ne = dev.n - dev.n_evaluated
