@@ -36,6 +36,7 @@ from .io import plot_unwrap, read_mask, read_phase, unwrap_file
 from .fields import fault_field, smooth_field
 from .minimum_norm import solve_poisson_dct, unwrap_lp, unwrap_ls, unwrap_wls
 from .network_flow import unwrap_mcf
+from .sum_of_norms import SumOfNormsUnwrap, unwrap_sum_of_norms
 from .path_following import pseudo_correlation, unwrap_filtered, unwrap_quality
 from .regularised import (DATA_METHODS, IterativeUnwrap, ReferenceUnwrap, iterate_unwrap,
                           unwrap_data, unwrap_with_reference)
@@ -46,7 +47,7 @@ METHODS = tuple(DATA_METHODS) + ("nearest",)
 __all__ = [
     "wrap", "unwrap", "unwrap_1d", "residues", "pseudo_correlation", "METHODS",
     "unwrap_quality", "unwrap_filtered", "unwrap_mcf", "unwrap_ls", "unwrap_wls", "unwrap_lp",
-    "fault_field", "smooth_field",
+    "fault_field", "smooth_field", "unwrap_sum_of_norms", "SumOfNormsUnwrap",
     "solve_poisson_dct", "unwrap_with_reference", "ReferenceUnwrap", "iterate_unwrap",
     "IterativeUnwrap", "HolographySetup", "predict_phase", "unwrap_with_cad",
     "synthetic_wavelength", "depth_per_fringe", "phase_difference", "phase_to_depth",
