@@ -30,6 +30,7 @@ from __future__ import annotations
 
 from .cad import HolographySetup, predict_phase, unwrap_with_cad
 from .fringes import PhaseShift, fringe_images, phase_shift, temporal_unwrap
+from .fringe_analysis import FringeAnalysis, find_carrier, ftp, wff
 from .holography import (depth_per_fringe, phase_difference, phase_to_depth, phase_to_points,
                          points_to_phase, synthetic_wavelength)
 from .io import plot_unwrap, read_mask, read_phase, unwrap_file
@@ -53,6 +54,7 @@ __all__ = [
     "synthetic_wavelength", "depth_per_fringe", "phase_difference", "phase_to_depth",
     "phase_to_points", "points_to_phase",
     "phase_shift", "PhaseShift", "fringe_images", "temporal_unwrap",
+    "ftp", "wff", "FringeAnalysis", "find_carrier",
     "read_phase", "read_mask", "plot_unwrap", "unwrap_file",
 ]
 

@@ -1,6 +1,8 @@
 """Simulation: a virtual optical scanner with realistic defects and the truth of every point."""
 from .scanner import (BLOB, DENT, INLIER, LABELS, OUTLIER, Accuracy, VirtualScan, random_motion,
                       virtual_scan)
+from .fringes import FringeImages, demo_scene, fringe_images
 
 __all__ = ["virtual_scan", "VirtualScan", "Accuracy", "random_motion", "INLIER", "OUTLIER",
-           "BLOB", "DENT", "LABELS"]
+           "BLOB", "DENT", "LABELS",
+           "fringe_images", "FringeImages", "demo_scene"]

@@ -1,0 +1,392 @@
+"""Stereo phase matching and triangulation of one fringe image per camera (thesis §3.1, Paper III).
+
+The chain, for a rig of two cameras and a projector (:mod:`shapeverify.camera.rig`):
+
+1. wrapped phase and modulation of each image (:func:`shapeverify.phase.fringe_analysis.ftp` or
+   ``wff``), with the lobe chosen so that both phases increase with the projector column;
+2. relative fringe orders in the left image by a quality-guided flood fill: each connected region
+   of usable pixels gets ``psi + 2 pi m`` continuous, with one unknown integer offset ``K``;
+3. the offset of each region is voted: for a sample of its pixels and every candidate ``K``, the
+   projector's ray surface of the absolute phase ``psi + 2 pi (m + K)`` cuts the pixel's ray in a
+   3-D point, which the right camera must see with the same wrapped phase.  Only the right order
+   is consistent in both views.  With a CAD model at a nominal pose, the candidates are limited to
+   the order the model predicts (+- ``cad_window``) -- the idea of Paper V;
+4. every pixel: the sub-pixel point on its epipolar line in the right image whose phase equals the
+   left phase (Newton along the left ray, from the projector's estimate), which *is* the
+   triangulation of the left ray with the right point's ray (lens distortion included); points
+   whose projector phase disagrees with the stereo point by more than ``tol_projector`` are
+   dropped, and failed patches are voted again as regions of their own;
+5. per-point quality = sqrt(quality_left * quality_right) * (1 - |projector residual| / tol).
+
+A rig with equal baselines on both sides of the projector cannot tell a wrong order from the right
+one on a plane parallel to the baseline (the wrong surface is consistent in both views); there,
+pass the model and nominal pose, or a tight ``depth_range``.
+"""
+
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy import ndimage
+
+from shapeverify.camera import _optics_kernels as _k
+
+__all__ = ["StereoScan", "measure", "phase_direction", "simulate_and_measure_demo"]
+
+log = logging.getLogger(__name__)
+TWO_PI = 2.0 * np.pi
+
+
+@dataclass(frozen=True, repr=False)
+class StereoScan:
+    """Points measured from one pair of fringe images.
+
+    Attributes
+    ----------
+    points : (N, 3) float64
+        Points in the rig (left camera) frame, mm.
+    quality : (N,) float64
+        Per-point quality in [0, 1] (fringe contrast in both views times order consistency).
+    pixels : (N, 2) int64
+        Left-camera pixel (u, v) of each point.
+    residual : (N,) float64
+        Projector-phase residual (rad) of each stereo point.
+    usable : (H, W) bool
+        Left pixels with a usable phase (before matching).
+    timings : dict
+        Seconds per stage.
+    info : dict
+        Regions voted, candidate orders, pixels rejected.
+    """
+
+    points: np.ndarray
+    quality: np.ndarray
+    pixels: np.ndarray
+    residual: np.ndarray
+    usable: np.ndarray
+    timings: dict = field(default_factory=dict)
+    info: dict = field(default_factory=dict)
+
+    def __len__(self):
+        return len(self.points)
+
+    def __repr__(self):
+        return (f"StereoScan(points={len(self.points):,}, median quality={float(np.median(self.quality)) if len(self.quality) else 0:.3g}, "
+                f"{sum(self.timings.values()):.3g} s)")
+
+
+def _kargs(dev):
+    return dev.K, dev.dist, dev.R, dev.T
+
+
+def _working_distance(rig) -> float:
+    """Left-ray parameter where the left and projector optical axes pass closest."""
+    c0, d0 = np.zeros(3), np.array([0.0, 0.0, 1.0])
+    c1, d1 = rig.projector.center, rig.projector.R[2]
+    w = c0 - c1
+    a, b, c, d, e = d0 @ d0, d0 @ d1, d1 @ d1, d0 @ w, d1 @ w
+    den = a * c - b * b
+    t = (b * e - c * d) / den if abs(den) > 1e-12 else 300.0
+    return float(t) if t > 0 else float(np.linalg.norm(c1)) * 3
+
+
+def phase_direction(rig, camera: str, t_mid: float | None = None) -> np.ndarray:
+    """Image direction (2,) in ``camera`` along which the projector column (pattern phase) increases."""
+    t_mid = _working_distance(rig) if t_mid is None else t_mid
+    dev = getattr(rig, camera)
+    X = np.array([0.0, 0.0, t_mid])
+    axis = rig.projector.R[1 if rig.pattern.direction == "rows" else 0]
+    uv, _ = dev.project(np.vstack([X, X + 0.5 * axis]))
+    d = uv[1] - uv[0]
+    if not np.all(np.isfinite(d)):
+        raise ValueError(f"the {camera} camera does not see the projector's working volume: check the rig's R, T")
+    return d / np.linalg.norm(d)
+
+
+_RAYS: dict = {}
+
+
+def _left_rays(rig) -> np.ndarray:
+    key = (id(rig), rig.left.K.tobytes(), rig.left.dist.tobytes(), rig.left.size)
+    r = _RAYS.get(key)
+    if r is None:
+        _RAYS.clear()
+        r = np.ascontiguousarray(rig.left.rays(rig.left.pixel_grid())[1])
+        _RAYS[key] = r
+    return r
+
+
+def _depth_bracket(rig, depth_range, t_mid):
+    if depth_range is not None:
+        z0, z1 = (float(x) for x in depth_range)
+        if not 0 < z0 < z1:
+            raise ValueError(f"depth_range must be (z_near, z_far) with 0 < z_near < z_far (mm), got {depth_range}")
+        return z0, z1 * 1.5  # ray parameter >= z; the far end covers oblique rays
+    # where the left optical axis is seen by the right camera and the projector
+    ts = t_mid * np.geomspace(0.2, 5.0, 400)
+    X = np.column_stack([np.zeros_like(ts), np.zeros_like(ts), ts])
+    ok = np.ones(len(ts), bool)
+    for dev in (rig.right, rig.projector):
+        uv, z = dev.project(X)
+        ok &= (z > 0) & (uv[:, 0] >= 0) & (uv[:, 0] <= dev.width - 1) & (uv[:, 1] >= 0) & (uv[:, 1] <= dev.height - 1)
+    if not ok.any():
+        raise ValueError("the left camera's optical axis is not seen by both the right camera and the projector; "
+                         "pass depth_range=(z_near, z_far)")
+    return float(ts[ok].min()) * 0.7, float(ts[ok].max()) * 1.4
+
+
+def _sample(idx, n):
+    if len(idx) <= n:
+        return idx
+    return idx[np.linspace(0, len(idx) - 1, n).round().astype(np.int64)]
+
+
+def _candidate_range(rig, dirs, psi, m, t_lo, t_hi):
+    """Integer offsets K such that psi + 2 pi (m + K) is a projector phase seen along the rays."""
+    rows = rig.pattern.direction == "rows"
+    P = rig.pattern.period_px
+    lo, hi = np.inf, -np.inf
+    for t in np.geomspace(t_lo, t_hi, 64):
+        uv, z = rig.projector.project(dirs * t)
+        c = uv[:, 1 if rows else 0]
+        k = c / P - psi / TWO_PI - m
+        ok = np.isfinite(k) & (z > 0)
+        if ok.any():
+            lo, hi = min(lo, k[ok].min()), max(hi, k[ok].max())
+    if not np.isfinite(lo):
+        return np.zeros(0, np.int64)
+    return np.arange(int(np.floor(lo)), int(np.ceil(hi)) + 1, dtype=np.int64)
+
+
+def _vote(rig, dirs, psi, m, cands, psi_r, valid_r, t_mid, t_lo, t_hi, tol):
+    """Best offset of a region and its score (fraction of samples consistent), second-best score."""
+    err = np.empty((len(dirs), len(cands)))
+    P = rig.pattern.period_px
+    rows = rig.pattern.direction == "rows"
+    _k.candidate_errors(np.ascontiguousarray(dirs), psi, m.astype(np.int64), cands, *_kargs(rig.projector), rows, P,
+                        *_kargs(rig.right), psi_r, valid_r, t_mid, t_lo, t_hi, err)
+    good = np.abs(np.nan_to_num(err, nan=np.pi)) < tol
+    score = good.mean(axis=0)
+    mean_err = np.array([np.abs(err[good[:, c], c]).mean() if good[:, c].any() else np.pi for c in range(len(cands))])
+    order = np.lexsort((mean_err, -score))
+    best = order[0]
+    second = score[order[1]] if len(order) > 1 else 0.0
+    return int(cands[best]), float(score[best]), float(second)
+
+
+def _cad_orders(rig, model, T_left_model, dirs, psi, m):
+    """Offsets K predicted by the CAD model at the nominal pose for sample rays (NaN where it misses)."""
+    from shapeverify.camera.intersect import intersect_rays
+
+    T = np.asarray(T_left_model, dtype=np.float64)
+    R, t = T[:3, :3], T[:3, 3]
+    o = np.broadcast_to(-R.T @ t, dirs.shape)
+    hits = intersect_rays(model, np.ascontiguousarray(o), np.ascontiguousarray(dirs @ R))
+    X = hits.points @ R.T + t
+    uv, z = rig.projector.project(np.where(hits.hit[:, None], X, 0.0))
+    c = uv[:, 1 if rig.pattern.direction == "rows" else 0]
+    k = np.where(hits.hit & (z > 0), c / rig.pattern.period_px - psi / TWO_PI - m, np.nan)
+    return k
+
+
+def measure(rig, left, right, model=None, T_left_model=None, method="ftp", depth_range=None,
+            tol_vote=0.5, tol_projector=0.5, cad_window=1, min_region=64, samples=300,
+            min_score=0.5, analysis_options=None) -> StereoScan:
+    """3-D points from one fringe image per camera.
+
+    Parameters
+    ----------
+    rig : Rig
+        Calibrated rig with a projector (:mod:`shapeverify.camera.rig`).
+    left, right : (H, W) array_like
+        Fringe images of the left and right camera (uint8, uint16 or float), sizes as in the rig.
+    model : Model, Prepared or None
+        CAD model used to predict the fringe order (optional).
+    T_left_model : (4, 4) or None
+        Nominal pose of the model in the left camera frame (identity when a model is given without it).
+    method : "ftp" or "wff"
+        Single-image phase analysis (:func:`~shapeverify.phase.fringe_analysis.ftp`, ``wff``).
+    depth_range : (z_near, z_far) or None
+        Depth interval (mm, left camera z) that holds the part; default: where the left optical
+        axis is seen by the right camera and the projector.
+    tol_vote : float
+        Right-phase error (rad) under which a sample counts as consistent in the order vote.
+    tol_projector : float
+        Largest projector-phase residual (rad) of a kept stereo point.
+    cad_window : int
+        With a model: orders within +- this of the predicted one are candidates.
+    min_region : int
+        Regions with fewer pixels are dropped.
+    samples : int
+        Pixels per region used in the vote.
+    min_score : float
+        A region whose best order explains fewer than this fraction of samples is dropped.
+    analysis_options : dict or None
+        Extra keyword arguments for the phase analysis.
+
+    Returns
+    -------
+    StereoScan
+
+    Raises
+    ------
+    ValueError
+        Rig without projector, image sizes that differ from the rig, unknown method, bad ranges.
+    """
+    from shapeverify.phase.fringe_analysis import ftp, wff
+
+    if rig.projector is None:
+        raise ValueError("the rig has no projector; measuring needs its pattern (projector key of rig.json)")
+    if method not in ("ftp", "wff"):
+        raise ValueError(f"method must be 'ftp' or 'wff', got {method!r}")
+    L, Rr = np.asarray(left), np.asarray(right)
+    for name, img, dev in (("left", L, rig.left), ("right", Rr, rig.right)):
+        if img.ndim != 2 or img.shape != (dev.height, dev.width):
+            raise ValueError(f"the {name} image has shape {img.shape}, the rig's {name} camera is "
+                             f"{dev.width} x {dev.height} (W x H): pass a single-channel image of that size")
+    timings = {}
+    t0 = time.perf_counter()
+    t_mid = _working_distance(rig)
+    analyse = ftp if method == "ftp" else wff
+    opts = dict(analysis_options or {})
+    fa_l = analyse(L, direction=phase_direction(rig, "left", t_mid), **opts)
+    fa_r = analyse(Rr, direction=phase_direction(rig, "right", t_mid), **opts)
+    timings["phase"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    H, W = L.shape
+    psi_l = np.ascontiguousarray(np.where(fa_l.mask, fa_l.phase, 0.0))
+    psi_r = np.ascontiguousarray(np.where(fa_r.mask, fa_r.phase, 0.0))
+    valid_r = np.ascontiguousarray(fa_r.mask)
+    labels = np.empty((H, W), np.int32)
+    order = np.zeros((H, W), np.int32)
+    n_reg = _k.flood_unwrap(psi_l, np.ascontiguousarray(fa_l.quality), np.ascontiguousarray(fa_l.mask), 0.8 * np.pi,
+                            labels, order)
+    timings["unwrap"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    dirs_all = _left_rays(rig)
+    t_lo, t_hi = _depth_bracket(rig, depth_range, t_mid)
+    lab = labels.ravel()
+    psi_flat, m_flat = psi_l.ravel(), order.ravel().astype(np.int64)
+    sizes = np.bincount(lab[lab >= 0], minlength=n_reg)
+    flat_idx = np.flatnonzero(lab >= 0)
+    by_label = np.split(flat_idx[np.argsort(lab[flat_idx], kind="stable")], np.cumsum(sizes)[:-1]) if n_reg else []
+    rows = rig.pattern.direction == "rows"
+    P = rig.pattern.period_px
+
+    def resolve(region_idx):
+        """Vote the offset of a set of pixels; None when not decided."""
+        s = _sample(region_idx, samples)
+        d, p, mm = dirs_all[s], psi_flat[s], m_flat[s]
+        cands = _candidate_range(rig, d, p, mm, t_lo, t_hi)
+        if model is not None:
+            kc = _cad_orders(rig, model, np.eye(4) if T_left_model is None else T_left_model, d, p, mm)
+            if np.isfinite(kc).sum() >= max(3, len(s) // 10):
+                kp = int(np.round(np.nanmedian(kc)))
+                cands = np.arange(kp - cad_window, kp + cad_window + 1, dtype=np.int64)
+        if len(cands) == 0:
+            return None, 0.0, 0.0
+        K, score, second = _vote(rig, d, p, mm, cands, psi_r, valid_r, t_mid, t_lo, t_hi, tol_vote)
+        return (K if score >= min_score else None), score, second
+
+    korder = np.full(H * W, np.iinfo(np.int64).min, np.int64)
+    info = {"regions": int(n_reg), "voted": 0, "ambiguous": 0, "revoted": 0}
+    for r in range(n_reg):
+        if sizes[r] < min_region:
+            continue
+        K, score, second = resolve(by_label[r])
+        info["voted"] += 1
+        if K is None:
+            continue
+        if second > 0.8 * score:
+            info["ambiguous"] += 1
+        korder[by_label[r]] = m_flat[by_label[r]] + K
+    timings["orders"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+
+    def match(idx):
+        out_t, out_e = np.empty(len(idx)), np.empty(len(idx))
+        _k.match_pixels(idx, dirs_all, psi_flat, korder[idx], *_kargs(rig.projector), rows, P, *_kargs(rig.right),
+                        psi_r, valid_r, t_mid, t_lo, t_hi, tol_projector, out_t, out_e)
+        return out_t, out_e
+
+    idx = np.flatnonzero(korder != np.iinfo(np.int64).min)
+    t_ray, resid = match(idx)
+    # patches that failed (a wrong relative order inside a region) are voted again on their own
+    failed = np.zeros(H * W, bool)
+    failed[idx[~np.isfinite(t_ray)]] = True
+    failed[(lab >= 0) & (korder == np.iinfo(np.int64).min)] = True
+    comp, n_comp = ndimage.label(failed.reshape(H, W))
+    if n_comp:
+        cs = np.bincount(comp.ravel(), minlength=n_comp + 1)
+        big = np.flatnonzero(cs >= min_region)
+        big = big[big > 0]
+        for c in big:
+            ci = np.flatnonzero(comp.ravel() == c)
+            K, score, second = resolve(ci)
+            if K is None:
+                continue
+            info["revoted"] += 1
+            korder[ci] = m_flat[ci] + K
+            tt, ee = match(ci)
+            pos = np.searchsorted(idx, ci)
+            inside = (pos < len(idx)) & (idx[np.minimum(pos, len(idx) - 1)] == ci)
+            new = ci[~inside]
+            t_ray[pos[inside]] = np.where(np.isfinite(tt[inside]), tt[inside], t_ray[pos[inside]])
+            resid[pos[inside]] = np.where(np.isfinite(tt[inside]), ee[inside], resid[pos[inside]])
+            if len(new):
+                idx = np.concatenate([idx, new])
+                t_ray = np.concatenate([t_ray, tt[~inside]])
+                resid = np.concatenate([resid, ee[~inside]])
+                o = np.argsort(idx, kind="stable")
+                idx, t_ray, resid = idx[o], t_ray[o], resid[o]
+    ok = np.isfinite(t_ray)
+    idx, t_ray, resid = idx[ok], t_ray[ok], resid[ok]
+    points = dirs_all[idx] * t_ray[:, None]
+    uv_r, _ = rig.right.project(points)
+    qr = ndimage.map_coordinates(fa_r.quality, [uv_r[:, 1], uv_r[:, 0]], order=1, mode="nearest")
+    ql = fa_l.quality.ravel()[idx]
+    quality = np.sqrt(np.clip(ql * qr, 0, None)) * np.clip(1.0 - np.abs(resid) / tol_projector, 0.0, 1.0)
+    timings["match"] = time.perf_counter() - t0
+    info["usable_left"] = int(fa_l.mask.sum())
+    info["points"] = int(len(idx))
+    log.info("measure: %d points from %d usable left pixels (%d regions)", len(idx), info["usable_left"], n_reg)
+    pixels = np.column_stack([idx % W, idx // W]).astype(np.int64)
+    return StereoScan(points, quality, pixels, resid, fa_l.mask, timings, info)
+
+
+def simulate_and_measure_demo(out_dir=None, width: int = 1000, height: int = 1000, rng=0):
+    """Render fringe images of the example panel, measure them and return the scan (``make demo``).
+
+    Writes ``left.png``, ``right.png``, ``rig.json`` and ``scan.ply`` to ``out_dir`` when given.
+
+    Returns
+    -------
+    scan : StereoScan
+    images : shapeverify.simulate.fringes.FringeImages
+    """
+    from pathlib import Path
+
+    from shapeverify.camera.rig import save_rig
+    from shapeverify.simulate.fringes import demo_scene, fringe_images
+
+    model, rig, T = demo_scene(width, height)
+    dent_at = model.faces[0].evaluate(np.array([[0.3, 0.6]]))[0]
+    imgs = fringe_images(model, rig, T, period_mm=1.0, rng=rng, dent=(dent_at, 0.4, 8.0))
+    scan = measure(imgs.rig, imgs.left, imgs.right)
+    if out_dir is not None:
+        import cv2
+
+        from shapeverify.io.points import write_ply
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        cv2.imwrite(str(out / "left.png"), imgs.left)
+        cv2.imwrite(str(out / "right.png"), imgs.right)
+        save_rig(imgs.rig, out / "rig.json")
+        write_ply(out / "scan.ply", scan.points, scalars={"quality": scan.quality})
+    return scan, imgs
