@@ -459,3 +459,7 @@ def main() -> None:  # pragma: no cover - entry point
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())
+
+
+from .cli_optics import register_commands as _register_optics  # noqa: E402  (measure, calibrate)
+_register_optics(app)
