@@ -1,4 +1,6 @@
 """Simulation: a virtual optical scanner with realistic defects and the truth of every point."""
+from .hologram import (Hologram, dual_wavelength_holograms, grooved_plate, rough_surface,
+                       simulate_hologram)
 from .scanner import (BLOB, DENT, INLIER, LABELS, OUTLIER, Accuracy, VirtualScan, random_motion,
                       virtual_scan)
 from .fringes import FringeImages, demo_scene, fringe_images
