@@ -98,3 +98,28 @@ def test_background_without_surface_and_bad_input():
         dual_wavelength_depth(h.intensity, h.intensity[:-1], L1, L2)
     with pytest.raises(ValueError, match="finite"):
         reconstruct(np.full((16, 16), np.nan))
+
+
+def test_cli_hologram_writes_the_depth_map(tmp_path):
+    from typer.testing import CliRunner
+
+    from shapeverify.cli import app
+
+    depth, groove = grooved_plate((128, 128), PITCH, 2.0, 1.0)
+    h1, h2 = dual_wavelength_holograms(depth, L1, L2, pixel_pitch=PITCH, noise=0.02, bits=12, rng=3)
+    np.save(tmp_path / "h1.npy", h1.intensity.astype(np.uint16))
+    np.save(tmp_path / "h2.npy", h2.intensity.astype(np.uint16))
+    np.save(tmp_path / "cad.npy", depth)
+    out = tmp_path / "depth.npy"
+    res = CliRunner().invoke(app, ["hologram", str(tmp_path / "h1.npy"), str(tmp_path / "h2.npy"),
+                                   "-o", str(out), "--lambda1", str(L1), "--lambda2", str(L2),
+                                   "--reference", str(tmp_path / "cad.npy")])
+    assert res.exit_code == 0, res.output
+    assert "depth_per_fringe_mm: 0.2" in res.output
+    got = np.load(out)
+    inner = ndimage.binary_erosion(groove, iterations=6)
+    outer = ndimage.binary_erosion(~groove, iterations=6)
+    assert abs(np.nanmedian(got[inner]) - np.nanmedian(got[outer]) - 1.0) < 5e-3
+    bad = CliRunner().invoke(app, ["hologram", str(tmp_path / "h1.npy"), str(tmp_path / "nope.npy"),
+                                   "-o", str(out), "--lambda1", str(L1), "--lambda2", str(L2)])
+    assert bad.exit_code == 2 and "no such file" in bad.output

@@ -357,6 +357,28 @@ def unwrap(
 
 
 @app.command()
+def hologram(
+    h1: Path = typer.Argument(..., help="Off-axis hologram at --lambda1 (intensity: .npy, .png, .tif)"),
+    h2: Path = typer.Argument(..., help="Off-axis hologram at --lambda2"),
+    output: Path = typer.Option(..., "-o", "--output", help="Depth map (.npy, mm, NaN = not measured)"),
+    lambda1: float = typer.Option(..., help="Wavelength of H1 in mm (e.g. 632.8e-6)"),
+    lambda2: float = typer.Option(..., help="Wavelength of H2 in mm"),
+    reference: Optional[Path] = typer.Option(None, help="CAD-predicted depth map (.npy, mm) that regularises the unwrapping"),
+    pitch: Optional[float] = typer.Option(None, help="Pixel pitch in mm (needed with --distance)"),
+    distance: float = typer.Option(0.0, help="Propagation from the image plane to the camera (mm)"),
+    window: int = typer.Option(5, help="Speckle filter window (odd)"),
+):
+    """Depth map from two off-axis holograms at two wavelengths (carrier filtering, synthetic wavelength)."""
+    from shapeverify.phase.hologram import hologram_file
+
+    with _stage(f"Reconstructing {h1.name} and {h2.name}"):
+        summary = _guard(hologram_file, h1, h2, output, lambda1, lambda2, reference_path=reference,
+                         pixel_pitch=pitch, distance=distance, window=window)
+    for k, v in summary.items():
+        out.print(f"{k}: {v}")
+
+
+@app.command()
 def fit(
     points: Path = typer.Argument(..., help="Points: .ply .xyz .txt .csv .npy .pcd"),
     output: Path = typer.Option(..., "-o", "--output", help=".step, .igs/.iges or .json"),
