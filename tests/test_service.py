@@ -153,7 +153,7 @@ def test_verdicts_history_and_report(server, panel):
     assert rep.status_code == 200 and rep.headers["content-type"].startswith("text/html")
     assert "<html" in rep.text.lower() and "plotly" in rep.text.lower() and "fail" in rep.text.lower()
     assert server.get("/report/999999").status_code == 404
-    assert server.get("/report/abc").status_code == 422
+    assert server.get("/report/abc").status_code == 404  # not a record id: no such record
 
     models = server.get("/models").json()
     assert models["panel"]["unit"] == "mm" and models["panel"]["model_points"] > 1000
@@ -387,3 +387,124 @@ def test_worker_socket_gets_tcp_nodelay():
             listen_socket("127.0.0.1", busy.getsockname()[1]).listen()
         finally:
             busy.close()
+
+
+# ------------------------------------------------------- full disk, absurd ids, stalled headers
+@pytest.fixture(scope="module")
+def local_app(panel, tmp_path_factory):
+    """The service app in this process (for monkeypatching), with the panel model."""
+    from fastapi.testclient import TestClient
+
+    from shapeverify.service import ServiceConfig, create_app, load_models
+
+    d, _ = panel
+    models, hashes = load_models([d / "panel.svm"])
+    db = tmp_path_factory.mktemp("local") / "h.sqlite"
+    app = create_app(ServiceConfig(models=models, model_hashes=hashes, db_path=db, threads=1))
+    with TestClient(app) as client:
+        yield client, db, db.with_name(db.stem + "-scans")
+
+
+def _rows(db) -> int:
+    con = sqlite3.connect(db)
+    try:
+        return con.execute("select count(*) from inspections").fetchone()[0]
+    finally:
+        con.close()
+
+
+def test_full_disk_gives_507_and_leaves_no_temporary_file(local_app, panel, monkeypatch):
+    import errno
+
+    from shapeverify.report.history import HistoryDB
+
+    client, db, scan_dir = local_app
+    _, scans = panel
+    params = {"model": "panel", "tolerance": 0.2}
+    real_savez = np.savez
+
+    def savez_on_full_disk(fh, **arrays):
+        fh.write(b"PK\x03\x04 half an archive")  # the disk fills up while the scan is written
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    with monkeypatch.context() as m:
+        m.setattr(np, "savez", savez_on_full_disk)
+        r = client.post("/inspect", params=params, content=scans["small"])
+    assert r.status_code == 507, r.text
+    assert "disk is full" in r.json()["detail"] and "not stored" in r.json()["detail"]
+    assert list(scan_dir.iterdir()) == [] and _rows(db) == 0
+
+    def add_on_full_disk(self, *a, **k):
+        raise sqlite3.OperationalError("database or disk is full")
+
+    with monkeypatch.context() as m:
+        m.setattr(HistoryDB, "add", add_on_full_disk)
+        r = client.post("/inspect", params=params, content=scans["small"])
+    assert r.status_code == 507, r.text
+    assert list(scan_dir.iterdir()) == [] and _rows(db) == 0
+    assert np.savez is real_savez
+    r = client.post("/inspect", params=params, content=scans["small"])  # space again: stored
+    assert r.status_code == 200, r.text
+    assert _rows(db) == 1 and [p.suffix for p in scan_dir.iterdir()] == [".npz"]
+    spec = client.get("/openapi.json").json()
+    assert "507" in spec["paths"]["/inspect"]["post"]["responses"]
+
+
+@pytest.mark.parametrize("rid", ["99999999999999999999999999", "9223372036854775808", "-1", "0",
+                                 "abc", "1e3", "12%2E5", "%20"])
+def test_report_of_an_absurd_id_is_404(local_app, rid):
+    client, _, _ = local_app
+    r = client.get(f"/report/{rid}")
+    assert r.status_code == 404, (rid, r.status_code, r.text)
+    assert "no stored inspection" in r.json()["detail"]
+
+
+def _uvicorn_in_thread(app, header_timeout, monkeypatch):
+    import uvicorn
+
+    from shapeverify.service.server import HeaderTimeoutProtocol
+
+    monkeypatch.setattr(HeaderTimeoutProtocol, "header_timeout", header_timeout)
+    port = _free_port()
+    server = uvicorn.Server(uvicorn.Config(app, host="127.0.0.1", port=port, lifespan="off",
+                                           http=HeaderTimeoutProtocol, log_level="error"))
+    thread = threading.Thread(target=server.run, daemon=True)
+    thread.start()
+    deadline = time.time() + 20
+    while not server.started and time.time() < deadline:
+        time.sleep(0.02)
+    assert server.started
+    return server, thread, port
+
+
+def _closed_after(sock) -> float:
+    """Seconds until the server closes ``sock`` (reads and discards whatever it sends)."""
+    t0 = time.monotonic()
+    sock.settimeout(10)
+    while sock.recv(65536):
+        pass
+    return time.monotonic() - t0
+
+
+def test_request_headers_that_never_finish_are_dropped_after_the_limit(monkeypatch):
+    async def slow_app(scope, receive, send):  # answers after 1 s: longer than the limit
+        import asyncio
+
+        await asyncio.sleep(1.0 if scope["path"] == "/slow" else 0.0)
+        await send({"type": "http.response.start", "status": 200, "headers": []})
+        await send({"type": "http.response.body", "body": b"ok"})
+
+    server, thread, port = _uvicorn_in_thread(slow_app, 0.5, monkeypatch)
+    try:
+        with socket.create_connection(("127.0.0.1", port)) as s:  # half a request, then silence
+            s.sendall(b"GET /health HTTP/1.1\r\nHost: x\r\nX-Slow: ")
+            assert 0.4 < _closed_after(s) < 2.0
+        with socket.create_connection(("127.0.0.1", port)) as s:
+            s.sendall(b"GET /slow HTTP/1.1\r\nHost: x\r\n\r\n")  # a request in progress stays
+            s.settimeout(5)
+            assert s.recv(65536).startswith(b"HTTP/1.1 200")
+            s.sendall(b"GET / HTTP/1.1\r\nHo")  # kept alive, then a stalled second request
+            assert _closed_after(s) < 2.0  # (uvicorn alone would wait for ever)
+    finally:
+        server.should_exit = True
+        thread.join(10)

@@ -11,7 +11,9 @@ Endpoints (JSON unless noted; lengths in mm):
 Bad input gets a 4xx whose ``detail`` says what was wrong: 401 missing or wrong token, 404 unknown
 model or record, 408 the upload took longer than the time limit, 413 body too large, 415
 unsupported format, 422 malformed, empty or NaN-only scan (or bad query parameters), 504 the
-inspection did not finish within the time limit.
+inspection did not finish within the time limit, 507 the server's disk is full (nothing was stored,
+no temporary file is left; free space and send the request again).  ``/report/{id}`` answers 404
+for any id that is not a stored record (negative, non-numeric or absurdly large ids included).
 
 Records: the result is committed to the SQLite history (WAL) *before* the response is sent, in one
 transaction, so a response that reached the client always has its row, and a request that failed
@@ -25,8 +27,11 @@ unreferenced scan file, never a row without its scan.
 from __future__ import annotations
 
 import asyncio
+import errno
 import logging
 import os
+import re
+import sqlite3
 import secrets
 import threading
 import time
@@ -56,7 +61,30 @@ _ERRORS = {
     415: "not a supported scan format (PLY, NPY, PCD, XYZ/CSV text)",
     422: "malformed, empty or NaN-only scan; bad query parameters; a scan that cannot be inspected",
     504: "the inspection did not finish within the time limit (--time-limit); nothing was stored",
+    507: "the server's disk is full: nothing was stored and no temporary file is left; free "
+         "space on the server and send the request again",
 }
+_RECORD_ID = re.compile(r"[0-9]{1,18}")  # SQLite integers are 64-bit: longer ids cannot exist
+
+
+def _disk_full(exc: BaseException) -> bool:
+    """Whether storing failed because the disk (or the user's quota) is full."""
+    if isinstance(exc, OSError):
+        return exc.errno in (errno.ENOSPC, errno.EDQUOT)
+    return isinstance(exc, sqlite3.OperationalError) and "full" in str(exc).lower()
+
+
+def _write_scan(path: Path, points: np.ndarray, weights) -> None:
+    """Store a scan (and its registration weights) as ``path``, complete or not at all: written
+    to a temporary name and renamed; on any failure (a full disk) the temporary file is removed."""
+    tmp = path.with_suffix(".tmp")
+    try:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, points=points, weights=np.asarray(weights if weights is not None else []))
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def _responses(*codes: int) -> dict:
@@ -244,6 +272,12 @@ def create_app(config: ServiceConfig) -> FastAPI:
             raise HTTPException(415, str(exc)) from None
         except (ShapeVerifyError, ValueError) as exc:
             raise HTTPException(422, str(exc)) from None
+        except (OSError, sqlite3.OperationalError) as exc:
+            if not _disk_full(exc):
+                raise
+            log.error("disk full, request not stored: %s", exc)
+            raise HTTPException(507, "the server's disk is full: the result was not stored; free "
+                                     "space on the server and send the request again") from None
 
     def inspect_and_store(job: _Job, *args):
         try:
@@ -269,11 +303,7 @@ def create_app(config: ServiceConfig) -> FastAPI:
         scan_file = None
         if config.keep_scans:
             scan_file = scan_dir / f"{uuid.uuid4().hex}.npz"
-            tmp = scan_file.with_suffix(".tmp")
-            weights = getattr(result.registration, "weights", None)
-            with open(tmp, "wb") as fh:
-                np.savez(fh, points=points, weights=np.asarray(weights if weights is not None else []))
-            os.replace(tmp, scan_file)  # complete or absent, never half written
+            _write_scan(scan_file, points, getattr(result.registration, "weights", None))
             payload["scan_file"] = scan_file.name
         if not job.begin_commit():  # timed out meanwhile: the client got 504, store nothing
             if scan_file is not None:
@@ -340,7 +370,7 @@ def create_app(config: ServiceConfig) -> FastAPI:
                 for name, p in config.models.items()}
 
     @app.post(
-        "/inspect", dependencies=auth, responses=_responses(401, 404, 408, 413, 415, 422, 504),
+        "/inspect", dependencies=auth, responses=_responses(401, 404, 408, 413, 415, 422, 504, 507),
         openapi_extra={"requestBody": {"required": True, "description": "The scan points (mm): PLY "
                        "(ascii or binary), .npy, PCD or XYZ/CSV text. Without a content type (or "
                        "with application/octet-stream or text/plain) the first bytes decide.",
@@ -381,9 +411,13 @@ def create_app(config: ServiceConfig) -> FastAPI:
 
     @app.get("/report/{record_id}", response_class=HTMLResponse, dependencies=auth,
              responses=_responses(401, 404, 504))
-    async def report(record_id: int) -> HTMLResponse:
-        """The HTML report of a stored inspection, drawn on demand from the stored scan."""
-        html = await run_limited(_Job(), time.monotonic() + limit, render_report, record_id)
+    async def report(record_id: str) -> HTMLResponse:
+        """The HTML report of a stored inspection, drawn on demand from the stored scan (404 for
+        an id that is not a stored record's: negative, non-numeric or too large ones too)."""
+        if not _RECORD_ID.fullmatch(record_id):
+            raise HTTPException(404, f"no stored inspection with id {record_id[:40]!r}: record ids "
+                                     "are the positive integers /history lists")
+        html = await run_limited(_Job(), time.monotonic() + limit, render_report, int(record_id))
         return HTMLResponse(html)
 
     @app.exception_handler(RequestValidationError)

@@ -7,6 +7,12 @@ port (the only way past the GIL on a multi-core machine); each loads the models 
 on-disk cache, filled by the warm-up of the starting process, makes that quick), and requests
 that arrive while a worker is still loading wait in the listen backlog. All processes write the
 same SQLite history (WAL mode; one transaction per record).
+
+Connections whose request headers do not arrive in full within ``header_timeout_s`` (default
+10 s) of the connection opening, or of the previous response on a kept-alive connection, are
+closed (:class:`HeaderTimeoutProtocol`): a client that sends half a request and stalls (or a
+slowloris attack) cannot hold connections open forever.  Idle kept-alive connections are closed
+after uvicorn's ``timeout_keep_alive`` (5 s).
 """
 
 from __future__ import annotations
@@ -22,6 +28,63 @@ import numpy as np
 log = logging.getLogger(__name__)
 
 _ENV = "SHAPEVERIFY_SERVICE_CONFIG"  # settings handed to uvicorn's worker processes
+#: seconds a connection may take to send a complete set of request headers
+HEADER_TIMEOUT_S = 10.0
+
+
+def _auto_protocol():
+    from uvicorn.protocols.http.auto import AutoHTTPProtocol
+
+    return AutoHTTPProtocol
+
+
+class HeaderTimeoutProtocol(_auto_protocol()):
+    """uvicorn's HTTP protocol (httptools, else h11) with a time limit on request headers.
+
+    A timer starts when the connection opens and again when a response has been sent; it is
+    stopped as soon as a request's headers are complete (uvicorn then starts a new request cycle).
+    When it fires while no request is in progress, the connection is closed.  The limit is the
+    class attribute ``header_timeout`` (seconds; set by :func:`serve`).
+    """
+
+    header_timeout = HEADER_TIMEOUT_S
+
+    def connection_made(self, transport) -> None:
+        super().connection_made(transport)
+        self._header_timer = None
+        self._arm_header_timer()
+
+    def _arm_header_timer(self) -> None:
+        self._stop_header_timer()
+        self._header_cycle = self.cycle
+        self._header_timer = self.loop.call_later(self.header_timeout, self._header_time_out)
+
+    def _stop_header_timer(self) -> None:
+        if getattr(self, "_header_timer", None) is not None:
+            self._header_timer.cancel()
+            self._header_timer = None
+
+    def _header_time_out(self) -> None:
+        self._header_timer = None
+        idle = self.cycle is None or self.cycle.response_complete
+        if self.cycle is self._header_cycle and idle and not self.transport.is_closing():
+            log.info("closing a connection whose request headers did not arrive within %g s",
+                     self.header_timeout)
+            self.transport.close()
+
+    def data_received(self, data: bytes) -> None:
+        super().data_received(data)
+        if self._header_timer is not None and self.cycle is not self._header_cycle:
+            self._stop_header_timer()  # a request's headers are complete
+
+    def on_response_complete(self) -> None:
+        super().on_response_complete()
+        if not self.transport.is_closing():
+            self._arm_header_timer()
+
+    def connection_lost(self, exc) -> None:
+        self._stop_header_timer()
+        super().connection_lost(exc)
 
 
 def load_models(paths) -> tuple[dict, dict]:
@@ -72,7 +135,7 @@ def warm_up(models: dict) -> None:
 def serve(model_paths, *, host: str = "127.0.0.1", port: int = 8000, db_path="history.sqlite",
           token: str | None = None, max_body_bytes: int = 64 * 1024 * 1024, time_limit_s: float = 60.0,
           threads: int = 2, workers: int = 1, keep_scans: bool = True, log_level: str = "warning",
-          on_ready=None) -> None:
+          on_ready=None, header_timeout_s: float = HEADER_TIMEOUT_S) -> None:
     """Load and warm up the models, then serve HTTP until interrupted (blocks).
 
     Parameters
@@ -85,30 +148,38 @@ def serve(model_paths, *, host: str = "127.0.0.1", port: int = 8000, db_path="hi
         Server processes (uvicorn workers) sharing the port.
     on_ready : callable(models: dict), optional
         Called after loading and warm-up, before the port is bound (the CLI prints a line).
+    header_timeout_s : float
+        Connections whose request headers are not complete within this many seconds are closed.
     """
     import uvicorn
 
     from shapeverify.service.app import ServiceConfig, create_app
 
+    if not header_timeout_s > 0:
+        raise ValueError(f"header_timeout_s must be > 0 seconds, got {header_timeout_s!r}")
+    HeaderTimeoutProtocol.header_timeout = float(header_timeout_s)
     models, hashes = load_models(model_paths)
     warm_up(models)
     if on_ready is not None:
         on_ready(models)
     settings = dict(model_paths=[str(Path(p).resolve()) for p in model_paths],
                     db_path=str(Path(db_path).resolve()), token=token, max_body_bytes=int(max_body_bytes),
-                    time_limit_s=float(time_limit_s), threads=int(threads), keep_scans=bool(keep_scans))
+                    time_limit_s=float(time_limit_s), threads=int(threads), keep_scans=bool(keep_scans),
+                    header_timeout_s=float(header_timeout_s))
     if workers <= 1:
         config = ServiceConfig(models=models, model_hashes=hashes, db_path=Path(db_path), token=token,
                                max_body_bytes=int(max_body_bytes), time_limit_s=float(time_limit_s),
                                threads=int(threads), keep_scans=bool(keep_scans))
-        uvicorn.run(create_app(config), host=host, port=port, log_level=log_level)
+        uvicorn.run(create_app(config), host=host, port=port, log_level=log_level,
+                    http=HeaderTimeoutProtocol)
         return
     del models
     os.environ[_ENV] = json.dumps(settings)
     from uvicorn.supervisors import Multiprocess
 
     config = uvicorn.Config("shapeverify.service.server:app_from_env", factory=True, host=host,
-                            port=port, workers=int(workers), log_level=log_level)
+                            port=port, workers=int(workers), log_level=log_level,
+                            http=HeaderTimeoutProtocol)
     Multiprocess(config, sockets=[listen_socket(host, port)]).run()
 
 
@@ -138,6 +209,7 @@ def app_from_env():
     from shapeverify.service.app import ServiceConfig, create_app
 
     s = json.loads(os.environ[_ENV])
+    HeaderTimeoutProtocol.header_timeout = float(s.pop("header_timeout_s", HEADER_TIMEOUT_S))
     models, hashes = load_models(s.pop("model_paths"))
     warm_up(models)
     s["db_path"] = Path(s["db_path"])
