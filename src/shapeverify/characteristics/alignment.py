@@ -155,7 +155,8 @@ def face_indices(model, faces) -> np.ndarray | None:
 
 
 # ------------------------------------------------------------------------------ best fits
-def _gauss_newton(scan, prep, T0, free, center, faces, loss, max_iterations, tol, reach):
+def _gauss_newton(scan, prep, T0, free, center, faces, loss, max_iterations, tol, reach,
+                  degenerate_ok=False):
     P = np.asarray(scan, np.float64)
     lossobj = get_loss(loss)
     X0 = apply_transform(T0, P)
@@ -185,14 +186,19 @@ def _gauss_newton(scan, prep, T0, free, center, faces, loss, max_iterations, tol
         Jw = J * w[:, None]
         H = Jw.T @ J
         g = Jw.T @ r
-        scale = np.sqrt(np.maximum(np.diag(H), 1e-300))
+        # geometric scaling (rotation columns are lengths times the model size): a direction
+        # the faces do not determine keeps a tiny eigenvalue (diagonal scaling would hide it)
+        scale = np.array([size if j < 3 else 1.0 for j in free]) * np.sqrt(
+            max(float(w.sum()), 1.0))
         Hs = H / np.outer(scale, scale)
-        lam = np.linalg.eigvalsh(Hs)
-        if lam[0] <= 1e-9 * lam[-1]:
+        lam, V = np.linalg.eigh(Hs)
+        det = lam > 1e-8 * lam[-1]
+        if not det.all() and not degenerate_ok:
             names = [DOF_NAMES[j] for j in free]
             raise ValueError(f"the alignment faces do not determine the free degrees of freedom "
                              f"{names} (flat or cylindrical geometry); lock some or add faces")
-        step = -np.linalg.solve(Hs, g / scale) / scale
+        inv = np.where(det, 1.0 / np.where(det, lam, 1.0), 0.0)   # no step where undetermined
+        step = -(V * inv) @ (V.T @ (g / scale)) / scale
         p[free] += step
         move = np.abs(step) * np.array([size if j < 3 else 1.0 for j in free])
         if np.max(move) < tol * max(size, 1.0):
@@ -213,7 +219,7 @@ def _gauss_newton(scan, prep, T0, free, center, faces, loss, max_iterations, tol
         d = (X0 - c) @ dR[j].T if j < 3 else np.broadcast_to(np.eye(3)[j - 3], X0.shape)
         J[:, k] = np.einsum("ij,ij->i", cl.normals, d)
     Jw = J * w[:, None]
-    Hinv = np.linalg.inv(Jw.T @ J)
+    Hinv = np.linalg.pinv(Jw.T @ J, rcond=1e-9, hermitian=True)
     Jb = J * (w * r)[:, None]
     Cp = Hinv @ (Jb.T @ Jb) @ Hinv
     A = _p_to_e(p, c, free)
@@ -231,7 +237,8 @@ def _reach(prep, reach):
 
 
 def best_fit(scan, prep, faces=None, init=None, loss: str = "tukey", max_iterations: int = 50,
-             tolerance: float = 1e-9, reach: float | None = None, rng=None) -> AlignmentResult:
+             tolerance: float = 1e-9, reach: float | None = None, rng=None,
+             degenerate_ok: bool = False) -> AlignmentResult:
     """Free 6-DOF robust best fit, on all faces or on the faces named.
 
     Parameters
@@ -247,10 +254,18 @@ def best_fit(scan, prep, faces=None, init=None, loss: str = "tukey", max_iterati
         Robust loss of :mod:`shapeverify.registration.losses`.
     reach : float, optional
         Points farther than this from the CAD are ignored (default: ``prep.max_distance``).
+    degenerate_ok : bool
+        False: faces that leave a pose direction undetermined (one plane, one cylinder) are an
+        error.  True: no step in those directions (they keep ``init``'s value).
 
     Returns
     -------
     AlignmentResult
+
+    Raises
+    ------
+    ValueError
+        Too few points on the faces, or undetermined directions (unless ``degenerate_ok``).
     """
     from ..registration import register
 
@@ -261,7 +276,7 @@ def best_fit(scan, prep, faces=None, init=None, loss: str = "tukey", max_iterati
         T0 = _check_T(init)
     T, cov, res, rms, p, it, ok, n, sigma = _gauss_newton(
         scan, prep, T0, range(6), np.zeros(3), fidx, loss, max_iterations, tolerance,
-        _reach(prep, reach))
+        _reach(prep, reach), degenerate_ok)
     return AlignmentResult(T, cov, res, rms, DOF_NAMES, (), "best_fit",
                            {"iterations": it, "converged": ok, "n_points": n, "scale": sigma,
                             "faces": "all" if fidx is None else fidx.tolist()})
@@ -419,9 +434,12 @@ def rps_alignment(scan, prep, points, init=None, radius: float = 4.0, max_iterat
         r = np.array(res)
         Wh = 1.0 / np.array(unc)
         Js = J * Wh[:, None]
-        sv = np.linalg.svd(Js, compute_uv=False)
-        if Js.shape[0] < 6 or sv[-1] <= 1e-9 * sv[0]:
-            _, _, Vt = np.linalg.svd(J)
+        # geometric conditioning: rotation columns scaled by the model size (all lengths)
+        size = max(float(prep.model.size), 1e-9)
+        Jg = J / np.r_[[size] * 3, [1.0] * 3]
+        sv = np.linalg.svd(Jg, compute_uv=False)
+        if Js.shape[0] < 6 or sv[-1] <= 1e-2 * sv[0]:
+            _, _, Vt = np.linalg.svd(Jg)
             raise ValueError(f"the {n_locks} RPS locks do not fix all six degrees of freedom "
                              f"(undetermined pose direction e = {np.round(Vt[-1], 3).tolist()}); "
                              "3-2-1: lock z at three points, x and y at a hole, y at another")

@@ -216,10 +216,13 @@ def _profile(c, S: _Scan, al: AlignmentResult, k: float, prep, scan, max_distanc
     d, X, nrm = S.d, S.X, S.cl.normals
     cov = al.covariance
     details = {"datum": bool(c.datum)}
+    noise = S.noise
     if not c.datum:
-        bf = best_fit(scan, prep, faces=c.faces, init=al.T_model_scan, reach=max_distance)
+        bf = best_fit(scan, prep, faces=c.faces, init=al.T_model_scan, reach=max_distance,
+                      degenerate_ok=True)
         S2 = _Scan(prep, scan, bf.T_model_scan, max_distance)
         m, d, X, nrm, cov = S2.on(fidx), S2.d, S2.X, S2.cl.normals, bf.covariance
+        noise = S2.noise
         details["T_model_scan"] = bf.T_model_scan.tolist()
     if np.count_nonzero(m) == 0:
         return _not_measured(c, "no scan points on the profile's faces")
@@ -227,7 +230,7 @@ def _profile(c, S: _Scan, al: AlignmentResult, k: float, prep, scan, max_distanc
     i = int(np.argmax(np.abs(dm)))
     value = 2.0 * float(abs(dm[i]))
     j = np.flatnonzero(m)[i]
-    u = np.sqrt(_pose_var(cov, X[j], nrm[j]) + S.noise ** 2)
+    u = np.sqrt(_pose_var(cov, X[j], nrm[j]) + noise ** 2)
     U = 2.0 * k * u  # the value is twice the extreme deviation
     lo, hi = _zone_limits(c)
     details.update({"n": int(m.sum()), "min": float(dm.min()), "max": float(dm.max()),
