@@ -360,11 +360,25 @@ def _record(st, name, loss, n, ev, v=None, m=0.0, matched=True):
         0.0 if v is None else float(np.linalg.norm(v[3:])), float(m), matched))
 
 
+def _anneal(ev: Eval, prev_sigma, anneal, scale, floor) -> Eval:
+    """Graduated scale: sigma may fall by at most the factor ``anneal`` per iteration."""
+    if anneal is None or scale is not None or prev_sigma is None:
+        return ev
+    lo = anneal * prev_sigma
+    if ev.sigma >= lo:
+        return ev
+    return weigh(ev.X, ev.Y, ev.N, ev.d, ev.valid, ev.index, ev.clamped, ev.loss, lo, floor)
+
+
 def stage_rematch(name, P, prep, st: State, method, loss, scale, floor, radius, max_it, tol,
-                  exact, first=None) -> tuple[Eval, bool, str]:
+                  exact, first=None, anneal=None) -> tuple[Eval, bool, str]:
     """Iterate re-matching + one step until converged or ``max_it`` steps (module docstring).
 
     ``first(d, valid)`` optionally checks the first matching (e.g. the max_distance test).
+    ``anneal`` (e.g. 0.7): the robust scale may fall by at most this factor per iteration
+    (graduated non-convexity: the points that fit only once the pose is right -- a few blades
+    that fix an impeller's spin, while its hub fits at once -- keep their pull until the pose
+    has moved; Black & Rangarajan 1996, Yang et al. 2020).
     Returns the final evaluation, whether it converged, and why not ('' when it did).
     """
     X, Y, N, d, valid, idx, clamped = match(P, prep, st.R, st.t, exact)
@@ -398,7 +412,8 @@ def stage_rematch(name, P, prep, st: State, method, loss, scale, floor, radius, 
         prev = (ev.sigma, ev.objective)
         st.R, st.t = Rn, tn
         st.iterations += 1
-        ev = evaluate(P, prep, st.R, st.t, loss, scale, floor, exact)
+        ev = _anneal(evaluate(P, prep, st.R, st.t, loss, scale, floor, exact), ev.sigma,
+                     anneal, scale, floor)
     _record(st, name, loss, P.shape[0], ev)
     return ev, False, f"stage {name!r} hit max_iterations={max_it}"
 

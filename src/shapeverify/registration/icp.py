@@ -53,6 +53,8 @@ _METHODS = {"point-to-plane": "point-to-plane", "plane": "point-to-plane",
 COARSE_SUBSET = 800
 #: tolerance and iteration cap of the coarse stage
 _COARSE_TOL = 1e-4
+#: the coarse stage's robust scale falls by at most this factor per iteration (graduated)
+ANNEAL = 0.7
 _STAGE_CAP = 60
 
 
@@ -382,7 +384,7 @@ def register(scan, prep, init=None, method: str = "point-to-plane", loss: str = 
         # graduation: convex loss on a subset first, then the requested loss on every point
         _irls.stage_rematch("coarse", S_coarse, prep, st, method, convex, scale, floor, radius,
                             cap, max(_COARSE_TOL, tolerance), False,
-                            first=_reachable if check else None)
+                            first=_reachable if check else None, anneal=ANNEAL)
         return st
 
     ga = None
