@@ -626,7 +626,7 @@ def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domai
                rev,
                seg_off, x0, y0, x1, y1, a3, b3, sag, free, ch_off, ch_seg, ch_c, ch_r,
                bin_off, bin_lo, bin_hi, bin_inv, bin_start, bin_xy,
-               p_face, p_centre, p_axes, p_half, p_uv, n_lo, n_hi, n_child, n_first, n_count,
+               p_face, p_inner, p_centre, p_axes, p_half, p_uv, n_lo, n_hi, n_child, n_first, n_count,
                out_foot, out_normal, out_dist, out_face, out_uv, out_onb):
     """Exact closest point on the trimmed faces around each query's nearest model point.
 
@@ -644,9 +644,11 @@ def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domai
     candidate point is at most ``spacing`` farther from the query than the nearest model
     point (concave corners, and the rare query whose nearest model point the tree missed).
     Then every patch of every face (:mod:`shapeverify.nearest.patches`) whose oriented
-    bounding box is closer than the best foot so far is tried too, Newton started at the
-    patch's centre (unless a foot already found on that face lies in the patch's parameter
-    box): the seeds only make the search fast, the bounds make it complete.
+    bounding box is closer than the best foot so far is tried too (unless a foot already
+    found on that face lies in the patch's parameter box): Newton from the patch's centre,
+    kept in its parameter box, then the trim test (none for patches wholly inside the trims)
+    and the face's boundary if outside.  The seeds only make the search fast, the bounds
+    make it complete.
     The closest candidate wins; its distance is signed by the face's outward normal.
     """
     n = pt_face.shape[0]
@@ -691,6 +693,8 @@ def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domai
     sv = np.empty(K + 2 + n_patch)
     stack = np.empty(_patch_kernels.STACK, dtype=np.int64)
     searched = np.full(domains.shape[0], -1, dtype=np.int64)
+    dom_s = domains.copy()  # row f is a patch's box while that patch is solved
+    cl_s = closed.copy()
     p_centre = _borrow(p_centre)
     p_axes = _borrow(p_axes)
     p_half = _borrow(p_half)
@@ -783,14 +787,33 @@ def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domai
                     continue
                 us = 0.5 * (p_uv[k, 0] + p_uv[k, 1])
                 vs = 0.5 * (p_uv[k, 2] + p_uv[k, 3])
-            u, v, d2, edge, D = newton_face(tab, domains, closed, f, us, vs, q0, q1, q2)
+            on_patch = c >= nc
+            if on_patch:  # solve on the patch's parameter box only
+                dom_s[f, 0, 0] = p_uv[k, 0]
+                dom_s[f, 0, 1] = p_uv[k, 1]
+                dom_s[f, 1, 0] = p_uv[k, 2]
+                dom_s[f, 1, 1] = p_uv[k, 3]
+                cl_s[f, 0] = False
+                cl_s[f, 1] = False
+            u, v, d2, edge, D = newton_face(tab, dom_s, cl_s, f, us, vs, q0, q1, q2)
             onb = False
             sf[ns] = f
             su[ns] = u
             sv[ns] = v
             ns += 1
-            if edge or not inside(f, u, v, bin_off, bin_lo, bin_hi, bin_inv, bin_start,
-                                  bin_xy):
+            if on_patch:
+                for r in range(2):
+                    dom_s[f, r, 0] = domains[f, r, 0]
+                    dom_s[f, r, 1] = domains[f, r, 1]
+                    cl_s[f, r] = closed[f, r]
+                # a patch wholly inside the trims needs no trim test; its foot, even on the
+                # patch's border, is a point of the face (a closer one lies on another patch)
+                trim = not p_inner[k] and not inside(f, u, v, bin_off, bin_lo, bin_hi,
+                                                     bin_inv, bin_start, bin_xy)
+            else:
+                trim = edge or not inside(f, u, v, bin_off, bin_lo, bin_hi, bin_inv,
+                                          bin_start, bin_xy)
+            if trim:
                 if searched[f] == i:
                     continue  # this face's boundary was searched for this query already
                 searched[f] = i

@@ -141,3 +141,4 @@ def candidates(q0, q1, q2, best2, centre, axes, half, nlo, nhi, child, first, co
             stack[sp + 1] = c + 1
             sp += 2
     return n
+

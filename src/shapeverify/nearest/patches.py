@@ -113,7 +113,8 @@ class PatchBounds:
 
     Attributes (patch k, in hierarchy order)
     ----------------------------------------
-    face (K,) int32, centre (K, 3), axes (K, 3, 3) (rows: unit axes), half (K, 3),
+    face (K,) int32, inner (K,) bool (no trimming segment crosses the patch: wholly inside
+    the trims), centre (K, 3), axes (K, 3, 3) (rows: unit axes), half (K, 3),
     uvbox (K, 4) (u0, u1, v0, v1); hierarchy nodes ``node_lo``/``node_hi`` (M, 3),
     ``node_child`` (M,) (first child, -1 for a leaf), ``node_first``/``node_count`` (M,).
     """
@@ -196,8 +197,8 @@ class PatchBounds:
             if sel.size and len(face.loops):
                 keep[sel] = np.asarray(face.contains(centres_uv[sel]), dtype=bool)
         n_all = face_id.shape[0]
-        face_id, centre, axes, half, uvbox = (a[keep] for a in (face_id, centre, axes, half,
-                                                                 uvbox))
+        face_id, centre, axes, half, uvbox, crossed = (
+            a[keep] for a in (face_id, centre, axes, half, uvbox, crossed))
         # hierarchy
         ext = np.abs(axes).transpose(0, 2, 1) @ half[:, :, None]   # AABB half extents
         ext = np.where(np.isfinite(half).all(axis=1)[:, None], ext[:, :, 0], np.inf)
@@ -214,6 +215,7 @@ class PatchBounds:
         n_nodes = _patch_kernels.build_bvh(np.ascontiguousarray(centre), box_lo, box_hi,
                                            order, _LEAF, nlo, nhi, child, first, count)
         self.face = np.ascontiguousarray(face_id[order])
+        self.inner = np.ascontiguousarray(~crossed[order])
         self.centre = np.ascontiguousarray(centre[order])
         self.axes = np.ascontiguousarray(axes[order])
         self.half = np.ascontiguousarray(half[order])
@@ -231,7 +233,7 @@ class PatchBounds:
 
     def arrays(self) -> tuple:
         """The arrays the kernels read, in their argument order."""
-        return (self.face, self.centre, self.axes, self.half, self.uvbox, self.node_lo,
+        return (self.face, self.inner, self.centre, self.axes, self.half, self.uvbox, self.node_lo,
                 self.node_hi, self.node_child, self.node_first, self.node_count)
 
     @property
