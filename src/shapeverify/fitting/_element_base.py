@@ -1,7 +1,7 @@
 """Shared machinery of the geometric-element fits (private).
 
 Result ``__repr__`` base (:class:`_Repr`), input checks at the public boundary, the robust
-losses (:data:`LOSSES`, :func:`robust_weights`, MAD scale), the outer IRLS loop (:func:`_irls`),
+losses (those of :mod:`shapeverify.robust`, the one module), the outer IRLS loop (:func:`_irls`),
 a Levenberg-Marquardt solver with steps in a local chart (:func:`_lm`) and small vector helpers.
 
 Robust losses: ``loss="huber" | "tukey" | "cauchy" | "welsch"`` solves the M-estimation problem
@@ -21,9 +21,10 @@ import dataclasses
 
 import numpy as np
 
-#: tuning constants (95 % efficiency at the normal distribution), in units of the robust scale
-LOSSES = {"l2": None, "huber": 1.345, "tukey": 4.685, "cauchy": 2.385, "welsch": 2.985}
-_MAD_TO_SIGMA = 1.482602218505602
+from .. import robust as _robust
+
+#: The robust losses (:data:`shapeverify.robust.LOSSES`: name -> Loss, with its constant ``c``).
+LOSSES = _robust.LOSSES
 
 
 # ----------------------------------------------------------------------------------------------
@@ -69,7 +70,7 @@ def _check_loss(loss: str, scale) -> None:
 
 
 def robust_weights(residuals: np.ndarray, loss: str, scale: float) -> np.ndarray:
-    """IRLS weights ``w(r) = psi(r) / r`` of an M-estimator.
+    """IRLS weights ``w(r) = psi(r) / r`` of an M-estimator (:func:`shapeverify.robust.robust_weights`).
 
     Parameters
     ----------
@@ -82,22 +83,11 @@ def robust_weights(residuals: np.ndarray, loss: str, scale: float) -> np.ndarray
     -------
     (N,) float64 weights in [0, 1].
     """
-    c = LOSSES[loss]
-    r = np.abs(np.asarray(residuals, np.float64))
-    if c is None:
-        return np.ones_like(r)
-    u = r / (c * scale)
-    if loss == "huber":
-        return np.where(u <= 1.0, 1.0, 1.0 / np.maximum(u, 1.0))
-    if loss == "tukey":
-        return np.where(u < 1.0, (1.0 - u * u) ** 2, 0.0)
-    if loss == "cauchy":
-        return 1.0 / (1.0 + u * u)
-    return np.exp(-u * u)  # welsch
+    return _robust.robust_weights(residuals, loss, scale)
 
 
 def _mad_scale(residuals: np.ndarray, floor: float) -> float:
-    return max(_MAD_TO_SIGMA * float(np.median(np.abs(residuals))), floor)
+    return _robust.robust_scale(residuals, floor)
 
 
 # ----------------------------------------------------------------------------------------------
