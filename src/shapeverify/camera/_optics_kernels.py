@@ -351,3 +351,42 @@ def match_pixels(idx, dirs, psi_l, korder, Kp, dp, Rp, Tp, rows, period, Kr, dr,
                 t_prev = t
                 continue
         t_prev = np.nan
+
+
+@njit(cache=True, nogil=True)
+def board_image(dirs, origin, Rb, tb, cols, rows, sq, dark, light, bg, out):
+    """Mean over sub-pixel rays dirs (S, N, 3) (from ``origin``, left frame) of a chessboard in the
+    z = 0 plane of the board frame (x_left = Rb x_board + tb); out (N,)."""
+    S, N = dirs.shape[0], dirs.shape[1]
+    # origin in the board frame: Rb^T (origin - tb)
+    o0 = origin[0] - tb[0]
+    o1 = origin[1] - tb[1]
+    o2 = origin[2] - tb[2]
+    ob0 = Rb[0, 0] * o0 + Rb[1, 0] * o1 + Rb[2, 0] * o2
+    ob1 = Rb[0, 1] * o0 + Rb[1, 1] * o1 + Rb[2, 1] * o2
+    ob2 = Rb[0, 2] * o0 + Rb[1, 2] * o1 + Rb[2, 2] * o2
+    for n in range(N):
+        acc = 0.0
+        for s in range(S):
+            d0, d1, d2 = dirs[s, n, 0], dirs[s, n, 1], dirs[s, n, 2]
+            db0 = Rb[0, 0] * d0 + Rb[1, 0] * d1 + Rb[2, 0] * d2
+            db1 = Rb[0, 1] * d0 + Rb[1, 1] * d1 + Rb[2, 1] * d2
+            db2 = Rb[0, 2] * d0 + Rb[1, 2] * d1 + Rb[2, 2] * d2
+            if db2 == 0.0:
+                acc += bg
+                continue
+            t = -ob2 / db2
+            if t <= 0.0:
+                acc += bg
+                continue
+            qx = math.floor((ob0 + t * db0) / sq)
+            qy = math.floor((ob1 + t * db1) / sq)
+            if qx >= -2 and qx <= cols and qy >= -2 and qy <= rows:
+                inside = qx >= -1 and qx <= cols - 1 and qy >= -1 and qy <= rows - 1
+                if inside and (int(qx + qy) % 2 == 0):
+                    acc += dark
+                else:
+                    acc += light
+            else:
+                acc += bg
+        out[n] = acc / S

@@ -169,6 +169,8 @@ def render_chessboard(device: Device, T_left_board, pattern=(9, 6), square_mm=10
     ``T_left_board`` (4, 4) maps board coordinates to the left camera frame; a list of poses gives a
     list of images (the pixel rays are computed once).  Each pixel averages ``supersample``² rays.
     """
+    from shapeverify.camera import _optics_kernels as _k
+
     poses = np.asarray(T_left_board, dtype=np.float64)
     single = poses.ndim == 2
     poses = poses[None] if single else poses
@@ -176,21 +178,12 @@ def render_chessboard(device: Device, T_left_board, pattern=(9, 6), square_mm=10
     W, H = device.size
     base = device.pixel_grid()
     s = int(supersample)
-    rays = [device.rays(base + np.array([(i + 0.5) / s - 0.5, (j + 0.5) / s - 0.5]))
-            for i in range(s) for j in range(s)]
+    dirs = np.stack([device.rays(base + np.array([(i + 0.5) / s - 0.5, (j + 0.5) / s - 0.5]))[1]
+                     for i in range(s) for j in range(s)])
     images = []
     for T in poses:
-        Rb, tb = T[:3, :3], T[:3, 3]
-        acc = np.zeros(W * H)
-        for o, d in rays:
-            ob, db = (o - tb) @ Rb, d @ Rb  # into the board frame
-            with np.errstate(divide="ignore", invalid="ignore"):
-                t = -ob[:, 2] / db[:, 2]
-            p = ob[:, :2] + t[:, None] * db[:, :2]
-            q = np.floor(p / square_mm)  # square index; corner (0, 0) joins squares -1 and 0
-            inside = (t > 0) & (q[:, 0] >= -1) & (q[:, 0] <= cols - 1) & (q[:, 1] >= -1) & (q[:, 1] <= rows - 1)
-            on_board = (t > 0) & (q[:, 0] >= -2) & (q[:, 0] <= cols) & (q[:, 1] >= -2) & (q[:, 1] <= rows)
-            black = inside & ((q[:, 0] + q[:, 1]) % 2 == 0)
-            acc += np.where(on_board, np.where(black, dark, light), 0.15 * (dark + light))
-        images.append(np.clip(np.round(acc / (s * s)), 0, 255).astype(np.uint8).reshape(H, W))
+        out = np.empty(W * H)
+        _k.board_image(dirs, device.center, np.ascontiguousarray(T[:3, :3]), np.ascontiguousarray(T[:3, 3]),
+                       int(cols), int(rows), float(square_mm), float(dark), float(light), 0.15 * (dark + light), out)
+        images.append(np.clip(np.round(out), 0, 255).astype(np.uint8).reshape(H, W))
     return images[0] if single else images

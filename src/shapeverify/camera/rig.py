@@ -37,6 +37,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -73,7 +74,8 @@ class Device:
     K : (3, 3) float64, pixels
     dist : (5,) float64, k1 k2 p1 p2 k3
     size : (int, int), (width, height) in pixels
-    R : (3, 3) float64, rotation left -> device
+    R : (3, 3) float64, rotation left -> device (a matrix within 1e-5 of a rotation, e.g. printed
+        to a few digits, is replaced by the nearest rotation)
     T : (3,) float64, mm; ``x_device = R @ x_left + T``
     """
 
@@ -88,8 +90,11 @@ class Device:
             object.__setattr__(self, name, np.ascontiguousarray(_matrix(getattr(self, name), name, shape)))
         if not (self.K[0, 0] > 0 and self.K[1, 1] > 0 and self.K[1, 0] == 0 and np.allclose(self.K[2], [0, 0, 1])):
             raise RigFormatError(f"K must be [[fx, s, cx], [0, fy, cy], [0, 0, 1]] with fx, fy > 0, got {self.K.tolist()}")
-        if not np.allclose(self.R @ self.R.T, np.eye(3), atol=1e-6) or np.linalg.det(self.R) <= 0:
+        if not np.allclose(self.R @ self.R.T, np.eye(3), atol=1e-5) or np.linalg.det(self.R) <= 0:
             raise RigFormatError("R must be a rotation matrix (orthonormal, det +1)")
+        if np.abs(self.R @ self.R.T - np.eye(3)).max() > 1e-13:  # e.g. printed to 7 digits
+            u, _, vt = np.linalg.svd(self.R)
+            object.__setattr__(self, "R", np.ascontiguousarray(u @ vt))  # the nearest rotation
         size = tuple(int(s) for s in np.asarray(self.size).ravel()) if np.size(self.size) == 2 else None
         if size is None or min(size) < 1 or not np.allclose(np.asarray(self.size, dtype=float), size):
             raise RigFormatError(f"size must be [width, height] in whole pixels, got {self.size!r}")
@@ -256,7 +261,10 @@ def save_rig(rig: Rig, path) -> Path:
         import yaml
         path.write_text(yaml.safe_dump(rig.to_dict(), sort_keys=False))
     else:
-        path.write_text(json.dumps(rig.to_dict(), indent=1))
+        text = json.dumps(rig.to_dict(), indent=1)
+        # one line per matrix row / vector: [[1, 0, 0], ...] reads like the format in the docs
+        text = re.sub(r"\[\s+([^\[\]]*?)\s+\]", lambda m: "[" + ", ".join(x.strip() for x in m.group(1).split(",")) + "]", text)
+        path.write_text(text + "\n")
     return path
 
 
