@@ -123,3 +123,25 @@ def test_cli_hologram_writes_the_depth_map(tmp_path):
     bad = CliRunner().invoke(app, ["hologram", str(tmp_path / "h1.npy"), str(tmp_path / "nope.npy"),
                                    "-o", str(out), "--lambda1", str(L1), "--lambda2", str(L2)])
     assert bad.exit_code == 2 and "no such file" in bad.output
+
+
+@pytest.mark.slow
+def test_hologram_of_a_cad_render_recovers_its_depth():
+    # the chain from the CAD model: exact ray-NURBS depth render -> speckle holograms -> depth
+    from shapeverify import prepare
+    from shapeverify.cad.examples import wavy_panel
+    from shapeverify.camera import PinholeCamera
+    from shapeverify.simulate.hologram import depth_from_model
+
+    prep = prepare(wavy_panel(split=False), spacing=2.0)
+    # a narrow view of the panel's saddle (x = 25 pi, y = 15 pi): slopes small enough that the
+    # two wavelengths' speckle stays correlated (a steep slope decorrelates it)
+    cam = PinholeCamera.look_at((78.54, 47.12, 150.0), (78.54, 47.12, 0.0), up=(0, 1, 0),
+                                fov_deg=2.0, width=128, height=128)
+    depth = depth_from_model(prep, cam)
+    assert np.isfinite(depth).all() and 149.0 < np.nanmedian(depth) < 151.0
+    h1, h2 = dual_wavelength_holograms(depth, L1, L2, pixel_pitch=0.04, noise=0.02, bits=12)
+    res = dual_wavelength_depth(h1.intensity, h2.intensity, L1, L2, reference_depth=depth + 0.01)
+    e = (res.depth - depth)[6:-6, 6:-6]
+    e = e - np.median(e)
+    assert np.sqrt(np.mean(e ** 2)) < 5e-3

@@ -27,7 +27,7 @@ import numpy as np
 from scipy import fft as sfft
 
 __all__ = ["Hologram", "simulate_hologram", "dual_wavelength_holograms", "rough_surface",
-           "grooved_plate"]
+           "grooved_plate", "depth_from_model"]
 
 
 @dataclass(frozen=True, repr=False)
@@ -244,3 +244,15 @@ def grooved_plate(shape=(256, 256), pixel_pitch: float = 0.05, groove_width: flo
     groove = np.abs(xm) < groove_width / 2
     depth = standoff + tilt[0] * xm + tilt[1] * ym + np.where(groove, groove_depth, 0.0)
     return depth, groove
+
+
+def depth_from_model(prep, camera, T_world_model=None):
+    """Depth map (mm, camera z; NaN where the model is not seen) of a CAD model for the simulator.
+
+    Exact ray-CAD intersection of every pixel (:func:`shapeverify.camera.render`).  Depth along
+    the camera's optical axis equals the path along the ray only near the image centre; for the
+    collimated holography model of :func:`simulate_hologram` use a narrow field of view.
+    """
+    from shapeverify.camera import render
+
+    return render(prep, camera, T_world_model)["depth"]
