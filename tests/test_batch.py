@@ -157,3 +157,64 @@ def test_batch_cli_and_bad_arguments(folder, first_run, tmp_path):
                                  "--tolerance", "0.3"])
     assert r.exit_code == 2, r.output
     assert "4 scans (4 already done): 2 pass, 1 fail, 1 error" in r.output
+
+
+def test_retry_errors_replaces_the_scans_history_row(folder, tmp_path):
+    """A scan that failed to read, fixed and retried with --retry-errors: its one history row is
+    overwritten (same id), not joined by a second one."""
+    import shutil
+
+    from distributed import LocalCluster
+
+    from shapeverify.batch import run_batch
+
+    d, _ = folder
+    scans = tmp_path / "scans"
+    scans.mkdir()
+    shutil.copy(d / "scans" / "a_clean.npy", scans / "a_clean.npy")
+    shutil.copy(d / "scans" / "d_corrupt.ply", scans / "d_corrupt.ply")
+    out, db = tmp_path / "out", tmp_path / "h.sqlite"
+    with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
+                      dashboard_address=None) as cluster:
+        s1 = run_batch(d / "panel.svm", scans, out, tolerance=0.3, db_path=db,
+                       scheduler=cluster.scheduler_address)
+        assert (s1.passed, s1.errors, s1.internal_errors) == (1, 1, 0)
+        first = {part: (rid, verdict) for rid, part, verdict, _ in _rows(db)}
+        assert first["d_corrupt"][1] == "error"
+        # the scan is fixed (a good file under the same name) and retried
+        np.savetxt(scans / "d_corrupt.xyz", np.load(scans / "a_clean.npy"), fmt="%.6f")
+        (scans / "d_corrupt.ply").unlink()
+        s2 = run_batch(d / "panel.svm", scans, out, tolerance=0.3, db_path=db, retry_errors=True,
+                       scheduler=cluster.scheduler_address)
+    assert (s2.skipped, s2.passed, s2.errors) == (1, 2, 0)
+    rows = _rows(db)
+    assert len(rows) == 2 and sorted(r[1] for r in rows) == ["a_clean", "d_corrupt"]
+    retried = next(r for r in rows if r[1] == "d_corrupt")
+    assert retried[0] == first["d_corrupt"][0] and retried[2] == "pass"
+    assert json.loads(retried[3])["scan"] == "d_corrupt.xyz"
+    assert json.loads((out / "d_corrupt.json").read_text())["record_id"] == retried[0]
+
+
+def test_only_shapeverify_errors_are_scan_errors_a_bug_is_marked_internal(folder, monkeypatch):
+    import hashlib
+
+    import shapeverify.inspection
+    from shapeverify.batch import inspect_bytes
+
+    d, _ = folder
+    svm = (d / "panel.svm").read_bytes()
+    digest = hashlib.sha256(svm).hexdigest()
+    scan = (d / "scans" / "a_clean.npy").read_bytes()
+    bad = inspect_bytes(svm, digest, "d_corrupt.ply", (d / "scans" / "d_corrupt.ply").read_bytes(),
+                        0.3, None, False)
+    assert bad["verdict"] == "error" and "internal_error" not in bad
+    assert bad["error"].startswith("ScanError")
+
+    def bug(*a, **k):
+        raise TypeError("unsupported operand type(s)")
+
+    monkeypatch.setattr(shapeverify.inspection, "inspect", bug)
+    res = inspect_bytes(svm, digest, "a_clean.npy", scan, 0.3, None, False)
+    assert res["verdict"] == "error" and res["internal_error"] is True
+    assert res["error"].startswith("internal error (a bug in shapeverify")
+    assert "TypeError: unsupported operand" in res["error"] and "in bug" in res["traceback"]

@@ -6,9 +6,14 @@ shared file system, and the client keeps only a bounded number of scans in fligh
 written by the client, in this order: the history row (if ``db_path``), then the scan's JSON
 (atomically), then ``summary.csv`` at the end. A scan whose JSON exists is skipped on the next run
 (resumable); a scan whose row was stored but whose JSON was not (the client died in between) gets
-its JSON from that row instead of a second row, so every scan has at most one row per model. A
-scan that cannot be read or inspected -- or whose worker dies -- is recorded with the verdict
-``error`` and its reason (JSON, CSV and history), and the batch goes on.
+its JSON from that row instead of a second row, so every scan has at most one row per model;
+``retry_errors`` overwrites the error row of a scan inspected again (:meth:`HistoryDB.replace`).
+A scan that cannot be read or inspected (one of shapeverify's errors, see
+:func:`shapeverify.errors.is_input_error`) -- or whose worker dies -- is recorded with the verdict
+``error`` and its reason (JSON, CSV and history), and the batch goes on.  An unexpected exception
+(a bug) is recorded the same way so that one scan cannot stop a long batch, but marked as what it
+is: ``"internal_error": true``, the reason starts with "internal error", the JSON carries the
+traceback, it is logged as an error and counted in :attr:`BatchSummary.internal_errors`.
 """
 
 from __future__ import annotations
@@ -21,6 +26,7 @@ import os
 import sqlite3
 import tempfile
 import time
+import traceback
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
@@ -78,14 +84,25 @@ def inspect_bytes(svm: bytes, digest: str, name: str, scan: bytes, tolerance: fl
                 path = write_html_report(result, prep, points, Path(tmp) / "r.html", title=name)
                 out["_report_html"] = Path(path).read_text(encoding="utf-8")
     except Exception as exc:  # a failing scan is a result, not a crash of the batch
-        out.update(_error(name, exc))
+        from shapeverify.errors import is_input_error
+
+        if is_input_error(exc):
+            out.update(_error(name, exc))
+        else:  # a bug: recorded, but marked as one, with its traceback
+            out.update(_error(name, exc, internal=True))
+            out["traceback"] = traceback.format_exc()
     out["worker_seconds"] = time.perf_counter() - t0
     return out
 
 
-def _error(name: str, exc: BaseException) -> dict:
+def _error(name: str, exc: BaseException, internal: bool = False) -> dict:
     msg = f"{type(exc).__name__}: {str(exc).replace(tempfile.gettempdir(), '')}"
-    return {"scan": name, "verdict": "error", "reasons": [msg], "error": msg, "T_model_scan": None}
+    if internal:
+        msg = f"internal error (a bug in shapeverify, please report it): {msg}"
+    out = {"scan": name, "verdict": "error", "reasons": [msg], "error": msg, "T_model_scan": None}
+    if internal:
+        out["internal_error"] = True
+    return out
 
 
 class _Stored:
@@ -109,6 +126,7 @@ class BatchSummary:
     errors: int
     seconds: float
     summary_csv: Path
+    internal_errors: int = 0  # of ``errors``: scans that hit a bug (``"internal_error": true``)
 
     @property
     def scans_per_minute(self) -> float:
@@ -122,8 +140,9 @@ def _write_json(path: Path, data: dict) -> None:
     os.replace(tmp, path)  # complete or absent: a half-written JSON would be skipped as done
 
 
-def _stored_row(db_path: Path, part: str, digest: str, name: str) -> dict | None:
-    """The history row a previous, interrupted run stored for this scan, if any."""
+def _stored_row(db_path: Path, part: str, digest: str, name: str | None) -> dict | None:
+    """The latest history row a previous batch run stored for this scan (file ``name``, or any
+    file of this stem for None), if any."""
     if not db_path.exists():
         return None
     con = sqlite3.connect(str(db_path), timeout=30.0)
@@ -137,7 +156,7 @@ def _stored_row(db_path: Path, part: str, digest: str, name: str) -> dict | None
         con.close()
     for rid, text in row:
         data = json.loads(text)
-        if data.get("scan") == name and data.get("batch"):
+        if (name is None or data.get("scan") == name) and data.get("batch"):
             data["record_id"] = rid
             return data
     return None
@@ -230,6 +249,7 @@ def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, 
     todo = [p for p in scans if not done_before(p)]
     t0 = time.perf_counter()
     db = None
+    replace_ids: dict[str, int] = {}  # scan stem -> history row of its earlier error
     if db_path is not None:
         from shapeverify.report.history import HistoryDB
 
@@ -240,6 +260,10 @@ def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, 
             if row is not None and (row.get("verdict") != "error" or not retry_errors):
                 _write_json(out_dir / f"{p.stem}.json", row)
                 recovered.append(p)
+            elif retry_errors:  # an error retried: its new result replaces that row
+                old = row or _stored_row(db_path, p.stem, digest, None)  # (renamed .ply -> .xyz)
+                if old is not None and old.get("verdict") == "error":
+                    replace_ids[p.stem] = old["record_id"]
         todo = [p for p in todo if p not in recovered]
 
     def record(res: dict) -> None:
@@ -248,7 +272,12 @@ def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, 
         res["batch"] = {"model": svm_path.name, "model_sha256": digest}
         if html is not None:
             (out_dir / f"{stem}.html").write_text(html, encoding="utf-8")
-        if db is not None:
+        if res.get("internal_error"):
+            log.error("%s: internal error (a bug in shapeverify): %s", res["scan"], res["error"])
+        if db is not None and stem in replace_ids:
+            res["record_id"] = db.replace(replace_ids.pop(stem), _Stored(res), part=stem,
+                                          model_hash=digest)
+        elif db is not None:
             res["record_id"] = db.add(_Stored(res), part=stem, model_hash=digest)
         _write_json(out_dir / f"{stem}.json", res)
 
@@ -321,4 +350,5 @@ def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, 
     verdicts = [r.get("verdict") for r in rows]
     return BatchSummary(total=len(scans), skipped=len(scans) - len(todo), passed=verdicts.count("pass"),
                         failed=verdicts.count("fail"), errors=verdicts.count("error"),
-                        seconds=time.perf_counter() - t0, summary_csv=summary_csv)
+                        seconds=time.perf_counter() - t0, summary_csv=summary_csv,
+                        internal_errors=sum(bool(r.get("internal_error")) for r in rows))

@@ -85,18 +85,6 @@ def _internal_error(exc: BaseException, verbose: bool) -> None:
     raise typer.Exit(EXIT_ERROR)
 
 
-def _raised_by_shapeverify(exc: BaseException) -> bool:
-    """Whether a ValueError was raised by shapeverify's own code (a deliberate message about bad
-    input), not inside numpy, scipy or another library (then it is a bug)."""
-    tb = exc.__traceback__
-    if tb is None:
-        return False
-    while tb.tb_next is not None:
-        tb = tb.tb_next
-    return Path(tb.tb_frame.f_code.co_filename).resolve().is_relative_to(_PACKAGE_DIR)
-
-
-_PACKAGE_DIR = Path(__file__).resolve().parent
 _VERBOSE_KEY = "shapeverify.verbose"
 
 
@@ -104,16 +92,14 @@ def _guard(fn, *args, **kwargs):
     """Run ``fn``; turn shapeverify's errors (and unreadable or missing files) into a one-line
     message and exit code 2.  Anything else is a bug and propagates to the command group, which
     reports it as an internal error (also exit code 2)."""
-    from shapeverify.errors import ShapeVerifyError
+    from shapeverify.errors import is_input_error
 
     try:
         return fn(*args, **kwargs)
     except FileNotFoundError as exc:
         _fail(f"{exc.filename or exc}: no such file")
-    except (ShapeVerifyError, OSError) as exc:
-        _fail(str(exc))
-    except ValueError as exc:  # the library's deliberate "bad input" messages
-        if not _raised_by_shapeverify(exc):
+    except Exception as exc:  # noqa: BLE001 - sorted: input errors here, bugs further up
+        if not is_input_error(exc):
             raise
         _fail(str(exc))
 

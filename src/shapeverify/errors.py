@@ -17,6 +17,8 @@ True
 
 from __future__ import annotations
 
+from pathlib import Path
+
 __all__ = [
     "ShapeVerifyError",
     "CADImportError",
@@ -25,6 +27,7 @@ __all__ = [
     "EmptyModelError",
     "ScanError",
     "RegistrationError",
+    "is_input_error",
 ]
 
 
@@ -57,3 +60,31 @@ class ScanError(ShapeVerifyError, ValueError):
 
 class RegistrationError(ShapeVerifyError):
     """Registration cannot start or produced no usable result (e.g. no correspondences)."""
+
+
+_PACKAGE_DIR = Path(__file__).resolve().parent
+
+
+def is_input_error(exc: BaseException) -> bool:
+    """Whether ``exc`` is an error about the input rather than a bug.
+
+    Input errors are the :class:`ShapeVerifyError` family, :class:`OSError` (a file that cannot be
+    read or written, a full disk) and a :class:`ValueError` raised by shapeverify's own code (its
+    deliberate "bad argument" messages).  Anything else -- a ``TypeError``, a ``KeyError``, a
+    ``ValueError`` raised inside numpy or another library -- is a bug.
+
+    Example
+    -------
+    >>> is_input_error(CADImportError("x.step: truncated")), is_input_error(KeyError("k"))
+    (True, False)
+    """
+    if isinstance(exc, (ShapeVerifyError, OSError)):
+        return True
+    if not isinstance(exc, ValueError):
+        return False
+    tb = exc.__traceback__
+    if tb is None:
+        return False
+    while tb.tb_next is not None:
+        tb = tb.tb_next
+    return Path(tb.tb_frame.f_code.co_filename).resolve().is_relative_to(_PACKAGE_DIR)

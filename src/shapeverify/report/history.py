@@ -58,6 +58,21 @@ def _sql_num(x):
     return x if math.isfinite(x) else None
 
 
+def _row(result, part, model_hash, time) -> tuple[dict, tuple, list]:
+    """(result dict, column names, values) of one history row."""
+    d = result.to_dict()
+    if time is None:
+        time = _dt.datetime.now().astimezone()
+    stamp = time.isoformat(timespec="seconds") if isinstance(time, _dt.datetime) else str(time)
+    dev = d.get("deviation", {})
+    values = ([part, stamp, model_hash, d["verdict"]]
+              + [_sql_num(dev.get(c)) for c in STAT_COLUMNS]
+              + [len(d.get("regions", [])), json.dumps(d["T_model_scan"]), json.dumps(d)])
+    cols = ("part", "time", "model_hash", "verdict") + STAT_COLUMNS + (
+        "n_regions", "transform", "result_json")
+    return d, cols, values
+
+
 class HistoryDB:
     """SQLite history of inspections.
 
@@ -140,22 +155,36 @@ class HistoryDB:
         time : datetime or ISO string, optional
             Default: now (local time with UTC offset).
         """
-        d = result.to_dict()
-        if time is None:
-            time = _dt.datetime.now().astimezone()
-        stamp = time.isoformat(timespec="seconds") if isinstance(time, _dt.datetime) else str(time)
-        dev = d.get("deviation", {})
-        values = ([part, stamp, model_hash, d["verdict"]]
-                  + [_sql_num(dev.get(c)) for c in STAT_COLUMNS]
-                  + [len(d.get("regions", [])), json.dumps(d["T_model_scan"]), json.dumps(d)])
-        cols = ("part", "time", "model_hash", "verdict") + STAT_COLUMNS + (
-            "n_regions", "transform", "result_json")
+        d, cols, values = _row(result, part, model_hash, time)
         with self._con:      # one transaction: committed on success, rolled back on error
             cur = self._con.execute(
                 f"INSERT INTO inspections ({', '.join(cols)}) VALUES ({', '.join('?' * len(cols))})",
                 values)
         logger.info("history: stored inspection %d (%s, part %s)", cur.lastrowid, d["verdict"], part)
         return int(cur.lastrowid)
+
+    def replace(self, record_id: int, result, part: str | None = None,
+                model_hash: str | None = None, time: _dt.datetime | str | None = None) -> int:
+        """Overwrite record ``record_id`` with a new result (same id), in one transaction.
+
+        For a result that supersedes the stored one -- e.g. a batch scan inspected again
+        (``batch --retry-errors``): the part keeps one row instead of gaining a second.
+        Parameters as for :meth:`add`.
+
+        Raises
+        ------
+        KeyError
+            If there is no record with this id (nothing is written).
+        """
+        d, cols, values = _row(result, part, model_hash, time)
+        with self._con:
+            cur = self._con.execute(
+                f"UPDATE inspections SET {', '.join(c + ' = ?' for c in cols)} WHERE id = ?",
+                values + [int(record_id)])
+        if cur.rowcount != 1:
+            raise KeyError(f"{self.path}: no inspection record with id {record_id} to replace")
+        logger.info("history: replaced inspection %d (%s, part %s)", record_id, d["verdict"], part)
+        return int(record_id)
 
     # -- reading ---------------------------------------------------------------------------
     def query(self, part: str | None = None, limit: int | None = 100,
