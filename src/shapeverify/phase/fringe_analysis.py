@@ -304,8 +304,8 @@ def wff(image, mask=None, carrier=None, direction=None, sigma=None, bandwidth=0.
     sigma : float or None
         Gaussian window width (pixels); default one fringe period.
     threshold : float or None
-        Coefficient threshold (intensity units of ``B/2``); default 3 x a robust estimate of the
-        coefficient noise (median absolute coefficient at frequencies one bandwidth off-carrier).
+        Coefficient threshold (intensity units of ``B/2``); default 10 x the coefficient noise
+        (image noise from Immerkaer's estimator times the atom's norm).
 
     Returns
     -------
@@ -335,11 +335,11 @@ def wff(image, mask=None, carrier=None, direction=None, sigma=None, bandwidth=0.
         return np.exp(-0.5 * s * s * ((wu - xi[0]) ** 2 + (wv - xi[1]) ** 2))
 
     if threshold is None:
-        # noise level: coefficients of a frequency far from the signal (opposite side, same radius)
-        off = (c_w[0] * 0.0 + rad * 1.5 * -c_w[1] / np.hypot(*c_w), rad * 1.5 * c_w[0] / np.hypot(*c_w))
-        off = (c_w[0] * 0.5 + off[0], c_w[1] * 0.5 + off[1])
-        noise = np.abs(_fft.ifft2(F * atom(off), workers=1))[m]
-        thr = 3.0 * float(np.median(noise)) / 0.8326 if noise.size else 0.0  # median |N| of a complex Gaussian
+        # 10 x the coefficient noise: image noise (Immerkaer 1996; the product of second
+        # differences hardly responds to fringes along one axis) times the atom's norm
+        lap = ndimage.convolve(f, np.array([[1, -2, 1], [-2, 4, -2], [1, -2, 1]], float), mode="reflect")
+        sigma_n = np.sqrt(np.pi / 2) * float(np.abs(lap[1:-1, 1:-1][m[1:-1, 1:-1]]).mean()) / 6.0 if m.any() else 0.0
+        thr = 10.0 * sigma_n / np.sqrt(4 * np.pi * s * s)
     else:
         thr = float(threshold)
     acc = np.zeros((H, W), complex)
