@@ -206,7 +206,7 @@ def test_uncertainty_covers_the_simulator_truth_at_its_nominal_level(prep):
     stated U (k = 2, 95 %) in 95 % of the cases; the pose error's chi-square is within its
     95 % quantile for about 95 % of the scans."""
     rng = np.random.default_rng(2026)
-    pts = [[x, y, 0.0] for x in (12, 45, 80) for y in (15, 55, 72)]
+    pts = [[x, y, 0.0] for x in (12, 45, 90) for y in (15, 55, 72)]
     pts += [[0.0, y, z] for y in (15, 50, 70) for z in (10, 30)]
     pts += [[x, 0.0, z] for x in (15, 50, 85) for z in (10, 30)]
     plan = ("alignment: {type: best_fit}\ncharacteristics:\n" + "".join(

@@ -218,10 +218,19 @@ def _gauss_newton(scan, prep, T0, free, center, faces, loss, max_iterations, tol
     for k, j in enumerate(free):
         d = (X0 - c) @ dR[j].T if j < 3 else np.broadcast_to(np.eye(3)[j - 3], X0.shape)
         J[:, k] = np.einsum("ij,ij->i", cl.normals, d)
-    Jw = J * w[:, None]
-    Hinv = np.linalg.pinv(Jw.T @ J, rcond=1e-9, hermitian=True)
-    Jb = J * (w * r)[:, None]
-    Cp = Hinv @ (Jb.T @ Jb) @ Hinv
+    # M-estimator covariance (Huber 1981, eq. 7.6.4): E[psi^2] / E[psi']^2 (J^T J)^-1 over the
+    # valid points; with the IRLS weights in place of psi' (the sandwich of registration) a
+    # redescending loss is reported ~1.3x too precise (measured on simulated scans)
+    Jv, rv = J[valid], r[valid]
+    hh = 1e-6 * sigma
+
+    def psi(x):
+        return lossobj.weight(x, sigma) * x
+
+    dpsi = (psi(rv + hh) - psi(rv - hh)) / (2 * hh)
+    nv, npar = rv.size, len(free)
+    factor = (np.sum(psi(rv) ** 2) / max(nv - npar, 1)) / max(float(np.mean(dpsi)), 1e-12) ** 2
+    Cp = factor * np.linalg.pinv(Jv.T @ Jv, rcond=1e-12, hermitian=True)
     A = _p_to_e(p, c, free)
     cov = A @ Cp @ A.T
     T = euler_pose(p, c) @ T0

@@ -25,7 +25,9 @@ with ``|d| <= max_distance`` (``d`` the signed distance along the outward CAD no
 * **cylinder** diameter: robust least-squares cylinder (Tukey) of the evaluated points of the
   cylindrical face; deviation = measured - nominal.
 * **check_point**: deviation at a point = mean ``d`` of the evaluated points within ``radius``
-  of the CAD point closest to ``at`` (same face), nominal 0.
+  of the CAD point closest to ``at`` (same face), nominal 0.  Its noise part ``s / sqrt(n)``
+  comes from the local sample standard deviation s, so the coverage factor is Student's t for
+  the Welch-Satterthwaite degrees of freedom (GUM G.4) at the level of ``k`` (95.45 % for 2).
 
 Uncertainty and decision (ISO 14253-1)
 --------------------------------------
@@ -204,6 +206,18 @@ class _Scan:
         return self.ok if faces is None else self.ok & np.isin(self.face, faces)
 
 
+def _k_eff(k: float, u_fixed2: float, u_sample2: float, dof: int) -> float:
+    """Coverage factor for ``k``'s normal coverage level when part of the variance comes from a
+    sample standard deviation with ``dof`` degrees of freedom (GUM G.4: Welch-Satterthwaite
+    effective degrees of freedom, Student t)."""
+    from scipy.stats import norm, t
+
+    if dof < 1 or u_sample2 <= 0:
+        return float(k)
+    nu = (u_fixed2 + u_sample2) ** 2 / (u_sample2 ** 2 / dof)
+    return float(t.ppf(norm.cdf(k), nu))
+
+
 def _not_measured(c, reason: str) -> CharacteristicResult:
     logger.warning("characteristic %s not measured: %s", c.name, reason)
     return CharacteristicResult(c.name, c.type, None, None, None, None, None, None, "undecided",
@@ -364,9 +378,10 @@ def _check_point(c, S: _Scan, al, k):
     value = float(dm.mean())
     s = float(dm.std(ddof=1)) if nm > 1 else S.noise
     s = max(s, S.noise) if nm < 5 else s
-    u = np.sqrt(_pose_var(al.covariance, q, n) + s * s / nm)
+    u_pose2, u_noise2 = _pose_var(al.covariance, q, n), s * s / nm
+    u = np.sqrt(u_pose2 + u_noise2)
     lo, hi = c.limits()
-    U = k * float(u)
+    U = _k_eff(k, u_pose2, u_noise2, nm - 1) * float(u)
     return CharacteristicResult(c.name, c.type, 0.0, value, value, lo, hi, U,
                                 decide(value, lo, hi, U),
                                 {"point": q.tolist(), "normal": n.tolist(), "face": fc, "n": nm,
@@ -439,10 +454,12 @@ def evaluate_plan(prep, scan, plan=None, registration=None, init=None, rng=None)
         None: free best fit and a surface profile of all faces needs a tolerance, so only the
         alignment is done (no characteristics).
     registration : Registration, optional
-        An existing free registration of this scan; reused (pose and covariance) when the
-        plan's alignment is a best fit on all faces, and as the start pose otherwise.
+        An existing free registration of this scan: the start pose of the plan's alignment
+        (which then skips its own free registration).  The pose covariance is always the
+        alignment's own (M-estimator covariance, see :mod:`.alignment`).
     init : (4, 4), optional
-        Start pose / fixture pose (constrained fits keep the locked DOFs of it).
+        Start pose; for a constrained alignment the fixture's pose, whose locked DOFs are kept
+        (default identity: the scan is in the model frame already).
     rng : None, int or Generator
         Seeds the free registration's random subsets.
 
@@ -469,17 +486,9 @@ def evaluate_plan(prep, scan, plan=None, registration=None, init=None, rng=None)
     P = check_scan(scan, getattr(prep.model, "size", None))
     a = plan.alignment
     start = init
-    if start is None and registration is not None:
-        start = registration.T_model_scan
-    if a.type == "best_fit" and a.faces == "all" and registration is not None:
-        reg = registration
-        al = AlignmentResult(np.asarray(reg.T_model_scan), np.asarray(reg.covariance),
-                             np.zeros(0), float(reg.rms), tuple(
-                                 "rx ry rz tx ty tz".split()), (), "best_fit",
-                             {"iterations": int(reg.iterations), "converged": bool(reg.converged),
-                              "source": "registration"})
-    else:
-        al = align(P, prep, a, init=start, rng=rng)
+    if start is None and registration is not None and a.type != "constrained":
+        start = registration.T_model_scan   # (a constrained fit keeps the fixture's pose)
+    al = align(P, prep, a, init=start, rng=rng)
     t1 = time.perf_counter()
     chars, S, sec = evaluate_characteristics(prep, P, plan, al)
     t2 = time.perf_counter()
