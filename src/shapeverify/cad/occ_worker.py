@@ -51,6 +51,8 @@ __all__ = ["read_cad_isolated", "shutdown"]
 
 _LEN = struct.Struct("<Q")
 _MAX_USES = 64  # imports per importer process before it is replaced
+#: time limit (s) of an import when the caller gives none (None: no limit); the fuzz tests set it
+DEFAULT_TIMEOUT_S: float | None = None
 _ERRORS = {c.__name__: c for c in (CADImportError, EmptyModelError, UnsupportedFormatError)}
 
 
@@ -165,7 +167,8 @@ def read_cad_isolated(path, *, chord_tol: float, gap_tol: float, timeout: float 
     chord_tol, gap_tol : float
         As for ``read_cad`` (mm).
     timeout : float, optional
-        Seconds after which a still-running import is killed (default: no limit).
+        Seconds after which a still-running import is killed (default:
+        :data:`DEFAULT_TIMEOUT_S`, no limit).
 
     Returns
     -------
@@ -187,6 +190,8 @@ def read_cad_isolated(path, *, chord_tol: float, gap_tol: float, timeout: float 
                 + [lg.getEffectiveLevel() for name, lg in list(logging.root.manager.loggerDict.items())
                    if name.startswith("shapeverify.") and isinstance(lg, logging.Logger)])
     req = ("read", os.getcwd(), os.fspath(path), float(chord_tol), float(gap_tol), level)
+    if timeout is None:
+        timeout = DEFAULT_TIMEOUT_S
     deadline = None if timeout is None else time.monotonic() + float(timeout)
     t0 = time.perf_counter()
     with _LOCK:

@@ -1,0 +1,178 @@
+"""Fuzzing the CAD import: damaged copies of the bundled STEP/IGES files never crash the process.
+
+Each mutant is one seeded damage of an undamaged file -- an entity line removed, a line
+duplicated, a few bytes flipped, the file truncated, a reference pointed at an entity that does
+not exist, a shell's face reference left dangling -- read with ``shapeverify.load_model``.  What
+may happen: the model loads (then it is finite, and a face the file declares but that could not
+be read is counted in ``n_faces_in_file`` and named in a warning), or a
+:class:`~shapeverify.errors.ShapeVerifyError` is raised (``CADImportError`` when OpenCASCADE
+fails or even crashes: the crash is contained in the importer process).  Anything else -- another
+exception, or this process dying -- fails the test.
+
+The unmarked test runs one mutant per kind of damage of the example panel (STEP and IGES); the
+slow one 6 per kind and file (108 mutants), with ``../shared/data/cad/wavy-cube.stp`` when present.
+"""
+
+from __future__ import annotations
+
+import collections
+import logging
+import re
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import shapeverify as sv
+from shapeverify.cad import occ_worker
+from shapeverify.errors import CADImportError, ShapeVerifyError
+
+pytest.importorskip("OCP")
+
+WAVY_CUBE = Path(__file__).resolve().parents[1].parent / "shared" / "data" / "cad" / "wavy-cube.stp"
+SEED = 20261201
+
+
+# ------------------------------------------------------------------------------- the damage
+def _entity_lines(lines: list[bytes], fmt: str) -> list[int]:
+    if fmt == "step":
+        return [i for i, ln in enumerate(lines) if ln.startswith(b"#")]
+    return [i for i, ln in enumerate(lines) if len(ln) > 72 and ln[72:73] in (b"D", b"P")]
+
+
+def remove_entity_line(data: bytes, fmt: str, rng) -> bytes:
+    lines = data.splitlines(keepends=True)
+    del lines[int(rng.choice(_entity_lines(lines, fmt)))]
+    return b"".join(lines)
+
+
+def duplicate_line(data: bytes, fmt: str, rng) -> bytes:
+    lines = data.splitlines(keepends=True)
+    i = int(rng.choice(_entity_lines(lines, fmt)))
+    return b"".join(lines[:i + 1] + [lines[i]] + lines[i + 1:])
+
+
+def flip_bytes(data: bytes, fmt: str, rng) -> bytes:
+    b = bytearray(data)
+    for pos in rng.integers(0, len(b), size=int(rng.integers(1, 9))):
+        b[pos] ^= int(rng.integers(1, 256))
+    return bytes(b)
+
+
+def truncate(data: bytes, fmt: str, rng) -> bytes:
+    return data[:int(rng.integers(len(data) // 10, len(data) - 1))]
+
+
+def dangling_reference(data: bytes, fmt: str, rng) -> bytes:
+    """One reference of one entity points at an entity that does not exist."""
+    lines = data.splitlines(keepends=True)
+    if fmt == "step":
+        cand = [i for i, ln in enumerate(lines) if ln.startswith(b"#") and ln.count(b"#") > 1]
+        i = int(rng.choice(cand))
+        refs = list(re.finditer(rb"#\d+", lines[i]))[1:]
+        m = refs[int(rng.integers(len(refs)))]
+        lines[i] = lines[i][:m.start()] + b"#987654" + lines[i][m.end():]
+    else:  # a parameter-data pointer (an odd directory-entry number) to a missing entry
+        cand = [i for i, ln in enumerate(lines) if len(ln) > 72 and ln[72:73] == b"P"
+                and re.search(rb"[,;]\d*[13579][,;]", ln[:64])]
+        i = int(rng.choice(cand))
+        ms = list(re.finditer(rb"(?<=[,;])\d*[13579](?=[,;])", lines[i][:64]))
+        m = ms[int(rng.integers(len(ms)))]
+        lines[i] = lines[i][:m.start()] + b"9" * (m.end() - m.start()) + lines[i][m.end():]
+    return b"".join(lines)
+
+
+def dangling_face(data: bytes, fmt: str, rng) -> bytes:
+    """STEP: a shell lists a face that is not in the file (its entity line is gone).
+    IGES: a face's directory entry and parameter lines are gone."""
+    lines = data.splitlines(keepends=True)
+    if fmt == "step":
+        text = b"".join(lines)
+        shell = re.search(rb"(?:CLOSED|OPEN)_SHELL\('[^']*',\(([^)]*)\)", text)
+        refs = re.findall(rb"#(\d+)", shell.group(1))
+        face = refs[int(rng.integers(len(refs)))]
+        return b"".join(ln for ln in lines if not ln.startswith(b"#" + face + b" ="))
+    de = [i for i, ln in enumerate(lines) if ln[72:73] == b"D" and ln[:8].strip() == b"144"
+          and int(ln[73:80]) % 2 == 1]
+    i = int(rng.choice(de))
+    return b"".join(lines[:i] + lines[i + 2:])
+
+
+DAMAGE = [remove_entity_line, duplicate_line, flip_bytes, truncate, dangling_reference,
+          dangling_face]
+
+
+# ------------------------------------------------------------------------------- the files
+@pytest.fixture(scope="module")
+def sources(tmp_path_factory):
+    """Undamaged files: the example panel as STEP and IGES (+ the shared wavy cube)."""
+    from OCP.IGESControl import IGESControl_Writer
+
+    from shapeverify.cad.examples import example_part_step, panel_shape
+
+    d = tmp_path_factory.mktemp("fuzz-src")
+    step = example_part_step(d / "panel.step")
+    iges = d / "panel.igs"
+    w = IGESControl_Writer("MM", 0)
+    w.AddShape(panel_shape())
+    w.ComputeModel()
+    assert w.Write(str(iges))
+    files = {"panel.step": step, "panel.igs": iges}
+    if WAVY_CUBE.is_file():
+        files["wavy-cube.stp"] = WAVY_CUBE
+    return files
+
+
+def _fuzz(sources, names, per_kind: int, tmp_path, monkeypatch, caplog):
+    """Import every mutant; return a Counter of outcomes (and check each one)."""
+    monkeypatch.setattr(occ_worker, "DEFAULT_TIMEOUT_S", 120.0)  # a hang fails, not blocks
+    outcomes = collections.Counter()
+    for fi, name in enumerate(names):
+        src = Path(sources[name])
+        fmt = "step" if src.suffix.lower() in (".step", ".stp") else "iges"
+        data = src.read_bytes()
+        clean = sv.load_model(src)
+        assert clean.n_faces_in_file == len(clean.faces)  # undamaged: nothing missing
+        for ki, damage in enumerate(DAMAGE):
+            for j in range(per_kind):
+                rng = np.random.default_rng([SEED, fi, ki, j])
+                path = tmp_path / f"{src.stem}-{damage.__name__}-{j}{src.suffix}"
+                path.write_bytes(damage(data, fmt, rng))
+                caplog.clear()
+                with caplog.at_level(logging.WARNING, logger="shapeverify"):
+                    try:
+                        model = sv.load_model(path)
+                    except CADImportError as exc:
+                        assert path.name in str(exc)
+                        outcomes["CADImportError (importer crashed)" if "crashed" in str(exc)
+                                 else "CADImportError"] += 1
+                        continue
+                    except ShapeVerifyError as exc:
+                        assert path.name in str(exc)
+                        outcomes[type(exc).__name__] += 1
+                        continue
+                assert model.kind == "cad" and len(model.faces) >= 1
+                assert np.isfinite(model.bounds).all(), path.name
+                if damage is dangling_face:  # the face is gone: it must not go unnoticed
+                    assert model.n_missing_faces >= 1, path.name
+                if model.n_missing_faces:
+                    assert len(model.skipped_faces) >= 1
+                    assert any("were not loaded" in r.getMessage() for r in caplog.records)
+                    outcomes["loaded, faces missing (warned)"] += 1
+                else:
+                    outcomes["loaded"] += 1
+    return outcomes
+
+
+def test_damaged_example_files_never_crash_the_process(sources, tmp_path, monkeypatch, caplog):
+    out = _fuzz(sources, ["panel.step", "panel.igs"], 1, tmp_path, monkeypatch, caplog)
+    assert sum(out.values()) == 2 * len(DAMAGE), out
+    print(f"CAD fuzz: {dict(out)}")  # shown with -s
+
+
+@pytest.mark.slow
+def test_fuzz_many_mutants_only_shapeverify_errors(sources, tmp_path, monkeypatch, caplog):
+    names = sorted(sources)
+    out = _fuzz(sources, names, 6, tmp_path, monkeypatch, caplog)
+    assert sum(out.values()) == 6 * len(DAMAGE) * len(names), out
+    print(f"CAD fuzz: {sum(out.values())} mutants of {names}: {dict(out)}")  # shown with -s
