@@ -471,3 +471,6 @@ if __name__ == "__main__":  # pragma: no cover
 
 from .cli_optics import register_commands as _register_optics  # noqa: E402  (measure, calibrate)
 _register_optics(app)
+
+from .cli_plan import register_commands as _register_plan  # noqa: E402  (features, plan-inspect, spc)
+_register_plan(app)
