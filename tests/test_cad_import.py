@@ -7,6 +7,7 @@ files in ../shared/data/cad (skipped when that folder is absent).
 from __future__ import annotations
 
 import logging
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -563,3 +564,107 @@ def test_import_logs_face_count_unit_and_time(example_step, caplog):
     assert isinstance(model, Model)
     msg = " ".join(r.getMessage() for r in caplog.records)
     assert "1 faces" in msg and "millimetre" in msg and "total" in msg
+
+
+# ------------------------------------- damaged files: the project's errors, never a dead process
+def _without_line(src: Path, dst: Path, start: bytes) -> Path:
+    lines = src.read_bytes().splitlines(keepends=True)
+    keep = [ln for ln in lines if not ln.startswith(start)]
+    assert len(keep) == len(lines) - 1, f"no single line starts with {start!r}"
+    dst.write_bytes(b"".join(keep))
+    return dst
+
+
+def test_a_crash_of_opencascade_is_a_cad_import_error_and_the_importer_comes_back(
+        example_step, tmp_path):
+    # without the entity line of one pcurve OpenCASCADE 8.0.1 dies with SIGSEGV
+    bad = _without_line(example_step, tmp_path / "no-pcurve.step", b"#682 = LINE(")
+    with pytest.raises(CADImportError, match=r"no-pcurve\.step: the CAD importer crashed .*signal "
+                                             r"11, SIGSEGV"):
+        read_cad(bad)
+    model = read_cad(example_step)  # a new importer process: the next file reads normally
+    assert len(model.faces) == 1 and model.n_faces_in_file == 1
+
+
+def test_exceptions_raised_by_opencascade_become_cad_import_errors(example_step, monkeypatch):
+    from OCP.Standard import Standard_Failure
+
+    import shapeverify.cad.occ_import as occ_import
+
+    def fails(*args):
+        raise Standard_Failure("BRep_API: command not done")
+
+    monkeypatch.setattr(occ_import, "_read_cad_here", fails)
+    with pytest.raises(CADImportError, match=r"panel\.step: OpenCASCADE could not read the file "
+                                             r"\(Standard_Failure: BRep_API: command not done\)"):
+        read_cad(example_step, isolated=False)
+
+
+def test_an_import_that_does_not_finish_in_time_is_stopped(example_step):
+    with pytest.raises(CADImportError, match=r"panel\.step: the CAD importer did not finish "
+                                             r"within 0\.001 s"):
+        read_cad(example_step, timeout=0.001)
+    assert len(read_cad(example_step).faces) == 1
+    with pytest.raises(ValueError, match="timeout"):
+        read_cad(example_step, timeout=0)
+
+
+@pytest.mark.parametrize("fmt", ["step", "iges"])
+def test_undamaged_files_have_all_their_declared_faces(tmp_path, example_step, fmt):
+    from shapeverify.cad.face_count import declared_faces
+
+    box = BRepPrimAPI_MakeBox(10.0, 20.0, 30.0).Shape()
+    files = ([write_step(box, tmp_path / "box.step"), example_step] if fmt == "step" else
+             [write_iges(box, tmp_path / "box.igs"), write_iges(box, tmp_path / "brep.igs", mode=1),
+              write_iges(panel_shape(), tmp_path / "panel.igs")])
+    for path in files:
+        model = read_cad(path)
+        n_occ = len(occ_faces(occ_read(path), nurbs=False))
+        assert declared_faces(path, fmt)[0] == n_occ == len(model.faces) == model.n_faces_in_file
+        assert model.skipped_faces == () and model.n_missing_faces == 0
+
+
+@pytest.mark.parametrize("name", SHARED_NAMES)
+def test_shared_files_have_all_their_declared_faces(shared_data, name):
+    model = load_shared(shared_data, name)
+    assert model.n_faces_in_file == len(model.faces) == SHARED_FILES[name]
+
+
+def test_a_dangling_face_reference_is_warned_and_counted(tmp_path, caplog):
+    step = write_step(BRepPrimAPI_MakeBox(10.0, 20.0, 30.0).Shape(), tmp_path / "box.step")
+    text = step.read_text()
+    face = re.findall(r"#(\d+) = ADVANCED_FACE", text)[2]
+    bad = _without_line(step, tmp_path / "dangling.step", f"#{face} = ADVANCED_FACE".encode())
+    with caplog.at_level(logging.WARNING, logger="shapeverify"):
+        model = read_cad(bad)
+    assert len(model.faces) == 5 and model.n_faces_in_file == 6 and model.n_missing_faces == 1
+    shell = re.search(r"#(\d+) = CLOSED_SHELL", text).group(1)
+    assert model.skipped_faces == (f"#{face}: listed by CLOSED_SHELL #{shell} but not defined in "
+                                   "the file",)
+    warned = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
+    assert any("1 of the 6 faces in the file were not loaded" in m and f"#{face}" in m
+               for m in warned), warned
+    assert "of 6 in the file" in repr(model)
+
+
+def test_a_face_that_fails_to_convert_is_skipped_and_named(tmp_path, monkeypatch, caplog):
+    import shapeverify.cad.occ_import as occ_import
+
+    step = write_step(BRepPrimAPI_MakeBox(10.0, 20.0, 30.0).Shape(), tmp_path / "box.step")
+    real = occ_import._face_loops
+
+    def loops(work, face, conv, surface, edge_faces, tol, index, path):
+        if index == 2:
+            raise CADImportError(f"{path}: face 2 has no usable trimming loop")
+        return real(work, face, conv, surface, edge_faces, tol, index, path)
+
+    monkeypatch.setattr(occ_import, "_face_loops", loops)
+    with caplog.at_level(logging.WARNING, logger="shapeverify"):
+        model = read_cad(step, isolated=False)
+    assert len(model.faces) == 5 and model.n_faces_in_file == 6
+    assert model.skipped_faces == ("face 2: face 2 has no usable trimming loop",)
+    assert any("face 2" in r.getMessage() for r in caplog.records)
+    monkeypatch.setattr(occ_import, "_face_loops", lambda *a: (_ for _ in ()).throw(
+        CADImportError("bad")))
+    with pytest.raises(CADImportError, match="none of the 6 faces could be converted"):
+        read_cad(step, isolated=False)

@@ -10,7 +10,7 @@ fails or even crashes: the crash is contained in the importer process).  Anythin
 exception, or this process dying -- fails the test.
 
 The unmarked test runs one mutant per kind of damage of the example panel (STEP and IGES); the
-slow one 6 per kind and file (108 mutants), with ``../shared/data/cad/wavy-cube.stp`` when present.
+slow one 6 per kind and file: 108 mutants with ``../shared/data/cad/wavy-cube.stp`` (when present).
 """
 
 from __future__ import annotations
