@@ -161,8 +161,12 @@ def _candidate_range(rig, dirs, psi, m, t_lo, t_hi):
     return np.arange(int(np.floor(lo)), int(np.ceil(hi)) + 1, dtype=np.int64)
 
 
-def _vote(rig, dirs, psi, m, cands, psi_r, valid_r, t_mid, t_lo, t_hi, tol):
-    """Best offset of a region and its score (fraction of samples consistent), second-best score."""
+def _vote(rig, dirs, psi, m, cands, psi_r, valid_r, t_mid, t_lo, t_hi, tol, prior=None):
+    """Best offset of a region and its score (fraction of samples consistent), second-best score.
+
+    With a ``prior`` (the CAD-predicted offset, fractional), the offset nearest to it among those
+    scoring at least 0.9 x the best wins: the stereo check alone cannot split near-ties.
+    """
     err = np.empty((len(dirs), len(cands)))
     P = rig.pattern.period_px
     rows = rig.pattern.direction == "rows"
@@ -173,6 +177,10 @@ def _vote(rig, dirs, psi, m, cands, psi_r, valid_r, t_mid, t_lo, t_hi, tol):
     mean_err = np.array([np.abs(err[good[:, c], c]).mean() if good[:, c].any() else np.pi for c in range(len(cands))])
     order = np.lexsort((mean_err, -score))
     best = order[0]
+    if prior is not None:
+        near = np.flatnonzero(score >= 0.9 * score[best])
+        best = int(near[np.argmin(np.abs(cands[near] - prior))])
+        order = np.concatenate([[best], order[order != best]])
     second = score[order[1]] if len(order) > 1 else 0.0
     return int(cands[best]), float(score[best]), float(second)
 
@@ -278,19 +286,20 @@ def measure(rig, left, right, model=None, T_left_model=None, method="ftp", depth
     rows = rig.pattern.direction == "rows"
     P = rig.pattern.period_px
 
-    def resolve(region_idx):
+    def resolve(region_idx, prior=None):
         """Vote the offset of a set of pixels; None when not decided."""
         s = _sample(region_idx, samples)
         d, p, mm = dirs_all[s], psi_flat[s], m_flat[s]
         cands = _candidate_range(rig, d, p, mm, t_lo, t_hi)
-        if model is not None:
+        if model is not None and prior is None:
             kc = _cad_orders(rig, model, np.eye(4) if T_left_model is None else T_left_model, d, p, mm)
             if np.isfinite(kc).sum() >= max(3, len(s) // 10):
-                kp = int(np.round(np.nanmedian(kc)))
+                prior = float(np.nanmedian(kc))
+                kp = int(np.round(prior))
                 cands = np.arange(kp - cad_window, kp + cad_window + 1, dtype=np.int64)
         if len(cands) == 0:
             return None, 0.0, 0.0
-        K, score, second = _vote(rig, d, p, mm, cands, psi_r, valid_r, t_mid, t_lo, t_hi, tol_vote)
+        K, score, second = _vote(rig, d, p, mm, cands, psi_r, valid_r, t_mid, t_lo, t_hi, tol_vote, prior)
         return (K if score >= min_score else None), score, second
 
     korder = np.full(H * W, np.iinfo(np.int64).min, np.int64)
@@ -326,10 +335,16 @@ def measure(rig, left, right, model=None, T_left_model=None, method="ftp", depth
         cs = np.bincount(comp.ravel(), minlength=n_comp + 1)
         big = np.flatnonzero(cs >= min_region)
         big = big[big > 0]
+        good = np.zeros(H * W, bool)
+        good[idx[np.isfinite(t_ray)]] = True
         for c in big:
             ci = np.flatnonzero(comp.ravel() == c)
-            K, score, second = resolve(ci)
-            if K is None:
+            prior = _continuity_prior(comp == c, good.reshape(H, W), korder, m_flat, psi_flat)
+            K, score, second = resolve(ci, prior)
+            # a patch is re-ordered only when the vote is clear, or agrees with the continuation of
+            # its resolved neighbours (a patch the right camera does not see at its true order can
+            # still look consistent at a wrong one)
+            if K is None or (second >= 0.8 * score and (prior is None or K != round(prior))):
                 continue
             info["revoted"] += 1
             korder[ci] = m_flat[ci] + K
@@ -358,6 +373,29 @@ def measure(rig, left, right, model=None, T_left_model=None, method="ftp", depth
     log.info("measure: %d points from %d usable left pixels (%d regions)", len(idx), info["usable_left"], n_reg)
     pixels = np.column_stack([idx % W, idx // W]).astype(np.int64)
     return StereoScan(points, quality, pixels, resid, fa_l.mask, timings, info)
+
+
+def _continuity_prior(patch, good, korder, m_flat, psi_flat):
+    """Offset K of a patch that makes its absolute phase continuous with resolved 4-neighbours (None if none)."""
+    H, W = patch.shape
+    ks = []
+    for dy, dx in ((0, 1), (0, -1), (1, 0), (-1, 0)):
+        p = np.zeros((H, W), bool)
+        q = np.zeros((H, W), bool)
+        ys, yd = (slice(0, H - dy), slice(dy, H)) if dy >= 0 else (slice(-dy, H), slice(0, H + dy))
+        xs, xd = (slice(0, W - dx), slice(dx, W)) if dx >= 0 else (slice(-dx, W), slice(0, W + dx))
+        pair = patch[ys, xs] & good[yd, xd]
+        if not pair.any():
+            continue
+        p[ys, xs] = pair
+        q[yd, xd] = pair
+        ip, iq = np.flatnonzero(p), np.flatnonzero(q)  # row-major order keeps the pairs aligned
+        step = np.angle(np.exp(1j * (psi_flat[ip] - psi_flat[iq])))
+        k_p = korder[iq] + np.round((psi_flat[iq] - psi_flat[ip] + step) / TWO_PI)
+        ks.append(k_p - m_flat[ip])
+    if not ks:
+        return None
+    return float(np.median(np.concatenate(ks)))
 
 
 def simulate_and_measure_demo(out_dir=None, width: int = 1000, height: int = 1000, rng=0):
