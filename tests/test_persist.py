@@ -243,3 +243,73 @@ def test_impeller_round_trip(tmp_path, capsys, shared_data):
     with capsys.disabled():
         print(f"\nimpeller.igs: import {t_import:.2f} s, saved-model load {t_load:.3f} s, "
               f"file {(tmp_path / 'impeller.svmodel').stat().st_size / 1e6:.2f} MB")
+
+
+# ------------------------------------------- damaged .svmodel / .svm: ModelFileError, nothing else
+def _damaged_copies(data: bytes, rng, n_flips: int = 30, n_cuts: int = 10):
+    """(label, bytes): single bit flips at random places, and truncations at random lengths."""
+    for pos in rng.integers(0, len(data), size=n_flips):
+        b = bytearray(data)
+        b[pos] ^= 1 << int(rng.integers(8))
+        yield f"bit flip at {pos}", bytes(b)
+    for cut in rng.integers(1, len(data) - 1, size=n_cuts):
+        yield f"truncated to {cut}", data[:cut]
+
+
+def test_damaged_svmodel_is_a_model_file_error_naming_the_file(tmp_path):
+    from shapeverify.errors import ModelFileError, ShapeVerifyError
+
+    m = built_model()
+    m = Model(faces=m.faces, unit=m.unit, scale_to_mm=m.scale_to_mm, source=m.source,
+              n_faces_in_file=4, skipped_faces=("face 3: no usable trimming loop",))
+    data = save_model(m, tmp_path / "good.svmodel").read_bytes()
+    back = load_saved_model(tmp_path / "good.svmodel")  # the face count round-trips
+    assert back.n_faces_in_file == 4 and back.skipped_faces == m.skipped_faces
+    rng = np.random.default_rng(5)
+    outcomes = {"error": 0, "same": 0}
+    for label, bad in _damaged_copies(data, rng):
+        p = tmp_path / "damaged.svmodel"
+        p.write_bytes(bad)
+        try:
+            got = load_model(p)
+        except ModelFileError as exc:
+            assert isinstance(exc, (ShapeVerifyError, ValueError))
+            assert "damaged.svmodel" in str(exc) and "shapeverify prepare" in str(exc), label
+            outcomes["error"] += 1
+            continue
+        assert_same_model(got, back)  # a flip in an unused header byte: the CRCs still hold
+        outcomes["same"] += 1
+    assert outcomes["error"] >= 30, outcomes
+    # a well-formed archive with arrays of the wrong shape
+    a = model_to_arrays(built_model())
+    with open(tmp_path / "shapes.svmodel", "wb") as fh:
+        np.savez(fh, **dict(a, shapes=a["shapes"].ravel()))
+    with pytest.raises(ModelFileError, match=r"shapes\.svmodel.*shapeverify prepare"):
+        load_model(tmp_path / "shapes.svmodel")
+
+
+def test_damaged_svm_is_a_model_file_error_naming_the_file(tmp_path):
+    from shapeverify.cad.examples import wavy_panel
+    from shapeverify.errors import ModelFileError
+    from shapeverify.nearest import load_prepared, prepare
+
+    prepare(wavy_panel(), spacing=3.0).save(tmp_path / "good.svm")
+    data = (tmp_path / "good.svm").read_bytes()
+    good = load_prepared(tmp_path / "good.svm")
+    rng = np.random.default_rng(6)
+    n_errors = 0
+    for label, bad in _damaged_copies(data, rng):
+        p = tmp_path / "damaged.svm"
+        p.write_bytes(bad)
+        try:
+            got = load_prepared(p)
+        except ModelFileError as exc:
+            assert "damaged.svm" in str(exc) and "shapeverify prepare" in str(exc), label
+            n_errors += 1
+            continue
+        assert got.n_points == good.n_points, label
+        np.testing.assert_array_equal(got.points.points, good.points.points)
+    assert n_errors >= 30
+    (tmp_path / "empty.svm").write_bytes(b"")
+    with pytest.raises(ModelFileError, match=r"empty\.svm.*empty.*shapeverify prepare"):
+        load_prepared(tmp_path / "empty.svm")

@@ -42,8 +42,9 @@ __all__ = ["save_model", "load_saved_model", "model_to_arrays", "model_from_arra
 
 #: what numpy, zipfile and the array checks raise on a damaged, truncated or foreign archive
 #: (bit flips fail zipfile's CRC check: ``BadZipFile``; truncation: ``BadZipFile``/``EOFError``;
-#: wrong shapes or dtypes: ``ValueError``/``IndexError``/``TypeError``)
-DAMAGED_FILE_ERRORS = (ValueError, KeyError, IndexError, TypeError, AttributeError, OSError,
+#: a flipped flag bit: ``NotImplementedError``/``RuntimeError`` ("encrypted"); wrong shapes or
+#: dtypes: ``ValueError``/``IndexError``/``TypeError``)
+DAMAGED_FILE_ERRORS = (ValueError, LookupError, TypeError, AttributeError, RuntimeError, OSError,
                        EOFError, zipfile.BadZipFile, zlib.error, struct.error, OverflowError,
                        MemoryError)
 
