@@ -19,8 +19,11 @@ subset of ``max(0, 1 - (d / tau)^2)`` with ``d`` the point's distance to the mod
 point whose closest model point is on the model's free boundary), ``tau`` the fit distance
 (:func:`fit_distance`).  This is the truncated (Tukey-like) robust objective: 1 when every
 point lies on the surface, the share of points within ``tau`` otherwise, blind to outliers.
-The best distinct hypotheses are refined by a short Huber ICP on the subset (the coarse stage of
-:func:`~shapeverify.registration.register`), re-scored, and the best refined one wins.
+All hypotheses are screened by this fit (kd-tree on a voxel subsample of the model, ``tau`` =
+2 voxels); the best distinct ones are refined by a short Huber point-to-plane ICP on the subset
+(kd-tree of all model points) and re-scored at a sharp fit distance, three times the smallest
+robust residual scale among them (the right pose fits to the noise level; a wrong one that lays
+the scan loosely over the surface does not); the best refined one wins.
 
 What it cannot do: tell apart poses that the geometry itself cannot (a symmetric part's
 symmetric copies fit equally well; the result says so in ``runner_up``).
@@ -50,21 +53,21 @@ logger = logging.getLogger(__name__)
 
 #: scan points scored per hypothesis (the first SCREEN_POINTS of them screen all hypotheses)
 SCORE_POINTS = 400
-SCREEN_POINTS = 200
+SCREEN_POINTS = 300
 #: voxels across the model's size for the feature subsample
 VOXELS = 40
 #: RANSAC triples tried
 RANSAC_ITERATIONS = 30000
 #: hypotheses refined by ICP
-N_REFINE = 6
+N_REFINE = 10
 
 
 @dataclass(frozen=True, eq=False, repr=False)
 class GlobalAlignment:
     """Result of :func:`global_alignment`.
 
-    T_model_scan : (4, 4) the best refined pose; fit : its fit score in [0, 1] (share of the
-    scored scan points on the surface, see the module docstring); source : which hypothesis it
+    T_model_scan : (4, 4) the best refined pose; fit : its fit score in [0, 1] at the sharp fit
+    distance (share of the scored scan points on the surface, see the module docstring); source : which hypothesis it
     came from ('identity', 'principal-axes', 'fpfh-ransac'); n_hypotheses : poses scored;
     runner_up : (fit, rotation deg, normal displacement mm) of the best refined hypothesis that
     moves the scan differently (None if none); seconds : wall time.
@@ -142,12 +145,16 @@ class _ModelSide:
         self.size = _model_size(prep)
         self.voxel = self.size / VOXELS
         self.tau = fit_distance(prep)
+        self.spacing = float(getattr(prep, "spacing", 0.0) or self.size / 500.0)
         keep = _voxel_subsample(M, self.voxel)
         self.points = np.ascontiguousarray(M[keep])
         self.normals = np.ascontiguousarray(Nm[keep])
         self.tree = cKDTree(self.points)
         self.features = _fpfh(self.points, self.normals, self.tree, 5.0 * self.voxel)
         self.ftree = cKDTree(self.features)
+        # every model point, for the refinement of the hypotheses
+        self.all_points, self.all_normals = M, Nm
+        self.all_tree = cKDTree(M)
         # all model points (about 5k, a regular subset) for the principal-axes hypotheses
         s = max(1, M.shape[0] // 5000)
         self.axes_points, self.axes_normals = M[::s], Nm[::s]
@@ -177,21 +184,51 @@ def fit_score(prep, S: np.ndarray, T: np.ndarray, tau: float) -> float:
     return float(_features.truncated_fit(np.where(valid, d, 0.0), valid, tau))
 
 
+def _distances(side, S, T):
+    """Distances (n,) of the moved points S to the model: to the tangent plane of the nearest
+    model point within 3 spacings of it, to the point itself farther away (all valid)."""
+    X = S @ T[:3, :3].T + T[:3, 3]
+    e, j = side.all_tree.query(X)
+    dn = np.abs(np.einsum("ij,ij->i", X - side.all_points[j], side.all_normals[j]))
+    d = np.where(e <= 3.0 * side.spacing, dn, e)
+    return d, np.ones(d.shape[0], bool)
+
+
 def _quick_fit(tree: cKDTree, S, T, tau) -> float:
     d, _ = tree.query(S @ T[:3, :3].T + T[:3, 3], distance_upper_bound=tau)
     d = np.where(np.isfinite(d), d, tau)
     return float(np.mean(np.maximum(0.0, 1.0 - (d / tau) ** 2)))
 
 
-def refine(S, prep, T, radius, max_it: int = 20) -> np.ndarray:
-    """Short Huber point-to-plane ICP of the subset S from T (the coarse stage)."""
-    st = _irls.State(T[:3, :3].copy(), T[:3, 3].copy())
-    try:
-        _irls.stage_rematch("global", S, prep, st, "point-to-plane", get_loss("huber"), None,
-                            1e-9 * radius, radius, max_it, 1e-4, False)
-    except RegistrationError:   # too few points near the model from this start
-        return T
-    return make_transform(st.R, st.t)
+def refine(S, side: "_ModelSide", T, radius, max_it: int = 20) -> np.ndarray:
+    """Short Huber point-to-plane ICP of the subset S from T against the model points.
+
+    Nearest model points (kd-tree) with their normals, pairs farther than ``8 x tau`` left
+    out: the cheap refinement of a hypothesis (the closest-point structure, slow for points
+    far from the model, is kept for the final scoring).
+    """
+    from .rigid import compose_step, point_to_plane_system, solve_step
+
+    R, t = T[:3, :3].copy(), T[:3, 3].copy()
+    reach = 8.0 * side.tau
+    huber = get_loss("huber")
+    for _ in range(max_it):
+        X = S @ R.T + t
+        d, j = side.all_tree.query(X, distance_upper_bound=reach)
+        ok = np.isfinite(d)
+        if ok.sum() < 6:
+            break
+        X, Y, Nn = X[ok], side.all_points[j[ok]], side.all_normals[j[ok]]
+        r = np.einsum("ij,ij->i", X - Y, Nn)
+        sigma = max(1.4826 * float(np.median(np.abs(r))), 1e-9 * radius)
+        w = huber.weight(r, sigma)
+        c = X.mean(axis=0)
+        H, g, _ = point_to_plane_system(X, Y, Nn, w, c)
+        theta, _ = solve_step(H, g, radius)
+        R, t = compose_step(R, t, theta, c)
+        if np.linalg.norm(theta[:3]) * radius + np.linalg.norm(theta[3:]) < 1e-3 * side.tau:
+            break
+    return make_transform(R, t)
 
 
 # ------------------------------------------------------------------------------ hypotheses
@@ -300,16 +337,27 @@ def global_alignment(scan, prep, rng=0, extra=()) -> GlobalAlignment:
             break
         if all(_apart(_distinct(hyps[i][1], hyps[c][1], Sq, side), tq) for c in chosen):
             chosen.append(int(i))
-    refined = []
+    refined, dists = [], []
     for i in chosen:
-        T = refine(S, prep, hyps[i][1], radius)
-        refined.append((fit_score(prep, S, T, side.tau), hyps[i][0], T))
+        T = refine(S, side, hyps[i][1], radius)
+        d, valid = _distances(side, S, T)
+        dists.append((d, valid))
+        refined.append([0.0, hyps[i][0], T])
+    # final scores at a sharp fit distance: three times the smallest robust residual scale
+    # of the refined hypotheses (the right pose fits to the noise level; a wrong one that lays
+    # the whole scan loosely on the surface does not)
+    sig = [1.4826 * float(np.median(np.abs(d[v]))) if v.sum() >= 6 else np.inf
+           for d, v in dists]
+    tau = float(np.clip(3.0 * min(sig), 1e-9 * side.size, side.tau))
+    for r, (d, valid) in zip(refined, dists):
+        r[0] = float(_features.truncated_fit(d, valid, tau))
+    refined = [tuple(r) for r in refined]
     refined.sort(key=lambda r: -r[0])
     best_fit, best_src, best_T = refined[0]
     runner = None
     for f, _, T in refined[1:]:
         ang, dn = _distinct(best_T, T, S, side)
-        if dn > side.tau:
+        if dn > tau:
             runner = (f, ang, dn)
             break
     out = GlobalAlignment(best_T, best_fit, best_src, len(hyps), runner,

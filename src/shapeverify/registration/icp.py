@@ -428,7 +428,8 @@ def register(scan, prep, init=None, method: str = "point-to-plane", loss: str = 
     msg = (f"converged in {st.iterations} iterations" if converged else
            f"not converged: {why}")
     desc = tuple(_describe(undet))
-    notes = list(_pose_warnings(ev, w, ga))
+    from .global_search import fit_distance
+    notes = list(_pose_warnings(ev, w, ga, fit_distance(prep)))
     if undet.shape[0]:
         txt = ("scan geometry leaves %d pose direction(s) undetermined: %s"
                % (undet.shape[0], "; ".join(desc)))
@@ -454,18 +455,24 @@ def _pose(st) -> np.ndarray:
 
 #: below this inlier fraction the pose is flagged (it may be a wrong minimum)
 WARN_INLIERS = 0.5
+#: a robust scale beyond this many fit distances is flagged
+WARN_SCALE = 2.0
 #: a weighted mean residual beyond this many sigma is flagged as systematic
 WARN_MEAN_SIGMA = 0.5
 #: another global hypothesis with at least this share of the best fit is flagged
 WARN_RUNNER_UP = 0.97
 
 
-def _pose_warnings(ev, w, ga):
+def _pose_warnings(ev, w, ga, tau=None):
     """Signs that the final pose is not the right minimum (see ``Registration.warnings``)."""
     inl = float(ev.inliers.mean())
     if inl < WARN_INLIERS:
         yield (f"only {100 * inl:.0f} % of the scan points are inliers at the final pose: it "
                "may be a wrong minimum, or the scan shows much that is not on the model")
+    if tau is not None and ev.sigma > WARN_SCALE * tau:
+        yield (f"the robust residual scale is {ev.sigma:.3g} mm, more than {WARN_SCALE:g} x "
+               f"the fit distance {tau:.3g} mm (4 model point spacings or 0.5 % of the size): "
+               "the pose is likely a wrong minimum (or the scan is very noisy)")
     sw = float(w.sum())
     if sw > 0:
         mean = float(w @ ev.d) / sw
