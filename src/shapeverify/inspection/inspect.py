@@ -147,7 +147,7 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
     per_face : dict {face: tolerance or (lower, upper)}, optional
         Per-face tolerance overrides.
     min_coverage : float
-        Least covered share of the inspected area (0..1, default 0.4) for a pass or fail verdict;
+        Least covered share of the inspected area (0..1, default 0.2) for a pass or fail verdict;
         below it the verdict is 'incomplete' (see :mod:`shapeverify.inspection.coverage`).
     min_region_points : int
         Fewest core points of a defect region (default 5; see :mod:`shapeverify.inspection.regions`).

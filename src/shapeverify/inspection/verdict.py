@@ -6,7 +6,7 @@ the result's ``rule``:
 1. ``error`` (rule ``no_data``): no scan point lies within the evaluation distance of the
    inspected CAD faces (wrong scan, wrong model, failed registration, or a scan nowhere near the
    part);
-2. ``incomplete`` (rule ``coverage``): less than ``min_coverage`` (default 40 %) of the inspected
+2. ``incomplete`` (rule ``coverage``): less than ``min_coverage`` (default 20 %) of the inspected
    CAD area has evaluated scan points near it (:mod:`.coverage`). A part that was not seen is never
    passed and never failed; the reasons say how much was seen, where the largest gap is, whether
    out-of-tolerance regions were found in what was seen, and any registration problem (a small
