@@ -197,7 +197,7 @@ def inspect(
         help="Scan points farther than this from the CAD are not evaluated [mm] "
              "(default: max(1 mm, 5 x the tolerance))"),
     faces: Optional[str] = typer.Option(None, "--faces", help="Inspect only these CAD faces, e.g. '0,3,7' (default: all)"),
-    min_coverage: float = typer.Option(0.2, "--min-coverage", help="Least share of the inspected CAD area that must be seen (0..1); below it the verdict is 'incomplete'"),
+    min_coverage: Optional[float] = typer.Option(None, "--min-coverage", help="Least share of the inspected CAD area that must be seen (0..1, default 0.2 = shapeverify.inspection.MIN_COVERAGE); below it the verdict is 'incomplete'"),
     init: Optional[Path] = typer.Option(None, "--init", help="Start pose T_model_scan: a 4x4 in T.json or T.npy (default: found automatically)"),
     scan_unit: Optional[str] = typer.Option(None, "--scan-unit", help="Unit of the scan file (mm, cm, m, in, um; default mm)"),
     model_unit: Optional[str] = typer.Option(None, "--model-unit", help="Unit of an STL/PLY/OBJ/point-cloud model (default mm; CAD files declare theirs)"),
