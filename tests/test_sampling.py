@@ -362,3 +362,57 @@ def test_sheared_parametrisation():
     nn = nn_dist(mp.points)
     assert nn.min() >= 0.85 * s * (1 - 1e-12) and 0.8 * s < np.median(nn) < 1.25 * s
     assert nn.max() < 1.5 * s
+
+
+# ----------------------------------------------------- the spacing a reference needs
+def _icosahedron(r=50.0):
+    t = (1 + 5 ** 0.5) / 2
+    V = np.array([[-1, t, 0], [1, t, 0], [-1, -t, 0], [1, -t, 0], [0, -1, t], [0, 1, t],
+                  [0, -1, -t], [0, 1, -t], [t, 0, -1], [t, 0, 1], [-t, 0, -1], [-t, 0, 1.]])
+    V = r * V / np.linalg.norm(V, axis=1)[:, None]
+    T = np.array([[0, 11, 5], [0, 5, 1], [0, 1, 7], [0, 7, 10], [0, 10, 11], [1, 5, 9],
+                  [5, 11, 4], [11, 10, 2], [10, 7, 6], [7, 1, 8], [3, 9, 4], [3, 4, 2],
+                  [3, 2, 6], [3, 6, 8], [3, 8, 9], [4, 9, 5], [2, 4, 11], [6, 2, 10],
+                  [8, 6, 7], [9, 8, 1]])
+    return V, T
+
+
+def test_needed_spacing_follows_the_geometry():
+    from shapeverify.cad.sampling import needed_spacing
+
+    V, T = _icosahedron()
+    mesh = Model(kind="mesh", vertices=V, triangles=T, source="icosahedron")
+    A = 0.5 * np.linalg.norm(np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]]),
+                             axis=1).sum()
+    assert needed_spacing(mesh) == pytest.approx(np.sqrt(A / 10_000))  # 20 triangles: floor
+    # a cloud on a 0.7 mm grid: its own spacing
+    g = np.arange(0, 70, 0.7)
+    X = np.stack(np.meshgrid(g, g, [0.0]), axis=-1).reshape(-1, 3)
+    cloud = Model(kind="points", vertices=X, source="grid")
+    assert needed_spacing(cloud) == pytest.approx(0.7)
+    face = square_face(sphere(10.0))
+    assert needed_spacing(cad(face)) == 0.0
+
+
+def test_prepare_of_a_coarse_mesh_costs_what_its_triangles_need():
+    """20 triangles: about 10,000 model points (not size/500 -> ~80,000), exact answers."""
+    import time
+
+    from shapeverify.nearest import prepare
+
+    V, T = _icosahedron()
+    mesh = Model(kind="mesh", vertices=V, triangles=T, source="icosahedron")
+    t0 = time.process_time()
+    prep = prepare(mesh)
+    assert time.process_time() - t0 < 3.0
+    assert 5_000 < prep.n_points < 15_000
+    rng = np.random.default_rng(2)
+    q = rng.normal(size=(500, 3))
+    q = rng.uniform(5, 38, (500, 1)) * q / np.linalg.norm(q, axis=1)[:, None]  # inside
+    near = prep.closest(q, exact=True)
+    # inside a convex solid the distance is that to the nearest face plane (signed -)
+    n = np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]])
+    n /= np.linalg.norm(n, axis=1)[:, None]
+    inside = np.einsum("ij,kj->ik", q, n)
+    h = np.einsum("kj,kj->k", V[T[:, 0]], n)
+    np.testing.assert_allclose(near.distances, (inside - h).max(axis=1), atol=1e-9)

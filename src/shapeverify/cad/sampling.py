@@ -72,7 +72,7 @@ import numpy as np
 from numba import njit
 from scipy.spatial import cKDTree
 
-__all__ = ["sample_model", "MAX_POINTS"]
+__all__ = ["sample_model", "needed_spacing", "MAX_POINTS"]
 
 logger = logging.getLogger(__name__)
 
@@ -144,6 +144,55 @@ def sample_model(model, spacing, rng=None):
     else:
         raise ValueError(f"model.kind must be 'cad', 'mesh' or 'points', got {kind!r}")
     return _finish(parts, s, model)
+
+
+def needed_spacing(model) -> float:
+    """The coarsest spacing (mm) that still represents a mesh or point-cloud model fully.
+
+    The default spacing of :func:`shapeverify.prepare` is ``size / 500`` -- right for curved
+    CAD faces, whose tangent patches need it, but wasteful for a mesh of a few large flat
+    triangles (a 60-triangle part got about 250,000 model points, and its preparation cost
+    followed them, not the geometry) or for a cloud sparser than that.
+
+    * mesh: about 4 model points per triangle (at least 10,000 in all): a flat triangle is
+      represented exactly by its tangent patches, and the exact mode projects onto the
+      triangles themselves; ``sqrt(area / max(10_000, 4 T))``.
+    * point cloud: the cloud's own median nearest-neighbour distance (model points are cloud
+      points; a finer spacing only adds tree cells between them).
+    * CAD: 0 (no lower bound; curved faces need the default).
+
+    ``prepare`` uses ``max(size / 500, needed_spacing(model))`` when no spacing is given.
+
+    Examples
+    --------
+    >>> from shapeverify.cad.model import Model
+    >>> V = np.array([[0, 0, 0], [100, 0, 0], [0, 100, 0.]])
+    >>> m = Model(kind="mesh", vertices=V, triangles=np.array([[0, 1, 2]]), source="tri")
+    >>> round(needed_spacing(m), 4)      # sqrt(5000 mm^2 / 10000)
+    0.7071
+    """
+    kind = getattr(model, "kind", "cad")
+    if kind == "mesh":
+        V = np.asarray(model.vertices, dtype=np.float64)
+        T = np.asarray(model.triangles, dtype=np.int64)
+        if len(T) == 0:
+            return 0.0
+        area = 0.5 * np.linalg.norm(np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]]),
+                                    axis=1).sum()
+        return float(np.sqrt(area / max(_MESH_MIN_POINTS, _MESH_POINTS_PER_TRIANGLE * len(T))))
+    if kind == "points":
+        X = np.asarray(model.vertices, dtype=np.float64)
+        if X.ndim != 2 or len(X) < 2:
+            return 0.0
+        # a repeatable subsample is enough for a median
+        sub = X[np.random.default_rng(0).permutation(len(X))[:20_000]]
+        d, _ = cKDTree(X).query(sub, k=2)
+        return float(np.median(d[:, 1]))
+    return 0.0
+
+
+_MESH_MIN_POINTS = 10_000
+_MESH_POINTS_PER_TRIANGLE = 4
 
 
 # ------------------------------------------------------------------------------ thinning

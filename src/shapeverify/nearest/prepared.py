@@ -274,7 +274,9 @@ def prepare(model, spacing: float | None = None, max_distance: float | None = No
     model : Model
         CAD, mesh or point-cloud model (:func:`shapeverify.load_model`).
     spacing : float, optional
-        Model point spacing in mm; default ``model.size / 500``.
+        Model point spacing in mm; default ``model.size / 500`` (for meshes and clouds at
+        least :func:`shapeverify.cad.sampling.needed_spacing`: about 4 points per triangle,
+        the cloud's own point spacing).
     max_distance : float, optional
         Queries within this distance (mm) are answered by the DVG tree, farther ones by a
         kd-tree; default ``max(0.03 * model.size, 2 * spacing)``.
@@ -311,7 +313,11 @@ def prepare(model, spacing: float | None = None, max_distance: float | None = No
                                  "or None for the default")
     t0 = time.perf_counter()
     size = model.size
-    h = default_spacing(size) if spacing is None else float(spacing)
+    if spacing is None:  # a mesh or cloud needs no finer spacing than its own geometry
+        from shapeverify.cad.sampling import needed_spacing
+        h = max(default_spacing(size), needed_spacing(model))
+    else:
+        h = float(spacing)
     maxd = default_max_distance(size, h) if max_distance is None else float(max_distance)
     mp = model.sample(h)
     if len(mp) == 0:
