@@ -202,7 +202,7 @@ def _cad_orders(rig, model, T_left_model, dirs, psi, m):
 
 def measure(rig, left, right, model=None, T_left_model=None, method="ftp", depth_range=None,
             tol_vote=0.5, tol_projector=0.5, cad_window=1, min_region=64, samples=300,
-            min_score=0.5, analysis_options=None) -> StereoScan:
+            min_score=0.5, analysis_options=None, phases=None) -> StereoScan:
     """3-D points from one fringe image per camera.
 
     Parameters
@@ -234,6 +234,9 @@ def measure(rig, left, right, model=None, T_left_model=None, method="ftp", depth
         A region whose best order explains fewer than this fraction of samples is dropped.
     analysis_options : dict or None
         Extra keyword arguments for the phase analysis.
+    phases : (FringeAnalysis, FringeAnalysis) or None
+        Phase analyses of the left and right image computed elsewhere (``method`` is then unused);
+        their phases must increase with the projector column (:func:`phase_direction`).
 
     Returns
     -------
@@ -260,8 +263,11 @@ def measure(rig, left, right, model=None, T_left_model=None, method="ftp", depth
     t_mid = _working_distance(rig)
     analyse = ftp if method == "ftp" else wff
     opts = dict(analysis_options or {})
-    fa_l = analyse(L, direction=phase_direction(rig, "left", t_mid), **opts)
-    fa_r = analyse(Rr, direction=phase_direction(rig, "right", t_mid), **opts)
+    if phases is None:
+        fa_l = analyse(L, direction=phase_direction(rig, "left", t_mid), **opts)
+        fa_r = analyse(Rr, direction=phase_direction(rig, "right", t_mid), **opts)
+    else:
+        fa_l, fa_r = phases
     timings["phase"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
@@ -282,7 +288,10 @@ def measure(rig, left, right, model=None, T_left_model=None, method="ftp", depth
     psi_flat, m_flat = psi_l.ravel(), order.ravel().astype(np.int64)
     sizes = np.bincount(lab[lab >= 0], minlength=n_reg)
     flat_idx = np.flatnonzero(lab >= 0)
-    by_label = np.split(flat_idx[np.argsort(lab[flat_idx], kind="stable")], np.cumsum(sizes)[:-1]) if n_reg else []
+    if n_reg == 1:
+        by_label = [flat_idx]
+    else:
+        by_label = np.split(flat_idx[np.argsort(lab[flat_idx], kind="stable")], np.cumsum(sizes)[:-1]) if n_reg else []
     rows = rig.pattern.direction == "rows"
     P = rig.pattern.period_px
 

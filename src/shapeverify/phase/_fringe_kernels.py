@@ -49,7 +49,7 @@ def lit_between(f, r, thr, along_rows, out):
             out[i, j] = left and right
 
 
-@njit(cache=True, nogil=True)
+@njit(cache=True, nogil=True, fastmath=True)
 def demodulate(f, m, mean, col_re, col_im, row_re, row_im, g, xg, re, im, a, m0, mx, my):
     """Carrier demodulation and masked Gaussian low-pass in one separable pass.
 

@@ -138,9 +138,11 @@ def _saturation(image, saturation, period_px):
     if saturation is None:
         return np.zeros(image.shape, bool)
     sat = image >= saturation
-    if sat.any():
+    if sat.any():  # widen by half a period, inside the bounding box of the clipped pixels only
         r = max(1, int(round(period_px / 2)))
-        sat = ndimage.binary_dilation(sat, structure=np.ones((3, 3), bool), iterations=r)
+        rows, cols = np.flatnonzero(sat.any(axis=1)), np.flatnonzero(sat.any(axis=0))
+        box = (slice(max(rows[0] - r, 0), rows[-1] + r + 1), slice(max(cols[0] - r, 0), cols[-1] + r + 1))
+        sat[box] = ndimage.binary_dilation(sat[box], structure=np.ones((3, 3), bool), iterations=r)
     return sat
 
 
