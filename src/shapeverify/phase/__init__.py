@@ -36,7 +36,7 @@ from .holography import (depth_per_fringe, phase_difference, phase_to_depth, pha
 from .io import plot_unwrap, read_mask, read_phase, unwrap_file
 from .fields import fault_field, smooth_field
 from .minimum_norm import solve_poisson_dct, unwrap_lp, unwrap_ls, unwrap_wls
-from .hologram import HologramDepth, angular_spectrum, dual_wavelength_depth, find_carrier, reconstruct
+from .hologram import HologramDepth, angular_spectrum, dual_wavelength_depth, reconstruct
 from .network_flow import unwrap_mcf
 from .sum_of_norms import SumOfNormsUnwrap, unwrap_sum_of_norms
 from .path_following import pseudo_correlation, unwrap_filtered, unwrap_quality
@@ -50,7 +50,7 @@ __all__ = [
     "wrap", "unwrap", "unwrap_1d", "residues", "pseudo_correlation", "METHODS",
     "unwrap_quality", "unwrap_filtered", "unwrap_mcf", "unwrap_ls", "unwrap_wls", "unwrap_lp",
     "fault_field", "smooth_field", "unwrap_sum_of_norms", "SumOfNormsUnwrap",
-    "find_carrier", "reconstruct", "angular_spectrum", "dual_wavelength_depth", "HologramDepth",
+    "reconstruct", "angular_spectrum", "dual_wavelength_depth", "HologramDepth",
     "solve_poisson_dct", "unwrap_with_reference", "ReferenceUnwrap", "iterate_unwrap",
     "IterativeUnwrap", "HolographySetup", "predict_phase", "unwrap_with_cad",
     "synthetic_wavelength", "depth_per_fringe", "phase_difference", "phase_to_depth",
