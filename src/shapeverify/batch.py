@@ -213,6 +213,8 @@ def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, 
         Missing model or folder.
     ValueError
         A folder without scans, two scans with the same stem, or ``tolerance <= 0``.
+    ModelFileError
+        The prepared model is damaged or not a ``.svm`` file.
     """
     from distributed import Client, as_completed
 
@@ -230,6 +232,9 @@ def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, 
     dup = sorted({s for s in stems if stems.count(s) > 1})
     if dup:
         raise ValueError(f"{scans_dir}: several scans share the name(s) {dup} (one JSON per stem); rename them")
+    from shapeverify.nearest import load_prepared
+
+    load_prepared(svm_path)  # a damaged model stops here (ModelFileError naming the file), not per scan
     out_dir.mkdir(parents=True, exist_ok=True)
     svm = svm_path.read_bytes()
     digest = hashlib.sha256(svm).hexdigest()
