@@ -56,7 +56,9 @@ def load_model(path):
     UnsupportedFormatError
         The extension is not one of :data:`MODEL_EXTENSIONS` (the message lists them).
     CADImportError
-        Corrupt, empty or truncated model file.
+        Corrupt, empty or truncated model file; OpenCASCADE raised or crashed on it (the import
+        runs in a child process, so a crash never ends the caller); a damaged ``.svmodel`` gives
+        its subclass :class:`~shapeverify.errors.ModelFileError`.
     EmptyModelError
         The file holds nothing to use (a CAD file without faces, a mesh without triangles).
     ScanError
