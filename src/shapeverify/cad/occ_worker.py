@@ -211,6 +211,10 @@ def read_cad_isolated(path, *, chord_tol: float, gap_tol: float, timeout: float 
             raise CADImportError(f"{path}: the CAD importer did not finish within {timeout:g} s "
                                  "and was stopped; the file may be damaged (re-export it) or "
                                  "too large for the time limit") from None
+        except BaseException:  # interrupted (Ctrl-C): the answer would be stale, start afresh
+            _CURRENT = None
+            worker.close(kill=True)
+            raise
         if reply is None:
             _CURRENT = None
             status = worker.close(kill=True) if worker.proc.poll() is None else worker.close()
