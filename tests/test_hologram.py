@@ -145,3 +145,35 @@ def test_hologram_of_a_cad_render_recovers_its_depth():
     e = (res.depth - depth)[6:-6, 6:-6]
     e = e - np.median(e)
     assert np.sqrt(np.mean(e ** 2)) < 5e-3
+
+
+@pytest.mark.slow
+def test_holograms_feed_the_cad_regularised_predict_unwrap_register_loop():
+    # Paper V's chain: holograms -> synthetic phase -> unwrap_with_cad (prediction from the exact
+    # CAD render at an approximate pose, unwrapping, registration, again) -> points on the part
+    import warnings
+
+    from shapeverify import phase, prepare
+    from shapeverify.cad.examples import wavy_panel
+    from shapeverify.camera import PinholeCamera
+    from shapeverify.phase.hologram import synthetic_phase
+    from shapeverify.registration.rigid import make_transform, rodrigues
+    from shapeverify.simulate.hologram import depth_from_model
+
+    prep = prepare(wavy_panel(split=False), spacing=2.0)
+    cam = PinholeCamera.look_at((78.54, 47.12, 150.0), (78.54, 47.12, 0.0), up=(0, 1, 0),
+                                fov_deg=2.0, width=96, height=96)
+    path = depth_from_model(prep, cam)                   # one-way path from the camera centre
+    h1, h2 = dual_wavelength_holograms(path, L1, L2, pixel_pitch=0.05, noise=0.02, bits=12)
+    psi, quality = synthetic_phase(h1.intensity, h2.intensity, L1, L2)
+    assert np.median(quality) > 0.9
+    setup = phase.HolographySetup(camera=cam, synthetic=LAM)
+    T0 = make_transform(rodrigues(np.array([0.0, 0.0, 0.002])), np.array([0.15, -0.1, 0.03]))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")          # a 5 mm patch leaves two rotations weakly determined
+        res = phase.unwrap_with_cad(psi, prep, setup, T0)
+    assert res.converged
+    pts = phase.cad.points_from_phase(res.phase, setup)
+    assert len(pts) == path.size
+    d = prep.closest(pts @ res.T_model_scan[:3, :3].T + res.T_model_scan[:3, 3]).distances
+    assert np.sqrt(np.mean(d ** 2)) < 0.01                # mm: every pixel on the right fringe

@@ -35,8 +35,8 @@ from scipy import fft as sfft
 
 from .holography import phase_difference, phase_to_depth, synthetic_wavelength
 
-__all__ = ["find_carrier", "reconstruct", "angular_spectrum", "dual_wavelength_depth",
-           "HologramDepth", "hologram_file"]
+__all__ = ["find_carrier", "reconstruct", "angular_spectrum", "synthetic_phase",
+           "dual_wavelength_depth", "HologramDepth", "hologram_file"]
 
 
 def _check_image(h, name="hologram"):
@@ -233,6 +233,48 @@ class HologramDepth:
                 f"measured={ok.mean():.1%})")
 
 
+def synthetic_phase(h1, h2, lambda1: float, lambda2: float, carrier1=None, carrier2=None,
+                    radius=None, distance: float = 0.0, pixel_pitch: float | None = None,
+                    window: int = 5, same_reference_angle: bool = True):
+    """Wrapped phase at the synthetic wavelength from two off-axis holograms, and its quality.
+
+    The input of :func:`shapeverify.phase.unwrap_with_cad` (the predict-unwrap-register loop of
+    Paper V) or :func:`shapeverify.phase.unwrap_with_reference`.  Parameters as
+    :func:`dual_wavelength_depth`.
+
+    Returns
+    -------
+    psi : (H, W) float64
+        ``angle(mean(O1 conj(O2)))`` over the `window` box, in ``(-pi, pi]`` (NaN where a field
+        is 0); it equals ``2*pi*L / Lambda`` modulo ``2*pi`` for the optical path ``L``.
+    quality : (H, W) float64 in [0, 1]
+        ``|mean(O1 conj(O2))| / mean(|O1| |O2|)`` over the box (low in dark speckles and where
+        the two wavelengths' speckle decorrelates, e.g. on steep slopes).
+    """
+    from scipy import ndimage
+
+    a1 = _check_image(h1, "h1")
+    a2 = _check_image(h2, "h2")
+    if a1.shape != a2.shape:
+        raise ValueError(f"h1 and h2 must have the same shape, got {a1.shape} and {a2.shape}")
+    c1 = find_carrier(a1) if carrier1 is None else carrier1
+    if carrier2 is None:
+        # one reference arm: the same angle at both wavelengths, c = pitch sin(angle) / lambda;
+        # an error in c1 then cancels in O1 conj(O2) up to a factor 1 - lambda1 / lambda2
+        c2 = tuple(float(v) * lambda1 / lambda2 for v in c1) if same_reference_angle else find_carrier(a2)
+    else:
+        c2 = carrier2
+    o1 = reconstruct(a1, c1, radius, distance, lambda1, pixel_pitch)
+    o2 = reconstruct(a2, c2, radius, distance, lambda2, pixel_pitch)
+    psi = phase_difference(o1, o2, window=window)
+    z = o1 * np.conj(o2)
+    num = np.hypot(ndimage.uniform_filter(z.real, window), ndimage.uniform_filter(z.imag, window))
+    den = ndimage.uniform_filter(np.abs(o1) * np.abs(o2), window)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        quality = np.where(den > 0, num / den, 0.0)
+    return psi, quality
+
+
 def dual_wavelength_depth(h1, h2, lambda1: float, lambda2: float, reference_depth=None,
                           carrier1=None, carrier2=None, radius=None, distance: float = 0.0,
                           pixel_pitch: float | None = None, window: int = 5,
@@ -274,8 +316,6 @@ def dual_wavelength_depth(h1, h2, lambda1: float, lambda2: float, reference_dept
     ValueError
         Bad images, shapes that differ, or bad parameters (see :func:`reconstruct`).
     """
-    from scipy import ndimage
-
     from .regularised import unwrap_data, unwrap_with_reference
     from .wrap import TWO_PI
 
@@ -284,21 +324,8 @@ def dual_wavelength_depth(h1, h2, lambda1: float, lambda2: float, reference_dept
     if a1.shape != a2.shape:
         raise ValueError(f"h1 and h2 must have the same shape, got {a1.shape} and {a2.shape}")
     Lam = synthetic_wavelength(lambda1, lambda2)
-    c1 = find_carrier(a1) if carrier1 is None else carrier1
-    if carrier2 is None:
-        # one reference arm: the same angle at both wavelengths, c = pitch sin(angle) / lambda;
-        # an error in c1 then cancels in O1 conj(O2) up to a factor 1 - lambda1 / lambda2
-        c2 = tuple(float(v) * lambda1 / lambda2 for v in c1) if same_reference_angle else find_carrier(a2)
-    else:
-        c2 = carrier2
-    o1 = reconstruct(a1, c1, radius, distance, lambda1, pixel_pitch)
-    o2 = reconstruct(a2, c2, radius, distance, lambda2, pixel_pitch)
-    psi = phase_difference(o1, o2, window=window)
-    z = o1 * np.conj(o2)
-    num = np.hypot(ndimage.uniform_filter(z.real, window), ndimage.uniform_filter(z.imag, window))
-    den = ndimage.uniform_filter(np.abs(o1) * np.abs(o2), window)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        quality = np.where(den > 0, num / den, 0.0)
+    psi, quality = synthetic_phase(a1, a2, lambda1, lambda2, carrier1, carrier2, radius, distance,
+                                   pixel_pitch, window, same_reference_angle)
     mask = np.isfinite(psi) & (quality >= min_quality)
     if reference_depth is not None:
         ref = np.asarray(reference_depth, dtype=np.float64)

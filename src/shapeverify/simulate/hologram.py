@@ -246,13 +246,38 @@ def grooved_plate(shape=(256, 256), pixel_pitch: float = 0.05, groove_width: flo
     return depth, groove
 
 
-def depth_from_model(prep, camera, T_world_model=None):
-    """Depth map (mm, camera z; NaN where the model is not seen) of a CAD model for the simulator.
 
-    Exact ray-CAD intersection of every pixel (:func:`shapeverify.camera.render`).  Depth along
-    the camera's optical axis equals the path along the ray only near the image centre; for the
-    collimated holography model of :func:`simulate_hologram` use a narrow field of view.
+def depth_from_model(prep, camera, T_world_model=None, kind: str = "range"):
+    """One-way optical path per pixel (mm; NaN where the model is not seen) of a CAD model.
+
+    Exact ray-CAD intersection of every pixel (:func:`shapeverify.camera.make_view`).
+
+    Parameters
+    ----------
+    prep : Prepared
+    camera : shapeverify.camera.PinholeCamera
+    T_world_model : (4, 4) or None
+        Pose of the model in the camera's world (measurement) frame.
+    kind : {"range", "z"}
+        ``"range"``: distance from the camera centre along each pixel's ray -- the one-way path
+        of the divergent illumination from a source at the camera centre, the geometry of
+        :class:`shapeverify.phase.HolographySetup` with ``source=None`` (so that the holograms'
+        phase difference is what :func:`shapeverify.phase.unwrap_with_cad` predicts);
+        ``"z"``: depth along the optical axis (collimated illumination).
+
+    Returns
+    -------
+    (H, W) float64
     """
-    from shapeverify.camera import render
+    from shapeverify.camera import make_view
 
-    return render(prep, camera, T_world_model)["depth"]
+    if kind not in ("range", "z"):
+        raise ValueError(f"kind must be 'range' or 'z', got {kind!r}")
+    T = np.eye(4) if T_world_model is None else np.asarray(T_world_model, dtype=np.float64)
+    hits = make_view(prep, camera, T).hits
+    pts = np.where(hits.hit[:, None], hits.points, 0.0) @ T[:3, :3].T + T[:3, 3]
+    if kind == "range":
+        d = np.linalg.norm(pts - np.asarray(camera.center, dtype=np.float64), axis=1)
+    else:
+        d = camera.to_camera(pts)[:, 2]
+    return np.where(hits.hit, d, np.nan).reshape(camera.height, camera.width)
