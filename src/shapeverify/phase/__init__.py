@@ -74,9 +74,10 @@ def unwrap(psi, method="auto", mask=None, quality=None, reference=None):
         True where the phase is valid.  ``None``: NaN pixels are treated as masked.  With an
         explicit mask, NaN at a pixel the mask calls valid is an error.
     quality : (H, W) array_like of float or None
-        Pixel quality, higher = better (e.g. fringe modulation): orders the path of the
-        path-following methods, weights the ``"wls"``/``"lp"`` methods (scaled to max 1, must
-        be >= 0 there); not accepted by ``"ls"``.
+        Pixel quality, higher = better (e.g. fringe modulation): scales the cut costs of
+        ``"auto"``/``"mcf"`` (cuts prefer poor pixels) and weights the ``"wls"``/``"lp"``
+        methods (scaled to max 1, must be >= 0 there); orders the path of the path-following
+        methods (``"filtered"``, ``"quality"``); not accepted by ``"ls"``.
     reference : (H, W) array_like of float or None
         Predicted unwrapped phase (e.g. rendered from the CAD model at its approximate pose)
         that regularises the result: see :func:`unwrap_with_reference`.
