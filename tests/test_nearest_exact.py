@@ -297,3 +297,24 @@ def test_impeller_scan_queries_global_against_ocp(impeller_prep):
     assert on_model.mean() > 0.95
     assert miss.sum() == 0, (f"{miss.sum()} of {n} queries farther than OCP's closest point, "
                              f"max {np.max(ours - d_occ)} mm")
+
+
+# ------------------------------------------------------------------------- threads
+def test_two_workers_give_identical_answers(tabs):
+    from shapeverify.nearest import get_workers, set_workers
+
+    prep, _ = tabs
+    q = _tab_queries(np.random.default_rng(4), 40_000)
+    before = get_workers()
+    try:
+        out = {}
+        for w in (1, 2):
+            set_workers(w)
+            out[w] = (prep.closest(q), prep.closest(q, exact=True))
+    finally:
+        set_workers(None if before == get_workers() else before)
+    for a, b in zip(out[1], out[2]):
+        for name in ("points", "normals", "distances", "face", "uv", "index", "on_boundary"):
+            np.testing.assert_array_equal(getattr(a, name), getattr(b, name))
+    with pytest.raises(ValueError, match="whole number"):
+        set_workers(0)

@@ -324,6 +324,7 @@ def _hole(c, S: _Scan, feats, al, k):
         worst_verdict(verdicts.values()),
         {"feature": f.id, "verdicts": verdicts, "axis": f.axis.tolist(),
          "edge_diameter": hm.edge_diameter, "bias": hm.bias, "spacing": hm.spacing,
+         "area_diameter": hm.area_diameter, "anisotropy": hm.anisotropy,
          "n_edge": hm.n_edge, "edge_points": hm.edge_points.tolist()})
 
 
