@@ -7,8 +7,11 @@
 
 Modules: :mod:`.dvg` (the tree over plain arrays), :mod:`.exact` (refinement on the model),
 :mod:`.prepared` (``prepare``, ``Prepared``, ``Closest``, the ``.svm`` file).
+``set_workers(n)`` sets the threads the queries use (default: every core; 1: the calling
+thread only; the answers are the same for any number).
 """
 
+from ._threads import get_workers, set_workers
 from .prepared import Closest, Prepared, load_prepared, prepare
 
-__all__ = ["prepare", "Prepared", "Closest", "load_prepared"]
+__all__ = ["prepare", "Prepared", "Closest", "load_prepared", "set_workers", "get_workers"]

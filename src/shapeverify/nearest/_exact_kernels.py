@@ -797,19 +797,24 @@ def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domai
                 cl_s[f, 1] = False
             u, v, d2, edge, D = newton_face(tab, dom_s, cl_s, f, us, vs, q0, q1, q2)
             onb = False
-            sf[ns] = f
-            su[ns] = u
-            sv[ns] = v
-            ns += 1
+            if not edge:  # a local minimum (not stopped by a box): its patch needs no retry
+                sf[ns] = f
+                su[ns] = u
+                sv[ns] = v
+                ns += 1
             if on_patch:
                 for r in range(2):
                     dom_s[f, r, 0] = domains[f, r, 0]
                     dom_s[f, r, 1] = domains[f, r, 1]
                     cl_s[f, r] = closed[f, r]
                 # a patch wholly inside the trims needs no trim test; its foot, even on the
-                # patch's border, is a point of the face (a closer one lies on another patch)
-                trim = not p_inner[k] and not inside(f, u, v, bin_off, bin_lo, bin_hi,
-                                                     bin_inv, bin_start, bin_xy)
+                # patch's border, is a point of the face (a closer one lies on another
+                # patch).  On an edge of the face's domain the trims may run: search them.
+                trim = ((not closed[f, 0] and (u <= domains[f, 0, 0] or u >= domains[f, 0, 1]))
+                        or (not closed[f, 1] and (v <= domains[f, 1, 0]
+                                                  or v >= domains[f, 1, 1]))
+                        or (not p_inner[k] and not inside(f, u, v, bin_off, bin_lo, bin_hi,
+                                                          bin_inv, bin_start, bin_xy)))
             else:
                 trim = edge or not inside(f, u, v, bin_off, bin_lo, bin_hi, bin_inv,
                                           bin_start, bin_xy)
@@ -840,7 +845,9 @@ def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domai
                 D = _eval_call(tab, f, u, v, 1)
                 if c == 0:
                     primary_on_edge = True
-            if d2 < best:
+            # a patch's foot must beat the seeds' clearly: a tie (the same point, found
+            # again) keeps the first answer and its flags
+            if d2 < (best if c < nc else best * (1.0 - 1e-12)):
                 best = d2
                 p0 = D[0]
                 p1 = D[1]

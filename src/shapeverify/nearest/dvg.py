@@ -61,6 +61,7 @@ from scipy.spatial import cKDTree
 
 from .._arrays import count_nonfinite_rows
 from . import _kernels
+from ._threads import run_chunks
 
 logger = logging.getLogger(__name__)
 
@@ -547,9 +548,15 @@ class DVG:
             rows = np.zeros((0, 4), dtype=np.int32)
             boundary = np.zeros(0, dtype=np.bool_)
         t = self.tree
-        _kernels.query_block(q, t.origin, t.cell, t.dims, t.nodes, t.lists, *views(self.rec),
-                             _QUERY_MOVES, patches, idx, d2, foot, dist, clamped, normal,
-                             rows, boundary, face, uv, onb)
+        rv = views(self.rec)
+
+        def chunk(a, b):
+            _kernels.query_block(q[a:b], t.origin, t.cell, t.dims, t.nodes, t.lists, *rv,
+                                 _QUERY_MOVES, patches, idx[a:b], d2[a:b], foot[a:b],
+                                 dist[a:b], clamped[a:b], normal[a:b], rows, boundary,
+                                 face[a:b], uv[a:b], onb[a:b])
+
+        run_chunks(chunk, n)
         far = np.flatnonzero(idx < 0)
         if far.size:
             d, j = self.kd().query(q[far])

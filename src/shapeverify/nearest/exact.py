@@ -37,6 +37,7 @@ from scipy.spatial import cKDTree
 
 from . import _exact_kernels
 from .dvg import record_views, views
+from ._threads import run_chunks
 from .patches import PatchBounds
 
 logger = logging.getLogger(__name__)
@@ -318,15 +319,20 @@ class ExactCAD:
         uv = np.empty((n, 2))
         onb = np.zeros(n, dtype=np.bool_)
         rf, ri, rh, rs = views(fast.rec)
-        _exact_kernels.refine_cad(q, idx, rf, record_views(fast.rec)[1], aux, pt_face, pt_uv,
-                                  rh, rs, self.spacing, self.tab, self.domains,
-                                  self.closed, self.rev, self.seg_off, self.x0, self.y0,
-                                  self.x1, self.y1, self.a3, self.b3, self.sag, self.free,
-                                  self.ch_off,
-                                  self.ch_seg, self.ch_c, self.ch_r, self.bin_off,
-                                  self.bin_lo, self.bin_hi, self.bin_inv, self.bin_start,
-                                  self.bin_xy, *self._patch_arrays(), foot, normal, dist,
-                                  face, uv, onb)
+        nbr = record_views(fast.rec)[1]
+        pa = self._patch_arrays()
+
+        def chunk(a, b):
+            _exact_kernels.refine_cad(q[a:b], idx[a:b], rf, nbr, aux, pt_face, pt_uv, rh, rs,
+                                      self.spacing, self.tab, self.domains, self.closed,
+                                      self.rev, self.seg_off, self.x0, self.y0, self.x1,
+                                      self.y1, self.a3, self.b3, self.sag, self.free,
+                                      self.ch_off, self.ch_seg, self.ch_c, self.ch_r,
+                                      self.bin_off, self.bin_lo, self.bin_hi, self.bin_inv,
+                                      self.bin_start, self.bin_xy, *pa, foot[a:b],
+                                      normal[a:b], dist[a:b], face[a:b], uv[a:b], onb[a:b])
+
+        run_chunks(chunk, n, 2048)
         return foot, normal, dist, face, uv, onb
 
 
