@@ -59,7 +59,9 @@ VOXELS = 40
 #: RANSAC triples tried
 RANSAC_ITERATIONS = 30000
 #: hypotheses refined by ICP
-N_REFINE = 10
+N_REFINE = 20
+#: scan points (of the scored subset) the refinement uses
+REFINE_POINTS = 400
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -339,7 +341,7 @@ def global_alignment(scan, prep, rng=0, extra=()) -> GlobalAlignment:
             chosen.append(int(i))
     refined, dists = [], []
     for i in chosen:
-        T = refine(S, side, hyps[i][1], radius)
+        T = refine(S[:REFINE_POINTS], side, hyps[i][1], radius)
         d, valid = _distances(side, S, T)
         dists.append((d, valid))
         refined.append([0.0, hyps[i][0], T])
