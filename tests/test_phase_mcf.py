@@ -112,3 +112,11 @@ def test_quality_scales_costs_and_bad_input_is_rejected():
         unwrap_mcf(f.psi, cost="l2")
     with pytest.raises(ValueError, match="tip"):
         fault_field(64, tip=(0.5, 1.2))
+
+
+def test_steep_fault_staircase_corners_are_cut_along_the_fault():
+    # a fault at ~70 degrees: the cut is a staircase whose corner edges see no step in their own
+    # boxes; corner relief keeps the cut on the fault instead of a short way to the border
+    f = fault_field(256, step=1.5 * np.pi, sigma=0.4, rng=2, tip=(0.9, 0.3), start_row=0.05)
+    assert wrong_fraction(unwrap_mcf(f.psi, corners=False), f.true) > 0.004
+    assert wrong_fraction(unwrap_mcf(f.psi), f.true) < 0.002

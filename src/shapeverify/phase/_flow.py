@@ -440,3 +440,50 @@ def robust_costs(d1, sigma1, d0, sigma0, weight0, ew, log_beta, eps):
         cp[e] = ap * ew[e] + eps
         cm[e] = am * ew[e] + eps
     return cp, cm
+
+
+@njit(cache=True, nogil=True)
+def corner_relief(cp, cm, H, W):
+    """Make the corners of a staircase cut as cheap as the cut (in place).
+
+    A cut along a slanted discontinuity crosses edges of one direction on every row (or column)
+    and, where the line moves on by a pixel, one edge of the other direction: the corner, whose
+    own boxes straddle the line and see no step.  A vertical edge ``(i, j)-(i+1, j)`` is such a
+    corner when the horizontal edges diagonal to it -- ``(i, j-1|j)`` and ``(i+1, j|j+1)``, or
+    ``(i, j|j+1)`` and ``(i+1, j-1|j)`` -- are both on the cut; its costs are then lowered to
+    the larger of theirs (and likewise for horizontal edges between vertical ones).  Costs are
+    symmetric in the correction's sign here (``min(cp, cm)``).
+    """
+    nh = H * (W - 1)
+    c0 = np.minimum(cp, cm)
+    # vertical edge (i, j)-(i+1, j): index nh + i*W + j; horizontal (i, j)-(i, j+1): i*(W-1) + j
+    for i in range(H - 1):
+        for j in range(W):
+            e = nh + i * W + j
+            best = c0[e]
+            if j >= 1 and j + 1 <= W - 1:
+                a = c0[i * (W - 1) + j - 1]
+                b = c0[(i + 1) * (W - 1) + j]
+                m = max(a, b)
+                a2 = c0[i * (W - 1) + j]
+                b2 = c0[(i + 1) * (W - 1) + j - 1]
+                m2 = max(a2, b2)
+                best = min(best, m, m2)
+            if best < c0[e]:
+                cp[e] = min(cp[e], best)
+                cm[e] = min(cm[e], best)
+    # horizontal edge (i, j)-(i, j+1) between vertical edges (i-1|i, j) & (i|i+1, j+1) etc.
+    for i in range(H):
+        for j in range(W - 1):
+            e = i * (W - 1) + j
+            best = c0[e]
+            if i >= 1 and i + 1 <= H - 1:
+                a = c0[nh + (i - 1) * W + j]
+                b = c0[nh + i * W + j + 1]
+                a2 = c0[nh + i * W + j]
+                b2 = c0[nh + (i - 1) * W + j + 1]
+                best = min(best, max(a, b), max(a2, b2))
+            if best < c0[e]:
+                cp[e] = min(cp[e], best)
+                cm[e] = min(cm[e], best)
+    return cp, cm

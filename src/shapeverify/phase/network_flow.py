@@ -49,7 +49,7 @@ def _integrate(jumps, mask, H, W):
 
 
 def unwrap_mcf(psi, mask=None, quality=None, window: int | None = None, beta: float = 1e-3,
-               cost: str = "step", pixel_weight: float = 0.1):
+               cost: str = "step", pixel_weight: float = 0.1, corners: bool = True):
     """Minimum-cost-flow (network L1) unwrapping, residue-aware (Costantini 1998).
 
     Steps: (1) the wrapped phase is smoothed in the complex domain as in
@@ -82,6 +82,9 @@ def unwrap_mcf(psi, mask=None, quality=None, window: int | None = None, beta: fl
     pixel_weight : float >= 0
         Weight of a second cost term from single-pixel steps (``b = 0``), which places the cut
         on the exact pixel edge where the data allow it (0 = off).
+    corners : bool
+        Lower the cost of the corner edges of a staircase cut along a slanted fault to that of
+        the cut (:func:`shapeverify.phase._flow.corner_relief`).
     cost : {"step", "uniform"}
         ``"uniform"``: classical unit costs (shortest cuts), for comparison.
 
@@ -170,6 +173,8 @@ def unwrap_mcf(psi, mask=None, quality=None, window: int | None = None, beta: fl
             d0 = _flow.step_anomaly(m, c, s, 0) if pixel_weight > 0 else d1
             cp, cm = _flow.robust_costs(d1, _noise(d1), d0, _noise(d0), float(pixel_weight), ew,
                                         float(np.log(beta)), 1e-6)
+            if corners:
+                cp, cm = _flow.corner_relief(cp, cm, H, W)
         flow, n_aug, work = _flow.min_cost_flow(q, cp, cm, H, W)
         log.debug("unwrap_mcf: window %d, %d residues, %d unit paths, %d nodes searched",
                   w, n_res, n_aug, work)
