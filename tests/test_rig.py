@@ -156,3 +156,31 @@ def test_calibration_needs_three_boards():
     with pytest.raises(ValueError, match="as many left as right"):
         calibrate([blank] * 3, [blank] * 2)
     assert dev.width == 320
+
+
+def test_cli_calibrate_writes_a_rig_and_prints_the_reprojection_error(tmp_path):
+    from typer.testing import CliRunner
+
+    from shapeverify.cli import app
+
+    rig, _ = look_at_rig((0, 0, 0), 400.0, width=320, height=240, fov_deg=40)
+    pattern, sq = (7, 5), 18.0
+    poses = _board_poses(np.random.default_rng(3), 5, sq, pattern)
+    paths = []
+    for i, (a, b) in enumerate(zip(render_chessboard(rig.left, poses, pattern, sq, supersample=2),
+                                   render_chessboard(rig.right, poses, pattern, sq, supersample=2))):
+        for name, img in (("left", a), ("right", b)):
+            p = tmp_path / f"{name}_{i:02d}.png"
+            cv2.imwrite(str(p), img)
+            paths.append(str(p))
+    proj = save_rig(rig, tmp_path / "base.json")
+    out = tmp_path / "rig.yaml"
+    res = CliRunner().invoke(app, ["calibrate", *paths, "-o", str(out), "--pattern", "7x5", "--square", "18",
+                                   "--projector", str(proj), "--fix-k3"])
+    assert res.exit_code == 0, res.output
+    assert "reprojection error (RMS)" in res.output
+    got = load_rig(out)
+    assert got.projector is not None and got.pattern.period_px == rig.pattern.period_px
+    np.testing.assert_allclose(got.left.K[0, 0], rig.left.K[0, 0], rtol=0.01)
+    bad = CliRunner().invoke(app, ["calibrate", *paths[:2], str(proj), "-o", str(out)])
+    assert bad.exit_code == 2 and "named with 'left' and 'right'" in bad.output
