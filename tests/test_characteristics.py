@@ -312,3 +312,37 @@ def test_spc_history_capability_run_chart_and_csv(tmp_path):
     assert len(back) == 30 and float(back[3]["value"]) == pytest.approx(vals[3, 0])
     with pytest.raises(KeyError, match="it has: D, H.diameter, H.position"):
         characteristic_rows(db, "nope")
+
+
+@pytest.mark.slow
+def test_cli_features_plan_inspect_and_spc(prep, tmp_path):
+    from typer.testing import CliRunner
+
+    from shapeverify.cli import app
+
+    prep.save(tmp_path / "b.svm")
+    vs = virtual_scan(prep, view=VIEW, pixel=1.0, noise=0.02, motion=(2.0, 3.0), rng=21)
+    np.save(tmp_path / "s.npy", vs.scan)
+    (tmp_path / "plan.yaml").write_text(
+        "alignment: {type: best_fit}\ncharacteristics:\n"
+        "  - {name: H2, type: hole, feature: 'hole:1', diameter: {tol: 0.5}, position: {tol: 0.8}}\n"
+        "  - {name: SKIN, type: surface_profile, faces: all, tol: 0.5}\n")
+    run = CliRunner().invoke
+    r = run(app, ["features", str(tmp_path / "b.svm"), "--json", str(tmp_path / "f.json")])
+    assert r.exit_code == 0, r.output
+    assert [f["id"] for f in json.loads((tmp_path / "f.json").read_text())][-2:] == ["hole:0",
+                                                                                   "hole:1"]
+    r = run(app, ["plan-inspect", str(tmp_path / "b.svm"), str(tmp_path / "s.npy"), "--plan",
+                  str(tmp_path / "plan.yaml"), "--json", str(tmp_path / "r.json"), "--db",
+                  str(tmp_path / "h.sqlite"), "--part", "X1"])
+    assert r.exit_code == 0, r.output                      # pass
+    res = json.loads((tmp_path / "r.json").read_text())
+    assert [c["verdict"] for c in res["characteristics"]] == ["pass", "pass"]
+    (tmp_path / "bad.yaml").write_text("characteristics:\n  - {name: A, type: hole}\n")
+    r = run(app, ["plan-inspect", str(tmp_path / "b.svm"), str(tmp_path / "s.npy"), "--plan",
+                  str(tmp_path / "bad.yaml")])
+    assert r.exit_code == 2 and "line 2" in r.output
+    r = run(app, ["spc", "--db", str(tmp_path / "h.sqlite"), "--characteristic", "H2", "--csv",
+                  str(tmp_path / "h2.csv")])
+    assert r.exit_code == 0, r.output
+    assert "H2.diameter" in r.output and (tmp_path / "h2.csv").exists()
