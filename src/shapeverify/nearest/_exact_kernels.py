@@ -942,11 +942,11 @@ def _corner_angle(verts, tri, t, k):
 
 
 @njit(cache=True, nogil=True)
-def refine_mesh(Q, cand_ptr, cand, verts, tri, tri_n, dist, feat,
+def refine_mesh(Q, cand_lo, cand_hi, cand, verts, tri, tri_n, dist, feat,
                 out_foot, out_normal, out_dist, out_face, out_uv):
     """Exact closest point of each query over its candidate triangles.
 
-    ``cand[cand_ptr[i]:cand_ptr[i+1]]`` must hold every triangle that can be the closest one
+    ``cand[cand_lo[i]:cand_hi[i]]`` must hold every triangle that can be the closest one
     (exact.py passes all triangles whose centroid lies within the distance to the nearest
     model point plus the largest triangle radius).  The distance is signed with the angle
     weighted pseudonormal of the closest feature (face, edge or vertex), so the sign is right
@@ -957,8 +957,8 @@ def refine_mesh(Q, cand_ptr, cand, verts, tri, tri_n, dist, feat,
         q0 = Q[i, 0]
         q1 = Q[i, 1]
         q2 = Q[i, 2]
-        lo = cand_ptr[i]
-        nc = cand_ptr[i + 1] - lo
+        lo = cand_lo[i]
+        nc = cand_hi[i] - lo
         best = np.inf
         bt = -1
         bx = 0.0

@@ -45,6 +45,7 @@ logger = logging.getLogger(__name__)
 __all__ = ["ExactCAD", "ExactMesh", "ExactCloud", "for_model"]
 
 _CHUNK = 16  # trimming segments per bounding sphere in the boundary search
+_ALL_TRIANGLES = 256  # meshes with at most this many triangles: test them all
 _PATCH = 4.0  # longest control-polygon edge of a bounded patch / model point spacing
 
 
@@ -356,25 +357,36 @@ class ExactMesh:
 
     def refine(self, q, idx, fast, pt_face, pt_uv, aux):
         n = q.shape[0]
-        # every triangle closer than the nearest model point (which lies on a triangle) has
-        # its centroid within that distance plus the largest triangle radius
-        reach = np.linalg.norm(q - fast.points[idx], axis=1) + self.radius
-        reach = reach * (1 + 1e-12) + 1e-12
-        lists = self.kd.query_ball_point(q, reach) if n else np.zeros(0, dtype=object)
-        counts = np.fromiter((len(c) for c in lists), dtype=np.int64, count=n)
-        ptr = np.zeros(n + 1, dtype=np.int64)
-        np.cumsum(counts, out=ptr[1:])
-        cand = (np.fromiter((t for c in lists for t in c), dtype=np.int64, count=int(ptr[-1]))
-                if n else np.zeros(0, dtype=np.int64))
-        m = int(counts.max()) if n else 0
+        T = self.tri.shape[0]
+        if T <= _ALL_TRIANGLES:  # a coarse mesh: every triangle, no candidate lists
+            cand = np.arange(T, dtype=np.int64)
+            lo = np.zeros(n, dtype=np.int64)
+            hi = np.full(n, T, dtype=np.int64)
+        else:
+            # every triangle closer than the nearest model point (which lies on a triangle)
+            # has its centroid within that distance plus the largest triangle radius
+            reach = np.linalg.norm(q - fast.points[idx], axis=1) + self.radius
+            reach = reach * (1 + 1e-12) + 1e-12
+            lists = self.kd.query_ball_point(q, reach) if n else np.zeros(0, dtype=object)
+            counts = np.fromiter((len(c) for c in lists), dtype=np.int64, count=n)
+            ptr = np.zeros(n + 1, dtype=np.int64)
+            np.cumsum(counts, out=ptr[1:])
+            cand = (np.fromiter((t for c in lists for t in c), dtype=np.int64,
+                                count=int(ptr[-1])) if n else np.zeros(0, dtype=np.int64))
+            lo, hi = ptr[:-1], ptr[1:]
+        m = int((hi - lo).max()) if n else 0
         foot = np.empty((n, 3))
         normal = np.empty((n, 3))
         dist = np.empty(n)
         face = np.empty(n, dtype=np.int32)
         uv = np.empty((n, 2))
-        _exact_kernels.refine_mesh(q, ptr, cand, self.verts, self.tri, self.tri_n,
-                                   np.empty(m), np.empty(m, dtype=np.int64),
-                                   foot, normal, dist, face, uv)
+
+        def chunk(a, b):
+            _exact_kernels.refine_mesh(q[a:b], lo[a:b], hi[a:b], cand, self.verts, self.tri,
+                                       self.tri_n, np.empty(m), np.empty(m, dtype=np.int64),
+                                       foot[a:b], normal[a:b], dist[a:b], face[a:b], uv[a:b])
+
+        run_chunks(chunk, n, 4096)
         return foot, normal, dist, face, uv, np.zeros(n, dtype=np.bool_)
 
 
