@@ -110,7 +110,7 @@ _RAYS: dict = {}
 
 
 def _left_rays(rig) -> np.ndarray:
-    key = (id(rig), rig.left.K.tobytes(), rig.left.dist.tobytes(), rig.left.size)
+    key = (rig.left.K.tobytes(), rig.left.dist.tobytes(), rig.left.size)  # the left camera is the frame
     r = _RAYS.get(key)
     if r is None:
         _RAYS.clear()
@@ -350,10 +350,10 @@ def measure(rig, left, right, model=None, T_left_model=None, method="ftp", depth
             ci = np.flatnonzero(comp.ravel() == c)
             prior = _continuity_prior(comp == c, good.reshape(H, W), korder, m_flat, psi_flat)
             K, score, second = resolve(ci, prior)
-            # a patch is re-ordered only when the vote is clear, or agrees with the continuation of
-            # its resolved neighbours (a patch the right camera does not see at its true order can
-            # still look consistent at a wrong one)
-            if K is None or (second >= 0.8 * score and (prior is None or K != round(prior))):
+            # a patch touching resolved pixels is re-ordered only to the continuation of its
+            # neighbours (that repairs a flood-fill slip; a patch the right camera does not see at
+            # its true order can look consistent at a wrong one); an isolated patch needs a clear vote
+            if K is None or (K != round(prior) if prior is not None else second >= 0.8 * score):
                 continue
             info["revoted"] += 1
             korder[ci] = m_flat[ci] + K
