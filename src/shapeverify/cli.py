@@ -104,6 +104,15 @@ def _guard(fn, *args, **kwargs):
         _fail(str(exc))
 
 
+def _require_extra(module: str, extra: str, command: str) -> None:
+    """Fail with the install command when an optional front end's dependency is missing."""
+    import importlib.util
+
+    if importlib.util.find_spec(module) is None:
+        _fail(f"`shapeverify {command}` needs the '{extra}' extra ({module} is not installed): "
+              f"pip install 'shapeverify[{extra}]'")
+
+
 def _require_files(*paths: Path) -> None:
     """Fail fast, before any slow work, when an input file does not exist."""
     for p in paths:
@@ -410,6 +419,8 @@ def serve(
                                     help="Store each scan beside the history (GET /report/{id} needs it)"),
 ):
     """Serve inspections over HTTP with the prepared models kept in memory."""
+    _require_extra("fastapi", "service", "serve")
+    _require_extra("uvicorn", "service", "serve")
     from shapeverify.service import serve as run_server
 
     if max_body_mb <= 0 or time_limit <= 0 or threads < 1 or workers < 1:
@@ -442,6 +453,7 @@ def batch(
     """Inspect every scan in a folder in parallel on Dask (resumable: done scans are skipped)."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
 
+    _require_extra("distributed", "batch", "batch")
     from shapeverify.batch import run_batch
 
     with Progress("[progress.description]{task.description}", BarColumn(), MofNCompleteColumn(),
