@@ -30,7 +30,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..registration.losses import MAD_TO_SIGMA, get_loss
-from ..registration.rigid import apply_transform, compose_step, invert_transform, make_transform
+from ..registration.rigid import (apply_transform, compose_step, invert_transform,
+                                  make_transform, pose_error)
 from .features import find_feature, model_features
 from .holes import measure_hole
 from .plan import DOF_NAMES
@@ -504,23 +505,49 @@ def _frame(z, zp, elems) -> np.ndarray:
     return make_transform(np.column_stack([x, y, z]), O)
 
 
+def _modes_plane(Xp, n, rms):
+    """One-sigma error modes (dpoint, dnormal) of a least-squares plane through Xp."""
+    c = Xp.mean(axis=0)
+    Q = Xp - c
+    Q = Q - np.outer(Q @ n, n)
+    _, sv, vt = np.linalg.svd(Q, full_matrices=False)
+    m = len(Xp)
+    out = [(rms / np.sqrt(m) * n, np.zeros(3))]
+    for k in range(2):
+        spread = max(sv[k] / np.sqrt(m), 1e-9)
+        out.append((np.zeros(3), rms / (np.sqrt(m) * spread) * vt[k]))
+    return out
+
+
 def _measure_datum(f, X, cl, prep, feats, sigma):
+    """(kind, point, direction, rms or u, one-sigma error modes [(dpoint, ddirection), ...])."""
     from ..fitting import fit_cylinder, fit_plane
+    from .holes import plane_basis
 
     if f.kind == "hole":
         hm = measure_hole(X, f.center, f.axis, f.diameter)
-        return "axis", hm.center, f.axis, hm.u_center
+        e1, e2 = plane_basis(f.axis)
+        z = np.zeros(3)
+        return "axis", hm.center, f.axis, hm.u_center, [(hm.u_center * e1, z),
+                                                         (hm.u_center * e2, z)]
     m = (cl.face == f.face) & ~cl.on_boundary & (np.abs(cl.distances) <= max(1.0, 8 * sigma))
     if np.count_nonzero(m) < 10:
         raise ValueError(f"datum {f.id}: only {int(np.count_nonzero(m))} scan points on it")
     if f.kind == "plane":
         pl = fit_plane(X[m], loss="tukey")
         n = pl.normal if pl.normal @ f.axis > 0 else -pl.normal
-        return "plane", pl.point, n, pl.rms
+        inl = pl.weights > 0
+        return "plane", pl.point, n, pl.rms, _modes_plane(X[m][inl], n, pl.rms)
     if f.kind == "cylinder":
         cy = fit_cylinder(X[m], loss="tukey", axis=f.axis)
         a = cy.axis if cy.axis @ f.axis > 0 else -cy.axis
-        return "axis", cy.point, a, cy.rms
+        e1, e2 = plane_basis(a)
+        k = max(int(np.count_nonzero(cy.weights > 0)), 2)
+        s_ax = max(float(np.std((X[m] - cy.point) @ a)), 1e-9)
+        up = cy.rms * np.sqrt(2.0 / k)
+        modes = [(up * e1, np.zeros(3)), (up * e2, np.zeros(3)),
+                 (np.zeros(3), up / s_ax * e1), (np.zeros(3), up / s_ax * e2)]
+        return "axis", cy.point, a, cy.rms, modes
     raise ValueError(f"datum {f.id} is a {f.kind} face; datums are planes, holes or cylinders")
 
 
@@ -550,7 +577,10 @@ def datum_alignment(scan, prep, primary, secondary, tertiary=None, init=None,
     Returns
     -------
     AlignmentResult
-        ``residuals``: RMS of each datum's fit (mm).
+        ``residuals``: RMS of each datum's fit (mm) (a hole: its centre's uncertainty).
+        ``covariance``: the datums' fit uncertainties (a plane's offset and tilt from its
+        residual RMS, point count and extent; a hole's centre; a cylinder's axis) propagated
+        through the frame construction (one-sigma perturbations).
     """
     from ..registration import register
 
@@ -570,23 +600,35 @@ def datum_alignment(scan, prep, primary, secondary, tertiary=None, init=None,
         return "axis", _pierce("axis", f.center, f.axis, zp_nom, z_nom), f.axis
 
     Fn = _frame(z_nom, zp_nom, [nominal(f) for f in F[1:]])
-    fits = []
+    def measured_frame(fits):
+        _, zp, z, _, _ = fits[0]
+        z = z / np.linalg.norm(z)
+        elems = [(k, _pierce(k, p, a / np.linalg.norm(a), zp, z), a / np.linalg.norm(a))
+                 for k, p, a, _, _ in fits[1:]]
+        return _frame(z, zp, elems)
+
+    fits, T_prev = [], T
     for _ in range(iterations):
         X = apply_transform(T, P)
         cl = prep.closest(X, exact=True)
         sigma = MAD_TO_SIGMA * float(np.median(np.abs(cl.distances)))
         fits = [_measure_datum(f, X, cl, prep, feats, sigma) for f in F]
-        _, zp, z, _ = fits[0]
-        elems = [(k, _pierce(k, p, a, zp, z), a) for k, p, a, _ in fits[1:]]
-        Fm = _frame(z, zp, elems)
-        T = Fn @ invert_transform(Fm) @ T
-    res = np.array([u for *_, u in fits])
+        T_prev = T
+        T = Fn @ invert_transform(measured_frame(fits)) @ T
+    # covariance: each datum's one-sigma error modes propagated through the frame construction
+    cov = np.zeros((6, 6))
+    for i, (k, p, a, u, modes) in enumerate(fits):
+        for dp, da in modes:
+            pert = list(fits)
+            pert[i] = (k, p + dp, a + da, u, modes)
+            Tk = Fn @ invert_transform(measured_frame(pert)) @ T_prev
+            e = pose_error(Tk, T)
+            cov += np.outer(e, e)
+    res = np.array([f[3] for f in fits])
     dof = ["A: tz rx ry", "B: " + ("tx ty" if F[1].kind != "plane" else "tx rz")]
     if len(F) > 2:
         dof.append("C: " + ("rz" if F[1].kind != "plane" else "ty"))
-    # the frame's uncertainty is small against the best fit's; report the free fit's covariance
-    bf = best_fit(scan, prep, init=T, max_iterations=1)
-    return AlignmentResult(T, bf.covariance, res, float(np.sqrt(np.mean(res ** 2))), tuple(dof),
+    return AlignmentResult(T, cov, res, float(np.sqrt(np.mean(res ** 2))), tuple(dof),
                            (), "datums", {"datums": [f.id for f in F]})
 
 
