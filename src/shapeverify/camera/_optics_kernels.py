@@ -284,24 +284,35 @@ def candidate_errors(dirs, psi_l, base, cands, Kp, dp, Rp, Tp, rows, period, Kr,
 
 
 @njit(cache=True, nogil=True)
-def _right_root(d, t, psi, Kr, dr, Rr, Tr, psi_r, valid_r):
-    """Secant iterations on the left ray for the point whose right-image phase equals ``psi``."""
-    h = 2e-4 * t
+def _right_root(d, t, psi, Kr, dr, Rr, Tr, psi_r, valid_r, slope, out_slope):
+    """Secant iterations on the left ray for the point whose right-image phase equals ``psi``.
+
+    ``slope`` (d error / d t, e.g. the previous pixel's) starts the secant when finite; the last
+    secant slope is returned in ``out_slope[0]``.
+    """
     e0 = _right_error(d, t, psi, Kr, dr, Rr, Tr, psi_r, valid_r)
     if not np.isfinite(e0):
         return np.nan
-    t1 = t + h
+    if np.isfinite(slope) and slope != 0.0:
+        step = -e0 / slope
+        if abs(step) > 0.05 * t:
+            step = 2e-4 * t
+        t1 = t + step if abs(step) > 1e-9 * t else t + 2e-4 * t
+    else:
+        t1 = t + 2e-4 * t
     e1 = _right_error(d, t1, psi, Kr, dr, Rr, Tr, psi_r, valid_r)
     if not np.isfinite(e1):
-        t1 = t - h
+        t1 = t - 2e-4 * t
         e1 = _right_error(d, t1, psi, Kr, dr, Rr, Tr, psi_r, valid_r)
         if not np.isfinite(e1):
             return np.nan
     t0 = t
     for _ in range(8):
         if e1 == e0:
-            return np.nan
-        t2 = t1 - e1 * (t1 - t0) / (e1 - e0)
+            return t1 if abs(e1) < 1e-6 else np.nan
+        k = (e1 - e0) / (t1 - t0)
+        out_slope[0] = k
+        t2 = t1 - e1 / k
         if abs(t2 - t1) < 1e-7 * t1:
             return t2
         e2 = _right_error(d, t2, psi, Kr, dr, Rr, Tr, psi_r, valid_r)
@@ -323,6 +334,7 @@ def match_pixels(idx, dirs, psi_l, korder, Kp, dp, Rp, Tp, rows, period, Kr, dr,
     """
     t_prev = np.nan
     i_prev = -10
+    slope = np.full(1, np.nan)
     for n in range(idx.shape[0]):
         i = idx[n]
         d = dirs[i]
@@ -333,14 +345,14 @@ def match_pixels(idx, dirs, psi_l, korder, Kp, dp, Rp, Tp, rows, period, Kr, dr,
         t = np.nan
         ep = np.inf
         if i == i_prev + 1 and np.isfinite(t_prev):
-            t = _right_root(d, t_prev, psi, Kr, dr, Rr, Tr, psi_r, valid_r)
+            t = _right_root(d, t_prev, psi, Kr, dr, Rr, Tr, psi_r, valid_r, slope[0], slope)
             if np.isfinite(t):
                 ep = TWO_PI * (_coord_along(d, Kp, dp, Rp, Tp, rows, t) - target) / period
         if not abs(ep) <= tol_p:
             t0 = _solve_coord(d, Kp, dp, Rp, Tp, rows, target, t_start if not np.isfinite(t_prev) else t_prev,
                               t_lo, t_hi)
             if np.isfinite(t0):
-                t = _right_root(d, t0, psi, Kr, dr, Rr, Tr, psi_r, valid_r)
+                t = _right_root(d, t0, psi, Kr, dr, Rr, Tr, psi_r, valid_r, np.nan, slope)
                 if np.isfinite(t):
                     ep = TWO_PI * (_coord_along(d, Kp, dp, Rp, Tp, rows, t) - target) / period
         i_prev = i
