@@ -23,6 +23,9 @@ printed too.  Best of ``--repeat`` runs.
 
 Run:  .venv/bin/python benchmarks/bench_closest.py [--points 1000000] [--queries 100000]
           [--out benchmarks/results_closest.md]
+      .venv/bin/python benchmarks/bench_closest.py --issue18 --exact 50000 --queries 1000000
+          (exact mode before/after the patch bounds on the panel and the impeller, one vs two
+          threads, preparation of mesh and point-cloud references)
 """
 
 from __future__ import annotations
@@ -44,7 +47,7 @@ from scipy.spatial import cKDTree  # noqa: E402
 from shapeverify.cad.model import Face, Model  # noqa: E402
 from shapeverify.cad.nurbs import NurbsSurface  # noqa: E402
 from shapeverify.cad.occ_write import to_occ  # noqa: E402
-from shapeverify.nearest import load_prepared, prepare  # noqa: E402
+from shapeverify.nearest import load_prepared, prepare, set_workers  # noqa: E402
 from shapeverify.nearest.dvg import morton_order  # noqa: E402
 
 SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
@@ -150,6 +153,119 @@ def fmt_rate(n, s):
     return "n/a" if not np.isfinite(s) or n == 0 else f"{n / s / 1e6:.3f} M"
 
 
+def _best_cpu(fn, repeat):
+    best = np.inf
+    for _ in range(repeat):
+        c0 = time.process_time()
+        out = fn()
+        best = min(best, time.process_time() - c0)
+    return out, best
+
+
+def _best_wall(fn, repeat):
+    best = np.inf
+    for _ in range(repeat):
+        w0 = time.perf_counter()
+        out = fn()
+        best = min(best, time.perf_counter() - w0)
+    return out, best
+
+
+def issue18(args):
+    """Exact mode before/after the patch bounds, two threads, preparation of references."""
+    from shapeverify.cad.examples import example_part_step
+    from shapeverify.cad.load import load_model
+    from shapeverify.nearest import get_workers
+
+    rng = np.random.default_rng(0)
+    lines = ["## Closest points: exact mode global, both cores, references prepared "
+             "(issue 18 items 2 and 4, issue 14 item 4)", "",
+             "Command: `.venv/bin/python benchmarks/bench_closest.py --issue18`; load average "
+             f"at start {os.getloadavg()[0]:.1f} on {os.cpu_count()} cores (CPU time is the "
+             "fair figure on this shared machine; speed-ups are wall-time ratios and suffer "
+             "from the other processes)", ""]
+    models = []
+    with tempfile.TemporaryDirectory() as d:
+        panel = load_model(example_part_step(Path(d) / "panel.step"))
+    models.append(("example panel (1 trimmed face, hole), spacing 0.6 mm",
+                   prepare(panel, spacing=0.6, max_distance=2.0), 2.0))
+    imp = SHARED / "cad" / "impeller.igs"
+    if imp.is_file() and not args.no_impeller:
+        models.append(("impeller.igs (277 faces), spacing 0.5 mm",
+                       prepare(load_model(imp), spacing=0.5, max_distance=3.0), 1.5))
+    lines += ["| model | exact, seeds only (before) | exact, complete (now) | cost | "
+              "fast, 1 -> 2 threads | exact, 1 -> 2 threads | identical |",
+              "|---|---:|---:|---:|---:|---:|---|"]
+    for name, p, reach in models:
+        q = queries_near(p, args.exact, reach, rng)
+        set_workers(1)
+        p.closest(q[:100], exact=True)
+        p._exact.complete = False
+        _, before = _best_cpu(lambda: p.closest(q, exact=True), args.repeat)
+        p._exact.complete = True
+        r1, now = _best_cpu(lambda: p.closest(q, exact=True), args.repeat)
+        qf = queries_near(p, args.queries, reach, rng)
+        _, f1 = _best_wall(lambda: p.closest(qf), args.repeat)
+        _, e1 = _best_wall(lambda: p.closest(q, exact=True), args.repeat)
+        set_workers(2)
+        _, f2 = _best_wall(lambda: p.closest(qf), args.repeat)
+        r2, e2 = _best_wall(lambda: p.closest(q, exact=True), args.repeat)
+        same = all(np.array_equal(getattr(r1, a), getattr(r2, a)) for a in
+                   ("points", "normals", "distances", "face", "uv", "index", "on_boundary"))
+        n = q.shape[0]
+        lines.append(f"| {name} | {n / before / 1e6:.3f} M/s | {n / now / 1e6:.3f} M/s | "
+                     f"x{now / before:.2f} | {f1 / f2:.2f}x ({qf.shape[0]:,} queries) | "
+                     f"{e1 / e2:.2f}x | {same} |")
+        print(lines[-1], flush=True)
+    set_workers(1)
+    lines += ["", f"({args.exact:,} exact queries, a model point moved sideways by up to half a "
+              "spacing and along the normal by up to 2 mm (panel) / 1.5 mm (impeller); fast "
+              f"path {args.queries:,} queries; threads: `set_workers`, default "
+              f"{get_workers()} here)", ""]
+    # references: meshes and a point cloud, default spacing
+    lines += ["| reference | model points | prepare CPU | prepare wall |", "|---|---:|---:|---:|"]
+    refs = []
+    for nu, nv in ((6, 6), (25, 21), (60, 43)):
+        V, T = _uv_sphere(50.0, nu, nv)
+        refs.append((f"mesh, sphere r = 50 mm, {len(T)} triangles",
+                     Model(kind="mesh", vertices=V, triangles=T, source="sphere")))
+    bunny = SHARED / "scans" / "bunny" / "bun000.ply"
+    if bunny.is_file():
+        from shapeverify import read_points
+
+        X = np.asarray(getattr(read_points(bunny), "points", read_points(bunny)))
+        refs.append((f"point cloud, bunny bun000 ({len(X):,} points, m -> mm)",
+                     Model(kind="points", vertices=X * 1000.0, source="bunny")))
+    for name, m in refs:
+        c0, w0 = time.process_time(), time.perf_counter()
+        p = prepare(m)
+        lines.append(f"| {name} | {p.n_points:,} | {time.process_time() - c0:.2f} s | "
+                     f"{time.perf_counter() - w0:.2f} s |")
+        print(lines[-1], flush=True)
+    lines.append("")
+    return lines
+
+
+def _uv_sphere(r, nu, nv):
+    th = np.linspace(0, np.pi, nv + 1)[1:-1]
+    ph = np.linspace(0, 2 * np.pi, nu, endpoint=False)
+    V = np.array([[0, 0, -r]] + [[r * np.sin(t) * np.cos(p), r * np.sin(t) * np.sin(p),
+                                  -r * np.cos(t)] for t in th for p in ph] + [[0, 0, r]])
+    T = [[0, 1 + (k + 1) % nu, 1 + k] for k in range(nu)]
+    for ring in range(nv - 2):
+        a, b = 1 + ring * nu, 1 + (ring + 1) * nu
+        for k in range(nu):
+            k1 = (k + 1) % nu
+            T += [[a + k, a + k1, b + k1], [a + k, b + k1, b + k]]
+    top, a = len(V) - 1, 1 + (nv - 2) * nu
+    T += [[a + k, a + (k + 1) % nu, top] for k in range(nu)]
+    T = np.array(T)
+    n = np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]])
+    inward = np.einsum("ij,ij->i", n, V[T].mean(axis=1)) < 0
+    T[inward] = T[inward][:, ::-1]
+    return V, T
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--points", type=int, default=1_000_000)
@@ -160,7 +276,16 @@ def main():
     ap.add_argument("--repeat", type=int, default=3)
     ap.add_argument("--no-impeller", action="store_true")
     ap.add_argument("--out", default=None)
+    ap.add_argument("--issue18", action="store_true",
+                    help="exact mode before/after the patch bounds, 2 threads, references")
     args = ap.parse_args()
+    set_workers(1)  # one core for everybody (the --issue18 table measures two as well)
+    if args.issue18:
+        lines = issue18(args)
+        if args.out:
+            Path(args.out).write_text("\n".join(lines))
+            print(f"wrote {args.out}")
+        return
     rng = np.random.default_rng(0)
     lines = ["## Closest points (issue 3)", "",
              "Command: `.venv/bin/python benchmarks/bench_closest.py"

@@ -165,3 +165,21 @@ def test_tiny_models():
     t = dvg.DVG.build(dup, 0.5, 1.0)
     idx, d = t.nearest([[0.9, 0.1, 0.0]])
     assert np.allclose(dup[idx[0]], [1.0, 0, 0])
+
+
+def test_build_is_identical_on_one_and_two_threads(sheet):
+    from shapeverify.nearest import get_workers, set_workers
+    from shapeverify.nearest.dvg import DVG
+
+    pts = sheet[1]
+    before = get_workers()
+    try:
+        set_workers(1)
+        one = DVG.build(pts, H, 2.0)
+        set_workers(2)
+        two = DVG.build(pts, H, 2.0)
+    finally:
+        set_workers(None if before == get_workers() else before)
+    for name, a in one.tree.arrays().items():
+        np.testing.assert_array_equal(np.asarray(a), np.asarray(two.tree.arrays()[name]))
+    np.testing.assert_array_equal(one.rec, two.rec)

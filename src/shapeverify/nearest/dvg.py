@@ -126,7 +126,7 @@ def neighbor_graph(points: np.ndarray, k: int = _kernels.K,
     if kk <= 0:
         return out
     tree = cKDTree(points) if tree is None else tree
-    _, idx = tree.query(points, k=kk + 1)
+    _, idx = tree.query(points, k=kk + 1, workers=-1)
     idx = idx.reshape(n, kk + 1)
     # drop each point itself (normally column 0; with duplicates it may be elsewhere)
     not_self = idx != np.arange(n)[:, None]
@@ -353,8 +353,11 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         samples = np.ascontiguousarray(inv.reshape(m, 8), dtype=np.int64)
         kind = np.empty(m, dtype=np.int8)
         first = np.empty(m, dtype=np.int64)
-        _kernels.classify(cells, origin, size, samples, nn_i, nn_d, *RV,
-                          float(max_distance), int(max_moves), kind, first)
+        def _classify(a, b):
+            _kernels.classify(cells[a:b], origin, size, samples[a:b], nn_i, nn_d, *RV,
+                              float(max_distance), int(max_moves), kind[a:b], first[a:b])
+
+        run_chunks(_classify, m, 1 << 14)  # cells are independent: both cores
         code = np.full(m, _kernels.FAR, dtype=np.int64)
         single = kind == 1
         code[single] = -(first[single] + 2)
@@ -381,10 +384,17 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
             fkind = np.empty(fail.size, dtype=np.int8)
             fseeds = np.empty((fail.size, 16), dtype=np.int32)
             fn = np.empty(fail.size, dtype=np.int32)
-            _kernels.classify_multi(fc, origin, size, samples[fail], nn_i, nn_d,
-                                    np.ascontiguousarray(einv.reshape(-1, 7), dtype=np.int64),
-                                    xn_i, xn_d, first[fail], *RV, int(max_moves),
-                                    int(max_seeds), last, fkind, fseeds, fn)
+            fs = np.ascontiguousarray(samples[fail])
+            ex = np.ascontiguousarray(einv.reshape(-1, 7), dtype=np.int64)
+            f1 = np.ascontiguousarray(first[fail])
+
+            def _multi(a, b):
+                _kernels.classify_multi(fc[a:b], origin, size, fs[a:b], nn_i, nn_d, ex[a:b],
+                                        xn_i, xn_d, f1[a:b], *RV, int(max_moves),
+                                        int(max_seeds), last, fkind[a:b], fseeds[a:b],
+                                        fn[a:b])
+
+            run_chunks(_multi, fail.size, 1 << 12)
             kind[fail] = fkind
             ok = fkind == 1
             mi = fail[ok]
