@@ -239,7 +239,7 @@ def test_bundled_panel_with_two_holes_meets_the_position_and_diameter_targets(tm
 
     holes = ((90.0, 70.0, 10.0), (210.0, 120.0, 18.0))
     model = sv.load_model(example_part_step(tmp_path / "panel2.step", holes=holes))
-    prep = sv.prepare(model)
+    prep = sv.prepare(model, spacing=1.5)
     vs = virtual_scan(prep, pixel=1.0, noise=0.02, motion=(2.0, 3.0), rng=1)
     plan = ("alignment: {type: best_fit}\ncharacteristics:\n"
             "  - {name: A, type: hole, near: [90, 70, 10], diameter: {tol: 0.2}, position: {tol: 0.3}}\n"

@@ -127,8 +127,8 @@ class PlanResult:
     alignment : AlignmentResult
     characteristics : tuple of CharacteristicResult
     verdict : str
-        Worst of the characteristics' verdicts ('pass' when there are none... and nothing
-        failed): 'pass' | 'fail' | 'undecided'.
+        Worst of the characteristics' verdicts: 'fail' if any fails, else 'undecided' if any is
+        undecided (or the plan has none), else 'pass'.
     points : (N, 3) float64
         Scan points in the model frame (after the alignment).
     deviations : (N,) float64
@@ -452,8 +452,7 @@ def evaluate_plan(prep, scan, plan=None, registration=None, init=None, rng=None)
     scan : (N, 3) float64
         Scan points (scan frame, mm).
     plan : Plan, dict, path of a YAML file, YAML text or None
-        None: free best fit and a surface profile of all faces needs a tolerance, so only the
-        alignment is done (no characteristics).
+        None: the free best fit only (no characteristics; verdict 'undecided').
     registration : Registration, optional
         An existing free registration of this scan: the start pose of the plan's alignment
         (which then skips its own free registration).  The pose covariance is always the
@@ -494,7 +493,7 @@ def evaluate_plan(prep, scan, plan=None, registration=None, init=None, rng=None)
     chars, S, sec = evaluate_characteristics(prep, P, plan, al)
     t2 = time.perf_counter()
     dev = np.where(S.ok, S.d, np.nan)
-    verdict = worst_verdict([c.verdict for c in chars]) if chars else "pass"
+    verdict = worst_verdict([c.verdict for c in chars])   # no characteristics: 'undecided'
     return PlanResult(plan=plan, alignment=al, characteristics=chars, verdict=verdict,
                       points=S.X, deviations=dev, face=S.face, evaluated=S.ok, noise=S.noise,
                       section=sec, timings={"alignment": t1 - t0, "characteristics": t2 - t1})
