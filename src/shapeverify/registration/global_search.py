@@ -62,6 +62,8 @@ RANSAC_ITERATIONS = 30000
 N_REFINE = 20
 #: scan points (of the scored subset) the refinement uses
 REFINE_POINTS = 400
+#: hypotheses refined further after the first round
+N_FINAL = 5
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -196,6 +198,17 @@ def _distances(side, S, T):
     return d, np.ones(d.shape[0], bool)
 
 
+def _sharp_fits(side, S, poses):
+    """Fits of the poses at a sharp fit distance: three times the smallest robust residual
+    scale among them (the right pose fits to the noise level; a wrong one that lays the scan
+    loosely over the surface does not).  Returns (fits, tau)."""
+    dists = [_distances(side, S, T) for T in poses]
+    sig = [1.4826 * float(np.median(np.abs(d[v]))) if v.sum() >= 6 else np.inf
+           for d, v in dists]
+    tau = float(np.clip(3.0 * min(sig), 1e-9 * side.size, side.tau))
+    return [float(_features.truncated_fit(d, v, tau)) for d, v in dists], tau
+
+
 def _quick_fit(tree: cKDTree, S, T, tau) -> float:
     d, _ = tree.query(S @ T[:3, :3].T + T[:3, 3], distance_upper_bound=tau)
     d = np.where(np.isfinite(d), d, tau)
@@ -228,7 +241,7 @@ def refine(S, side: "_ModelSide", T, radius, max_it: int = 20) -> np.ndarray:
         H, g, _ = point_to_plane_system(X, Y, Nn, w, c)
         theta, _ = solve_step(H, g, radius)
         R, t = compose_step(R, t, theta, c)
-        if np.linalg.norm(theta[:3]) * radius + np.linalg.norm(theta[3:]) < 1e-3 * side.tau:
+        if np.linalg.norm(theta[:3]) * radius + np.linalg.norm(theta[3:]) < 1e-2 * side.tau:
             break
     return make_transform(R, t)
 
@@ -280,12 +293,14 @@ def axes_hypotheses(P: np.ndarray, side: _ModelSide):
     return candidate_poses(P, side.axes_points, side.axes_normals)
 
 
-def _distinct(T1, T2, S, side) -> tuple[float, float]:
+def _distinct(T1, T2, S, side, full: bool = False) -> tuple[float, float]:
     """(rotation deg, RMS normal displacement mm) between two poses on the points S.
 
     """
     dR = T2[:3, :3] @ T1[:3, :3].T
     ang = float(np.degrees(np.linalg.norm(rotation_vector(dR))))
+    if ang > 5.0 and not full:     # apart anyway (see _apart): skip the displacement
+        return ang, np.inf
     X1 = S @ T1[:3, :3].T + T1[:3, 3]
     X2 = S @ T2[:3, :3].T + T2[:3, 3]
     _, j = side.tree.query(X1)
@@ -339,26 +354,23 @@ def global_alignment(scan, prep, rng=0, extra=()) -> GlobalAlignment:
             break
         if all(_apart(_distinct(hyps[i][1], hyps[c][1], Sq, side), tq) for c in chosen):
             chosen.append(int(i))
-    refined, dists = [], []
-    for i in chosen:
-        T = refine(S[:REFINE_POINTS], side, hyps[i][1], radius)
-        d, valid = _distances(side, S, T)
-        dists.append((d, valid))
-        refined.append([0.0, hyps[i][0], T])
-    # final scores at a sharp fit distance: three times the smallest robust residual scale
-    # of the refined hypotheses (the right pose fits to the noise level; a wrong one that lays
-    # the whole scan loosely on the surface does not)
-    sig = [1.4826 * float(np.median(np.abs(d[v]))) if v.sum() >= 6 else np.inf
-           for d, v in dists]
-    tau = float(np.clip(3.0 * min(sig), 1e-9 * side.size, side.tau))
-    for r, (d, valid) in zip(refined, dists):
-        r[0] = float(_features.truncated_fit(d, valid, tau))
-    refined = [tuple(r) for r in refined]
+    # refine: a few steps for every chosen hypothesis, more for the best few, each round
+    # scored at the sharp fit distance
+    poses = [hyps[i][1] for i in chosen]
+    names = [hyps[i][0] for i in chosen]
+    keep = list(range(len(poses)))
+    for steps, n_keep in ((8, N_FINAL), (12, N_FINAL)):
+        for i in keep:
+            poses[i] = refine(S[:REFINE_POINTS], side, poses[i], radius, steps)
+        fits, tau = _sharp_fits(side, S, [poses[i] for i in keep])
+        order = np.argsort(-np.asarray(fits), kind="stable")[:n_keep]
+        keep, fits = [keep[j] for j in order], [fits[j] for j in order]
+    refined = [(f, names[i], poses[i]) for f, i in zip(fits, keep)]
     refined.sort(key=lambda r: -r[0])
     best_fit, best_src, best_T = refined[0]
     runner = None
     for f, _, T in refined[1:]:
-        ang, dn = _distinct(best_T, T, S, side)
+        ang, dn = _distinct(best_T, T, S, side, full=True)
         if dn > tau:
             runner = (f, ang, dn)
             break
