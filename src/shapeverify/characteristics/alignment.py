@@ -13,8 +13,10 @@ the start pose (``dof_locked``).
   about the centre ``c`` and ``t = (tx, ty, tz)``; the locked parameters are exactly 0, so the
   locked coordinates do not move (e.g. ``free: [tz, rz]`` keeps x, y and the tilt of the start).
 * :func:`rps_alignment` -- reference points (RPS): each locks one to three model axes at a point;
-  a point at a hole is measured as the hole's centre (:func:`.holes.measure_hole`), any other as
-  the scan's local plane where the locked axis through the point meets it.  The six (or more)
+  a point at a hole locks the hole's measured centre (:func:`.holes.measure_hole`) to the CAD
+  hole's centre, any other point the scan's surface there: the mean deviation (along the CAD
+  normal n) of the scan within ``radius`` of the CAD point q nearest to the point, divided by
+  ``n . axis``, must vanish.  The six (or more)
   lock equations are solved by Gauss-Newton; residuals are the remaining differences (zero for
   exactly six independent locks, the 3-2-1 rule).
 * :func:`datum_alignment` -- datum features A (plane), B (hole/cylinder axis or plane), C
@@ -344,22 +346,6 @@ def _check_T(T) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------ RPS
-def _local_plane(X, at, axis, radius):
-    """Robust plane of the scan points near the line ``at + s axis`` (model frame)."""
-    q = X - at
-    along = q @ axis
-    lat = np.linalg.norm(q - np.outer(along, axis), axis=1)
-    m = (lat <= radius) & (np.abs(along) <= max(3.0 * radius, 5.0))
-    if np.count_nonzero(m) < 6:
-        raise ValueError(f"only {int(np.count_nonzero(m))} scan points within {radius:g} mm of "
-                         f"the RPS point {np.round(at, 3).tolist()}; is that area scanned?")
-    from ..fitting import fit_plane
-
-    pl = fit_plane(X[m], loss="tukey")
-    u = pl.rms / np.sqrt(np.count_nonzero(m))
-    return pl.point, pl.normal, u, int(np.count_nonzero(m))
-
-
 def rps_alignment(scan, prep, points, init=None, radius: float = 4.0, max_iterations: int = 20,
                   tolerance: float = 1e-10) -> AlignmentResult:
     """RPS (reference point system) alignment; 3-2-1 is six single locks.
@@ -404,42 +390,53 @@ def rps_alignment(scan, prep, points, init=None, radius: float = 4.0, max_iterat
             holes = [f for f in feats if f.kind == "hole"]
             if holes:
                 h = find_feature(holes, near=at, kind="hole")
-                if np.linalg.norm(h.center - at) <= 0.5 * h.diameter:
+                q = at - h.center
+                if np.linalg.norm(q - (q @ h.axis) * h.axis) <= 0.5 * h.diameter:
                     hole = h
         spec.append((p.get("name") or f"P{k + 1}", at, [("xyz".index(a)) for a in p["lock"]],
                      hole, float(p.get("radius") or radius)))
     n_locks = sum(len(s[2]) for s in spec)
     rows, res, unc, info = None, None, None, []
+    feet = prep.closest(np.array([s[1] for s in spec]), exact=True)
     for it in range(1, max_iterations + 1):
         X = apply_transform(T, P)
+        cl = prep.closest(X, exact=True)
+        ok = ~cl.on_boundary & (np.abs(cl.distances) <= _reach(prep, None))
         rows, res, unc, info = [], [], [], []
-        for name, at, axes, hole, rad in spec:
+        for i, (name, at, axes, hole, rad) in enumerate(spec):
             if hole is not None:
-                hm = measure_hole(X, hole.center, hole.axis, hole.diameter)
+                hm = measure_hole(X, hole.center, hole.axis, hole.diameter,
+                                  face=prep.model.faces[hole.face], deviations=cl.distances,
+                                  normals=cl.normals)
                 c = hm.center
                 for k in axes:
                     e = np.eye(3)[k]
                     rows.append(np.r_[np.cross(c, e), e])
-                    res.append((c - at)[k])
+                    res.append((c - hole.center)[k])
                     unc.append(max(hm.u_center, 1e-6))
                     info.append((name, "xyz"[k], "hole"))
-            else:
-                for k in axes:
-                    a = np.eye(3)[k]
-                    p0, n, u, _ = _local_plane(X, at, a, rad)
-                    na = n @ a
-                    if abs(na) < 0.2:
-                        raise ValueError(f"RPS point {name} locks {'xyz'[k]}, which runs along the "
-                                         "surface there (|normal . axis| < 0.2); lock the axis "
-                                         "across the surface or use a hole")
-                    s = n @ (p0 - at) / na
-                    # ds/de: the plane moves rigidly (p0 -> p0 + w x p0 + tau, n -> n + w x n)
-                    g_w = (np.cross(p0, n) + np.cross(p0 - at - s * a, n)) / na
-                    g_t = n / na
-                    rows.append(np.r_[g_w, g_t])
-                    res.append(s)
-                    unc.append(max(u / abs(na), 1e-6))
-                    info.append((name, "xyz"[k], "surface"))
+                continue
+            # a surface point: the scan's mean deviation (along the CAD normal) around the CAD
+            # point q nearest to `at`, turned into a shift along the locked axis
+            q, n, fc = feet.points[i], feet.normals[i], feet.face[i]
+            m = ok & (cl.face == fc) & (np.linalg.norm(cl.points - q, axis=1) <= rad)
+            if np.count_nonzero(m) < 3:
+                raise ValueError(f"only {int(np.count_nonzero(m))} scan points within {rad:g} mm "
+                                 f"of the RPS point {name} {np.round(q, 3).tolist()}; is that "
+                                 "area scanned?")
+            dm = cl.distances[m]
+            u = max(float(dm.std()) / np.sqrt(dm.size), 1e-6)
+            for k in axes:
+                a = np.eye(3)[k]
+                na = n @ a
+                if abs(na) < 0.2:
+                    raise ValueError(f"RPS point {name} locks {'xyz'[k]}, which runs along the "
+                                     "surface there (|normal . axis| < 0.2); lock the axis "
+                                     "across the surface or use a hole")
+                rows.append(np.r_[np.cross(q, n), n] / na)
+                res.append(float(dm.mean()) / na)
+                unc.append(u / abs(na))
+                info.append((name, "xyz"[k], "surface"))
         J = np.array(rows)
         r = np.array(res)
         Wh = 1.0 / np.array(unc)

@@ -222,8 +222,9 @@ def find_feature(features, ref=None, near=None, kind: str = "face"):
     """Pick a feature by id (``'hole:3'``, ``'face:2'``, a face name) or the one of ``kind``
     closest to ``near`` (3,).
 
-    For ``near``, the distance to a hole or cylinder is from its centre (axis point); to a face
-    from its nearest grid point.
+    For ``near``, the distance to a hole or cylinder is ``hypot(across, along / 4)`` from its
+    centre (``across``/``along`` its axis: a point at the wrong height still finds its hole);
+    to a face from its centre.
 
     Raises
     ------
@@ -248,7 +249,15 @@ def find_feature(features, ref=None, near=None, kind: str = "face"):
     if not cand:
         raise ValueError(f"the model has no {'/'.join(kinds)} feature to match near={near}")
     p = np.asarray(near, np.float64)
-    d = [float(np.linalg.norm(f.center - p)) for f in cand]
+    d = []
+    for f in cand:
+        q = p - f.center
+        if f.kind in ("hole", "cylinder") and f.axis is not None:
+            # mostly across the axis: a point given at the wrong height still finds its hole
+            along = float(q @ f.axis)
+            d.append(float(np.hypot(np.linalg.norm(q - along * f.axis), 0.25 * along)))
+        else:
+            d.append(float(np.linalg.norm(q)))
     return cand[int(np.argmin(d))]
 
 
