@@ -6,6 +6,7 @@ import pytest
 
 from shapeverify.characteristics import alignment as al
 from shapeverify.characteristics.alignment import euler_pose
+from shapeverify.characteristics.datums import datum_alignment
 from shapeverify.characteristics.parts import bracket
 from shapeverify.nearest import prepare
 from shapeverify.registration.rigid import (apply_transform, invert_transform, make_transform,
@@ -130,14 +131,14 @@ def test_rps_refuses_locks_that_leave_the_pose_undetermined(prep, scan):
 
 
 def test_datum_planes_321_recover_the_pose(prep, scan):
-    res = al.datum_alignment(scan.scan, prep, "face:0", "face:1", "face:2")
+    res = datum_alignment(scan.scan, prep, "face:0", "face:1", "face:2")
     e = pose_error(res.T_model_scan, scan.T_model_scan)
     assert np.linalg.norm(e[:3]) < 1e-4 and np.linalg.norm(e[3:]) < 0.01
     assert res.dof_fitted == ("A: tz rx ry", "B: tx rz", "C: ty")
 
 
 def test_datum_plane_and_two_holes_recover_the_pose_within_the_hole_uncertainty(prep, scan):
-    res = al.datum_alignment(scan.scan, prep, "face:0", "hole:0", "hole:1")
+    res = datum_alignment(scan.scan, prep, "face:0", "hole:0", "hole:1")
     e = pose_error(res.T_model_scan, scan.T_model_scan)
     # plane A fixes tz, rx, ry exactly as a plane fit does; the holes (centres to ~0.1 mm,
     # 34 mm apart) fix x, y and the rotation about z

@@ -20,7 +20,7 @@ from shapeverify.characteristics.spc import (MIN_PARTS, capability, characterist
                                              export_csv, plot_run_chart, store_characteristics)
 from shapeverify.characteristics.zones import decide, minimum_zone_flatness
 from shapeverify.nearest import prepare
-from shapeverify.registration.rigid import apply_transform, invert_transform, make_transform
+from shapeverify.registration.rigid import invert_transform, make_transform
 from shapeverify.simulate import virtual_scan
 
 VIEW = [1.0, 1.0, 1.6]

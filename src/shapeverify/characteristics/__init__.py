@@ -5,13 +5,13 @@
 >>> [c.to_dict() for c in res.characteristics]                           # doctest: +SKIP
 
 Modules: :mod:`.plan` (the YAML plan and its schema), :mod:`.features` (holes, planes,
-cylinders of the CAD topology), :mod:`.alignment` (best fit on faces, constrained, RPS, datums),
+cylinders of the CAD topology), :mod:`.alignment` (best fit on faces, constrained, RPS), :mod:`.datums` (datum features),
 :mod:`.holes` (measuring a hole on a scan), :mod:`.zones` (minimum-zone flatness, ISO 14253-1
 decisions), :mod:`.evaluate` (the characteristics), :mod:`.pdf` (PDF report), :mod:`.spc`
 (characteristic history, Cp/Cpk, run charts, CSV), :mod:`.parts` (small test parts).
 """
-from .alignment import (AlignmentResult, align, best_fit, constrained_fit, datum_alignment,
-                        rps_alignment)
+from .alignment import AlignmentResult, align, best_fit, constrained_fit, rps_alignment
+from .datums import datum_alignment
 from .evaluate import CharacteristicResult, PlanResult, evaluate_plan
 from .features import Feature, features_table, find_feature, model_features
 from .holes import HoleMeasurement, measure_hole
