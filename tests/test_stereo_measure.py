@@ -104,6 +104,10 @@ def test_measure_rejects_bad_input(scene):
         measure(imgs.rig, imgs.left, imgs.right, method="n-step")
     with pytest.raises(ValueError, match="depth_range"):
         measure(imgs.rig, imgs.left, imgs.right, depth_range=(300.0, 100.0))
+    with pytest.raises(ValueError, match="T_left_model must be a finite"):
+        measure(imgs.rig, imgs.left, imgs.right, model=model, T_left_model=np.eye(3))
+    with pytest.raises(ValueError, match="pass model= too"):
+        measure(imgs.rig, imgs.left, imgs.right, T_left_model=np.eye(4))
 
 
 def test_cli_measure_writes_the_library_scan(scene, tmp_path):

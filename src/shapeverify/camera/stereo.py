@@ -253,6 +253,13 @@ def measure(rig, left, right, model=None, T_left_model=None, method="ftp", depth
         raise ValueError("the rig has no projector; measuring needs its pattern (projector key of rig.json)")
     if method not in ("ftp", "wff"):
         raise ValueError(f"method must be 'ftp' or 'wff', got {method!r}")
+    if T_left_model is not None:
+        T_left_model = np.asarray(T_left_model, dtype=np.float64)
+        if T_left_model.shape != (4, 4) or not np.all(np.isfinite(T_left_model)):
+            raise ValueError(f"T_left_model must be a finite (4, 4) pose (model -> left camera), got shape "
+                             f"{T_left_model.shape}")
+        if model is None:
+            raise ValueError("T_left_model is the pose of a model: pass model= too")
     L, Rr = np.asarray(left), np.asarray(right)
     for name, img, dev in (("left", L, rig.left), ("right", Rr, rig.right)):
         if img.ndim != 2 or img.shape != (dev.height, dev.width):

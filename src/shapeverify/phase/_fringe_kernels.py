@@ -142,11 +142,12 @@ def demodulate(f, m, mean, col_re, col_im, row_re, row_im, g, xg, re, im, a, m0,
 
 
 @njit(cache=True, nogil=True)
-def edge_corrected_phase(re, im, m0, mx, my, cu, cv, min_support, theta, out_phase, out_mod):
+def edge_corrected_phase(re, im, m0, mx, my, cu, cv, off_i, off_j, min_support, theta, out_phase, out_mod):
     """Phase with the first-order edge correction and modulation 2|z|/m0.
 
     The demodulated phase theta = angle(re + i im) varies slowly; where the window is truncated by
     the mask its estimate is shifted by (local residual frequency) . (centroid offset); subtract it.
+    (off_i, off_j): image position of element [0, 0] (the carrier phase is 2 pi c.x in image coordinates).
     """
     H, W = re.shape
     TWO_PI = 2.0 * math.pi
@@ -187,5 +188,5 @@ def edge_corrected_phase(re, im, m0, mx, my, cu, cv, min_support, theta, out_pha
                     d -= TWO_PI * math.floor((d + math.pi) / TWO_PI)
                     bv = d / (i1 - i0)
                 t -= bu * du + bv * dv
-            p = t + TWO_PI * (cu * j + cv * i)
+            p = t + TWO_PI * (cu * (j + off_j) + cv * (i + off_i))
             out_phase[i, j] = p - TWO_PI * math.floor((p + math.pi) / TWO_PI)

@@ -277,17 +277,26 @@ def ftp(image, mask=None, carrier=None, direction=None, sigma=None, saturation=N
     g /= g.sum()
     xg = k * g if edge_correction else np.zeros_like(g)
     mean = float(f[m].mean()) if m.any() else 0.0
-    au, av = -2 * np.pi * c[0] * np.arange(W), -2 * np.pi * c[1] * np.arange(H)
-    f32 = np.float32  # single precision: half the memory traffic; phase error ~1e-6 rad
-    out = [np.empty((H, W), f32) for _ in range(6)]
-    _fk.demodulate(np.ascontiguousarray(f, dtype=f32), np.ascontiguousarray(m), f32(mean), np.cos(au).astype(f32),
-                   np.sin(au).astype(f32), np.cos(av).astype(f32), np.sin(av).astype(f32), g.astype(f32),
-                   xg.astype(f32), *out)
-    re, im, a, m0, mx, my = out
-    theta, phase, mod = np.empty((H, W)), np.empty((H, W)), np.empty((H, W))
-    _fk.edge_corrected_phase(re, im, m0, mx, my, c[0], c[1], MIN_SUPPORT, theta, phase, mod)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        background = np.where(m0 > 1e-6, a / m0, 0.0)
+    # work inside the bounding box of the usable pixels (plus the window): the rest has no phase
+    phase, mod, background = np.full((H, W), np.nan), np.zeros((H, W)), np.zeros((H, W))
+    rows, cols = np.flatnonzero(m.any(axis=1)), np.flatnonzero(m.any(axis=0))
+    if len(rows):
+        bi = slice(max(rows[0] - R, 0), min(rows[-1] + R + 1, H))
+        bj = slice(max(cols[0] - R, 0), min(cols[-1] + R + 1, W))
+        h, w = bi.stop - bi.start, bj.stop - bj.start
+        au = -2 * np.pi * c[0] * np.arange(bj.start, bj.stop)
+        av = -2 * np.pi * c[1] * np.arange(bi.start, bi.stop)
+        f32 = np.float32  # single precision: half the memory traffic; phase error ~1e-6 rad
+        out = [np.empty((h, w), f32) for _ in range(6)]
+        _fk.demodulate(np.ascontiguousarray(f[bi, bj], dtype=f32), np.ascontiguousarray(m[bi, bj]), f32(mean),
+                       np.cos(au).astype(f32), np.sin(au).astype(f32), np.cos(av).astype(f32),
+                       np.sin(av).astype(f32), g.astype(f32), xg.astype(f32), *out)
+        re, im, a, m0, mx, my = out
+        theta, ph, md = np.empty((h, w)), np.empty((h, w)), np.empty((h, w))
+        _fk.edge_corrected_phase(re, im, m0, mx, my, c[0], c[1], bi.start, bj.start, MIN_SUPPORT, theta, ph, md)
+        phase[bi, bj], mod[bi, bj] = ph, md
+        with np.errstate(divide="ignore", invalid="ignore"):
+            background[bi, bj] = np.where(m0 > 1e-6, a / m0, 0.0)
     if c @ d < 0:  # the phase must increase along `direction`
         phase = -phase
         c = -c
