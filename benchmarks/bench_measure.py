@@ -140,7 +140,8 @@ def main(argv=None):
     lines = [f"# measure: two {a.size}x{a.size} fringe images (issue 15)", "",
              f"Command: `.venv/bin/python benchmarks/bench_measure.py --size {a.size} --repeat {a.repeat}`", "",
              f"Machine: {platform.processor() or platform.machine()}, Python {platform.python_version()}, "
-             f"OpenCV {cv2.__version__}; one thread; best of {a.repeat} by CPU time. Scene: example panel, "
+             f"OpenCV {cv2.__version__}; one thread; best of {a.repeat} by CPU time; load average "
+             f"{os.getloadavg()[0]:.1f} on {os.cpu_count()} cores (shared). Scene: example panel, "
              "period 1 mm on the part, 8-bit, noise 1 grey level, 0.4 mm dent, one specular spot.", "",
              "| chain | CPU s | wall s | points | coverage of both-lit pixels | RMS error (um) | max error (um) "
              "| points > 0.1 mm off | points off the part |", "|---|---|---|---|---|---|---|---|---|"]
