@@ -156,7 +156,7 @@ def test_batch_cli_and_bad_arguments(folder, first_run, tmp_path):
     r = CliRunner().invoke(app, ["batch", str(d / "panel.svm"), str(d / "scans"), "--out", str(out),
                                  "--tolerance", "0.3"])
     assert r.exit_code == 2, r.output
-    assert "4 scans (4 already done): 2 pass, 1 fail, 1 error" in r.output
+    assert "4 scans (4 already done): 2 pass, 1 fail, 0 incomplete, 1 error" in r.output
 
 
 def test_retry_errors_replaces_the_scans_history_row(folder, tmp_path):

@@ -257,7 +257,9 @@ def test_token_and_openapi(server, panel):
     op = spec["paths"]["/inspect"]["post"]
     assert {"401", "404", "408", "413", "415", "422", "504"} <= set(op["responses"])
     assert "application/x-npy" in op["requestBody"]["content"]
-    assert {p["name"] for p in op["parameters"]} == {"model", "tolerance", "max_distance", "part"}
+    assert {p["name"] for p in op["parameters"]} == {"model", "tolerance", "evaluation_distance",
+                                                     "max_distance", "part"}
+    assert [p.get("deprecated") for p in op["parameters"] if p["name"] == "max_distance"] == [True]
     assert any(s.get("type") == "http" and s.get("scheme") == "bearer"
                for s in spec["components"]["securitySchemes"].values())
     assert {"/health", "/models", "/history", "/report/{record_id}"} <= set(spec["paths"])

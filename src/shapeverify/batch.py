@@ -62,7 +62,7 @@ def _content_type(name: str) -> str:
 
 
 def inspect_bytes(svm: bytes, digest: str, name: str, scan: bytes, tolerance: float,
-                  max_distance: float | None, report: bool) -> dict:
+                  evaluation_distance: float | None, report: bool) -> dict:
     """One batch task: inspect one scan (its file bytes) and return a JSON-ready dict.
 
     Never raises for a bad scan: the result then has ``verdict='error'`` and ``error``.
@@ -75,7 +75,7 @@ def inspect_bytes(svm: bytes, digest: str, name: str, scan: bytes, tolerance: fl
 
         prep = _prepared_from_bytes(svm, digest)
         points = parse_scan(scan, content_type=_content_type(name), name=name)
-        result = inspect(prep, points, tolerance=tolerance, max_distance=max_distance)
+        result = inspect(prep, points, tolerance=tolerance, evaluation_distance=evaluation_distance)
         out.update(result.to_dict())
         if report:
             from shapeverify.report.html import write_html_report
@@ -127,6 +127,7 @@ class BatchSummary:
     seconds: float
     summary_csv: Path
     internal_errors: int = 0  # of ``errors``: scans that hit a bug (``"internal_error": true``)
+    incomplete: int = 0       # not enough of the part seen to decide
 
     @property
     def scans_per_minute(self) -> float:
@@ -176,7 +177,7 @@ def _local_cluster(workers: int):
 
 
 def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, tolerance: float,
-              max_distance: float | None = None, scheduler: str | None = None, workers: int = 2,
+              evaluation_distance: float | None = None, scheduler: str | None = None, workers: int = 2,
               reports: bool = False, db_path: str | Path | None = None, retry_errors: bool = False,
               progress: Callable[[int, int, str], None] | None = None) -> BatchSummary:
     """Inspect every scan in ``scans_dir`` against the prepared model ``svm_path`` on Dask.
@@ -189,8 +190,8 @@ def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, 
         Folder of scans (``.ply .xyz .txt .csv .npy .pcd``; not recursive).
     out_dir : path
         Output folder: ``<scan stem>.json`` per scan (``.html`` with ``reports``), ``summary.csv``.
-    tolerance, max_distance : float
-        As for :func:`shapeverify.inspect` (mm).
+    tolerance, evaluation_distance : float
+        As for :func:`shapeverify.inspect` (mm; None: its default).
     scheduler : str, optional
         Address of an existing Dask scheduler (``tcp://host:8786``); default: a LocalCluster
         with ``workers`` single-threaded worker processes. (Start the workers of your own
@@ -307,7 +308,7 @@ def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, 
                     if p is None:
                         return False
                     fut = client.submit(inspect_bytes, svm_future, digest, p.name, p.read_bytes(),
-                                        tolerance, max_distance, reports, pure=False,
+                                        tolerance, evaluation_distance, reports, pure=False,
                                         key=f"inspect-{digest[:8]}-{p.name}-{time.time_ns()}")
                     names[fut.key] = p.name
                     in_flight.add(fut)
@@ -355,5 +356,6 @@ def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, 
     verdicts = [r.get("verdict") for r in rows]
     return BatchSummary(total=len(scans), skipped=len(scans) - len(todo), passed=verdicts.count("pass"),
                         failed=verdicts.count("fail"), errors=verdicts.count("error"),
+                        incomplete=verdicts.count("incomplete"),
                         seconds=time.perf_counter() - t0, summary_csv=summary_csv,
                         internal_errors=sum(bool(r.get("internal_error")) for r in rows))

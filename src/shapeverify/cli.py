@@ -443,7 +443,10 @@ def batch(
     scans_dir: Path = typer.Argument(..., help="Folder of scans"),
     out_dir: Path = typer.Option(..., "--out", help="Output folder (JSON per scan, summary.csv)"),
     tolerance: float = typer.Option(..., help="Symmetric tolerance ±MM"),
-    max_distance: Optional[float] = typer.Option(None, help="[mm]"),
+    evaluation_distance: Optional[float] = typer.Option(
+        None, "--evaluation-distance", "--max-distance",
+        help="Scan points farther than this from the CAD are not evaluated [mm] "
+             "(default: max(1 mm, 5 x the tolerance))"),
     scheduler: Optional[str] = typer.Option(None, help="Existing Dask scheduler address (default: local cluster)"),
     workers: int = typer.Option(2, help="Local worker processes"),
     reports: bool = typer.Option(False, "--reports", help="Also write an HTML report per scan"),
@@ -463,13 +466,16 @@ def batch(
         def tick(done: int, total: int, name: str) -> None:
             bar.update(task, completed=done, total=total, description=name)
 
-        summary = _guard(run_batch, model, scans_dir, out_dir, tolerance=tolerance, max_distance=max_distance,
+        summary = _guard(run_batch, model, scans_dir, out_dir, tolerance=tolerance,
+                         evaluation_distance=evaluation_distance,
                          scheduler=scheduler, workers=workers, reports=reports, db_path=db,
                          retry_errors=retry_errors, progress=tick)
     s = summary
     out.print(f"{s.total} scans ({s.skipped} already done): {s.passed} pass, {s.failed} fail, "
-              f"{s.errors} error; {s.scans_per_minute:.1f} scans/min; summary: {s.summary_csv}")
-    raise typer.Exit(EXIT_ERROR if s.errors else (EXIT_FAIL if s.failed else EXIT_PASS))
+              f"{s.incomplete} incomplete, {s.errors} error; {s.scans_per_minute:.1f} scans/min; "
+              f"summary: {s.summary_csv}")
+    raise typer.Exit(EXIT_ERROR if s.errors else EXIT_FAIL if s.failed else
+                     EXIT_INCOMPLETE if s.incomplete else EXIT_PASS)
 
 
 def main() -> None:  # pragma: no cover - entry point

@@ -13,7 +13,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .. import _arrays
-from ..errors import EmptyModelError, ScanError
+from ..errors import EmptyModelError, RegistrationError, ScanError
 from ..units import unit_hint
 from .coverage import MIN_COVERAGE, compute_coverage
 from .deviations import _deviations
@@ -197,7 +197,15 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
     kwargs.setdefault("rng", rng)
     if init is not None:
         kwargs["init"] = init
-    reg = register(scan, prep, **kwargs)
+    try:
+        reg = register(scan, prep, **kwargs)
+    except RegistrationError as exc:
+        far = _far_message(scan, init, getattr(prep, "model", None))
+        if far is None:
+            raise
+        raise ScanError(f"{far}, and the global search found no pose that fits it ({exc}); is "
+                        "this a scan of this part? If it is, give a rough start pose "
+                        "(init=, CLI --init T.json)") from exc
     timings["register"] = time.perf_counter() - t0
     logger.info("registration: rms %.4g mm, %d iterations, converged %s, inliers %.1f %%",
                 reg.rms, reg.iterations, reg.converged, 100 * reg.inlier_fraction)
@@ -234,29 +242,35 @@ def inspect_registered(prep, scan, registration, tolerance=0.2,
 
 
 def _check_near(scan: np.ndarray, init, model) -> None:
-    """Raise ScanError when the scan, placed by ``init`` (identity if None), is nowhere near the
-    model: its bounding box more than half the model's size away from the model's box. A local
-    registration (ICP) cannot bridge such a gap."""
+    """Raise ScanError when the scan, placed by ``init``, is nowhere near the model: its bounding
+    box more than half the model's size away from the model's box. A local registration (ICP)
+    cannot bridge such a gap."""
+    msg = _far_message(scan, init, model)
+    if msg:
+        raise ScanError(msg + ". Registration refines a rough pose; give init= a rough "
+                        "T_model_scan (4x4), or leave init out for the automatic global search")
+
+
+def _far_message(scan: np.ndarray, init, model) -> str | None:
+    """Why ``scan`` placed by ``init`` (identity if None) is nowhere near ``model``, or None."""
     bounds = getattr(model, "bounds", None)
     if bounds is None:
-        return
-    T = np.eye(4) if init is None else np.asarray(init, dtype=np.float64)
+        return None
+    T = np.eye(4) if init is None or isinstance(init, str) else np.asarray(init, dtype=np.float64)
     if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        return                                   # register() reports a bad init itself
+        return None                              # register() reports a bad init itself
     q = scan @ T[:3, :3].T + T[:3, 3]
     lo, hi = _arrays.bounds(q)
     mlo, mhi = np.asarray(bounds[0]), np.asarray(bounds[1])
     gap = float(np.linalg.norm(np.maximum(0.0, np.maximum(mlo - hi, lo - mhi))))
     size = float(np.linalg.norm(mhi - mlo))
-    if gap > 0.5 * size:
-        start = "the identity" if init is None else "init"
-        raise ScanError(
-            f"the scan is nowhere near the model: placed by {start} its bounding box "
+    if gap <= 0.5 * size:
+        return None
+    start = "the identity" if init is None or isinstance(init, str) else "init"
+    return (f"the scan is nowhere near the model: placed by {start} its bounding box "
             f"[{', '.join(f'{x:.4g}' for x in lo)}] .. [{', '.join(f'{x:.4g}' for x in hi)}] is "
             f"{gap:.4g} mm from the model's [{', '.join(f'{x:.4g}' for x in mlo)}] .. "
-            f"[{', '.join(f'{x:.4g}' for x in mhi)}] (model size {size:.4g} mm). Registration "
-            "refines a rough pose; give init= a rough T_model_scan (4x4), or "
-            "init='principal-axes' for a coarse global alignment")
+            f"[{', '.join(f'{x:.4g}' for x in mhi)}] (model size {size:.4g} mm)")
 
 
 @dataclass(frozen=True)

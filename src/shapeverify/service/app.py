@@ -2,7 +2,7 @@
 
 Endpoints (JSON unless noted; lengths in mm):
 
-- ``POST /inspect?model=NAME&tolerance=0.2&max_distance=1.0&part=ID``, body: the scan (PLY, NPY,
+- ``POST /inspect?model=NAME&tolerance=0.2&evaluation_distance=1.0&part=ID``, body: the scan (PLY, NPY,
   PCD or XYZ/CSV text; the content type or a sniff of the first bytes decides) -> the
   ``shapeverify inspect --json`` result plus ``record_id``, ``model`` and ``part``.
 - ``GET /health``, ``GET /models``, ``GET /history?part=&limit=``, ``GET /report/{id}`` (HTML,
@@ -285,7 +285,8 @@ def create_app(config: ServiceConfig) -> FastAPI:
         except _Cancelled:
             return None
 
-    def _inspect_and_store(job: _Job, name, prep, body, content_type, tolerance, max_distance, part):
+    def _inspect_and_store(job: _Job, name, prep, body, content_type, tolerance, evaluation_distance,
+                           part):
         """Worker thread: parse, inspect, store the scan, commit the row (if still wanted)."""
         from shapeverify.inspection import inspect
         from shapeverify.service.body import parse_scan
@@ -296,7 +297,8 @@ def create_app(config: ServiceConfig) -> FastAPI:
         points = parse_scan(body, content_type)
         t_parse = time.perf_counter() - t0
         job.check()
-        result = inspect(prep, points, tolerance=tolerance, max_distance=max_distance, progress=job.check)
+        result = inspect(prep, points, tolerance=tolerance, evaluation_distance=evaluation_distance,
+                         progress=job.check)
         payload = result.to_dict()
         payload["timings"]["parse_s"] = t_parse
         payload.update(model=name, part=part)
@@ -345,7 +347,8 @@ def create_app(config: ServiceConfig) -> FastAPI:
         tol = res.get("tolerance", {})
         result = inspect_registered(config.models[name], points, registration,
                                     tolerance=Tolerance(tol["lower"], tol["upper"]),
-                                    max_distance=res.get("max_distance"))
+                                    evaluation_distance=res.get("evaluation_distance",
+                                                                res.get("max_distance")))
         job.check()
         with tempfile.TemporaryDirectory() as tmp:
             path = write_html_report(result, config.models[name], points, Path(tmp) / "report.html",
@@ -379,10 +382,12 @@ def create_app(config: ServiceConfig) -> FastAPI:
         request: Request,
         model: str = Query(..., description="name of a loaded model (see /models)"),
         tolerance: float = Query(..., gt=0, allow_inf_nan=False, description="symmetric tolerance ±mm"),
-        max_distance: float | None = Query(None, gt=0, allow_inf_nan=False,
-                                           description="scan points farther than this from the CAD "
-                                                       "surface are not evaluated (mm; default "
-                                                       "max(1, 5 x tolerance))"),
+        evaluation_distance: float | None = Query(
+            None, gt=0, allow_inf_nan=False,
+            description="scan points farther than this from the CAD surface are not evaluated "
+                        "(mm; default max(1, 5 x tolerance))"),
+        max_distance: float | None = Query(None, gt=0, allow_inf_nan=False, deprecated=True,
+                                           description="old name of evaluation_distance"),
         part: str | None = Query(None, max_length=200, description="part id (serial number) for the history"),
     ) -> dict:
         """Register and inspect the scan in the request body; store the result; return it."""
@@ -393,7 +398,9 @@ def create_app(config: ServiceConfig) -> FastAPI:
         except asyncio.TimeoutError:
             raise HTTPException(408, f"the upload did not complete within the time limit of {limit:g} s") from None
         return await run_limited(_Job(), deadline, inspect_and_store, model, prep, body,
-                                 request.headers.get("content-type"), tolerance, max_distance, part)
+                                 request.headers.get("content-type"), tolerance,
+                                 evaluation_distance if evaluation_distance is not None else max_distance,
+                                 part)
 
     @app.get("/history", dependencies=auth, responses=_responses(401, 422))
     async def history(part: str | None = Query(None, description="only this part id"),
