@@ -455,12 +455,35 @@ def _pose(st) -> np.ndarray:
 
 #: below this inlier fraction the pose is flagged (it may be a wrong minimum)
 WARN_INLIERS = 0.5
+#: rejected points holding more than this many times the kept points' information in some
+#: pose direction are flagged
+WARN_REJECTED_INFO = 2.0
 #: a robust scale beyond this many fit distances is flagged
 WARN_SCALE = 2.0
 #: a weighted mean residual beyond this many sigma is flagged as systematic
 WARN_MEAN_SIGMA = 0.5
 #: another global hypothesis with at least this share of the best fit is flagged
 WARN_RUNNER_UP = 0.97
+
+
+def _rejected_information(ev, w) -> float:
+    """Largest ratio ``v^T H_rej v / v^T H_w v`` over the eigenvectors v of the weighted
+    point-to-plane information H_w (rotation scaled by the scan's radius), H_rej the
+    unweighted information of the valid points with weight 0."""
+    rej = ev.valid & (w == 0)
+    if not rej.any():
+        return 0.0
+    c = _irls.centroid(ev.X, w)
+    r = max(float(np.sqrt(np.mean(np.sum((ev.X - c) ** 2, axis=1)))), 1e-12)
+    D = np.outer(*(2 * [np.r_[[1.0 / r] * 3, [1.0] * 3]]))
+    Hw, _ = _irls.system(ev.Y, ev.Y, ev.N, w, c)
+    Hr, _ = _irls.system(ev.Y, ev.Y, ev.N, rej.astype(np.float64), c)
+    lam, V = np.linalg.eigh(Hw * D)
+    ok = lam > 1e-4 * max(lam[-1], 1e-300)   # not the undetermined directions
+    if not ok.any():
+        return 0.0
+    V, lam = V[:, ok], lam[ok]
+    return float(np.max(np.einsum("ij,ik,kj->j", V, Hr * D, V) / lam))
 
 
 def _pose_warnings(ev, w, ga, tau=None):
@@ -473,6 +496,12 @@ def _pose_warnings(ev, w, ga, tau=None):
         yield (f"the robust residual scale is {ev.sigma:.3g} mm, more than {WARN_SCALE:g} x "
                f"the fit distance {tau:.3g} mm (4 model point spacings or 0.5 % of the size): "
                "the pose is likely a wrong minimum (or the scan is very noisy)")
+    share = _rejected_information(ev, w)
+    if share > WARN_REJECTED_INFO:
+        yield (f"the scan points the robust loss rejected hold {share:.2g} x the information "
+               "of the points it kept in the least determined pose direction: the pose rests "
+               "on the points that fit and ignores those that would move it (a wrong minimum, "
+               "e.g. a blade locked onto its neighbour)")
     sw = float(w.sum())
     if sw > 0:
         mean = float(w @ ev.d) / sw
