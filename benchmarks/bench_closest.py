@@ -175,8 +175,6 @@ def issue18(args):
     """Exact mode before/after the patch bounds, two threads, preparation of references."""
     from shapeverify.cad.examples import example_part_step
     from shapeverify.cad.load import load_model
-    from shapeverify.nearest import get_workers
-
     rng = np.random.default_rng(0)
     lines = ["## Closest points: exact mode global, both cores, references prepared "
              "(issue 18 items 2 and 4, issue 14 item 4)", "",
@@ -220,8 +218,8 @@ def issue18(args):
     set_workers(1)
     lines += ["", f"({args.exact:,} exact queries, a model point moved sideways by up to half a "
               "spacing and along the normal by up to 2 mm (panel) / 1.5 mm (impeller); fast "
-              f"path {args.queries:,} queries; threads: `set_workers`, default "
-              f"{get_workers()} here)", ""]
+              f"path {args.queries:,} queries; threads: `set_workers(n)`; the library's "
+              "default is every core the process may use, the first columns run on one)", ""]
     # references: meshes and a point cloud, default spacing
     lines += ["| reference | model points | prepare CPU | prepare wall |", "|---|---:|---:|---:|"]
     refs = []

@@ -341,9 +341,14 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         r = 0.5 * np.sqrt(3.0) * size
         m = cells.shape[0]
         vdims = dims * (1 << level) + 1
-        V = (cells[:, None, :] + _CORNER[None, :, :]).reshape(-1, 3)
-        key = (V[:, 0] * vdims[1] + V[:, 1]) * vdims[2] + V[:, 2]
-        ukey, inv = np.unique(key, return_inverse=True)
+        # lattice keys of the 8 vertices of each cell, corner by corner (no (8 m, 3) array:
+        # at 1M model points the last level has ~4M cells)
+        key = np.empty((m, 8), dtype=np.int64)
+        for o in range(8):
+            key[:, o] = (((cells[:, 0] + _CORNER[o, 0]) * vdims[1] + cells[:, 1] + _CORNER[o, 1])
+                         * vdims[2] + cells[:, 2] + _CORNER[o, 2])
+        ukey, inv = np.unique(key.ravel(), return_inverse=True)
+        del key
         uvx = np.stack([ukey // (vdims[1] * vdims[2]), (ukey // vdims[2]) % vdims[1],
                         ukey % vdims[2]], axis=1)
         # a cell that is not FAR has all its vertices within max_distance + 3 r
