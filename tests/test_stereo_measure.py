@@ -178,3 +178,14 @@ def test_symmetric_rig_without_a_model_gives_no_wrong_order_points():
     ev = evaluate(imgs, scan)
     assert ev["coverage"] >= 0.9
     assert ev["err"].max() < 0.1 and np.sqrt(np.mean(ev["err"] ** 2)) < 0.02
+
+
+@pytest.mark.parametrize("offset", [-np.pi / 2, np.pi])
+def test_sine_or_inverted_pattern_phase_origin_is_detected_and_compensated(offset):
+    # a projector that shows sin(phase) or 1 - cos(phase) instead of the documented (1 + cos) / 2
+    model, rig, T = demo_scene(128, 128)
+    imgs = fringe_images(model, rig, T, period_mm=1.0, noise=1.0, phase_offset=offset)
+    scan = measure(imgs.rig, imgs.left, imgs.right)
+    assert abs(np.angle(np.exp(1j * (scan.info["pattern_offset"] + offset)))) < 0.05
+    ev = evaluate(imgs, scan)
+    assert ev["coverage"] >= 0.9 and ev["err"].max() < 0.1

@@ -268,14 +268,14 @@ def _right_error(d, t, psi_l, Kr, dr, Rr, Tr, psi_r, valid_r):
 
 @njit(cache=True, nogil=True)
 def candidate_errors(dirs, psi_l, base, cands, Kp, dp, Rp, Tp, rows, period, Kr, dr, Rr, Tr, psi_r, valid_r,
-                     t_start, t_lo, t_hi, out):
+                     t_start, t_lo, t_hi, delta, out):
     """out[s, c]: wrapped right-phase error of sample s at absolute order base[s] + cands[c] (NaN: none)."""
     for s in range(dirs.shape[0]):
         d = dirs[s]
         ts = t_start
         for c in range(cands.shape[0]):
             k = base[s] + cands[c]
-            target = period * (psi_l[s] / TWO_PI + k)
+            target = period * ((psi_l[s] + delta) / TWO_PI + k)
             t = _solve_coord(d, Kp, dp, Rp, Tp, rows, target, ts, t_lo, t_hi)
             if not np.isfinite(t):
                 out[s, c] = np.nan
@@ -324,13 +324,14 @@ def _right_root(d, t, psi, Kr, dr, Rr, Tr, psi_r, valid_r, slope, out_slope):
 
 @njit(cache=True, nogil=True)
 def match_pixels(idx, dirs, psi_l, korder, Kp, dp, Rp, Tp, rows, period, Kr, dr, Rr, Tr, psi_r, valid_r,
-                 t_start, t_lo, t_hi, tol_p, out_t, out_err):
+                 t_start, t_lo, t_hi, tol_p, delta, out_t, out_err):
     """Stereo match of left pixels at absolute fringe order ``korder``.
 
     For each pixel, the point on its ray whose right-image phase equals its left phase (the
     sub-pixel point on the epipolar line), by secant iterations started from the previous pixel's
     solution (raster order) or, failing that, from the projector's ray surface of the pixel's
     absolute phase.  out_t: ray parameter (NaN if rejected); out_err: projector-phase residual (rad).
+    ``delta``: pattern phase = measured phase + delta (0 for the documented pattern).
     """
     t_prev = np.nan
     i_prev = -10
@@ -339,7 +340,7 @@ def match_pixels(idx, dirs, psi_l, korder, Kp, dp, Rp, Tp, rows, period, Kr, dr,
         i = idx[n]
         d = dirs[i]
         psi = psi_l[i]
-        target = period * (psi / TWO_PI + korder[n])
+        target = period * ((psi + delta) / TWO_PI + korder[n])
         out_t[n] = np.nan
         out_err[n] = np.nan
         t = np.nan

@@ -21,6 +21,12 @@ The chain, for a rig of two cameras and a projector (:mod:`shapeverify.camera.ri
 A rig with equal baselines on both sides of the projector cannot tell a wrong order from the right
 one on a plane parallel to the baseline (the wrong surface is consistent in both views); there,
 pass the model and nominal pose, or a tight ``depth_range``.
+
+The projected pattern must follow the rig file's convention (intensity ``(1 + cos phase) / 2``).
+A pattern with another phase origin shows as projector residuals on the largest region; an offset
+search then finds and compensates it (``info["pattern_offset"]``, logged).  That works for a sine
+or an inverted pattern; an offset close to the residual of a wrong fringe order (about +-1 rad for
+typical rigs) cannot be told from that order.
 """
 
 from __future__ import annotations
@@ -144,7 +150,7 @@ def _sample(idx, n):
     return idx[np.linspace(0, len(idx) - 1, n).round().astype(np.int64)]
 
 
-def _candidate_range(rig, dirs, psi, m, t_lo, t_hi):
+def _candidate_range(rig, dirs, psi, m, t_lo, t_hi, delta=0.0):
     """Integer offsets K such that psi + 2 pi (m + K) is a projector phase seen along the rays."""
     rows = rig.pattern.direction == "rows"
     P = rig.pattern.period_px
@@ -152,7 +158,7 @@ def _candidate_range(rig, dirs, psi, m, t_lo, t_hi):
     for t in np.geomspace(t_lo, t_hi, 64):
         uv, z = rig.projector.project(dirs * t)
         c = uv[:, 1 if rows else 0]
-        k = c / P - psi / TWO_PI - m
+        k = c / P - (psi + delta) / TWO_PI - m
         ok = np.isfinite(k) & (z > 0)
         if ok.any():
             lo, hi = min(lo, k[ok].min()), max(hi, k[ok].max())
@@ -161,7 +167,7 @@ def _candidate_range(rig, dirs, psi, m, t_lo, t_hi):
     return np.arange(int(np.floor(lo)), int(np.ceil(hi)) + 1, dtype=np.int64)
 
 
-def _vote(rig, dirs, psi, m, cands, psi_r, valid_r, t_mid, t_lo, t_hi, tol, prior=None):
+def _vote(rig, dirs, psi, m, cands, psi_r, valid_r, t_mid, t_lo, t_hi, tol, prior=None, delta=0.0):
     """Best offset of a region and its score (fraction of samples consistent), second-best score.
 
     With a ``prior`` (the CAD-predicted offset, fractional), the offset nearest to it among those
@@ -171,7 +177,7 @@ def _vote(rig, dirs, psi, m, cands, psi_r, valid_r, t_mid, t_lo, t_hi, tol, prio
     P = rig.pattern.period_px
     rows = rig.pattern.direction == "rows"
     _k.candidate_errors(np.ascontiguousarray(dirs), psi, m.astype(np.int64), cands, *_kargs(rig.projector), rows, P,
-                        *_kargs(rig.right), psi_r, valid_r, t_mid, t_lo, t_hi, err)
+                        *_kargs(rig.right), psi_r, valid_r, t_mid, t_lo, t_hi, delta, err)
     good = np.abs(np.nan_to_num(err, nan=np.pi)) < tol
     score = good.mean(axis=0)
     mean_err = np.array([np.abs(err[good[:, c], c]).mean() if good[:, c].any() else np.pi for c in range(len(cands))])
@@ -185,7 +191,7 @@ def _vote(rig, dirs, psi, m, cands, psi_r, valid_r, t_mid, t_lo, t_hi, tol, prio
     return int(cands[best]), float(score[best]), float(second)
 
 
-def _cad_orders(rig, model, T_left_model, dirs, psi, m):
+def _cad_orders(rig, model, T_left_model, dirs, psi, m, delta=0.0):
     """Offsets K predicted by the CAD model at the nominal pose for sample rays (NaN where it misses)."""
     from shapeverify.camera.intersect import intersect_rays
 
@@ -196,7 +202,7 @@ def _cad_orders(rig, model, T_left_model, dirs, psi, m):
     X = hits.points @ R.T + t
     uv, z = rig.projector.project(np.where(hits.hit[:, None], X, 0.0))
     c = uv[:, 1 if rig.pattern.direction == "rows" else 0]
-    k = np.where(hits.hit & (z > 0), c / rig.pattern.period_px - psi / TWO_PI - m, np.nan)
+    k = np.where(hits.hit & (z > 0), c / rig.pattern.period_px - (psi + delta) / TWO_PI - m, np.nan)
     return k
 
 
@@ -302,24 +308,67 @@ def measure(rig, left, right, model=None, T_left_model=None, method="ftp", depth
     rows = rig.pattern.direction == "rows"
     P = rig.pattern.period_px
 
+    delta = 0.0  # pattern phase - measured phase; 0 for the documented (1 + cos) / 2 pattern
+
     def resolve(region_idx, prior=None):
         """Vote the offset of a set of pixels; None when not decided."""
         s = _sample(region_idx, samples)
         d, p, mm = dirs_all[s], psi_flat[s], m_flat[s]
-        cands = _candidate_range(rig, d, p, mm, t_lo, t_hi)
+        cands = _candidate_range(rig, d, p, mm, t_lo, t_hi, delta)
         if model is not None and prior is None:
-            kc = _cad_orders(rig, model, np.eye(4) if T_left_model is None else T_left_model, d, p, mm)
+            kc = _cad_orders(rig, model, np.eye(4) if T_left_model is None else T_left_model, d, p, mm, delta)
             if np.isfinite(kc).sum() >= max(3, len(s) // 10):
                 prior = float(np.nanmedian(kc))
                 kp = int(np.round(prior))
                 cands = np.arange(kp - cad_window, kp + cad_window + 1, dtype=np.int64)
         if len(cands) == 0:
             return None, 0.0, 0.0
-        K, score, second = _vote(rig, d, p, mm, cands, psi_r, valid_r, t_mid, t_lo, t_hi, tol_vote, prior)
+        K, score, second = _vote(rig, d, p, mm, cands, psi_r, valid_r, t_mid, t_lo, t_hi, tol_vote, prior, delta)
         return (K if score >= min_score else None), score, second
 
+    def match(idx):
+        out_t, out_e = np.empty(len(idx)), np.empty(len(idx))
+        _k.match_pixels(idx, dirs_all, psi_flat, korder[idx], *_kargs(rig.projector), rows, P, *_kargs(rig.right),
+                        psi_r, valid_r, t_mid, t_lo, t_hi, tol_projector, delta, out_t, out_e)
+        return out_t, out_e
+
     korder = np.full(H * W, np.iinfo(np.int64).min, np.int64)
-    info = {"regions": int(n_reg), "voted": 0, "ambiguous": 0, "revoted": 0}
+    info = {"regions": int(n_reg), "voted": 0, "ambiguous": 0, "revoted": 0, "pattern_offset": 0.0}
+    if n_reg and sizes.max() >= min_region:
+        # a pattern rendered with another phase origin (sin, 1 - cos, ...) shifts every projector
+        # ray surface: check the residuals of the largest region, search the offset if they are off
+        big = by_label[int(np.argmax(sizes))]
+
+        def residual_offset(K):
+            s_idx = _sample(big, 4 * samples)
+            korder[s_idx] = m_flat[s_idx] + K
+            nonlocal tol_projector
+            tol_save, tol_projector = tol_projector, np.pi
+            tt, ee = match(s_idx)
+            tol_projector = tol_save
+            korder[s_idx] = np.iinfo(np.int64).min
+            ok_ = np.isfinite(tt)
+            return float(np.angle(np.mean(np.exp(1j * ee[ok_])))) if ok_.sum() > 10 else np.nan
+
+        K0, sc0, _ = resolve(big)
+        off = residual_offset(K0) if K0 is not None else np.nan
+        if not (sc0 >= 0.8 and abs(off) <= 0.2):
+            best = (sc0 if abs(off) <= 0.2 else -1.0, 0.0)
+            for dlt in np.arange(0, 16) * (np.pi / 8):
+                delta = float(dlt)
+                K, sc, _ = resolve(big)
+                if K is not None and sc > best[0]:
+                    best = (sc, delta)
+            delta = best[1]
+            K = resolve(big)[0]
+            if K is not None:
+                off = residual_offset(K)
+                if np.isfinite(off):
+                    delta += off
+            info["pattern_offset"] = float(np.angle(np.exp(1j * delta)))
+            if abs(info["pattern_offset"]) > 0.2:
+                log.warning("measure: the pattern's phase origin differs from the rig's by %.3f rad; "
+                            "compensated", info["pattern_offset"])
     for r in range(n_reg):
         if sizes[r] < min_region:
             continue
@@ -333,12 +382,6 @@ def measure(rig, left, right, model=None, T_left_model=None, method="ftp", depth
     timings["orders"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-
-    def match(idx):
-        out_t, out_e = np.empty(len(idx)), np.empty(len(idx))
-        _k.match_pixels(idx, dirs_all, psi_flat, korder[idx], *_kargs(rig.projector), rows, P, *_kargs(rig.right),
-                        psi_r, valid_r, t_mid, t_lo, t_hi, tol_projector, out_t, out_e)
-        return out_t, out_e
 
     idx = np.flatnonzero(korder != np.iinfo(np.int64).min)
     t_ray, resid = match(idx)

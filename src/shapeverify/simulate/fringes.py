@@ -89,7 +89,7 @@ def _spots(points, reflections):
     return add, near
 
 
-def _render_camera(scene, rig, dev, T, pattern_period, rows, dent, reflections, ambient, gain, ss):
+def _render_camera(scene, rig, dev, T, pattern_period, rows, dent, reflections, ambient, gain, ss, offset=0.0):
     from shapeverify.camera.intersect import intersect_rays
 
     H, W = dev.height, dev.width
@@ -131,7 +131,7 @@ def _render_camera(scene, rig, dev, T, pattern_period, rows, dent, reflections, 
             sh = intersect_rays(scene, start, lvec[idx])
             shadow[idx] = sh.hit & (sh.distances < dist_p[idx] - 1e-2)
         lit = facing & ~shadow
-        pattern = 0.5 * (1.0 + np.cos(2 * np.pi * np.where(lit, coord, 0.0) / pattern_period))
+        pattern = 0.5 * (1.0 + np.cos(2 * np.pi * np.where(lit, coord, 0.0) / pattern_period + offset))
         inten = gain * (ambient + np.where(lit, pattern * np.abs(ndl), 0.0))
         inten = np.where(hit, inten, 0.0)
         spot_add, near = _spots(Xd, reflections) if reflections else (0.0, np.zeros(len(X), bool))
@@ -153,7 +153,8 @@ def _render_camera(scene, rig, dev, T, pattern_period, rows, dent, reflections, 
 
 
 def fringe_images(model, rig, T_left_model=None, period_mm=None, noise=1.0, rng=None, dent=None,
-                  reflections=(), ambient=0.08, gain=200.0, bits=8, supersample=1) -> FringeImages:
+                  reflections=(), ambient=0.08, gain=200.0, bits=8, supersample=1,
+                  phase_offset=0.0) -> FringeImages:
     """Render what the two cameras of ``rig`` record of ``model`` lit by one fringe pattern.
 
     Parameters
@@ -185,6 +186,9 @@ def fringe_images(model, rig, T_left_model=None, period_mm=None, noise=1.0, rng=
         Output depth; 16-bit images are scaled by 257 (full scale 65535).
     supersample : int
         Rays per pixel side (1 = pixel centres only).
+    phase_offset : float
+        Added to the pattern phase (radians): 0 renders the rig's documented pattern; other values
+        model a projector whose phase origin differs (e.g. -pi/2 for a sine pattern).
 
     Returns
     -------
@@ -226,7 +230,8 @@ def fringe_images(model, rig, T_left_model=None, period_mm=None, noise=1.0, rng=
     images, truth = {}, {}
     for name in ("left", "right"):
         dev = getattr(rig, name)
-        img, tr = _render_camera(scene, rig, dev, T, rig.pattern.period_px, rows, dent_m, refl, ambient, gain, ss)
+        img, tr = _render_camera(scene, rig, dev, T, rig.pattern.period_px, rows, dent_m, refl, ambient, gain, ss,
+                                 float(phase_offset))
         img = img + gen.normal(0.0, noise, img.shape) if noise > 0 else img
         scale = 1.0 if bits == 8 else 257.0
         q = np.clip(np.round(img * scale), 0, full)
