@@ -210,8 +210,10 @@ def inspect(
     init: Optional[Path] = typer.Option(None, "--init", help="Start pose T_model_scan: a 4x4 in T.json or T.npy (default: found automatically)"),
     scan_unit: Optional[str] = typer.Option(None, "--scan-unit", help="Unit of the scan file (mm, cm, m, in, um; default mm)"),
     model_unit: Optional[str] = typer.Option(None, "--model-unit", help="Unit of an STL/PLY/OBJ/point-cloud model (default mm; CAD files declare theirs)"),
+    plan: Optional[Path] = typer.Option(None, "--plan", help="Inspection plan (plan.yaml): alignment, characteristics with uncertainty"),
     json_path: Optional[Path] = typer.Option(None, "--json", help="Write the result as JSON"),
     report: Optional[Path] = typer.Option(None, "--report", help="Write the HTML report"),
+    pdf: Optional[Path] = typer.Option(None, "--pdf", help="Write the PDF report (colour map, histogram, characteristics)"),
     png: Optional[Path] = typer.Option(None, "--png", help="Write a PNG summary"),
     colored: Optional[Path] = typer.Option(None, "--colored", help="Write a PLY coloured by deviation"),
     db: Optional[Path] = typer.Option(None, "--db", help="Append the result to this SQLite history"),
@@ -225,17 +227,18 @@ def inspect(
 
     if tolerance is None and lower is None and upper is None:
         _fail("give --tolerance MM (or --lower/--upper limits in mm)")
-    _require_files(model, scan, *([init] if init is not None else []))
+    _require_files(model, scan, *([init] if init is not None else []),
+                   *([plan] if plan is not None else []))
     T0 = _guard(_read_init, init) if init is not None else None
     result, outputs = _guard(
         run_inspection, model, scan, tolerance=tolerance, evaluation_distance=evaluation_distance,
         lower=lower, upper=upper, faces=faces, min_coverage=min_coverage, init=T0,
-        scan_unit=scan_unit, model_unit=model_unit,
+        scan_unit=scan_unit, model_unit=model_unit, plan=plan, pdf_path=pdf,
         json_path=json_path, report_path=report, png_path=png,
         colored_path=colored, db_path=db, part=part, stage=_stage)
     _print_result(result)
-    for label, path in (("JSON", outputs.json), ("report", outputs.report), ("PNG", outputs.png),
-                        ("coloured PLY", outputs.colored)):
+    for label, path in (("JSON", outputs.json), ("report", outputs.report), ("PDF", outputs.pdf),
+                        ("PNG", outputs.png), ("coloured PLY", outputs.colored)):
         if path is not None:
             out.print(f"{label}: {path}")
     if outputs.record_id is not None:
@@ -262,6 +265,22 @@ def _read_init(path: Path):
     if T.shape != (4, 4) or not np.all(np.isfinite(T)):
         raise ValueError(f"{path}: the start pose must be a finite 4x4 matrix, got shape {T.shape}")
     return T
+
+
+def _fmt_value(v, signed: bool = False) -> str:
+    """A characteristic's value for the table: numbers to 4 decimals, points as (x, y, z),
+    dicts as 'key value' lines."""
+    if v is None:
+        return "–"
+    if isinstance(v, bool):
+        return str(v)
+    if isinstance(v, (int, float)):
+        return f"{v:+.4f}" if signed else f"{v:.4f}"
+    if isinstance(v, (list, tuple)):
+        return "(" + ", ".join(f"{x:.3f}" if isinstance(x, (int, float)) else str(x) for x in v) + ")"
+    if isinstance(v, dict):
+        return "\n".join(f"{k} {_fmt_value(x, signed)}" for k, x in v.items())
+    return str(v)
 
 
 def _print_result(result) -> None:
@@ -292,6 +311,16 @@ def _print_result(result) -> None:
     if any(ex.values()):
         out.print("not in the statistics: " + ", ".join(f"{v:,} {k.replace('_', ' ')}"
                                                          for k, v in ex.items() if v))
+    chars = d.get("characteristics") or []
+    if chars:
+        ct = Table(title="Characteristics [mm]")
+        for col in ("name", "type", "measured", "deviation", "uncertainty U", "verdict"):
+            ct.add_column(col)
+        for c in chars:
+            ct.add_row(str(c.get("name")), str(c.get("type")), _fmt_value(c.get("measured")),
+                       _fmt_value(c.get("deviation"), signed=True),
+                       _fmt_value(c.get("uncertainty")), str(c.get("verdict")))
+        out.print(ct)
     regions = d.get("regions") or []
     if regions:
         rt = Table(title="Regions (most severe first)")

@@ -82,6 +82,7 @@ class InspectionOutputs:
 
     json: Path | None = None
     report: Path | None = None
+    pdf: Path | None = None
     png: Path | None = None
     colored: Path | None = None
     record_id: int | None = None
@@ -93,12 +94,14 @@ def run_inspection(model_path: str | Path, scan_path: str | Path, tolerance: flo
                    upper: float | None = None, json_path=None, report_path=None, png_path=None,
                    colored_path=None, db_path=None, part: str | None = None,
                    stage: Stage | None = None, *, faces=None, min_coverage: float | None = None,
-                   init=None, scan_unit: str | None = None, model_unit: str | None = None):
+                   init=None, scan_unit: str | None = None, model_unit: str | None = None,
+                   plan=None, pdf_path=None):
     """Inspect one scan against one model and write the requested outputs.
 
     ``evaluation_distance``, ``faces``, ``min_coverage`` and ``init`` are passed to
     :func:`shapeverify.inspect` (None: its defaults); ``scan_unit`` / ``model_unit`` give the
-    units of files that carry none (:mod:`shapeverify.units`). The result carries ``inputs`` (part id,
+    units of files that carry none (:mod:`shapeverify.units`). ``plan``: an inspection plan
+    (``plan.yaml``, :mod:`shapeverify.characteristics`); ``pdf_path``: the PDF report. The result carries ``inputs`` (part id,
     scan and model file names, the model file's SHA-256).
 
     Returns
@@ -129,7 +132,7 @@ def run_inspection(model_path: str | Path, scan_path: str | Path, tolerance: flo
     opts = {} if min_coverage is None else {"min_coverage": min_coverage}
     with stage(f"Registering and inspecting {len(scan):,} points"):
         result = inspect(prep, scan, tolerance=tolerance, evaluation_distance=evaluation_distance,
-                         lower=lower, upper=upper, faces=faces, init=init, **opts)
+                         lower=lower, upper=upper, faces=faces, init=init, plan=plan, **opts)
     out.timings["inspect_s"] = time.perf_counter() - t0
     model_hash = file_hash(model_path)
     result = dataclasses.replace(result, inputs={
@@ -150,6 +153,15 @@ def run_inspection(model_path: str | Path, scan_path: str | Path, tolerance: flo
         from shapeverify.report.png import write_png_summary
         with stage("Writing PNG summary"):
             out.png = Path(write_png_summary(result, scan, png_path))
+    if pdf_path:
+        from shapeverify.characteristics import evaluate_plan
+        from shapeverify.characteristics.pdf import write_pdf_report
+        with stage("Writing PDF report"):
+            plan_result = result.plan if result.plan is not None else evaluate_plan(
+                prep, scan, None, registration=result.registration)
+            out.pdf = Path(write_pdf_report(
+                plan_result, pdf_path, prep, part=part, scan_file=Path(scan_path).name,
+                model_file=Path(model_path).name, tolerance=result.tolerance.max_abs))
     if colored_path:
         from shapeverify.report.ply import write_colored_ply
         out.colored = Path(write_colored_ply(result, scan, colored_path))
@@ -157,5 +169,8 @@ def run_inspection(model_path: str | Path, scan_path: str | Path, tolerance: flo
         from shapeverify.report.history import HistoryDB
         with HistoryDB(db_path) as db:
             out.record_id = db.add(result, part=part, model_hash=model_hash)
+        if result.plan is not None:
+            from shapeverify.characteristics.spc import store_characteristics
+            store_characteristics(db_path, result.plan, part=part, inspection_id=out.record_id)
     out.timings["outputs_s"] = time.perf_counter() - t0
     return result, out

@@ -5,7 +5,10 @@ Definitions (ISO 1101; lengths in mm, model frame after the plan's alignment)
 The *evaluated points* of a face group are the scan points whose exact closest CAD point
 (``prep.closest(x, exact=True)``) lies on a face of the group, not on the model's free boundary,
 with ``|d| <= max_distance`` (``d`` the signed distance along the outward CAD normal;
-``max_distance`` from the plan, default ``prep.max_distance``).
+``max_distance`` -- the evaluation distance -- from the caller, else the plan's, else the one
+default :func:`shapeverify.inspection.default_evaluation_distance` of the plan's largest
+tolerance), less the points the caller excludes (``shapeverify.inspect`` passes its isolated
+measurement outliers, so one stray point does not decide a profile).
 
 * **surface_profile** (ISO 1101 §18.6, profile of a surface): the zone is bounded by two surfaces
   offset ±t/2 from the true profile.  With a datum reference (``datum: true``, default) the
@@ -190,14 +193,17 @@ def _pose_var(cov, q, n) -> float:
 class _Scan:
     """The aligned scan with its closest CAD points (computed once)."""
 
-    def __init__(self, prep, scan, T, max_distance):
+    def __init__(self, prep, scan, T, max_distance, exclude=None):
         self.prep = prep
+        self.exclude = exclude
         self.X = apply_transform(T, scan)
         cl = prep.closest(self.X, exact=True)
         self.cl = cl
         self.d = cl.distances
         self.face = cl.face
         self.ok = ~cl.on_boundary & (np.abs(cl.distances) <= max_distance)
+        if exclude is not None:
+            self.ok &= ~exclude
         dv = self.d[self.ok]
         self.noise = float(MAD_TO_SIGMA * np.median(np.abs(dv - np.median(dv)))) if dv.size else \
             float("nan")
@@ -234,7 +240,7 @@ def _profile(c, S: _Scan, al: AlignmentResult, k: float, prep, scan, max_distanc
     if not c.datum:
         bf = best_fit(scan, prep, faces=c.faces, init=al.T_model_scan, reach=max_distance,
                       degenerate_ok=True)
-        S2 = _Scan(prep, scan, bf.T_model_scan, max_distance)
+        S2 = _Scan(prep, scan, bf.T_model_scan, max_distance, S.exclude)
         m, d, X, nrm, cov = S2.on(fidx), S2.d, S2.X, S2.cl.normals, bf.covariance
         noise = S2.noise
         details["T_model_scan"] = bf.T_model_scan.tolist()
@@ -408,7 +414,27 @@ def _section(sec, S: _Scan):
             "direction": dirn.tolist()}
 
 
-def evaluate_characteristics(prep, scan, plan, alignment: AlignmentResult):
+def _largest_tolerance(plan) -> float:
+    """The largest ``tol`` anywhere in the plan's characteristics (mm; 0.2 if none)."""
+    found = []
+
+    def walk(x):
+        if isinstance(x, dict):
+            for k, v in x.items():
+                if k == "tol" and isinstance(v, (int, float)):
+                    found.append(abs(float(v)))
+                else:
+                    walk(v)
+        elif isinstance(x, (list, tuple)):
+            for v in x:
+                walk(v)
+
+    walk([c.model_dump() if hasattr(c, "model_dump") else c for c in plan.characteristics])
+    return max(found) if found else 0.2
+
+
+def evaluate_characteristics(prep, scan, plan, alignment: AlignmentResult, exclude=None,
+                             evaluation_distance: float | None = None):
     """Evaluate a plan's characteristics at a given alignment (see :func:`evaluate_plan`).
 
     Returns
@@ -416,8 +442,11 @@ def evaluate_characteristics(prep, scan, plan, alignment: AlignmentResult):
     (tuple of CharacteristicResult, _Scan, section dict or None)
     """
     plan = load_plan(plan)
-    md = float(plan.max_distance or getattr(prep, "max_distance", 1.0))
-    S = _Scan(prep, scan, alignment.T_model_scan, md)
+    from ..inspection.inspect import default_evaluation_distance
+
+    md = float(evaluation_distance or plan.max_distance
+               or default_evaluation_distance(_largest_tolerance(plan)))
+    S = _Scan(prep, scan, alignment.T_model_scan, md, exclude)
     feats = model_features(prep.model) if prep.model.kind == "cad" else []
     k = float(plan.coverage_factor)
     out = []
@@ -442,7 +471,9 @@ def evaluate_characteristics(prep, scan, plan, alignment: AlignmentResult):
     return tuple(out), S, sec
 
 
-def evaluate_plan(prep, scan, plan=None, registration=None, init=None, rng=None) -> PlanResult:
+def evaluate_plan(prep, scan, plan=None, registration=None, init=None, rng=None, *,
+                  alignment: AlignmentResult | None = None, exclude=None,
+                  evaluation_distance: float | None = None) -> PlanResult:
     """Align a scan the plan's way and evaluate every characteristic of the plan.
 
     Parameters
@@ -462,6 +493,13 @@ def evaluate_plan(prep, scan, plan=None, registration=None, init=None, rng=None)
         (default identity: the scan is in the model frame already).
     rng : None, int or Generator
         Seeds the free registration's random subsets.
+    alignment : AlignmentResult, optional
+        The plan's alignment, when already computed (:func:`align`).
+    exclude : (N,) bool, optional
+        Scan points to leave out of the characteristics (e.g. measurement outliers).
+    evaluation_distance : float, optional
+        Points farther than this from the CAD are not used (mm; default: the plan's
+        ``max_distance``, else the default of :func:`shapeverify.inspect`).
 
     Returns
     -------
@@ -488,9 +526,9 @@ def evaluate_plan(prep, scan, plan=None, registration=None, init=None, rng=None)
     start = init
     if start is None and registration is not None and a.type != "constrained":
         start = registration.T_model_scan   # (a constrained fit keeps the fixture's pose)
-    al = align(P, prep, a, init=start, rng=rng)
+    al = alignment if alignment is not None else align(P, prep, a, init=start, rng=rng)
     t1 = time.perf_counter()
-    chars, S, sec = evaluate_characteristics(prep, P, plan, al)
+    chars, S, sec = evaluate_characteristics(prep, P, plan, al, exclude, evaluation_distance)
     t2 = time.perf_counter()
     dev = np.where(S.ok, S.d, np.nan)
     verdict = worst_verdict([c.verdict for c in chars])   # no characteristics: 'undecided'

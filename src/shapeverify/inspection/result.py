@@ -62,6 +62,11 @@ class InspectionResult:
     inputs : dict
         What was inspected: ``part``, ``scan`` (file name), ``model`` (file), ``model_sha256``
         when known (set by :mod:`shapeverify.pipeline`).
+    characteristics : tuple of CharacteristicResult
+        With a plan: each characteristic's nominal, measured, deviation, limits, uncertainty and
+        verdict (:mod:`shapeverify.characteristics`).
+    plan : PlanResult or None
+        With a plan: the whole plan evaluation (alignment, section, ...).
     """
 
     verdict: str
@@ -80,6 +85,8 @@ class InspectionResult:
     rule: str = ""
     excluded: dict = field(default_factory=dict)
     inputs: dict = field(default_factory=dict)
+    characteristics: tuple = ()
+    plan: object = None
 
     @property
     def decision(self) -> dict:
@@ -143,6 +150,10 @@ class InspectionResult:
             "spacing": _num(self.spacing),
             "timings": {k: _num(v) for k, v in self.timings.items()},
         }
+        if self.plan is not None:
+            plan = self.plan.to_dict()
+            d["characteristics"] = plan["characteristics"]
+            d["alignment"] = plan["alignment"]
         if per_face:
             d["per_face"] = {str(f): {k: _num(v) for k, v in s.to_dict().items()}
                              for f, s in self.per_face.items()}

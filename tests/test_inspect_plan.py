@@ -1,0 +1,79 @@
+"""`sv.inspect(prep, scan, plan=...)` and `shapeverify inspect --plan --pdf` (issue 17): the plan's
+characteristics join the verdict, the JSON carries them in the documented form."""
+
+from __future__ import annotations
+
+import json
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import shapeverify as sv
+from shapeverify.cad.examples import PANEL_HOLE, example_part_step
+from shapeverify.simulate import virtual_scan
+
+pytestmark = pytest.mark.slow
+
+X, Y, R = PANEL_HOLE
+PLAN = f"""units: mm
+alignment: {{type: best_fit}}
+characteristics:
+  - {{name: H1, type: hole, near: [{X}, {Y}, 0], diameter: {{tol: 0.5}}, position: {{tol: 0.6}}}}
+  - {{name: SKIN, type: surface_profile, faces: all, tol: 0.4}}
+"""
+
+
+@pytest.fixture(scope="module")
+def panel(tmp_path_factory):
+    d = tmp_path_factory.mktemp("plan")
+    prep = sv.prepare(sv.load_model(example_part_step(d / "panel.step")), spacing=1.0)
+    prep.save(d / "panel.svm")
+    (d / "plan.yaml").write_text(PLAN)
+    return prep, d
+
+
+def test_plan_characteristics_in_the_result_and_json(panel):
+    prep, d = panel
+    scan = virtual_scan(prep, pixel=1.0, noise=0.02, outlier_fraction=0.02, motion=(1.0, 2.0), rng=4)
+    res = sv.inspect(prep, scan.scan, tolerance=0.2, plan=d / "plan.yaml")
+    names = [c.name for c in res.characteristics]
+    assert names == ["H1", "SKIN"]
+    js = json.loads(json.dumps(res.to_dict(), allow_nan=False))
+    h1 = next(c for c in js["characteristics"] if c["name"] == "H1")
+    assert {"name", "type", "nominal", "measured", "deviation", "uncertainty", "verdict"} <= set(h1)
+    assert np.allclose(h1["nominal"]["center"][:2], [X, Y], atol=1e-6)
+    assert abs(h1["measured"]["diameter"] - 2 * R) < 0.2
+    assert np.linalg.norm(np.subtract(h1["measured"]["center"][:2], [X, Y])) < 0.1
+    skin = next(c for c in js["characteristics"] if c["name"] == "SKIN")
+    # isolated outliers do not decide the profile: twice the largest inlier deviation
+    assert skin["measured"] < 0.2 and skin["verdict"] == "pass"
+    assert js["alignment"]["type"] == "best_fit"
+    assert res.verdict == "pass", res.reasons
+
+
+def test_failing_characteristic_fails_the_part(panel):
+    prep, d = panel
+    scan = virtual_scan(prep, pixel=1.0, noise=0.02, dents=[(0.3, 12.0)], motion=(1.0, 2.0), rng=5)
+    res = sv.inspect(prep, scan.scan, tolerance=0.35, plan=PLAN.replace("tol: 0.4", "tol: 0.3"))
+    assert res.verdict == "fail" and res.rule == "characteristics"
+    assert "SKIN" in res.reasons[0]
+
+
+def test_cli_plan_and_pdf(panel, tmp_path):
+    from shapeverify.io.points import write_ply
+
+    prep, d = panel
+    scan = virtual_scan(prep, pixel=1.0, noise=0.02, motion=(1.0, 2.0), rng=6)
+    write_ply(tmp_path / "scan.ply", scan.scan)
+    out = subprocess.run([sys.executable, "-m", "shapeverify.cli", "inspect", str(d / "panel.svm"),
+                          str(tmp_path / "scan.ply"), "--tolerance", "0.2", "--plan",
+                          str(d / "plan.yaml"), "--pdf", str(tmp_path / "r.pdf"), "--json",
+                          str(tmp_path / "r.json"), "--part", "P-1"],
+                         capture_output=True, text=True, timeout=600)
+    assert out.returncode == 0, out.stdout + out.stderr
+    assert "Characteristics" in out.stdout and "H1" in out.stdout
+    assert (tmp_path / "r.pdf").read_bytes()[:5] == b"%PDF-"
+    js = json.loads((tmp_path / "r.json").read_text())
+    assert [c["name"] for c in js["characteristics"]] == ["H1", "SKIN"]
