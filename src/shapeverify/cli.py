@@ -129,8 +129,10 @@ def _main(ctx: typer.Context,
 
 
 @app.command()
-def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges), mesh, point cloud or .svm/.svmodel")):
-    """Print a summary of a model: faces, units, size."""
+def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges), mesh, point cloud or .svm/.svmodel"),
+         features: bool = typer.Option(False, "--features", help="Also list the CAD features an inspection plan can name (hole:N, face:N)"),
+         json_out: Optional[Path] = typer.Option(None, "--json", help="With --features: write them as JSON")):
+    """Print a summary of a model: faces, units, size (and with --features its holes and faces)."""
     from shapeverify.pipeline import PREPARED_SUFFIX
 
     _require_files(model)
@@ -147,7 +149,10 @@ def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges
     out.print(model_summary_table(m, title=str(model)))
     if prep is not None:
         out.print(f"prepared: {prep.n_points:,} model points at {prep.spacing:.3g} mm spacing, "
-                  f"max distance {prep.max_distance:.3g} mm")
+                  f"reach {prep.max_distance:.3g} mm")
+    if features:
+        from shapeverify.cli_plan import print_features
+        print_features(m, str(model), json_out)
 
 
 def model_summary_table(m, title: str) -> Table:
@@ -210,7 +215,7 @@ def inspect(
     init: Optional[Path] = typer.Option(None, "--init", help="Start pose T_model_scan: a 4x4 in T.json or T.npy (default: found automatically)"),
     scan_unit: Optional[str] = typer.Option(None, "--scan-unit", help="Unit of the scan file (mm, cm, m, in, um; default mm)"),
     model_unit: Optional[str] = typer.Option(None, "--model-unit", help="Unit of an STL/PLY/OBJ/point-cloud model (default mm; CAD files declare theirs)"),
-    plan: Optional[Path] = typer.Option(None, "--plan", help="Inspection plan (plan.yaml): alignment, characteristics with uncertainty"),
+    plan: Optional[Path] = typer.Option(None, "--plan", help="Inspection plan (plan.yaml): alignment, characteristics with uncertainty; without --tolerance the colour map uses half its first surface profile's zone"),
     json_path: Optional[Path] = typer.Option(None, "--json", help="Write the result as JSON"),
     report: Optional[Path] = typer.Option(None, "--report", help="Write the HTML report"),
     pdf: Optional[Path] = typer.Option(None, "--pdf", help="Write the PDF report (colour map, histogram, characteristics)"),
@@ -225,10 +230,13 @@ def inspect(
     """
     from shapeverify.pipeline import run_inspection
 
-    if tolerance is None and lower is None and upper is None:
-        _fail("give --tolerance MM (or --lower/--upper limits in mm)")
     _require_files(model, scan, *([init] if init is not None else []),
                    *([plan] if plan is not None else []))
+    if tolerance is None and lower is None and upper is None:
+        if plan is None:
+            _fail("give --tolerance MM (or --lower/--upper limits in mm, or a --plan)")
+        from shapeverify.cli_plan import default_tolerance
+        tolerance = _guard(default_tolerance, plan)
     T0 = _guard(_read_init, init) if init is not None else None
     result, outputs = _guard(
         run_inspection, model, scan, tolerance=tolerance, evaluation_distance=evaluation_distance,
@@ -519,5 +527,5 @@ if __name__ == "__main__":  # pragma: no cover
 from .cli_optics import register_commands as _register_optics  # noqa: E402  (measure, calibrate)
 _register_optics(app)
 
-from .cli_plan import register_commands as _register_plan  # noqa: E402  (features, plan-inspect, spc)
+from .cli_plan import register_commands as _register_plan  # noqa: E402  (spc)
 _register_plan(app)
