@@ -53,7 +53,7 @@ def test_rig_round_trip_json_and_yaml_is_lossless(tmp_path, suffix):
     (lambda d: d["cameras"]["left"].__setitem__("T", [1, 0, 0]), "cameras.left must have R = identity"),
     (lambda d: d["projector"]["pattern"].__setitem__("period_px", 0.5), "projector.pattern.period_px"),
     (lambda d: d["projector"]["pattern"].__setitem__("direction", "diagonal"), "projector.pattern.direction"),
-    (lambda d: d["cameras"]["right"].__setitem__("dist", [0, 0, 0, 0]), "cameras.right.dist must have shape [5]"),
+    (lambda d: d["cameras"]["right"].__setitem__("dist", [0, 0, 0]), "cameras.right.dist must have shape [5]"),
     (lambda d: d["projector"].__setitem__("size", [12.5, 8]), "projector.size must be [width, height]"),
 ])
 def test_bad_rig_file_names_the_key(tmp_path, edit, key):
@@ -63,6 +63,21 @@ def test_bad_rig_file_names_the_key(tmp_path, edit, key):
     p.write_text(json.dumps(d))
     with pytest.raises(RigFormatError, match=re.escape(key)):
         load_rig(p)
+
+
+def test_opencv_style_vectors_and_short_dist_are_accepted(tmp_path):
+    d = json.loads(ISSUE_RIG)
+    d.pop("units")
+    d["cameras"]["right"]["T"] = [[-200], [0], [30]]
+    d["cameras"]["right"]["dist"] = [-0.1, 0.05, 0.001, -0.002, 0.01, 0, 0, 0]
+    d["projector"]["dist"] = [0, 0, 0, 0]
+    rig = Rig.from_dict(d)
+    np.testing.assert_array_equal(rig.right.T, [-200, 0, 30])
+    np.testing.assert_array_equal(rig.right.dist, [-0.1, 0.05, 0.001, -0.002, 0.01])
+    assert rig.projector.dist.shape == (5,)
+    d["cameras"]["right"]["dist"] = [-0.1, 0.05, 0.001, -0.002, 0.01, 0.3, 0, 0]
+    with pytest.raises(RigFormatError, match="rational / thin-prism"):
+        Rig.from_dict(d)
 
 
 def test_not_json_is_a_clear_error(tmp_path):

@@ -11,13 +11,16 @@ File format (``rig.json``; YAML with the same keys is read and written too)::
 
 Conventions, exactly:
 
-* lengths in millimetres (``"units": "mm"``, the only unit accepted);
+* lengths in millimetres (``"units": "mm"``, the only unit accepted; a file without ``units`` is
+  read as mm);
 * the world frame is the **left camera's** frame, OpenCV axes: x right, y down, z forward (the
   viewing direction); the left camera therefore has ``R = I``, ``T = 0`` (other values are an error);
 * every device maps a left-frame point to its own frame by ``x_device = R · x_left + T``
   (OpenCV's ``stereoCalibrate`` R, T); its centre is ``-Rᵀ T`` in the left frame;
 * pixels: ``(u, v) = (column, row)``, pixel centres at integer coordinates ((0, 0) is the centre of
   the top-left pixel); ``size`` is ``[width, height]``;
+* ``T`` may also be written as a column ``[[tx], [ty], [tz]]``; ``dist`` as 4 values (k3 = 0) or
+  OpenCV's 8/12/14-value forms when the extra terms are zero;
 * projection: ``x' = x/z, y' = y/z``, OpenCV distortion with ``dist = [k1, k2, p1, p2, k3]``
   (``r² = x'² + y'²``, radial ``1 + k1 r² + k2 r⁴ + k3 r⁶``, tangential p1, p2), then
   ``[u, v, 1]ᵀ = K [x'', y'', 1]ᵀ`` (``K`` upper triangular, ``K[2] = [0, 0, 1]``);
@@ -86,6 +89,22 @@ class Device:
     T: np.ndarray = field(default_factory=lambda: np.zeros(3))
 
     def __post_init__(self):
+        # vectors may come as columns ([[tx], [ty], [tz]], OpenCV's output); dist as 4 values
+        # (k3 = 0) or OpenCV's longer forms whose extra (rational, prism, tilt) terms are zero
+        for name in ("dist", "T"):
+            v = getattr(self, name)
+            try:
+                a = np.asarray(v, dtype=np.float64).ravel()
+            except (TypeError, ValueError):
+                continue
+            if name == "dist" and a.size == 4:
+                a = np.append(a, 0.0)
+            elif name == "dist" and a.size in (8, 12, 14):
+                if np.any(a[5:] != 0):
+                    raise RigFormatError("dist must be [k1, k2, p1, p2, k3]: the rational / thin-prism / tilt "
+                                         f"terms of OpenCV's longer models are not supported (got {a.size} values)")
+                a = a[:5]
+            object.__setattr__(self, name, a if a.size in (3, 5) else v)
         for name, shape in (("K", (3, 3)), ("dist", (5,)), ("R", (3, 3)), ("T", (3,))):
             object.__setattr__(self, name, np.ascontiguousarray(_matrix(getattr(self, name), name, shape)))
         if not (self.K[0, 0] > 0 and self.K[1, 1] > 0 and self.K[1, 0] == 0 and np.allclose(self.K[2], [0, 0, 1])):
@@ -212,7 +231,7 @@ class Rig:
     def from_dict(cls, d) -> "Rig":
         if not isinstance(d, dict):
             raise RigFormatError(f"a rig must be an object with keys units, cameras, projector, got {type(d).__name__}")
-        units = d.get("units", None)
+        units = d.get("units", "mm")  # absent: millimetres, the format's only unit
         if units != "mm":
             raise RigFormatError(f"units must be \"mm\" (all lengths in millimetres), got {units!r}")
         cams = d.get("cameras")
