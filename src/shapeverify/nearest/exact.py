@@ -7,7 +7,9 @@
   ``on_boundary`` when that segment is a free edge).  Faces met among the nearest model
   point's graph neighbours and its nearest point on another face are tried too when the first
   foot ends on the boundary (a shared edge) or when their model point is nearly as close
-  (concave corners), and the closest foot wins.  The surfaces are evaluated from polynomial
+  (concave corners).  Then every patch of every face whose rigorous bound
+  (:class:`~shapeverify.nearest.patches.PatchBounds`: Bézier-hull boxes in a hierarchy) is
+  nearer than the best foot is solved too, so the closest foot that wins is the global one.  The surfaces are evaluated from polynomial
   patch tables (:func:`power_tables`, one tensor-product polynomial per knot span, built on
   first use), which is several times faster per evaluation than the knot-span recursion.
 * Mesh models (:class:`ExactMesh`): exact point-triangle projection over every triangle that
