@@ -515,6 +515,14 @@ def batch(
                      EXIT_INCOMPLETE if s.incomplete else EXIT_PASS)
 
 
+# the commands of the optical chain and of inspection plans live in their own modules
+from .cli_optics import register_commands as _register_optics  # noqa: E402  (measure, calibrate)
+from .cli_plan import register_commands as _register_plan  # noqa: E402  (spc)
+
+_register_optics(app)
+_register_plan(app)
+
+
 def main() -> None:  # pragma: no cover - entry point
     """Entry point: run the command line (exit codes in the module docstring)."""
     app(prog_name="shapeverify")
@@ -522,10 +530,3 @@ def main() -> None:  # pragma: no cover - entry point
 
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())
-
-
-from .cli_optics import register_commands as _register_optics  # noqa: E402  (measure, calibrate)
-_register_optics(app)
-
-from .cli_plan import register_commands as _register_plan  # noqa: E402  (spc)
-_register_plan(app)
