@@ -16,8 +16,9 @@ $(STAMP): pyproject.toml
 	$(BIN)/python -m pip install --quiet -e ".[dev,service,batch]"
 	@touch $(STAMP)
 
+# `make demo OPTICS=1` adds the optical chain: fringe images -> points -> verdict
 demo: $(STAMP)
-	$(BIN)/python -m shapeverify.demo
+	$(BIN)/python -m shapeverify.demo demo-output $(if $(OPTICS),--optics,)
 
 test: $(STAMP)
 	$(BIN)/python -m pytest -q
