@@ -72,7 +72,9 @@ def run_chunks(fn, n: int, min_chunk: int = MIN_CHUNK) -> None:
                 _pool.shutdown(wait=False)
             _pool = ThreadPoolExecutor(max_workers=w, thread_name_prefix="shapeverify-closest")
         pool = _pool
-    cuts = np.linspace(0, n, w + 1).astype(np.int64)
+    # a few chunks per thread: a thread the OS holds back does not hold up the others
+    k = min(4 * w, max(w, n // max(1, min_chunk)))
+    cuts = np.linspace(0, n, k + 1).astype(np.int64)
     futures = [pool.submit(fn, int(a), int(b)) for a, b in zip(cuts[:-1], cuts[1:])]
     for f in futures:
         f.result()
