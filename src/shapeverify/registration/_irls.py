@@ -459,13 +459,13 @@ def _verify(P, prep, st: State, ev: Eval, radius, tol, exact, rng, mp):
     # own estimate (a pure noise-like correction does not grow with the subset's size)
     m = float(np.sqrt(max(theta @ Hs @ theta, 0.0))) / ev.sigma
     inc = pose_increment(theta, radius)
+    if m <= max(np.sqrt(tol * both.sum()), VERIFY_SIGMA):
+        return True, inc, 0.0
     rho = ev.loss.rho
     o_fix = float(np.mean(rho(ev.d[S][both], ev.sigma)))
     o_new = float(np.mean(rho(df[both], ev.sigma)))
     dobj = abs(o_new - o_fix) / max(o_fix, 1e-300)
-    ok = (m <= max(np.sqrt(tol * both.sum()), VERIFY_SIGMA)
-          or (inc <= POSE_FRACTION * ev.sigma and dobj <= OBJECTIVE_RTOL))
-    return ok, inc, dobj
+    return inc <= POSE_FRACTION * ev.sigma and dobj <= OBJECTIVE_RTOL, inc, dobj
 
 
 def stage_final_plane(P, prep, st: State, loss, scale, floor, radius, max_it, tol, exact, rng,

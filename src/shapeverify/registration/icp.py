@@ -53,8 +53,10 @@ _METHODS = {"point-to-plane": "point-to-plane", "plane": "point-to-plane",
 COARSE_SUBSET = 800
 #: tolerance and iteration cap of the coarse stage
 _COARSE_TOL = 1e-4
-#: the coarse stage's robust scale falls by at most this factor per iteration (graduated)
-ANNEAL = 0.7
+#: the coarse stage's robust scale may fall by at most this factor per iteration (graduated
+#: scale, see ``_irls.stage_rematch``); None: off (it did not keep the impeller out of its
+#: wrong minima and costs a second matching of the final stage on the example panel)
+ANNEAL = None
 _STAGE_CAP = 60
 
 
@@ -429,7 +431,7 @@ def register(scan, prep, init=None, method: str = "point-to-plane", loss: str = 
            f"not converged: {why}")
     desc = tuple(_describe(undet))
     from .global_search import fit_distance
-    notes = list(_pose_warnings(ev, w, ga, fit_distance(prep)))
+    notes = list(_pose_warnings(ev, w, ga, fit_distance(prep), radius))
     if undet.shape[0]:
         txt = ("scan geometry leaves %d pose direction(s) undetermined: %s"
                % (undet.shape[0], "; ".join(desc)))
@@ -466,7 +468,7 @@ WARN_MEAN_SIGMA = 0.5
 WARN_RUNNER_UP = 0.97
 
 
-def _rejected_information(ev, w) -> float:
+def _rejected_information(ev, w, radius) -> float:
     """Largest ratio ``v^T H_rej v / v^T H_w v`` over the eigenvectors v of the weighted
     point-to-plane information H_w (rotation scaled by the scan's radius), H_rej the
     unweighted information of the valid points with weight 0."""
@@ -474,7 +476,7 @@ def _rejected_information(ev, w) -> float:
     if not rej.any():
         return 0.0
     c = _irls.centroid(ev.X, w)
-    r = max(float(np.sqrt(np.mean(np.sum((ev.X - c) ** 2, axis=1)))), 1e-12)
+    r = radius
     D = np.outer(*(2 * [np.r_[[1.0 / r] * 3, [1.0] * 3]]))
     Hw, _ = _irls.system(ev.Y, ev.Y, ev.N, w, c)
     Hr, _ = _irls.system(ev.Y, ev.Y, ev.N, rej.astype(np.float64), c)
@@ -486,7 +488,7 @@ def _rejected_information(ev, w) -> float:
     return float(np.max(np.einsum("ij,ik,kj->j", V, Hr * D, V) / lam))
 
 
-def _pose_warnings(ev, w, ga, tau=None):
+def _pose_warnings(ev, w, ga, tau, radius):
     """Signs that the final pose is not the right minimum (see ``Registration.warnings``)."""
     inl = float(ev.inliers.mean())
     if inl < WARN_INLIERS:
@@ -496,7 +498,7 @@ def _pose_warnings(ev, w, ga, tau=None):
         yield (f"the robust residual scale is {ev.sigma:.3g} mm, more than {WARN_SCALE:g} x "
                f"the fit distance {tau:.3g} mm (4 model point spacings or 0.5 % of the size): "
                "the pose is likely a wrong minimum (or the scan is very noisy)")
-    share = _rejected_information(ev, w)
+    share = _rejected_information(ev, w, radius)
     if share > WARN_REJECTED_INFO:
         yield (f"the scan points the robust loss rejected hold {share:.2g} x the information "
                "of the points it kept in the least determined pose direction: the pose rests "
