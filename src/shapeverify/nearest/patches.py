@@ -142,45 +142,63 @@ class PatchBounds:
                 hi_l = face.loops[0].max(axis=0)
                 ua, ub = max(ua, lo_l[0]), min(ub, hi_l[0])
                 va, vb = max(va, lo_l[1]), min(vb, hi_l[1])
-            for i in range(nsu):
-                u0, u1 = max(b_u[i], ua), min(b_u[i + 1], ub)
-                if not u1 > u0 and not (u1 == u0 and nsu == 1):
-                    continue
-                for j in range(nsv):
-                    v0, v1 = max(b_v[j], va), min(b_v[j + 1], vb)
-                    if not v1 > v0 and not (v1 == v0 and nsv == 1):
-                        continue
-                    Cs = C[i, j]
-                    one = _nets(Cs, p, q, np.array([[u0, u1]]) - m_u[i],
-                                np.array([[v0, v1]]) - m_v[j])[0, 0]
-                    w = one[..., 3]
-                    if not np.all(w > 0):
-                        n_bad += 1
-                    P = one[..., :3] / np.where(w > 0, w, 1.0)[..., None]
-                    lu = np.linalg.norm(np.diff(P, axis=0), axis=2).sum(axis=0).max()
-                    lv = np.linalg.norm(np.diff(P, axis=1), axis=2).sum(axis=1).max()
-                    ku = int(np.clip(np.ceil(lu / size), 1, _MAX_SUB))
-                    kv = int(np.clip(np.ceil(lv / size), 1, _MAX_SUB))
-                    tu = np.linspace(u0, u1, ku + 1)
-                    tv = np.linspace(v0, v1, kv + 1)
-                    us = np.column_stack([tu[:-1], tu[1:]])
-                    vs = np.column_stack([tv[:-1], tv[1:]])
-                    nets = _nets(Cs, p, q, us - m_u[i], vs - m_v[j]).reshape(
-                        ku * kv, p + 1, q + 1, 4)
-                    w = nets[..., 3]
-                    P = nets[..., :3] / np.where(w > 0, w, 1.0)[..., None]
-                    c, a, h = _obb(P, margin)
-                    # a non-positive weight voids the convex hull property: never prune it
-                    h[~np.all(w.reshape(w.shape[0], -1) > 0, axis=1)] = np.inf
-                    Cn.append(c)
-                    Ax.append(a)
-                    Hf.append(h)
-                    UV.append(np.column_stack([np.repeat(us, kv, axis=0),
-                                               np.tile(vs, (ku, 1))]))
-                    F.append(np.full(ku * kv, fi, dtype=np.int32))
+            # the knot spans that meet the outer loop's box, clipped to it
+            iu = np.flatnonzero((np.minimum(b_u[1:], ub) > np.maximum(b_u[:-1], ua))
+                                | ((nsu == 1) & (ub >= ua)))
+            jv = np.flatnonzero((np.minimum(b_v[1:], vb) > np.maximum(b_v[:-1], va))
+                                | ((nsv == 1) & (vb >= va)))
+            if iu.size == 0 or jv.size == 0:
+                continue
+            u_lo, u_hi = np.maximum(b_u[iu], ua), np.minimum(b_u[iu + 1], ub)
+            v_lo, v_hi = np.maximum(b_v[jv], va), np.minimum(b_v[jv + 1], vb)
+            # one net per span: control polygon lengths -> sub-boxes per span row / column
+            N1 = np.einsum("ima,jlb,ijabw->ijmlw",
+                           _bernstein_matrices(p, u_lo - m_u[iu], u_hi - u_lo),
+                           _bernstein_matrices(q, v_lo - m_v[jv], v_hi - v_lo),
+                           C[np.ix_(iu, jv)])
+            w1 = N1[..., 3]
+            P1 = N1[..., :3] / np.where(w1 > 0, w1, 1.0)[..., None]
+            lu = np.linalg.norm(np.diff(P1, axis=2), axis=-1).sum(axis=2).max(axis=2)
+            lv = np.linalg.norm(np.diff(P1, axis=3), axis=-1).sum(axis=3).max(axis=2)
+            ku = np.clip(np.ceil(lu.max(axis=1) / size), 1, _MAX_SUB).astype(np.int64)
+            kv = np.clip(np.ceil(lv.max(axis=0) / size), 1, _MAX_SUB).astype(np.int64)
+
+            def pieces(lo, hi, k):
+                span = np.repeat(np.arange(lo.size), k)
+                t = np.arange(span.size) - np.repeat(np.cumsum(k) - k, k)
+                step = (hi - lo) / k
+                a0 = lo[span] + t * step[span]
+                a1 = np.where(t + 1 == k[span], hi[span], lo[span] + (t + 1) * step[span])
+                return span, np.column_stack([a0, a1])
+
+            su, us = pieces(u_lo, u_hi, ku)
+            sv, vs = pieces(v_lo, v_hi, kv)
+            Mu = _bernstein_matrices(p, us[:, 0] - m_u[iu[su]], us[:, 1] - us[:, 0])
+            Mv = _bernstein_matrices(q, vs[:, 0] - m_v[jv[sv]], vs[:, 1] - vs[:, 0])
+            X, Y = us.shape[0], vs.shape[0]
+            step = max(1, 20_000 // Y)
+            for x0_ in range(0, X, step):
+                xs = slice(x0_, min(X, x0_ + step))
+                Cx = C[iu[su[xs]]][:, jv[sv]]             # (x, Y, p+1, q+1, 4)
+                nets = np.einsum("xma,ylb,xyabw->xymlw", Mu[xs], Mv, Cx)
+                nx = nets.shape[0]
+                nets = nets.reshape(nx * Y, p + 1, q + 1, 4)
+                w = nets[..., 3]
+                P = nets[..., :3] / np.where(w > 0, w, 1.0)[..., None]
+                c, a_, h = _obb(P, margin)
+                # a non-positive weight voids the convex hull property: never prune it
+                bad = ~np.all(w.reshape(w.shape[0], -1) > 0, axis=1)
+                h[bad] = np.inf
+                n_bad += int(bad.sum())
+                Cn.append(c)
+                Ax.append(a_)
+                Hf.append(h)
+                UV.append(np.column_stack([np.repeat(us[xs], Y, axis=0),
+                                           np.tile(vs, (nx, 1))]))
+                F.append(np.full(nx * Y, fi, dtype=np.int32))
         if n_bad:
-            logger.warning("%d knot spans with non-positive weights: their patches are never "
-                           "pruned (slower exact queries)", n_bad)
+            logger.warning("%d patches with non-positive weights are never pruned (slower "
+                           "exact queries)", n_bad)
         face_id = np.concatenate(F)
         centre = np.concatenate(Cn)
         axes = np.concatenate(Ax)
