@@ -38,6 +38,11 @@ class PlanePrep:
 
     def __init__(self):
         self.model = plane_model()
+        x, y = np.meshgrid(np.arange(0.5, 100.0, 1.0), np.arange(0.5, 60.0, 1.0))   # 1 mm
+        pts = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
+        self.points = SimpleNamespace(points=pts, face=(pts[:, 0] > 50).astype(np.int32), spacing=1.0)
+        self.spacing = 1.0
+        self.n_points = len(pts)
 
     def closest(self, q, exact=False):
         foot = q.copy()
@@ -87,7 +92,8 @@ def test_html_is_one_offline_file_with_view_histogram_tables_and_units(inspected
     assert not re.search(r"<link[^>]*\shref=", page)
     assert 'id="view3d"' in page and 'id="histogram"' in page
     assert ">FAIL<" in page and "mm" in page and "[mm]" in page
-    assert "R1" in page and "Defect regions" in page and "Per-face statistics" in page
+    assert "R1" in page and "Regions (most severe first)" in page and "Per-face statistics" in page
+    assert "decided by rule" in page and "coverage" in page
     assert "stand-in plane 100 x 60 mm" in page
     # colour scale: diverging, centred at 0, clipped at 2 x tolerance, limits marked
     assert '"cmin":-0.4' in page and '"cmax":0.4' in page and '"cmid":0.0' in page
@@ -178,5 +184,6 @@ def test_deviation_colors_scale_ends_and_nan():
 def test_result_json_matches_report_numbers(inspected):
     _, _, res = inspected
     d = json.loads(json.dumps(res.to_dict()))
-    assert d["not_evaluated"] == {"too_far": 1, "on_boundary": 1, "total": 2}
-    assert d["deviation"]["n"] == res.deviations.n_evaluated
+    assert d["excluded"] == {"too_far": 1, "material": 0, "on_boundary": 1, "outside_faces": 0,
+                             "outliers": res.outliers.n}
+    assert d["deviation"]["n"] == res.deviations.n_evaluated - res.outliers.n

@@ -97,7 +97,12 @@ def _plane_prep():
                                index=np.zeros(len(q), np.int64),
                                on_boundary=(foot[:, 0] != q[:, 0]) | (foot[:, 1] != q[:, 1]))
 
-    return SimpleNamespace(model=Model(tuple(faces), source="browser test plane"), closest=closest)
+    x, y = np.meshgrid(np.arange(0.5, 100.0, 1.0), np.arange(0.5, 60.0, 1.0))   # model points
+    pts = np.column_stack([x.ravel(), y.ravel(), np.zeros(x.size)])
+    return SimpleNamespace(model=Model(tuple(faces), source="browser test plane"), closest=closest,
+                           points=SimpleNamespace(points=pts, face=(pts[:, 0] > 50).astype(np.int32),
+                                                  spacing=1.0),
+                           spacing=1.0, n_points=len(pts))
 
 
 @pytest.fixture(scope="module")
