@@ -46,6 +46,11 @@ console = Console(stderr=True)
 out = Console()
 
 EXIT_PASS, EXIT_FAIL, EXIT_ERROR, EXIT_INCOMPLETE = 0, 1, 2, 3
+# one option, one default (shapeverify.inspection.default_evaluation_distance), for inspect and batch
+_EVALUATION_DISTANCE = typer.Option(
+    None, "--evaluation-distance", "--max-distance",
+    help="Scan points farther than this from the CAD are not evaluated [mm] "
+         "(default: max(1 mm, 5 x the tolerance))")
 VERDICT_EXIT = {"pass": EXIT_PASS, "fail": EXIT_FAIL, "error": EXIT_ERROR,
                 "incomplete": EXIT_INCOMPLETE}
 
@@ -206,10 +211,7 @@ def inspect(
     tolerance: Optional[float] = typer.Option(None, help="Symmetric tolerance ±MM"),
     lower: Optional[float] = typer.Option(None, help="Lower limit [mm] (negative: into the material)"),
     upper: Optional[float] = typer.Option(None, help="Upper limit [mm]"),
-    evaluation_distance: Optional[float] = typer.Option(
-        None, "--evaluation-distance", "--max-distance",
-        help="Scan points farther than this from the CAD are not evaluated [mm] "
-             "(default: max(1 mm, 5 x the tolerance))"),
+    evaluation_distance: Optional[float] = _EVALUATION_DISTANCE,
     faces: Optional[str] = typer.Option(None, "--faces", help="Inspect only these CAD faces, e.g. '0,3,7' (default: all)"),
     min_coverage: Optional[float] = typer.Option(None, "--min-coverage", help="Least share of the inspected CAD area that must be seen (0..1, default 0.2 = shapeverify.inspection.MIN_COVERAGE); below it the verdict is 'incomplete'"),
     init: Optional[Path] = typer.Option(None, "--init", help="Start pose T_model_scan: a 4x4 in T.json or T.npy (default: found automatically)"),
@@ -480,10 +482,7 @@ def batch(
     scans_dir: Path = typer.Argument(..., help="Folder of scans"),
     out_dir: Path = typer.Option(..., "--out", help="Output folder (JSON per scan, summary.csv)"),
     tolerance: float = typer.Option(..., help="Symmetric tolerance ±MM"),
-    evaluation_distance: Optional[float] = typer.Option(
-        None, "--evaluation-distance", "--max-distance",
-        help="Scan points farther than this from the CAD are not evaluated [mm] "
-             "(default: max(1 mm, 5 x the tolerance))"),
+    evaluation_distance: Optional[float] = _EVALUATION_DISTANCE,
     scheduler: Optional[str] = typer.Option(None, help="Existing Dask scheduler address (default: local cluster)"),
     workers: int = typer.Option(2, help="Local worker processes"),
     reports: bool = typer.Option(False, "--reports", help="Also write an HTML report per scan"),
