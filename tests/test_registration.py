@@ -298,7 +298,7 @@ def wavy():
     return model, _prepare(model, spacing=1.0)
 
 
-@pytest.mark.parametrize("method", ["point-to-plane", "point-to-point"])
+@pytest.mark.parametrize("method", ["point-to-plane", "point-to-point", "point-then-plane"])
 @pytest.mark.parametrize("loss", sorted(LOSSES))
 def test_every_method_and_loss(wavy, method, loss):
     model, prep = wavy
@@ -311,6 +311,21 @@ def test_every_method_and_loss(wavy, method, loss):
     assert np.linalg.det(reg.R) == pytest.approx(1.0, abs=1e-12)
     assert reg.converged, reg.message
     assert acc.crb < 6.0 and acc.normal_rms < 2e-3, acc
+
+
+def test_point_then_plane_strategy_of_section_522(wavy):
+    """Thesis Section 5.2.2: point-to-point steps far from the solution, point-to-plane near it --
+    as accurate as point-to-plane throughout, in a handful of final iterations."""
+    model, prep = wavy
+    vs = virtual_scan(model, pixel=4.0, noise=0.02, outlier_fraction=0.05, motion=(6.0, 12.0),
+                      rng=3)
+    both = register(vs.scan, prep, method="point-then-plane", rng=0)
+    plane = register(vs.scan, prep, method="point-to-plane", rng=0)
+    assert both.converged and both.method == "point-then-plane"
+    a, b = vs.accuracy(both.T_model_scan), vs.accuracy(plane.T_model_scan)
+    assert a.normal_rms < 2e-3 and abs(a.normal_rms - b.normal_rms) < 5e-4
+    with pytest.raises(ValueError, match="point-then-plane"):
+        register(vs.scan, prep, method="point-to-curve")
 
 
 def test_point_to_point_is_honest_where_it_crawls(panel, panel_prep):

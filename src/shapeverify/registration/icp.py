@@ -48,7 +48,8 @@ __all__ = ["register", "Registration", "IterationRecord", "DegenerateGeometryWar
 logger = logging.getLogger(__name__)
 
 _METHODS = {"point-to-plane": "point-to-plane", "plane": "point-to-plane",
-            "point-to-point": "point-to-point", "point": "point-to-point"}
+            "point-to-point": "point-to-point", "point": "point-to-point",
+            "point-then-plane": "point-then-plane", "point-to-point-then-plane": "point-then-plane"}
 #: size of the random subset of the coarse stage (all points if the scan is smaller)
 COARSE_SUBSET = 800
 #: tolerance and iteration cap of the coarse stage
@@ -212,7 +213,8 @@ def _check_init(init):
 def _check_method(method) -> str:
     key = str(method).lower().replace("_", "-")
     if key not in _METHODS:
-        raise ValueError(f"unknown method {method!r}; use 'point-to-plane' or 'point-to-point'")
+        raise ValueError(f"unknown method {method!r}; use 'point-to-plane', 'point-to-point' or "
+                         "'point-then-plane'")
     return _METHODS[key]
 
 
@@ -260,9 +262,12 @@ def register(scan, prep, init=None, method: str = "point-to-plane", loss: str = 
         'global': always search.  A matrix: the start T_model_scan (e.g. a fixture pose, see
         :func:`~shapeverify.registration.initial.read_init`).  ``Registration.init`` says
         which start was used.
-    method : {'point-to-plane', 'point-to-point'}
+    method : {'point-to-plane', 'point-to-point', 'point-then-plane'}
         Rigid step: linearised point-to-plane least squares (thesis eq. 12-13) composed exactly
         onto the pose, or the weighted SVD solution (eq. 7-10) towards the closest points.
+        'point-then-plane' is the strategy of the thesis' Section 5.2.2: the coarse stage takes
+        point-to-point steps (robust far from the solution, where the tangent planes of the
+        closest points mislead), the final stage point-to-plane steps (fast near it).
     loss : {'tukey', 'huber', 'cauchy', 'welsch', 'l2'}
         Robust rho-function; its tuning constant is ``c * sigma`` (95 % efficiency).
     scale : float or None
@@ -378,13 +383,15 @@ def register(scan, prep, init=None, method: str = "point-to-plane", loss: str = 
         return P if n <= k else P[np.sort(rng.choice(n, k, replace=False))]
 
     convex = lossobj if lossobj.name in ("l2", "huber") else get_loss("huber")
+    coarse_method = "point-to-point" if method == "point-then-plane" else method
+    final_method = "point-to-plane" if method == "point-then-plane" else method
     cap = min(max_iterations, _STAGE_CAP)
     S_coarse = subset(COARSE_SUBSET)
 
     def coarse(T, check):
         st = _irls.State(T[:3, :3].copy(), T[:3, 3].copy())
         # graduation: convex loss on a subset first, then the requested loss on every point
-        _irls.stage_rematch("coarse", S_coarse, prep, st, method, convex, scale, floor, radius,
+        _irls.stage_rematch("coarse", S_coarse, prep, st, coarse_method, convex, scale, floor, radius,
                             cap, max(_COARSE_TOL, tolerance), False,
                             first=_reachable if check else None, anneal=ANNEAL)
         return st
@@ -407,11 +414,11 @@ def register(scan, prep, init=None, method: str = "point-to-plane", loss: str = 
             st = coarse(ga.T_model_scan, False)
     else:
         st = coarse(T0, True)
-    if method == "point-to-plane":
+    if final_method == "point-to-plane":
         ev, converged, why = _irls.stage_final_plane(P, prep, st, lossobj, scale, floor, radius,
                                                 max_iterations, tolerance, False, rng)
     else:
-        ev, converged, why = _irls.stage_rematch("final", P, prep, st, method, lossobj, scale,
+        ev, converged, why = _irls.stage_rematch("final", P, prep, st, final_method, lossobj, scale,
                                             floor, radius, max_iterations, tolerance, False)
 
     w = ev.w
