@@ -39,7 +39,7 @@ def sphere_model():
 
 @pytest.fixture(scope="module")
 def sphere_prep(sphere_model):
-    return prepare(sphere_model, spacing=0.5, max_distance=3.0)
+    return prepare(sphere_model, spacing=0.5, reach=3.0)
 
 
 @pytest.fixture(scope="module")
@@ -47,7 +47,7 @@ def cylinder_prep():
     # lateral face of a cylinder r = 5, z in [0, 20]; the rims (v = 0, v = 1) are free edges,
     # the seam (u = 0 = 1) is shared with itself
     face = Face(cylinder(5.0, 20.0), (RECT,), (np.array([True, False, True, False]),))
-    return prepare(Model(faces=(face,), source="cylinder"), spacing=0.4, max_distance=2.0)
+    return prepare(Model(faces=(face,), source="cylinder"), spacing=0.4, reach=2.0)
 
 
 # --------------------------------------------------------------------- analytic shapes
@@ -70,7 +70,7 @@ def test_fast_mode_error_falls_with_spacing_squared(sphere_model):
     q, d, r = _shell(rng, 4000, 0.0, 8.5, 11.5)
     errs = []
     for h in (0.8, 0.4):
-        prep = prepare(sphere_model, spacing=h, max_distance=2.0)
+        prep = prepare(sphere_model, spacing=h, reach=2.0)
         near = prep.closest(q)
         clear = np.abs(r - 10.0) > 0.1  # farther than the fast mode's error
         assert np.all(np.sign(near.distances[clear]) == np.sign(r[clear] - 10.0))
@@ -136,7 +136,7 @@ def test_shared_edge_between_two_faces():
                (np.array([True, False, True, True]),))          # x = 10 edge shared
     side = Face(_plane([10, 0, -10], [0, 10, 0], [0, 0, 10]), (RECT,),
                 (np.array([True, True, False, True]),))         # z = 0 edge shared
-    prep = prepare(Model(faces=(top, side), source="edge"), spacing=0.2, max_distance=2.0)
+    prep = prepare(Model(faces=(top, side), source="edge"), spacing=0.2, reach=2.0)
     rng = np.random.default_rng(3)
     n = 3000
     q = np.column_stack([rng.uniform(8.0, 11.5, n), rng.uniform(1.0, 9.0, n),
@@ -209,7 +209,7 @@ def _brute_triangles(q, V, T):
 def test_mesh_exact_against_brute_force():
     V, T = _uv_sphere_mesh()
     model = Model(kind="mesh", vertices=V, triangles=T.astype(np.int32), source="uv sphere")
-    prep = prepare(model, spacing=0.3, max_distance=1.5)
+    prep = prepare(model, spacing=0.3, reach=1.5)
     rng = np.random.default_rng(4)
     q, _, r = _shell(rng, 600, 0.0, 4.0, 6.2)
     near = prep.closest(q, exact=True)
@@ -230,7 +230,7 @@ def test_point_cloud_exact_is_the_nearest_cloud_point():
     P = rng.normal(size=(3000, 3))
     P = 8.0 * P / np.linalg.norm(P, axis=1)[:, None]
     model = Model(kind="points", vertices=P, cloud_normals=P / 8.0, source="cloud")
-    prep = prepare(model, spacing=0.6, max_distance=2.0)
+    prep = prepare(model, spacing=0.6, reach=2.0)
     q, _, r = _shell(rng, 1000, 0.0, 6.5, 9.5)
     near = prep.closest(q, exact=True)
     d, j = cKDTree(P).query(q)
@@ -279,7 +279,7 @@ def test_wavy_cube_exact_against_ocp(shared_data):
     from shapeverify.cad.load import load_model
 
     model = load_model(shared_data / "cad" / "wavy-cube.stp")
-    prep = prepare(model, spacing=0.02, max_distance=0.06)
+    prep = prepare(model, spacing=0.02, reach=0.06)
     near = _against_ocp(model, prep, 400, 0.05, np.random.default_rng(6), 1e-8)
     assert np.all(np.isfinite(near.distances))
 
@@ -290,7 +290,7 @@ def test_impeller_exact_against_ocp(shared_data):
     from shapeverify.cad.load import load_model
 
     model = load_model(shared_data / "cad" / "impeller.igs")
-    prep = prepare(model, spacing=0.5, max_distance=3.0)
+    prep = prepare(model, spacing=0.5, reach=3.0)
     _against_ocp(model, prep, 300, 1.5, np.random.default_rng(7), 1e-8)
 
 
@@ -350,8 +350,8 @@ def test_prepare_arguments(sphere_model):
     for bad in (0.0, -1.0, np.nan, "x"):
         with pytest.raises(ValueError, match="spacing"):
             prepare(sphere_model, spacing=bad)
-        with pytest.raises(ValueError, match="max_distance"):
-            prepare(sphere_model, spacing=1.0, max_distance=bad)
+        with pytest.raises(ValueError, match="reach"):
+            prepare(sphere_model, spacing=1.0, reach=bad)
     assert default_spacing(100.0) == pytest.approx(0.2)
     assert default_spacing(4e4) == pytest.approx(80.0) and default_spacing(0.0) == 1.0
     assert default_max_distance(100.0, 0.2) == pytest.approx(3.0)

@@ -63,7 +63,7 @@ def _analytic(q, rects, post=((17.0, 4.0), 1.0, 3.0)):
 @pytest.fixture(scope="module")
 def tabs():
     model, rects = _tabs_model()
-    return prepare(model, spacing=0.5, max_distance=2.0), rects
+    return prepare(model, spacing=0.5, reach=2.0), rects
 
 
 def _tab_queries(rng, n):
@@ -116,7 +116,7 @@ def test_patch_boxes_contain_their_surface():
 
     model, _ = _tabs_model()
     for m, h in ((model, 0.5), (wavy_panel(split=True), 2.0)):
-        prep = prepare(m, spacing=h, max_distance=4 * h)
+        prep = prepare(m, spacing=h, reach=4 * h)
         prep.closest(np.zeros((1, 3)), exact=True)
         pb = prep._exact.patches
         rng = np.random.default_rng(3)
@@ -193,7 +193,7 @@ def test_wavy_panel_against_brute_force():
     from shapeverify.cad.examples import wavy_panel
 
     model = wavy_panel(split=True)
-    prep = prepare(model, spacing=1.0, max_distance=4.0)
+    prep = prepare(model, spacing=1.0, reach=4.0)
     rng = np.random.default_rng(5)
     n = 300
     q = np.column_stack([rng.uniform(-5, 125, n), rng.uniform(-5, 95, n),
@@ -248,7 +248,7 @@ def impeller_prep(shared_data):
             pass
     from shapeverify.cad.load import load_model
 
-    prep = prepare(load_model(path), spacing=0.5, max_distance=3.0)
+    prep = prepare(load_model(path), spacing=0.5, reach=3.0)
     tmp = svm.with_suffix(f".{os.getpid()}.tmp")
     prep.save(tmp)
     os.replace(tmp, svm)

@@ -32,7 +32,7 @@ def stepped():
 
     model = Model(faces=(_face(_wavy(0, 100, 0, 80, 0.0)), _face(_wavy(30, 70, 20, 60, STEP, phase=1.0))),
                   unit="mm", scale_to_mm=1.0, source="stepped test part", kind="cad")
-    prep = prepare(model, spacing=1.0, max_distance=5.0)
+    prep = prepare(model, spacing=1.0, reach=5.0)
     cam = PinholeCamera.look_at([50, 40, 250], [50, 40, 0], up=(0, 1, 0), fov_deg=26, width=150, height=120)
     setup = HolographySetup(camera=cam, synthetic=1.0, source=(50.0, 40.0, 250.0))
     return model, prep, setup

@@ -154,7 +154,7 @@ def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges
     out.print(model_summary_table(m, title=str(model)))
     if prep is not None:
         out.print(f"prepared: {prep.n_points:,} model points at {prep.spacing:.3g} mm spacing, "
-                  f"reach {prep.max_distance:.3g} mm")
+                  f"reach {prep.reach:.3g} mm")
     if features:
         from shapeverify.cli_plan import print_features
         print_features(m, str(model), json_out)
@@ -201,7 +201,7 @@ def prepare(
     with _stage(f"Writing {output.name}"):
         _guard(prep.save, output)
     out.print(f"{output}: {prep.n_points:,} model points, spacing {prep.spacing:.3g} mm, "
-              f"reach {prep.max_distance:.3g} mm")
+              f"reach {prep.reach:.3g} mm")
 
 
 @app.command()

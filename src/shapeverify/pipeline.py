@@ -73,7 +73,7 @@ def load_reference(path: str | Path, spacing: float | None = None,
             from shapeverify.units import scale_model
             model = scale_model(model, model_unit)
     with stage(f"Preparing closest-point structure ({len(model.faces)} faces)"):
-        return prepare(model, spacing=spacing, max_distance=reach)
+        return prepare(model, spacing=spacing, reach=reach)
 
 
 @dataclass

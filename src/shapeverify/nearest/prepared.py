@@ -110,7 +110,7 @@ class Prepared:
     ----------
     model : Model
     spacing : float               model point spacing (mm)
-    max_distance : float          reach of the DVG tree (mm)
+    max_distance : float          reach of the DVG tree (mm); also :attr:`reach`
     tree : DVGTree
     points : ModelPoints          the model points in the order ``Closest.index`` refers to
                                   (Morton order, not that of ``model.sample``), rebuilt on each
@@ -134,6 +134,11 @@ class Prepared:
         self._exact = None
 
     # ---------------------------------------------------------------------------- views
+    @property
+    def reach(self) -> float:
+        """The closest-point structure's reach (mm): queries within it use the DVG tree."""
+        return self.max_distance
+
     @property
     def tree(self) -> _dvg.DVGTree:
         return self._fast.tree
@@ -266,7 +271,8 @@ def _other_face_points(points, face, spacing, kd, radius: float = 3.0, k: int = 
     return other
 
 
-def prepare(model, spacing: float | None = None, max_distance: float | None = None) -> Prepared:
+def prepare(model, spacing: float | None = None, reach: float | None = None, *,
+            max_distance: float | None = None) -> Prepared:
     """Prepare a model for fast closest-point queries (Paper I).
 
     Parameters
@@ -277,9 +283,12 @@ def prepare(model, spacing: float | None = None, max_distance: float | None = No
         Model point spacing in mm; default ``model.size / 500`` (for meshes and clouds at
         least :func:`shapeverify.cad.sampling.needed_spacing`: about 4 points per triangle,
         the cloud's own point spacing).
+    reach : float, optional
+        The closest-point structure's reach: queries within this distance (mm) are answered by
+        the DVG tree, farther ones by a kd-tree; default ``max(0.03 * model.size, 2 * spacing)``.
+        (Not the inspection's evaluation distance, which decides which scan points count.)
     max_distance : float, optional
-        Queries within this distance (mm) are answered by the DVG tree, farther ones by a
-        kd-tree; default ``max(0.03 * model.size, 2 * spacing)``.
+        Old name of ``reach``.
 
     Returns
     -------
@@ -288,7 +297,7 @@ def prepare(model, spacing: float | None = None, max_distance: float | None = No
     Raises
     ------
     ValueError
-        If ``spacing`` or ``max_distance`` is not a finite number > 0, or the model yields no
+        If ``spacing`` or ``reach`` is not a finite number > 0, or the model yields no
         model points.
 
     Examples
@@ -297,12 +306,17 @@ def prepare(model, spacing: float | None = None, max_distance: float | None = No
     >>> from shapeverify.cad.model import Face, Model
     >>> f = Face(sphere(10.0), (np.array([[0, 0], [1, 0], [1, 1], [0, 1.]]),),
     ...          (np.zeros(4, bool),))
-    >>> prep = prepare(Model(faces=(f,), source="sphere"), spacing=1.0, max_distance=3.0)
+    >>> prep = prepare(Model(faces=(f,), source="sphere"), spacing=1.0, reach=3.0)
     >>> near = prep.closest([[0.0, 0.0, 12.0]], exact=True)
     >>> round(float(near.distances[0]), 9)
     2.0
     """
-    for name, val in (("spacing", spacing), ("max_distance", max_distance)):
+    if max_distance is not None:
+        if reach is not None:
+            raise ValueError("give reach only (max_distance is its old name)")
+        reach = max_distance
+    max_distance = reach
+    for name, val in (("spacing", spacing), ("reach", reach)):
         if val is not None:
             try:
                 ok = np.isfinite(float(val)) and float(val) > 0
