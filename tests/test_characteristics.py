@@ -342,7 +342,7 @@ def test_cli_features_plan_inspect_and_spc(prep, tmp_path):
     r = run(app, ["inspect", str(tmp_path / "b.svm"), str(tmp_path / "s.npy"), "--plan",
                   str(tmp_path / "bad.yaml")])
     assert r.exit_code == 2 and "line 2" in r.output
-    r = run(app, ["spc", "--db", str(tmp_path / "h.sqlite"), "--characteristic", "H2", "--csv",
+    r = run(app, ["history", "--db", str(tmp_path / "h.sqlite"), "--characteristic", "H2", "--csv",
                   str(tmp_path / "h2.csv")])
     assert r.exit_code == 0, r.output
     assert "H2.diameter" in r.output and (tmp_path / "h2.csv").exists()

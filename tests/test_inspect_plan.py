@@ -69,11 +69,14 @@ def test_cli_plan_and_pdf(panel, tmp_path):
     write_ply(tmp_path / "scan.ply", scan.scan)
     out = subprocess.run([sys.executable, "-m", "shapeverify.cli", "inspect", str(d / "panel.svm"),
                           str(tmp_path / "scan.ply"), "--tolerance", "0.2", "--plan",
-                          str(d / "plan.yaml"), "--pdf", str(tmp_path / "r.pdf"), "--json",
+                          str(d / "plan.yaml"), "--pdf", str(tmp_path / "r.pdf"), "--report",
+                          str(tmp_path / "r.html"), "--json",
                           str(tmp_path / "r.json"), "--part", "P-1"],
                          capture_output=True, text=True, timeout=600)
     assert out.returncode == 0, out.stdout + out.stderr
     assert "Characteristics" in out.stdout and "H1" in out.stdout
     assert (tmp_path / "r.pdf").read_bytes()[:5] == b"%PDF-"
+    page = (tmp_path / "r.html").read_text()
+    assert "Characteristics (mm)" in page and ">H1<" in page and "ISO 14253-1" in page
     js = json.loads((tmp_path / "r.json").read_text())
     assert [c["name"] for c in js["characteristics"]] == ["H1", "SKIN"]

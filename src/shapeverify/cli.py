@@ -352,9 +352,17 @@ def history(
     part: Optional[str] = typer.Option(None, "--part", help="Only this part id"),
     limit: int = typer.Option(50, help="Most recent N records"),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Write trend charts (PNG)"),
+    characteristic: Optional[str] = typer.Option(None, "--characteristic", help="A plan characteristic: its run chart with control limits and Cp/Cpk (a hole's name gives both series)"),
+    csv_out: Optional[Path] = typer.Option(None, "--csv", help="With --characteristic: export its history as CSV"),
 ):
-    """List past inspections and draw trend charts for process control."""
+    """List past inspections and draw trend charts for process control (SPC)."""
     from shapeverify.report.history import HistoryDB, plot_trend
+
+    if characteristic is not None:
+        from shapeverify.cli_plan import print_characteristic_history
+        print_characteristic_history(db, characteristic, part=part, limit=limit, plot=plot,
+                                     csv_out=csv_out)
+        return
 
     if not db.exists():
         _fail(f"{db}: no such history file (create one with `shapeverify inspect ... --db {db}`)")
@@ -514,12 +522,10 @@ def batch(
                      EXIT_INCOMPLETE if s.incomplete else EXIT_PASS)
 
 
-# the commands of the optical chain and of inspection plans live in their own modules
+# the commands of the optical chain live in their own module
 from .cli_optics import register_commands as _register_optics  # noqa: E402  (measure, calibrate)
-from .cli_plan import register_commands as _register_plan  # noqa: E402  (spc)
 
 _register_optics(app)
-_register_plan(app)
 
 
 def main() -> None:  # pragma: no cover - entry point

@@ -3,8 +3,8 @@
 ``shapeverify info MODEL --features [--json OUT]`` (:func:`print_features`): the CAD features a
 plan can name (holes, planar and cylindrical faces) with their ids.  Plans are run by the one
 pipeline, ``shapeverify inspect MODEL SCAN --plan PLAN.yaml [--pdf OUT.pdf]``.
-``shapeverify spc --db DB --characteristic NAME [--plot PNG] [--csv OUT]``: the characteristic's
-history with Cp/Cpk and a run chart.
+``shapeverify history --db DB --characteristic NAME [--plot PNG] [--csv OUT]``
+(:func:`print_characteristic_history`): the characteristic's history with Cp/Cpk and a run chart.
 """
 from __future__ import annotations
 
@@ -12,10 +12,9 @@ import json
 from pathlib import Path
 from typing import Optional
 
-import typer
 from rich.table import Table
 
-__all__ = ["register_commands", "print_features", "default_tolerance"]
+__all__ = ["print_features", "default_tolerance", "print_characteristic_history"]
 
 
 def print_features(m, title: str, json_out: Optional[Path] = None) -> None:
@@ -50,46 +49,38 @@ def default_tolerance(plan) -> float:
     return 0.1
 
 
-def register_commands(app: typer.Typer) -> None:
-    """Add the ``spc`` command to ``app`` (plans are run by ``inspect --plan``, features are
-    listed by ``info --features``)."""
-    from shapeverify.cli import _fail, _guard, _require_files, _stage, out  # noqa: F401
+def print_characteristic_history(db: Path, characteristic: str, part: Optional[str] = None,
+                                 limit: Optional[int] = None, plot: Optional[Path] = None,
+                                 csv_out: Optional[Path] = None) -> None:
+    """``shapeverify history --characteristic NAME``: Cp/Cpk against the tolerance, run chart,
+    CSV export of one characteristic's history."""
+    from shapeverify.characteristics.spc import (capability, characteristic_rows, export_csv,
+                                                 plot_run_chart)
+    from shapeverify.cli import _fail, out
 
-    @app.command()
-    def spc(db: Path = typer.Option(..., "--db", help="SQLite history file"),
-            characteristic: str = typer.Option(..., "--characteristic",
-                                               help="Name (a hole's name gives both series)"),
-            part: Optional[str] = typer.Option(None, "--part", help="Only this part id"),
-            limit: Optional[int] = typer.Option(None, help="Most recent N values"),
-            plot: Optional[Path] = typer.Option(None, "--plot", help="Run chart (PNG)"),
-            csv_out: Optional[Path] = typer.Option(None, "--csv", help="CSV export")):
-        """Characteristic history: Cp/Cpk against the tolerance, run chart, CSV export."""
-        from shapeverify.characteristics.spc import (capability, characteristic_rows,
-                                                     export_csv, plot_run_chart)
-
-        if not db.exists():
-            _fail(f"{db}: no such history file")
-        try:
-            rows = characteristic_rows(db, characteristic, part=part, limit=limit)
-        except KeyError as exc:
-            _fail(str(exc.args[0]))
-        t = Table(title=f"{characteristic}: {len(rows)} values (mm)")
-        for col in ("series", "n", "mean", "Cp", "Cpk", "Pp", "Ppk", "note"):
-            t.add_column(col)
-        for name in sorted({r["name"] for r in rows}):
-            rs = [r for r in rows if r["name"] == name]
-            vals = [r["value"] for r in rs if r["value"] is not None]
-            if len(vals) < 2:
-                t.add_row(name, str(len(vals)), "-", "-", "-", "-", "-", "fewer than 2 values")
-                continue
-            cap = capability(vals, rs[-1]["lower"], rs[-1]["upper"])
-            f = (lambda v: "-" if v is None else f"{v:.2f}")
-            t.add_row(name, str(cap.n), f"{cap.mean:+.4f}", f(cap.cp), f(cap.cpk), f(cap.pp),
-                      f(cap.ppk), "[yellow]" + cap.message + "[/yellow]" if cap.too_few else "")
-        out.print(t)
-        if plot is not None:
-            plot_run_chart(rows, plot)
-            out.print(f"run chart: {plot}")
-        if csv_out is not None:
-            export_csv(rows, csv_out)
-            out.print(f"CSV: {csv_out}")
+    if not db.exists():
+        _fail(f"{db}: no such history file")
+    try:
+        rows = characteristic_rows(db, characteristic, part=part, limit=limit)
+    except KeyError as exc:
+        _fail(str(exc.args[0]))
+    t = Table(title=f"{characteristic}: {len(rows)} values (mm)")
+    for col in ("series", "n", "mean", "Cp", "Cpk", "Pp", "Ppk", "note"):
+        t.add_column(col)
+    for name in sorted({r["name"] for r in rows}):
+        rs = [r for r in rows if r["name"] == name]
+        vals = [r["value"] for r in rs if r["value"] is not None]
+        if len(vals) < 2:
+            t.add_row(name, str(len(vals)), "-", "-", "-", "-", "-", "fewer than 2 values")
+            continue
+        cap = capability(vals, rs[-1]["lower"], rs[-1]["upper"])
+        f = (lambda v: "-" if v is None else f"{v:.2f}")
+        t.add_row(name, str(cap.n), f"{cap.mean:+.4f}", f(cap.cp), f(cap.cpk), f(cap.pp),
+                  f(cap.ppk), "[yellow]" + cap.message + "[/yellow]" if cap.too_few else "")
+    out.print(t)
+    if plot is not None:
+        plot_run_chart(rows, plot)
+        out.print(f"run chart: {plot}")
+    if csv_out is not None:
+        export_csv(rows, csv_out)
+        out.print(f"CSV: {csv_out}")

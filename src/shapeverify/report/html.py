@@ -42,6 +42,19 @@ def _fmt(x, digits: int = 4, signed: bool = False) -> str:
     return f"{float(x):+.{digits}f}" if signed else f"{float(x):.{digits}f}"
 
 
+def _fmt_char(v, signed: bool = False) -> str:
+    """A characteristic's value: numbers to 4 decimals, points (x, y, z), dicts 'key value'."""
+    if v is None:
+        return "–"
+    if isinstance(v, (int, float)) and not isinstance(v, bool):
+        return _fmt(v, 4, signed)
+    if isinstance(v, (list, tuple)):
+        return "(" + ", ".join(_fmt(x, 3) for x in v) + ")"
+    if isinstance(v, dict):
+        return "<br>".join(f"{html.escape(str(k))} {_fmt_char(x, signed)}" for k, x in v.items())
+    return html.escape(str(v))
+
+
 def _table(rows, header=None, cls="kv") -> str:
     out = [f'<table class="{cls}">']
     if header:
@@ -275,6 +288,24 @@ def render_html(result, model=None, *, max_points: int = 50_000, title: str | No
     else:
         reg_tab = ('<p class="note">No regions: no connected out-of-tolerance surface and no '
                    'material where the CAD has none.</p>')
+    chars = d.get("characteristics") or []
+    char_card = ""
+    if chars:
+        char_tab = _table(
+            [(html.escape(str(c["name"])), html.escape(str(c["type"])), _fmt_char(c.get("nominal")),
+              _fmt_char(c.get("measured")), _fmt_char(c.get("deviation"), True),
+              _fmt_char(c.get("lower"), True), _fmt_char(c.get("upper"), True),
+              _fmt_char(c.get("uncertainty")),
+              f'<b class="v-{html.escape(str(c["verdict"]))}">{html.escape(str(c["verdict"]))}</b>')
+             for c in chars],
+            header=("characteristic", "type", "nominal", "measured", "deviation", "lower", "upper",
+                    "uncertainty U (k=2)", "verdict"), cls="regions")
+        al = d.get("alignment") or {}
+        char_card = (f'<div class="card"><h2>Characteristics (mm)</h2><p class="note">Alignment: '
+                     f'{html.escape(str(al.get("type", "–")))}, rms {_fmt(al.get("rms"), 4)} mm. '
+                     'Verdicts by the ISO 14253-1 decision rule: a value conforms only when it lies '
+                     'inside the limits by more than its uncertainty U, fails only when outside by '
+                     'more than U; otherwise it is undecided.</p>' + char_tab + '</div>')
     pf = sorted(result.per_face.items(), key=lambda kv: kv[1].in_tolerance_fraction)
     pf_tab = _table(
         [(str(f), _fmt(st.n), _fmt(st.mean, 4, True), _fmt(st.std), _fmt(st.min, 4, True),
@@ -313,6 +344,7 @@ red = material added, clipped at ±{c_lim:.3g} mm (2 × tolerance). Grey surface
 dots: CAD area the scan did not see (no evaluated points near it).
 Drag to rotate, scroll to zoom; click legend entries to show or hide layers.</p>{div3d}</div>
 <div class="card"><h2>Histogram</h2>{divhist}</div>
+{char_card}
 <div class="card"><h2>Regions (most severe first)</h2><p class="note">"deviation": connected
 out-of-tolerance surface; "extreme" is the deviation at its worst point taken from the point's
 neighbourhood (always beyond the limit), "largest single" the most extreme measured point.
