@@ -61,6 +61,10 @@ def _setup_logging(verbose: bool) -> None:
         format="%(message)s",
         handlers=[RichHandler(console=console, show_path=False)],
     )
+    # the library's warnings (e.g. undetermined pose directions) are in the result's reasons in
+    # plain words; on the terminal they appear once, and only with --verbose
+    logging.captureWarnings(True)
+    logging.getLogger("py.warnings").setLevel(logging.WARNING if verbose else logging.ERROR)
 
 
 @contextlib.contextmanager

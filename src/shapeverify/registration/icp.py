@@ -443,12 +443,11 @@ def register(scan, prep, init=None, method: str = "point-to-plane", loss: str = 
         txt = ("scan geometry leaves %d pose direction(s) undetermined: %s"
                % (undet.shape[0], "; ".join(desc)))
         msg += "; " + txt
-        logger.warning(txt)
-        warnings.warn(txt, DegenerateGeometryWarning, stacklevel=2)
+        warnings.warn(txt, DegenerateGeometryWarning, stacklevel=2)    # once; also in the result
     for txt in notes:
-        logger.warning("registration: %s", txt)
+        logger.info("registration: %s", txt)             # in Registration.warnings
     if not converged:
-        logger.warning("registration %s", msg)
+        logger.info("registration %s", msg)              # in Registration.message
     return Registration(T_model_scan=T, rms=ev.rms, iterations=st.iterations,
                         converged=converged, weights=w, inlier_fraction=float(ev.inliers.mean()),
                         covariance=cov, history=tuple(st.history), scale=ev.sigma, message=msg,
