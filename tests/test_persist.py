@@ -313,3 +313,20 @@ def test_damaged_svm_is_a_model_file_error_naming_the_file(tmp_path):
     (tmp_path / "empty.svm").write_bytes(b"")
     with pytest.raises(ModelFileError, match=r"empty\.svm.*empty.*shapeverify prepare"):
         load_prepared(tmp_path / "empty.svm")
+
+
+def test_fixture_pose_is_saved_with_the_prepared_model_and_starts_inspections(tmp_path):
+    import shapeverify as sv
+    from shapeverify.cad.examples import wavy_panel
+    from shapeverify.nearest import load_prepared
+    from shapeverify.simulate import virtual_scan
+    from shapeverify.simulate.scanner import random_motion
+
+    prep = sv.prepare(wavy_panel(), spacing=2.0)
+    vs = virtual_scan(prep, pixel=2.0, noise=0.01, motion=(20.0, 300.0), rng=1)   # far away
+    prep.fixture = vs.T_model_scan @ random_motion(0.5, 0.5, rng=2)              # a rough fixture
+    prep.save(tmp_path / "p.svm")
+    back = load_prepared(tmp_path / "p.svm")
+    np.testing.assert_array_equal(back.fixture, prep.fixture)
+    res = sv.inspect(back, vs.scan, tolerance=0.2)
+    assert res.registration.init == "given" and res.verdict == "pass", res.reasons

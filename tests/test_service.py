@@ -258,7 +258,7 @@ def test_token_and_openapi(server, panel):
     assert {"401", "404", "408", "413", "415", "422", "504"} <= set(op["responses"])
     assert "application/x-npy" in op["requestBody"]["content"]
     assert {p["name"] for p in op["parameters"]} == {"model", "tolerance", "evaluation_distance",
-                                                     "max_distance", "part"}
+                                                     "max_distance", "part", "init"}
     assert [p.get("deprecated") for p in op["parameters"] if p["name"] == "max_distance"] == [True]
     assert any(s.get("type") == "http" and s.get("scheme") == "bearer"
                for s in spec["components"]["securitySchemes"].values())
@@ -510,3 +510,17 @@ def test_request_headers_that_never_finish_are_dropped_after_the_limit(monkeypat
     finally:
         server.should_exit = True
         thread.join(10)
+
+
+def test_init_parameter_gives_the_start_pose_or_a_clear_422(local_app, panel):
+    client, _, _ = local_app
+    _, scans = panel
+    base = {"model": "panel", "tolerance": 0.2}
+    ok = client.post("/inspect", params={**base, "init": "identity"}, content=scans["clean"])
+    assert ok.status_code == 200, ok.text
+    eye = ",".join(str(float(v)) for v in np.eye(4).ravel())
+    given = client.post("/inspect", params={**base, "init": eye}, content=scans["clean"])
+    assert given.status_code == 200 and given.json()["verdict"] == ok.json()["verdict"]
+    for bad in ("sideways", "1,2,3", ",".join(["nan"] * 16)):
+        r = client.post("/inspect", params={**base, "init": bad}, content=scans["clean"])
+        assert r.status_code == 422 and "16 comma-separated numbers" in r.json()["detail"]

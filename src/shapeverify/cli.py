@@ -195,17 +195,21 @@ def prepare(
                                                "within it are answered by the grid tree, farther ones "
                                                "more slowly (default: 3 % of the model size)"),
     model_unit: Optional[str] = typer.Option(None, "--model-unit", help="Unit of an STL/PLY/OBJ/point-cloud model (default mm; CAD files declare theirs)"),
+    fixture: Optional[Path] = typer.Option(None, "--fixture", help="Fixture pose T_model_scan (T.json or T.npy) saved with the model: inspections start there when no --init is given"),
 ):
     """Import a model and pre-compute its closest-point structure (once per model)."""
     from shapeverify.pipeline import load_reference
 
-    _require_files(model)
+    _require_files(model, *([fixture] if fixture is not None else []))
+    T_fixture = _guard(_read_init, fixture) if fixture is not None else None
     prep = _guard(load_reference, model, spacing=spacing, reach=reach, stage=_stage,
                   model_unit=model_unit)
+    if T_fixture is not None:
+        prep.fixture = T_fixture
     with _stage(f"Writing {output.name}"):
         _guard(prep.save, output)
     out.print(f"{output}: {prep.n_points:,} model points, spacing {prep.spacing:.3g} mm, "
-              f"reach {prep.reach:.3g} mm")
+              f"reach {prep.reach:.3g} mm" + (", with a fixture pose" if prep.fixture is not None else ""))
 
 
 @app.command()

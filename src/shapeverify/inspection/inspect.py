@@ -135,7 +135,9 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
         Separate signed limits (mm), overriding ``tolerance``: e.g. ``lower=-0.1, upper=0.3``.
     init : (4, 4) array_like or str, optional
         Initial ``T_model_scan`` for the registration, or a strategy understood by
-        :func:`shapeverify.register` (None: its default).
+        :func:`shapeverify.register`. None: the prepared model's fixture pose
+        (``prep.fixture``, ``prepare --fixture``) if it has one, else the registration's
+        default (an automatic global search when the scan does not already overlap).
     register_kwargs : dict, optional
         More arguments for :func:`shapeverify.register` (``method``, ``loss``, ...).
     progress : callable(stage: str, fraction: float), optional
@@ -194,6 +196,8 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
     opts = _options(prep, tolerance, lower, upper, per_face, evaluation_distance, max_distance,
                     faces, min_coverage, min_region_points, min_inlier_fraction)
     scan = check_scan(scan, _model_size(prep))
+    if init is None and getattr(prep, "fixture", None) is not None:
+        init = np.asarray(prep.fixture, dtype=np.float64)
     if init is not None and not isinstance(init, str):
         _check_near(scan, init, getattr(prep, "model", None))
     timings["validate"] = time.perf_counter() - t_start

@@ -132,6 +132,10 @@ class Prepared:
         self.spacing = float(spacing)
         self.max_distance = float(max_distance)
         self._exact = None
+        #: (4, 4) float64 or None: the fixture pose T_model_scan of a production line where every
+        #: part sits in the same place (``prepare --fixture T.json``); ``inspect`` starts there
+        #: when no ``init`` is given.  Saved in the ``.svm``.
+        self.fixture = None
 
     # ---------------------------------------------------------------------------- views
     @property
@@ -228,7 +232,8 @@ class Prepared:
         from shapeverify.cad.persist import model_to_arrays
 
         meta = {"format": FORMAT_TAG, "version": FORMAT_VERSION, "spacing": self.spacing,
-                "max_distance": self.max_distance, "n_points": self.n_points}
+                "max_distance": self.max_distance, "n_points": self.n_points,
+                "fixture": None if self.fixture is None else np.asarray(self.fixture).tolist()}
         arrays = {"meta": np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8),
                   "rec": self._fast.rec, "rows": self._rows, "boundary": self._boundary}
         arrays.update({f"tree_{k}": np.asarray(v) for k, v in self._fast.tree.arrays().items()})
@@ -426,5 +431,15 @@ def _load_prepared(path: Path) -> Prepared:
     if ((lists.size and (lists.min() < 0 or lists.max() > n))
             or (n and (other.min() < -1 or other.max() >= n))):
         raise ModelFileError(f"{path}: .svm file is inconsistent (point indices out of range)")
-    return Prepared(model, _dvg.DVG(rec, tree), rows, boundary, float(meta["spacing"]),
+    prep = Prepared(model, _dvg.DVG(rec, tree), rows, boundary, float(meta["spacing"]),
                     float(meta["max_distance"]))
+    fixture = meta.get("fixture")
+    if fixture is not None:
+        try:
+            T = np.asarray(fixture, dtype=np.float64)
+        except (TypeError, ValueError):
+            T = np.zeros(0)
+        if T.shape != (4, 4) or not np.all(np.isfinite(T)):
+            raise ModelFileError(f"{path}: .svm file holds a damaged fixture pose")
+        prep.fixture = T
+    return prep

@@ -192,6 +192,23 @@ class _TokenMiddleware:
         await self.app(scope, receive, send)
 
 
+def _parse_init(text: str | None):
+    """The ``init`` query parameter: None, a strategy name, or a 4x4 pose from 16 numbers."""
+    if text is None or text.strip().lower() in ("", "auto"):
+        return None
+    key = text.strip().lower()
+    if key in ("identity", "global", "principal-axes", "pca"):
+        return key
+    try:
+        T = np.array([float(v) for v in text.replace(";", ",").split(",")], dtype=np.float64)
+    except ValueError:
+        T = np.zeros(0)
+    if T.shape != (16,) or not np.all(np.isfinite(T)):
+        raise HTTPException(422, "init must be 'auto', 'identity', 'global', 'principal-axes' or 16 "
+                                 "comma-separated numbers (T_model_scan row by row)")
+    return T.reshape(4, 4)
+
+
 def create_app(config: ServiceConfig) -> FastAPI:
     """Build the FastAPI application for ``config`` (models already loaded and warmed up)."""
     from shapeverify.report.history import HistoryDB
@@ -286,7 +303,7 @@ def create_app(config: ServiceConfig) -> FastAPI:
             return None
 
     def _inspect_and_store(job: _Job, name, prep, body, content_type, tolerance, evaluation_distance,
-                           part):
+                           part, init=None):
         """Worker thread: parse, inspect, store the scan, commit the row (if still wanted)."""
         from shapeverify.inspection import inspect
         from shapeverify.service.body import parse_scan
@@ -298,7 +315,7 @@ def create_app(config: ServiceConfig) -> FastAPI:
         t_parse = time.perf_counter() - t0
         job.check()
         result = inspect(prep, points, tolerance=tolerance, evaluation_distance=evaluation_distance,
-                         progress=job.check)
+                         init=init, progress=job.check)
         payload = result.to_dict()
         payload["timings"]["parse_s"] = t_parse
         payload.update(model=name, part=part)
@@ -389,8 +406,14 @@ def create_app(config: ServiceConfig) -> FastAPI:
         max_distance: float | None = Query(None, gt=0, allow_inf_nan=False, deprecated=True,
                                            description="old name of evaluation_distance"),
         part: str | None = Query(None, max_length=200, description="part id (serial number) for the history"),
+        init: str | None = Query(None, max_length=2000,
+                                 description="start pose: 'auto' (default: the model's fixture pose "
+                                             "if it has one, else found automatically), 'identity', "
+                                             "'global', 'principal-axes', or 16 comma-separated "
+                                             "numbers, T_model_scan row by row (mm)"),
     ) -> dict:
         """Register and inspect the scan in the request body; store the result; return it."""
+        start = _parse_init(init)
         deadline = time.monotonic() + limit
         prep = get_model(model)
         try:
@@ -400,7 +423,7 @@ def create_app(config: ServiceConfig) -> FastAPI:
         return await run_limited(_Job(), deadline, inspect_and_store, model, prep, body,
                                  request.headers.get("content-type"), tolerance,
                                  evaluation_distance if evaluation_distance is not None else max_distance,
-                                 part)
+                                 part, start)
 
     @app.get("/history", dependencies=auth, responses=_responses(401, 422))
     async def history(part: str | None = Query(None, description="only this part id"),
