@@ -106,7 +106,26 @@ class Coverage:
 
 
 def model_samples(prep, faces=None, max_samples: int = MAX_SAMPLES):
-    """Evenly spread model points of the inspected faces: ``(points (K, 3), face (K,), area_per_point)``."""
+    """Evenly spread model points of the inspected faces: ``(points (K, 3), face (K,), area_per_point)``.
+
+    They depend only on the model and the faces, so they are kept on ``prep`` (attribute
+    ``_coverage_samples``, a dict by faces) after the first inspection: about 30 ms a call less
+    for a 100k-point model.
+    """
+    key = (None if faces is None else tuple(int(f) for f in faces), int(max_samples))
+    cache = getattr(prep, "_coverage_samples", None)
+    if cache is None:
+        cache = {}
+        try:
+            prep._coverage_samples = cache
+        except AttributeError:          # an object that takes no attributes: no cache
+            pass
+    if key not in cache:
+        cache[key] = _model_samples(prep, faces, max_samples)
+    return cache[key]
+
+
+def _model_samples(prep, faces, max_samples):
     mp = prep.points
     pts = np.asarray(mp.points)
     face = np.asarray(mp.face, dtype=np.int32)
