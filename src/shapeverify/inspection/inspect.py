@@ -18,6 +18,7 @@ from ..units import unit_hint
 from .coverage import MIN_COVERAGE, compute_coverage
 from .deviations import _deviations
 from .material import find_material, floating_surfaces
+from .plan_link import PlanPose, with_characteristics
 from .regions import MIN_POINTS, find_regions, median_spacing
 from .result import InspectionResult
 from .verdict import (MIN_INLIER_FRACTION, Tolerance, decide, per_face_statistics,
@@ -230,7 +231,7 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
         T_start = init if init is not None and not isinstance(init, str) else None
         if T_start is None and reg is not None and plan_obj.alignment.type != "constrained":
             T_start = reg.T_model_scan       # a constrained fit keeps the fixture's pose
-        reg = _PlanPose(align(scan, prep, plan_obj.alignment, init=T_start, rng=rng), reg)
+        reg = PlanPose(align(scan, prep, plan_obj.alignment, init=T_start, rng=rng), reg)
     timings["register"] = time.perf_counter() - t0
     logger.info("registration: rms %.4g mm, %d iterations, converged %s, inliers %.1f %%",
                 reg.rms, reg.iterations, reg.converged, 100 * reg.inlier_fraction)
@@ -244,7 +245,7 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
         plan_result = evaluate_plan(prep, scan, plan_obj, alignment=reg.alignment, exclude=outliers,
                                     evaluation_distance=opts.evaluation_distance)
         timings["characteristics"] = time.perf_counter() - t0
-        result = _with_characteristics(result, plan_result)
+        result = with_characteristics(result, plan_result)
     timings["total"] = time.perf_counter() - t_start
     logger.info("inspection: %s (%d regions, %d outliers) in %.3f s", result.verdict,
                 len(result.regions), result.outliers.n, timings["total"])
@@ -375,79 +376,6 @@ def _model_size(prep):
         raise EmptyModelError("the prepared model has no surface points (a model without faces?)")
     model = getattr(prep, "model", None)
     return float(model.size) if model is not None and hasattr(model, "size") else None
-
-
-@dataclass(frozen=True, eq=False)
-class _PlanPose:
-    """The pose of a plan's alignment, in the shape the inspection reads a registration."""
-
-    alignment: object
-    free: object = None          # the free registration it started from, if any
-
-    @property
-    def T_model_scan(self):
-        return self.alignment.T_model_scan
-
-    @property
-    def rms(self):
-        return self.alignment.rms
-
-    @property
-    def covariance(self):
-        return self.alignment.covariance
-
-    @property
-    def iterations(self):
-        return int(self.alignment.details.get("iterations", getattr(self.free, "iterations", 0)))
-
-    @property
-    def converged(self):
-        return bool(self.alignment.details.get("converged", True))
-
-    @property
-    def inlier_fraction(self):
-        return float(self.alignment.details.get(
-            "inlier_fraction", getattr(self.free, "inlier_fraction", 1.0)))
-
-    @property
-    def weights(self):
-        return None
-
-    @property
-    def message(self):
-        a = self.alignment
-        return (f"{a.kind} alignment of the plan: fitted {', '.join(a.dof_fitted) or 'none'}; "
-                f"locked {', '.join(a.dof_locked) or 'none'}; rms {a.rms:.4g} mm")
-
-
-def _with_characteristics(result: InspectionResult, plan_result) -> InspectionResult:
-    """The inspection's verdict combined with the plan's characteristics."""
-    import dataclasses
-
-    chars = tuple(plan_result.characteristics)
-    failed = [c.name for c in chars if c.verdict == "fail"]
-    undecided = [c.name for c in chars if c.verdict == "undecided"]
-    verdict, rule, reasons = result.verdict, result.rule, list(result.reasons)
-    lines = []
-    if failed:
-        lines.append(f"characteristic{'s' if len(failed) > 1 else ''} out of tolerance: "
-                     f"{', '.join(failed)}")
-    if undecided:
-        lines.append(f"characteristic{'s' if len(undecided) > 1 else ''} that cannot be decided "
-                     f"within the measurement uncertainty (ISO 14253-1): {', '.join(undecided)}")
-    if verdict in ("pass", "fail") and failed:
-        if verdict == "pass":
-            verdict, rule = "fail", "characteristics"
-            reasons = [f"fail: {lines[0]}"] + lines[1:] + reasons[1:]
-        else:
-            reasons = reasons[:1] + lines + reasons[1:]
-    elif verdict == "pass" and undecided:
-        verdict, rule = "incomplete", "undecided"
-        reasons = [f"incomplete: {lines[0]}"] + reasons[1:]
-    else:
-        reasons = reasons[:1] + lines + reasons[1:]
-    return dataclasses.replace(result, verdict=verdict, rule=rule, reasons=tuple(reasons),
-                               characteristics=chars, plan=plan_result)
 
 
 def _strings(items) -> list[str]:
