@@ -149,8 +149,8 @@ def _area_per_point(pts: np.ndarray, spacing: float, n_probe: int = 2000) -> flo
 
 
 def compute_coverage(prep, foot_points: np.ndarray, scan_spacing: float, *, faces=None,
-                     model_size: float | None = None,
-                     min_coverage: float = MIN_COVERAGE) -> Coverage:
+                     model_size: float | None = None, min_coverage: float = MIN_COVERAGE,
+                     tree: cKDTree | None = None) -> Coverage:
     """Coverage of the inspected faces by evaluated foot points (see the module docstring).
 
     Parameters
@@ -164,6 +164,8 @@ def compute_coverage(prep, foot_points: np.ndarray, scan_spacing: float, *, face
         Inspected faces (None: all).
     model_size : float, optional
         Bounding-box diagonal of the model (mm), for the radius cap.
+    tree : scipy.spatial.cKDTree, optional
+        A tree of ``foot_points`` the caller already built.
     """
     pts, face, a_pt = model_samples(prep, faces)
     h = float(prep.spacing)
@@ -171,7 +173,8 @@ def compute_coverage(prep, foot_points: np.ndarray, scan_spacing: float, *, face
     s = float(scan_spacing) if np.isfinite(scan_spacing) else np.inf
     radius = max(2.0 * h, min(2.0 * s, 0.01 * size))
     if foot_points.shape[0] and pts.shape[0]:
-        d, _ = cKDTree(foot_points).query(pts, k=1, distance_upper_bound=radius)
+        tree = cKDTree(foot_points) if tree is None else tree
+        d, _ = tree.query(pts, k=1, distance_upper_bound=radius)
         covered = np.isfinite(d)
     else:
         covered = np.zeros(pts.shape[0], bool)

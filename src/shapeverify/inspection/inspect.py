@@ -398,22 +398,24 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
     tol = opts.tol
     ev = dev.evaluated
     ev_feet = dev.foot_points[ev]
-    spacing = (median_spacing(cKDTree(ev_feet, balanced_tree=False, compact_nodes=False), ev_feet)
-               if ev_feet.shape[0] >= 2 else float("nan"))
+    # one tree of the evaluated foot points serves the spacing, the regions and the coverage
+    tree = cKDTree(ev_feet, balanced_tree=False, compact_nodes=False) if ev_feet.shape[0] else None
+    spacing = median_spacing(tree, ev_feet) if ev_feet.shape[0] >= 2 else float("nan")
     within = tol.within(dev.values, dev.face)
     weights = getattr(reg, "weights", None)
     if weights is not None and np.shape(weights) != (scan.shape[0],):
         weights = None
     regions, outliers, _ = find_regions(dev.foot_points, dev.values, ev, within, dev.face,
                                         dev.normals, weights, min_points=opts.min_region_points,
-                                        spacing=spacing, limits=tol.limits(dev.face))
+                                        spacing=spacing, limits=tol.limits(dev.face), tree=tree)
     material = find_material(dev, spacing, tol.upper)
     regions = sorted(regions + material, key=lambda r: -r.severity)
     timings["regions"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
-    coverage = compute_coverage(prep, ev_feet, spacing, faces=opts.faces,
-                                model_size=_model_size(prep), min_coverage=opts.min_coverage)
+    model_size = _model_size(prep)
+    coverage = compute_coverage(prep, ev_feet, spacing, faces=opts.faces, model_size=model_size,
+                                min_coverage=opts.min_coverage, tree=tree)
     timings["coverage"] = time.perf_counter() - t0
 
     inl = ev.copy()
@@ -429,7 +431,6 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
     verdict, reasons, rule = decide(reg, dev, regions, coverage,
                                     min_inlier_fraction=opts.min_inlier_fraction)
     notes = []
-    model_size = _model_size(prep)
     hint = unit_hint(_bbox_diagonal(scan), model_size) if model_size else None
     if hint and verdict != "pass":
         notes.append(hint)

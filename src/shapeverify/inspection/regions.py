@@ -136,7 +136,7 @@ def median_spacing(tree: cKDTree, points: np.ndarray, max_samples: int = 1500) -
 def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
                  within: np.ndarray, face: np.ndarray, normals: np.ndarray,
                  weights: np.ndarray | None = None, min_points: int = MIN_POINTS,
-                 spacing: float | None = None, limits=None):
+                 spacing: float | None = None, limits=None, tree: cKDTree | None = None):
     """Cluster out-of-tolerance points into defect regions and measurement outliers.
 
     Parameters
@@ -161,6 +161,8 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
         Per-point lower and upper limits (mm), e.g. from :meth:`Tolerance.limits`; they decide
         which points are core points and the severity. None: just inside the smallest
         out-of-tolerance deviation on each side.
+    tree : scipy.spatial.cKDTree, optional
+        A tree of ``points[evaluated]`` the caller already built (it is built here otherwise).
 
     Returns
     -------
@@ -176,7 +178,8 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
         return [], no_outliers, (float("nan") if spacing is None else float(spacing))
     ev_idx = np.flatnonzero(evaluated)
     ev_pts = points[ev_idx]
-    tree = cKDTree(ev_pts, balanced_tree=False, compact_nodes=False)   # faster to build
+    if tree is None:
+        tree = cKDTree(ev_pts, balanced_tree=False, compact_nodes=False)   # faster to build
     if spacing is None:
         spacing = median_spacing(tree, ev_pts)
     if not np.isfinite(spacing) or spacing <= 0:
