@@ -265,24 +265,10 @@ def inspect(
 
 
 def _read_init(path: Path):
-    """A 4x4 start pose from ``T.json`` (nested list, or {"T_model_scan": [...]}) or ``T.npy``."""
-    try:
-        from shapeverify.registration import read_init
-    except ImportError:                      # pragma: no cover - older registration package
-        read_init = None
-    if read_init is not None:
-        return read_init(path)
-    import json
+    """A 4x4 start pose from ``T.json`` or ``T.npy`` (:func:`shapeverify.registration.read_init`)."""
+    from shapeverify.registration import read_init
 
-    import numpy as np
-    if path.suffix.lower() == ".npy":
-        T = np.load(path, allow_pickle=False)
-    else:
-        data = json.loads(path.read_text())
-        T = np.asarray(data.get("T_model_scan") if isinstance(data, dict) else data, dtype=float)
-    if T.shape != (4, 4) or not np.all(np.isfinite(T)):
-        raise ValueError(f"{path}: the start pose must be a finite 4x4 matrix, got shape {T.shape}")
-    return T
+    return read_init(path)
 
 
 def _fmt_value(v, signed: bool = False) -> str:

@@ -134,7 +134,9 @@ def run_inspection(model_path: str | Path, scan_path: str | Path, tolerance: flo
         result = inspect(prep, scan, tolerance=tolerance, evaluation_distance=evaluation_distance,
                          lower=lower, upper=upper, faces=faces, init=init, plan=plan, **opts)
     out.timings["inspect_s"] = time.perf_counter() - t0
-    model_hash = file_hash(model_path)
+    # the model file's hash ties the written outputs to it; no need to read the file again without
+    outputs = (json_path, report_path, png_path, pdf_path, colored_path, db_path)
+    model_hash = file_hash(model_path) if any(outputs) else None
     result = dataclasses.replace(result, inputs={
         "part": part, "scan": Path(scan_path).name, "model": Path(model_path).name,
         "model_sha256": model_hash})
