@@ -167,8 +167,8 @@ def _gauss_newton(scan, prep, T0, free, center, faces, loss, max_iterations, tol
     free = list(free)
     size = float(getattr(prep.model, "size", 1.0))
     floor = 1e-6 * max(size, 1.0)
-    it, converged = 0, False
-    for it in range(1, max_iterations + 1):
+    def linearise(p, check):
+        """Closest points at pose ``p``: residuals, valid points, scale, weights, Jacobian."""
         R, dR = _drot(p)
         X = (X0 - c) @ R.T + c + p[3:]
         cl = prep.closest(X, exact=True)
@@ -176,7 +176,7 @@ def _gauss_newton(scan, prep, T0, free, center, faces, loss, max_iterations, tol
         valid = ~cl.on_boundary & (np.abs(r) <= reach)
         if faces is not None:
             valid &= np.isin(cl.face, faces)
-        if np.count_nonzero(valid) < 2 * len(free) + 3:
+        if check and np.count_nonzero(valid) < 2 * len(free) + 3:
             raise ValueError(f"only {int(np.count_nonzero(valid))} scan points lie on the "
                              "alignment faces within reach; check the face list and the start pose")
         sigma = max(MAD_TO_SIGMA * float(np.median(np.abs(r[valid]))), floor)
@@ -185,6 +185,11 @@ def _gauss_newton(scan, prep, T0, free, center, faces, loss, max_iterations, tol
         for k, j in enumerate(free):
             d = (X0 - c) @ dR[j].T if j < 3 else np.broadcast_to(np.eye(3)[j - 3], X0.shape)
             J[:, k] = np.einsum("ij,ij->i", cl.normals, d)
+        return r, valid, sigma, w, J
+
+    it, converged = 0, False
+    for it in range(1, max_iterations + 1):
+        r, valid, sigma, w, J = linearise(p, True)
         Jw = J * w[:, None]
         H = Jw.T @ J
         g = Jw.T @ r
@@ -207,19 +212,7 @@ def _gauss_newton(scan, prep, T0, free, center, faces, loss, max_iterations, tol
             converged = True
             break
     # final state at the converged p (same weights), sandwich covariance in p
-    R, dR = _drot(p)
-    X = (X0 - c) @ R.T + c + p[3:]
-    cl = prep.closest(X, exact=True)
-    r = cl.distances
-    valid = ~cl.on_boundary & (np.abs(r) <= reach)
-    if faces is not None:
-        valid &= np.isin(cl.face, faces)
-    sigma = max(MAD_TO_SIGMA * float(np.median(np.abs(r[valid]))), floor)
-    w = np.where(valid, lossobj.weight(r, sigma), 0.0)
-    J = np.empty((P.shape[0], len(free)))
-    for k, j in enumerate(free):
-        d = (X0 - c) @ dR[j].T if j < 3 else np.broadcast_to(np.eye(3)[j - 3], X0.shape)
-        J[:, k] = np.einsum("ij,ij->i", cl.normals, d)
+    r, valid, sigma, w, J = linearise(p, False)
     # M-estimator covariance (Huber 1981, eq. 7.6.4): E[psi^2] / E[psi']^2 (J^T J)^-1 over the
     # valid points; with the IRLS weights in place of psi' (the sandwich of registration) a
     # redescending loss is reported ~1.3x too precise (measured on simulated scans)
