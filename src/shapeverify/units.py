@@ -19,15 +19,27 @@ import math
 
 import numpy as np
 
-__all__ = ["UNITS", "unit_factor", "scale_points", "scale_model", "unit_hint"]
+__all__ = ["UNITS", "MIXUPS", "unit_factor", "scale_points", "scale_model", "unit_hint",
+           "fitting_factor"]
 
 #: Millimetres per unit, by the names accepted.
 UNITS = {"mm": 1.0, "millimetre": 1.0, "millimeter": 1.0, "cm": 10.0, "centimetre": 10.0,
          "centimeter": 10.0, "m": 1000.0, "metre": 1000.0, "meter": 1000.0, "in": 25.4,
          "inch": 25.4, "inches": 25.4, "um": 1e-3, "micrometre": 1e-3, "micrometer": 1e-3}
 
-# the factors a unit mix-up produces, with the unit the smaller file is probably in
-_MIXUPS = ((10.0, "centimetres", "cm"), (25.4, "inches", "in"), (1000.0, "metres", "m"))
+#: Unit mix-ups: (millimetres per unit, name, short name) of the unit a file is probably in.
+MIXUPS = ((1000.0, "metres", "m"), (25.4, "inches", "in"), (10.0, "centimetres", "cm"),
+          (1e-3, "micrometres", "um"))
+
+
+def fitting_factor(ratio: float, factors, lo: float, hi: float, target: float):
+    """``(score, factor, name, short)`` of the ``factors`` entry that brings ``ratio * factor``
+    into ``[lo, hi]`` nearest to ``target`` on a log scale (score ``|log(ratio f / target)|``),
+    or None when none does.  The one search behind :func:`unit_hint` and the scan check of
+    :func:`shapeverify.inspection.check_scan`."""
+    fits = [(abs(math.log(ratio * f / target)), f, name, short) for f, name, short in factors
+            if lo <= ratio * f <= hi]
+    return min(fits) if fits else None
 
 
 def unit_factor(unit: str) -> float:
@@ -65,10 +77,8 @@ def scale_model(model, unit: str):
                          f"({getattr(model, 'unit', '?')}), already converted to mm at import; "
                          "--model-unit is for STL, PLY, OBJ and point-cloud references")
     changes = {"scale_to_mm": float(model.scale_to_mm) * f, "unit": str(unit)}
-    for name in ("vertices",):
-        v = getattr(model, name, None)
-        if v is not None:
-            changes[name] = np.asarray(v, dtype=np.float64) * f
+    if model.vertices is not None:
+        changes["vertices"] = np.asarray(model.vertices, dtype=np.float64) * f
     return dataclasses.replace(model, **changes)
 
 
@@ -84,17 +94,15 @@ def unit_hint(scan_size: float, model_size: float) -> str | None:
     ratio = scan_size / model_size
     if 0.15 <= ratio <= 3.0:
         return None
-    best = None
-    for f, name, short in _MIXUPS:
-        for r, smaller, flag, mul in ((ratio * f, "scan", "--scan-unit", f),
-                                      (ratio / f, "model", "--model-unit", f)):
-            if 0.3 <= r <= 1.5:
-                score = abs(math.log(r / 0.7))
-                if best is None or score < best[0]:
-                    best = (score, smaller, name, short, flag, mul)
-    if best is None:
+    common = [m for m in MIXUPS if m[0] > 1.0]               # cm, inch, m vs mm
+    # the scan in a larger unit: ratio * f in [0.3, 1.5]; the model: ratio / f there, i.e.
+    # (1 / ratio) * f in [1 / 1.5, 1 / 0.3] (same log score about 1 / 0.7)
+    sides = (("scan", "--scan-unit", fitting_factor(ratio, common, 0.3, 1.5, 0.7)),
+             ("model", "--model-unit", fitting_factor(1.0 / ratio, common, 1 / 1.5, 1 / 0.3, 1 / 0.7)))
+    found = [(fit, side, flag) for side, flag, fit in sides if fit is not None]
+    if not found:
         return None
-    _, smaller, name, short, flag, mul = best
+    (_, mul, name, short), smaller, flag = min(found, key=lambda x: x[0][0])
     times = ratio if ratio > 1 else 1 / ratio
     bigger_or_smaller = "smaller" if ratio < 1 else "larger"
     return (f"the scan is {times:.3g} times {bigger_or_smaller} than the model: if the {smaller} is "

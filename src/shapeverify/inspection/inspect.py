@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import logging
-import math
 import time
 import warnings
 from dataclasses import dataclass
@@ -14,7 +13,7 @@ from scipy.spatial import cKDTree
 
 from .. import _arrays
 from ..errors import EmptyModelError, RegistrationError, ScanError
-from ..units import unit_hint
+from ..units import MIXUPS, fitting_factor, unit_hint
 from .coverage import MIN_COVERAGE, compute_coverage
 from .deviations import _deviations
 from .material import find_material, floating_surfaces
@@ -32,8 +31,6 @@ __all__ = ["inspect", "inspect_registered", "check_scan", "default_evaluation_di
 #: A rigid registration has six unknowns.
 MIN_SCAN_POINTS = 6
 
-# Unit factors to mm tried when a scan's size does not match the model's.
-_UNITS = ((1000.0, "metres"), (25.4, "inches"), (10.0, "centimetres"), (1e-3, "micrometres"))
 
 
 def _bbox_diagonal(points: np.ndarray) -> float:
@@ -84,10 +81,9 @@ def _unit_message(size: float, model_size: float, ratio: float) -> str:
     rel = (f"{1 / ratio:.0f} times smaller than" if ratio < 1 else f"{ratio:.0f} times larger than")
     msg = (f"scale mismatch: the scan's extent ({size:.4g}) is {rel} the model's ({model_size:.4g} mm)")
     # A scan usually covers 20-100 % of the part: pick the unit factor that brings it there.
-    fits = [(abs(math.log(ratio * f / 0.6)), f, name) for f, name in _UNITS
-            if 0.05 <= ratio * f <= 3.0]
-    if fits:
-        _, f, name = min(fits)
+    fit = fitting_factor(ratio, MIXUPS, 0.05, 3.0, 0.6)
+    if fit:
+        _, f, name, _ = fit
         return msg + (f"; the scan seems to be in {name}: multiply its coordinates by {f:g} "
                       "to get millimetres")
     return msg + "; check the units of the scan and the model (both must be in mm)"
