@@ -25,9 +25,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
+
+from .regions import linked_components
 
 __all__ = ["Coverage", "compute_coverage", "MIN_COVERAGE", "MAX_SAMPLES"]
 
@@ -199,8 +199,7 @@ def _gaps(pts: np.ndarray, face: np.ndarray, a_pt: float, link: float, most: int
         return ()
     pairs = cKDTree(pts).query_pairs(link, output_type="ndarray")
     m = pts.shape[0]
-    graph = coo_matrix((np.ones(pairs.shape[0], np.int8), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
-    n_comp, labels = connected_components(graph, directed=False)
+    n_comp, labels = linked_components(m, pairs)
     sizes = np.bincount(labels, minlength=n_comp)
     out = []
     for c in np.argsort(-sizes, kind="stable")[:most]:

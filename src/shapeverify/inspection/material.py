@@ -37,12 +37,10 @@ too-far points and cannot be found this way (lower the evaluation distance).
 from __future__ import annotations
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from .deviations import ON_BOUNDARY, TOO_FAR
-from .regions import LINK_FACTOR, DefectRegion
+from .regions import LINK_FACTOR, DefectRegion, linked_components
 
 __all__ = ["find_material", "floating_surfaces", "MIN_MATERIAL_POINTS"]
 
@@ -87,8 +85,7 @@ def find_material(dev, spacing: float, upper_limit: float,
     tree = cKDTree(p)
     pairs = tree.query_pairs(link, output_type="ndarray")
     m = cand.size
-    graph = coo_matrix((np.ones(pairs.shape[0], np.int8), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
-    n_comp, labels = connected_components(graph, directed=False)
+    n_comp, labels = linked_components(m, pairs)
     degree = np.bincount(pairs.ravel(), minlength=m)
     is_far = (too_far & beside)[cand]
     n_far = np.bincount(labels, weights=is_far.astype(np.float64), minlength=n_comp)
@@ -146,8 +143,7 @@ def floating_surfaces(dev, spacing: float, min_points: int = 3 * MIN_MATERIAL_PO
     p = dev.points_model[idx]
     pairs = cKDTree(p).query_pairs(LINK_FACTOR * spacing, output_type="ndarray")
     m = idx.size
-    graph = coo_matrix((np.ones(pairs.shape[0], np.int8), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
-    n_comp, labels = connected_components(graph, directed=False)
+    n_comp, labels = linked_components(m, pairs)
     sizes = np.bincount(labels, minlength=n_comp)
     out = []
     for c in np.argsort(-sizes, kind="stable"):

@@ -203,8 +203,7 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
     if pairs.size:
         pairs = pairs[above[pairs[:, 0]] == above[pairs[:, 1]]]
     m = out_idx.size
-    graph = coo_matrix((np.ones(pairs.shape[0], np.int8), (pairs[:, 0], pairs[:, 1])), shape=(m, m))
-    n_comp, labels = connected_components(graph, directed=False)
+    n_comp, labels = linked_components(m, pairs)
     n_core = np.bincount(labels, weights=core.astype(np.float64), minlength=n_comp)
 
     small = n_core[labels] < min_points
@@ -220,6 +219,14 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
     logger.debug("regions: %d out-of-tolerance points -> %d regions, %d outliers (spacing %.3g mm)",
                  out_idx.size, len(regions), outliers.n, spacing)
     return regions, outliers, float(spacing)
+
+
+def linked_components(n: int, pairs: np.ndarray) -> tuple[int, np.ndarray]:
+    """Connected components of ``n`` points linked by ``pairs`` ((k, 2) indices, e.g. from
+    ``cKDTree.query_pairs``): ``(count, labels (n,))``.  The clustering of regions, material,
+    floating surfaces and coverage gaps."""
+    graph = coo_matrix((np.ones(pairs.shape[0], np.int8), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+    return connected_components(graph, directed=False)
 
 
 def _neighbourhood_median(tree, ev_idx, values, p, radius, k: int = 9) -> np.ndarray:
