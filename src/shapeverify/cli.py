@@ -271,22 +271,6 @@ def _read_init(path: Path):
     return read_init(path)
 
 
-def _fmt_value(v, signed: bool = False) -> str:
-    """A characteristic's value for the table: numbers to 4 decimals, points as (x, y, z),
-    dicts as 'key value' lines."""
-    if v is None:
-        return "–"
-    if isinstance(v, bool):
-        return str(v)
-    if isinstance(v, (int, float)):
-        return f"{v:+.4f}" if signed else f"{v:.4f}"
-    if isinstance(v, (list, tuple)):
-        return "(" + ", ".join(f"{x:.3f}" if isinstance(x, (int, float)) else str(x) for x in v) + ")"
-    if isinstance(v, dict):
-        return "\n".join(f"{k} {_fmt_value(x, signed)}" for k, x in v.items())
-    return str(v)
-
-
 def _print_result(result) -> None:
     d = result.to_dict()
     colour = {"pass": "green", "fail": "red", "incomplete": "magenta"}.get(result.verdict, "yellow")
@@ -317,6 +301,7 @@ def _print_result(result) -> None:
                                                          for k, v in ex.items() if v))
     chars = d.get("characteristics") or []
     if chars:
+        from shapeverify.characteristics.evaluate import format_value as _fmt_value
         ct = Table(title="Characteristics [mm]")
         for col in ("name", "type", "measured", "deviation", "uncertainty U", "verdict"):
             ct.add_column(col)

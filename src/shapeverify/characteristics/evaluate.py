@@ -68,6 +68,29 @@ def _f(x):
     return _jsonable(x)
 
 
+def format_value(v, signed: bool = False, sep: str = "\n", escape=str) -> str:
+    """A characteristic's value (as in its JSON) for a table: numbers to 4 decimals, points as
+    (x, y, z) to 3, dicts as 'key value' entries joined by ``sep``; ``escape`` quotes text (e.g.
+    ``html.escape``).  The CLI and the HTML report both use it.
+
+    >>> format_value({"center": [1.0, 2.0, 3.0], "diameter": 36.14251}, signed=True, sep="; ")
+    'center (1.000, 2.000, 3.000); diameter +36.1425'
+    """
+    if v is None:
+        return "–"
+    if isinstance(v, bool):
+        return escape(str(v))
+    if isinstance(v, (int, float, np.integer, np.floating)):
+        return f"{v:+.4f}" if signed else f"{v:.4f}"
+    if isinstance(v, (list, tuple)):
+        return "(" + ", ".join(f"{x:.3f}" if isinstance(x, (int, float)) else escape(str(x))
+                               for x in v) + ")"
+    if isinstance(v, dict):
+        return sep.join(f"{escape(str(k))} {format_value(x, signed, sep, escape)}"
+                        for k, x in v.items())
+    return escape(str(v))
+
+
 @dataclass(frozen=True, eq=False, repr=False)
 class CharacteristicResult:
     """One evaluated characteristic (see the module docstring for the definitions).

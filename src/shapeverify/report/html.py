@@ -42,19 +42,6 @@ def _fmt(x, digits: int = 4, signed: bool = False) -> str:
     return f"{float(x):+.{digits}f}" if signed else f"{float(x):.{digits}f}"
 
 
-def _fmt_char(v, signed: bool = False) -> str:
-    """A characteristic's value: numbers to 4 decimals, points (x, y, z), dicts 'key value'."""
-    if v is None:
-        return "–"
-    if isinstance(v, (int, float)) and not isinstance(v, bool):
-        return _fmt(v, 4, signed)
-    if isinstance(v, (list, tuple)):
-        return "(" + ", ".join(_fmt(x, 3) for x in v) + ")"
-    if isinstance(v, dict):
-        return "<br>".join(f"{html.escape(str(k))} {_fmt_char(x, signed)}" for k, x in v.items())
-    return html.escape(str(v))
-
-
 def _table(rows, header=None, cls="kv") -> str:
     out = [f'<table class="{cls}">']
     if header:
@@ -291,6 +278,11 @@ def render_html(result, model=None, *, max_points: int = 50_000, title: str | No
     chars = d.get("characteristics") or []
     char_card = ""
     if chars:
+        from shapeverify.characteristics.evaluate import format_value
+
+        def _fmt_char(v, signed=False):
+            return format_value(v, signed, sep="<br>", escape=html.escape)
+
         char_tab = _table(
             [(html.escape(str(c["name"])), html.escape(str(c["type"])), _fmt_char(c.get("nominal")),
               _fmt_char(c.get("measured")), _fmt_char(c.get("deviation"), True),
