@@ -1,0 +1,94 @@
+"""Model points of point-cloud models: thinned cloud points with PCA normals (private).
+
+See :mod:`shapeverify.cad.sampling` (*Point-cloud models*).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+from scipy.spatial import cKDTree
+
+from ._sample_common import _RADIUS, _thin
+
+
+def _sample_cloud(model, s, rng):
+    X = np.asarray(model.vertices, dtype=np.float64)
+    if X.ndim != 2 or X.shape[1] != 3 or len(X) == 0:
+        raise ValueError(f"point-cloud model has no points (vertices shape {X.shape})")
+    given = getattr(model, "cloud_normals", None)
+    r = _RADIUS * s
+    # 1. thin without normals to half the final radius (cheap normals on fewer points)
+    pre = _thin(X, X, 0.5 * r, rng.permutation(len(X)), use_normals=False)
+    pre.sort()
+    Xp = X[pre]
+    if given is not None:
+        N = np.asarray(given, dtype=np.float64)[pre]
+        N = N / np.linalg.norm(N, axis=1)[:, None]
+    else:
+        N = _pca_normals(Xp)
+    # 2. final thinning with the same-side test
+    idx = _thin(Xp, N, r, rng.permutation(len(Xp)))
+    idx.sort()
+    P, N = Xp[idx], N[idx]
+    T = _any_tangent(N)
+    n = len(P)
+    return P, N, T, np.full(n, -1, np.int32), np.zeros((n, 2)), np.zeros(n, bool)
+
+
+@njit(cache=True)
+def _neighbour_cov(X, nb, out):
+    """Covariance (3, 3) of each point's neighbours (rows of nb)."""
+    k = nb.shape[1]
+    for i in range(X.shape[0]):
+        m0 = m1 = m2 = 0.0
+        for j in range(k):
+            q = nb[i, j]
+            m0 += X[q, 0]
+            m1 += X[q, 1]
+            m2 += X[q, 2]
+        m0 /= k
+        m1 /= k
+        m2 /= k
+        c00 = c01 = c02 = c11 = c12 = c22 = 0.0
+        for j in range(k):
+            q = nb[i, j]
+            a = X[q, 0] - m0
+            b = X[q, 1] - m1
+            c = X[q, 2] - m2
+            c00 += a * a
+            c01 += a * b
+            c02 += a * c
+            c11 += b * b
+            c12 += b * c
+            c22 += c * c
+        out[i, 0, 0] = c00
+        out[i, 0, 1] = out[i, 1, 0] = c01
+        out[i, 0, 2] = out[i, 2, 0] = c02
+        out[i, 1, 1] = c11
+        out[i, 1, 2] = out[i, 2, 1] = c12
+        out[i, 2, 2] = c22
+
+
+def _pca_normals(X, k=12):
+    """Unit normals by PCA of the k nearest points, oriented away from the centroid."""
+    k = min(k, len(X))
+    if k < 3:
+        raise ValueError(f"need at least 3 points to estimate normals, got {len(X)}")
+    _, nb = cKDTree(X).query(X, k=k, workers=2)
+    cov = np.empty((len(X), 3, 3))
+    _neighbour_cov(X, np.ascontiguousarray(nb, dtype=np.int64), cov)
+    _, vec = np.linalg.eigh(cov)
+    N = np.ascontiguousarray(vec[:, :, 0])
+    flip = np.einsum("ij,ij->i", N, X - X.mean(axis=0)) < 0
+    N[flip] *= -1
+    return N
+
+
+def _any_tangent(N):
+    """A unit vector perpendicular to each normal."""
+    a = np.zeros_like(N)
+    ax = np.argmin(np.abs(N), axis=1)
+    a[np.arange(len(N)), ax] = 1.0
+    t = np.cross(N, a)
+    return t / np.linalg.norm(t, axis=1)[:, None]
