@@ -17,7 +17,8 @@ from pathlib import Path
 import numpy as np
 
 from shapeverify.errors import CADImportError, EmptyModelError, ScanError, UnsupportedFormatError
-from shapeverify.io.points import _check_file, read_ply_full
+from shapeverify.io.formats import check_file as _check_file
+from shapeverify.io.ply import read_ply_full
 
 __all__ = ["read_mesh", "MESH_EXTENSIONS"]
 

@@ -1,6 +1,8 @@
-"""Read scans and point clouds; write (coloured) PLY files.
+"""Read scans and point clouds (from a path, bytes or a binary file object); write PLY files.
 
-Formats read by :func:`read_points` (dispatch by file extension, case-insensitive):
+Formats read by :func:`read_points` (dispatch by file extension, case-insensitive, through the
+registry :mod:`shapeverify.io.formats`; the parsers live in :mod:`.ply`, :mod:`.tables`,
+:mod:`.npy`, :mod:`.pcd`):
 
 ``.ply``
     ascii, binary_little_endian and binary_big_endian; the ``x y z`` properties of element
@@ -25,46 +27,40 @@ in millimetres; converting a scanner's metres is the caller's business).
 
 from __future__ import annotations
 
-import errno
 import logging
-import re
-import struct
-import tokenize
-from dataclasses import dataclass, field
-from pathlib import Path
+import os
 
 import numpy as np
 
 from .._arrays import count_nonfinite_rows
 
-from shapeverify.errors import ScanError, UnsupportedFormatError
+from shapeverify.errors import ScanError
+from shapeverify.io.formats import SCAN_SUFFIXES, check_file, scan_reader, source_bytes, source_suffix
+from shapeverify.io.ply import PlyData, ply_bytes, read_ply_full, write_ply
 
-__all__ = ["read_points", "read_ply_full", "write_ply", "PlyData", "POINT_EXTENSIONS"]
+__all__ = ["read_points", "read_ply_full", "write_ply", "ply_bytes", "PlyData", "POINT_EXTENSIONS",
+           "drop_nonfinite"]
 
 logger = logging.getLogger(__name__)
 
-#: File extensions :func:`read_points` understands.
-POINT_EXTENSIONS = (".ply", ".xyz", ".txt", ".csv", ".npy", ".pcd")
-
-_PLY_TYPES = {
-    "char": "i1", "int8": "i1", "uchar": "u1", "uint8": "u1",
-    "short": "i2", "int16": "i2", "ushort": "u2", "uint16": "u2",
-    "int": "i4", "int32": "i4", "uint": "u4", "uint32": "u4",
-    "float": "f4", "float32": "f4", "double": "f8", "float64": "f8",
-}
-_PLY_FORMATS = {"ascii": None, "binary_little_endian": "<", "binary_big_endian": ">"}
+#: File extensions :func:`read_points` understands (the registry's list).
+POINT_EXTENSIONS = SCAN_SUFFIXES
+_check_file = check_file  # the name io.mesh and older code import
 
 
-# ----------------------------------------------------------------------------------------------
-# public API
-# ----------------------------------------------------------------------------------------------
-def read_points(path) -> np.ndarray:
-    """Read a scan / point cloud file into an ``(N, 3)`` float64 array.
+def read_points(source, format: str | None = None, *, name: str | None = None) -> np.ndarray:
+    """Read a scan / point cloud into an ``(N, 3)`` float64 array.
 
     Parameters
     ----------
-    path : str or os.PathLike
-        ``.ply``, ``.xyz``, ``.txt``, ``.csv``, ``.npy`` or ``.pcd`` (see the module docstring).
+    source : str, os.PathLike, bytes or binary file object
+        A ``.ply``, ``.xyz``, ``.txt``, ``.csv``, ``.npy`` or ``.pcd`` file (see the module
+        docstring), its bytes, or a file object opened with ``"rb"``.
+    format : str, optional
+        The format as a suffix (``".ply"`` or ``"ply"``); needed for bytes, and for a file
+        object without a ``name``; default: the path's (or the file object's name's) suffix.
+    name : str, optional
+        Stands for the data in error messages (default: the path, or the file object's name).
 
     Returns
     -------
@@ -80,197 +76,34 @@ def read_points(path) -> np.ndarray:
     ScanError
         Empty, truncated or malformed file; no ``x y z``; fewer than three columns;
         no finite point.
+    ValueError
+        Bytes (or a file object without a name) and no ``format``.
 
     Examples
     --------
-    >>> import numpy as np, tempfile, os
-    >>> from shapeverify.io.points import read_points, write_ply
+    >>> import io, numpy as np, tempfile, os
+    >>> from shapeverify.io.points import ply_bytes, read_points, write_ply
     >>> p = os.path.join(tempfile.mkdtemp(), "a.ply")
     >>> _ = write_ply(p, np.eye(3))
     >>> read_points(p).shape
     (3, 3)
+    >>> data = ply_bytes(np.eye(3))
+    >>> bool((read_points(data, "ply") == read_points(io.BytesIO(data), ".ply")).all())
+    True
     """
-    path = _check_file(path)
-    ext = path.suffix.lower()
-    if ext == ".ply":
-        ply = _read_ply(path, want_faces=False)
-        pts = ply.vertices
-    elif ext in (".xyz", ".txt", ".csv"):
-        pts = _read_table(path)
-    elif ext == ".npy":
-        pts = _read_npy(path)
-    elif ext == ".pcd":
-        pts = _read_pcd(path)
+    fmt = source_suffix(source) if format is None else format
+    if isinstance(source, (str, os.PathLike)):
+        path = check_file(source)  # a missing file is named before its extension is judged
+        name = str(path) if name is None else name
+        reader = scan_reader(fmt, name)
+        data = path.read_bytes()
     else:
-        raise UnsupportedFormatError(
-            f"{path}: unsupported point-cloud extension {path.suffix!r}; "
-            f"supported: {', '.join(POINT_EXTENSIONS)}"
-        )
-    return drop_nonfinite(pts, path)
-
-
-@dataclass(frozen=True, repr=False)
-class PlyData:
-    """Content of a PLY file: vertices, (triangulated) faces and the other vertex properties.
-
-    Attributes
-    ----------
-    vertices : (V, 3) float64
-        ``x y z`` of element ``vertex``, as stored (non-finite rows are *not* removed, so that
-        face indices stay valid).
-    faces : (T, 3) int64 or None
-        Triangles (polygons fan-triangulated: ``(p0, pi, pi+1)``); None when the file has no
-        face element or it is empty.
-    properties : dict[str, (V,) ndarray]
-        Every other scalar property of element ``vertex`` (e.g. ``nx ny nz``, ``red green
-        blue``, scalar fields), with the file's dtype.
-    format : str
-        ``ascii``, ``binary_little_endian`` or ``binary_big_endian``.
-    """
-
-    vertices: np.ndarray
-    faces: np.ndarray | None
-    properties: dict = field(default_factory=dict)
-    format: str = "ascii"
-
-    def __repr__(self) -> str:
-        nf = 0 if self.faces is None else len(self.faces)
-        return (f"PlyData(vertices={len(self.vertices)}, faces={nf}, "
-                f"properties={sorted(self.properties)}, format={self.format!r})")
-
-
-def read_ply_full(path) -> PlyData:
-    """Read a PLY file with its faces and all vertex properties (for mesh references and for
-    reading back coloured reports).
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-
-    Returns
-    -------
-    PlyData
-
-    Raises
-    ------
-    FileNotFoundError
-        The file does not exist.
-    ScanError
-        Empty, truncated or malformed file; no ``x y z``; face indices out of range.
-    """
-    path = _check_file(path)
-    return _read_ply(path, want_faces=True)
-
-
-def write_ply(path, points, normals=None, colors=None, scalars=None, binary=True, faces=None):
-    """Write points (and optionally normals, colours, scalar fields, triangles) to a PLY file.
-
-    Coordinates, normals and scalars are written as ``double`` (lossless round trip),
-    colours as ``uchar red green blue [alpha]``.
-
-    Parameters
-    ----------
-    path : str or os.PathLike
-    points : (N, 3) array_like, finite
-    normals : (N, 3) array_like, optional
-        Written as ``nx ny nz``.
-    colors : (N, 3) or (N, 4) array_like, optional
-        Integers 0..255, or floats in [0, 1] (scaled by 255 and rounded).
-    scalars : dict[str, (N,) array_like], optional
-        Extra per-vertex scalar properties (e.g. ``{"deviation": d}``).  Names must be
-        identifiers and must not clash with the standard ones.
-    binary : bool
-        ``binary_little_endian`` (default) or ``ascii``.
-    faces : (T, 3) array_like of int, optional
-        Triangles (indices into ``points``), written as element ``face``.
-
-    Returns
-    -------
-    pathlib.Path
-        The written path.
-
-    Raises
-    ------
-    ValueError
-        Wrong shapes, non-finite points, bad colours, bad scalar names, face indices out of range.
-    """
-    path = Path(path)
-    pts = np.asarray(points, dtype=np.float64)
-    if pts.ndim != 2 or pts.shape[1] != 3:
-        raise ValueError(f"points must have shape (N, 3), got {pts.shape}")
-    if not np.isfinite(pts).all():
-        raise ValueError("points contain NaN or inf; remove those rows before writing")
-    n = len(pts)
-    cols = [("x", pts[:, 0]), ("y", pts[:, 1]), ("z", pts[:, 2])]
-    if normals is not None:
-        nrm = np.asarray(normals, dtype=np.float64)
-        if nrm.shape != (n, 3):
-            raise ValueError(f"normals must have shape ({n}, 3) like points, got {nrm.shape}")
-        cols += [("nx", nrm[:, 0]), ("ny", nrm[:, 1]), ("nz", nrm[:, 2])]
-    if colors is not None:
-        col = np.asarray(colors)
-        if col.ndim != 2 or col.shape[0] != n or col.shape[1] not in (3, 4):
-            raise ValueError(f"colors must have shape ({n}, 3) or ({n}, 4), got {col.shape}")
-        if np.issubdtype(col.dtype, np.floating):
-            if not (np.isfinite(col).all() and col.min(initial=0) >= 0 and col.max(initial=0) <= 1):
-                raise ValueError("float colors must lie in [0, 1] (or pass uint8 0..255)")
-            col = np.rint(col * 255.0)
-        elif not np.issubdtype(col.dtype, np.integer):
-            raise ValueError(f"colors must be integers 0..255 or floats in [0, 1], got {col.dtype}")
-        if col.size and (col.min() < 0 or col.max() > 255):
-            raise ValueError("integer colors must lie in 0..255")
-        col = col.astype(np.uint8)
-        for i, name in enumerate(("red", "green", "blue", "alpha")[: col.shape[1]]):
-            cols.append((name, col[:, i]))
-    if scalars:
-        taken = {c[0] for c in cols}
-        for name, arr in scalars.items():
-            if not isinstance(name, str) or not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*", name):
-                raise ValueError(f"scalar name {name!r} must be an identifier (letters, digits, _)")
-            if name in taken:
-                raise ValueError(f"scalar name {name!r} clashes with another vertex property")
-            a = np.asarray(arr, dtype=np.float64)
-            if a.shape != (n,):
-                raise ValueError(f"scalar {name!r} must have shape ({n},), got {a.shape}")
-            cols.append((name, a))
-            taken.add(name)
-    tri = None
-    if faces is not None:
-        tri = np.asarray(faces)
-        if tri.ndim != 2 or tri.shape[1] != 3 or not np.issubdtype(tri.dtype, np.integer):
-            raise ValueError(f"faces must be an integer (T, 3) array, got {tri.dtype} {tri.shape}")
-        if tri.size and (tri.min() < 0 or tri.max() >= n):
-            raise ValueError(f"face indices must lie in [0, {n}), got [{tri.min()}, {tri.max()}]")
-
-    fmt = "binary_little_endian" if binary else "ascii"
-    header = ["ply", f"format {fmt} 1.0", "comment written by shapeverify",
-              f"element vertex {n}"]
-    for name, a in cols:
-        header.append(f"property {'uchar' if a.dtype == np.uint8 else 'double'} {name}")
-    if tri is not None:
-        header += [f"element face {len(tri)}", "property list uchar int vertex_indices"]
-    header.append("end_header")
-    with open(path, "wb") as fh:
-        fh.write(("\n".join(header) + "\n").encode("ascii"))
-        if binary:
-            dt = np.dtype([(name, "u1" if a.dtype == np.uint8 else "<f8") for name, a in cols])
-            rec = np.empty(n, dtype=dt)
-            for name, a in cols:
-                rec[name] = a
-            fh.write(rec.tobytes())
-            if tri is not None:
-                frec = np.empty(len(tri), dtype=[("n", "u1"), ("i", "<i4", (3,))])
-                frec["n"] = 3
-                frec["i"] = tri
-                fh.write(frec.tobytes())
-        else:
-            fmts = ["%d" if a.dtype == np.uint8 else "%.17g" for _, a in cols]
-            table = np.column_stack([a.astype(np.float64) for _, a in cols]) if n else \
-                np.empty((0, len(cols)))
-            np.savetxt(fh, table, fmt=fmts)
-            if tri is not None:
-                np.savetxt(fh, np.column_stack([np.full(len(tri), 3), tri]), fmt="%d")
-    return path
+        data, name = source_bytes(source, name)
+        if fmt is None:
+            raise ValueError(f"{name}: give the format of the scan data (format='.ply', one of "
+                             f"{', '.join(SCAN_SUFFIXES)})")
+        reader = scan_reader(fmt, name)
+    return drop_nonfinite(reader(data, name), name)
 
 
 def drop_nonfinite(points: np.ndarray, path) -> np.ndarray:
@@ -285,468 +118,3 @@ def drop_nonfinite(points: np.ndarray, path) -> np.ndarray:
         if len(points) == 0:
             raise ScanError(f"{path}: all {n_bad} points have NaN or infinite coordinates")
     return np.ascontiguousarray(points, dtype=np.float64)
-
-
-# ----------------------------------------------------------------------------------------------
-# helpers
-# ----------------------------------------------------------------------------------------------
-def _check_file(path) -> Path:
-    path = Path(path)
-    if not path.exists():
-        raise FileNotFoundError(errno.ENOENT, f"{path}: file not found", str(path))
-    if path.is_dir():
-        raise ScanError(f"{path}: is a directory, not a file")
-    if path.stat().st_size == 0:
-        raise ScanError(f"{path}: file is empty (0 bytes)")
-    return path
-
-
-# ---------------------------------------------------------------------------------------- PLY
-@dataclass
-class _PlyElement:
-    name: str
-    count: int
-    props: list  # (name, dtype_code) or (name, count_code, item_code)
-
-
-def _ply_header(path: Path, data: bytes):
-    """Parse the PLY header; return (format, elements, body offset)."""
-    if not data.startswith(b"ply"):
-        raise ScanError(f"{path}: not a PLY file (does not start with 'ply')")
-    m = re.search(rb"end_header[ \t]*\r?\n", data[:1 << 20])
-    if m is None:
-        # a header without body is still a header if the file ends right after end_header
-        m = re.search(rb"end_header[ \t]*\r?\n?$", data[:1 << 20])
-        if m is None:
-            raise ScanError(f"{path}: malformed PLY header: no 'end_header' line")
-    text = data[: m.start()].decode("ascii", errors="replace")
-    fmt = None
-    elements: list[_PlyElement] = []
-    for lineno, raw in enumerate(text.splitlines()[1:], start=2):
-        tok = raw.split()
-        if not tok or tok[0] in ("comment", "obj_info"):
-            continue
-        bad = f"{path}: malformed PLY header at line {lineno} ({raw.strip()!r})"
-        if tok[0] == "format":
-            if len(tok) < 2 or tok[1] not in _PLY_FORMATS:
-                raise ScanError(f"{bad}: unknown format; expected ascii, "
-                                "binary_little_endian or binary_big_endian")
-            fmt = tok[1]
-        elif tok[0] == "element":
-            if len(tok) != 3 or not tok[2].isdigit():
-                raise ScanError(f"{bad}: expected 'element NAME COUNT'")
-            if any(e.name == tok[1] for e in elements):
-                raise ScanError(f"{bad}: element {tok[1]!r} declared twice")
-            elements.append(_PlyElement(tok[1], int(tok[2]), []))
-        elif tok[0] == "property":
-            if not elements:
-                raise ScanError(f"{bad}: property before any element")
-            if any(p[0] == tok[-1] for p in elements[-1].props):
-                raise ScanError(f"{bad}: property {tok[-1]!r} declared twice")
-            if len(tok) == 3 and tok[1] in _PLY_TYPES:
-                elements[-1].props.append((tok[2], _PLY_TYPES[tok[1]]))
-            elif (len(tok) == 5 and tok[1] == "list" and tok[2] in _PLY_TYPES
-                  and tok[3] in _PLY_TYPES and _PLY_TYPES[tok[2]][0] in "iu"):
-                elements[-1].props.append((tok[4], _PLY_TYPES[tok[2]], _PLY_TYPES[tok[3]]))
-            else:
-                raise ScanError(f"{bad}: unknown property type")
-        else:
-            raise ScanError(f"{bad}: unknown keyword {tok[0]!r}")
-    if fmt is None:
-        raise ScanError(f"{path}: malformed PLY header: no 'format' line")
-    return fmt, elements, m.end()
-
-
-def _read_ply(path: Path, want_faces: bool) -> PlyData:
-    data = path.read_bytes()
-    fmt, elements, offset = _ply_header(path, data)
-    names = [e.name for e in elements]
-    if "vertex" not in names:
-        raise ScanError(f"{path}: PLY file has no 'vertex' element")
-    vel = elements[names.index("vertex")]
-    vnames = [p[0] for p in vel.props]
-    for c in "xyz":
-        if c not in vnames:
-            raise ScanError(f"{path}: PLY vertex element has no '{c}' property "
-                            f"(properties: {', '.join(vnames) or 'none'})")
-        if len(vel.props[vnames.index(c)]) != 2:
-            raise ScanError(f"{path}: PLY vertex property '{c}' is a list; it must be a scalar "
-                            "(e.g. 'property float x')")
-    if vel.count == 0:
-        raise ScanError(f"{path}: PLY file has no vertices (element vertex 0)")
-    wanted = {"vertex"} | ({"face"} if want_faces else set())
-    last = max(i for i, e in enumerate(elements) if e.name in wanted)
-    values = {}
-    if fmt == "ascii":
-        lines = [ln for ln in data[offset:].split(b"\n") if ln.strip()]
-        pos = 0
-        for i, el in enumerate(elements[: last + 1]):
-            chunk = lines[pos: pos + el.count]
-            if len(chunk) < el.count:
-                raise ScanError(f"{path}: truncated PLY: element {el.name!r} needs {el.count} "
-                                f"lines, found {len(chunk)}")
-            if el.name in wanted:
-                values[el.name] = _ply_ascii_element(path, el, chunk)
-            pos += el.count
-    else:
-        endian = _PLY_FORMATS[fmt]
-        for el in elements[: last + 1]:
-            arrays, offset = _ply_binary_element(path, el, data, offset, endian,
-                                                 parse=el.name in wanted)
-            if el.name in wanted:
-                values[el.name] = arrays
-
-    v = values["vertex"]
-    vertices = np.column_stack([np.asarray(v[c], dtype=np.float64) for c in "xyz"])
-    props = {k: a for k, a in v.items()
-             if k not in ("x", "y", "z") and isinstance(a, np.ndarray) and a.ndim == 1}
-    faces = None
-    if want_faces and "face" in values and elements[names.index("face")].count > 0:
-        fel = elements[names.index("face")]
-        lists = [p[0] for p in fel.props if len(p) == 3]
-        if not lists:
-            raise ScanError(f"{path}: PLY face element has no list property of vertex indices")
-        key = "vertex_indices" if "vertex_indices" in lists else \
-            "vertex_index" if "vertex_index" in lists else lists[0]
-        faces = _fan_triangulate(path, values["face"][key], len(vertices))
-    return PlyData(vertices, faces, props, fmt)
-
-
-def _ply_ascii_element(path, el: _PlyElement, lines: list) -> dict:
-    """Parse the lines of one ASCII element into {property: array}; list -> (count, n) array or
-    list of arrays."""
-    ncols_fixed = None
-    try:
-        table = np.loadtxt([ln.decode("ascii", "replace") for ln in lines], dtype=np.float64,
-                           ndmin=2, comments=None)
-        ncols_fixed = table.shape[1]
-    except ValueError:
-        table = None
-    if table is not None and not any(len(p) == 3 for p in el.props):
-        if ncols_fixed != len(el.props):
-            raise ScanError(f"{path}: PLY element {el.name!r} has {ncols_fixed} values per line, "
-                            f"header declares {len(el.props)} properties")
-        return {p[0]: table[:, j] for j, p in enumerate(el.props)}
-    out = {}
-    if table is not None:  # same token count on every line: walk the columns
-        col = 0
-        ok = True
-        for p in el.props:
-            if col >= table.shape[1]:
-                ok = False
-                break
-            if len(p) == 2:
-                out[p[0]] = table[:, col]
-                col += 1
-            else:
-                cnt = table[:, col]
-                k = int(cnt[0]) if np.isfinite(cnt[0]) and 0 <= cnt[0] <= table.shape[1] else -1
-                if k < 0 or not np.all(cnt == k) or col + 1 + k > table.shape[1]:
-                    ok = False
-                    break
-                out[p[0]] = table[:, col + 1: col + 1 + k]
-                col += 1 + k
-        if ok and col == table.shape[1]:
-            return out
-    # ragged rows: line by line
-    cols = {p[0]: [] for p in el.props}
-    for lineno, ln in enumerate(lines):
-        tok = ln.split()
-        j = 0
-        try:
-            for p in el.props:
-                if len(p) == 2:
-                    cols[p[0]].append(float(tok[j]))
-                    j += 1
-                else:
-                    k = int(tok[j])
-                    if k < 0:
-                        raise ValueError
-                    cols[p[0]].append(np.array(tok[j + 1: j + 1 + k], dtype=np.float64))
-                    if len(cols[p[0]][-1]) != k:
-                        raise IndexError
-                    j += 1 + k
-        except (IndexError, ValueError):
-            raise ScanError(f"{path}: malformed PLY element {el.name!r}, item {lineno}: "
-                            f"{ln[:80].decode('ascii', 'replace')!r}") from None
-        if j != len(tok):
-            raise ScanError(f"{path}: PLY element {el.name!r}, item {lineno} has {len(tok)} "
-                            f"values, expected {j}")
-    for p in el.props:
-        out[p[0]] = np.array(cols[p[0]]) if len(p) == 2 else cols[p[0]]
-    return out
-
-
-def _ply_binary_element(path, el: _PlyElement, data: bytes, offset: int, endian: str,
-                        parse: bool):
-    """Parse (or skip) one binary element; return ({property: array}, new offset)."""
-    has_list = any(len(p) == 3 for p in el.props)
-    if not has_list:
-        dt = np.dtype([(f"f{j}", endian + p[1]) for j, p in enumerate(el.props)])
-        end = offset + el.count * dt.itemsize
-        if end > len(data):
-            raise ScanError(f"{path}: truncated PLY: element {el.name!r} needs "
-                            f"{el.count * dt.itemsize} bytes, {len(data) - offset} left")
-        if not parse:
-            return None, end
-        rec = np.frombuffer(data, dtype=dt, count=el.count, offset=offset)
-        return {p[0]: rec[f"f{j}"] for j, p in enumerate(el.props)}, end
-    if el.count == 0:
-        return {p[0]: np.empty((0, 0)) for p in el.props}, offset
-    # fast path: every list has the length found in the first item
-    fields = []
-    pos = offset
-    try:
-        for j, p in enumerate(el.props):
-            if len(p) == 2:
-                fields.append((f"f{j}", endian + p[1]))
-                pos += np.dtype(p[1]).itemsize
-            else:
-                k = int(np.frombuffer(data, endian + p[1], 1, pos)[0])
-                if k < 0 or k * np.dtype(p[2]).itemsize > len(data):
-                    raise ScanError(f"{path}: malformed PLY: list '{p[0]}' of element "
-                                    f"{el.name!r} has length {k}")
-                fields.append((f"c{j}", endian + p[1]))
-                fields.append((f"f{j}", endian + p[2], (k,)))
-                pos += np.dtype(p[1]).itemsize + k * np.dtype(p[2]).itemsize
-    except ValueError as exc:
-        if isinstance(exc, ScanError):
-            raise
-        raise ScanError(f"{path}: truncated PLY in element {el.name!r}") from None
-    dt = np.dtype(fields)
-    end = offset + el.count * dt.itemsize
-    if end <= len(data):
-        rec = np.frombuffer(data, dtype=dt, count=el.count, offset=offset)
-        if all(np.all(rec[f"c{j}"] == dt[f"f{j}"].shape[0])
-               for j, p in enumerate(el.props) if len(p) == 3):
-            if not parse:
-                return None, end
-            return {p[0]: rec[f"f{j}"] for j, p in enumerate(el.props)}, end
-    # slow path: variable-length lists, item by item
-    out = {p[0]: [] for p in el.props}
-    pos = offset
-    try:
-        for _ in range(el.count):
-            for p in el.props:
-                if len(p) == 2:
-                    size = np.dtype(p[1]).itemsize
-                    out[p[0]].append(struct.unpack_from(endian + _STRUCT[p[1]], data, pos)[0])
-                    pos += size
-                else:
-                    k = struct.unpack_from(endian + _STRUCT[p[1]], data, pos)[0]
-                    pos += np.dtype(p[1]).itemsize
-                    isz = np.dtype(p[2]).itemsize
-                    if k < 0 or pos + k * isz > len(data):
-                        raise struct.error
-                    out[p[0]].append(np.frombuffer(data, endian + p[2], k, pos))
-                    pos += k * isz
-    except struct.error:
-        raise ScanError(f"{path}: truncated PLY in element {el.name!r}") from None
-    if not parse:
-        return None, pos
-    return {p[0]: (np.array(out[p[0]]) if len(p) == 2 else out[p[0]]) for p in el.props}, pos
-
-
-_STRUCT = {"i1": "b", "u1": "B", "i2": "h", "u2": "H", "i4": "i", "u4": "I", "f4": "f", "f8": "d"}
-
-
-def _fan_triangulate(path, lists, n_vertices: int) -> np.ndarray:
-    """Polygons (2-D array or list of 1-D arrays) -> (T, 3) int64 triangles by fans."""
-    if isinstance(lists, np.ndarray) and lists.ndim == 2:
-        groups = [lists]
-    else:
-        by_len: dict[int, list] = {}
-        for poly in lists:
-            by_len.setdefault(len(poly), []).append(poly)
-        groups = [np.array(g) for g in by_len.values()]
-    tris = []
-    for g in groups:
-        g = np.asarray(g)
-        if g.shape[1] < 3:
-            raise ScanError(f"{path}: face with {g.shape[1]} vertices (need at least 3)")
-        if not np.all(np.isfinite(g)) or not np.all(g == np.round(g)):
-            raise ScanError(f"{path}: face indices are not integers")
-        g = g.astype(np.int64)
-        for i in range(1, g.shape[1] - 1):
-            tris.append(np.column_stack([g[:, 0], g[:, i], g[:, i + 1]]))
-    tri = np.concatenate(tris) if tris else np.empty((0, 3), np.int64)
-    if tri.size and (tri.min() < 0 or tri.max() >= n_vertices):
-        raise ScanError(f"{path}: face vertex index out of range [0, {n_vertices}) "
-                        f"(found {tri.min()}..{tri.max()})")
-    return tri
-
-
-# -------------------------------------------------------------------------------- xyz/txt/csv
-def _read_table(path: Path) -> np.ndarray:
-    text = path.read_text(encoding="utf-8", errors="replace")
-    lines = text.splitlines()
-    first = next((i for i, ln in enumerate(lines)
-                  if ln.strip() and not ln.lstrip().startswith(("#", "//"))), None)
-    if first is None:
-        raise ScanError(f"{path}: contains no points (only blank or comment lines)")
-    delim = _split_pattern(lines[first])
-    skip = first
-    if not _is_numeric_row(lines[first], delim):
-        skip = first + 1  # one header line
-        nxt = next((i for i in range(skip, len(lines))
-                    if lines[i].strip() and not lines[i].lstrip().startswith(("#", "//"))), None)
-        if nxt is None:
-            raise ScanError(f"{path}: contains a header line but no points")
-        delim = _split_pattern(lines[nxt])
-    try:
-        table = np.loadtxt(lines[skip:], dtype=np.float64, delimiter=delim, comments=("#", "//"),
-                           ndmin=2)
-    except ValueError as exc:
-        raise ScanError(f"{path}: malformed point table: {exc}") from None
-    if table.shape[0] == 0:
-        raise ScanError(f"{path}: contains no points")
-    if table.shape[1] < 3:
-        raise ScanError(f"{path}: has {table.shape[1]} column(s); need at least 3 (x y z)")
-    return table[:, :3]
-
-
-def _split_pattern(line: str):
-    if "," in line:
-        return ","
-    if ";" in line:
-        return ";"
-    return None
-
-
-def _is_numeric_row(line: str, delim) -> bool:
-    tok = [t for t in (line.split(delim) if delim else line.split()) if t.strip()]
-    try:
-        [float(t) for t in tok[:3]]
-    except ValueError:
-        return False
-    return bool(tok)
-
-
-# ---------------------------------------------------------------------------------------- NPY
-def _check_npy_size(path: Path) -> None:
-    """Refuse a .npy whose header promises more data than the file holds (before numpy
-    allocates an array of the promised size)."""
-    fmt = np.lib.format
-    with open(path, "rb") as fh:
-        major, _ = fmt.read_magic(fh)
-        read_header = fmt.read_array_header_1_0 if major == 1 else fmt.read_array_header_2_0
-        shape, _, dtype = read_header(fh)
-        body = path.stat().st_size - fh.tell()
-    if dtype.hasobject:
-        raise ScanError(f"{path}: .npy holds Python objects; save a numeric array instead")
-    count = 1
-    for n in shape:
-        count *= int(n)
-    if count * dtype.itemsize > body:
-        raise ScanError(f"{path}: truncated .npy: header declares shape {shape} of {dtype} "
-                        f"({count * dtype.itemsize} bytes), the file holds {body} bytes of data")
-
-
-def _read_npy(path: Path) -> np.ndarray:
-    try:
-        _check_npy_size(path)
-        arr = np.load(path, allow_pickle=False)
-    except (ValueError, OSError, EOFError, SyntaxError, TypeError, RecursionError,
-            tokenize.TokenError) as exc:  # numpy parses the header with tokenize + ast
-        if isinstance(exc, ScanError):
-            raise
-        raise ScanError(f"{path}: not a readable .npy array ({exc})") from None
-    if arr.dtype.names:
-        if not all(c in arr.dtype.names for c in "xyz"):
-            raise ScanError(f"{path}: structured array without fields x, y, z "
-                            f"(fields: {', '.join(arr.dtype.names)})")
-        try:
-            arr = np.column_stack([arr[c].ravel().astype(np.float64) for c in "xyz"])
-        except (ValueError, TypeError) as exc:
-            raise ScanError(f"{path}: fields x, y, z are not numeric scalars ({exc})") from None
-    if not (np.issubdtype(arr.dtype, np.integer) or np.issubdtype(arr.dtype, np.floating)):
-        raise ScanError(f"{path}: array dtype {arr.dtype} is not numeric")
-    if arr.ndim != 2 or arr.shape[1] < 3:
-        raise ScanError(f"{path}: array has shape {arr.shape}; expected (N, 3) or (N, >=3)")
-    if arr.shape[0] == 0:
-        raise ScanError(f"{path}: contains no points (shape {arr.shape})")
-    with np.errstate(invalid="ignore", over="ignore"):   # NaN/inf are dropped and reported later
-        return np.asarray(arr[:, :3], dtype=np.float64)
-
-
-# ---------------------------------------------------------------------------------------- PCD
-def _read_pcd(path: Path) -> np.ndarray:
-    data = path.read_bytes()
-    hdr: dict[str, list[str]] = {}
-    pos = 0
-    while True:
-        nl = data.find(b"\n", pos)
-        if nl < 0:
-            raise ScanError(f"{path}: malformed PCD header: no DATA line")
-        line = data[pos:nl].decode("ascii", "replace").strip()
-        pos = nl + 1
-        if not line or line.startswith("#"):
-            continue
-        tok = line.split()
-        hdr[tok[0].upper()] = tok[1:]
-        if tok[0].upper() == "DATA":
-            break
-    kind = (hdr["DATA"] or ["?"])[0].lower()
-    if kind == "binary_compressed":
-        raise UnsupportedFormatError(
-            f"{path}: PCD 'DATA binary_compressed' is not supported; convert it to binary or "
-            "ascii (e.g. pcl_convert_pcd_ascii_binary in.pcd out.pcd 1)")
-    if kind not in ("ascii", "binary"):
-        raise ScanError(f"{path}: malformed PCD header: unknown DATA {kind!r}")
-    try:
-        fields = hdr["FIELDS"]
-        nf = len(fields)
-        sizes = [int(s) for s in hdr.get("SIZE", [])]
-        types = [t.upper() for t in hdr.get("TYPE", [])]
-        counts = [int(c) for c in hdr.get("COUNT", ["1"] * nf)]
-        if "POINTS" in hdr:
-            npts = int(hdr["POINTS"][0])
-        else:
-            npts = int(hdr["WIDTH"][0]) * int(hdr.get("HEIGHT", ["1"])[0])
-    except (KeyError, ValueError, IndexError) as exc:
-        raise ScanError(f"{path}: malformed PCD header ({exc!r} missing or not a number)") from None
-    if not (len(sizes) == len(types) == len(counts) == nf):
-        raise ScanError(f"{path}: malformed PCD header: FIELDS, SIZE, TYPE and COUNT have "
-                        f"different lengths ({nf}, {len(sizes)}, {len(types)}, {len(counts)})")
-    for c in "xyz":
-        if c not in fields:
-            raise ScanError(f"{path}: PCD has no field '{c}' (fields: {' '.join(fields)})")
-    if npts == 0:
-        raise ScanError(f"{path}: PCD contains no points (POINTS 0)")
-    for c in "xyz":
-        if counts[fields.index(c)] != 1:
-            raise ScanError(f"{path}: PCD field '{c}' has COUNT {counts[fields.index(c)]}; "
-                            "x, y and z must be single values (COUNT 1)")
-    if npts < 0 or min(counts) < 1:
-        raise ScanError(f"{path}: malformed PCD header: POINTS ({npts}) and COUNT "
-                        f"({' '.join(map(str, counts))}) must be positive")
-    if sum(c * s for c, s in zip(counts, sizes)) > len(data):
-        raise ScanError(f"{path}: malformed PCD header: COUNT {' '.join(map(str, counts))} "
-                        f"is larger than the whole file")
-    codes = []
-    for f, s, t in zip(fields, sizes, types):
-        if t not in "FIU" or s not in (1, 2, 4, 8) or (t == "F" and s not in (4, 8)):
-            raise ScanError(f"{path}: PCD field {f!r} has unsupported TYPE {t} SIZE {s}")
-        codes.append({"F": "f", "I": "i", "U": "u"}[t] + str(s))
-    if kind == "binary":
-        dt = np.dtype([(f"f{j}", "<" + code, (cnt,)) if cnt > 1 else (f"f{j}", "<" + code)
-                       for j, (code, cnt) in enumerate(zip(codes, counts))])
-        need = npts * dt.itemsize
-        if len(data) - pos < need:
-            raise ScanError(f"{path}: truncated PCD: {npts} points need {need} bytes, "
-                            f"{len(data) - pos} present")
-        rec = np.frombuffer(data, dtype=dt, count=npts, offset=pos)
-        with np.errstate(invalid="ignore", over="ignore"):   # NaN/inf: dropped and reported later
-            return np.column_stack([rec[f"f{fields.index(c)}"].astype(np.float64) for c in "xyz"])
-    text = data[pos:].decode("ascii", "replace").splitlines()
-    try:
-        table = np.loadtxt(text, dtype=np.float64, ndmin=2)
-    except ValueError as exc:
-        raise ScanError(f"{path}: malformed PCD ascii data: {exc}") from None
-    ncol = sum(counts)
-    if table.shape[1] != ncol:
-        raise ScanError(f"{path}: PCD rows have {table.shape[1]} values, header declares {ncol}")
-    if table.shape[0] != npts:
-        raise ScanError(f"{path}: PCD header declares {npts} points, file has {table.shape[0]}")
-    starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
-    return table[:, [starts[fields.index(c)] for c in "xyz"]]
