@@ -495,9 +495,10 @@ def test_fused_weights_equal_the_loss_formulas(name):
     d[~valid] = 0.0
     Z = np.zeros((4000, 3))
     args = (Z, Z, Z, d, valid, np.zeros(4000, np.int64), np.zeros(4000, bool))
-    fused = _irls.weigh(*args, LOSSES[name], None, 1e-6)
+    fused = _irls.weigh(_irls.Match(*args), LOSSES[name], None, 1e-6)
     own = LOSSES[name]
-    plain = _irls.weigh(*args, Loss(own.name, own.c, own.redescending, own._rho, own._w), None, 1e-6)
+    own_loss = Loss(own.name, own.c, own.redescending, own._rho, own._w)
+    plain = _irls.weigh(_irls.Match(*args), own_loss, None, 1e-6)
     assert fused.sigma == plain.sigma
     np.testing.assert_allclose(fused.w, plain.w, rtol=0, atol=1e-15)
     assert abs(fused.objective - plain.objective) <= 1e-14 * abs(plain.objective)

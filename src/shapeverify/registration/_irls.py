@@ -44,6 +44,7 @@ import numpy as np
 
 from . import _kernels
 from .losses import LOSSES, MAD_TO_SIGMA, Loss, robust_scale
+from .options import Method, StageSettings
 from .rigid import (
     DEGENERATE_RTOL, compose_step, rodrigues, rotation_vector, solve_step, weighted_rigid_fit,
 )
@@ -91,6 +92,18 @@ class State:
     history: list = field(default_factory=list)
 
 
+class Match(NamedTuple):
+    """Closest points of the moved scan (:func:`match`)."""
+
+    X: np.ndarray        # (n, 3) scan points in model coordinates
+    Y: np.ndarray        # (n, 3) closest model points (X where invalid)
+    N: np.ndarray        # (n, 3) model normals (0 where invalid)
+    d: np.ndarray        # (n,) signed residuals (0 where invalid)
+    valid: np.ndarray    # (n,) bool: a closest point, not on the model's free boundary
+    index: np.ndarray    # (n,) nearest model point (-1 unknown)
+    clamped: np.ndarray  # (n,) bool: foot clamped to a patch edge
+
+
 @dataclass
 class Eval:
     X: np.ndarray       # scan points in model coordinates
@@ -107,6 +120,11 @@ class Eval:
     index: np.ndarray   # nearest model point of each scan point (-1 unknown)
     clamped: np.ndarray  # foot clamped to a patch edge (distance to the foot point, not plane)
 
+    @property
+    def match(self) -> Match:
+        """The closest points this evaluation weighed."""
+        return Match(self.X, self.Y, self.N, self.d, self.valid, self.index, self.clamped)
+
 
 def system(X, Y, N, w, center):
     """(H, g) of the point-to-plane step (numba form of rigid.point_to_plane_system)."""
@@ -120,8 +138,8 @@ def centroid(X, w) -> np.ndarray:
     return _kernels.weighted_centroid(X, w)
 
 
-def match(P, prep, R, t, exact: bool):
-    """Closest points of the moved scan: X, Y, N, d, valid, index (nearest model point), clamped."""
+def match(P, prep, R, t, exact: bool) -> Match:
+    """Closest points of the moved scan (scan points P moved by R, t)."""
     X = P @ R.T + t
     cl = prep.closest(X, exact=exact)
     d = np.asarray(cl.distances, np.float64)
@@ -135,10 +153,12 @@ def match(P, prep, R, t, exact: bool):
     dn = np.einsum("ij,ij->i", E, N)
     tang2 = np.einsum("ij,ij->i", E, E) - dn * dn
     clamped = valid & (tang2 > (1e-6 * np.abs(d) + 1e-9) ** 2)
-    return X, Y, N, np.where(valid, d, 0.0), valid, idx, clamped
+    return Match(X, Y, N, np.where(valid, d, 0.0), valid, idx, clamped)
 
 
-def weigh(X, Y, N, d, valid, idx, clamped, loss: Loss, scale, floor) -> Eval:
+def weigh(m: Match, loss: Loss, scale, floor) -> Eval:
+    """Robust scale, weights, objective and inliers of the residuals of a matching."""
+    X, Y, N, d, valid, idx, clamped = m
     nv = int(valid.sum())
     if nv < 6:
         raise RegistrationError(
@@ -163,16 +183,16 @@ def weigh(X, Y, N, d, valid, idx, clamped, loss: Loss, scale, floor) -> Eval:
     return Eval(X, Y, N, d, valid, w, sigma, float(objective), float(rms), inl, loss, idx, clamped)
 
 
-def evaluate(P, prep, R, t, loss, scale, floor, exact) -> Eval:
-    return weigh(*match(P, prep, R, t, exact), loss, scale, floor)
+def evaluate(P, prep, R, t, cfg: StageSettings) -> Eval:
+    return weigh(match(P, prep, R, t, cfg.exact), cfg.loss, cfg.scale, cfg.floor)
 
 
-def evaluate_fixed(P, R, t, Y, N, valid, idx, clamped, loss, scale, floor) -> Eval:
-    """Residuals against fixed tangent planes (Y, N) at the pose (R, t)."""
+def evaluate_fixed(P, R, t, m: Match, cfg: StageSettings) -> Eval:
+    """Residuals against the fixed tangent planes (m.Y, m.N) of a matching at the pose (R, t)."""
     X = np.empty_like(P)
     d = np.empty(P.shape[0])
-    _kernels.move_and_residuals(P, R, t, Y, N, valid, clamped, X, d)
-    return weigh(X, Y, N, d, valid, idx, clamped, loss, scale, floor)
+    _kernels.move_and_residuals(P, R, t, m.Y, m.N, m.valid, m.clamped, X, d)
+    return weigh(m._replace(X=X, d=d), cfg.loss, cfg.scale, cfg.floor)
 
 
 def _motion(R0, t0, R1, t1, center) -> np.ndarray:
@@ -278,14 +298,14 @@ def step(P, ev: Eval, R, t, method: str, radius: float, mp=None, null=None):
     H, g = system(ev.X, ev.Y, ev.N, w, center)
     if null is None:
         null = null_directions(ev, mp, H, center, radius)
-    if method == "point-to-plane":
+    if method == Method.POINT_TO_PLANE:
         theta, _ = solve_step(H, g, radius, null=null)
         Rn, tn = compose_step(R, t, theta, center)
     else:
         Rn, tn = weighted_rigid_fit(P, ev.Y, w)
     v = _motion(R, t, Rn, tn, center)
     m = float(np.sqrt(max(v @ H @ v, 0.0))) / ev.sigma
-    if method == "point-to-plane":
+    if method == Method.POINT_TO_PLANE:
         return Rn, tn, v, m, m
     q = ev.X - center
     S = (q * w[:, None]).T @ q
@@ -338,7 +358,7 @@ class _Criterion:
     """Step-length and objective test of the module docstring."""
 
     def __init__(self, tol, method):
-        self.tol, self.plane, self.prev_m = tol, method == "point-to-plane", None
+        self.tol, self.plane, self.prev_m = tol, method == Method.POINT_TO_PLANE, None
 
     def done(self, prev, ev: Eval, m, far) -> bool:
         """prev: (sigma, objective) before the last step or None; m, far: from :func:`step`."""
@@ -360,18 +380,18 @@ def _record(st, name, loss, n, ev, v=None, m=0.0, matched=True):
         0.0 if v is None else float(np.linalg.norm(v[3:])), float(m), matched))
 
 
-def _anneal(ev: Eval, prev_sigma, anneal, scale, floor) -> Eval:
+def _anneal(ev: Eval, prev_sigma, anneal, cfg: StageSettings) -> Eval:
     """Graduated scale: sigma may fall by at most the factor ``anneal`` per iteration."""
-    if anneal is None or scale is not None or prev_sigma is None:
+    if anneal is None or cfg.scale is not None or prev_sigma is None:
         return ev
     lo = anneal * prev_sigma
     if ev.sigma >= lo:
         return ev
-    return weigh(ev.X, ev.Y, ev.N, ev.d, ev.valid, ev.index, ev.clamped, ev.loss, lo, floor)
+    return weigh(ev.match, ev.loss, lo, cfg.floor)
 
 
-def stage_rematch(name, P, prep, st: State, method, loss, scale, floor, radius, max_it, tol,
-                  exact, first=None, anneal=None) -> tuple[Eval, bool, str]:
+def stage_rematch(name, P, prep, st: State, cfg: StageSettings, first=None,
+                  anneal=None) -> tuple[Eval, bool, str]:
     """Iterate re-matching + one step until converged or ``max_it`` steps (module docstring).
 
     ``first(d, valid)`` optionally checks the first matching (e.g. the max_distance test).
@@ -381,20 +401,21 @@ def stage_rematch(name, P, prep, st: State, method, loss, scale, floor, radius, 
     has moved; Black & Rangarajan 1996, Yang et al. 2020).
     Returns the final evaluation, whether it converged, and why not ('' when it did).
     """
-    X, Y, N, d, valid, idx, clamped = match(P, prep, st.R, st.t, exact)
+    method, loss, radius, max_it = cfg.method, cfg.loss, cfg.radius, cfg.max_iterations
+    m0 = match(P, prep, st.R, st.t, cfg.exact)
     if first is not None:
-        first(d, valid)
-    ev = weigh(X, Y, N, d, valid, idx, clamped, loss, scale, floor)
-    aa = Anderson(st.R.copy(), P.mean(axis=0), radius) if method == "point-to-point" else None
+        first(m0.d, m0.valid)
+    ev = weigh(m0, loss, cfg.scale, cfg.floor)
+    aa = Anderson(st.R.copy(), P.mean(axis=0), radius) if method == Method.POINT_TO_POINT else None
     mp = model_points(prep)
-    crit = _Criterion(tol, method)
+    crit = _Criterion(cfg.tolerance, method)
     prev = None   # (sigma, objective) before the last step
     plain = None  # the plain step's pose when the last step was accelerated
     for k in range(max_it + 1):
         if plain is not None and _mean_rho(ev, prev[0]) > prev[1]:
             st.R, st.t = plain       # the accelerated step made it worse: plain step
             aa.reset()
-            ev = evaluate(P, prep, st.R, st.t, loss, scale, floor, exact)
+            ev = evaluate(P, prep, st.R, st.t, cfg)
         plain = None
         Rn, tn, v, m, far = step(P, ev, st.R, st.t, method, radius, mp)
         if crit.done(prev, ev, m, far):
@@ -412,8 +433,7 @@ def stage_rematch(name, P, prep, st: State, method, loss, scale, floor, radius, 
         prev = (ev.sigma, ev.objective)
         st.R, st.t = Rn, tn
         st.iterations += 1
-        ev = _anneal(evaluate(P, prep, st.R, st.t, loss, scale, floor, exact), ev.sigma,
-                     anneal, scale, floor)
+        ev = _anneal(evaluate(P, prep, st.R, st.t, cfg), ev.sigma, anneal, cfg)
     _record(st, name, loss, P.shape[0], ev)
     return ev, False, f"stage {name!r} hit max_iterations={max_it}"
 
@@ -431,7 +451,7 @@ def pose_increment(theta, radius: float) -> float:
     return float(np.linalg.norm(theta[:3]) * radius + np.linalg.norm(theta[3:]))
 
 
-def _verify(P, prep, st: State, ev: Eval, radius, tol, exact, rng, mp):
+def _verify(P, prep, st: State, ev: Eval, cfg: StageSettings, rng, mp):
     """Re-match a random subset at the final pose: are the fixed planes still right?
 
     Returns (ok, delta, dobj): ``ok`` when the correction the fresh closest points ask for is
@@ -440,9 +460,11 @@ def _verify(P, prep, st: State, ev: Eval, radius, tol, exact, rng, mp):
     :func:`pose_increment`); ``dobj`` the relative change of the subset's objective between the
     fixed planes and the fresh matching.
     """
+    radius, tol = cfg.radius, cfg.tolerance
     n = P.shape[0]
     S = np.arange(n) if n <= VERIFY else np.sort(rng.choice(n, VERIFY, replace=False))
-    _, Yf, Nf, df, vf, _, _ = match(P[S], prep, st.R, st.t, exact)
+    fresh = match(P[S], prep, st.R, st.t, cfg.exact)
+    df, vf = fresh.d, fresh.valid
     if np.mean(vf == ev.valid[S]) < 0.999:
         return False, np.inf, np.inf
     both = vf & ev.valid[S]
@@ -468,16 +490,19 @@ def _verify(P, prep, st: State, ev: Eval, radius, tol, exact, rng, mp):
     return inc <= POSE_FRACTION * ev.sigma and dobj <= OBJECTIVE_RTOL, inc, dobj
 
 
-def stage_final_plane(P, prep, st: State, loss, scale, floor, radius, max_it, tol, exact, rng,
+def stage_final_plane(P, prep, st: State, cfg: StageSettings, rng,
                       rounds: int = 4) -> tuple[Eval, bool, str]:
-    """Point-to-plane on every point against fixed tangent planes, verified (module docstring)."""
+    """Point-to-plane on every point against fixed tangent planes, verified (module docstring).
+
+    ``cfg.method`` is ignored (always point-to-plane)."""
+    loss, radius, max_it = cfg.loss, cfg.radius, cfg.max_iterations
     steps = 0
     ev = None
     mp = model_points(prep)
     for _ in range(rounds):
-        X, Y, N, d, valid, idx, clamped = match(P, prep, st.R, st.t, exact)
-        ev = weigh(X, Y, N, d, valid, idx, clamped, loss, scale, floor)
-        crit = _Criterion(tol, "point-to-plane")
+        m0 = match(P, prep, st.R, st.t, cfg.exact)
+        ev = weigh(m0, loss, cfg.scale, cfg.floor)
+        crit = _Criterion(cfg.tolerance, Method.POINT_TO_PLANE)
         prev = None
         matched = True
         null = None   # the geometry of this matching: its undetermined directions are fixed
@@ -486,7 +511,7 @@ def stage_final_plane(P, prep, st: State, loss, scale, floor, radius, max_it, to
                 c0 = centroid(ev.X, ev.w)
                 null = null_directions(ev, mp, system(ev.X, ev.Y, ev.N, ev.w, c0)[0], c0,
                                        radius)
-            Rn, tn, v, m, far = step(P, ev, st.R, st.t, "point-to-plane", radius, mp, null)
+            Rn, tn, v, m, far = step(P, ev, st.R, st.t, Method.POINT_TO_PLANE, radius, mp, null)
             if crit.done(prev, ev, m, far):
                 _record(st, "final", loss, P.shape[0], ev, matched=matched)
                 break
@@ -499,8 +524,8 @@ def stage_final_plane(P, prep, st: State, loss, scale, floor, radius, max_it, to
             st.R, st.t = Rn, tn
             st.iterations += 1
             steps += 1
-            ev = evaluate_fixed(P, st.R, st.t, Y, N, valid, idx, clamped, loss, scale, floor)
-        ok, inc, dobj = _verify(P, prep, st, ev, radius, tol, exact, rng, mp)
+            ev = evaluate_fixed(P, st.R, st.t, m0, cfg)
+        ok, inc, dobj = _verify(P, prep, st, ev, cfg, rng, mp)
         if ok:
             return ev, True, ""
     return ev, False, (f"the pose is still moving after {rounds} re-matchings of all points: "

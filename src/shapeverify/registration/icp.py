@@ -36,6 +36,7 @@ from .._arrays import count_nonfinite_rows
 from . import _irls
 from ._irls import IterationRecord
 from .losses import get_loss
+from .options import InitMode, InitName, LossName, Method, MethodName, StageSettings
 from .rigid import pose_covariance, undetermined_directions
 
 try:  # the project's error classes (ScanError is a ValueError)
@@ -47,9 +48,6 @@ __all__ = ["register", "Registration", "IterationRecord", "DegenerateGeometryWar
 
 logger = logging.getLogger(__name__)
 
-_METHODS = {"point-to-plane": "point-to-plane", "plane": "point-to-plane",
-            "point-to-point": "point-to-point", "point": "point-to-point",
-            "point-then-plane": "point-then-plane", "point-to-point-then-plane": "point-then-plane"}
 #: size of the random subset of the coarse stage (all points if the scan is smaller)
 COARSE_SUBSET = 800
 #: tolerance and iteration cap of the coarse stage
@@ -126,8 +124,8 @@ class Registration:
     scale: float = float("nan")
     message: str = ""
     undetermined: tuple = ()
-    method: str = "point-to-plane"
-    loss: str = "tukey"
+    method: MethodName = "point-to-plane"
+    loss: LossName = "tukey"
     undetermined_directions: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
     warnings: tuple = ()
     init: str = "given"
@@ -189,33 +187,9 @@ def validate_pose(T, what: str = "init") -> np.ndarray:
 
 #: names of the automatic starts
 INIT_MODES = ("auto", "identity", "principal-axes", "global")
-_INIT_ALIASES = {"auto": "auto", "none": "auto", "identity": "identity", "eye": "identity",
-                 "principal-axes": "principal-axes", "pca": "principal-axes",
-                 "global": "global"}
 #: "auto" keeps the identity when the coarse stage from it leaves at least this fit
 #: (share of the subset on the surface, :func:`.global_search.fit_score`)
 AUTO_FIT = 0.5
-
-
-def _check_init(init):
-    """('mode', None) for a named start, ('given', T) for a matrix."""
-    if init is None:
-        return "auto", None
-    if isinstance(init, str):
-        key = init.lower().replace("_", "-").strip()
-        if key not in _INIT_ALIASES:
-            raise ValueError(f"unknown init {init!r}; use 'auto' (None), 'identity', "
-                             "'principal-axes', 'global' or a (4, 4) T_model_scan")
-        return _INIT_ALIASES[key], None
-    return "given", validate_pose(init)
-
-
-def _check_method(method) -> str:
-    key = str(method).lower().replace("_", "-")
-    if key not in _METHODS:
-        raise ValueError(f"unknown method {method!r}; use 'point-to-plane', 'point-to-point' or "
-                         "'point-then-plane'")
-    return _METHODS[key]
 
 
 # ------------------------------------------------------------------------------ helpers
@@ -239,7 +213,8 @@ def _describe(undet: np.ndarray) -> list[str]:
     return out
 
 
-def register(scan, prep, init=None, method: str = "point-to-plane", loss: str = "tukey",
+def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
+             method: "MethodName | Method" = "point-to-plane", loss: "LossName" = "tukey",
              scale: float | None = None, max_iterations: int = 100, tolerance: float = 1e-7,
              rng=0) -> Registration:
     """Robust ICP: register a scan to a prepared model (IRLS-ICP with automatic scale).
@@ -338,7 +313,7 @@ def register(scan, prep, init=None, method: str = "point-to-plane", loss: str = 
     if not callable(getattr(prep, "closest", None)):
         raise ValueError("prep must be a Prepared model (from shapeverify.prepare) with a "
                          f".closest method, got {type(prep).__name__}")
-    method = _check_method(method)
+    method = Method.parse(method)
     lossobj = get_loss(loss)
     if scale is not None:
         scale = float(scale)
@@ -351,14 +326,14 @@ def register(scan, prep, init=None, method: str = "point-to-plane", loss: str = 
     if not (np.isfinite(tolerance) and tolerance > 0):
         raise ValueError(f"tolerance must be positive, got {tolerance}")
     rng = np.random.default_rng(0 if rng is None else rng)
-    mode, T0 = _check_init(init)
-    how = mode
-    if mode == "principal-axes":
+    mode, T0 = InitMode.parse(init, validate_pose)
+    how = mode.value
+    if mode is InitMode.PRINCIPAL_AXES:
         from .initial import principal_axes_alignment
         T0 = principal_axes_alignment(P, prep, rng=rng).T_model_scan
-    elif mode in ("auto", "identity"):
+    elif mode in (InitMode.AUTO, InitMode.IDENTITY):
         T0 = np.eye(4)
-        how = "identity"
+        how = InitMode.IDENTITY.value
 
     n = P.shape[0]
     radius = float(np.sqrt(np.mean(np.sum((P - P.mean(axis=0)) ** 2, axis=1))))
@@ -383,24 +358,25 @@ def register(scan, prep, init=None, method: str = "point-to-plane", loss: str = 
         return P if n <= k else P[np.sort(rng.choice(n, k, replace=False))]
 
     convex = lossobj if lossobj.name in ("l2", "huber") else get_loss("huber")
-    coarse_method = "point-to-point" if method == "point-then-plane" else method
-    final_method = "point-to-plane" if method == "point-then-plane" else method
     cap = min(max_iterations, _STAGE_CAP)
     S_coarse = subset(COARSE_SUBSET)
+    coarse_cfg = StageSettings(method.coarse, convex, scale, floor, radius, cap,
+                               max(_COARSE_TOL, tolerance))
+    final_cfg = StageSettings(method.final, lossobj, scale, floor, radius, max_iterations,
+                              tolerance)
 
     def coarse(T, check):
         st = _irls.State(T[:3, :3].copy(), T[:3, 3].copy())
         # graduation: convex loss on a subset first, then the requested loss on every point
-        _irls.stage_rematch("coarse", S_coarse, prep, st, coarse_method, convex, scale, floor, radius,
-                            cap, max(_COARSE_TOL, tolerance), False,
+        _irls.stage_rematch("coarse", S_coarse, prep, st, coarse_cfg,
                             first=_reachable if check else None, anneal=ANNEAL)
         return st
 
     ga = None
-    if mode in ("auto", "global"):
+    if mode in (InitMode.AUTO, InitMode.GLOBAL):
         from .global_search import fit_distance, fit_score, global_alignment
         st, extra = None, ()
-        if mode == "auto":
+        if mode is InitMode.AUTO:
             try:
                 st = coarse(T0, True)
                 T_id = _pose(st)
@@ -414,12 +390,10 @@ def register(scan, prep, init=None, method: str = "point-to-plane", loss: str = 
             st = coarse(ga.T_model_scan, False)
     else:
         st = coarse(T0, True)
-    if final_method == "point-to-plane":
-        ev, converged, why = _irls.stage_final_plane(P, prep, st, lossobj, scale, floor, radius,
-                                                max_iterations, tolerance, False, rng)
+    if final_cfg.method is Method.POINT_TO_PLANE:
+        ev, converged, why = _irls.stage_final_plane(P, prep, st, final_cfg, rng)
     else:
-        ev, converged, why = _irls.stage_rematch("final", P, prep, st, final_method, lossobj, scale,
-                                            floor, radius, max_iterations, tolerance, False)
+        ev, converged, why = _irls.stage_rematch("final", P, prep, st, final_cfg)
 
     w = ev.w
     center = _irls.centroid(ev.X, w)
@@ -451,7 +425,7 @@ def register(scan, prep, init=None, method: str = "point-to-plane", loss: str = 
     return Registration(T_model_scan=T, rms=ev.rms, iterations=st.iterations,
                         converged=converged, weights=w, inlier_fraction=float(ev.inliers.mean()),
                         covariance=cov, history=tuple(st.history), scale=ev.sigma, message=msg,
-                        undetermined=desc, method=method, loss=lossobj.name,
+                        undetermined=desc, method=method.value, loss=lossobj.name,
                         undetermined_directions=undet, warnings=tuple(notes), init=how)
 
 
