@@ -1,0 +1,181 @@
+"""Benchmark: where ``prepare`` spends its time and memory, stage by stage (issue 18 item 3,
+issue 14 item 4).
+
+The stages are those of :func:`shapeverify.nearest.prepared.prepare`, run one after the other
+here so that each gets its own clock:
+
+* ``sample``      ``Model.sample`` (candidates on every face, trims, thinning, frames);
+* ``order``       the Morton order of the model points;
+* ``kd``          the scipy kd-tree over the model points (neighbour graph, exact fallback);
+* ``graph``       the 8 nearest neighbours of each model point;
+* ``records``     the 128-byte model point records;
+* ``tree``        the DVG cell tree (:func:`shapeverify.nearest.dvg.build_tree`);
+* ``other``       the other-face links of the exact mode.
+
+CPU seconds (``time.process_time``, all threads of the process) is the figure to compare on
+this shared, loaded machine; wall seconds are printed beside it.  ``--peak`` measures the
+Python-level peak allocation with ``tracemalloc`` (numpy arrays included); the process'
+peak RSS is best taken with ``/usr/bin/time -v``.
+
+``--save-answers FILE`` writes the nearest-model-point indices of fixed queries (random and
+scan-like, see :func:`queries`) and ``--compare FILE`` checks a later build against them and
+against scipy's cKDTree.
+
+Run:  .venv/bin/python benchmarks/bench_prepare.py impeller --spacing 0.175
+      .venv/bin/python benchmarks/bench_prepare.py panel --spacing 0.6 --reach 2
+      /usr/bin/time -v .venv/bin/python benchmarks/bench_prepare.py impeller --spacing 0.175
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import time
+import tracemalloc
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from shapeverify.nearest import dvg
+from shapeverify.nearest import prepared as _prepared
+
+SHARED = Path(__file__).resolve().parents[1].parent / "shared" / "data"
+
+
+def load(name: str):
+    """The benchmark models: ``impeller`` (shared data), ``panel`` (bundled example), a path."""
+    from shapeverify import load_model
+
+    if name == "impeller":
+        cache = Path(os.environ.get("TMPDIR", "/tmp")) / "bench_prepare_impeller.svmodel"
+        if cache.is_file():
+            return load_model(cache)
+        m = load_model(SHARED / "cad" / "impeller.igs")
+        m.save(cache)
+        return m
+    if name == "panel":
+        import tempfile
+
+        from shapeverify.cad.examples import example_part_step
+        with tempfile.TemporaryDirectory() as d:
+            return load_model(example_part_step(Path(d) / "panel.step"))
+    return load_model(name)
+
+
+class Clock:
+    """CPU and wall seconds of named stages."""
+
+    def __init__(self):
+        self.rows: list[tuple[str, float, float]] = []
+
+    def run(self, name, fn, *a, **kw):
+        c, w = time.process_time(), time.perf_counter()
+        out = fn(*a, **kw)
+        self.rows.append((name, time.process_time() - c, time.perf_counter() - w))
+        return out
+
+    def table(self) -> str:
+        tc = sum(r[1] for r in self.rows)
+        tw = sum(r[2] for r in self.rows)
+        lines = ["| stage | CPU s | share | wall s |", "|---|---:|---:|---:|"]
+        for name, c, w in self.rows:
+            lines.append(f"| {name} | {c:.2f} | {100 * c / max(tc, 1e-9):.0f} % | {w:.2f} |")
+        lines.append(f"| **total** | **{tc:.2f}** | | {tw:.2f} |")
+        return "\n".join(lines)
+
+
+def staged_prepare(model, spacing, reach, clock: Clock):
+    """The steps of ``prepare`` one by one (same calls, same order, same result)."""
+    size = model.size
+    h = float(spacing)
+    maxd = _prepared.default_max_distance(size, h) if reach is None else float(reach)
+    mp = clock.run("sample", model.sample, h)
+    order = clock.run("order", dvg.morton_order, mp.points, h)
+    pts = clock.run("points", lambda: np.ascontiguousarray(mp.points[order]))
+    frames = _prepared._frames(mp)[order]
+    kd = clock.run("kd", cKDTree, pts)
+    graph = clock.run("graph", dvg.neighbor_graph, pts, tree=kd)
+    rec = clock.run("records", dvg.make_records, pts, graph, frames)
+    tree = clock.run("tree", dvg.build_tree, rec, h, maxd, kd=kd)
+    fast = dvg.DVG(rec, tree)
+    fast._kd = kd
+    face = np.ascontiguousarray(mp.face[order])
+    if model.kind == "cad":
+        clock.run("other", _prepared._other_face_points, fast.points, face, h, kd)
+    return fast, maxd
+
+
+def queries(pts, normals, h, reach, n, rng=0):
+    """Fixed test queries: (random in the tree's box, scan-like: a model point moved sideways
+    by up to half a spacing and along its normal by up to the reach)."""
+    rng = np.random.default_rng(rng)
+    lo, hi = pts.min(axis=0) - reach, pts.max(axis=0) + reach
+    rand = rng.uniform(lo, hi, (n, 3))
+    i = rng.integers(0, pts.shape[0], n)
+    side = rng.uniform(-0.5 * h, 0.5 * h, (n, 3))
+    side -= np.einsum("ij,ij->i", side, normals[i])[:, None] * normals[i]
+    scan = pts[i] + side + normals[i] * rng.uniform(-reach, reach, n)[:, None]
+    scan = scan[dvg.morton_order(scan, h)]  # scanner-like order
+    return rand, scan
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("model", help="impeller | panel | a model file")
+    ap.add_argument("--spacing", type=float, default=None)
+    ap.add_argument("--reach", type=float, default=None)
+    ap.add_argument("--peak", action="store_true", help="tracemalloc peak (slower)")
+    ap.add_argument("--workers", type=int, default=None)
+    ap.add_argument("--queries", type=int, default=200_000)
+    ap.add_argument("--save-answers", type=Path, default=None)
+    ap.add_argument("--compare", type=Path, default=None)
+    args = ap.parse_args()
+    from shapeverify.nearest import set_workers
+    set_workers(args.workers)
+    model = load(args.model)
+    h = _prepared.default_spacing(model.size) if args.spacing is None else args.spacing
+    if args.peak:
+        tracemalloc.start()
+    clock = Clock()
+    load_avg = os.getloadavg()[0]
+    fast, maxd = staged_prepare(model, h, args.reach, clock)
+    peak = tracemalloc.get_traced_memory()[1] if args.peak else None
+    if args.peak:
+        tracemalloc.stop()
+    result = fast.nbytes + fast.n_points * 17  # + rows (16 B) and boundary flag (1 B)
+    print(f"{args.model}: {fast.n_points:,} model points, spacing {h:g} mm, reach {maxd:g} mm, "
+          f"load average {load_avg:.1f} on {os.cpu_count()} cores, workers {args.workers}")
+    print(repr(fast.tree))
+    print(clock.table())
+    print(f"result {result / 2**20:.1f} MiB" + (
+        f", tracemalloc peak {peak / 2**20:.1f} MiB ({peak / result:.2f}x the result)"
+        if peak else ""))
+    if args.save_answers or args.compare:
+        pts = np.ascontiguousarray(fast.points)
+        nrm = fast.frames()[:, 0:3]
+        rand, scan = queries(pts, nrm, h, maxd, args.queries)
+        kd = cKDTree(pts)
+        out = {}
+        for name, q in (("random", rand), ("scan", scan)):
+            idx, dist = fast.nearest(q)
+            d_true, _ = kd.query(q, workers=-1)
+            inside = d_true <= maxd
+            right = dist <= d_true * (1 + 1e-12) + 1e-12
+            print(f"{name}: {q.shape[0]:,} queries, {int(inside.sum()):,} within the reach; "
+                  f"exact nearest distance for {right[inside].mean():.6f} of them "
+                  f"({int((~right[inside]).sum())} not), largest excess "
+                  f"{np.max(dist - d_true):.3g} mm")
+            out[name] = idx
+        if args.save_answers:
+            np.savez(args.save_answers, **out)
+        if args.compare:
+            ref = np.load(args.compare)
+            for name, idx in out.items():
+                same = ref[name] == idx
+                print(f"{name}: identical to {args.compare}: {same.mean():.6f} "
+                      f"({int((~same).sum())} differ)")
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,349 @@
+"""numba kernels that build the DVG tree below the top grid (private; see :mod:`.dvg`).
+
+The classification of a cell (:func:`shapeverify.nearest._kernels.classify` and
+``classify_multi``) needs the exact nearest model point of its 8 vertices (and, for a cell that
+failed, of 7 more samples).  Instead of a kd-tree query per vertex, every refined cell carries a
+*candidate list*: the model points that can be the nearest one anywhere in the cell.  A child's
+list is its parent's list, pruned:
+
+* by distance: a point farther from the cell (box distance) than ``U`` cannot be nearest
+  anywhere in it, where ``U = min(min_o d_o + 2 r, max_o d_o + r)`` bounds the nearest distance
+  of every point of the cell (d_o: nearest distances of the vertices, r: half diagonal);
+* by *witnesses*, the vertices' nearest points a: a point p is dropped when a is strictly
+  closer than p everywhere in the cell.  ``|v - a|^2 - |v - p|^2`` is linear in v, so its
+  largest value over the box is ``|c - a|^2 - |c - p|^2 + size * sum_k |p_k - a_k|`` (c: the
+  centre); p is dropped when that is negative (with a relative margin of 1e-9 against rounding).
+
+Both tests only drop points that are nearest nowhere in the cell, so the nearest point of any
+point of a cell is in its list, and a brute-force search over the list is exact.  The top
+grid's lists are collected from the model points binned on the top grid.  Ties (two model
+points at exactly the same distance) go to the lower index, as in a linear scan.
+
+Every cell is handled on its own, so the kernels run on contiguous chunks of cells in several
+threads with identical results.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from ._kernels import EXTRA, walk
+
+# lattice offsets of a cell's 8 vertices (octant order: x | y << 1 | z << 2)
+_CX = np.array([o & 1 for o in range(8)], dtype=np.int64)
+_CY = np.array([(o >> 1) & 1 for o in range(8)], dtype=np.int64)
+_CZ = np.array([(o >> 2) & 1 for o in range(8)], dtype=np.int64)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _nn(q0, q1, q2, pts, lst, a, b):
+    """Exact nearest point of q among lst[a:b] (lowest index on ties): (index, distance)."""
+    best = -1
+    bd = np.inf
+    for s in range(a, b):
+        j = lst[s]
+        e0 = pts[j, 0] - q0
+        e1 = pts[j, 1] - q1
+        e2 = pts[j, 2] - q2
+        d = e0 * e0 + e1 * e1 + e2 * e2
+        if d < bd or (d == bd and j < best):
+            bd = d
+            best = j
+    return best, np.sqrt(bd)
+
+
+@njit(cache=True, nogil=True)
+def _vertex_nn(c, origin, size, pts, lst, a, b, out_i, out_d):
+    """Exact nearest points of the 8 vertices of cell c (integer coordinates, size ``size``)."""
+    for o in range(8):
+        q0 = origin[0] + size * (c[0] + _CX[o])
+        q1 = origin[1] + size * (c[1] + _CY[o])
+        q2 = origin[2] + size * (c[2] + _CZ[o])
+        out_i[o], out_d[o] = _nn(q0, q1, q2, pts, lst, a, b)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _keep(p, c0, c1, c2, half, pts, wit, U):
+    """Whether model point p can be the nearest one somewhere in the cube (centre c, half
+    side ``half``) whose vertices' nearest points are ``wit`` (8,) and nearest distances are
+    all <= U (see the module docstring)."""
+    x0 = pts[p, 0]
+    x1 = pts[p, 1]
+    x2 = pts[p, 2]
+    g0 = max(abs(x0 - c0) - half, 0.0)
+    g1 = max(abs(x1 - c1) - half, 0.0)
+    g2 = max(abs(x2 - c2) - half, 0.0)
+    if g0 * g0 + g1 * g1 + g2 * g2 > U * U * (1.0 + 1e-9):
+        return False
+    dp = (x0 - c0) ** 2 + (x1 - c1) ** 2 + (x2 - c2) ** 2
+    for w in range(wit.shape[0]):
+        a = wit[w]
+        if a == p:
+            continue
+        y0 = pts[a, 0]
+        y1 = pts[a, 1]
+        y2 = pts[a, 2]
+        da = (y0 - c0) ** 2 + (y1 - c1) ** 2 + (y2 - c2) ** 2
+        worst = da - dp + 2.0 * half * (abs(x0 - y0) + abs(x1 - y1) + abs(x2 - y2))
+        if worst < -1e-9 * (da + dp):
+            return False
+    return True
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _bound(vd):
+    """Upper bound of the nearest distance anywhere in a cell from its vertices' distances
+    (without the half diagonal terms: returns (min, max))."""
+    lo = np.inf
+    hi = 0.0
+    for o in range(8):
+        lo = min(lo, vd[o])
+        hi = max(hi, vd[o])
+    return lo, hi
+
+
+@njit(cache=True, nogil=True)
+def _grow(buf, need):
+    if need <= buf.shape[0]:
+        return buf
+    new = np.empty(max(need, 2 * buf.shape[0]), dtype=buf.dtype)
+    new[:buf.shape[0]] = buf
+    return new
+
+
+@njit(cache=True, nogil=True)
+def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
+    """Candidate lists of refined top cells from the model points binned on the top grid.
+
+    cells : (R, 3) int64 top cell coordinates; vnn_i, vnn_d : (R, 8) exact nearest point and
+    distance of each vertex; order, start : the points sorted by top cell and the start of
+    each cell's run (``start`` has dims.prod() + 1 entries).  Returns (counts (R,) int64,
+    concatenated lists int32).
+    """
+    R = cells.shape[0]
+    counts = np.zeros(R, dtype=np.int64)
+    buf = np.empty(max(1024, 64 * R), dtype=np.int32)
+    pos = 0
+    r = 0.5 * np.sqrt(3.0) * size
+    half = 0.5 * size
+    wit = np.empty(8, dtype=np.int64)
+    for m in range(R):
+        lo, hi = _bound(vnn_d[m])
+        U = min(lo + 2.0 * r, hi + r)
+        for o in range(8):
+            wit[o] = vnn_i[m, o]
+        c0 = origin[0] + size * (cells[m, 0] + 0.5)
+        c1 = origin[1] + size * (cells[m, 1] + 0.5)
+        c2 = origin[2] + size * (cells[m, 2] + 0.5)
+        k = int(np.ceil(U / size)) + 1
+        x0 = max(0, cells[m, 0] - k)
+        x1 = min(dims[0] - 1, cells[m, 0] + k)
+        y0 = max(0, cells[m, 1] - k)
+        y1 = min(dims[1] - 1, cells[m, 1] + k)
+        z0 = max(0, cells[m, 2] - k)
+        z1 = min(dims[2] - 1, cells[m, 2] + k)
+        n0 = pos
+        for ix in range(x0, x1 + 1):
+            for iy in range(y0, y1 + 1):
+                b = (ix * dims[1] + iy) * dims[2]
+                a0 = start[b + z0]
+                a1 = start[b + z1 + 1]
+                if a1 - a0 + pos > buf.shape[0]:
+                    buf = _grow(buf, a1 - a0 + pos)
+                for s in range(a0, a1):
+                    p = order[s]
+                    if _keep(p, c0, c1, c2, half, pts, wit, U):
+                        buf[pos] = p
+                        pos += 1
+        counts[m] = pos - n0
+    return counts, buf[:pos].copy()
+
+
+@njit(cache=True, nogil=True)
+def classify_children(parents, off, lst, pts, origin, size, rf, ri, rh, rs, max_distance,
+                      max_moves, out_kind, out_seed):
+    """:func:`shapeverify.nearest._kernels.classify` for the 8 children (cell size ``size``)
+    of each refined parent cell, the vertices' nearest points found in the parent's list.
+
+    parents : (R, 3) int64 parent coordinates at the level above; off : (R + 1,) int64 offsets
+    of their lists in ``lst``.  Child 8 p + o (octant o) has coordinates 2 parents[p] + corner.
+    out_kind, out_seed : (8 R,).
+    """
+    r = 0.5 * np.sqrt(3.0) * size
+    tol = 1e-12 * size
+    li = np.empty(27, dtype=np.int64)
+    ld = np.empty(27)
+    for p in range(parents.shape[0]):
+        a = off[p]
+        b = off[p + 1]
+        b0 = 2 * parents[p, 0]
+        b1 = 2 * parents[p, 1]
+        b2 = 2 * parents[p, 2]
+        for t in range(27):
+            q0 = origin[0] + size * (b0 + t % 3)
+            q1 = origin[1] + size * (b1 + (t // 3) % 3)
+            q2 = origin[2] + size * (b2 + t // 9)
+            li[t], ld[t] = _nn(q0, q1, q2, pts, lst, a, b)
+        for oc in range(8):
+            m = 8 * p + oc
+            cx = _CX[oc]
+            cy = _CY[oc]
+            cz = _CZ[oc]
+            dmin = np.inf
+            vmin = 0
+            for o in range(8):
+                t = (cx + _CX[o]) + 3 * (cy + _CY[o]) + 9 * (cz + _CZ[o])
+                if ld[t] < dmin:
+                    dmin = ld[t]
+                    vmin = t
+            out_seed[m] = -1
+            if not (dmin <= max_distance + r):
+                out_kind[m] = 0
+                continue
+            c0 = origin[0] + size * (b0 + cx + 0.5)
+            c1 = origin[1] + size * (b1 + cy + 0.5)
+            c2 = origin[2] + size * (b2 + cz + 0.5)
+            seed, _, _ = walk(c0, c1, c2, li[vmin], rf, ri, rh, rs, 64)
+            out_seed[m] = seed
+            out_kind[m] = 1
+            for o in range(8):
+                t = (cx + _CX[o]) + 3 * (cy + _CY[o]) + 9 * (cz + _CZ[o])
+                q0 = origin[0] + size * (b0 + cx + _CX[o])
+                q1 = origin[1] + size * (b1 + cy + _CY[o])
+                q2 = origin[2] + size * (b2 + cz + _CZ[o])
+                _, d2, mv = walk(q0, q1, q2, seed, rf, ri, rh, rs, max_moves + 1)
+                if mv > max_moves or np.sqrt(d2) > ld[t] * (1.0 + 1e-12) + tol:
+                    out_kind[m] = 2
+                    break
+
+
+@njit(cache=True, nogil=True)
+def _walks_ok(q0, q1, q2, seeds, n0, cnt, cache_d, cache_m, rf, ri, rh, rs, max_moves,
+              d_exact, tol):
+    """_kernels._seeded_ok with the walks of seeds[:n0] taken from the cache (and the walks of
+    seeds[n0:cnt] added to it)."""
+    for s in range(n0, cnt):
+        _, d2, k = walk(q0, q1, q2, seeds[s], rf, ri, rh, rs, max_moves + 1)
+        cache_d[s] = d2
+        cache_m[s] = k
+    bd = np.inf
+    mv = 0
+    for s in range(cnt):
+        mv = max(mv, cache_m[s])
+        bd = min(bd, cache_d[s])
+    return mv <= max_moves and np.sqrt(bd) <= d_exact * (1.0 + 1e-12) + tol
+
+
+@njit(cache=True, nogil=True)
+def multi_children(ids, parents, off, lst, pts, origin, size, first_seed, rf, ri, rh, rs,
+                   max_moves, max_seeds, last_level, out_kind, out_seeds, out_nseeds):
+    """:func:`shapeverify.nearest._kernels.classify_multi` for the failed children ``ids``
+    (child numbers 8 p + octant), the samples' nearest points found in the parent's list.
+
+    Same result as ``classify_multi``; the walks from each seed to each vertex are done once
+    (the second round reuses them), and above the last level a cell stops as soon as it is
+    certain to be refined (its seeds are then not needed).
+    """
+    tol = 1e-12 * size
+    h = 0.5 * size
+    cap = out_seeds.shape[1]
+    vi = np.empty(8, dtype=np.int64)
+    vd = np.empty(8)
+    cd = np.empty((8, cap))
+    cm = np.empty((8, cap), dtype=np.int64)
+    nc = np.zeros(8, dtype=np.int64)
+    ed = np.empty(cap)
+    em = np.empty(cap, dtype=np.int64)
+    c = np.empty(3, dtype=np.int64)
+    for f in range(ids.shape[0]):
+        m = ids[f]
+        p = m // 8
+        oc = m % 8
+        a = off[p]
+        b = off[p + 1]
+        c[0] = 2 * parents[p, 0] + _CX[oc]
+        c[1] = 2 * parents[p, 1] + _CY[oc]
+        c[2] = 2 * parents[p, 2] + _CZ[oc]
+        _vertex_nn(c, origin, size, pts, lst, a, b, vi, vd)
+        seeds = out_seeds[f]
+        seeds[0] = first_seed[m]
+        cnt = 1
+        ok = True
+        stop = False
+        nc[:] = 0
+        for rnd in range(2):
+            for o in range(8):
+                q0 = origin[0] + size * (c[0] + _CX[o])
+                q1 = origin[1] + size * (c[1] + _CY[o])
+                q2 = origin[2] + size * (c[2] + _CZ[o])
+                good = _walks_ok(q0, q1, q2, seeds, nc[o], cnt, cd[o], cm[o], rf, ri, rh, rs,
+                                 max_moves, vd[o], tol)
+                nc[o] = cnt
+                if not good:
+                    if rnd == 0 and cnt < cap:
+                        seeds[cnt] = vi[o]
+                        cnt += 1
+                    else:
+                        ok = False
+                if not last_level and (not ok or cnt > max_seeds):
+                    stop = True
+                    break
+            if stop:
+                break
+        if not stop:
+            for e in range(7):
+                q0 = origin[0] + h * (2 * c[0] + EXTRA[e, 0])
+                q1 = origin[1] + h * (2 * c[1] + EXTRA[e, 1])
+                q2 = origin[2] + h * (2 * c[2] + EXTRA[e, 2])
+                xi, xd = _nn(q0, q1, q2, pts, lst, a, b)
+                if not _walks_ok(q0, q1, q2, seeds, 0, cnt, ed, em, rf, ri, rh, rs, max_moves,
+                                 xd, tol):
+                    ok = False
+                    if last_level and cnt < cap:
+                        seeds[cnt] = xi
+                        cnt += 1
+                    elif not last_level:
+                        break
+        out_nseeds[f] = cnt
+        out_kind[f] = 1 if (not stop and ok and cnt <= max_seeds) or last_level else 2
+
+
+@njit(cache=True, nogil=True)
+def child_lists(ids, parents, off, lst, pts, origin, size):
+    """Candidate lists of the refined children ``ids`` (child numbers 8 p + octant) from their
+    parents' lists.  Returns (counts (len(ids),) int64, concatenated lists int32)."""
+    n = ids.shape[0]
+    counts = np.zeros(n, dtype=np.int64)
+    buf = np.empty(max(1024, 16 * n), dtype=np.int32)
+    pos = 0
+    r = 0.5 * np.sqrt(3.0) * size
+    half = 0.5 * size
+    vi = np.empty(8, dtype=np.int64)
+    vd = np.empty(8)
+    c = np.empty(3, dtype=np.int64)
+    for f in range(n):
+        m = ids[f]
+        p = m // 8
+        oc = m % 8
+        a = off[p]
+        b = off[p + 1]
+        c[0] = 2 * parents[p, 0] + _CX[oc]
+        c[1] = 2 * parents[p, 1] + _CY[oc]
+        c[2] = 2 * parents[p, 2] + _CZ[oc]
+        _vertex_nn(c, origin, size, pts, lst, a, b, vi, vd)
+        lo, hi = _bound(vd)
+        U = min(lo + 2.0 * r, hi + r)
+        c0 = origin[0] + size * (c[0] + 0.5)
+        c1 = origin[1] + size * (c[1] + 0.5)
+        c2 = origin[2] + size * (c[2] + 0.5)
+        if pos + (b - a) > buf.shape[0]:
+            buf = _grow(buf, pos + (b - a))
+        n0 = pos
+        for s in range(a, b):
+            q = lst[s]
+            if _keep(q, c0, c1, c2, half, pts, vi, U):
+                buf[pos] = q
+                pos += 1
+        counts[f] = pos - n0
+    return counts, buf[:pos].copy()

@@ -1,0 +1,316 @@
+"""Building the DVG cell tree (:func:`build_tree`; the tree itself: :mod:`.dvg`).
+
+Levels are built one after the other, breadth first: the top grid (level 0), then the 8
+children of every cell refined on the level above.  Each cell is classified (FAR, single-seed
+leaf, multi-seed leaf or refined, see :mod:`.dvg`) from the exact nearest model point of its
+vertices (and, for the cells that failed, of 7 more samples).  Those nearest points come from
+a kd-tree on the top grid only; every refined cell then carries a candidate list (the model
+points that can be nearest anywhere in it, :mod:`._build_kernels`) that its children search by
+brute force and prune for their own children.  The tree is the one the kd-tree at every
+vertex gave (same arrays), at a fraction of the cost: each level's cells search a few dozen
+candidates instead of a kd-tree, and share them between their 27 lattice points.
+
+Cells are independent, so every level is classified on all threads (``run_chunks``), with
+results identical for any number of threads.
+"""
+
+from __future__ import annotations
+
+import logging
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from . import _build_kernels as _bk
+from . import _kernels
+from ._threads import run_chunks
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["build_tree"]
+
+_CORNER = np.array([[o & 1, (o >> 1) & 1, (o >> 2) & 1] for o in range(8)], dtype=np.int64)
+
+
+def _top_grid(lo, hi, spacing, max_top_cells):
+    cell = 8.0 * spacing
+    while True:
+        dims = np.maximum(np.ceil((hi - lo) / cell).astype(np.int64), 1)
+        if int(np.prod(dims)) <= max_top_cells:
+            return cell, dims
+        cell *= 2.0
+
+
+def _views(rec):
+    return (rec, rec.view(np.int32), rec.view(np.int16), rec.view(np.float32))
+
+
+def _chunked(fn, n, min_chunk):
+    """run_chunks over range(n) for a kernel returning (counts, buffer) per chunk; the chunks'
+    outputs joined in order: (counts (n,) int64, buffer int32)."""
+    parts = {}
+
+    def one(a, b):
+        parts[a] = fn(a, b)
+
+    run_chunks(one, n, min_chunk)
+    keys = sorted(parts)
+    counts = np.concatenate([parts[k][0] for k in keys]) if keys else np.zeros(0, np.int64)
+    buf = (np.concatenate([parts[k][1] for k in keys]) if keys
+           else np.zeros(0, np.int32))
+    return counts, buf
+
+
+def _offsets(counts):
+    off = np.zeros(counts.shape[0] + 1, dtype=np.int64)
+    np.cumsum(counts, out=off[1:])
+    return off
+
+
+def _top_level(cells, origin, size, dims, kd, n, RV, max_distance, max_moves, workers):
+    """Level 0: exact nearest points of the top grid's vertices (kd-tree), classification.
+
+    Returns (kind, first, samples, nn_i, nn_d)."""
+    m = cells.shape[0]
+    r = 0.5 * np.sqrt(3.0) * size
+    vdims = dims + 1
+    key = np.empty((m, 8), dtype=np.int64)
+    for o in range(8):
+        key[:, o] = (((cells[:, 0] + _CORNER[o, 0]) * vdims[1] + cells[:, 1] + _CORNER[o, 1])
+                     * vdims[2] + cells[:, 2] + _CORNER[o, 2])
+    ukey, inv = np.unique(key.ravel(), return_inverse=True)
+    del key
+    uvx = np.stack([ukey // (vdims[1] * vdims[2]), (ukey // vdims[2]) % vdims[1],
+                    ukey % vdims[2]], axis=1)
+    # a cell that is not FAR has all its vertices within max_distance + 3 r
+    nn_d, nn_i = kd.query(origin + size * uvx, distance_upper_bound=max_distance + 3.03 * r,
+                          workers=workers)
+    nn_i = np.where(nn_i >= n, 0, nn_i).astype(np.int64)
+    samples = np.ascontiguousarray(inv.reshape(m, 8), dtype=np.int64)
+    kind = np.empty(m, dtype=np.int8)
+    first = np.empty(m, dtype=np.int64)
+
+    def _classify(a, b):
+        _kernels.classify(cells[a:b], origin, size, samples[a:b], nn_i, nn_d, *RV,
+                          float(max_distance), int(max_moves), kind[a:b], first[a:b])
+
+    run_chunks(_classify, m, 1 << 14)
+    return kind, first, samples, nn_i, nn_d
+
+
+def _top_multi(fail, cells, origin, size, dims, kd, n, RV, samples, nn_i, nn_d, first,
+               max_distance, max_moves, max_seeds, last, workers):
+    """Multi-seed classification of failed top cells (only when the top grid is the last
+    level): extra samples from the kd-tree."""
+    r = 0.5 * np.sqrt(3.0) * size
+    fc = cells[fail]
+    E = (2 * fc[:, None, :] + _kernels.EXTRA[None, :, :]).reshape(-1, 3)
+    edims = 2 * dims + 1
+    ekey = (E[:, 0] * edims[1] + E[:, 1]) * edims[2] + E[:, 2]
+    uek, einv = np.unique(ekey, return_inverse=True)
+    exyz = np.stack([uek // (edims[1] * edims[2]), (uek // edims[2]) % edims[1],
+                     uek % edims[2]], axis=1)
+    xn_d, xn_i = kd.query(origin + 0.5 * size * exyz,
+                          distance_upper_bound=max_distance + 4.04 * r, workers=workers)
+    xn_i = np.where(xn_i >= n, 0, xn_i).astype(np.int64)
+    fkind = np.empty(fail.size, dtype=np.int8)
+    fseeds = np.empty((fail.size, 16), dtype=np.int32)
+    fn = np.empty(fail.size, dtype=np.int32)
+    fs = np.ascontiguousarray(samples[fail])
+    ex = np.ascontiguousarray(einv.reshape(-1, 7), dtype=np.int64)
+    f1 = np.ascontiguousarray(first[fail])
+    _kernels.classify_multi(fc, origin, size, fs, nn_i, nn_d, ex, xn_i, xn_d, f1, *RV,
+                            int(max_moves), int(max_seeds), last, fkind, fseeds, fn)
+    return fkind, fseeds, fn
+
+
+def _top_candidates(ref, cells, samples, nn_i, nn_d, pts, origin, cell, dims):
+    """Candidate lists of the refined top cells (points binned on the top grid)."""
+    g = np.floor((pts - origin) / cell).astype(np.int64)
+    np.clip(g, 0, dims - 1, out=g)
+    bid = (g[:, 0] * dims[1] + g[:, 1]) * dims[2] + g[:, 2]
+    del g
+    order = np.argsort(bid, kind="stable")
+    start = np.zeros(int(np.prod(dims)) + 1, dtype=np.int64)
+    np.cumsum(np.bincount(bid, minlength=int(np.prod(dims))), out=start[1:])
+    del bid
+    rc = np.ascontiguousarray(cells[ref])
+    vi = np.ascontiguousarray(nn_i[samples[ref]])
+    vd = np.ascontiguousarray(nn_d[samples[ref]])
+    counts, lst = _chunked(lambda a, b: _bk.top_lists(rc[a:b], vi[a:b], vd[a:b], pts, order,
+                                                      start, dims, origin, cell),
+                           ref.size, 1 << 10)
+    return rc, _offsets(counts), lst
+
+
+def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
+               kd: cKDTree | None = None, max_moves: int = 2, max_seeds: int = 4,
+               multi_size: float | None = None, tree_budget: float = 52.0,
+               max_top_cells: int = 1 << 22, finest: float | None = None,
+               workers: int = -1):
+    """Build the DVG tree over model point records (:func:`.dvg.make_records`).
+
+    Parameters
+    ----------
+    rec : (N + 1, 16) float64 model point records, N >= 1
+    spacing : float > 0
+        Model point spacing h (mm); sets the top cell size (8 h, doubled while the top grid
+        would exceed ``max_top_cells`` cells) and the finest cell size (``finest``, default
+        h / 2).
+    max_distance : float > 0
+        Queries within this distance of the model are answered by the tree.
+    kd : cKDTree over the points, optional (built when not given)
+    max_moves : int
+        Greedy walk budget a leaf may need at its vertices (larger: fewer, bigger leaves and
+        slower queries).
+    max_seeds : int
+        Most seeds of a multi-seed leaf above the last level.
+    multi_size : float, optional
+        Largest cell that may become a multi-seed leaf (default 2 h).
+    tree_budget : float
+        Bytes per model point the tree may take: when refining the failed cells of a level
+        would exceed it, they become multi-seed leaves instead (as on the last level; the
+        answers stay verified at their samples, the queries get a little slower).
+    workers : int
+        Threads for the kd-tree queries at the top grid's vertices.
+
+    Returns
+    -------
+    DVGTree
+    """
+    from .dvg import DVGTree
+
+    points = rec[:-1, :3]
+    RV = _views(rec)
+    n = points.shape[0]
+    pts = np.ascontiguousarray(points)
+    kd = cKDTree(pts) if kd is None else kd
+    pad = 1e-9 * (1.0 + float(np.abs(pts).max()))
+    lo = pts.min(axis=0) - max_distance - pad
+    hi = pts.max(axis=0) + max_distance + pad
+    cell, dims = _top_grid(lo, hi, spacing, max_top_cells)
+    finest = 0.5 * spacing if finest is None else finest
+    multi_size = 2.0 * spacing if multi_size is None else multi_size
+    max_level = max(0, int(np.ceil(np.log2(cell / finest))))
+    origin = np.ascontiguousarray(lo, dtype=np.float64)
+    md = float(max_distance)
+
+    n_top = int(np.prod(dims))
+    ii, jj, kk = np.meshgrid(*(np.arange(d, dtype=np.int64) for d in dims), indexing="ij")
+    cells = np.stack([ii.ravel(), jj.ravel(), kk.ravel()], axis=1)
+    del ii, jj, kk
+    blocks = [np.full(n_top, _kernels.FAR, dtype=np.int32)]
+    n_nodes = n_top
+    lists: list[np.ndarray] = []
+    n_list = 0
+    depth = 0
+    parents = off = lst = None  # refined cells of the level above and their candidate lists
+    m = n_top
+    for level in range(max_level + 1):
+        if m == 0:
+            break
+        depth = level
+        size = cell / 2.0 ** level
+        if level == 0:
+            kind, first, samples, nn_i, nn_d = _top_level(cells, origin, size, dims, kd, n,
+                                                          RV, md, max_moves, workers)
+        else:
+            kind = np.empty(m, dtype=np.int8)
+            first = np.empty(m, dtype=np.int64)
+
+            def _classify(a, b):
+                _bk.classify_children(parents[a:b], off[a:b + 1], lst, pts, origin, size, *RV,
+                                      md, int(max_moves), kind[8 * a:8 * b],
+                                      first[8 * a:8 * b])
+
+            run_chunks(_classify, parents.shape[0], 1 << 11)
+            logger.debug("DVG level %d: %d cells classified", level, m)
+        code = np.full(m, _kernels.FAR, dtype=np.int64)
+        single = kind == 1
+        code[single] = -(first[single] + 2)
+        fail = np.flatnonzero(kind == 2)
+        n_multi = 0
+        # refining the failed cells adds 8 nodes each and, on the next level, seed lists
+        # (about 8 more int32 per refined cell); beyond the budget this level is the last
+        last = level == max_level or (
+            level > 0 and 4 * (n_nodes + n_list + 16 * fail.size) > tree_budget * n)
+        if fail.size and (size <= multi_size or last):
+            if level == 0:
+                fkind, fseeds, fn = _top_multi(fail, cells, origin, size, dims, kd, n, RV,
+                                               samples, nn_i, nn_d, first, md, max_moves,
+                                               max_seeds, last, workers)
+            else:
+                fkind = np.empty(fail.size, dtype=np.int8)
+                fseeds = np.empty((fail.size, 16), dtype=np.int32)
+                fn = np.empty(fail.size, dtype=np.int32)
+
+                def _multi(a, b):
+                    _bk.multi_children(fail[a:b], parents, off, lst, pts, origin, size, first,
+                                       *RV, int(max_moves), int(max_seeds), last,
+                                       fkind[a:b], fseeds[a:b], fn[a:b])
+
+                run_chunks(_multi, fail.size, 1 << 10)
+            kind[fail] = fkind
+            ok = fkind == 1
+            mi = fail[ok]
+            n_multi = mi.size
+            if mi.size:
+                buf, where = _pack_lists(fseeds[ok], fn[ok])
+                code[mi] = -(n + n_list + where + 2)
+                lists.append(buf)
+                n_list += buf.shape[0]
+            del fkind, fseeds, fn
+        ref = np.flatnonzero(kind == 2)
+        code[ref] = n_nodes + 8 * np.arange(ref.size, dtype=np.int64)
+        blocks[-1][:] = code
+        logger.debug("DVG level %d: %d cells (size %.4g): %d far, %d leaves (%d multi-seed), "
+                     "%d refined%s", level, m, size, int((kind == 0).sum()),
+                     int((kind == 1).sum()), n_multi, ref.size, " (last level)" if last else "")
+        del code, kind, single
+        if ref.size:
+            if level == 0:
+                parents, off, lst = _top_candidates(ref, cells, samples, nn_i, nn_d, pts,
+                                                    origin, cell, dims)
+                del cells, samples, nn_i, nn_d
+            else:
+                pp, oc = ref // 8, ref % 8
+                nxt = 2 * parents[pp] + _CORNER[oc]
+
+                def _lists(a, b):
+                    return _bk.child_lists(ref[a:b], parents, off, lst, pts, origin, size)
+
+                counts, lst = _chunked(_lists, ref.size, 1 << 11)
+                parents, off = nxt, _offsets(counts)
+                del pp, oc, counts
+            logger.debug("DVG level %d: candidate lists of the refined cells: %.1f points "
+                         "each", level, lst.size / max(1, ref.size))
+            blocks.append(np.full(8 * ref.size, _kernels.FAR, dtype=np.int32))
+            n_nodes += 8 * ref.size
+            m = 8 * ref.size
+        else:
+            m = 0
+        if n_nodes + n + n_list >= 2**31 - 2:
+            raise ValueError("the DVG tree is too large for int32 codes; increase the spacing "
+                             "or decrease max_distance")
+    nodes = np.concatenate(blocks).astype(np.int32)
+    lst_out = (np.concatenate(lists).astype(np.int32) if lists
+               else np.zeros(0, dtype=np.int32))
+    return DVGTree(origin, float(cell), dims.astype(np.int64), nodes, lst_out, n, md, depth)
+
+
+def _pack_lists(seeds: np.ndarray, count: np.ndarray):
+    """Seed lists (M, 16) with counts (M,) -> (buffer of count, seeds..., offset of each list).
+
+    Identical lists (same seeds in any order) are stored once.
+    """
+    cnt = count.astype(np.int64)
+    col = np.arange(seeds.shape[1])[None, :] < cnt[:, None]
+    key = np.sort(np.where(col, seeds, np.iinfo(np.int32).max), axis=1)
+    uniq, inv = np.unique(key, axis=0, return_inverse=True)
+    ucnt = (uniq != np.iinfo(np.int32).max).sum(axis=1).astype(np.int64)
+    pos = np.concatenate([[0], np.cumsum(ucnt + 1)[:-1]]).astype(np.int64)
+    buf = np.empty(int((ucnt + 1).sum()), dtype=np.int32)
+    buf[pos] = ucnt
+    ucol = np.arange(uniq.shape[1])[None, :] < ucnt[:, None]
+    buf[(pos[:, None] + 1 + np.arange(uniq.shape[1])[None, :])[ucol]] = uniq[ucol]
+    return buf, pos[inv.ravel()]
