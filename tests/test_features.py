@@ -88,3 +88,174 @@ def test_mesh_models_have_no_features():
     mesh = Model(kind="mesh", vertices=np.eye(3), triangles=np.array([[0, 1, 2]]))
     with pytest.raises(ValueError, match="CAD model"):
         model_features(mesh)
+
+
+# ------------------------------------------------------------------ face names from STEP files
+def _name_by_position(c) -> str:
+    """The name the test gives the face of the 40 x 30 x 10 block whose centre of mass is c."""
+    x, y, z = c
+    if abs(z - 10) < 1e-6:
+        return "top"
+    if abs(z) < 1e-6:
+        return "bottom"
+    if abs(x) < 1e-6 or abs(x - 40) < 1e-6:
+        return "x_walls"                 # one name for two faces: a face group
+    if abs(y) < 1e-6:
+        return "front"
+    if abs(y - 30) < 1e-6:
+        return "NONE"                    # what exporters write for an unnamed face
+    return "bore"
+
+
+def _write_named_block(path):
+    """A 40 x 30 x 10 mm block with a 10 mm through hole at (20, 15), its faces named through
+    OCP's XCAF writer (sub-shape names), the face list of the shell then reversed in the text
+    so that the importer meets the faces in another order than the file lists them."""
+    import re
+
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut
+    from OCP.BRepGProp import BRepGProp
+    from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox, BRepPrimAPI_MakeCylinder
+    from OCP.GProp import GProp_GProps
+    from OCP.Interface import Interface_Static
+    from OCP.STEPCAFControl import STEPCAFControl_Writer
+    from OCP.STEPControl import STEPControl_AsIs
+    from OCP.TCollection import TCollection_ExtendedString
+    from OCP.TDataStd import TDataStd_Name
+    from OCP.TDocStd import TDocStd_Document
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.XCAFDoc import XCAFDoc_DocumentTool
+    from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
+
+    block = BRepPrimAPI_MakeBox(40.0, 30.0, 10.0).Shape()
+    pin = BRepPrimAPI_MakeCylinder(gp_Ax2(gp_Pnt(20, 15, -1), gp_Dir(0, 0, 1)), 5.0, 12.0).Shape()
+    part = BRepAlgoAPI_Cut(block, pin).Shape()
+    doc = TDocStd_Document(TCollection_ExtendedString("XmlXCAF"))
+    tool = XCAFDoc_DocumentTool.ShapeTool_s(doc.Main())
+    label = tool.AddShape(part, False)
+    exp = TopExp_Explorer(part, TopAbs_FACE)
+    while exp.More():
+        props = GProp_GProps()
+        BRepGProp.SurfaceProperties_s(exp.Current(), props)
+        c = props.CentreOfMass()
+        TDataStd_Name.Set_s(tool.AddSubShape(label, exp.Current()),
+                            TCollection_ExtendedString(_name_by_position((c.X(), c.Y(), c.Z()))))
+        exp.Next()
+    writer = STEPCAFControl_Writer()
+    assert Interface_Static.SetIVal_s("write.stepcaf.subshapes.name", 1)
+    writer.SetNameMode(True)
+    assert writer.Transfer(doc, STEPControl_AsIs)
+    writer.Write(str(path))
+    text = path.read_text()
+    shell = re.search(r"CLOSED_SHELL\('([^']*)',\(([^)]*)\)\)", text)
+    ids = [s.strip() for s in shell.group(2).split(",")]
+    assert len(ids) == 7
+    text = text.replace(shell.group(0), f"CLOSED_SHELL('{shell.group(1)}',({','.join(ids[::-1])}))")
+    path.write_text(text)
+    return path
+
+
+@pytest.fixture(scope="module")
+def named_step(tmp_path_factory):
+    return _write_named_block(tmp_path_factory.mktemp("names") / "block.step")
+
+
+def test_step_face_names_attach_to_the_faces_they_name_by_shape_not_by_file_order(named_step):
+    import re
+
+    from shapeverify.cad.occ_import import read_cad
+
+    model = read_cad(named_step, isolated=False)   # (the CLI test reads through the importer)
+    feats = model_features(model)
+    faces = [f for f in feats if f.kind != "hole"]
+    assert len(faces) == 7
+    for f in faces:
+        want = _name_by_position(f.center) if f.kind == "plane" else "bore"
+        assert f.kind == ("cylinder" if want == "bore" else "plane")
+        # the grid centroid of a face with the hole is not its centre of mass: name by the plane
+        if f.kind == "plane":
+            n = f.axis
+            want = {(0, 0, 1): "top", (0, 0, -1): "bottom", (1, 0, 0): "x_walls",
+                    (-1, 0, 0): "x_walls", (0, -1, 0): "front", (0, 1, 0): None}[
+                tuple(int(round(v)) for v in n)]
+        assert f.name == want, (f.id, f.axis, f.name)
+    np.testing.assert_allclose(faces[[f.name for f in faces].index("bore")].diameter, 10.0,
+                               atol=1e-6)
+    # the file lists the names in another order than the faces are imported
+    in_file = [m for m in re.findall(r"ADVANCED_FACE\('([^']*)'", named_step.read_text())]
+    assert [n or "NONE" for n in model.face_names] != in_file
+    # the hole of the top and bottom faces carries its face's name
+    holes = [f for f in feats if f.kind == "hole"]
+    assert sorted(h.name for h in holes) == ["bottom", "top"]
+
+
+def test_face_names_change_nothing_else_and_a_file_without_names_has_none(named_step, tmp_path):
+    import re
+
+    from shapeverify.cad.occ_import import read_cad
+    from shapeverify.cad.persist import model_to_arrays
+
+    plain = tmp_path / "plain.step"
+    plain.write_text(re.sub(r"ADVANCED_FACE\('[^']*'", "ADVANCED_FACE(''", named_step.read_text()))
+    named, bare = read_cad(named_step, isolated=False), read_cad(plain, isolated=False)
+    assert bare.face_names is None and named.face_names is not None
+    a, b = model_to_arrays(named), model_to_arrays(bare)
+    assert a.keys() == b.keys()
+    for k in a:
+        if k != "meta":
+            assert np.array_equal(a[k], b[k]), k
+
+
+def test_face_names_survive_svmodel_and_svm_files_and_old_files_load(named_step, tmp_path):
+    import shapeverify as sv
+    from shapeverify.cad.persist import load_saved_model, model_from_arrays, model_to_arrays
+
+    from shapeverify.cad.occ_import import read_cad
+
+    model = read_cad(named_step, isolated=False)
+    model.save(tmp_path / "m.svmodel")
+    assert load_saved_model(tmp_path / "m.svmodel").face_names == model.face_names
+    prep = sv.prepare(model, spacing=2.0)
+    prep.save(tmp_path / "m.svm")
+    assert sv.load_prepared(tmp_path / "m.svm").model.face_names == model.face_names
+    # a file written before names existed: its meta has no face_names
+    arrays = model_to_arrays(model)
+    meta = json.loads(bytes(arrays["meta"]).decode())
+    del meta["face_names"]
+    arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), np.uint8)
+    assert model_from_arrays(arrays).face_names is None
+    with pytest.raises(ValueError, match="face_names has 2 entries for 7 faces"):
+        Model(model.faces, face_names=("a", "b"))
+
+
+def test_a_plan_names_faces_by_their_cad_names():
+    from shapeverify.characteristics.alignment import face_indices
+
+    base = bracket()
+    model = Model(base.faces, face_names=("plate", "walls", "walls", None))
+    feats = model_features(model)
+    assert find_feature(feats, "plate", kind="plane").id == "face:0"
+    assert face_indices(model, ["walls"]).tolist() == [1, 2]           # a name is a face group
+    assert face_indices(model, ["plate", "face:3"]).tolist() == [0, 3]
+    with pytest.raises(ValueError, match=r"'walls' belongs to 2 faces \(face:1, face:2\)"):
+        find_feature(feats, "walls", kind="plane")
+    with pytest.raises(ValueError, match="'plate' names face:0, a plane face, but a hole"):
+        find_feature(feats, "plate", kind="hole")
+    with pytest.raises(ValueError, match="no feature 'wall'"):
+        face_indices(model, ["wall"])
+    assert [f.name for f in feats if f.kind == "hole"] == ["plate", "plate"]
+
+
+def test_info_features_lists_the_step_face_names(named_step, tmp_path):
+    from typer.testing import CliRunner
+
+    from shapeverify.cli import app
+
+    out = tmp_path / "features.json"
+    res = CliRunner().invoke(app, ["info", str(named_step), "--features", "--json", str(out)])
+    assert res.exit_code == 0, res.output
+    rows = json.loads(out.read_text())
+    names = sorted(r["name"] for r in rows if r["kind"] != "hole" and r["name"])
+    assert names == ["bore", "bottom", "front", "top", "x_walls", "x_walls"]
+    assert "x_walls" in res.output

@@ -212,6 +212,10 @@ class Model:
         One line per face of the file that is not in ``faces``, saying which and why
         (e.g. ``"face 3: no usable trimming loop"`` or ``"#17: referenced by CLOSED_SHELL #16
         but not in the file"``); empty when every face was read.
+    face_names : tuple of (str or None), or None
+        The name of each face in ``faces`` as the CAD file gives it (STEP face entity names,
+        e.g. ``"datum_A"``), None for an unnamed face; None when no face has a name (the
+        usual case).  Inspection plans may name faces by these names.
 
     Raises
     ------
@@ -229,6 +233,7 @@ class Model:
     cloud_normals: np.ndarray | None = None
     n_faces_in_file: int | None = None
     skipped_faces: tuple = ()
+    face_names: tuple | None = None
 
     def __post_init__(self):
         if self.kind not in _KINDS:
@@ -247,6 +252,13 @@ class Model:
                 raise ValueError(f"n_faces_in_file ({n}) is less than the {len(faces)} faces held")
             object.__setattr__(self, "n_faces_in_file", n)
         object.__setattr__(self, "skipped_faces", tuple(str(s) for s in self.skipped_faces))
+        if self.face_names is not None:
+            names = tuple(None if n is None else str(n) for n in self.face_names)
+            if len(names) != len(faces):
+                raise ValueError(f"face_names has {len(names)} entries for {len(faces)} faces "
+                                 "(one name or None per face)")
+            object.__setattr__(self, "face_names",
+                               names if any(n is not None for n in names) else None)
         object.__setattr__(self, "vertices", _opt_array(self.vertices, np.float64, "vertices"))
         object.__setattr__(self, "triangles", _opt_array(self.triangles, np.int32, "triangles"))
         object.__setattr__(self, "cloud_normals",

@@ -155,13 +155,28 @@ def _iges_unit(reader) -> tuple[str, float]:
 
 def _read_shape(path: Path, fmt: str):
     """Read a STEP/IGES file; return (shape, unit name, mm per unit)."""
+    return _read_shape_named(path, fmt)[:3]
+
+
+def _read_shape_named(path: Path, fmt: str):
+    """Read a STEP/IGES file; return (shape, unit name, mm per unit, names document or None).
+
+    A STEP file whose faces carry names is read through the XCAF reader
+    (:mod:`shapeverify.cad.step_names`); the document then holds the names."""
     from OCP.IFSelect import IFSelect_RetDone
     from OCP.IGESControl import IGESControl_Reader
     from OCP.STEPControl import STEPControl_Reader
 
-    reader = STEPControl_Reader() if fmt == "step" else IGESControl_Reader()
+    from . import step_names
+
+    caf = doc = None
     try:
-        status = reader.ReadFile(os.fspath(path))
+        if fmt == "step" and step_names.has_face_names(path):
+            caf, doc, status = step_names.read_step_named(path)
+            reader = caf.Reader()
+        else:
+            reader = STEPControl_Reader() if fmt == "step" else IGESControl_Reader()
+            status = reader.ReadFile(os.fspath(path))
     except Exception as exc:  # OCP raises Standard_Failure subclasses on some broken files
         raise CADImportError(f"{path}: not a readable {fmt.upper()} file ({exc})") from exc
     if status != IFSelect_RetDone:
@@ -173,7 +188,10 @@ def _read_shape(path: Path, fmt: str):
         raise EmptyModelError(f"{path}: the {fmt.upper()} file holds no shapes")
     unit, scale = _step_unit(reader) if fmt == "step" else _iges_unit(reader)
     try:
-        reader.TransferRoots()
+        if caf is None:
+            reader.TransferRoots()
+        else:
+            reader = step_names.transfer(caf, doc)
         shape = reader.OneShape()
     except Exception as exc:
         raise CADImportError(f"{path}: OpenCASCADE could not convert the {fmt.upper()} "
@@ -182,7 +200,7 @@ def _read_shape(path: Path, fmt: str):
         raise CADImportError(f"{path}: none of the {n_roots} root entities of the "
                              f"{fmt.upper()} file could be converted to a shape; "
                              "is the file truncated or corrupt?")
-    return shape, unit, scale
+    return shape, unit, scale, doc
 
 
 # ----------------------------------------------------------------------------------- surfaces
@@ -652,7 +670,7 @@ def _read_cad_here(path: Path, fmt: str, chord_tol: float, gap_tol: float) -> Mo
     from OCP.TopExp import TopExp_Explorer
     from OCP.TopoDS import TopoDS
 
-    shape, unit, scale = _read_shape(path, fmt)
+    shape, unit, scale, names_doc = _read_shape_named(path, fmt)
     t_read = time.perf_counter()
     faces = []
     exp = TopExp_Explorer(shape, TopAbs_FACE)
@@ -672,6 +690,12 @@ def _read_cad_here(path: Path, fmt: str, chord_tol: float, gap_tol: float) -> Mo
                               f"{shape.ShapeType().name.replace('TopAbs_', '').lower()} "
                               "geometry without surfaces)")
     edge_faces = _edge_face_map(shape)
+    if names_doc is not None:
+        from .step_names import face_names
+        file_names = face_names(names_doc, faces)
+    else:
+        file_names = (None,) * len(faces)
+    kept_names = []
 
     surfaces, rev, all_uv, all_xyz, all_free, all_tol, all_edge = [], [], [], [], [], [], []
     edge_base = 0
@@ -696,6 +720,7 @@ def _read_cad_here(path: Path, fmt: str, chord_tol: float, gap_tol: float) -> Mo
         all_edge.append([e + edge_base for e in ed])
         edge_base += 1 + max(int(e.max()) for e in ed)
         surfaces.append(surface)
+        kept_names.append(file_names[i])
         rev.append(face.Orientation() == TopAbs_REVERSED)
         all_uv.append(uv)
         all_xyz.append(xyz)
@@ -727,7 +752,9 @@ def _read_cad_here(path: Path, fmt: str, chord_tol: float, gap_tol: float) -> Mo
     model = Model(faces=tuple(Face(s, tuple(uv), tuple(fr), r)
                               for s, uv, fr, r in zip(surfaces, all_uv, all_free, rev)),
                   unit=unit, scale_to_mm=scale, source=str(path), kind="cad",
-                  n_faces_in_file=n_in_file, skipped_faces=tuple(skipped))
+                  n_faces_in_file=n_in_file, skipped_faces=tuple(skipped),
+                  face_names=tuple(kept_names) if any(n is not None for n in kept_names)
+                  else None)
     t_end = time.perf_counter()
     n_seg = sum(lp.shape[0] for uv in all_uv for lp in uv)
     n_free = sum(int(f.sum()) for fr in all_free for f in fr)

@@ -20,6 +20,10 @@ Layout (F faces, L loops, K loop vertices; format version 1)
 ``loops``           (K, 2) float64;   ``loop_free`` (K,) bool
 ``vertices``, ``triangles``, ``cloud_normals``   present only when the model has them.
 
+``meta`` holds ``face_names`` (one name or null per face) only when some face has a name from
+the CAD file; files without it (all files written before names were read) load with
+``face_names=None``.
+
 :func:`model_to_arrays` / :func:`model_from_arrays` expose the same dictionary so that other
 files (e.g. a prepared closest-point structure) can embed a model.
 """
@@ -72,6 +76,8 @@ def model_to_arrays(model) -> dict:
     meta = {"format": FORMAT_TAG, "version": FORMAT_VERSION, "unit": model.unit,
             "source": model.source, "kind": model.kind, "n_faces": len(faces),
             "n_faces_in_file": model.n_faces_in_file, "skipped_faces": list(model.skipped_faces)}
+    if model.face_names is not None:
+        meta["face_names"] = list(model.face_names)
     a = {
         "meta": np.frombuffer(json.dumps(meta).encode("utf-8"), dtype=np.uint8),
         "scale_to_mm": np.array([model.scale_to_mm], dtype=np.float64),
@@ -176,7 +182,8 @@ def model_from_arrays(a, where: str = "<arrays>"):
         model = Model(faces=tuple(faces), unit=meta["unit"], scale_to_mm=scale,
                       source=meta["source"], kind=meta["kind"],
                       n_faces_in_file=meta.get("n_faces_in_file"),
-                      skipped_faces=tuple(meta.get("skipped_faces") or ()), **opt)
+                      skipped_faces=tuple(meta.get("skipped_faces") or ()),
+                      face_names=_face_names(meta.get("face_names"), n, where), **opt)
         if "bounds" in a and np.shape(a["bounds"]) == (2, 3):
             b = np.array(a["bounds"], dtype=np.float64)
             b.setflags(write=False)
@@ -254,6 +261,17 @@ def load_saved_model(path):
     except DAMAGED_FILE_ERRORS as exc:
         raise ModelFileError(f"{path}: not a readable shapeverify model file, damaged or "
                              f"truncated ({type(exc).__name__}: {exc}); {_REDO}") from None
+
+
+def _face_names(names, n: int, where: str):
+    """The ``face_names`` of a model file's meta (absent in files written before it existed)."""
+    if names is None:
+        return None
+    if not isinstance(names, list) or len(names) != n or not all(
+            x is None or isinstance(x, str) for x in names):
+        raise ModelFileError(f"{where}: model file is inconsistent (face_names must be a list "
+                             f"of {n} names or nulls)")
+    return tuple(names)
 
 
 def _cat(arrays, empty_shape, dtype=np.float64):

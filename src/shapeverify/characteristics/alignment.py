@@ -33,7 +33,7 @@ import numpy as np
 
 from ..registration.losses import MAD_TO_SIGMA, get_loss
 from ..registration.rigid import apply_transform, compose_step, make_transform
-from .features import find_feature, model_features
+from .features import faces_named, find_feature, model_features
 from .holes import measure_hole
 from .plan import DOF_NAMES
 
@@ -139,20 +139,23 @@ def _p_to_e(p, center, free) -> np.ndarray:
 
 
 def face_indices(model, faces) -> np.ndarray | None:
-    """Face indices of a plan's ``faces`` entry ('all' -> None; ids, names or ints)."""
+    """Face indices of a plan's ``faces`` entry ('all' -> None; ids, ints or CAD face names --
+    a name stands for every face that carries it)."""
     if faces is None or faces == "all":
         return None
     feats = model_features(model) if getattr(model, "kind", None) == "cad" else []
     out = []
     for f in faces:
         if isinstance(f, (int, np.integer)):
-            k = int(f)
+            ks = [int(f)]
         else:
-            k = find_feature(feats, f, kind="face").face
-        if not 0 <= k < len(model.faces):
-            raise ValueError(f"face {f} does not exist: the model has {len(model.faces)} faces "
-                             f"(0..{len(model.faces) - 1})")
-        out.append(k)
+            named = faces_named(feats, str(f))
+            ks = [g.face for g in named] if named else [find_feature(feats, f, kind="face").face]
+        for k in ks:
+            if not 0 <= k < len(model.faces):
+                raise ValueError(f"face {f} does not exist: the model has {len(model.faces)} "
+                                 f"faces (0..{len(model.faces) - 1})")
+        out.extend(ks)
     return np.unique(np.array(out, np.int64))
 
 

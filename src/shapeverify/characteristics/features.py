@@ -28,7 +28,8 @@ import numpy as np
 
 from ..fitting import fit_circle, fit_cylinder, fit_plane
 
-__all__ = ["Feature", "model_features", "find_feature", "features_table", "hole_center_on_face"]
+__all__ = ["Feature", "model_features", "find_feature", "faces_named", "features_table",
+           "hole_center_on_face"]
 
 logger = logging.getLogger(__name__)
 
@@ -124,7 +125,11 @@ def hole_center_on_face(face, point, axis, uv0=None, iterations: int = 30) -> np
 
 
 def _hole(face, loop: np.ndarray, size: float):
-    uv = _dense_loop(loop)
+    # the loop's vertices lie on the trimming curve (an imported loop is sampled to chord_tol);
+    # points between them, in (u, v), lie inside the circle by the sagitta (0.001 mm for a
+    # 5 mm hole read from STEP: more than the circle test allows), so only a loop too short
+    # to fit is densified
+    uv = loop if loop.shape[0] >= 12 else _dense_loop(loop)
     X = face.evaluate(uv)
     if X.shape[0] < 6:
         return None
@@ -219,8 +224,8 @@ _KINDS_FOR = {"hole": ("hole",), "cylinder": ("cylinder",), "flatness": ("plane"
 
 
 def find_feature(features, ref=None, near=None, kind: str = "face"):
-    """Pick a feature by id (``'hole:3'``, ``'face:2'``, a face name) or the one of ``kind``
-    closest to ``near`` (3,).
+    """Pick a feature by id (``'hole:3'``, ``'face:2'``), by the CAD name of its face (a STEP
+    face name; it must name one face) or the one of ``kind`` closest to ``near`` (3,).
 
     For ``near``, the distance to a hole or cylinder is ``hypot(across, along / 4)`` from its
     centre (``across``/``along`` its axis: a point at the wrong height still finds its hole);
@@ -235,10 +240,21 @@ def find_feature(features, ref=None, near=None, kind: str = "face"):
     if ref is not None:
         ref = str(ref)
         for f in feats:
-            if f.id == ref or (f.name is not None and f.name == ref):
+            if f.id == ref:
                 if kind in _KINDS_FOR and f.kind not in _KINDS_FOR[kind] and f.kind != "hole":
                     raise ValueError(f"{ref} is a {f.kind} feature, but a {kind} is needed")
                 return f
+        named = faces_named(feats, ref)
+        if len(named) > 1:
+            raise ValueError(f"the name {ref!r} belongs to {len(named)} faces "
+                             f"({', '.join(f.id for f in named[:10])}); name one by its id")
+        if named:
+            f = named[0]
+            if kind in _KINDS_FOR and f.kind not in _KINDS_FOR[kind]:
+                raise ValueError(f"{ref!r} names {f.id}, a {f.kind} face, but a {kind} is "
+                                 "needed" + (" (name a hole by its id, hole:N)"
+                                             if kind == "hole" else ""))
+            return f
         if ref.startswith(("plane:", "cylinder:")):  # alias: plane:12 = face:12
             return find_feature(feats, "face:" + ref.split(":")[1], None, kind)
         have = [f.id for f in feats if f.kind in _KINDS_FOR.get(kind, (kind,))]
@@ -259,6 +275,12 @@ def find_feature(features, ref=None, near=None, kind: str = "face"):
         else:
             d.append(float(np.linalg.norm(q)))
     return cand[int(np.argmin(d))]
+
+
+def faces_named(features, name: str) -> list:
+    """The face features (not holes) whose CAD name is ``name`` (a name may denote several
+    faces, e.g. a face group a drawing calls ``sealing``)."""
+    return [f for f in features if f.kind != "hole" and f.name is not None and f.name == name]
 
 
 def features_table(model) -> list:

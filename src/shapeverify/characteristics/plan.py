@@ -16,7 +16,10 @@ The minimum contract (scripts depend on it; everything else is optional)::
 
 Further characteristic types: ``flatness`` (``feature: face:3`` or ``near``, ``tol``),
 ``cylinder`` (``feature``/``near``, ``diameter: {tol}``), ``check_point`` (``at``, ``tol`` or
-``lower``/``upper``, ``radius``).  ``section`` (optional): a cross-section plane
+``lower``/``upper``, ``radius``).  Wherever a plan names a face (``faces: [...]``,
+``feature``, the datums) it may use the face's name from the STEP file instead of its id
+(``faces: [datum_A]``; see ``shapeverify info --features``); in ``faces`` a name stands for
+every face that carries it.  ``section`` (optional): a cross-section plane
 ``{point: [x, y, z], normal: [nx, ny, nz], width: 1.0}`` for the PDF report.
 
 Tolerance conventions (ISO 1101)
@@ -48,6 +51,8 @@ _AXES = ("x", "y", "z")
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 FeatureId = Annotated[str, Field(pattern=r"^(hole|face|cylinder|plane):\d+$")]
+#: a feature id, or the CAD name of a face (a STEP face name: no colon, not blank)
+FeatureRef = Annotated[str, Field(pattern=r"^((hole|face|cylinder|plane):\d+|[^:\s][^:]*)$")]
 
 
 class PlanError(ShapeVerifyError, ValueError):
@@ -131,7 +136,7 @@ class RpsPoint(_Strict):
     at: Vec3
     lock: list[Literal["x", "y", "z"]] = Field(min_length=1, max_length=3)
     name: Optional[str] = None
-    feature: Optional[FeatureId] = None
+    feature: Optional[FeatureRef] = None
     radius: Optional[float] = Field(default=None, gt=0)
 
 
@@ -154,9 +159,9 @@ class Datums(_Strict):
     """Datum-feature alignment: primary plane, secondary axis/plane, tertiary axis/plane."""
 
     type: Literal["datums"]
-    primary: FeatureId
-    secondary: FeatureId
-    tertiary: Optional[FeatureId] = None
+    primary: FeatureRef
+    secondary: FeatureRef
+    tertiary: Optional[FeatureRef] = None
 
 
 Alignment = Annotated[Union[BestFit, Constrained, Rps, Datums], Field(discriminator="type")]
@@ -168,7 +173,7 @@ class _Char(_Strict):
 
 
 class _Located(_Char):
-    feature: Optional[FeatureId] = None
+    feature: Optional[FeatureRef] = None
     near: Optional[Vec3] = None
 
     @model_validator(mode="after")
