@@ -5,8 +5,10 @@ one outer boundary and any number of holes, each a closed polyline in (u, v).  A
 the face when a ray from it crosses the loops an odd number of times (the even-odd rule), which
 needs no loop orientation and handles holes, and holes in islands, without special cases.
 
-The test is vectorized: :class:`TrimDomain` buckets the loop segments into slabs along v once, and
-a numba kernel answers each point by looking only at the segments of its slab.
+The test is vectorized: :func:`pack_trims` buckets the loop segments of one or many faces into slabs
+along v once (a :class:`PackedTrims`), and one numba kernel (``_trim_kernels.inside``) answers each
+point by looking only at the segments of its slab.  :class:`TrimDomain` (one face), the exact closest
+point and the ray intersection all use it.
 
 Example
 -------
@@ -25,11 +27,15 @@ Haines, "Point in polygon strategies", Graphics Gems IV (1994): the crossing tes
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 
 from . import _trim_kernels
 
-__all__ = ["TrimDomain", "check_loops"]
+__all__ = ["TrimDomain", "check_loops", "PackedTrims", "pack_trims", "loop_segments"]
+
+_MAX_BINS = 4096
 
 
 def check_loops(loops) -> tuple[np.ndarray, ...]:
@@ -63,6 +69,105 @@ def check_loops(loops) -> tuple[np.ndarray, ...]:
     return tuple(out)
 
 
+def loop_segments(loops) -> tuple[np.ndarray, np.ndarray]:
+    """The segments of closed loops: start points (S, 2) and end points (S, 2), loop by loop."""
+    a = np.concatenate(loops)
+    b = np.concatenate([np.roll(lp, -1, axis=0) for lp in loops])
+    return a, b
+
+
+class PackedTrims(NamedTuple):
+    """The trimming segments of faces ``0 .. F-1`` bucketed into slabs along v, for the numba
+    even-odd test (``_trim_kernels.inside(trims, f, u, v)``).  Built by :func:`pack_trims`.
+
+    Attributes
+    ----------
+    lo, hi : (F,) float64
+        v range of each face's segments.
+    inv : (F,) float64
+        Bins per unit v (0 when all of a face's segments lie at one v).
+    bin_off : (F + 1,) int64
+        Bins of face f: ``bin_off[f]:bin_off[f+1]``.
+    bin_start : (B + 1,) int64
+        Entries of bin g: ``bin_start[g]:bin_start[g+1]``.
+    bin_xy : (K, 4) float64
+        Per entry a copy ``(u0, v0, u1, v1)`` of a segment that crosses the bin's v range (the
+        test reads contiguous memory).
+    """
+
+    lo: np.ndarray
+    hi: np.ndarray
+    inv: np.ndarray
+    bin_off: np.ndarray
+    bin_start: np.ndarray
+    bin_xy: np.ndarray
+
+    @property
+    def nbytes(self) -> int:
+        return int(sum(a.nbytes for a in self))
+
+
+def _slabs(y0: np.ndarray, y1: np.ndarray, n_bins: int):
+    """Bucket segments with v ranges [min(y0, y1), max(y0, y1)] into ``n_bins`` slabs:
+    (lo, hi, inv, bin_start (n_bins + 1,), bin_segs (K,) segment indices)."""
+    lo_s = np.minimum(y0, y1)
+    hi_s = np.maximum(y0, y1)
+    lo = float(lo_s.min())
+    hi = float(hi_s.max())
+    inv = n_bins / (hi - lo) if hi > lo else 0.0
+    b0 = np.clip(((lo_s - lo) * inv).astype(np.int64), 0, n_bins - 1)
+    b1 = np.clip(((hi_s - lo) * inv).astype(np.int64), 0, n_bins - 1)
+    cnt = b1 - b0 + 1
+    seg = np.repeat(np.arange(y0.shape[0], dtype=np.int64), cnt)
+    first = np.repeat(np.cumsum(cnt) - cnt, cnt)
+    b = np.repeat(b0, cnt) + (np.arange(seg.shape[0], dtype=np.int64) - first)
+    order = np.argsort(b, kind="stable")
+    start = np.zeros(n_bins + 1, dtype=np.int64)
+    np.cumsum(np.bincount(b, minlength=n_bins), out=start[1:])
+    return lo, hi, inv, start, seg[order]
+
+
+def pack_trims(segments, n_bins=None) -> PackedTrims:
+    """Pack the trimming segments of faces for the even-odd test.
+
+    Parameters
+    ----------
+    segments : sequence of ((S, 2), (S, 2)) float64
+        Per face, the start and end points in (u, v) of its loop segments (:func:`loop_segments`),
+        S >= 1.
+    n_bins : None or sequence of int >= 1
+        Slabs per face; default ``clip(S // 2, 1, 4096)``.  The answers do not depend on it
+        (only the time per test does).
+
+    Returns
+    -------
+    PackedTrims
+    """
+    lo, hi, inv, bin_off, starts, xy = [], [], [], [0], [], []
+    n_entries = 0
+    for f, (a, b) in enumerate(segments):
+        a = np.asarray(a, dtype=np.float64)
+        b = np.asarray(b, dtype=np.float64)
+        nb = int(np.clip(len(a) // 2, 1, _MAX_BINS)) if n_bins is None else int(n_bins[f])
+        if nb < 1:
+            raise ValueError(f"n_bins must be >= 1, got {nb} for face {f}")
+        lo_f, hi_f, inv_f, st, sg = _slabs(np.ascontiguousarray(a[:, 1]), np.ascontiguousarray(b[:, 1]), nb)
+        lo.append(lo_f)
+        hi.append(hi_f)
+        inv.append(inv_f)
+        bin_off.append(bin_off[-1] + nb)
+        starts.append(st[:-1] + n_entries)
+        n_entries += sg.shape[0]
+        xy.append(np.column_stack([a[sg, 0], a[sg, 1], b[sg, 0], b[sg, 1]]))
+    if not xy:
+        raise ValueError("pack_trims needs the segments of at least one face")
+    f64 = np.float64
+    return PackedTrims(np.array(lo, dtype=f64), np.array(hi, dtype=f64), np.array(inv, dtype=f64),
+                       np.array(bin_off, dtype=np.int64),
+                       np.append(np.concatenate(starts), n_entries).astype(np.int64),
+                       np.ascontiguousarray(np.concatenate(xy), dtype=f64))
+
+
 class TrimDomain:
     """The trimmed part of a parameter plane, bounded by closed polylines.
 
@@ -82,22 +187,17 @@ class TrimDomain:
 
     def __init__(self, loops, n_bins: int | None = None):
         self.loops = check_loops(loops)
-        a = np.concatenate(self.loops)
-        b = np.concatenate([np.roll(lp, -1, axis=0) for lp in self.loops])
-        self._x0, self._y0 = np.ascontiguousarray(a[:, 0]), np.ascontiguousarray(a[:, 1])
-        self._x1, self._y1 = np.ascontiguousarray(b[:, 0]), np.ascontiguousarray(b[:, 1])
-        n_seg = a.shape[0]
-        if n_bins is None:
-            n_bins = int(np.clip(n_seg // 2, 1, 4096))
-        elif n_bins < 1:
+        a, b = loop_segments(self.loops)
+        self._n_segments = a.shape[0]
+        if n_bins is not None and n_bins < 1:
             raise ValueError(f"n_bins must be >= 1, got {n_bins}")
-        self._bins = _trim_kernels.build_bins(self._y0, self._y1, int(n_bins))
+        self._trims = pack_trims([(a, b)], None if n_bins is None else [n_bins])
         lo, hi = a.min(axis=0), a.max(axis=0)
         self.bounds = ((float(lo[0]), float(hi[0])), (float(lo[1]), float(hi[1])))
 
     @property
     def n_segments(self) -> int:
-        return self._x0.shape[0]
+        return self._n_segments
 
     def contains(self, uv) -> np.ndarray:
         """Whether parameter points lie inside the trimmed domain (even-odd rule over all loops).
@@ -126,9 +226,7 @@ class TrimDomain:
         u = np.ascontiguousarray(p[:, 0])
         v = np.ascontiguousarray(p[:, 1])
         out = np.empty(p.shape[0], dtype=np.bool_)
-        vmin, vmax, inv_dv, bin_start, bin_segs = self._bins
-        return _trim_kernels.even_odd(u, v, self._x0, self._y0, self._x1, self._y1,
-                                      vmin, vmax, inv_dv, bin_start, bin_segs, out)
+        return _trim_kernels.contains(self._trims, 0, u, v, out)
 
     def __repr__(self) -> str:
         (u0, u1), (v0, v1) = self.bounds

@@ -8,6 +8,7 @@ import numpy as np
 from numba import njit
 
 from shapeverify.cad._kernels import surface_derivs_packed_ws, surface_work_size
+from shapeverify.cad._trim_kernels import inside
 
 LEAF = 4
 INF = np.inf
@@ -181,33 +182,6 @@ def collect_hits(o, d, tmin, window, bary_tol, verts, tris, order, lo, hi, left,
 
 
 @njit(cache=True)
-def inside_trims(trims, f, u, v):
-    """Even-odd test of (u, v) against the packed trimming loops of face f (see pack_trims)."""
-    seg_off, x0, y0, x1, y1, vmin, vmax, inv_dv, bin_off, bin_start, bin_segs = trims
-    nb = bin_off[f + 1] - bin_off[f] - 1
-    if not (v >= vmin[f] and v <= vmax[f]) or nb < 1:
-        return False
-    b = int((v - vmin[f]) * inv_dv[f])
-    if b >= nb:
-        b = nb - 1
-    if b < 0:
-        b = 0
-    base = bin_off[f]
-    so = seg_off[f]
-    inside = False
-    for m in range(bin_start[base + b], bin_start[base + b + 1]):
-        s = so + bin_segs[m]
-        ya = y0[s]
-        yb = y1[s]
-        if (ya > v) != (yb > v):
-            xa = x0[s]
-            xc = xa + (v - ya) * (x1[s] - xa) / (yb - ya)
-            if u < xc:
-                inside = not inside
-    return inside
-
-
-@njit(cache=True)
 def _store(out, pn):
     """Point, unit normal Su x Sv, Su and Sv from a derivative block into pn (12,)."""
     nx = out[1, 0, 1] * out[0, 1, 2] - out[1, 0, 2] * out[0, 1, 1]
@@ -299,7 +273,7 @@ def intersect_many(origins, directions, tmins, verts, tris, tri_face, vert_uv, b
                 v = min(max(v, domains[f, 1, 0]), domains[f, 1, 1])
                 ok, u, v, t, _ = newton_line_surface(pk, f, o, d, u, v, cand_t[c], domains[f], out, work,
                                                      30, tol, pn)
-                if ok and t > tmin and inside_trims(trims, f, u, v):
+                if ok and t > tmin and inside(trims, f, u, v):
                     if out_face[r] < 0 or t < out_t[r]:
                         out_face[r] = f
                         out_uv[r, 0] = u
@@ -358,7 +332,7 @@ def update_many(origins, directions, faces, uvs, ts, stored, pk, domains, trims,
             v = min(max(v + dv, domains[f, 1, 0]), domains[f, 1, 1])
             t = t + dt
         ok, u, v, t, _ = newton_line_surface(pk, f, o, d, u, v, t, domains[f], out, work, 12, tol, out_pn[r])
-        out_ok[r] = ok and inside_trims(trims, f, u, v)
+        out_ok[r] = ok and inside(trims, f, u, v)
         out_uv[r, 0] = u
         out_uv[r, 1] = v
         out_t[r] = t

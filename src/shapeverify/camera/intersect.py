@@ -52,6 +52,7 @@ class RayScene:
     def __init__(self, model, max_edge: float | None = None):
         from shapeverify.cad.nurbs import pack_surfaces
         from shapeverify.cad.tessellate import tessellate_model
+        from shapeverify.cad.trim import loop_segments, pack_trims
 
         if model.kind != "cad":
             raise ValueError(f"exact ray intersection needs a CAD model (trimmed NURBS faces), got a {model.kind} model")
@@ -60,7 +61,7 @@ class RayScene:
         self.model = model
         self.max_edge = model.size / 200.0 if max_edge is None else float(max_edge)
         self.tess = tessellate_model(model, max_edge=self.max_edge)
-        self.trims = pack_trims(model.faces)
+        self.trims = pack_trims([loop_segments(f.loops) for f in model.faces])
         self.packed = pack_surfaces([f.surface for f in model.faces])
         self.pk = self.packed.kernel_args
         self.domains = np.ascontiguousarray(self.packed.domains)
@@ -101,34 +102,6 @@ class RayScene:
                                 self.trims, self.pmax, self.qmax, NEWTON_TOL, 0.5 * self.max_edge,
                                 BARY_TOL, face, uv, t, pn)
         return self._finish(face, uv, t, pn)
-
-
-def pack_trims(faces) -> tuple:
-    """The trimming loops of all faces as flat arrays for :func:`_kernels.inside_trims`.
-
-    Each face's segments are bucketed into slabs along v (as :class:`shapeverify.cad.trim.TrimDomain`
-    does for one face), so a test costs the segments of one slab.
-    """
-    from shapeverify.cad._trim_kernels import build_bins
-
-    seg_off, x0, y0, x1, y1, vmin, vmax, inv_dv, bin_off, bin_start, bin_segs = ([0], [], [], [], [], [], [],
-                                                                                 [], [0], [], [])
-    for face in faces:
-        a = np.concatenate(face.loops)
-        b = np.concatenate([np.roll(lp, -1, axis=0) for lp in face.loops])
-        n_bins = int(np.clip(len(a) // 2, 1, 4096))
-        lo_v, hi_v, inv, starts, segs = build_bins(np.ascontiguousarray(a[:, 1]), np.ascontiguousarray(b[:, 1]), n_bins)
-        x0.append(a[:, 0]), y0.append(a[:, 1]), x1.append(b[:, 0]), y1.append(b[:, 1])
-        vmin.append(lo_v), vmax.append(hi_v), inv_dv.append(inv)
-        bin_start.append(starts + sum(len(x) for x in bin_segs))
-        bin_segs.append(segs)
-        seg_off.append(seg_off[-1] + len(a))
-        bin_off.append(bin_off[-1] + len(starts))
-    cat = lambda xs, dt: np.ascontiguousarray(np.concatenate(xs), dtype=dt)  # noqa: E731
-    return (np.asarray(seg_off, np.int64), cat(x0, np.float64), cat(y0, np.float64), cat(x1, np.float64),
-            cat(y1, np.float64), np.asarray(vmin, np.float64), np.asarray(vmax, np.float64),
-            np.asarray(inv_dv, np.float64), np.asarray(bin_off, np.int64), cat(bin_start, np.int64),
-            cat(bin_segs, np.int64))
 
 
 def _check_rays(origins, directions) -> tuple[np.ndarray, np.ndarray]:

@@ -6,7 +6,8 @@ Surfaces come as tables of polynomial patches (``tab``, :func:`shapeverify.neare
 power_tables`), evaluated by :func:`_eval`.  Trimming loops are flat segment arrays (see
 :mod:`shapeverify.nearest.exact`): per face ``f`` the segments ``seg_off[f]:seg_off[f+1]``
 with end points ``(x0, y0) -> (x1, y1)`` in (u, v), their 3D end points ``a3``, ``b3`` and a
-``free`` flag, and slab bins along v for the even-odd test.
+``free`` flag, and the packed trims (:class:`shapeverify.cad.trim.PackedTrims`) for the
+even-odd test.
 
 Meshes
 ------
@@ -36,6 +37,9 @@ import numpy as np
 from numba import njit
 from numba.core import cgutils
 from numba.extending import intrinsic
+
+from shapeverify.cad._trim_kernels import inside
+from shapeverify.cad.trim import PackedTrims
 
 from . import _patch_kernels
 from ._kernels import frame, prefetch
@@ -435,31 +439,6 @@ def newton_face(tab, domains, closed, f, u, v, q0, q1, q2):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def inside(f, u, v, bin_off, bin_lo, bin_hi, bin_inv, bin_start, bin_xy):
-    """Even-odd test of (u, v) against the trimming loops of face f (slab bins along v).
-
-    Bin g of face f holds copies of the segments crossing its v range,
-    ``bin_xy[bin_start[g]:bin_start[g+1]]`` = (u0, v0, u1, v1), so the test reads contiguous
-    memory.  A segment counts when v lies in its half-open v range and the crossing lies at
-    u' > u (the PNPOLY rule), so a ray through a shared vertex is counted once.
-    """
-    if not (v >= bin_lo[f] and v <= bin_hi[f]):
-        return False
-    nb = bin_off[f + 1] - bin_off[f]
-    b = min(max(int((v - bin_lo[f]) * bin_inv[f]), 0), nb - 1)
-    g = bin_off[f] + b
-    res = False
-    for k in range(bin_start[g], bin_start[g + 1]):
-        ya = bin_xy[k, 1]
-        yb = bin_xy[k, 3]
-        if (ya > v) != (yb > v):
-            xc = bin_xy[k, 0] + (v - ya) * (bin_xy[k, 2] - bin_xy[k, 0]) / (yb - ya)
-            if u < xc:
-                res = not res
-    return res
-
-
-@njit(cache=True, nogil=True, inline="always")
 def _chord_d2(q0, q1, q2, a3, b3, s):
     e0 = b3[s, 0] - a3[s, 0]
     e1 = b3[s, 1] - a3[s, 1]
@@ -625,7 +604,7 @@ def two_closest_chords(q0, q1, q2, f, a3, b3, ch_off, ch_seg, ch_c, ch_r, lb):
 def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domains, closed,
                rev,
                seg_off, x0, y0, x1, y1, a3, b3, sag, free, ch_off, ch_seg, ch_c, ch_r,
-               bin_off, bin_lo, bin_hi, bin_inv, bin_start, bin_xy,
+               trims,
                p_face, p_inner, p_centre, p_axes, p_half, p_uv, n_lo, n_hi, n_child, n_first, n_count,
                out_foot, out_normal, out_dist, out_face, out_uv, out_onb):
     """Exact closest point on the trimmed faces around each query's nearest model point.
@@ -672,12 +651,8 @@ def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domai
     ch_seg = _borrow(ch_seg)
     ch_c = _borrow(ch_c)
     ch_r = _borrow(ch_r)
-    bin_off = _borrow(bin_off)
-    bin_lo = _borrow(bin_lo)
-    bin_hi = _borrow(bin_hi)
-    bin_inv = _borrow(bin_inv)
-    bin_start = _borrow(bin_start)
-    bin_xy = _borrow(bin_xy)
+    trims = PackedTrims(_borrow(trims.lo), _borrow(trims.hi), _borrow(trims.inv),
+                        _borrow(trims.bin_off), _borrow(trims.bin_start), _borrow(trims.bin_xy))
     # flat element strides of the per-point rows, for prefetching
     rf_row = rf.strides[0] // rf.itemsize
     uv_row = pt_uv.strides[0] // pt_uv.itemsize
@@ -813,11 +788,9 @@ def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domai
                 trim = ((not closed[f, 0] and (u <= domains[f, 0, 0] or u >= domains[f, 0, 1]))
                         or (not closed[f, 1] and (v <= domains[f, 1, 0]
                                                   or v >= domains[f, 1, 1]))
-                        or (not p_inner[k] and not inside(f, u, v, bin_off, bin_lo, bin_hi,
-                                                          bin_inv, bin_start, bin_xy)))
+                        or (not p_inner[k] and not inside(trims, f, u, v)))
             else:
-                trim = edge or not inside(f, u, v, bin_off, bin_lo, bin_hi, bin_inv,
-                                          bin_start, bin_xy)
+                trim = edge or not inside(trims, f, u, v)
             if trim:
                 if searched[f] == i:
                     continue  # this face's boundary was searched for this query already

@@ -37,6 +37,8 @@ import numpy as np
 from numpy.polynomial import polynomial as P
 from scipy.spatial import cKDTree
 
+from shapeverify.cad.trim import pack_trims
+
 from . import _exact_kernels
 from .dvg import record_views, views
 from ._threads import run_chunks
@@ -49,25 +51,7 @@ __all__ = ["ExactCAD", "ExactMesh", "ExactCloud", "for_model"]
 _CHUNK = 16  # trimming segments per bounding sphere in the boundary search
 _ALL_TRIANGLES = 256  # meshes with at most this many triangles: test them all
 _PATCH = 4.0  # longest control-polygon edge of a bounded patch / model point spacing
-
-
-def _bins(y0: np.ndarray, y1: np.ndarray, n_bins: int):
-    """Slab bins along v for one face: (lo, hi, inv, bin_start (n_bins + 1,), bin_segs)."""
-    lo_s = np.minimum(y0, y1)
-    hi_s = np.maximum(y0, y1)
-    lo = float(lo_s.min())
-    hi = float(hi_s.max())
-    inv = n_bins / (hi - lo) if hi > lo else 0.0
-    b0 = np.clip(((lo_s - lo) * inv).astype(np.int64), 0, n_bins - 1)
-    b1 = np.clip(((hi_s - lo) * inv).astype(np.int64), 0, n_bins - 1)
-    cnt = b1 - b0 + 1
-    seg = np.repeat(np.arange(y0.shape[0], dtype=np.int64), cnt)
-    first = np.repeat(np.cumsum(cnt) - cnt, cnt)
-    b = np.repeat(b0, cnt) + (np.arange(seg.shape[0]) - first)
-    order = np.argsort(b, kind="stable")
-    start = np.zeros(n_bins + 1, dtype=np.int64)
-    np.cumsum(np.bincount(b, minlength=n_bins), out=start[1:])
-    return lo, hi, inv, start, seg[order]
+_MAX_BINS = 4096  # trim slabs per face (about one per segment up to this)
 
 
 def _closed(surface, tol: float) -> tuple[bool, bool]:
@@ -213,8 +197,7 @@ class ExactCAD:
         self.rev = np.array([f.reversed for f in faces], dtype=np.bool_)
         xs0, ys0, xs1, ys1, fr, a3, b3, sag = [], [], [], [], [], [], [], []
         seg_off = [0]
-        bin_off = [0]
-        lo, hi, inv, starts, segs = [], [], [], [], []
+        trim_segments, trim_bins = [], []
         n_seg = 0
         max_len = 0.002 * size
         for f in faces:
@@ -238,16 +221,10 @@ class ExactCAD:
             a3.append(pa)
             b3.append(pb)
             k = a.shape[0]
-            nb = int(np.clip(k, 1, 4096))
-            l_, h_, i_, st, sg = _bins(a[:, 1], b[:, 1], nb)
-            lo.append(l_)
-            hi.append(h_)
-            inv.append(i_)
-            starts.append(st[:-1] + sum(len(s) for s in segs))
-            segs.append(sg + n_seg)
+            trim_segments.append((a, b))
+            trim_bins.append(int(np.clip(k, 1, _MAX_BINS)))
             n_seg += k
             seg_off.append(n_seg)
-            bin_off.append(bin_off[-1] + nb)
         cat = np.concatenate
         self.seg_off = np.array(seg_off, dtype=np.int64)
         self.x0, self.y0, self.x1, self.y1 = (np.ascontiguousarray(cat(v)) for v in
@@ -256,14 +233,8 @@ class ExactCAD:
         self.a3 = np.ascontiguousarray(cat(a3))
         self.b3 = np.ascontiguousarray(cat(b3))
         self.sag = np.ascontiguousarray(cat(sag))
-        self.bin_off = np.array(bin_off, dtype=np.int64)
-        self.bin_lo = np.array(lo)
-        self.bin_hi = np.array(hi)
-        self.bin_inv = np.array(inv)
-        bin_segs = cat(segs).astype(np.int64)
-        self.bin_start = np.append(cat(starts), bin_segs.shape[0]).astype(np.int64)
-        self.bin_xy = np.ascontiguousarray(np.column_stack(
-            [self.x0[bin_segs], self.y0[bin_segs], self.x1[bin_segs], self.y1[bin_segs]]))
+        # the split segments (as the boundary search sees them), one slab per segment or so
+        self.trims = pack_trims(trim_segments, trim_bins)
         # chunks of consecutive segments with bounding spheres, for the boundary search
         ch_off, ch_seg, ch_c, ch_r = [0], [], [], []
         for f in range(len(faces)):
@@ -301,9 +272,8 @@ class ExactCAD:
     def nbytes(self) -> int:
         arrays = list(self.tab) + [self.domains, self.closed, self.rev, self.seg_off, self.x0,
                                    self.y0, self.x1, self.y1, self.a3, self.b3, self.sag,
-                                   self.free, self.bin_start, self.bin_xy, self.ch_off, self.ch_seg,
-                                   self.ch_c, self.ch_r]
-        return int(sum(a.nbytes for a in arrays)) + self.patches.nbytes
+                                   self.free, self.ch_off, self.ch_seg, self.ch_c, self.ch_r]
+        return int(sum(a.nbytes for a in arrays)) + self.trims.nbytes + self.patches.nbytes
 
     #: False: try only the faces around the nearest model point (the search before the patch
     #: bounds; for tests and benchmarks that measure what the bounds change)
@@ -331,8 +301,7 @@ class ExactCAD:
                                       self.rev, self.seg_off, self.x0, self.y0, self.x1,
                                       self.y1, self.a3, self.b3, self.sag, self.free,
                                       self.ch_off, self.ch_seg, self.ch_c, self.ch_r,
-                                      self.bin_off, self.bin_lo, self.bin_hi, self.bin_inv,
-                                      self.bin_start, self.bin_xy, *pa, foot[a:b],
+                                      self.trims, *pa, foot[a:b],
                                       normal[a:b], dist[a:b], face[a:b], uv[a:b], onb[a:b])
 
         run_chunks(chunk, n, 2048)
