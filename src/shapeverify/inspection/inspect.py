@@ -94,8 +94,12 @@ def _report(progress, stage: str, fraction: float) -> None:
         progress(stage, fraction)
 
 
-def default_evaluation_distance(tolerance) -> float:
-    """The one default of the evaluation distance (mm): ``max(1 mm, 5 x the largest |limit|)``.
+def default_evaluation_distance(tolerance, size: float | None = None) -> float:
+    """The one default of the evaluation distance (mm): ``max(5 x the largest |limit|, cap)``.
+
+    ``cap`` is 1 mm, or 5 % of the model's size (bounding-box diagonal, mm) when that is
+    smaller: on a 3 mm part a 1 mm reach is a third of the part, and outliers beside a convex
+    edge project onto the edge as a dense band that looks like a defect.
 
     Scan points farther than this from the CAD surface after registration are not evaluated
     (background, fixtures, gross outliers); dense such points attached to the part become
@@ -104,9 +108,12 @@ def default_evaluation_distance(tolerance) -> float:
 
     >>> default_evaluation_distance(0.2), default_evaluation_distance(0.5)
     (1.0, 2.5)
+    >>> default_evaluation_distance(0.002, size=3.2)  # a 1.86 mm cube
+    0.16
     """
     tol = tolerance if isinstance(tolerance, Tolerance) else Tolerance.from_args(tolerance)
-    return float(max(1.0, 5.0 * tol.max_abs))
+    cap = 1.0 if size is None or not size > 0 else min(1.0, 0.05 * float(size))
+    return float(round(max(cap, 5.0 * tol.max_abs), 12))
 
 
 def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None, lower=None,
@@ -127,7 +134,8 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
         Symmetric tolerance ±mm (default 0.2), or a :class:`Tolerance`.
     evaluation_distance : float, optional
         Scan points farther than this from the CAD surface after registration are not evaluated
-        (mm). None: :func:`default_evaluation_distance` (``max(1 mm, 5 x the largest |limit|)``).
+        (mm). None: :func:`default_evaluation_distance` (``max(5 x the largest |limit|,
+        min(1 mm, 5 % of the model size))``).
     lower, upper : float, optional
         Separate signed limits (mm), overriding ``tolerance``: e.g. ``lower=-0.1, upper=0.3``.
     init : (4, 4) array_like or str, optional
@@ -326,7 +334,7 @@ def _options(prep, tolerance, lower, upper, per_face, evaluation_distance, max_d
                       DeprecationWarning, stacklevel=3)
         evaluation_distance = max_distance
     if evaluation_distance is None:
-        evaluation_distance = default_evaluation_distance(tol)
+        evaluation_distance = default_evaluation_distance(tol, prep.model.size)
     try:
         evaluation_distance = float(evaluation_distance)
     except (TypeError, ValueError):

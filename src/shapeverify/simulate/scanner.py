@@ -371,6 +371,10 @@ def virtual_scan(model, *, camera=None, view=None, distance=None, pixel: float =
     if P.shape[0] == 0:
         raise ValueError("no camera ray meets the model's front at less than max_incidence; "
                          "check the camera pose")
+    if P.shape[0] < 10 and (shadows or blobs or dents):
+        raise ValueError(f"only {P.shape[0]} camera rays meet the model: pixel={pixel:g} mm is too "
+                         f"coarse to place shadows, blobs or dents on a part of size {size:.3g} mm; "
+                         f"give a smaller pixel (e.g. pixel={size / 100:.2g})")
 
     taken = []
     keep = np.ones(P.shape[0], bool)
