@@ -38,7 +38,7 @@ from .holes import measure_hole
 from .plan import DOF_NAMES
 
 __all__ = ["AlignmentResult", "best_fit", "constrained_fit", "rps_alignment", "euler_pose",
-           "face_indices", "align"]
+           "face_indices", "align", "m_estimator_sandwich"]
 
 logger = logging.getLogger(__name__)
 
@@ -160,6 +160,26 @@ def face_indices(model, faces) -> np.ndarray | None:
 
 
 # ------------------------------------------------------------------------------ best fits
+def m_estimator_sandwich(J, psi, dpsi) -> np.ndarray:
+    """``n / (n - p) H^-1 B H^-1`` with ``H = sum psi' J^T J``, ``B = sum psi^2 J^T J``.
+
+    The covariance of an M-estimate with Jacobian J (n, p) of the residuals, influence
+    ``psi`` (n,) and its derivative ``dpsi`` (n,) (Huber 1981, §7.6; the same estimator as
+    :func:`shapeverify.registration.rigid.pose_covariance`).  When ``H`` is not positive
+    definite (a redescending psi' < 0 on many points) Huber's homogeneous bread
+    ``mean(psi') J^T J`` is used.  Pseudo-inverse in directions J does not determine.
+    """
+    n, k = J.shape
+    H = (J * dpsi[:, None]).T @ J
+    lam = np.linalg.eigvalsh(H)
+    if lam[0] <= -1e-12 * max(abs(lam[-1]), 1e-300):
+        H = max(float(np.mean(dpsi)), 1e-12) * (J.T @ J)
+    Hinv = np.linalg.pinv(H, rcond=1e-12, hermitian=True)
+    Jb = J * psi[:, None]
+    C = Hinv @ (Jb.T @ Jb) @ Hinv
+    return C * (n / (n - k) if n > k else 1.0)
+
+
 def _gauss_newton(scan, prep, T0, free, center, faces, loss, max_iterations, tol, reach,
                   degenerate_ok=False):
     P = np.asarray(scan, np.float64)
@@ -216,19 +236,16 @@ def _gauss_newton(scan, prep, T0, free, center, faces, loss, max_iterations, tol
             break
     # final state at the converged p (same weights), sandwich covariance in p
     r, valid, sigma, w, J = linearise(p, False)
-    # M-estimator covariance (Huber 1981, eq. 7.6.4): E[psi^2] / E[psi']^2 (J^T J)^-1 over the
-    # valid points; with the IRLS weights in place of psi' (the sandwich of registration) a
-    # redescending loss is reported ~1.3x too precise (measured on simulated scans)
+    # M-estimator sandwich (Huber 1981, §7.6), the estimator of
+    # registration.rigid.pose_covariance in the free parameters: psi' in the bread (with the
+    # IRLS weights there a redescending loss is reported ~1.46x too precise)
     Jv, rv = J[valid], r[valid]
     hh = 1e-6 * sigma
 
     def psi(x):
         return lossobj.weight(x, sigma) * x
 
-    dpsi = (psi(rv + hh) - psi(rv - hh)) / (2 * hh)
-    nv, npar = rv.size, len(free)
-    factor = (np.sum(psi(rv) ** 2) / max(nv - npar, 1)) / max(float(np.mean(dpsi)), 1e-12) ** 2
-    Cp = factor * np.linalg.pinv(Jv.T @ Jv, rcond=1e-12, hermitian=True)
+    Cp = m_estimator_sandwich(Jv, psi(rv), (psi(rv + hh) - psi(rv - hh)) / (2 * hh))
     A = _p_to_e(p, c, free)
     cov = A @ Cp @ A.T
     T = euler_pose(p, c) @ T0

@@ -233,35 +233,86 @@ def undetermined_directions(undet_scaled, center, radius: float) -> np.ndarray:
     return E / np.where(n > 0, n, 1.0)
 
 
-def pose_covariance(X, N, r, w, center, radius: float, undetermined=None) -> np.ndarray:
+def pose_covariance(X, N, r, w, center, radius: float, undetermined=None, *, loss=None,
+                    sigma: float | None = None) -> np.ndarray:
     """Covariance (6, 6) of the pose from an IRLS fit, in the (omega, tau) model-origin frame.
 
-    Sandwich estimate ``H^-1 B H^-1`` with ``H = sum w J^T J`` and ``B = sum w^2 r^2 J^T J``
-    (the M-estimator covariance with the IRLS weights; equals ``sigma^2 (J^T J)^-1`` for least
-    squares with homoscedastic noise).
+    The M-estimator sandwich (Huber 1981, §7.6; the heteroscedastic form)::
+
+        C = n / (n - 6) * H^-1 B H^-1,   H = sum psi'(r_i) J_i^T J_i,   B = sum psi(r_i)^2 J_i^T J_i
+
+    with ``psi(r) = w(r) r`` the loss' influence function, ``psi'`` its derivative (by central
+    differences of ``loss.weight``), ``J_i = [((x_i - c) x n_i)^T, n_i^T]`` and n the points
+    that take part (``w > 0``).  For least squares it is ``sigma^2 (J^T J)^-1``.  The bread
+    must use ``psi'``, not the IRLS weights ``w = psi / r``: for a redescending or bounded loss
+    ``psi' < w`` (Tukey: ``(1 - u^2)(1 - 5 u^2)`` against ``(1 - u^2)^2``), and with ``w`` in
+    the bread the covariance comes out too small by ``(E w / E psi')^2`` -- 1.46 for Tukey,
+    1.36 Huber, 1.50 Welsch, 1.58 Cauchy on Gaussian residuals at their 95 %-efficiency
+    constants (computed from 2 million normal draws).  When ``H`` is not positive definite
+    (a redescending ``psi'`` is negative beyond ``k / sqrt(5)``; possible in small samples)
+    Huber's homogeneous form ``mean(psi') J^T J`` over the same points is used instead.
 
     Parameters
     ----------
     X : (N, 3) points in model coordinates (final pose); N : (N, 3) model normals;
-    r : (N,) residuals; w : (N,) final weights; center, radius : centring used for conditioning.
+    r : (N,) residuals (mm); w : (N,) final weights (0: the point takes no part);
+    center, radius : centring used for conditioning.
     undetermined : (k, 6) or None
         Directions (model-origin ``e`` coordinates) the data do not determine: the entries of
         the covariance they touch are set to ``inf``.
+    loss : Loss or str, optional
+        The loss of the fit, with ``sigma`` (its scale, mm): gives ``psi'``.  Without it the
+        IRLS weights stand in for ``psi'`` (exact for least squares only; too small by the
+        factors above for robust losses).
+    sigma : float, optional
+        Scale of ``loss`` (``k = loss.c * sigma``); required with ``loss``.
+
+    Raises
+    ------
+    ValueError
+        ``loss`` given without a positive ``sigma``.
+
+    References
+    ----------
+    Huber, P. J. (1981), Robust Statistics, §7.6 (covariance of regression M-estimates).
     """
+    X = np.asarray(X, np.float64)
+    r = np.asarray(r, np.float64)
+    w = np.asarray(w, np.float64)
     Q = X - center
     J = np.empty((X.shape[0], 6))
     J[:, :3] = np.cross(Q, N)
     J[:, 3:] = N
-    Jw = J * w[:, None]
-    H = Jw.T @ J
+    used = w > 0
+    n = int(np.count_nonzero(used))
+    if loss is not None:
+        if not (sigma is not None and np.isfinite(sigma) and sigma > 0):
+            raise ValueError(f"pose_covariance: loss {loss!r} needs its positive scale sigma "
+                             f"(mm), got {sigma!r}")
+        from ..robust import get_loss
+        L = get_loss(loss) if isinstance(loss, str) else loss
+        h = 1e-6 * float(sigma)
+        dpsi = (L.weight(r + h, sigma) * (r + h) - L.weight(r - h, sigma) * (r - h)) / (2 * h)
+        dpsi = np.where(used, dpsi, 0.0)
+    else:
+        dpsi = w
+    D = np.array([1.0 / radius] * 3 + [1.0] * 3)
+
+    def inverse(H):
+        lam, V = np.linalg.eigh(H * np.outer(D, D))
+        ok = lam[0] > -1e-12 * max(lam[-1], 1e-300)
+        lam = np.maximum(lam, 1e-16 * max(lam[-1], 1e-300))
+        return ((V / lam) @ V.T) * np.outer(D, D), ok
+
+    Hinv, ok = inverse((J * dpsi[:, None]).T @ J)
+    if not ok:  # psi' < 0 on too many points: Huber's homogeneous bread
+        Ju = J[used]
+        Hinv, _ = inverse(max(float(dpsi[used].mean()) if n else 1.0, 1e-12) * (Ju.T @ Ju))
     Jb = J * (w * r)[:, None]
     B = Jb.T @ Jb
-    D = np.array([1.0 / radius] * 3 + [1.0] * 3)
-    Hs = H * np.outer(D, D)
-    lam, V = np.linalg.eigh(Hs)
-    lam = np.maximum(lam, 1e-16 * max(lam[-1], 1e-300))
-    Hinv = ((V / lam) @ V.T) * np.outer(D, D)
     C = Hinv @ B @ Hinv
+    if loss is not None and n > 6:
+        C *= n / (n - 6.0)
     A = _center_to_origin(center)
     C = A @ C @ A.T
     C = 0.5 * (C + C.T)
