@@ -80,3 +80,43 @@ def test_cli_plan_and_pdf(panel, tmp_path):
     assert "Characteristics (mm)" in page and ">H1<" in page and "ISO 14253-1" in page
     js = json.loads((tmp_path / "r.json").read_text())
     assert [c["name"] for c in js["characteristics"]] == ["H1", "SKIN"]
+
+
+def test_pdf_without_a_plan_draws_the_inspections_own_pose_and_deviations(panel, tmp_path,
+                                                                          monkeypatch):
+    """No plan: the PDF shows the inspection's registration, deviations and verdict; nothing
+    aligns the scan again (the best fits are made to fail if called)."""
+    import shutil
+
+    from shapeverify.characteristics import alignment as al
+    from shapeverify.characteristics.pdf import write_pdf_report
+    from shapeverify.inspection.plan_link import plan_result_of
+
+    prep, _ = panel
+    scan = virtual_scan(prep, pixel=1.0, noise=0.02, dents=[(0.3, 12.0)], motion=(1.0, 2.0),
+                        rng=7)
+    res = sv.inspect(prep, scan.scan, tolerance=0.2)
+
+    def no_realignment(*a, **k):
+        raise AssertionError("the scan was aligned again")
+
+    monkeypatch.setattr(al, "_gauss_newton", no_realignment)
+    pr = plan_result_of(res)
+    assert np.array_equal(pr.alignment.T_model_scan, res.registration.T_model_scan)
+    assert np.array_equal(pr.alignment.covariance, res.registration.covariance)
+    dev = res.deviations
+    assert np.array_equal(pr.evaluated, dev.evaluated)
+    assert np.array_equal(pr.deviations[dev.evaluated], dev.values[dev.evaluated])
+    assert np.isnan(pr.deviations[~dev.evaluated]).all()
+    assert pr.verdict == res.verdict == "fail" and pr.characteristics == ()
+    out = write_pdf_report(pr, tmp_path / "free.pdf", prep, part="P-2", scan_file="scan.ply",
+                           tolerance=0.2, date="2026-12-01")
+    assert out.read_bytes()[:5] == b"%PDF-"
+    if shutil.which("pdftoppm"):
+        subprocess.run(["pdftoppm", "-png", "-r", "40", str(out), str(tmp_path / "page")],
+                       check=True, timeout=60)
+        pages = sorted(tmp_path.glob("page*.png"))
+        assert len(pages) == 2
+        from PIL import Image
+        img = np.asarray(Image.open(pages[0]).convert("L"))
+        assert img.shape[0] > img.shape[1] and img.std() > 5     # portrait, not blank

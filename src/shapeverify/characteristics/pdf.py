@@ -25,7 +25,8 @@ logger = logging.getLogger(__name__)
 
 #: band colours from most negative to most positive (7 bands)
 BAND_COLOURS = ("#5b2a86", "#2166ac", "#67c5e0", "#3a9e4f", "#f2d43d", "#f08a24", "#b3261e")
-_VERDICT = {"pass": "#1b7f3b", "fail": "#b3261e", "undecided": "#a15c00"}
+_VERDICT = {"pass": "#1b7f3b", "fail": "#b3261e", "undecided": "#a15c00", "incomplete": "#a15c00",
+            "error": "#7a1010"}
 
 
 def band_edges(b: float) -> np.ndarray:
@@ -228,7 +229,10 @@ def write_pdf_report(result, path, prep=None, *, part: str | None = None,
                 tab[0, j].set_facecolor("#e8e8e8")
                 tab[0, j].set_height(0.035)
         else:
-            tx.text(0.5, 0.5, "the plan has no characteristics", ha="center")
+            no_plan = result.alignment.details.get("source") == "registration"
+            tx.text(0.5, 0.5, "no inspection plan: the verdict is the tolerance on every "
+                    "evaluated point (free best fit of all faces)" if no_plan else
+                    "the plan has no characteristics", ha="center")
         pdf.savefig(fig)
 
         # ---------------------------------------------------------------- page 3

@@ -1,7 +1,10 @@
 """How an inspection plan (:mod:`shapeverify.characteristics`) joins an inspection.
 
 :class:`PlanPose` shows the plan's alignment to the inspection as a registration would be shown;
-:func:`with_characteristics` combines the inspection's verdict with the characteristics'.
+:func:`with_characteristics` combines the inspection's verdict with the characteristics';
+:func:`plan_result_of` goes the other way: an inspection without a plan in the form of a plan's
+result (for the PDF report), with the inspection's own pose, deviations and verdict -- the scan
+is not aligned again.
 """
 
 from __future__ import annotations
@@ -9,9 +12,11 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+import numpy as np
+
 from .result import InspectionResult
 
-__all__ = ["PlanPose", "with_characteristics"]
+__all__ = ["PlanPose", "with_characteristics", "registration_alignment", "plan_result_of"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -85,3 +90,67 @@ def with_characteristics(result: InspectionResult, plan_result) -> InspectionRes
         reasons = reasons[:1] + lines + reasons[1:]
     return dataclasses.replace(result, verdict=verdict, rule=rule, reasons=tuple(reasons),
                                characteristics=chars, plan=plan_result)
+
+
+def registration_alignment(registration):
+    """The inspection's registration as an :class:`~shapeverify.characteristics.AlignmentResult`
+    (a free best fit of all faces: every degree of freedom fitted, none locked).
+
+    A :class:`PlanPose` gives back the plan's own alignment.  Otherwise the pose, rms and
+    covariance are the registration's (``registration.covariance``; inf where undetermined)
+    and ``details`` say where they came from.
+    """
+    from ..characteristics.alignment import AlignmentResult
+    from ..characteristics.plan import DOF_NAMES
+
+    if isinstance(registration, PlanPose):
+        return registration.alignment
+    w = getattr(registration, "weights", None)
+    cov = getattr(registration, "covariance", None)
+    cov = np.full((6, 6), np.inf) if cov is None else np.asarray(cov, np.float64)
+    details = {"source": "registration", "iterations": int(registration.iterations),
+               "converged": bool(registration.converged),
+               "inlier_fraction": float(registration.inlier_fraction),
+               "loss": getattr(registration, "loss", None),
+               "scale": float(getattr(registration, "scale", float("nan"))),
+               "n_points": None if w is None else int(np.count_nonzero(np.asarray(w) > 0))}
+    return AlignmentResult(np.asarray(registration.T_model_scan, np.float64), cov,
+                           np.zeros(0), float(registration.rms), DOF_NAMES, (), "best_fit",
+                           details)
+
+
+def plan_result_of(result: InspectionResult):
+    """An inspection as a :class:`~shapeverify.characteristics.PlanResult` (what the PDF report
+    draws), without aligning the scan again.
+
+    With a plan: the plan's result as evaluated.  Without one (today's behaviour: a free best
+    fit and the tolerance on every point): the inspection's own registration
+    (:func:`registration_alignment`), its deviations (NaN where not evaluated: too far, past
+    the model's boundary, outside the inspected faces), no characteristics, and the
+    inspection's verdict ('pass', 'fail', 'incomplete' or 'error').
+
+    Parameters
+    ----------
+    result : InspectionResult
+
+    Returns
+    -------
+    PlanResult
+    """
+    if result.plan is not None:
+        return result.plan
+    from ..characteristics.evaluate import PlanResult
+    from ..characteristics.plan import Plan
+    from ..registration.losses import MAD_TO_SIGMA
+
+    dev = result.deviations
+    ok = np.asarray(dev.evaluated, bool)
+    d = np.where(ok, np.asarray(dev.values, np.float64), np.nan)
+    dv = d[ok]
+    noise = float(MAD_TO_SIGMA * np.median(np.abs(dv - np.median(dv)))) if dv.size \
+        else float("nan")
+    return PlanResult(plan=Plan.default(), alignment=registration_alignment(result.registration),
+                      characteristics=(), verdict=result.verdict,
+                      points=np.asarray(dev.points_model, np.float64), deviations=d,
+                      face=np.asarray(dev.face), evaluated=ok, noise=noise, section=None,
+                      timings={"alignment": 0.0, "characteristics": 0.0})
