@@ -13,6 +13,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from shapeverify._arrays import check_points
 from shapeverify.camera import _kernels
 
 NEWTON_TOL = 1e-10  # mm: residual |S(u, v) - (o + t d)| at convergence
@@ -105,14 +106,11 @@ class RayScene:
 
 
 def _check_rays(origins, directions) -> tuple[np.ndarray, np.ndarray]:
-    o = np.ascontiguousarray(np.asarray(origins, dtype=np.float64))
+    o = check_points(origins, "origins", single=False)
     d = np.asarray(directions, dtype=np.float64)
-    if o.ndim != 2 or o.shape[1] != 3:
-        raise ValueError(f"origins must have shape (N, 3), got {o.shape}")
     if d.shape != o.shape:
         raise ValueError(f"directions must have the shape of origins {o.shape}, got {d.shape}")
-    if not (np.all(np.isfinite(o)) and np.all(np.isfinite(d))):
-        raise ValueError("origins and directions must be finite (no NaN or inf)")
+    d = check_points(d, "directions", single=False)
     norm = np.linalg.norm(d, axis=1)
     if np.any(norm == 0):
         raise ValueError(f"{int((norm == 0).sum())} ray direction(s) are zero vectors")

@@ -12,14 +12,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-
-def _as_points(points, name="points") -> np.ndarray:
-    p = np.asarray(points, dtype=np.float64)
-    if p.ndim != 2 or p.shape[1] != 3:
-        raise ValueError(f"{name} must have shape (N, 3), got {p.shape}")
-    if not np.all(np.isfinite(p)):
-        raise ValueError(f"{name} contains NaN or inf")
-    return p
+from shapeverify._arrays import check_points
 
 
 @dataclass(frozen=True)
@@ -121,7 +114,7 @@ class PinholeCamera:
 
     def to_camera(self, points) -> np.ndarray:
         """World points (N, 3) -> camera coordinates (N, 3)."""
-        p = _as_points(points)
+        p = check_points(points, single=False)
         R, c = self.T_world_camera[:3, :3], self.T_world_camera[:3, 3]
         return (p - c) @ R
 
