@@ -24,6 +24,7 @@ Example
 
 from __future__ import annotations
 
+import enum
 from dataclasses import dataclass, field
 from functools import cached_property
 
@@ -33,9 +34,19 @@ from .._arrays import readonly as _readonly
 from .nurbs import NurbsSurface
 from .trim import TrimDomain, check_loops
 
-__all__ = ["Face", "Model", "ModelPoints"]
+__all__ = ["Face", "Model", "ModelKind", "ModelPoints"]
 
-_KINDS = ("cad", "mesh", "points")
+
+class ModelKind(enum.StrEnum):
+    """What a :class:`Model` holds.  A ``str`` enum: ``ModelKind.CAD == "cad"``, and it prints and
+    serialises as its plain value."""
+
+    CAD = "cad"        # trimmed NURBS faces
+    MESH = "mesh"      # a triangle mesh
+    POINTS = "points"  # a point cloud
+
+
+_KINDS = tuple(k.value for k in ModelKind)
 
 
 def _uv_array(uv) -> np.ndarray:
@@ -196,7 +207,8 @@ class Model:
         Millimetres per source-file unit; the geometry held here is already converted.
     source : str
         Where the model came from (a file path, or a description).
-    kind : {"cad", "mesh", "points"}
+    kind : ModelKind or {"cad", "mesh", "points"}
+        Stored as a :class:`ModelKind` (which compares equal to the strings).
     vertices : (V, 3) float64 or None
         Mesh vertices, or the points of a point-cloud model.
     triangles : (T, 3) int32 or None
@@ -227,7 +239,7 @@ class Model:
     unit: str = "mm"
     scale_to_mm: float = 1.0
     source: str = ""
-    kind: str = "cad"
+    kind: ModelKind = ModelKind.CAD
     vertices: np.ndarray | None = None
     triangles: np.ndarray | None = None
     cloud_normals: np.ndarray | None = None
@@ -238,6 +250,7 @@ class Model:
     def __post_init__(self):
         if self.kind not in _KINDS:
             raise ValueError(f"kind must be one of {_KINDS}, got {self.kind!r}")
+        object.__setattr__(self, "kind", ModelKind(self.kind))
         faces = tuple(self.faces)
         for i, f in enumerate(faces):
             if not isinstance(f, Face):
@@ -266,7 +279,7 @@ class Model:
         if self.kind == "cad" and (self.vertices is not None or self.triangles is not None):
             raise ValueError("a 'cad' model holds faces, not vertices/triangles")
         if self.kind in ("mesh", "points") and self.vertices is None:
-            raise ValueError(f"a {self.kind!r} model needs vertices")
+            raise ValueError(f"a {self.kind.value!r} model needs vertices")
         if self.kind == "mesh" and self.triangles is None:
             raise ValueError("a 'mesh' model needs triangles")
         if self.triangles is not None and self.triangles.size and (
@@ -320,7 +333,7 @@ class Model:
                 + (f", triangles={self.triangles.shape[0]}" if self.triangles is not None else ""))
         if self.n_missing_faces:
             what += f" (of {self.n_faces_in_file} in the file)"
-        return (f"Model(kind={self.kind!r}, {what}, unit={self.unit!r}, "
+        return (f"Model(kind={self.kind.value!r}, {what}, unit={self.unit!r}, "
                 f"scale_to_mm={self.scale_to_mm:g}, source={self.source!r})")
 
 

@@ -14,12 +14,12 @@ from .inspect import check_scan, default_evaluation_distance, inspect, inspect_r
 from .material import find_material
 from .regions import DefectRegion, Outliers, find_regions
 from .result import InspectionResult
-from .verdict import Statistics, Tolerance, decide, per_face_statistics, statistics
+from .verdict import Statistics, Tolerance, Verdict, decide, per_face_statistics, statistics
 
 __all__ = [
     "deviations", "Deviations", "EVALUATED", "TOO_FAR", "ON_BOUNDARY", "OUTSIDE_FACES",
     "inspect", "inspect_registered", "check_scan", "default_evaluation_distance", "InspectionResult",
     "Coverage", "compute_coverage", "MIN_COVERAGE", "find_material",
-    "Tolerance", "Statistics", "statistics", "per_face_statistics", "decide",
+    "Tolerance", "Statistics", "statistics", "per_face_statistics", "decide", "Verdict",
     "find_regions", "DefectRegion", "Outliers",
 ]

@@ -4,12 +4,17 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from .deviations import Deviations
 from .regions import Outliers
-from .verdict import Statistics, Tolerance
+from .verdict import Statistics, Tolerance, Verdict
+
+if TYPE_CHECKING:  # annotations only (registration imports nothing from here, but costs an import)
+    from ..registration.icp import Registration
+    from .coverage import Coverage
 
 __all__ = ["InspectionResult"]
 
@@ -32,7 +37,8 @@ class InspectionResult:
 
     Attributes
     ----------
-    verdict : {'pass', 'fail', 'error', 'incomplete'}
+    verdict : Verdict
+        'pass', 'fail', 'error' or 'incomplete' (a ``str`` enum: compares equal to those strings).
     reasons : tuple of str
         Why: the first names the rule that decided; notes (outliers, undetermined pose
         directions, registration warnings) follow.
@@ -69,9 +75,9 @@ class InspectionResult:
         With a plan: the whole plan evaluation (alignment, section, ...).
     """
 
-    verdict: str
+    verdict: Verdict
     reasons: tuple
-    registration: object
+    registration: Registration
     deviations: Deviations
     statistics: Statistics
     per_face: dict
@@ -81,17 +87,23 @@ class InspectionResult:
     timings: dict = field(default_factory=dict)
     spacing: float = float("nan")
     units: str = "mm"
-    coverage: object = None
+    coverage: Coverage | None = None
     rule: str = ""
     excluded: dict = field(default_factory=dict)
     inputs: dict = field(default_factory=dict)
     characteristics: tuple = ()
     plan: object = None
 
+    def __post_init__(self):
+        try:  # the one place a verdict string becomes a Verdict
+            object.__setattr__(self, "verdict", Verdict(self.verdict))
+        except ValueError:
+            raise ValueError(f"verdict must be one of {[v.value for v in Verdict]}, got {self.verdict!r}") from None
+
     @property
     def decision(self) -> dict:
         """``{"verdict", "rule", "reason"}``: why the verdict is what it is."""
-        return {"verdict": self.verdict, "rule": self.rule,
+        return {"verdict": self.verdict.value, "rule": self.rule,
                 "reason": self.reasons[0] if self.reasons else ""}
 
     @property
@@ -131,7 +143,7 @@ class InspectionResult:
         """
         dev = self.deviations
         d = {
-            "verdict": self.verdict,
+            "verdict": self.verdict.value,
             "decision": self.decision,
             "reasons": list(self.reasons),
             "inputs": dict(self.inputs),
@@ -161,7 +173,7 @@ class InspectionResult:
 
     def __repr__(self) -> str:
         s = self.statistics
-        return (f"InspectionResult(verdict={self.verdict!r}, n={self.deviations.n}, "
+        return (f"InspectionResult(verdict={self.verdict.value!r}, n={self.deviations.n}, "
                 f"evaluated={s.n}, mean={s.mean:+.4f}, std={s.std:.4f}, min={s.min:+.4f}, "
                 f"max={s.max:+.4f} {self.units}, regions={len(self.regions)}, "
                 f"outliers={self.outliers.n}, coverage="

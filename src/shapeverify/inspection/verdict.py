@@ -29,6 +29,7 @@ surfaces, here ``lower <= deviation <= upper`` along the CAD normal).
 
 from __future__ import annotations
 
+import enum
 import math
 from dataclasses import dataclass
 from typing import Mapping
@@ -36,9 +37,20 @@ from typing import Mapping
 import numpy as np
 
 __all__ = ["Tolerance", "Statistics", "statistics", "per_face_statistics", "decide",
-           "VERDICTS", "MIN_INLIER_FRACTION"]
+           "Verdict", "VERDICTS", "MIN_INLIER_FRACTION"]
 
-VERDICTS = ("pass", "fail", "error", "incomplete")
+
+class Verdict(enum.StrEnum):
+    """The outcome of an inspection.  A ``str`` enum: ``Verdict.PASS == "pass"``, and it prints,
+    formats and serialises (JSON, SQLite) as its plain value."""
+
+    PASS = "pass"
+    FAIL = "fail"
+    ERROR = "error"
+    INCOMPLETE = "incomplete"
+
+
+VERDICTS = tuple(v.value for v in Verdict)
 #: Default least inlier fraction of the registration.
 MIN_INLIER_FRACTION = 0.25
 
@@ -264,7 +276,7 @@ def per_face_statistics(values: np.ndarray, face: np.ndarray, within: np.ndarray
 
 
 def decide(registration, deviations, regions, coverage=None, *,
-           min_inlier_fraction: float = MIN_INLIER_FRACTION) -> tuple[str, tuple[str, ...], str]:
+           min_inlier_fraction: float = MIN_INLIER_FRACTION) -> tuple[Verdict, tuple[str, ...], str]:
     """The verdict, its reasons and the rule that decided (see the module docstring).
 
     Parameters
@@ -279,7 +291,7 @@ def decide(registration, deviations, regions, coverage=None, *,
 
     Returns
     -------
-    verdict : {'pass', 'fail', 'error', 'incomplete'}
+    verdict : Verdict
     reasons : tuple of str
         Why; the first says which rule decided.
     rule : {'registration', 'no_data', 'coverage', 'regions', 'within_tolerance'}
@@ -296,7 +308,7 @@ def decide(registration, deviations, regions, coverage=None, *,
                           f"{100 * min_inlier_fraction:.0f} % (scan does not match the model)")
     n, n_eval = deviations.n, deviations.n_evaluated
     if n_eval == 0:
-        return "error", (f"no scan point lies within {deviations.max_distance:g} mm (the evaluation "
+        return Verdict.ERROR, (f"no scan point lies within {deviations.max_distance:g} mm (the evaluation "
                          f"distance) of the inspected CAD faces ({deviations.n_too_far} of {n} too "
                          f"far, {deviations.n_on_boundary} past the CAD's edges); is this the right "
                          "scan and model?",) + tuple(errors), "no_data"
@@ -313,16 +325,16 @@ def decide(registration, deviations, regions, coverage=None, *,
             reasons.append(f"{len(regions)} region{'s' if len(regions) > 1 else ''} out of tolerance "
                            "in the part that was seen:")
             reasons += listed
-        return "incomplete", tuple(reasons), "coverage"
+        return Verdict.INCOMPLETE, tuple(reasons), "coverage"
     if errors:
-        return "error", tuple(errors), "registration"
+        return Verdict.ERROR, tuple(errors), "registration"
     if regions:
         n_mat = sum(1 for r in regions if getattr(r, "kind", "deviation") == "material")
         n_dev = len(regions) - n_mat
         parts = ([f"{n_dev} out-of-tolerance region{'s' if n_dev != 1 else ''}"] if n_dev else []) + \
                 ([f"{n_mat} region{'s' if n_mat != 1 else ''} of material the CAD does not have"]
                  if n_mat else [])
-        return "fail", tuple([f"fail: {' and '.join(parts)} (most severe first)"] + listed), "regions"
+        return Verdict.FAIL, tuple([f"fail: {' and '.join(parts)} (most severe first)"] + listed), "regions"
     seen = f"; {100 * coverage.fraction:.1f} % of the inspected area seen" if coverage is not None else ""
-    return "pass", (f"pass: all {n_eval} evaluated points are within tolerance except isolated "
+    return Verdict.PASS, (f"pass: all {n_eval} evaluated points are within tolerance except isolated "
                     f"measurement outliers{seen}",), "within_tolerance"
