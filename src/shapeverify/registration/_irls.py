@@ -49,10 +49,7 @@ from .rigid import (
     DEGENERATE_RTOL, compose_step, rodrigues, rotation_vector, solve_step, weighted_rigid_fit,
 )
 
-try:
-    from ..errors import RegistrationError
-except ImportError:  # pragma: no cover
-    RegistrationError = ValueError
+from ..errors import RegistrationError
 
 #: points re-matched to check the final stage's planes
 VERIFY = 4000

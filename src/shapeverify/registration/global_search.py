@@ -42,10 +42,7 @@ from . import _features, _irls
 from .losses import get_loss
 from .rigid import make_transform, rotation_vector
 
-try:
-    from ..errors import RegistrationError
-except ImportError:  # pragma: no cover
-    RegistrationError = ValueError
+from ..errors import RegistrationError
 
 __all__ = ["global_alignment", "GlobalAlignment", "fit_score", "fit_distance"]
 
