@@ -33,7 +33,7 @@ import numpy as np
 
 from .._arrays import count_nonfinite_rows
 
-from . import _irls
+from . import _basin, _irls
 from ._irls import IterationRecord
 from .losses import get_loss
 from .options import InitMode, InitName, LossName, Method, MethodName, StageSettings
@@ -57,6 +57,8 @@ _COARSE_TOL = 1e-4
 #: wrong minima and costs a second matching of the final stage on the example panel)
 ANNEAL = None
 _STAGE_CAP = 60
+#: probe the least-determined direction for a better minimum (:mod:`._basin`)
+PROBE = True
 
 
 class DegenerateGeometryWarning(UserWarning):
@@ -390,10 +392,28 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
             st = coarse(ga.T_model_scan, False)
     else:
         st = coarse(T0, True)
-    if final_cfg.method is Method.POINT_TO_PLANE:
-        ev, converged, why = _irls.stage_final_plane(P, prep, st, final_cfg, rng)
-    else:
-        ev, converged, why = _irls.stage_rematch("final", P, prep, st, final_cfg)
+    def final(st):
+        if final_cfg.method is Method.POINT_TO_PLANE:
+            return _irls.stage_final_plane(P, prep, st, final_cfg, rng)
+        return _irls.stage_rematch("final", P, prep, st, final_cfg)
+
+    ev, converged, why = final(st)
+    # another minimum along the least-determined direction (thin walls, see _basin)
+    if PROBE:
+        from .global_search import fit_distance
+        c0 = _irls.centroid(ev.X, ev.w)
+        null0 = _irls.null_directions(ev, _irls.model_points(prep),
+                                      _irls.system(ev.Y, ev.Y, ev.N, ev.w, c0)[0], c0, radius)
+        sigma0, best = ev.sigma, ev.objective
+        for R_alt, t_alt in _basin.probe(P, prep, ev, st.R, st.t, final_cfg, null0,
+                                         fit_distance(prep)):
+            st2 = _irls.State(R_alt, t_alt, st.iterations, list(st.history))
+            ev2, conv2, why2 = final(st2)
+            obj = _irls._mean_rho(ev2, sigma0)
+            if obj < best:
+                logger.info("registration: another minimum along the direction resting on the "
+                            "fewest points fits better (objective %.4g < %.4g): taken", obj, best)
+                best, st, ev, converged, why = obj, st2, ev2, conv2, why2
 
     w = ev.w
     center = _irls.centroid(ev.X, w)
