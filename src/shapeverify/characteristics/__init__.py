@@ -1,8 +1,12 @@
 """Inspection plans: datum alignments, GD&T characteristics with uncertainty, reports, SPC.
 
->>> from shapeverify.characteristics import evaluate_plan, load_plan      # doctest: +SKIP
->>> res = evaluate_plan(prep, scan, load_plan("plan.yaml"))              # doctest: +SKIP
->>> [c.to_dict() for c in res.characteristics]                           # doctest: +SKIP
+>>> from shapeverify.characteristics import evaluate_plan, load_plan
+>>> plan = load_plan("alignment: {type: best_fit}\\ncharacteristics:\\n"
+...                  "  - {name: SKIN, type: surface_profile, faces: all, tol: 0.2}\\n")
+>>> [c.name for c in plan.characteristics]
+['SKIN']
+
+``evaluate_plan(prep, scan, plan)`` measures them (an example: :func:`.evaluate.evaluate_plan`).
 
 Modules: :mod:`.plan` (the YAML plan and its schema), :mod:`.features` (holes, planes,
 cylinders of the CAD topology), :mod:`.alignment` (best fit on faces, constrained, RPS), :mod:`.datums` (datum features),

@@ -159,8 +159,16 @@ def deviations(scan, prep, T_model_scan=None, evaluation_distance: float | None 
 
     Examples
     --------
-    >>> dev = deviations(scan, prep, reg.T_model_scan, evaluation_distance=1.0)   # doctest: +SKIP
-    >>> dev.values[dev.evaluated].std()                                     # doctest: +SKIP
+    A simulated scan of the small example panel, with 0.02 mm noise, at its true pose:
+
+    >>> import shapeverify as sv
+    >>> from shapeverify.cad.examples import wavy_panel
+    >>> from shapeverify.simulate import virtual_scan
+    >>> prep = sv.prepare(wavy_panel(), spacing=2.0)
+    >>> sim = virtual_scan(prep, pixel=2.0, noise=0.02, rng=1)
+    >>> dev = deviations(sim.scan, prep, sim.T_model_scan, evaluation_distance=1.0)
+    >>> round(float(dev.values[dev.evaluated].std()), 2)
+    0.02
     """
     scan = np.asarray(scan, dtype=np.float64)
     if scan.ndim != 2 or scan.shape[1] != 3:

@@ -1,9 +1,15 @@
 """Closest points on the model in microseconds: the Distance Varying Grid tree (Paper I).
 
->>> import shapeverify as sv                                  # doctest: +SKIP
->>> prep = sv.prepare(model)                                  # doctest: +SKIP
->>> near = prep.closest(points)             # fast: tangent-patch projection   # doctest: +SKIP
->>> near = prep.closest(points, exact=True) # refined on the NURBS faces       # doctest: +SKIP
+>>> import numpy as np, shapeverify as sv
+>>> from shapeverify.cad.examples import wavy_panel     # 120 x 90 mm, two trimmed faces
+>>> prep = sv.prepare(wavy_panel(), spacing=2.0)
+>>> points = np.array([[60.0, 45.0, 5.0], [10.0, 80.0, -3.0]])
+>>> near = prep.closest(points)             # fast: tangent-patch projection
+>>> near = prep.closest(points, exact=True) # refined on the NURBS faces
+>>> near.points.shape, near.distances.shape, near.face.shape
+((2, 3), (2,), (2,))
+>>> bool(np.allclose(np.linalg.norm(points - near.points, axis=1), np.abs(near.distances)))
+True
 
 Modules: :mod:`.dvg` (the tree over plain arrays), :mod:`.exact` (refinement on the model),
 :mod:`.prepared` (``prepare``, ``Prepared``, ``Closest``, the ``.svm`` file).

@@ -1,7 +1,13 @@
 """Phase unwrapping for optical shape measurement (thesis Ch. 3-4, Paper V).
 
+>>> import numpy as np
 >>> from shapeverify import phase
->>> phi = phase.unwrap(psi, method="auto", mask=None, quality=None, reference=None)  # doctest: +SKIP
+>>> y, x = np.mgrid[0:64, 0:64]
+>>> true = 0.02 * ((x - 30.0) ** 2 + (y - 20.0) ** 2)           # up to 70 rad: many fringes
+>>> psi = np.angle(np.exp(1j * true))                           # wrapped into (-pi, pi]
+>>> phi = phase.unwrap(psi, method="auto", mask=None, quality=None, reference=None)
+>>> float(np.abs(phi - phi[20, 30] - (true - true[20, 30])).max()) < 1e-9
+True
 
 Wrapping conventions, masks (True = valid) and congruence: see :mod:`shapeverify.phase.wrap`.
 Methods (``method=``):

@@ -1,6 +1,8 @@
 """Registration: robust ICP of a scan to a prepared model (thesis ch. 5-6, Papers I-II).
 
->>> from shapeverify.registration import register, Registration   # doctest: +SKIP
+>>> from shapeverify.registration import register, Registration
+>>> register.__name__, Registration.__name__
+('register', 'Registration')
 """
 from .icp import DegenerateGeometryWarning, IterationRecord, Registration, register
 from .global_search import GlobalAlignment, global_alignment

@@ -1,0 +1,76 @@
+"""pytest set-up for the docstring examples of ``src/shapeverify`` (``--doctest-modules``).
+
+It lives at the repository root because pytest applies a conftest only to the files below it, and
+the doctests are collected from ``src/shapeverify`` as well as ``tests/``.
+
+* A module that needs an optional extra which is not installed (``service``: FastAPI, uvicorn;
+  ``batch``: Dask distributed) is skipped with the reason, instead of failing to import.
+* Every doctest runs in a fresh temporary directory, so examples that write ``history.sqlite``,
+  ``plan.yaml`` or ``part.svm`` leave nothing behind.
+* ``np`` is in every doctest's namespace; anything else an example uses it builds itself, from
+  the small built-in fixtures of :mod:`shapeverify.examples_data` (no files, no +SKIP).
+"""
+
+from __future__ import annotations
+
+import importlib
+import os
+from pathlib import Path
+
+import pytest
+
+_SRC = Path(__file__).resolve().parent / "src"
+#: top-level import name -> the extra that provides it
+_OPTIONAL = {"fastapi": "service", "starlette": "service", "uvicorn": "service",
+             "httptools": "service", "uvloop": "service", "distributed": "batch", "dask": "batch"}
+
+
+def _module_name(path: Path) -> str | None:
+    try:
+        rel = path.resolve().relative_to(_SRC)
+    except ValueError:
+        return None
+    parts = list(rel.with_suffix("").parts)
+    if parts[-1] == "__init__":
+        parts.pop()
+    return ".".join(parts)
+
+
+@pytest.hookimpl(hookwrapper=True)
+def pytest_make_collect_report(collector):
+    """Turn the import failure of a module whose optional extra is missing into a skip."""
+    name = (_module_name(Path(collector.path)) if isinstance(collector, pytest.Module)
+            or type(collector).__name__ == "DoctestModule" else None)
+    if name:
+        try:
+            importlib.import_module(name)
+        except ModuleNotFoundError as exc:
+            top = (exc.name or "").split(".")[0]
+            if top in _OPTIONAL:
+                from _pytest.reports import CollectReport
+
+                reason = (f"{name} needs the '{_OPTIONAL[top]}' extra ({top} is not installed: "
+                          f"pip install 'shapeverify[{_OPTIONAL[top]}]')")
+                outcome = yield
+                outcome.force_result(CollectReport(collector.nodeid, "skipped",
+                                                   (str(collector.path), 0, f"Skipped: {reason}"),
+                                                   []))
+                return
+    yield
+
+
+@pytest.fixture(autouse=True)
+def _doctest_in_tmpdir(request, tmp_path, doctest_namespace):
+    """Doctests run in their own temporary directory (tests keep the working directory)."""
+    if type(request.node).__name__ != "DoctestItem":
+        yield
+        return
+    import numpy as np
+
+    doctest_namespace["np"] = np
+    old = os.getcwd()
+    os.chdir(tmp_path)
+    try:
+        yield
+    finally:
+        os.chdir(old)

@@ -1,0 +1,185 @@
+"""Fill numba's cache once, at set-up, and say so whenever a kernel still compiles on first use.
+
+The numeric kernels are compiled by numba the first time they run on a machine (or after the
+package changed) and kept in numba's cache (``__pycache__`` beside the sources, or
+``NUMBA_CACHE_DIR``); later processes load them in well under a second.  ``make demo`` and
+``make test`` run ``python -m shapeverify.warmup`` once after installing, so the first real
+inspection does not pay for compiling.  Run it yourself after ``pip install shapeverify``::
+
+    python -m shapeverify.warmup
+
+It imports, prepares, simulates a scan of and inspects the bundled example panel at a coarse
+spacing through the command line (``info``, ``prepare``, ``inspect`` with every report), each in
+its own process as a user would run them, so every kernel those commands call is compiled for
+the argument types they call it with.
+
+:func:`compile_notices` is what the command line uses to tell the user, once, that numba is
+compiling (with an estimate) instead of sitting silent for a minute.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import logging
+import os
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["COLD_SECONDS", "compile_notices", "warm_up", "main"]
+
+#: measured CPU seconds of compiling everything a command needs with an empty cache, on one core
+#: of the 2-core development machine (benchmarks/results_coldstart.md); the estimate in the notice
+COLD_SECONDS = {"inspect": 75.0, "prepare": 45.0, "warmup": 150.0}
+
+
+def _message(command: str) -> str:
+    est = COLD_SECONDS.get(command)
+    when = f"about {est / 60:.0f} min" if est and est >= 90 else f"about {est:.0f} s" if est else "a while"
+    return (f"compiling the numeric kernels for this machine (first run after installing or "
+            f"updating shapeverify: {when} on one core, once; later runs load them from numba's "
+            f"cache). To do it ahead: python -m shapeverify.warmup")
+
+
+@contextlib.contextmanager
+def compile_notices(say, command: str = "inspect"):
+    """Call ``say(text)`` once if numba compiles a kernel inside the ``with`` block.
+
+    Parameters
+    ----------
+    say : callable(str)
+        Shows the text (the CLI prints it above its spinner).
+    command : str
+        Which estimate of :data:`COLD_SECONDS` the text gives.
+
+    Yields
+    ------
+    dict
+        ``{"n": kernels compiled, "seconds": wall time spent compiling}`` (filled on exit).
+
+    Examples
+    --------
+    >>> import numba
+    >>> @numba.njit
+    ... def twice(x):
+    ...     return 2 * x
+    >>> said = []
+    >>> with compile_notices(said.append) as stats:
+    ...     twice(21)
+    42
+    >>> len(said), stats["n"]
+    (1, 1)
+    """
+    from numba.core import event
+
+    stats = {"n": 0, "seconds": 0.0}
+    lock = threading.Lock()
+    state = {"depth": 0, "said": False, "t0": 0.0}
+
+    class _Listener(event.Listener):
+        def on_start(self, ev):
+            with lock:
+                if state["depth"] == 0:
+                    state["t0"] = time.perf_counter()
+                    stats["n"] += 1
+                    if not state["said"]:
+                        state["said"] = True
+                        try:
+                            say(_message(command))
+                        except Exception:  # noqa: BLE001 - a notice must never break the work
+                            logger.debug("compile notice failed", exc_info=True)
+                state["depth"] += 1
+            logger.info("numba: compiling %s", getattr(ev.data.get("dispatcher"), "__qualname__", "?"))
+
+        def on_end(self, ev):
+            with lock:
+                state["depth"] -= 1
+                if state["depth"] == 0:
+                    stats["seconds"] += time.perf_counter() - state["t0"]
+
+    listener = _Listener()
+    event.register("numba:compile", listener)
+    try:
+        yield stats
+    finally:
+        event.unregister("numba:compile", listener)
+        if stats["n"]:
+            logger.info("numba compiled %d kernels in %.1f s (cached for later runs)",
+                        stats["n"], stats["seconds"])
+
+
+def _run(argv, cwd: Path) -> float:
+    t0 = time.perf_counter()
+    proc = subprocess.run([sys.executable, "-m", "shapeverify.cli", *map(str, argv)], cwd=cwd,
+                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+    if proc.returncode not in (0, 1, 3):  # inspect: 1 fail and 3 incomplete are answers too
+        raise RuntimeError(f"shapeverify {' '.join(map(str, argv))} exited {proc.returncode}:\n"
+                           f"{proc.stderr[-3000:]}")
+    return time.perf_counter() - t0
+
+
+def warm_up(say=logger.info) -> float:
+    """Compile (or load from the cache) every kernel of ``info``, ``prepare`` and ``inspect``.
+
+    Parameters
+    ----------
+    say : callable(str)
+        Receives one line per step.
+
+    Returns
+    -------
+    float
+        Wall-clock seconds.
+    """
+    from shapeverify.cad.examples import example_part_step
+    from shapeverify.cad.load import load_model
+    from shapeverify.io.points import write_ply
+    from shapeverify.simulate import virtual_scan
+
+    t0 = time.perf_counter()
+    with tempfile.TemporaryDirectory(prefix="shapeverify-warmup-") as d:
+        work = Path(d)
+        step = example_part_step(work / "panel.step")
+        say("importing the example panel")
+        _run(["info", step], work)
+        say("preparing it (closest-point structure)")
+        _run(["prepare", step, "-o", work / "panel.svm", "--spacing", "3"], work)
+        say("simulating a scan")
+        sim = virtual_scan(load_model(step), pixel=3.0, noise=0.02, shadows=1, blobs=1,
+                           outlier_fraction=0.05, dents=[(0.4, 15.0)], motion=(4.0, 8.0), rng=2011)
+        write_ply(work / "scan.ply", sim.scan)
+        say("inspecting it, with every report")
+        _run(["inspect", work / "panel.svm", work / "scan.ply", "--tolerance", "0.2",
+              "--json", work / "r.json", "--report", work / "r.html", "--png", work / "r.png",
+              "--colored", work / "r.ply", "--db", work / "h.sqlite", "--part", "warm-up"], work)
+    return time.perf_counter() - t0
+
+
+def main(argv=None) -> int:
+    """``python -m shapeverify.warmup [--quiet]``."""
+    argv = sys.argv[1:] if argv is None else argv
+    quiet = "--quiet" in argv or "-q" in argv
+
+    def say(text):
+        if not quiet:
+            print(f"  warm-up: {text}", flush=True)
+
+    if not quiet:
+        est = COLD_SECONDS["warmup"]
+        print(f"shapeverify: compiling the numeric kernels once for this machine (numba; about "
+              f"{est / 60:.0f} min on one core with an empty cache, a few seconds when they are "
+              f"cached already). Cache: {os.environ.get('NUMBA_CACHE_DIR') or '__pycache__ beside the sources'}",
+              flush=True)
+    seconds = warm_up(say)
+    if not quiet:
+        print(f"shapeverify: kernels ready ({seconds:.0f} s)", flush=True)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
