@@ -245,6 +245,17 @@ def test_a_plan_names_faces_by_their_cad_names():
     with pytest.raises(ValueError, match="no feature 'wall'"):
         face_indices(model, ["wall"])
     assert [f.name for f in feats if f.kind == "hole"] == ["plate", "plate"]
+    # the plan schema takes names where it takes face ids
+    from shapeverify.characteristics.plan import PlanError, parse_plan
+
+    plan = parse_plan("alignment: {type: datums, primary: plate, secondary: face:1, "
+                      "tertiary: face:2}\ncharacteristics:\n"
+                      "  - {name: F, type: flatness, feature: plate, tol: 0.1}\n"
+                      "  - {name: W, type: surface_profile, faces: [walls], tol: 0.2}\n")
+    assert plan.alignment.primary == "plate" and plan.characteristics[0].feature == "plate"
+    with pytest.raises(PlanError, match="line 3"):
+        parse_plan("alignment: {type: best_fit}\ncharacteristics:\n"
+                   "  - {name: F, type: flatness, feature: 'hole:x', tol: 0.1}\n")
 
 
 def test_info_features_lists_the_step_face_names(named_step, tmp_path):

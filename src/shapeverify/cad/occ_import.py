@@ -24,6 +24,10 @@ What :func:`read_cad` does, per face (thesis §7.3):
   edge of an unsewn model belongs to one face only, and a seam is two separate edges, although
   nearly all of them touch another edge.
 
+Face names: a STEP file whose face entities are named (``ADVANCED_FACE('datum_A', ...)``) is
+read through the XCAF reader and each face gets its name by shape identity
+(:mod:`shapeverify.cad.step_names`, ``Model.face_names``); other files are read as before.
+
 Units: OpenCASCADE's readers convert the file's coordinates to the session length unit, which this
 module pins to millimetres; the model records the unit the file declared and its size in mm
 (``scale_to_mm``).  The geometry held in the model is therefore always in mm.
