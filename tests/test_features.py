@@ -270,3 +270,55 @@ def test_info_features_lists_the_step_face_names(named_step, tmp_path):
     names = sorted(r["name"] for r in rows if r["kind"] != "hole" and r["name"])
     assert names == ["bore", "bottom", "front", "top", "x_walls", "x_walls"]
     assert "x_walls" in res.output
+
+
+def test_a_named_face_of_a_part_placed_twice_in_an_assembly_is_named_on_both(tmp_path):
+    from OCP.BRepGProp import BRepGProp
+    from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
+    from OCP.GProp import GProp_GProps
+    from OCP.Interface import Interface_Static
+    from OCP.STEPCAFControl import STEPCAFControl_Writer
+    from OCP.STEPControl import STEPControl_AsIs
+    from OCP.TCollection import TCollection_ExtendedString
+    from OCP.TDataStd import TDataStd_Name
+    from OCP.TDocStd import TDocStd_Document
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopLoc import TopLoc_Location
+    from OCP.XCAFDoc import XCAFDoc_DocumentTool
+    from OCP.gp import gp_Trsf, gp_Vec
+
+    from shapeverify.cad.occ_import import read_cad
+
+    box = BRepPrimAPI_MakeBox(10.0, 20.0, 30.0).Shape()
+    doc = TDocStd_Document(TCollection_ExtendedString("XmlXCAF"))
+    tool = XCAFDoc_DocumentTool.ShapeTool_s(doc.Main())
+    part = tool.AddShape(box, False)
+    exp = TopExp_Explorer(box, TopAbs_FACE)
+    while exp.More():
+        props = GProp_GProps()
+        BRepGProp.SurfaceProperties_s(exp.Current(), props)
+        if abs(props.CentreOfMass().Z() - 30.0) < 1e-9:
+            TDataStd_Name.Set_s(tool.AddSubShape(part, exp.Current()),
+                                TCollection_ExtendedString("top"))
+        exp.Next()
+    assembly = tool.NewShape()
+    for dx in (0.0, 50.0):
+        move = gp_Trsf()
+        move.SetTranslation(gp_Vec(dx, 0.0, 0.0))
+        tool.AddComponent(assembly, part, TopLoc_Location(move))
+    tool.UpdateAssemblies()
+    writer = STEPCAFControl_Writer()
+    Interface_Static.SetIVal_s("write.stepcaf.subshapes.name", 1)
+    writer.SetNameMode(True)
+    assert writer.Transfer(doc, STEPControl_AsIs)
+    writer.Write(str(tmp_path / "asm.step"))
+    model = read_cad(tmp_path / "asm.step", isolated=False)
+    assert len(model.faces) == 12
+    tops = sorted(float(f.center[0]) for f in model_features(model) if f.name == "top")
+    np.testing.assert_allclose(tops, [5.0, 55.0], atol=1.0)       # one top face per instance
+    for f in model_features(model):
+        if f.kind == "plane" and f.name == "top":
+            np.testing.assert_allclose(f.axis, [0, 0, 1], atol=1e-9)
+            assert abs(f.center[2] - 30.0) < 1e-9
+    assert sum(n is not None for n in model.face_names) == 2
