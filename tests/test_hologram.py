@@ -173,7 +173,7 @@ def test_holograms_feed_the_cad_regularised_predict_unwrap_register_loop():
         warnings.simplefilter("ignore")          # a 5 mm patch leaves two rotations weakly determined
         res = phase.unwrap_with_cad(psi, prep, setup, T0)
     assert res.converged
-    pts = phase.cad.points_from_phase(res.phase, setup)
+    pts = phase.cad_unwrap.points_from_phase(res.phase, setup)
     assert len(pts) == path.size
     d = prep.closest(pts @ res.T_model_scan[:3, :3].T + res.T_model_scan[:3, 3]).distances
     assert np.sqrt(np.mean(d ** 2)) < 0.01                # mm: every pixel on the right fringe

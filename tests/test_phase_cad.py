@@ -7,7 +7,7 @@ from shapeverify.cad.model import Face, Model
 from shapeverify.cad.nurbs import NurbsSurface
 from shapeverify.camera import PinholeCamera
 from shapeverify.phase import unwrap, wrap
-from shapeverify.phase.cad import HolographySetup, predict_phase, unwrap_with_cad
+from shapeverify.phase.cad_unwrap import HolographySetup, predict_phase, unwrap_with_cad
 
 STEP = 2.6  # mm: the plateau stands 5.2 fringes above the base (Λ = 1 mm, path doubles the height)
 
@@ -85,7 +85,7 @@ def test_start_half_a_fringe_off_is_the_ambiguity(stepped):
 
 def test_prediction_shape_checks(stepped):
     _, prep, setup = stepped
-    from shapeverify.phase.cad import points_from_phase
+    from shapeverify.phase.cad_unwrap import points_from_phase
 
     with pytest.raises(ValueError, match="camera image"):
         points_from_phase(np.zeros((3, 3)), setup)

@@ -34,7 +34,7 @@ wired to the camera and registration modules for a CAD model in :func:`unwrap_wi
 
 from __future__ import annotations
 
-from .cad import HolographySetup, predict_phase, unwrap_with_cad
+from .cad_unwrap import HolographySetup, predict_phase, unwrap_with_cad
 from .fringes import PhaseShift, fringe_images, phase_shift, temporal_unwrap
 from .fringe_analysis import FringeAnalysis, find_carrier, ftp, wff
 from .holography import (depth_per_fringe, phase_difference, phase_to_depth, phase_to_points,
