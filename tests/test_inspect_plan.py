@@ -109,6 +109,14 @@ def test_pdf_without_a_plan_draws_the_inspections_own_pose_and_deviations(panel,
     assert np.array_equal(pr.deviations[dev.evaluated], dev.values[dev.evaluated])
     assert np.isnan(pr.deviations[~dev.evaluated]).all()
     assert pr.verdict == res.verdict == "fail" and pr.characteristics == ()
+    # evaluate_plan without a plan takes the registration as its (free best fit) alignment
+    from shapeverify.characteristics import evaluate_plan
+
+    ev = evaluate_plan(prep, scan.scan, None, registration=res.registration)
+    assert np.array_equal(ev.alignment.T_model_scan, res.registration.T_model_scan)
+    both = ev.evaluated & dev.evaluated
+    assert both.sum() > 0.95 * dev.evaluated.sum()
+    np.testing.assert_allclose(ev.deviations[both], dev.values[both], atol=1e-9)
     out = write_pdf_report(pr, tmp_path / "free.pdf", prep, part="P-2", scan_file="scan.ply",
                            tolerance=0.2, date="2026-12-01")
     assert out.read_bytes()[:5] == b"%PDF-"

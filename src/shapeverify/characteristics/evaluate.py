@@ -510,7 +510,8 @@ def evaluate_plan(prep, scan, plan=None, registration=None, init=None, rng=None,
     registration : Registration, optional
         An existing free registration of this scan: the start pose of the plan's alignment
         (which then skips its own free registration).  The pose covariance is always the
-        alignment's own (M-estimator covariance, see :mod:`.alignment`).
+        alignment's own (M-estimator covariance, see :mod:`.alignment`).  Without a plan the
+        registration *is* the alignment (the free best fit; the scan is not aligned again).
     init : (4, 4), optional
         Start pose; for a constrained alignment the fixture's pose, whose locked DOFs are kept
         (default identity: the scan is in the model frame already).
@@ -555,13 +556,21 @@ def evaluate_plan(prep, scan, plan=None, registration=None, init=None, rng=None,
     from ..inspection.inspect import check_scan
 
     t0 = time.perf_counter()
-    plan = Plan.default() if plan is None else load_plan(plan)
+    no_plan = plan is None
+    plan = Plan.default() if no_plan else load_plan(plan)
     P = check_scan(scan, getattr(prep.model, "size", None))
     a = plan.alignment
     start = init
     if start is None and registration is not None and a.type != "constrained":
         start = registration.T_model_scan   # (a constrained fit keeps the fixture's pose)
-    al = alignment if alignment is not None else align(P, prep, a, init=start, rng=rng)
+    if alignment is not None:
+        al = alignment
+    elif no_plan and registration is not None and init is None:
+        from ..inspection.plan_link import registration_alignment
+
+        al = registration_alignment(registration)     # the free best fit already made
+    else:
+        al = align(P, prep, a, init=start, rng=rng)
     t1 = time.perf_counter()
     chars, S, sec = evaluate_characteristics(prep, P, plan, al, exclude, evaluation_distance)
     t2 = time.perf_counter()
