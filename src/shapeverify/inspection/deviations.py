@@ -28,7 +28,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .._arrays import count_nonfinite_rows
+from .._arrays import check_points
 from .._arrays import readonly as _readonly
 from ..registration.rigid import apply_transform
 
@@ -170,13 +170,7 @@ def deviations(scan, prep, T_model_scan=None, evaluation_distance: float | None 
     >>> round(float(dev.values[dev.evaluated].std()), 2)
     0.02
     """
-    scan = np.asarray(scan, dtype=np.float64)
-    if scan.ndim != 2 or scan.shape[1] != 3:
-        raise ValueError(f"scan must be an (N, 3) array of points, got shape {scan.shape}")
-    bad = count_nonfinite_rows(scan)
-    if bad:
-        raise ValueError(f"scan contains {bad} points with NaN/inf coordinates; drop them first "
-                         "(scan = scan[np.isfinite(scan).all(axis=1)])")
+    scan = check_points(scan, "scan", single=False)
     T = np.eye(4) if T_model_scan is None else np.asarray(T_model_scan, dtype=np.float64)
     if T.shape != (4, 4) or not np.all(np.isfinite(T)):
         raise ValueError(f"T_model_scan must be a finite 4x4 matrix, got shape {T.shape}")

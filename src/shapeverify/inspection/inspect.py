@@ -55,15 +55,9 @@ def check_scan(scan, model_size: float | None = None) -> np.ndarray:
         size that does not fit the model's by a unit factor (a scan in metres against a model in
         millimetres is 1000 times too small): the message names the factor to apply.
     """
-    scan = np.asarray(scan, dtype=np.float64)
-    if scan.ndim != 2 or scan.shape[1] != 3:
-        raise ScanError(f"scan must be an (N, 3) array of x, y, z points, got shape {scan.shape}")
+    scan = _arrays.check_points(scan, "scan", single=False, error=ScanError)
     if scan.shape[0] == 0:
         raise ScanError("the scan is empty (0 points); nothing to inspect")
-    if _arrays.count_nonfinite_rows(scan):
-        finite = np.isfinite(scan).all(axis=1)
-        raise ScanError(f"the scan has {int((~finite).sum())} of {scan.shape[0]} points with NaN/inf "
-                        "coordinates; remove them first (scan = scan[np.isfinite(scan).all(axis=1)])")
     if scan.shape[0] < MIN_SCAN_POINTS:
         raise ScanError(f"the scan has only {scan.shape[0]} points; at least {MIN_SCAN_POINTS} are "
                         "needed to register it")
