@@ -2,12 +2,17 @@
 SQLite inspection history with trend charts.
 
 All take an :class:`shapeverify.inspection.InspectionResult`; lengths are in mm everywhere.
+
+Every writer comes twice: ``html_report``, ``png_summary``, ``colored_ply``, ``result_json``
+return the file's bytes; ``write_*`` write them to a path.
 """
 
 from .history import HistoryDB, control_limits, plot_trend
-from .html import write_html_report
-from .ply import deviation_colors, write_colored_ply
-from .png import write_png_summary
+from .html import html_report, write_html_report
+from .ply import colored_ply, deviation_colors, write_colored_ply
+from .png import png_summary, write_png_summary
+from .result_json import result_json, write_result_json
 
-__all__ = ["write_html_report", "write_png_summary", "write_colored_ply", "deviation_colors",
+__all__ = ["html_report", "write_html_report", "png_summary", "write_png_summary", "colored_ply",
+           "write_colored_ply", "result_json", "write_result_json", "deviation_colors",
            "HistoryDB", "plot_trend", "control_limits"]

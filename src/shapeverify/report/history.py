@@ -59,8 +59,9 @@ def _sql_num(x):
 
 
 def _row(result, part, model_hash, time) -> tuple[dict, tuple, list]:
-    """(result dict, column names, values) of one history row."""
-    d = result.to_dict()
+    """(result dict, column names, values) of one history row (``result``: an inspection
+    result, or its ``to_dict()`` as a front end extended it)."""
+    d = dict(result) if isinstance(result, dict) else result.to_dict()
     if time is None:
         time = _dt.datetime.now().astimezone()
     stamp = time.isoformat(timespec="seconds") if isinstance(time, _dt.datetime) else str(time)
@@ -146,8 +147,8 @@ class HistoryDB:
 
         Parameters
         ----------
-        result : InspectionResult (anything with ``to_dict()`` giving ``verdict``,
-            ``deviation``, ``T_model_scan`` and ``regions``)
+        result : InspectionResult, or a dict (its ``to_dict()``, with ``verdict``,
+            ``deviation``, ``T_model_scan`` and ``regions``) as a front end extended it
         part : str, optional
             Part id (serial number).
         model_hash : str, optional

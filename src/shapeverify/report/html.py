@@ -25,7 +25,7 @@ from .ply import CMAP, check_scan_length, color_limit
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["write_html_report", "render_html", "cad_mesh"]
+__all__ = ["html_report", "write_html_report", "render_html", "cad_mesh"]
 
 _VERDICT_COLOURS = {"pass": "#1b7f3b", "fail": "#b3261e", "error": "#a15c00", "incomplete": "#6a3d9a"}
 _MAX_TRIANGLES = 120_000
@@ -351,9 +351,9 @@ regions. Positions in model coordinates (mm).</p>{reg_tab}</div>
 """
 
 
-def write_html_report(result, prep=None, scan=None, path="report.html", *,
-                      max_points: int = 50_000, title: str | None = None, rng=0) -> Path:
-    """Write the self-contained HTML report of an inspection.
+def html_report(result, prep=None, scan=None, *, max_points: int = 50_000,
+                title: str | None = None, rng=0) -> bytes:
+    """The self-contained HTML report of an inspection, as UTF-8 bytes.
 
     Parameters
     ----------
@@ -364,7 +364,6 @@ def write_html_report(result, prep=None, scan=None, path="report.html", *,
     scan : (N, 3) array_like, optional
         The scan as passed to ``inspect``; only its length is checked (the report draws
         ``result.deviations.points_model``).
-    path : str or Path
     max_points : int
         Largest number of points in the 3D view (default 50,000).
     title : str, optional
@@ -372,7 +371,7 @@ def write_html_report(result, prep=None, scan=None, path="report.html", *,
 
     Returns
     -------
-    pathlib.Path
+    bytes
 
     Raises
     ------
@@ -383,8 +382,19 @@ def write_html_report(result, prep=None, scan=None, path="report.html", *,
         raise ValueError(f"max_points must be >= 1, got {max_points}")
     check_scan_length(result, scan)
     model = getattr(prep, "model", prep)
-    text = render_html(result, model, max_points=max_points, title=title, rng=rng)
+    return render_html(result, model, max_points=max_points, title=title, rng=rng).encode("utf-8")
+
+
+def write_html_report(result, prep=None, scan=None, path="report.html", *,
+                      max_points: int = 50_000, title: str | None = None, rng=0) -> Path:
+    """Write :func:`html_report` to ``path`` (str or Path); parameters and errors as there.
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    data = html_report(result, prep, scan, max_points=max_points, title=title, rng=rng)
     path = Path(path)
-    path.write_text(text, encoding="utf-8")
-    logger.info("HTML report written to %s (%.1f MB)", path, len(text) / 1e6)
+    path.write_bytes(data)
+    logger.info("HTML report written to %s (%.1f MB)", path, len(data) / 1e6)
     return path

@@ -13,7 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["write_colored_ply", "deviation_colors", "color_limit", "NOT_EVALUATED_RGB"]
+__all__ = ["colored_ply", "write_colored_ply", "deviation_colors", "color_limit", "NOT_EVALUATED_RGB"]
 
 #: Colour of points without a deviation (too far from the model, past its outer boundary).
 NOT_EVALUATED_RGB = (0.6, 0.6, 0.6)
@@ -44,8 +44,8 @@ def deviation_colors(values: np.ndarray, limit: float) -> np.ndarray:
     return rgb
 
 
-def write_colored_ply(result, scan=None, path="deviations.ply", *, binary: bool = True) -> Path:
-    """Write the scan coloured by deviation as a PLY file.
+def colored_ply(result, scan=None, *, binary: bool = True) -> bytes:
+    """The scan coloured by deviation, as the bytes of a PLY file.
 
     Parameters
     ----------
@@ -53,24 +53,35 @@ def write_colored_ply(result, scan=None, path="deviations.ply", *, binary: bool 
     scan : (N, 3) array_like, optional
         The scan as passed to ``inspect``; only its length is checked (the points written are
         ``result.deviations.points_model``, i.e. the scan in model coordinates).
-    path : str or Path
     binary : bool
         Binary little-endian (default) or ASCII PLY.
 
     Returns
     -------
-    pathlib.Path
+    bytes
 
     Raises
     ------
     ValueError
         If ``scan`` does not have as many points as the inspection.
     """
-    from ..io.points import write_ply
+    from ..io.ply import ply_bytes
 
     check_scan_length(result, scan)
     dev = result.deviations
     rgb = deviation_colors(dev.values, color_limit(result.tolerance))
     colors = np.rint(rgb * 255.0).astype(np.uint8)
-    return Path(write_ply(path, dev.points_model, normals=None, colors=colors,
-                          scalars={"deviation": dev.values}, binary=binary))
+    return ply_bytes(dev.points_model, normals=None, colors=colors,
+                     scalars={"deviation": dev.values}, binary=binary)
+
+
+def write_colored_ply(result, scan=None, path="deviations.ply", *, binary: bool = True) -> Path:
+    """Write :func:`colored_ply` to ``path`` (str or Path); parameters and errors as there.
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    path = Path(path)
+    path.write_bytes(colored_ply(result, scan, binary=binary))
+    return path

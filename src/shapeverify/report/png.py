@@ -8,6 +8,7 @@ directly (no pyplot, no global backend state), so it works headless and in threa
 
 from __future__ import annotations
 
+import io
 import logging
 from pathlib import Path
 
@@ -17,7 +18,7 @@ from .ply import CMAP, check_scan_length, color_limit
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["write_png_summary"]
+__all__ = ["png_summary", "write_png_summary"]
 
 _VERDICT_COLOURS = {"pass": "#1b7f3b", "fail": "#b3261e", "error": "#a15c00", "incomplete": "#6a3d9a"}
 
@@ -55,14 +56,29 @@ def _view_frames(p: np.ndarray):
 
 def write_png_summary(result, scan=None, path="summary.png", *, max_points: int = 20_000,
                       dpi: int = 110, rng=0) -> Path:
-    """Write the PNG summary of an inspection.
+    """Write :func:`png_summary` (a PNG, whatever the suffix) to ``path`` (str or Path);
+    parameters and errors as there.
+
+    Returns
+    -------
+    pathlib.Path
+    """
+    data = png_summary(result, scan, max_points=max_points, dpi=dpi, rng=rng)
+    path = Path(path)
+    path.write_bytes(data)
+    logger.info("PNG summary written to %s", path)
+    return path
+
+
+def png_summary(result, scan=None, *, max_points: int = 20_000, dpi: int = 110,
+                rng=0) -> bytes:
+    """The PNG summary of an inspection (views coloured by deviation, histogram, statistics).
 
     Parameters
     ----------
     result : InspectionResult
     scan : (N, 3) array_like, optional
         The scan as passed to ``inspect``; only its length is checked.
-    path : str or Path
     max_points : int
         Points drawn per view (random subsample, all out-of-tolerance points kept).
     dpi : int
@@ -70,7 +86,8 @@ def write_png_summary(result, scan=None, path="summary.png", *, max_points: int 
 
     Returns
     -------
-    pathlib.Path
+    bytes
+        The PNG file's content.
 
     Raises
     ------
@@ -210,10 +227,9 @@ def write_png_summary(result, scan=None, path="summary.png", *, max_points: int 
     text += f"\nmeasurement outliers: {result.outliers.n}"
     at.text(0.0, 1.0, text, family="monospace", fontsize=9, va="top", transform=at.transAxes)
 
-    path = Path(path)
-    fig.savefig(path, dpi=dpi)
-    logger.info("PNG summary written to %s", path)
-    return path
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    return buf.getvalue()
 
 
 def _label_regions(ax, regions, origin, R, most: int = 9) -> None:
