@@ -31,16 +31,19 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Callable
 
+from shapeverify.io.formats import SCAN_SUFFIXES
+
 log = logging.getLogger(__name__)
 
-SCAN_SUFFIXES = (".ply", ".xyz", ".txt", ".csv", ".npy", ".pcd")
 _WORKER_MODELS: dict = {}  # sha256 -> Prepared, one per worker process
 _CSV_COLUMNS = ["scan", "verdict", "n_points", "mean_mm", "std_mm", "min_mm", "max_mm", "p95_mm",
                 "in_tolerance_fraction", "n_regions", "rms_registration_mm", "record_id", "error"]
+_NOT_STORED = ("worker_seconds", "record_id")  # keys of a batch result the history row leaves out
 
 
 def _prepared_from_bytes(svm: bytes, digest: str):
-    """Load (once per process) the prepared model shipped as bytes."""
+    """Load (once per process) the prepared model shipped as bytes (``load_prepared`` reads a
+    path, so the bytes go through one temporary file per worker process)."""
     prep = _WORKER_MODELS.get(digest)
     if prep is None:
         from shapeverify.nearest import load_prepared
@@ -56,33 +59,26 @@ def _prepared_from_bytes(svm: bytes, digest: str):
     return prep
 
 
-def _content_type(name: str) -> str:
-    return {".npy": "application/x-npy", ".ply": "application/ply", ".pcd": "application/x-pcd",
-            ".csv": "text/csv"}.get(Path(name).suffix.lower(), "text/plain")
-
-
 def inspect_bytes(svm: bytes, digest: str, name: str, scan: bytes, tolerance: float,
                   evaluation_distance: float | None, report: bool) -> dict:
-    """One batch task: inspect one scan (its file bytes) and return a JSON-ready dict.
+    """One batch task: inspect one scan (its file bytes; the format from ``name``'s suffix) with
+    :func:`shapeverify.pipeline.inspect_scan` and return a JSON-ready dict.
 
     Never raises for a bad scan: the result then has ``verdict='error'`` and ``error``.
     """
     t0 = time.perf_counter()
     out = {"scan": name}
     try:
-        from shapeverify.inspection import inspect
-        from shapeverify.service.body import parse_scan
+        from shapeverify.pipeline import inspect_scan
 
         prep = _prepared_from_bytes(svm, digest)
-        points = parse_scan(scan, content_type=_content_type(name), name=name)
-        result = inspect(prep, points, tolerance=tolerance, evaluation_distance=evaluation_distance)
-        out.update(result.to_dict())
+        done = inspect_scan(prep, scan, scan_format=Path(name).suffix, scan_name=name,
+                            tolerance=tolerance, evaluation_distance=evaluation_distance)
+        out.update(done.result.to_dict())
         if report:
-            from shapeverify.report.html import write_html_report
+            from shapeverify.report.html import html_report
 
-            with tempfile.TemporaryDirectory() as tmp:
-                path = write_html_report(result, prep, points, Path(tmp) / "r.html", title=name)
-                out["_report_html"] = Path(path).read_text(encoding="utf-8")
+            out["_report_html"] = html_report(done.result, prep, done.scan, title=name).decode("utf-8")
     except Exception as exc:  # a failing scan is a result, not a crash of the batch
         from shapeverify.errors import is_input_error
 
@@ -103,16 +99,6 @@ def _error(name: str, exc: BaseException, internal: bool = False) -> dict:
     if internal:
         out["internal_error"] = True
     return out
-
-
-class _Stored:
-    """A result dict in the form :meth:`HistoryDB.add` takes."""
-
-    def __init__(self, data: dict):
-        self.data = data
-
-    def to_dict(self) -> dict:
-        return {k: v for k, v in self.data.items() if k not in ("worker_seconds", "record_id")}
 
 
 @dataclass(frozen=True)
@@ -176,6 +162,160 @@ def _local_cluster(workers: int):
                             dashboard_address=None, silence_logs=logging.ERROR)
 
 
+def _list_scans(scans_dir: Path) -> list[Path]:
+    """The scan files of a folder (not recursive), sorted; ValueError without any or with two
+    of the same stem."""
+    scans = sorted(p for p in scans_dir.iterdir() if p.is_file() and p.suffix.lower() in SCAN_SUFFIXES)
+    if not scans:
+        raise ValueError(f"{scans_dir}: no scan files ({', '.join(SCAN_SUFFIXES)})")
+    stems = [p.stem for p in scans]
+    dup = sorted({s for s in stems if stems.count(s) > 1})
+    if dup:
+        raise ValueError(f"{scans_dir}: several scans share the name(s) {dup} (one JSON per stem); rename them")
+    return scans
+
+
+class _Outputs:
+    """Where a batch run's results go: one JSON per scan stem in ``out_dir`` and, with a
+    history, one row per scan (an earlier error row replaced with ``retry_errors``)."""
+
+    def __init__(self, out_dir: Path, model_name: str, digest: str, db_path: Path | None,
+                 retry_errors: bool):
+        self.out_dir, self.model_name, self.digest = out_dir, model_name, digest
+        self.db_path, self.retry_errors = db_path, retry_errors
+        self.db = None
+        self.replace_ids: dict[str, int] = {}  # scan stem -> history row of its earlier error
+
+    def json_path(self, p: Path | str) -> Path:
+        return self.out_dir / f"{Path(p).stem}.json"
+
+    def done_before(self, p: Path) -> bool:
+        f = self.json_path(p)
+        if not f.exists():
+            return False
+        if not self.retry_errors:
+            return True
+        try:
+            return json.loads(f.read_text()).get("verdict") != "error"
+        except ValueError:
+            return False
+
+    def open_history(self, todo: list[Path]) -> list[Path]:
+        """Open the history; return ``todo`` without the scans an interrupted run stored but
+        wrote no JSON for (their JSON is written from the row: no second row)."""
+        if self.db_path is None:
+            return todo
+        from shapeverify.report.history import HistoryDB
+
+        self.db = HistoryDB(self.db_path)
+        recovered = []
+        for p in todo:
+            row = _stored_row(self.db_path, p.stem, self.digest, p.name)
+            if row is not None and (row.get("verdict") != "error" or not self.retry_errors):
+                _write_json(self.json_path(p), row)
+                recovered.append(p)
+            elif self.retry_errors:  # an error retried: its new result replaces that row
+                old = row or _stored_row(self.db_path, p.stem, self.digest, None)  # (renamed .ply -> .xyz)
+                if old is not None and old.get("verdict") == "error":
+                    self.replace_ids[p.stem] = old["record_id"]
+        return [p for p in todo if p not in recovered]
+
+    def record(self, res: dict) -> None:
+        """Write one task's result: its report, its history row, then its JSON."""
+        html = res.pop("_report_html", None)
+        stem = Path(res["scan"]).stem
+        res["batch"] = {"model": self.model_name, "model_sha256": self.digest}
+        if html is not None:
+            (self.out_dir / f"{stem}.html").write_text(html, encoding="utf-8")
+        if res.get("internal_error"):
+            log.error("%s: internal error (a bug in shapeverify): %s", res["scan"], res["error"])
+        if self.db is not None:
+            stored = {k: v for k, v in res.items() if k not in _NOT_STORED}
+            if stem in self.replace_ids:
+                res["record_id"] = self.db.replace(self.replace_ids.pop(stem), stored, part=stem,
+                                                   model_hash=self.digest)
+            else:
+                res["record_id"] = self.db.add(stored, part=stem, model_hash=self.digest)
+        _write_json(self.json_path(stem), res)
+
+    def close(self) -> None:
+        if self.db is not None:
+            self.db.close()
+
+
+def _run_on_dask(todo: list[Path], svm: bytes, digest: str, task_args: tuple, record,
+                 scheduler: str | None, workers: int, progress) -> None:
+    """Inspect the scans ``todo`` on Dask (a LocalCluster of ``workers`` unless ``scheduler``),
+    a bounded number in flight; ``record(result)`` for each as it completes."""
+    from distributed import Client, as_completed
+
+    cluster = None
+    if scheduler:
+        client = Client(scheduler)
+    else:
+        cluster = _local_cluster(max(1, int(workers)))
+        client = Client(cluster)
+    try:
+        n_workers = max(1, len(client.scheduler_info().get("workers", {})))
+        svm_future = client.scatter(svm, broadcast=True)  # once per worker, not per task
+        pending = iter(todo)
+        in_flight = as_completed()
+        names = {}
+
+        def submit_next() -> bool:
+            p = next(pending, None)
+            if p is None:
+                return False
+            fut = client.submit(inspect_bytes, svm_future, digest, p.name, p.read_bytes(),
+                                *task_args, pure=False,
+                                key=f"inspect-{digest[:8]}-{p.name}-{time.time_ns()}")
+            names[fut.key] = p.name
+            in_flight.add(fut)
+            return True
+
+        for _ in range(2 * n_workers + 2):  # bounded: scan bytes of a few tasks in memory
+            if not submit_next():
+                break
+        n_done = 0
+        for fut in in_flight:
+            name = names.pop(fut.key)
+            try:
+                res = fut.result()
+            except Exception as exc:  # the worker died (or the task could not run)
+                res = _error(name, exc)
+            fut.release()
+            record(res)
+            n_done += 1
+            if progress:
+                progress(n_done, len(todo), name)
+            submit_next()
+    finally:
+        client.close()
+        if cluster is not None:
+            cluster.close()
+
+
+def _write_summary(scans: list[Path], out_dir: Path) -> tuple[list[dict], Path]:
+    """``summary.csv`` of every scan that has a JSON (atomically); return those results and it."""
+    rows = []
+    for p in scans:
+        f = out_dir / f"{p.stem}.json"
+        if f.exists():
+            rows.append(json.loads(f.read_text()))
+    summary_csv = out_dir / "summary.csv"
+    tmp = summary_csv.with_suffix(".csv.tmp")
+    with open(tmp, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(_CSV_COLUMNS)
+        for r in rows:
+            d, reg = r.get("deviation") or {}, r.get("registration") or {}
+            w.writerow([r.get("scan"), r.get("verdict"), r.get("n_points"), d.get("mean"), d.get("std"),
+                        d.get("min"), d.get("max"), d.get("p95"), d.get("in_tolerance_fraction"),
+                        len(r.get("regions") or []), reg.get("rms"), r.get("record_id"), r.get("error", "")])
+    os.replace(tmp, summary_csv)
+    return rows, summary_csv
+
+
 def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, tolerance: float,
               evaluation_distance: float | None = None, scheduler: str | None = None, workers: int = 2,
               reports: bool = False, db_path: str | Path | None = None, retry_errors: bool = False,
@@ -217,8 +357,6 @@ def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, 
     ModelFileError
         The prepared model is damaged or not a ``.svm`` file.
     """
-    from distributed import Client, as_completed
-
     svm_path, scans_dir, out_dir = Path(svm_path), Path(scans_dir), Path(out_dir)
     if not svm_path.is_file():
         raise FileNotFoundError(f"{svm_path}: prepared model not found (make one with `shapeverify prepare`)")
@@ -226,133 +364,25 @@ def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, 
         raise FileNotFoundError(f"{scans_dir}: not a folder of scans")
     if not tolerance > 0:
         raise ValueError(f"tolerance must be > 0 mm, got {tolerance}")
-    scans = sorted(p for p in scans_dir.iterdir() if p.is_file() and p.suffix.lower() in SCAN_SUFFIXES)
-    if not scans:
-        raise ValueError(f"{scans_dir}: no scan files ({', '.join(SCAN_SUFFIXES)})")
-    stems = [p.stem for p in scans]
-    dup = sorted({s for s in stems if stems.count(s) > 1})
-    if dup:
-        raise ValueError(f"{scans_dir}: several scans share the name(s) {dup} (one JSON per stem); rename them")
+    scans = _list_scans(scans_dir)
     from shapeverify.nearest import load_prepared
 
     load_prepared(svm_path)  # a damaged model stops here (ModelFileError naming the file), not per scan
     out_dir.mkdir(parents=True, exist_ok=True)
     svm = svm_path.read_bytes()
     digest = hashlib.sha256(svm).hexdigest()
-    db_path = Path(db_path) if db_path is not None else None
-
-    def done_before(p: Path) -> bool:
-        f = out_dir / f"{p.stem}.json"
-        if not f.exists():
-            return False
-        if not retry_errors:
-            return True
-        try:
-            return json.loads(f.read_text()).get("verdict") != "error"
-        except ValueError:
-            return False
-
-    todo = [p for p in scans if not done_before(p)]
+    outputs = _Outputs(out_dir, svm_path.name, digest,
+                       Path(db_path) if db_path is not None else None, retry_errors)
+    todo = [p for p in scans if not outputs.done_before(p)]
     t0 = time.perf_counter()
-    db = None
-    replace_ids: dict[str, int] = {}  # scan stem -> history row of its earlier error
-    if db_path is not None:
-        from shapeverify.report.history import HistoryDB
-
-        db = HistoryDB(db_path)
-        recovered = []
-        for p in todo:  # stored by an interrupted run, JSON missing: no second row
-            row = _stored_row(db_path, p.stem, digest, p.name)
-            if row is not None and (row.get("verdict") != "error" or not retry_errors):
-                _write_json(out_dir / f"{p.stem}.json", row)
-                recovered.append(p)
-            elif retry_errors:  # an error retried: its new result replaces that row
-                old = row or _stored_row(db_path, p.stem, digest, None)  # (renamed .ply -> .xyz)
-                if old is not None and old.get("verdict") == "error":
-                    replace_ids[p.stem] = old["record_id"]
-        todo = [p for p in todo if p not in recovered]
-
-    def record(res: dict) -> None:
-        html = res.pop("_report_html", None)
-        stem = Path(res["scan"]).stem
-        res["batch"] = {"model": svm_path.name, "model_sha256": digest}
-        if html is not None:
-            (out_dir / f"{stem}.html").write_text(html, encoding="utf-8")
-        if res.get("internal_error"):
-            log.error("%s: internal error (a bug in shapeverify): %s", res["scan"], res["error"])
-        if db is not None and stem in replace_ids:
-            res["record_id"] = db.replace(replace_ids.pop(stem), _Stored(res), part=stem,
-                                          model_hash=digest)
-        elif db is not None:
-            res["record_id"] = db.add(_Stored(res), part=stem, model_hash=digest)
-        _write_json(out_dir / f"{stem}.json", res)
-
-    n_done = 0
     try:
+        todo = outputs.open_history(todo)
         if todo:
-            cluster = None
-            if scheduler:
-                client = Client(scheduler)
-            else:
-                cluster = _local_cluster(max(1, int(workers)))
-                client = Client(cluster)
-            try:
-                n_workers = max(1, len(client.scheduler_info().get("workers", {})))
-                svm_future = client.scatter(svm, broadcast=True)  # once per worker, not per task
-                pending = iter(todo)
-                in_flight = as_completed()
-                names = {}
-
-                def submit_next() -> bool:
-                    p = next(pending, None)
-                    if p is None:
-                        return False
-                    fut = client.submit(inspect_bytes, svm_future, digest, p.name, p.read_bytes(),
-                                        tolerance, evaluation_distance, reports, pure=False,
-                                        key=f"inspect-{digest[:8]}-{p.name}-{time.time_ns()}")
-                    names[fut.key] = p.name
-                    in_flight.add(fut)
-                    return True
-
-                for _ in range(2 * n_workers + 2):  # bounded: scan bytes of a few tasks in memory
-                    if not submit_next():
-                        break
-                for fut in in_flight:
-                    name = names.pop(fut.key)
-                    try:
-                        res = fut.result()
-                    except Exception as exc:  # the worker died (or the task could not run)
-                        res = _error(name, exc)
-                    fut.release()
-                    record(res)
-                    n_done += 1
-                    if progress:
-                        progress(n_done, len(todo), name)
-                    submit_next()
-            finally:
-                client.close()
-                if cluster is not None:
-                    cluster.close()
+            _run_on_dask(todo, svm, digest, (tolerance, evaluation_distance, reports),
+                         outputs.record, scheduler, workers, progress)
     finally:
-        if db is not None:
-            db.close()
-
-    rows = []
-    for p in scans:
-        f = out_dir / f"{p.stem}.json"
-        if f.exists():
-            rows.append(json.loads(f.read_text()))
-    summary_csv = out_dir / "summary.csv"
-    tmp = summary_csv.with_suffix(".csv.tmp")
-    with open(tmp, "w", newline="") as fh:
-        w = csv.writer(fh)
-        w.writerow(_CSV_COLUMNS)
-        for r in rows:
-            d, reg = r.get("deviation") or {}, r.get("registration") or {}
-            w.writerow([r.get("scan"), r.get("verdict"), r.get("n_points"), d.get("mean"), d.get("std"),
-                        d.get("min"), d.get("max"), d.get("p95"), d.get("in_tolerance_fraction"),
-                        len(r.get("regions") or []), reg.get("rms"), r.get("record_id"), r.get("error", "")])
-    os.replace(tmp, summary_csv)
+        outputs.close()
+    rows, summary_csv = _write_summary(scans, out_dir)
     verdicts = [r.get("verdict") for r in rows]
     return BatchSummary(total=len(scans), skipped=len(scans) - len(todo), passed=verdicts.count("pass"),
                         failed=verdicts.count("fail"), errors=verdicts.count("error"),

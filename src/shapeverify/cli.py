@@ -90,7 +90,8 @@ def _internal_error(exc: BaseException, verbose: bool) -> None:
         console.print_exception()
     what = escape(" ".join(f"{type(exc).__name__}: {exc}".split()))
     hint = "the traceback is above" if verbose else "run with --verbose for the traceback"
-    console.print(f"[bold red]internal error:[/bold red] {what}, {hint}", soft_wrap=True)
+    console.print(f"[bold red]internal error:[/bold red] {what} (a bug in shapeverify, please "
+                  f"report it); {hint}", soft_wrap=True)
     raise typer.Exit(EXIT_ERROR)
 
 

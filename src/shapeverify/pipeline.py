@@ -1,7 +1,10 @@
 """The one place that wires the stages together: file -> model -> prepared -> inspection -> outputs.
 
-Front ends (``cli.py``, the service) call these functions; the stages themselves never call each
-other's front ends. Each function takes an optional ``stage`` callback, a context-manager factory
+:func:`inspect_scan` runs one inspection -- scan source (path, bytes, file object) -> points ->
+registration and deviations -> :class:`ScanInspection` -- and all three front ends call it: the
+command line (through :func:`run_inspection`, which also loads the model and writes the
+outputs), the service (``service/``) and batch (``batch.py``).  The stages themselves never call
+a front end.  Functions take an optional ``stage`` callback, a context-manager factory
 ``stage(name)`` that the command line turns into a progress line; the library itself never prints.
 """
 
@@ -15,6 +18,8 @@ import time
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable, ContextManager
+
+import numpy as np
 
 log = logging.getLogger(__name__)
 
@@ -76,6 +81,109 @@ def load_reference(path: str | Path, spacing: float | None = None,
         return prepare(model, spacing=spacing, reach=reach)
 
 
+@dataclass(frozen=True, eq=False)
+class ScanInspection:
+    """One scan inspected (:func:`inspect_scan`).
+
+    Attributes
+    ----------
+    result : shapeverify.inspection.InspectionResult
+    scan : (N, 3) float64
+        The scan points that were inspected (mm, after ``scan_unit`` scaling), e.g. for reports.
+    timings : dict
+        ``read_scan_s`` and ``inspect_s`` (seconds).
+    """
+
+    result: object
+    scan: np.ndarray
+    timings: dict = field(default_factory=dict)
+
+    def __repr__(self) -> str:
+        return (f"ScanInspection(verdict={self.result.verdict!r}, n={len(self.scan)}, "
+                f"timings={ {k: round(v, 3) for k, v in self.timings.items()} })")
+
+
+def inspect_scan(prepared, scan_source, *, tolerance: float | None,
+                 evaluation_distance: float | None = None, lower: float | None = None,
+                 upper: float | None = None, faces=None, min_coverage: float | None = None,
+                 init=None, plan=None, scan_format: str | None = None,
+                 scan_name: str | None = None, scan_unit: str | None = None, progress=None,
+                 stage: Stage | None = None) -> ScanInspection:
+    """Read a scan and inspect it against a prepared model: the one inspection of every front end.
+
+    Parameters
+    ----------
+    prepared : shapeverify.nearest.Prepared
+    scan_source : path, bytes, binary file object, or (N, 3) array_like
+        The scan file (any format of :func:`shapeverify.io.points.read_points`), its content,
+        or points already read (mm).
+    tolerance, evaluation_distance, lower, upper, faces, min_coverage, init, plan
+        As for :func:`shapeverify.inspect` (None: its defaults; lengths in mm).
+    scan_format : str, optional
+        The scan's format as a suffix (``".ply"``); needed for bytes (default: the path's suffix).
+    scan_name : str, optional
+        Stands for the scan in messages (default: the path or the file object's name).
+    scan_unit : str, optional
+        The unit of a scan file that carries none (:mod:`shapeverify.units`; default mm).
+    progress : callable(stage: str, fraction: float), optional
+        Called after the scan is read (``"read_scan"``) and then by :func:`shapeverify.inspect`;
+        it may raise to stop the inspection (the service's time limit does).
+    stage : callable(name) -> context manager, optional
+        Wraps each stage (the command line's progress lines).
+
+    Returns
+    -------
+    ScanInspection
+
+    Raises
+    ------
+    ScanError, UnsupportedFormatError, RegistrationError, ValueError, FileNotFoundError
+        As :func:`~shapeverify.io.points.read_points` and :func:`shapeverify.inspect`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from shapeverify.cad.examples import wavy_panel
+    >>> from shapeverify.io.points import ply_bytes
+    >>> from shapeverify.nearest import prepare
+    >>> prep = prepare(wavy_panel(), spacing=3.0)
+    >>> scan = prep.points.points[::3] + [0.3, -0.2, 0.1]
+    >>> a = inspect_scan(prep, scan, tolerance=0.2)
+    >>> b = inspect_scan(prep, ply_bytes(scan), scan_format=".ply", tolerance=0.2)
+    >>> a.result.verdict == b.result.verdict, a.result.registration.rms == b.result.registration.rms
+    (True, True)
+    """
+    from shapeverify.inspection import inspect
+
+    stage = stage or _no_stage
+    timings = {}
+    t0 = time.perf_counter()
+    if isinstance(scan_source, np.ndarray):
+        scan = np.asarray(scan_source, dtype=np.float64)
+    else:
+        from shapeverify.io.points import read_points
+
+        label = scan_name or (Path(scan_source).name if isinstance(scan_source, (str, Path))
+                              else getattr(scan_source, "name", "scan"))
+        with stage(f"Reading scan {label}"):
+            scan = read_points(scan_source, scan_format, name=scan_name)
+    if scan_unit is not None:
+        from shapeverify.units import scale_points
+        scan = scale_points(scan, scan_unit)
+    timings["read_scan_s"] = time.perf_counter() - t0
+    if progress is not None:
+        progress("read_scan", 1.0)
+
+    t0 = time.perf_counter()
+    opts = {} if min_coverage is None else {"min_coverage": min_coverage}
+    with stage(f"Registering and inspecting {len(scan):,} points"):
+        result = inspect(prepared, scan, tolerance=tolerance,
+                         evaluation_distance=evaluation_distance, lower=lower, upper=upper,
+                         faces=faces, init=init, plan=plan, progress=progress, **opts)
+    timings["inspect_s"] = time.perf_counter() - t0
+    return ScanInspection(result, scan, timings)
+
+
 @dataclass
 class InspectionOutputs:
     """Where the outputs of one inspection were written (None: not requested)."""
@@ -96,77 +204,74 @@ def run_inspection(model_path: str | Path, scan_path: str | Path, tolerance: flo
                    stage: Stage | None = None, *, faces=None, min_coverage: float | None = None,
                    init=None, scan_unit: str | None = None, model_unit: str | None = None,
                    plan=None, pdf_path=None):
-    """Inspect one scan against one model and write the requested outputs.
+    """Inspect one scan file against one model file and write the requested outputs
+    (``shapeverify inspect``): :func:`load_reference`, :func:`inspect_scan`, :func:`write_outputs`.
 
     ``evaluation_distance``, ``faces``, ``min_coverage`` and ``init`` are passed to
     :func:`shapeverify.inspect` (None: its defaults); ``scan_unit`` / ``model_unit`` give the
     units of files that carry none (:mod:`shapeverify.units`). ``plan``: an inspection plan
-    (``plan.yaml``, :mod:`shapeverify.characteristics`); ``pdf_path``: the PDF report. The result carries ``inputs`` (part id,
-    scan and model file names, the model file's SHA-256).
+    (``plan.yaml``, :mod:`shapeverify.characteristics`); ``pdf_path``: the PDF report. The result
+    carries ``inputs`` (part id, scan and model file names, the model file's SHA-256).
 
     Returns
     -------
     result : shapeverify.inspection.InspectionResult
     outputs : InspectionOutputs
     """
-    import json
-
-    from shapeverify.inspection import inspect
-    from shapeverify.io.points import read_points
-
     stage = stage or _no_stage
     out = InspectionOutputs()
     t0 = time.perf_counter()
     prep = load_reference(model_path, stage=stage, model_unit=model_unit)
     out.timings["load_model_s"] = time.perf_counter() - t0
 
-    t0 = time.perf_counter()
-    with stage(f"Reading scan {Path(scan_path).name}"):
-        scan = read_points(scan_path)
-        if scan_unit is not None:
-            from shapeverify.units import scale_points
-            scan = scale_points(scan, scan_unit)
-    out.timings["read_scan_s"] = time.perf_counter() - t0
-
-    t0 = time.perf_counter()
-    opts = {} if min_coverage is None else {"min_coverage": min_coverage}
-    with stage(f"Registering and inspecting {len(scan):,} points"):
-        result = inspect(prep, scan, tolerance=tolerance, evaluation_distance=evaluation_distance,
-                         lower=lower, upper=upper, faces=faces, init=init, plan=plan, **opts)
-    out.timings["inspect_s"] = time.perf_counter() - t0
+    done = inspect_scan(prep, scan_path, tolerance=tolerance,
+                        evaluation_distance=evaluation_distance, lower=lower, upper=upper,
+                        faces=faces, min_coverage=min_coverage, init=init, plan=plan,
+                        scan_unit=scan_unit, stage=stage)
+    out.timings.update(done.timings)
     # the model file's hash ties the written outputs to it; no need to read the file again without
     outputs = (json_path, report_path, png_path, pdf_path, colored_path, db_path)
     model_hash = file_hash(model_path) if any(outputs) else None
-    result = dataclasses.replace(result, inputs={
+    result = dataclasses.replace(done.result, inputs={
         "part": part, "scan": Path(scan_path).name, "model": Path(model_path).name,
         "model_sha256": model_hash})
+    write_outputs(result, prep, done.scan, out, json_path=json_path, report_path=report_path,
+                  png_path=png_path, pdf_path=pdf_path, colored_path=colored_path,
+                  db_path=db_path, part=part, model_hash=model_hash, stage=stage)
+    return result, out
 
+
+def write_outputs(result, prep, scan, out: InspectionOutputs, *, json_path=None, report_path=None,
+                  png_path=None, pdf_path=None, colored_path=None, db_path=None,
+                  part: str | None = None, model_hash: str | None = None,
+                  stage: Stage | None = None) -> InspectionOutputs:
+    """Write the requested outputs of one inspection (None: not written) and note them in
+    ``out`` (its ``timings`` go into the JSON, plus ``outputs_s``)."""
+    from shapeverify.report import write_colored_ply, write_html_report, write_png_summary
+    from shapeverify.report.result_json import write_result_json
+
+    stage = stage or _no_stage
     t0 = time.perf_counter()
     if json_path:
-        out.json = Path(json_path)
-        payload = result.to_dict()
-        payload["timings"] = {**payload.get("timings", {}), **out.timings}
-        out.json.write_text(json.dumps(payload, indent=2))
+        out.json = write_result_json(result, json_path, timings=out.timings)
     if report_path:
-        from shapeverify.report.html import write_html_report
         with stage("Writing HTML report"):
-            out.report = Path(write_html_report(result, prep, scan, report_path))
+            out.report = write_html_report(result, prep, scan, report_path)
     if png_path:
-        from shapeverify.report.png import write_png_summary
         with stage("Writing PNG summary"):
-            out.png = Path(write_png_summary(result, scan, png_path))
+            out.png = write_png_summary(result, scan, png_path)
     if pdf_path:
         from shapeverify.characteristics import evaluate_plan
         from shapeverify.characteristics.pdf import write_pdf_report
         with stage("Writing PDF report"):
             plan_result = result.plan if result.plan is not None else evaluate_plan(
                 prep, scan, None, registration=result.registration)
+            inputs = result.inputs or {}
             out.pdf = Path(write_pdf_report(
-                plan_result, pdf_path, prep, part=part, scan_file=Path(scan_path).name,
-                model_file=Path(model_path).name, tolerance=result.tolerance.max_abs))
+                plan_result, pdf_path, prep, part=part, scan_file=inputs.get("scan"),
+                model_file=inputs.get("model"), tolerance=result.tolerance.max_abs))
     if colored_path:
-        from shapeverify.report.ply import write_colored_ply
-        out.colored = Path(write_colored_ply(result, scan, colored_path))
+        out.colored = write_colored_ply(result, scan, colored_path)
     if db_path:
         from shapeverify.report.history import HistoryDB
         with HistoryDB(db_path) as db:
@@ -175,4 +280,4 @@ def run_inspection(model_path: str | Path, scan_path: str | Path, tolerance: flo
             from shapeverify.characteristics.spc import store_characteristics
             store_characteristics(db_path, result.plan, part=part, inspection_id=out.record_id)
     out.timings["outputs_s"] = time.perf_counter() - t0
-    return result, out
+    return out

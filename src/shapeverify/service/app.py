@@ -14,6 +14,12 @@ unsupported format, 422 malformed, empty or NaN-only scan (or bad query paramete
 inspection did not finish within the time limit, 507 the server's disk is full (nothing was stored,
 no temporary file is left; free space and send the request again).  ``/report/{id}`` answers 404
 for any id that is not a stored record (negative, non-numeric or absurdly large ids included).
+Anything else is a bug in shapeverify: 500, with a ``detail`` that says so ("internal error ...,
+please report it"), logged with its traceback.
+
+The parts: :mod:`.work` (what the inspection threads do: every inspection is
+:func:`shapeverify.pipeline.inspect_scan` on the body's bytes), :mod:`.jobs` (threads, time
+limit, errors -> status codes), :mod:`.body` (the upload's format); this module holds the routes.
 
 Records: the result is committed to the SQLite history (WAL) *before* the response is sent, in one
 transaction, so a response that reached the client always has its row, and a request that failed
@@ -27,16 +33,9 @@ unreferenced scan file, never a row without its scan.
 from __future__ import annotations
 
 import asyncio
-import errno
 import logging
-import os
 import re
-import sqlite3
 import secrets
-import threading
-import time
-import uuid
-from concurrent.futures import ThreadPoolExecutor
 from contextlib import asynccontextmanager
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -47,7 +46,9 @@ from fastapi.exceptions import RequestValidationError
 from fastapi.responses import HTMLResponse, JSONResponse
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
-from shapeverify.errors import ShapeVerifyError, UnsupportedFormatError
+from shapeverify.errors import ShapeVerifyError
+from shapeverify.service.jobs import Runner
+from shapeverify.service.work import Work
 
 log = logging.getLogger(__name__)
 
@@ -67,26 +68,6 @@ _ERRORS = {
 _RECORD_ID = re.compile(r"[0-9]{1,18}")  # SQLite integers are 64-bit: longer ids cannot exist
 
 
-def _disk_full(exc: BaseException) -> bool:
-    """Whether storing failed because the disk (or the user's quota) is full."""
-    if isinstance(exc, OSError):
-        return exc.errno in (errno.ENOSPC, errno.EDQUOT)
-    return isinstance(exc, sqlite3.OperationalError) and "full" in str(exc).lower()
-
-
-def _write_scan(path: Path, points: np.ndarray, weights) -> None:
-    """Store a scan (and its registration weights) as ``path``, complete or not at all: written
-    to a temporary name and renamed; on any failure (a full disk) the temporary file is removed."""
-    tmp = path.with_suffix(".tmp")
-    try:
-        with open(tmp, "wb") as fh:
-            np.savez(fh, points=points, weights=np.asarray(weights if weights is not None else []))
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
-
-
 def _responses(*codes: int) -> dict:
     return {c: {"description": _ERRORS[c], "content": {"application/json": {"example": {"detail": "..."}}}}
             for c in codes}
@@ -104,73 +85,6 @@ class ServiceConfig:
     time_limit_s: float = 60.0
     threads: int = 2  # inspection threads of this process
     keep_scans: bool = True  # store each scan beside the history (needed by /report/{id})
-
-
-@dataclass(frozen=True)
-class _StoredRegistration:
-    """The registration of a stored inspection (what ``inspect_registered`` needs)."""
-
-    T_model_scan: np.ndarray
-    rms: float
-    iterations: int
-    converged: bool
-    inlier_fraction: float
-    weights: np.ndarray | None = None
-    message: str = "stored registration"
-
-    @classmethod
-    def from_record(cls, rec: dict, weights) -> "_StoredRegistration":
-        r = rec["result"].get("registration", {})
-        return cls(np.asarray(rec["T_model_scan"], dtype=np.float64), _float(r.get("rms")),
-                   int(r.get("iterations") or 0), bool(r.get("converged")),
-                   _float(r.get("inlier_fraction")), weights, r.get("message") or "stored registration")
-
-
-def _float(x) -> float:
-    return float("nan") if x is None else float(x)
-
-
-class _Payload:
-    """A result dict in the form :meth:`HistoryDB.add` takes (anything with ``to_dict``)."""
-
-    def __init__(self, d: dict):
-        self._d = d
-
-    def to_dict(self) -> dict:
-        return self._d
-
-
-class _Cancelled(Exception):
-    """The request was answered with a time-out; the worker stops without storing anything."""
-
-
-class _Job:
-    """Hand-over between a request (which may time out) and its worker thread."""
-
-    def __init__(self):
-        self._lock = threading.Lock()
-        self.state = "queued"
-
-    def _move(self, allowed: tuple, new: str) -> bool:
-        with self._lock:
-            if self.state not in allowed:
-                return False
-            self.state = new
-            return True
-
-    def start(self) -> bool:
-        return self._move(("queued",), "running")
-
-    def begin_commit(self) -> bool:
-        return self._move(("running",), "committing")
-
-    def cancel(self) -> bool:
-        """True if the job will store nothing; False if its commit has already begun."""
-        return self._move(("queued", "running"), "cancelled")
-
-    def check(self, *_args) -> None:  # also the ``progress`` callback of inspect()
-        if self.state == "cancelled":
-            raise _Cancelled
 
 
 class _TokenMiddleware:
@@ -210,29 +124,19 @@ def _parse_init(text: str | None):
 
 
 def create_app(config: ServiceConfig) -> FastAPI:
-    """Build the FastAPI application for ``config`` (models already loaded and warmed up)."""
-    from shapeverify.report.history import HistoryDB
+    """Build the FastAPI application for ``config`` (models already loaded and warmed up).
 
-    db_path = Path(config.db_path)
-    scan_dir = db_path.with_name(db_path.stem + "-scans")
-    scan_dir.mkdir(parents=True, exist_ok=True)
-    with HistoryDB(db_path):
-        pass  # create the schema and switch to WAL once, before the first request
-    executor = ThreadPoolExecutor(max(1, int(config.threads)), thread_name_prefix="inspect")
-    local = threading.local()
-    limit = float(config.time_limit_s)
-
-    def history_db() -> HistoryDB:
-        """One connection per worker thread, kept open."""
-        db = getattr(local, "db", None)
-        if db is None:
-            db = local.db = HistoryDB(db_path)
-        return db
+    The parts: :class:`~shapeverify.service.work.Work` (what the inspection threads do),
+    :class:`~shapeverify.service.jobs.Runner` (the threads and the time limit), and the routes
+    (:func:`_model_routes`, :func:`_inspect_route`, :func:`_history_routes`, :func:`_error_handlers`).
+    """
+    work = Work(config)
+    runner = Runner(config.threads, config.time_limit_s)
 
     @asynccontextmanager
     async def lifespan(_app):
         yield
-        executor.shutdown(wait=True, cancel_futures=True)
+        runner.shutdown()
 
     app = FastAPI(
         title="shapeverify inspection service",
@@ -246,134 +150,40 @@ def create_app(config: ServiceConfig) -> FastAPI:
     )
     if config.token:
         app.add_middleware(_TokenMiddleware, token=config.token)
-    bearer = HTTPBearer(auto_error=False, description="only when the service runs with --token")
+    auth = [Depends(_check_token)]
+    _model_routes(app, config, auth)
+    _inspect_route(app, config, runner, work, auth)
+    _history_routes(app, runner, work, auth)
+    _error_handlers(app)
+    return app
 
-    def check_token(cred: HTTPAuthorizationCredentials | None = Depends(bearer)) -> None:
-        # the middleware already refused requests without the token; this dependency puts the
-        # security scheme into the OpenAPI schema
-        return None
 
-    def get_model(name: str):
-        if name not in config.models:
-            raise HTTPException(404, f"unknown model {name!r}; loaded models: {sorted(config.models)}")
-        return config.models[name]
+_bearer = HTTPBearer(auto_error=False, description="only when the service runs with --token")
 
-    async def read_body(request: Request) -> bytes:
-        declared = request.headers.get("content-length", "")
-        if declared.isdigit() and int(declared) > config.max_body_bytes:
-            raise HTTPException(413, f"scan body of {int(declared):,} bytes exceeds the limit of "
-                                     f"{config.max_body_bytes:,} bytes")
-        chunks, size = [], 0
-        async for chunk in request.stream():
-            size += len(chunk)
-            if size > config.max_body_bytes:
-                raise HTTPException(413, f"scan body exceeds the limit of {config.max_body_bytes:,} bytes")
-            chunks.append(chunk)
-        return b"".join(chunks)
 
-    async def run_limited(job: _Job, deadline: float, fn, *args):
-        """Run ``fn(job, *args)`` on the inspection threads; 504 at the deadline unless the
-        job's commit has already begun (then its result is awaited and answered)."""
-        fut = asyncio.get_running_loop().run_in_executor(executor, fn, job, *args)
-        try:
-            try:
-                return await asyncio.wait_for(asyncio.shield(fut), max(0.0, deadline - time.monotonic()))
-            except asyncio.TimeoutError:
-                if job.cancel():
-                    # the worker stops at its next check; its outcome is of no interest any more
-                    fut.add_done_callback(lambda f: f.cancelled() or f.exception())
-                    raise HTTPException(504, f"the request exceeded the time limit of {limit:g} s; "
-                                             "nothing was stored") from None
-                return await fut
-        except UnsupportedFormatError as exc:
-            raise HTTPException(415, str(exc)) from None
-        except (ShapeVerifyError, ValueError) as exc:
-            raise HTTPException(422, str(exc)) from None
-        except (OSError, sqlite3.OperationalError) as exc:
-            if not _disk_full(exc):
-                raise
-            log.error("disk full, request not stored: %s", exc)
-            raise HTTPException(507, "the server's disk is full: the result was not stored; free "
-                                     "space on the server and send the request again") from None
+def _check_token(cred: HTTPAuthorizationCredentials | None = Depends(_bearer)) -> None:
+    # the middleware already refused requests without the token; this dependency puts the
+    # security scheme into the OpenAPI schema
+    return None
 
-    def inspect_and_store(job: _Job, *args):
-        try:
-            return _inspect_and_store(job, *args)
-        except _Cancelled:
-            return None
 
-    def _inspect_and_store(job: _Job, name, prep, body, content_type, tolerance, evaluation_distance,
-                           part, init=None):
-        """Worker thread: parse, inspect, store the scan, commit the row (if still wanted)."""
-        from shapeverify.inspection import inspect
-        from shapeverify.service.body import parse_scan
+async def _read_body(request: Request, max_bytes: int) -> bytes:
+    """The request body, refused (413) as soon as it is known to exceed ``max_bytes``."""
+    declared = request.headers.get("content-length", "")
+    if declared.isdigit() and int(declared) > max_bytes:
+        raise HTTPException(413, f"scan body of {int(declared):,} bytes exceeds the limit of "
+                                 f"{max_bytes:,} bytes")
+    chunks, size = [], 0
+    async for chunk in request.stream():
+        size += len(chunk)
+        if size > max_bytes:
+            raise HTTPException(413, f"scan body exceeds the limit of {max_bytes:,} bytes")
+        chunks.append(chunk)
+    return b"".join(chunks)
 
-        if not job.start():
-            return None
-        t0 = time.perf_counter()
-        points = parse_scan(body, content_type)
-        t_parse = time.perf_counter() - t0
-        job.check()
-        result = inspect(prep, points, tolerance=tolerance, evaluation_distance=evaluation_distance,
-                         init=init, progress=job.check)
-        payload = result.to_dict()
-        payload["timings"]["parse_s"] = t_parse
-        payload.update(model=name, part=part)
-        scan_file = None
-        if config.keep_scans:
-            scan_file = scan_dir / f"{uuid.uuid4().hex}.npz"
-            _write_scan(scan_file, points, getattr(result.registration, "weights", None))
-            payload["scan_file"] = scan_file.name
-        if not job.begin_commit():  # timed out meanwhile: the client got 504, store nothing
-            if scan_file is not None:
-                scan_file.unlink(missing_ok=True)
-            return None
-        try:
-            record_id = history_db().add(_Payload(payload), part=part,
-                                         model_hash=config.model_hashes.get(name, name))
-        except BaseException:
-            if scan_file is not None:
-                scan_file.unlink(missing_ok=True)
-            raise
-        payload["record_id"] = record_id
-        return payload
 
-    def render_report(job: _Job, record_id: int) -> str:
-        import tempfile
-
-        from shapeverify.inspection import Tolerance, inspect_registered
-        from shapeverify.report.html import write_html_report
-
-        if not job.start():
-            return ""
-        try:
-            rec = history_db().get(record_id)
-        except KeyError:
-            raise HTTPException(404, f"no stored inspection with id {record_id}") from None
-        res = rec["result"]
-        name = res.get("model")
-        if name not in config.models or config.model_hashes.get(name, name) != rec["model_hash"]:
-            raise HTTPException(404, f"inspection {record_id} was made with a model that is not loaded "
-                                     f"now ({name!r}, sha256 {str(rec['model_hash'])[:12]}...)")
-        if not res.get("scan_file") or not (scan_dir / res["scan_file"]).is_file():
-            raise HTTPException(404, f"the scan of inspection {record_id} is not stored "
-                                     "(the service ran with --no-keep-scans, or it was deleted)")
-        with np.load(scan_dir / res["scan_file"]) as z:
-            points, weights = z["points"], z["weights"]
-        registration = _StoredRegistration.from_record(rec, weights if weights.size else None)
-        tol = res.get("tolerance", {})
-        result = inspect_registered(config.models[name], points, registration,
-                                    tolerance=Tolerance(tol["lower"], tol["upper"]),
-                                    evaluation_distance=res.get("evaluation_distance",
-                                                                res.get("max_distance")))
-        job.check()
-        with tempfile.TemporaryDirectory() as tmp:
-            path = write_html_report(result, config.models[name], points, Path(tmp) / "report.html",
-                                     title=f"Inspection {record_id} (part {rec['part'] or '-'}, {rec['time']})")
-            return Path(path).read_text(encoding="utf-8")
-
-    # ------------------------------------------------------------------------------ routes
-    auth = [Depends(check_token)]
+def _model_routes(app: FastAPI, config: ServiceConfig, auth: list) -> None:
+    """``GET /health`` and ``GET /models``."""
 
     @app.get("/health", dependencies=auth, responses=_responses(401))
     def health() -> dict:
@@ -388,6 +198,10 @@ def create_app(config: ServiceConfig) -> FastAPI:
                        "size_mm": float(p.model.size), "unit": "mm",
                        "sha256": config.model_hashes.get(name)}
                 for name, p in config.models.items()}
+
+
+def _inspect_route(app: FastAPI, config: ServiceConfig, runner: Runner, work: Work, auth: list) -> None:
+    """``POST /inspect``."""
 
     @app.post(
         "/inspect", dependencies=auth, responses=_responses(401, 404, 408, 413, 415, 422, 504, 507),
@@ -414,16 +228,22 @@ def create_app(config: ServiceConfig) -> FastAPI:
     ) -> dict:
         """Register and inspect the scan in the request body; store the result; return it."""
         start = _parse_init(init)
-        deadline = time.monotonic() + limit
-        prep = get_model(model)
+        deadline = runner.deadline()
+        if model not in config.models:
+            raise HTTPException(404, f"unknown model {model!r}; loaded models: {sorted(config.models)}")
         try:
-            body = await asyncio.wait_for(read_body(request), limit)
+            body = await asyncio.wait_for(_read_body(request, config.max_body_bytes), runner.limit)
         except asyncio.TimeoutError:
-            raise HTTPException(408, f"the upload did not complete within the time limit of {limit:g} s") from None
-        return await run_limited(_Job(), deadline, inspect_and_store, model, prep, body,
-                                 request.headers.get("content-type"), tolerance,
-                                 evaluation_distance if evaluation_distance is not None else max_distance,
-                                 part, start)
+            raise HTTPException(408, f"the upload did not complete within the time limit of "
+                                     f"{runner.limit:g} s") from None
+        return await runner.run(deadline, work.inspect_and_store, model, body,
+                                request.headers.get("content-type"), tolerance,
+                                evaluation_distance if evaluation_distance is not None else max_distance,
+                                part, start)
+
+
+def _history_routes(app: FastAPI, runner: Runner, work: Work, auth: list) -> None:
+    """``GET /history`` and ``GET /report/{id}``."""
 
     @app.get("/history", dependencies=auth, responses=_responses(401, 422))
     async def history(part: str | None = Query(None, description="only this part id"),
@@ -431,11 +251,7 @@ def create_app(config: ServiceConfig) -> FastAPI:
                                           description="the most recent N records (returned oldest first)")) -> list:
         """Stored inspections: id, part, time, model_hash, verdict, statistics (mm; null where
         not available), n_regions."""
-        def query(job, part, n):
-            job.start()
-            return history_db().query(part=part, limit=n)
-
-        rows = await run_limited(_Job(), time.monotonic() + limit, query, part, limit_)
+        rows = await runner.run(runner.deadline(), work.query, part, limit_)
         return [{k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in r.items()}
                 for r in rows]
 
@@ -447,8 +263,13 @@ def create_app(config: ServiceConfig) -> FastAPI:
         if not _RECORD_ID.fullmatch(record_id):
             raise HTTPException(404, f"no stored inspection with id {record_id[:40]!r}: record ids "
                                      "are the positive integers /history lists")
-        html = await run_limited(_Job(), time.monotonic() + limit, render_report, int(record_id))
+        html = await runner.run(runner.deadline(), work.render_report, int(record_id))
         return HTMLResponse(html)
+
+
+def _error_handlers(app: FastAPI) -> None:
+    """Bad parameters and the project's errors: 422 with a readable ``detail``; a bug: 500,
+    said to be one (and logged with its traceback)."""
 
     @app.exception_handler(RequestValidationError)
     async def _bad_parameters(request: Request, exc: RequestValidationError):
@@ -462,4 +283,9 @@ def create_app(config: ServiceConfig) -> FastAPI:
     async def _library_error(request: Request, exc: ShapeVerifyError):
         return JSONResponse(status_code=422, content={"detail": str(exc)})
 
-    return app
+    @app.exception_handler(Exception)
+    async def _internal_error(request: Request, exc: Exception):
+        log.error("internal error on %s %s", request.method, request.url.path, exc_info=exc)
+        what = " ".join(f"{type(exc).__name__}: {exc}".split())
+        return JSONResponse(status_code=500, content={
+            "detail": f"internal error (a bug in shapeverify, please report it): {what}"})

@@ -1,9 +1,10 @@
-"""Turn an uploaded request body into scan points: the format comes from the content type or a sniff."""
+"""The format of an uploaded request body: its content type or a sniff of its first bytes.
+
+The points themselves are read by :func:`shapeverify.io.points.read_points` from the bytes
+(:func:`shapeverify.pipeline.inspect_scan` does that for ``POST /inspect``).
+"""
 
 from __future__ import annotations
-
-import os
-import tempfile
 
 import numpy as np
 
@@ -66,10 +67,26 @@ def sniff_suffix(body: bytes, content_type: str | None = None) -> str:
     return ".csv" if "," in first else ".xyz"
 
 
-def parse_scan(body: bytes, content_type: str | None = None, name: str = "request body") -> np.ndarray:
-    """Parse a scan upload into (N, 3) float64 points (mm).
+def body_format(body: bytes, content_type: str | None = None, name: str = "request body") -> str:
+    """The scan format (file suffix) of an upload: :func:`sniff_suffix`, after refusing an
+    empty body.
 
-    ``name`` stands for the data in error messages (the upload, or a batch scan's file name).
+    Raises
+    ------
+    ScanError
+        An empty body.
+    UnsupportedFormatError
+        Not a supported format.
+    """
+    if not body:
+        raise ScanError(f"{name}: empty; send the scan points as " + SUPPORTED)
+    return sniff_suffix(body, content_type)
+
+
+def parse_scan(body: bytes, content_type: str | None = None, name: str = "request body") -> np.ndarray:
+    """Parse a scan upload into (N, 3) float64 points (mm), in memory.
+
+    ``name`` stands for the data in error messages.
 
     Raises
     ------
@@ -80,20 +97,4 @@ def parse_scan(body: bytes, content_type: str | None = None, name: str = "reques
     """
     from shapeverify.io.points import read_points
 
-    if not body:
-        raise ScanError(f"{name}: empty; send the scan points as " + SUPPORTED)
-    suffix = sniff_suffix(body, content_type)
-    fd, path = tempfile.mkstemp(suffix=suffix, prefix="upload-")
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(body)
-        try:
-            points = read_points(path)
-        except (ScanError, UnsupportedFormatError) as exc:
-            # name the upload, not the temporary file, in the message
-            raise type(exc)(str(exc).replace(path, name)) from None
-    finally:
-        os.unlink(path)
-    if len(points) == 0:
-        raise ScanError(f"{name}: the scan has no finite points")
-    return points
+    return read_points(body, body_format(body, content_type, name), name=name)

@@ -1,0 +1,160 @@
+"""What the service's inspection threads do: inspect and store a scan, redraw a stored report.
+
+Every inspection goes through :func:`shapeverify.pipeline.inspect_scan` (the one the command line
+and batch call), reading the upload's bytes in memory.  Storing follows the rule of
+:mod:`shapeverify.service.app`: the scan file first (complete or absent), then the history row
+in one transaction, and only while the request still wants it (:meth:`Job.begin_commit`).
+"""
+
+from __future__ import annotations
+
+import os
+import threading
+import uuid
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from fastapi import HTTPException
+
+from shapeverify.service.jobs import Job
+
+
+def write_scan(path: Path, points: np.ndarray, weights) -> None:
+    """Store a scan (and its registration weights) as ``path``, complete or not at all: written
+    to a temporary name and renamed; on any failure (a full disk) the temporary file is removed."""
+    tmp = path.with_suffix(".tmp")
+    try:
+        with open(tmp, "wb") as fh:
+            np.savez(fh, points=points, weights=np.asarray(weights if weights is not None else []))
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+
+
+@dataclass(frozen=True)
+class StoredRegistration:
+    """The registration of a stored inspection, rebuilt from its history record (what
+    :func:`shapeverify.inspection.inspect_registered` needs to redraw the report)."""
+
+    T_model_scan: np.ndarray
+    rms: float
+    iterations: int
+    converged: bool
+    inlier_fraction: float
+    weights: np.ndarray | None = None
+    message: str = "stored registration"
+
+    @classmethod
+    def from_record(cls, rec: dict, weights) -> "StoredRegistration":
+        r = rec["result"].get("registration", {})
+        return cls(np.asarray(rec["T_model_scan"], dtype=np.float64), _float(r.get("rms")),
+                   int(r.get("iterations") or 0), bool(r.get("converged")),
+                   _float(r.get("inlier_fraction")), weights, r.get("message") or "stored registration")
+
+
+def _float(x) -> float:
+    return float("nan") if x is None else float(x)
+
+
+class Work:
+    """The work of one service instance's threads (``config``: a :class:`ServiceConfig`).
+
+    Every method takes the request's :class:`Job` first (the :class:`Runner` passes it).
+    """
+
+    def __init__(self, config):
+        from shapeverify.report.history import HistoryDB
+
+        self.config = config
+        self.db_path = Path(config.db_path)
+        self.scan_dir = self.db_path.with_name(self.db_path.stem + "-scans")
+        self.scan_dir.mkdir(parents=True, exist_ok=True)
+        with HistoryDB(self.db_path):
+            pass  # create the schema and switch to WAL once, before the first request
+        self._local = threading.local()
+
+    def history_db(self):
+        """One connection per worker thread, kept open."""
+        from shapeverify.report.history import HistoryDB
+
+        db = getattr(self._local, "db", None)
+        if db is None:
+            db = self._local.db = HistoryDB(self.db_path)
+        return db
+
+    def model_hash(self, name: str) -> str:
+        return self.config.model_hashes.get(name, name)
+
+    def inspect_and_store(self, job: Job, name: str, body: bytes, content_type: str | None,
+                          tolerance: float, evaluation_distance: float | None, part: str | None,
+                          init=None) -> dict | None:
+        """Read and inspect the upload, store the scan, commit the row (if still wanted)."""
+        from shapeverify.pipeline import inspect_scan
+        from shapeverify.service.body import body_format
+
+        if not job.start():
+            return None
+        fmt = body_format(body, content_type)
+        done = inspect_scan(self.config.models[name], body, scan_format=fmt,
+                            scan_name="request body", tolerance=tolerance,
+                            evaluation_distance=evaluation_distance, init=init,
+                            progress=job.check)
+        payload = done.result.to_dict()
+        payload["timings"]["parse_s"] = done.timings["read_scan_s"]
+        payload.update(model=name, part=part)
+        scan_file = None
+        if self.config.keep_scans:
+            scan_file = self.scan_dir / f"{uuid.uuid4().hex}.npz"
+            write_scan(scan_file, done.scan, getattr(done.result.registration, "weights", None))
+            payload["scan_file"] = scan_file.name
+        if not job.begin_commit():  # timed out meanwhile: the client got 504, store nothing
+            if scan_file is not None:
+                scan_file.unlink(missing_ok=True)
+            return None
+        try:
+            record_id = self.history_db().add(payload, part=part, model_hash=self.model_hash(name))
+        except BaseException:
+            if scan_file is not None:
+                scan_file.unlink(missing_ok=True)
+            raise
+        payload["record_id"] = record_id
+        return payload
+
+    def query(self, job: Job, part: str | None, limit: int) -> list:
+        job.start()
+        return self.history_db().query(part=part, limit=limit)
+
+    def render_report(self, job: Job, record_id: int) -> bytes:
+        """The HTML report of a stored inspection, redrawn from its stored scan (404s: see the
+        messages)."""
+        from shapeverify.inspection import Tolerance, inspect_registered
+        from shapeverify.report.html import html_report
+
+        if not job.start():
+            return b""
+        try:
+            rec = self.history_db().get(record_id)
+        except KeyError:
+            raise HTTPException(404, f"no stored inspection with id {record_id}") from None
+        res = rec["result"]
+        name = res.get("model")
+        if name not in self.config.models or self.model_hash(name) != rec["model_hash"]:
+            raise HTTPException(404, f"inspection {record_id} was made with a model that is not loaded "
+                                     f"now ({name!r}, sha256 {str(rec['model_hash'])[:12]}...)")
+        if not res.get("scan_file") or not (self.scan_dir / res["scan_file"]).is_file():
+            raise HTTPException(404, f"the scan of inspection {record_id} is not stored "
+                                     "(the service ran with --no-keep-scans, or it was deleted)")
+        with np.load(self.scan_dir / res["scan_file"]) as z:
+            points, weights = z["points"], z["weights"]
+        registration = StoredRegistration.from_record(rec, weights if weights.size else None)
+        tol = res.get("tolerance", {})
+        prep = self.config.models[name]
+        result = inspect_registered(prep, points, registration,
+                                    tolerance=Tolerance(tol["lower"], tol["upper"]),
+                                    evaluation_distance=res.get("evaluation_distance",
+                                                                res.get("max_distance")))
+        job.check()
+        return html_report(result, prep, points,
+                           title=f"Inspection {record_id} (part {rec['part'] or '-'}, {rec['time']})")
