@@ -183,3 +183,29 @@ def test_build_is_identical_on_one_and_two_threads(sheet):
     for name, a in one.tree.arrays().items():
         np.testing.assert_array_equal(np.asarray(a), np.asarray(two.tree.arrays()[name]))
     np.testing.assert_array_equal(one.rec, two.rec)
+
+
+def test_queries_are_identical_on_one_and_two_threads(sheet):
+    """Queries split into chunks over two threads give the answers of one thread, bit for bit,
+    with FAR queries (kd-tree fallback) in the mix and in scan-like (row) order."""
+    from shapeverify.nearest import get_workers, set_workers
+    from shapeverify.nearest._threads import MIN_CHUNK
+
+    tree, pts = sheet
+    rng = np.random.default_rng(7)
+    near = _near_queries(pts, 5 * MIN_CHUNK, 2.0, rng)
+    far = pts[rng.integers(0, pts.shape[0], 2000)] + [0.0, 0.0, 9.0]
+    q = np.concatenate([near, far])
+    q = np.ascontiguousarray(q[np.lexsort((q[:, 0], np.floor(q[:, 1] / H)))])  # rows of y
+    before = get_workers()
+    try:
+        out = {}
+        for w in (1, 2):
+            set_workers(w)
+            out[w] = tree.query(q, True)
+    finally:
+        set_workers(None if before == get_workers() else before)
+    for a, b in zip(out[1], out[2]):
+        np.testing.assert_array_equal(a, b)
+    d_true, _ = cKDTree(pts).query(q)
+    assert np.mean(np.sqrt(out[1][1]) <= d_true * (1 + 1e-12) + 1e-12) >= 0.999
