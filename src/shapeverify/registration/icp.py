@@ -59,6 +59,8 @@ ANNEAL = None
 _STAGE_CAP = 60
 #: probe the least-determined direction for a better minimum (:mod:`._basin`)
 PROBE = True
+#: probe rounds at most (another direction may rest on few points once one is right)
+PROBE_ROUNDS = 3
 
 
 class DegenerateGeometryWarning(UserWarning):
@@ -399,12 +401,12 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
 
     ev, converged, why = final(st)
     # another minimum along the least-determined direction (thin walls, see _basin)
-    if PROBE:
+    for _ in range(PROBE_ROUNDS if PROBE else 0):
         from .global_search import fit_distance
         c0 = _irls.centroid(ev.X, ev.w)
         null0 = _irls.null_directions(ev, _irls.model_points(prep),
                                       _irls.system(ev.Y, ev.Y, ev.N, ev.w, c0)[0], c0, radius)
-        sigma0, best = ev.sigma, ev.objective
+        sigma0, best, moved = ev.sigma, ev.objective, False
         for R_alt, t_alt in _basin.probe(P, prep, ev, st.R, st.t, final_cfg, null0,
                                          fit_distance(prep)):
             st2 = _irls.State(R_alt, t_alt, st.iterations, list(st.history))
@@ -413,7 +415,9 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
             if obj < best:
                 logger.info("registration: another minimum along the direction resting on the "
                             "fewest points fits better (objective %.4g < %.4g): taken", obj, best)
-                best, st, ev, converged, why = obj, st2, ev2, conv2, why2
+                best, st, ev, converged, why, moved = obj, st2, ev2, conv2, why2, True
+        if not moved:
+            break
 
     w = ev.w
     center = _irls.centroid(ev.X, w)
