@@ -357,3 +357,93 @@ def test_write_ply_validation(tmp_path, kwargs, what):
     args = {"points": np.zeros((3, 3))} | kwargs
     with pytest.raises(ValueError, match=what):
         write_ply(tmp_path / "w.ply", **args)
+
+
+# ------------------------------------------------- sources: a path, bytes, a binary file object
+def _scan_file_bytes(ext: str, pts: np.ndarray) -> bytes:
+    """One scan of every registered format (a NaN row too, so that dropping is compared)."""
+    import io
+
+    from shapeverify.io.points import ply_bytes
+
+    with_nan = np.vstack([pts, [np.nan, 1.0, 2.0]])
+    if ext == ".ply":
+        return ply_bytes(pts, scalars={"q": np.arange(len(pts), dtype=float)})
+    if ext in (".xyz", ".txt"):
+        return ("x y z\n# a comment\n" + "\n".join(" ".join(repr(float(v)) for v in r) for r in with_nan)).encode()
+    if ext == ".csv":
+        return ("\n".join(",".join(repr(float(v)) for v in r) + ",7" for r in with_nan) + "\n").encode()
+    if ext == ".npy":
+        buf = io.BytesIO()
+        np.save(buf, with_nan)
+        return buf.getvalue()
+    if ext == ".pcd":
+        table = np.column_stack([pts, np.arange(len(pts))]).astype("<f4")
+        return _pcd_header(len(pts), "binary").encode() + table.tobytes()
+    raise AssertionError(f"no test file for the registered format {ext}: add one here")
+
+
+@pytest.mark.parametrize("ext", POINT_EXTENSIONS)
+def test_every_format_reads_the_same_from_path_bytes_and_file_object(tmp_path, pts, ext):
+    import io
+
+    data = _scan_file_bytes(ext, pts)
+    path = tmp_path / f"scan{ext}"
+    path.write_bytes(data)
+    from_path = read_points(path)
+    assert from_path.shape[0] == len(pts) and from_path.dtype == np.float64
+    np.testing.assert_array_equal(read_points(data, ext), from_path)              # bytes
+    np.testing.assert_array_equal(read_points(bytearray(data), ext.lstrip(".").upper()), from_path)
+    np.testing.assert_array_equal(read_points(io.BytesIO(data), ext), from_path)  # file object
+    with open(path, "rb") as fh:                                                 # format from its name
+        np.testing.assert_array_equal(read_points(fh), from_path)
+
+
+@pytest.mark.parametrize("ext", POINT_EXTENSIONS)
+def test_a_bad_scan_gives_the_same_error_from_bytes_naming_the_given_name(tmp_path, ext):
+    bad = {".ply": b"ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nend_header\n1\n",
+           ".npy": b"\x93NUMPY\x01\x00garbage", ".pcd": b"VERSION .7\nFIELDS x y\n"}.get(ext, b"x y z\n1 2\n")
+    path = tmp_path / f"bad{ext}"
+    path.write_bytes(bad)
+    with pytest.raises(ScanError) as from_path:
+        read_points(path)
+    with pytest.raises(ScanError) as from_bytes:
+        read_points(bad, ext, name="upload #3")
+    assert str(from_bytes.value) == str(from_path.value).replace(str(path), "upload #3")
+    assert str(from_bytes.value).startswith("upload #3: ")
+
+
+def test_bytes_need_a_format_and_text_mode_files_are_refused(tmp_path, pts):
+    import io
+
+    data = _scan_file_bytes(".xyz", pts)
+    with pytest.raises(ValueError, match="give the format"):
+        read_points(data)
+    with pytest.raises(UnsupportedFormatError, match=r"'\.las'.*\.ply, \.xyz"):
+        read_points(data, ".las")
+    with pytest.raises(ScanError, match="empty"):
+        read_points(b"", ".ply")
+    with pytest.raises(TypeError, match="binary mode"):
+        read_points(io.StringIO(data.decode()), ".xyz")
+    with pytest.raises(TypeError, match="path, bytes or a binary file object"):
+        read_points(12345, ".xyz")
+
+
+def test_one_suffix_list_serves_the_readers_and_batch():
+    import shapeverify.batch as batch
+    from shapeverify.io.formats import SCAN_READERS, SCAN_SUFFIXES
+
+    assert POINT_EXTENSIONS is SCAN_SUFFIXES and batch.SCAN_SUFFIXES is SCAN_SUFFIXES
+    assert tuple(SCAN_READERS) == SCAN_SUFFIXES
+
+
+@pytest.mark.parametrize("binary", [True, False])
+def test_ply_bytes_are_what_write_ply_writes_and_read_ply_full_reads_them(tmp_path, pts, binary):
+    from shapeverify.io.points import ply_bytes
+
+    data = ply_bytes(pts, faces=[[0, 1, 2]], binary=binary)
+    path = write_ply(tmp_path / "a.ply", pts, faces=[[0, 1, 2]], binary=binary)
+    assert path.read_bytes() == data
+    full = read_ply_full(data)
+    np.testing.assert_array_equal(full.vertices, read_ply_full(path).vertices)
+    np.testing.assert_array_equal(full.faces, [[0, 1, 2]])
