@@ -322,3 +322,21 @@ def test_a_named_face_of_a_part_placed_twice_in_an_assembly_is_named_on_both(tmp
             np.testing.assert_allclose(f.axis, [0, 0, 1], atol=1e-9)
             assert abs(f.center[2] - 30.0) < 1e-9
     assert sum(n is not None for n in model.face_names) == 2
+
+
+def test_has_face_names_reads_the_face_entities_names_from_the_text(tmp_path):
+    from shapeverify.cad.step_names import has_face_names
+
+    def step(*records):
+        p = tmp_path / f"f{len(list(tmp_path.iterdir()))}.step"
+        p.write_text("ISO-10303-21;\nDATA;\n" + "\n".join(records) + "\nENDSEC;\n")
+        return p
+
+    assert not has_face_names(step("#1 = ADVANCED_FACE('',(#2),#3,.T.);",
+                                   "#4 = ADVANCED_FACE( 'NONE' ,(#5),#6,.F.);",
+                                   "#7 = PRODUCT('part','part','',(#8));"))
+    assert has_face_names(step("#1 = ADVANCED_FACE('',(#2),#3,.T.);",
+                               "#4 = ADVANCED_FACE(\n 'datum ''A''',(#5),#6,.F.);"))
+    assert has_face_names(step("#1 = FACE_SURFACE('seal',(#2),#3,.T.);"))
+    assert not has_face_names(step("#1 = ORIENTED_FACE('',*,#2,.T.);"))
+    assert not has_face_names(tmp_path / "missing.step")
