@@ -9,7 +9,8 @@ return the file's bytes; ``write_*`` write them to a path.
 
 from .history import HistoryDB, control_limits, plot_trend
 from .html import html_report, write_html_report
-from .ply import colored_ply, deviation_colors, write_colored_ply
+from .colours import deviation_colors
+from .ply import colored_ply, write_colored_ply
 from .png import png_summary, write_png_summary
 from .result_json import result_json, write_result_json
 

@@ -21,7 +21,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .ply import CMAP, check_scan_length, color_limit
+from .colours import CMAP, color_limit
+from .ply import check_scan_length
 
 logger = logging.getLogger(__name__)
 

@@ -2,9 +2,9 @@
 
 Each scan point (in *model* coordinates, so that it lies on the CAD model when both are loaded)
 gets an RGB colour from its deviation and the deviation itself as the scalar vertex property
-``deviation`` (mm; NaN where the point was not evaluated).  Colours: the diverging ColorBrewer
-``RdBu_r`` scale centred at 0 (blue: material missing, red: material added), clipped at
-``2 x`` the largest tolerance limit; not-evaluated points are grey.
+``deviation`` (mm; NaN where the point was not evaluated).  Colours: the reports' one colour map
+(:mod:`shapeverify.report.colours`: ``RdBu_r`` centred at 0, clipped at ``2 x`` the largest
+tolerance limit; not-evaluated points grey).
 """
 
 from __future__ import annotations
@@ -13,11 +13,9 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["colored_ply", "write_colored_ply", "deviation_colors", "color_limit", "NOT_EVALUATED_RGB"]
+from .colours import NOT_EVALUATED_RGB, color_limit, deviation_colors  # noqa: F401  (also importable from here)
 
-#: Colour of points without a deviation (too far from the model, past its outer boundary).
-NOT_EVALUATED_RGB = (0.6, 0.6, 0.6)
-CMAP = "RdBu_r"
+__all__ = ["colored_ply", "write_colored_ply", "deviation_colors", "color_limit", "NOT_EVALUATED_RGB"]
 
 
 def check_scan_length(result, scan) -> None:
@@ -26,22 +24,6 @@ def check_scan_length(result, scan) -> None:
     if scan is not None and len(scan) != n:
         raise ValueError(f"scan has {len(scan)} points but the inspection has {n}; pass the "
                          "scan that was inspected")
-
-
-def color_limit(tolerance) -> float:
-    """Half-range of the colour scale: ``2 x`` the largest |tolerance limit| (mm)."""
-    return 2.0 * float(tolerance.max_abs)
-
-
-def deviation_colors(values: np.ndarray, limit: float) -> np.ndarray:
-    """RGB colours (N, 3) in [0, 1] for deviations: RdBu_r over ``[-limit, +limit]``, grey for NaN."""
-    from matplotlib import colormaps
-
-    values = np.asarray(values, dtype=np.float64)
-    t = np.clip(0.5 + 0.5 * values / limit, 0.0, 1.0)
-    rgb = colormaps[CMAP](np.nan_to_num(t, nan=0.5))[:, :3]
-    rgb[~np.isfinite(values)] = NOT_EVALUATED_RGB
-    return rgb
 
 
 def colored_ply(result, scan=None, *, binary: bool = True) -> bytes:

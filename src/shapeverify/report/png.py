@@ -1,8 +1,8 @@
 """A static one-page PNG summary of an inspection (for e-mail and tickets).
 
-Verdict banner with its reasons, two views of the scan points coloured by deviation (same colour
-scale as the HTML report: ``RdBu_r`` centred at 0, clipped at ``2 x`` the tolerance), the
-histogram with the tolerance limits and the key statistics.  Drawn with matplotlib's Agg canvas
+Verdict banner with its reasons, two views of the scan points coloured by deviation (the colour
+scale of every report, :mod:`shapeverify.report.colours`: ``RdBu_r`` centred at 0, clipped at
+``2 x`` the tolerance), the histogram with the tolerance limits and the key statistics.  Drawn with matplotlib's Agg canvas
 directly (no pyplot, no global backend state), so it works headless and in threads.
 """
 
@@ -14,7 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .ply import CMAP, check_scan_length, color_limit
+from .colours import CMAP, color_limit
+from .ply import check_scan_length
 
 logger = logging.getLogger(__name__)
 
