@@ -7,7 +7,7 @@ failed, of 7 more samples).  Instead of a kd-tree query per vertex, every refine
 list is its parent's list, pruned:
 
 * by distance: a point farther from the cell (box distance) than ``U`` cannot be nearest
-  anywhere in it, where ``U = min(min_o d_o + 2 r, max_o d_o + r)`` bounds the nearest distance
+  anywhere in it, where ``U = min(min_o d_o + 2 r, max_o d_o + r, max_q |q - a_o|)`` bounds the nearest distance
   of every point of the cell (d_o: nearest distances of the vertices, r: half diagonal);
 * by *witnesses*, the vertices' nearest points a: a point p is dropped when a is strictly
   closer than p everywhere in the cell.  ``|v - a|^2 - |v - p|^2`` is linear in v, so its
@@ -74,7 +74,7 @@ def _keep(p, c0, c1, c2, half, pts, wit, U):
     g0 = max(abs(x0 - c0) - half, 0.0)
     g1 = max(abs(x1 - c1) - half, 0.0)
     g2 = max(abs(x2 - c2) - half, 0.0)
-    if g0 * g0 + g1 * g1 + g2 * g2 > U * U * (1.0 + 1e-9):
+    if g0 * g0 + g1 * g1 + g2 * g2 > U * U:
         return False
     dp = (x0 - c0) ** 2 + (x1 - c1) ** 2 + (x2 - c2) ** 2
     for w in range(wit.shape[0]):
@@ -92,15 +92,24 @@ def _keep(p, c0, c1, c2, half, pts, wit, U):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _bound(vd):
-    """Upper bound of the nearest distance anywhere in a cell from its vertices' distances
-    (without the half diagonal terms: returns (min, max))."""
+def _bound(vd, wit, pts, c0, c1, c2, half):
+    """Upper bound U of the nearest distance anywhere in a cube (centre c, half side
+    ``half``) from its vertices' nearest distances vd (8,) and points wit (8,):
+    min(min vd + 2 r, max vd + r, the farthest corner from any of the wit)."""
+    r = np.sqrt(3.0) * half
     lo = np.inf
     hi = 0.0
     for o in range(8):
         lo = min(lo, vd[o])
         hi = max(hi, vd[o])
-    return lo, hi
+    u = min(lo + 2.0 * r, hi + r)
+    for o in range(8):
+        a = wit[o]
+        e0 = abs(pts[a, 0] - c0) + half
+        e1 = abs(pts[a, 1] - c1) + half
+        e2 = abs(pts[a, 2] - c2) + half
+        u = min(u, np.sqrt(e0 * e0 + e1 * e1 + e2 * e2))
+    return u
 
 
 @njit(cache=True, nogil=True)
@@ -110,6 +119,33 @@ def _grow(buf, need):
     new = np.empty(max(need, 2 * buf.shape[0]), dtype=buf.dtype)
     new[:buf.shape[0]] = buf
     return new
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _bin_beaten(ix, iy, iz, origin, size, c0, c1, c2, pts, wit):
+    """Whether one witness beats every point of bin (ix, iy, iz) (a top grid cell) everywhere
+    in the cube of side ``size`` centred at c: the largest value of ``_keep``'s witness
+    expression over the bin's box is negative."""
+    half = 0.5 * size
+    l0 = origin[0] + size * ix
+    l1 = origin[1] + size * iy
+    l2 = origin[2] + size * iz
+    # smallest |c - p|^2 over the bin
+    e0 = max(l0 - c0, c0 - (l0 + size), 0.0)
+    e1 = max(l1 - c1, c1 - (l1 + size), 0.0)
+    e2 = max(l2 - c2, c2 - (l2 + size), 0.0)
+    dp = e0 * e0 + e1 * e1 + e2 * e2
+    for w in range(wit.shape[0]):
+        a = wit[w]
+        y0 = pts[a, 0]
+        y1 = pts[a, 1]
+        y2 = pts[a, 2]
+        da = (y0 - c0) ** 2 + (y1 - c1) ** 2 + (y2 - c2) ** 2
+        s = (max(abs(l0 - y0), abs(l0 + size - y0)) + max(abs(l1 - y1), abs(l1 + size - y1))
+             + max(abs(l2 - y2), abs(l2 + size - y2)))
+        if da - dp + 2.0 * half * s < -1e-9 * (da + dp) - 1e-12 * size * size:
+            return True
+    return False
 
 
 @njit(cache=True, nogil=True)
@@ -125,17 +161,15 @@ def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
     counts = np.zeros(R, dtype=np.int64)
     buf = np.empty(max(1024, 64 * R), dtype=np.int32)
     pos = 0
-    r = 0.5 * np.sqrt(3.0) * size
     half = 0.5 * size
     wit = np.empty(8, dtype=np.int64)
     for m in range(R):
-        lo, hi = _bound(vnn_d[m])
-        U = min(lo + 2.0 * r, hi + r)
         for o in range(8):
             wit[o] = vnn_i[m, o]
         c0 = origin[0] + size * (cells[m, 0] + 0.5)
         c1 = origin[1] + size * (cells[m, 1] + 0.5)
         c2 = origin[2] + size * (cells[m, 2] + 0.5)
+        U = _bound(vnn_d[m], wit, pts, c0, c1, c2, half) * (1.0 + 1e-9)
         k = int(np.ceil(U / size)) + 1
         x0 = max(0, cells[m, 0] - k)
         x1 = min(dims[0] - 1, cells[m, 0] + k)
@@ -145,17 +179,29 @@ def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
         z1 = min(dims[2] - 1, cells[m, 2] + k)
         n0 = pos
         for ix in range(x0, x1 + 1):
+            gx = max(abs(ix - cells[m, 0]) - 1, 0) * size
             for iy in range(y0, y1 + 1):
+                gy = max(abs(iy - cells[m, 1]) - 1, 0) * size
+                if gx * gx + gy * gy > U * U:
+                    continue  # the column of bins is farther than U from the cell
                 b = (ix * dims[1] + iy) * dims[2]
-                a0 = start[b + z0]
-                a1 = start[b + z1 + 1]
-                if a1 - a0 + pos > buf.shape[0]:
-                    buf = _grow(buf, a1 - a0 + pos)
-                for s in range(a0, a1):
-                    p = order[s]
-                    if _keep(p, c0, c1, c2, half, pts, wit, U):
-                        buf[pos] = p
-                        pos += 1
+                for iz in range(z0, z1 + 1):
+                    a0 = start[b + iz]
+                    a1 = start[b + iz + 1]
+                    if a0 == a1:
+                        continue
+                    gz = max(abs(iz - cells[m, 2]) - 1, 0) * size
+                    if gx * gx + gy * gy + gz * gz > U * U:
+                        continue
+                    if _bin_beaten(ix, iy, iz, origin, size, c0, c1, c2, pts, wit):
+                        continue
+                    if a1 - a0 + pos > buf.shape[0]:
+                        buf = _grow(buf, a1 - a0 + pos)
+                    for s in range(a0, a1):
+                        p = order[s]
+                        if _keep(p, c0, c1, c2, half, pts, wit, U):
+                            buf[pos] = p
+                            pos += 1
         counts[m] = pos - n0
     return counts, buf[:pos].copy()
 
@@ -209,6 +255,8 @@ def classify_children(parents, off, lst, pts, origin, size, rf, ri, rh, rs, max_
             out_kind[m] = 1
             for o in range(8):
                 t = (cx + _CX[o]) + 3 * (cy + _CY[o]) + 9 * (cz + _CZ[o])
+                if li[t] == seed:
+                    continue  # a walk from the exact nearest point stays there: passes
                 q0 = origin[0] + size * (b0 + cx + _CX[o])
                 q1 = origin[1] + size * (b1 + cy + _CY[o])
                 q2 = origin[2] + size * (b2 + cz + _CZ[o])
@@ -220,10 +268,18 @@ def classify_children(parents, off, lst, pts, origin, size, rf, ri, rh, rs, max_
 
 @njit(cache=True, nogil=True)
 def _walks_ok(q0, q1, q2, seeds, n0, cnt, cache_d, cache_m, rf, ri, rh, rs, max_moves,
-              d_exact, tol):
+              i_exact, d_exact, tol):
     """_kernels._seeded_ok with the walks of seeds[:n0] taken from the cache (and the walks of
-    seeds[n0:cnt] added to it)."""
+    seeds[n0:cnt] added to it).  A walk from the exact nearest point ``i_exact`` stays there
+    (no point is strictly closer): it is not walked."""
     for s in range(n0, cnt):
+        if seeds[s] == i_exact:
+            e0 = rf[i_exact, 0] - q0
+            e1 = rf[i_exact, 1] - q1
+            e2 = rf[i_exact, 2] - q2
+            cache_d[s] = e0 * e0 + e1 * e1 + e2 * e2
+            cache_m[s] = 0
+            continue
         _, d2, k = walk(q0, q1, q2, seeds[s], rf, ri, rh, rs, max_moves + 1)
         cache_d[s] = d2
         cache_m[s] = k
@@ -278,7 +334,7 @@ def multi_children(ids, parents, off, lst, pts, origin, size, first_seed, rf, ri
                 q1 = origin[1] + size * (c[1] + _CY[o])
                 q2 = origin[2] + size * (c[2] + _CZ[o])
                 good = _walks_ok(q0, q1, q2, seeds, nc[o], cnt, cd[o], cm[o], rf, ri, rh, rs,
-                                 max_moves, vd[o], tol)
+                                 max_moves, vi[o], vd[o], tol)
                 nc[o] = cnt
                 if not good:
                     if rnd == 0 and cnt < cap:
@@ -298,7 +354,7 @@ def multi_children(ids, parents, off, lst, pts, origin, size, first_seed, rf, ri
                 q2 = origin[2] + h * (2 * c[2] + EXTRA[e, 2])
                 xi, xd = _nn(q0, q1, q2, pts, lst, a, b)
                 if not _walks_ok(q0, q1, q2, seeds, 0, cnt, ed, em, rf, ri, rh, rs, max_moves,
-                                 xd, tol):
+                                 xi, xd, tol):
                     ok = False
                     if last_level and cnt < cap:
                         seeds[cnt] = xi
@@ -311,32 +367,47 @@ def multi_children(ids, parents, off, lst, pts, origin, size, first_seed, rf, ri
 
 @njit(cache=True, nogil=True)
 def child_lists(ids, parents, off, lst, pts, origin, size):
-    """Candidate lists of the refined children ``ids`` (child numbers 8 p + octant) from their
-    parents' lists.  Returns (counts (len(ids),) int64, concatenated lists int32)."""
+    """Candidate lists of the refined children ``ids`` (child numbers 8 p + octant, sorted)
+    from their parents' lists.  Returns (counts (len(ids),) int64, concatenated lists
+    int32).  The nearest points of a parent's 27 lattice points are found once for all its
+    children."""
     n = ids.shape[0]
     counts = np.zeros(n, dtype=np.int64)
     buf = np.empty(max(1024, 16 * n), dtype=np.int32)
     pos = 0
-    r = 0.5 * np.sqrt(3.0) * size
     half = 0.5 * size
+    li = np.empty(27, dtype=np.int64)
+    ld = np.empty(27)
     vi = np.empty(8, dtype=np.int64)
     vd = np.empty(8)
-    c = np.empty(3, dtype=np.int64)
+    last_p = -1
     for f in range(n):
         m = ids[f]
         p = m // 8
         oc = m % 8
         a = off[p]
         b = off[p + 1]
-        c[0] = 2 * parents[p, 0] + _CX[oc]
-        c[1] = 2 * parents[p, 1] + _CY[oc]
-        c[2] = 2 * parents[p, 2] + _CZ[oc]
-        _vertex_nn(c, origin, size, pts, lst, a, b, vi, vd)
-        lo, hi = _bound(vd)
-        U = min(lo + 2.0 * r, hi + r)
-        c0 = origin[0] + size * (c[0] + 0.5)
-        c1 = origin[1] + size * (c[1] + 0.5)
-        c2 = origin[2] + size * (c[2] + 0.5)
+        b0 = 2 * parents[p, 0]
+        b1 = 2 * parents[p, 1]
+        b2 = 2 * parents[p, 2]
+        if p != last_p:
+            for t in range(27):
+                q0 = origin[0] + size * (b0 + t % 3)
+                q1 = origin[1] + size * (b1 + (t // 3) % 3)
+                q2 = origin[2] + size * (b2 + t // 9)
+                li[t], ld[t] = _nn(q0, q1, q2, pts, lst, a, b)
+            last_p = p
+        cx = _CX[oc]
+        cy = _CY[oc]
+        cz = _CZ[oc]
+        for o in range(8):
+            t = (cx + _CX[o]) + 3 * (cy + _CY[o]) + 9 * (cz + _CZ[o])
+            vi[o] = li[t]
+            vd[o] = ld[t]
+        c0 = origin[0] + size * (b0 + cx + 0.5)
+        c1 = origin[1] + size * (b1 + cy + 0.5)
+        c2 = origin[2] + size * (b2 + cz + 0.5)
+        U = _bound(vd, vi, pts, c0, c1, c2, half) * (1.0 + 1e-9)
         if pos + (b - a) > buf.shape[0]:
             buf = _grow(buf, pos + (b - a))
         n0 = pos
@@ -347,3 +418,31 @@ def child_lists(ids, parents, off, lst, pts, origin, size):
                 pos += 1
         counts[f] = pos - n0
     return counts, buf[:pos].copy()
+
+
+@njit(cache=True, nogil=True)
+def fill_neighbours(points, graph, nbr, off_col, qstep, ri, rh, rs):
+    """The graph part of the model point records (see :func:`.dvg.make_records`), without
+    (N, K, 3) temporaries: neighbours (the point itself where missing), their offsets
+    quantised to int16 and the quantisation step (float32)."""
+    n = points.shape[0]
+    kk = graph.shape[1]
+    g = np.empty(kk, dtype=np.int64)
+    for i in range(n):
+        m = 0.0
+        for k in range(kk):
+            j = graph[i, k]
+            j = i if j < 0 else j
+            g[k] = j
+            ri[i, nbr + k] = j
+            for c in range(3):
+                m = max(m, abs(points[j, c] - points[i, c]))
+        step = m / 32767.0
+        if step == 0.0:
+            step = 1.0
+        rs[i, qstep] = step
+        s = np.float64(rs[i, qstep])  # the float32 actually stored
+        for k in range(kk):
+            for c in range(3):
+                v = np.rint((points[g[k], c] - points[i, c]) / s)
+                rh[i, off_col + 3 * k + c] = np.int16(min(max(v, -32767.0), 32767.0))

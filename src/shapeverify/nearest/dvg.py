@@ -60,7 +60,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .._arrays import count_nonfinite_rows
-from . import _kernels
+from . import _build_kernels, _kernels
 from ._threads import run_chunks
 from .dvg_build import build_tree
 
@@ -169,16 +169,10 @@ def make_records(points: np.ndarray, graph: np.ndarray, frames: np.ndarray | Non
     rf, ri, rh, rs = views(rec)
     rf[:n, :3] = points
     rf[n, :3] = k.SENTINEL
-    g = np.where(graph < 0, np.arange(n)[:, None], graph).astype(np.int64)
-    ri[:n, k.NBR:k.NBR + k.K] = g
     ri[n, k.NBR:k.NBR + k.K] = n
-    off = points[g] - points[:, None, :]                       # (N, K, 3)
-    step = np.abs(off).reshape(n, -1).max(axis=1) / 32767.0
-    step[step == 0] = 1.0
-    rs[:n, k.QSTEP] = step
-    step = rs[:n, k.QSTEP].astype(np.float64)                  # the float32 actually stored
-    rh[:n, k.OFF:k.OFF + 3 * k.K] = np.clip(np.rint(off.reshape(n, -1) / step[:, None]),
-                                            -32767, 32767)
+    _build_kernels.fill_neighbours(np.ascontiguousarray(points, dtype=np.float64),
+                                   np.ascontiguousarray(graph), k.NBR, k.OFF, k.QSTEP,
+                                   ri, rh, rs)
     if frames is not None:
         fr = np.asarray(frames, dtype=np.float64)
         rs[:n, k.NRM:k.NRM + 2] = oct_encode(fr[:, 0:3])

@@ -256,24 +256,55 @@ def _other_face_points(points, face, spacing, kd, radius: float = 3.0, k: int = 
     """For each model point, the nearest model point of another face within radius * spacing.
 
     (N,) int32, -1 where there is none.  Exact mode tries those faces too, so that a query
-    near a face border is refined on every face that can hold its closest point.
+    near a face border is refined on every face that can hold its closest point.  (Among the
+    k nearest model points: the first of another face.)  Only points whose grid cell of side
+    ``radius * spacing`` has another face in it or in one of its 26 neighbours can have one;
+    the kd-tree is asked about those only.
     """
     n = points.shape[0]
     other = np.full(n, -1, dtype=np.int32)
     kk = min(k, n)
     if kk < 2:
         return other
-    for lo in range(0, n, 1 << 18):
-        hi = min(n, lo + (1 << 18))
-        d, j = kd.query(points[lo:hi], k=kk, distance_upper_bound=radius * spacing)
-        j = j.reshape(hi - lo, kk)
+    cand = np.flatnonzero(_near_other_face(points, face, radius * spacing * (1.0 + 1e-6)))
+    for lo in range(0, cand.size, 1 << 18):
+        sel = cand[lo:lo + (1 << 18)]
+        d, j = kd.query(points[sel], k=kk, distance_upper_bound=radius * spacing, workers=-1)
+        j = j.reshape(sel.size, kk)
         valid = j < n
         jj = np.where(valid, j, 0)
-        diff = valid & (face[jj] != face[lo:hi, None])
+        diff = valid & (face[jj] != face[sel, None])
         first = np.argmax(diff, axis=1)
-        has = diff[np.arange(hi - lo), first]
-        other[lo:hi] = np.where(has, jj[np.arange(hi - lo), first], -1)
+        rows = np.arange(sel.size)
+        has = diff[rows, first]
+        other[sel] = np.where(has, jj[rows, first], -1)
     return other
+
+
+def _near_other_face(points, face, cell):
+    """(N,) bool: the point's grid cell (side ``cell``) or one of its 26 neighbours holds a
+    point of another face (so every point with another face within ``cell`` is True)."""
+    g = np.floor((points - points.min(axis=0)) / cell).astype(np.int64) + 1
+    dims = g.max(axis=0) + 2
+    key = (g[:, 0] * dims[1] + g[:, 1]) * dims[2] + g[:, 2]
+    ukey, inv = np.unique(key, return_inverse=True)
+    f = face.astype(np.int64)
+    fmin = np.full(ukey.size, np.iinfo(np.int64).max)
+    fmax = np.full(ukey.size, np.iinfo(np.int64).min)
+    np.minimum.at(fmin, inv, f)
+    np.maximum.at(fmax, inv, f)
+    lo, hi = fmin.copy(), fmax.copy()
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            for dz in (-1, 0, 1):
+                if dx == dy == dz == 0:
+                    continue
+                nk = ukey + (dx * dims[1] + dy) * dims[2] + dz
+                pos = np.minimum(np.searchsorted(ukey, nk), ukey.size - 1)
+                hit = ukey[pos] == nk
+                np.minimum(lo, np.where(hit, fmin[pos], lo), out=lo)
+                np.maximum(hi, np.where(hit, fmax[pos], hi), out=hi)
+    return (lo != hi)[inv.ravel()]
 
 
 def prepare(model, spacing: float | None = None, reach: float | None = None, *,
