@@ -340,3 +340,17 @@ def test_has_face_names_reads_the_face_entities_names_from_the_text(tmp_path):
     assert has_face_names(step("#1 = FACE_SURFACE('seal',(#2),#3,.T.);"))
     assert not has_face_names(step("#1 = ORIENTED_FACE('',*,#2,.T.);"))
     assert not has_face_names(tmp_path / "missing.step")
+
+
+def test_a_failing_name_transfer_reads_the_file_without_names(named_step, monkeypatch, caplog):
+    from shapeverify.cad import step_names
+    from shapeverify.cad.occ_import import read_cad
+
+    def broken(caf, doc):
+        raise RuntimeError("the XCAF transfer of the STEP file failed")
+
+    monkeypatch.setattr(step_names, "transfer", broken)
+    with caplog.at_level("WARNING"):
+        model = read_cad(named_step, isolated=False)
+    assert model.face_names is None and len(model.faces) == 7
+    assert "face names could not be read" in caplog.text

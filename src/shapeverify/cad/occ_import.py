@@ -165,7 +165,18 @@ def _read_shape_named(path: Path, fmt: str):
     """Read a STEP/IGES file; return (shape, unit name, mm per unit, names document or None).
 
     A STEP file whose faces carry names is read through the XCAF reader
-    (:mod:`shapeverify.cad.step_names`); the document then holds the names."""
+    (:mod:`shapeverify.cad.step_names`); the document then holds the names.  Should that
+    transfer fail, the file is read again without names (a warning says so)."""
+    from . import step_names
+
+    return _read_shape_with(path, fmt, fmt == "step" and step_names.has_face_names(path))
+
+
+def _read_shape_plain(path: Path, fmt: str):
+    return _read_shape_with(path, fmt, False)
+
+
+def _read_shape_with(path: Path, fmt: str, names: bool):
     from OCP.IFSelect import IFSelect_RetDone
     from OCP.IGESControl import IGESControl_Reader
     from OCP.STEPControl import STEPControl_Reader
@@ -174,7 +185,7 @@ def _read_shape_named(path: Path, fmt: str):
 
     caf = doc = None
     try:
-        if fmt == "step" and step_names.has_face_names(path):
+        if names:
             caf, doc, status = step_names.read_step_named(path)
             reader = caf.Reader()
         else:
@@ -190,11 +201,16 @@ def _read_shape_named(path: Path, fmt: str):
     if n_roots == 0:
         raise EmptyModelError(f"{path}: the {fmt.upper()} file holds no shapes")
     unit, scale = _step_unit(reader) if fmt == "step" else _iges_unit(reader)
+    if caf is not None:
+        try:
+            reader = step_names.transfer(caf, doc)
+        except Exception as exc:  # noqa: BLE001 - the names are extra: read without them
+            logger.warning("%s: the face names could not be read (%s); reading without them",
+                           path, exc)
+            return _read_shape_plain(path, fmt)
     try:
         if caf is None:
             reader.TransferRoots()
-        else:
-            reader = step_names.transfer(caf, doc)
         shape = reader.OneShape()
     except Exception as exc:
         raise CADImportError(f"{path}: OpenCASCADE could not convert the {fmt.upper()} "
