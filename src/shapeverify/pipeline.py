@@ -261,11 +261,10 @@ def write_outputs(result, prep, scan, out: InspectionOutputs, *, json_path=None,
         with stage("Writing PNG summary"):
             out.png = write_png_summary(result, scan, png_path)
     if pdf_path:
-        from shapeverify.characteristics import evaluate_plan
         from shapeverify.characteristics.pdf import write_pdf_report
+        from shapeverify.inspection.plan_link import plan_result_of
         with stage("Writing PDF report"):
-            plan_result = result.plan if result.plan is not None else evaluate_plan(
-                prep, scan, None, registration=result.registration)
+            plan_result = plan_result_of(result)   # no plan: the inspection's own pose
             inputs = result.inputs or {}
             out.pdf = Path(write_pdf_report(
                 plan_result, pdf_path, prep, part=part, scan_file=inputs.get("scan"),
