@@ -189,6 +189,13 @@ def test_pose_covariance_is_the_tukey_sandwich_and_the_best_fit_states_the_same(
     n = int(np.count_nonzero(w > 0))
     want = n / (n - 6) * Hinv @ ((J * psi[:, None] ** 2).T @ J) @ Hinv
     np.testing.assert_allclose(C, want, rtol=1e-6, atol=1e-14)
+    # a factor beyond the loss' weight (an overlap weight of 1/2 on half the part) scales
+    # psi and psi' alike
+    f = np.where(X[:, 0] < 50, 0.5, 1.0)
+    Hf = np.linalg.inv((J * (f * dpsi)[:, None]).T @ J)
+    want_f = n / (n - 6) * Hf @ ((J * (f * psi)[:, None] ** 2).T @ J) @ Hf
+    np.testing.assert_allclose(pose_covariance(X, Nn, r, f * w, X.mean(0), 50.0, loss="tukey",
+                                               sigma=sigma), want_f, rtol=1e-6, atol=1e-14)
     # the alignment's own covariance is the same estimator (Euler parameters mapped to e)
     np.testing.assert_allclose(res.covariance, C, rtol=2e-3, atol=1e-12)
     # the IRLS weights in the bread (no loss given) understate it by about (E w / E psi')^2

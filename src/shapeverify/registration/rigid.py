@@ -255,7 +255,8 @@ def pose_covariance(X, N, r, w, center, radius: float, undetermined=None, *, los
     Parameters
     ----------
     X : (N, 3) points in model coordinates (final pose); N : (N, 3) model normals;
-    r : (N,) residuals (mm); w : (N,) final weights (0: the point takes no part);
+    r : (N,) residuals (mm); w : (N,) final weights (0: the point takes no part; a factor
+    beyond the loss' weight, ``w = f * loss.weight(r)``, scales psi and psi' alike);
     center, radius : centring used for conditioning.
     undetermined : (k, 6) or None
         Directions (model-origin ``e`` coordinates) the data do not determine: the entries of
@@ -293,7 +294,10 @@ def pose_covariance(X, N, r, w, center, radius: float, undetermined=None, *, los
         L = get_loss(loss) if isinstance(loss, str) else loss
         h = 1e-6 * float(sigma)
         dpsi = (L.weight(r + h, sigma) * (r + h) - L.weight(r - h, sigma) * (r - h)) / (2 * h)
-        dpsi = np.where(used, dpsi, 0.0)
+        # a per-point factor in the weights beyond the loss' (e.g. an overlap weight) scales
+        # psi and so psi' alike
+        lw = L.weight(r, sigma)
+        dpsi = np.where(used & (lw > 0), dpsi * w / np.where(lw > 0, lw, 1.0), 0.0)
     else:
         dpsi = w
     D = np.array([1.0 / radius] * 3 + [1.0] * 3)
