@@ -370,7 +370,7 @@ def unwrap(
     plot: Optional[Path] = typer.Option(None, help="Write a PNG of wrapped and unwrapped phase"),
 ):
     """Unwrap a wrapped phase map (radians)."""
-    from shapeverify.phase.io import unwrap_file
+    from shapeverify.phase.files import unwrap_file
 
     with _stage(f"Unwrapping {input.name}"):
         summary = _guard(unwrap_file, input, output, method=method, mask_path=mask, plot_path=plot)

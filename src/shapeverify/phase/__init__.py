@@ -39,7 +39,7 @@ from .fringes import PhaseShift, fringe_images, phase_shift, temporal_unwrap
 from .fringe_analysis import FringeAnalysis, find_carrier, ftp, wff
 from .holography import (depth_per_fringe, phase_difference, phase_to_depth, phase_to_points,
                          points_to_phase, synthetic_wavelength)
-from .io import plot_unwrap, read_mask, read_phase, unwrap_file
+from .files import plot_unwrap, read_mask, read_phase, unwrap_file
 from .fields import fault_field, smooth_field
 from .minimum_norm import solve_poisson_dct, unwrap_lp, unwrap_ls, unwrap_wls
 from .hologram import HologramDepth, angular_spectrum, dual_wavelength_depth, reconstruct

@@ -365,7 +365,7 @@ def hologram_file(h1_path, h2_path, out_path, lambda1: float, lambda2: float,
     from pathlib import Path
 
     from .holography import depth_per_fringe
-    from .io import _read_raw
+    from .files import _read_raw
 
     t0 = time.perf_counter()
     a1 = _check_image(_read_raw(h1_path), Path(h1_path).name)
