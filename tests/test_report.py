@@ -187,3 +187,28 @@ def test_result_json_matches_report_numbers(inspected):
     assert d["excluded"] == {"too_far": 1, "material": 0, "on_boundary": 1, "outside_faces": 0,
                              "outliers": res.outliers.n}
     assert d["deviation"]["n"] == res.deviations.n_evaluated - res.outliers.n
+
+
+# ------------------------------------------------------------------ bytes or a path
+def test_every_writer_returns_the_bytes_its_write_function_writes(inspected, tmp_path):
+    import re as _re
+
+    from shapeverify.report import (colored_ply, html_report, png_summary, result_json,
+                                    write_result_json)
+
+    prep, scan, res = inspected
+    stamp = _re.compile(r"generated \S+ by")  # the HTML says when it was drawn
+    html_path = write_html_report(res, prep, scan, tmp_path / "r.html", max_points=2000)
+    html = html_report(res, prep, scan, max_points=2000)
+    assert stamp.sub("", html.decode("utf-8")) == stamp.sub("", html_path.read_text(encoding="utf-8"))
+    assert png_summary(res, scan) == write_png_summary(res, scan, tmp_path / "s.png").read_bytes()
+    assert png_summary(res, scan)[:8] == b"\x89PNG\r\n\x1a\n"
+    assert colored_ply(res, scan) == write_colored_ply(res, scan, tmp_path / "d.ply").read_bytes()
+    ply = read_ply_full(colored_ply(res, scan, binary=False))
+    np.testing.assert_array_equal(ply.properties["deviation"], res.deviations.values)
+    data = result_json(res, timings={"read_scan_s": 0.25})
+    assert data == write_result_json(res, tmp_path / "r.json", timings={"read_scan_s": 0.25}).read_bytes()
+    d = json.loads(data)
+    assert d["verdict"] == res.verdict == "fail" and d["timings"]["read_scan_s"] == 0.25
+    with pytest.raises(ValueError, match="points"):
+        html_report(res, prep, scan[:-3])
