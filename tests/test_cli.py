@@ -172,6 +172,7 @@ def test_an_unexpected_exception_is_an_internal_error_exit_2_traceback_with_verb
     assert res.exit_code == 2, res.output
     lines = _error_lines(res.output)
     assert len(lines) == 1 and lines[0].startswith("internal error: KeyError: 'no such key'")
+    assert "please report it" in lines[0]
     assert "--verbose" in lines[0] and "Traceback" not in res.output
     res = runner.invoke(app, ["--verbose", "info", str(panel / "panel.step")])
     assert res.exit_code == 2

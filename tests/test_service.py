@@ -524,3 +524,35 @@ def test_init_parameter_gives_the_start_pose_or_a_clear_422(local_app, panel):
     for bad in ("sideways", "1,2,3", ",".join(["nan"] * 16)):
         r = client.post("/inspect", params={**base, "init": bad}, content=scans["clean"])
         assert r.status_code == 422 and "16 comma-separated numbers" in r.json()["detail"]
+
+
+def test_a_bug_is_a_500_that_says_so_and_stores_nothing_but_bad_input_stays_422(local_app, panel,
+                                                                                 monkeypatch):
+    from fastapi.testclient import TestClient
+
+    import shapeverify.inspection
+
+    client, db, scan_dir = local_app
+    _, scans = panel
+    params = {"model": "panel", "tolerance": 0.2}
+    before = _rows(db)
+    plain = TestClient(client.app, raise_server_exceptions=False)  # the answer a client gets
+
+    def numpy_bug(*a, **k):
+        return np.zeros(3) + np.zeros(4)  # a ValueError raised inside numpy: a bug, not bad input
+
+    def type_bug(*a, **k):
+        raise TypeError("unsupported operand type(s)")
+
+    for bug, what in ((numpy_bug, "ValueError: operands could not be broadcast"),
+                      (type_bug, "TypeError: unsupported operand")):
+        with monkeypatch.context() as m:
+            m.setattr(shapeverify.inspection, "inspect", bug)
+            r = plain.post("/inspect", params=params, content=scans["small"])
+        assert r.status_code == 500, r.text
+        detail = r.json()["detail"]
+        assert detail.startswith("internal error (a bug in shapeverify, please report it)")
+        assert what in detail
+    assert _rows(db) == before
+    r = plain.post("/inspect", params=params, content=b"1 2 3\n4 5\n")  # the project's own error
+    assert r.status_code == 422 and "request body" in r.json()["detail"]
