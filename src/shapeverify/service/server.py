@@ -120,14 +120,15 @@ def load_models(paths) -> tuple[dict, dict]:
 
 
 def warm_up(models: dict) -> None:
-    """Run one small inspection per model so that every numba kernel is compiled before serving."""
-    from shapeverify.inspection import inspect
+    """Run one small inspection per model (the requests' :func:`~shapeverify.pipeline.inspect_scan`)
+    so that every numba kernel is compiled before serving."""
+    from shapeverify.pipeline import inspect_scan
 
     for name, prep in models.items():
         pts = prep.points.points
         idx = np.random.default_rng(0).choice(len(pts), size=min(2000, len(pts)), replace=False)
         try:
-            inspect(prep, pts[idx], tolerance=1.0)
+            inspect_scan(prep, pts[idx], tolerance=1.0)
         except Exception as exc:  # warm-up must not stop the service; the first request will tell
             log.warning("warm-up of %s failed: %s", name, exc)
 
