@@ -154,6 +154,7 @@ def inspect_scan(prepared, scan_source, *, tolerance: float | None,
     (True, True)
     """
     from shapeverify.inspection import inspect
+    from shapeverify.io.points import read_points
 
     stage = stage or _no_stage
     timings = {}
@@ -161,8 +162,6 @@ def inspect_scan(prepared, scan_source, *, tolerance: float | None,
     if isinstance(scan_source, np.ndarray):
         scan = np.asarray(scan_source, dtype=np.float64)
     else:
-        from shapeverify.io.points import read_points
-
         label = scan_name or (Path(scan_source).name if isinstance(scan_source, (str, Path))
                               else getattr(scan_source, "name", "scan"))
         with stage(f"Reading scan {label}"):
