@@ -59,7 +59,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from .._arrays import count_nonfinite_rows
+from .._arrays import check_points
 from . import _build_kernels, _kernels
 from ._threads import run_chunks
 from .dvg_build import build_tree
@@ -72,30 +72,6 @@ __all__ = ["DVG", "DVGTree", "build_tree", "neighbor_graph", "make_records", "mo
 # walk budget at query time: far above what the build allows (max_moves), so a query is never
 # cut short in practice; only a safety net against pathological graphs.
 _QUERY_MOVES = 256
-
-
-def check_points(points, name: str = "points", allow_empty: bool = True) -> np.ndarray:
-    """Validate an (N, 3) array of finite coordinates; return it as C-contiguous float64.
-
-    Raises
-    ------
-    ValueError
-        If the shape is not (N, 3) (a single (3,) point is accepted and becomes (1, 3)), if a
-        value is NaN or infinite, or if it is empty and ``allow_empty`` is False.
-    """
-    a = np.asarray(points, dtype=np.float64)
-    if a.ndim == 1 and a.shape[0] == 3:
-        a = a[None, :]
-    if a.ndim != 2 or a.shape[1] != 3:
-        raise ValueError(f"{name} must have shape (N, 3), got {a.shape}; "
-                         "pass one row of x, y, z per point")
-    if a.shape[0] == 0 and not allow_empty:
-        raise ValueError(f"{name} is empty; at least one point is needed")
-    if count_nonfinite_rows(a):
-        bad = ~np.isfinite(a).all(axis=1)
-        raise ValueError(f"{name} has {int(bad.sum())} row(s) with NaN or inf (first: row "
-                         f"{int(np.flatnonzero(bad)[0])}); remove or fill them first")
-    return np.ascontiguousarray(a)
 
 
 def morton_order(points: np.ndarray, cell: float) -> np.ndarray:

@@ -36,6 +36,7 @@ import os
 import time
 import zipfile
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 
 import numpy as np
@@ -151,8 +152,10 @@ class Prepared:
     def n_points(self) -> int:
         return self._rows.shape[0]
 
-    @property
+    @cached_property
     def points(self):
+        """The model points (:class:`~shapeverify.cad.model.ModelPoints`), assembled from the
+        tree's records on first access and kept (the same object every time)."""
         from shapeverify.cad.model import ModelPoints
 
         fr = self._fast.frames()
