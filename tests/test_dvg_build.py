@@ -67,7 +67,12 @@ def test_candidate_lists_hold_the_nearest_point_of_every_point_of_the_cell(md):
     assert mean_top < 0.25 * pts.shape[0]
     # one level down: every child of the first 40 refined top cells
     sel = np.arange(8 * min(40, parents.shape[0]), dtype=np.int64)
-    counts, clst = bk.child_lists(sel, parents, off, lst, pts, origin, 0.5 * cell)
+    m = 8 * parents.shape[0]
+    kind1, seed1 = np.empty(m, np.int8), np.empty(m, np.int64)
+    lat = np.empty((parents.shape[0], 27), np.int32)
+    bk.classify_children(parents, off, lst, pts, origin, 0.5 * cell, *rv, md, 2, kind1, seed1,
+                         lat)
+    counts, clst = bk.child_lists(sel, parents, off, lst, lat, pts, origin, 0.5 * cell)
     coff = np.concatenate([[0], np.cumsum(counts)])
     children = 2 * parents[sel // 8] + np.array(
         [[o & 1, (o >> 1) & 1, (o >> 2) & 1] for o in range(8)])[sel % 8]

@@ -63,6 +63,20 @@ def _vertex_nn(c, origin, size, pts, lst, a, b, out_i, out_d):
         out_i[o], out_d[o] = _nn(q0, q1, q2, pts, lst, a, b)
 
 
+@njit(cache=True, nogil=True)
+def _vertex_from_lattice(lat_p, oc, c, origin, size, pts, out_i, out_d):
+    """The 8 vertices' nearest points of child ``oc`` (coordinates c) from its parent's lattice
+    row ``lat_p`` (27,), and their distances (computed as in :func:`_nn`)."""
+    for o in range(8):
+        t = (_CX[oc] + _CX[o]) + 3 * (_CY[oc] + _CY[o]) + 9 * (_CZ[oc] + _CZ[o])
+        j = lat_p[t]
+        e0 = pts[j, 0] - (origin[0] + size * (c[0] + _CX[o]))
+        e1 = pts[j, 1] - (origin[1] + size * (c[1] + _CY[o]))
+        e2 = pts[j, 2] - (origin[2] + size * (c[2] + _CZ[o]))
+        out_i[o] = j
+        out_d[o] = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
+
+
 @njit(cache=True, nogil=True, inline="always")
 def _keep(p, c0, c1, c2, half, pts, wit, U):
     """Whether model point p can be the nearest one somewhere in the cube (centre c, half
@@ -208,13 +222,14 @@ def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
 
 @njit(cache=True, nogil=True)
 def classify_children(parents, off, lst, pts, origin, size, rf, ri, rh, rs, max_distance,
-                      max_moves, out_kind, out_seed):
+                      max_moves, out_kind, out_seed, out_lat):
     """:func:`shapeverify.nearest._kernels.classify` for the 8 children (cell size ``size``)
     of each refined parent cell, the vertices' nearest points found in the parent's list.
 
     parents : (R, 3) int64 parent coordinates at the level above; off : (R + 1,) int64 offsets
     of their lists in ``lst``.  Child 8 p + o (octant o) has coordinates 2 parents[p] + corner.
-    out_kind, out_seed : (8 R,).
+    out_kind, out_seed : (8 R,); out_lat : (R, 27) int32, the nearest point of each parent's
+    lattice point ``(t % 3, t // 3 % 3, t // 9)`` (in child cell units), for the later passes.
     """
     r = 0.5 * np.sqrt(3.0) * size
     tol = 1e-12 * size
@@ -231,6 +246,7 @@ def classify_children(parents, off, lst, pts, origin, size, rf, ri, rh, rs, max_
             q1 = origin[1] + size * (b1 + (t // 3) % 3)
             q2 = origin[2] + size * (b2 + t // 9)
             li[t], ld[t] = _nn(q0, q1, q2, pts, lst, a, b)
+            out_lat[p, t] = li[t]
         for oc in range(8):
             m = 8 * p + oc
             cx = _CX[oc]
@@ -292,7 +308,7 @@ def _walks_ok(q0, q1, q2, seeds, n0, cnt, cache_d, cache_m, rf, ri, rh, rs, max_
 
 
 @njit(cache=True, nogil=True)
-def multi_children(ids, parents, off, lst, pts, origin, size, first_seed, rf, ri, rh, rs,
+def multi_children(ids, parents, off, lst, lat, pts, origin, size, first_seed, rf, ri, rh, rs,
                    max_moves, max_seeds, last_level, out_kind, out_seeds, out_nseeds):
     """:func:`shapeverify.nearest._kernels.classify_multi` for the failed children ``ids``
     (child numbers 8 p + octant), the samples' nearest points found in the parent's list.
@@ -321,7 +337,7 @@ def multi_children(ids, parents, off, lst, pts, origin, size, first_seed, rf, ri
         c[0] = 2 * parents[p, 0] + _CX[oc]
         c[1] = 2 * parents[p, 1] + _CY[oc]
         c[2] = 2 * parents[p, 2] + _CZ[oc]
-        _vertex_nn(c, origin, size, pts, lst, a, b, vi, vd)
+        _vertex_from_lattice(lat[p], oc, c, origin, size, pts, vi, vd)
         seeds = out_seeds[f]
         seeds[0] = first_seed[m]
         cnt = 1
@@ -366,47 +382,31 @@ def multi_children(ids, parents, off, lst, pts, origin, size, first_seed, rf, ri
 
 
 @njit(cache=True, nogil=True)
-def child_lists(ids, parents, off, lst, pts, origin, size):
-    """Candidate lists of the refined children ``ids`` (child numbers 8 p + octant, sorted)
-    from their parents' lists.  Returns (counts (len(ids),) int64, concatenated lists
-    int32).  The nearest points of a parent's 27 lattice points are found once for all its
-    children."""
+def child_lists(ids, parents, off, lst, lat, pts, origin, size):
+    """Candidate lists of the refined children ``ids`` (child numbers 8 p + octant) from their
+    parents' lists and lattice nearest points ``lat`` (:func:`classify_children`).  Returns
+    (counts (len(ids),) int64, concatenated lists int32)."""
     n = ids.shape[0]
     counts = np.zeros(n, dtype=np.int64)
     buf = np.empty(max(1024, 16 * n), dtype=np.int32)
     pos = 0
     half = 0.5 * size
-    li = np.empty(27, dtype=np.int64)
-    ld = np.empty(27)
     vi = np.empty(8, dtype=np.int64)
     vd = np.empty(8)
-    last_p = -1
+    c = np.empty(3, dtype=np.int64)
     for f in range(n):
         m = ids[f]
         p = m // 8
         oc = m % 8
         a = off[p]
         b = off[p + 1]
-        b0 = 2 * parents[p, 0]
-        b1 = 2 * parents[p, 1]
-        b2 = 2 * parents[p, 2]
-        if p != last_p:
-            for t in range(27):
-                q0 = origin[0] + size * (b0 + t % 3)
-                q1 = origin[1] + size * (b1 + (t // 3) % 3)
-                q2 = origin[2] + size * (b2 + t // 9)
-                li[t], ld[t] = _nn(q0, q1, q2, pts, lst, a, b)
-            last_p = p
-        cx = _CX[oc]
-        cy = _CY[oc]
-        cz = _CZ[oc]
-        for o in range(8):
-            t = (cx + _CX[o]) + 3 * (cy + _CY[o]) + 9 * (cz + _CZ[o])
-            vi[o] = li[t]
-            vd[o] = ld[t]
-        c0 = origin[0] + size * (b0 + cx + 0.5)
-        c1 = origin[1] + size * (b1 + cy + 0.5)
-        c2 = origin[2] + size * (b2 + cz + 0.5)
+        c[0] = 2 * parents[p, 0] + _CX[oc]
+        c[1] = 2 * parents[p, 1] + _CY[oc]
+        c[2] = 2 * parents[p, 2] + _CZ[oc]
+        _vertex_from_lattice(lat[p], oc, c, origin, size, pts, vi, vd)
+        c0 = origin[0] + size * (c[0] + 0.5)
+        c1 = origin[1] + size * (c[1] + 0.5)
+        c2 = origin[2] + size * (c[2] + 0.5)
         U = _bound(vd, vi, pts, c0, c1, c2, half) * (1.0 + 1e-9)
         if pos + (b - a) > buf.shape[0]:
             buf = _grow(buf, pos + (b - a))

@@ -217,11 +217,12 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         else:
             kind = np.empty(m, dtype=np.int8)
             first = np.empty(m, dtype=np.int64)
+            lat = np.empty((parents.shape[0], 27), dtype=np.int32)
 
             def _classify(a, b):
                 _bk.classify_children(parents[a:b], off[a:b + 1], lst, pts, origin, size, *RV,
                                       md, int(max_moves), kind[8 * a:8 * b],
-                                      first[8 * a:8 * b])
+                                      first[8 * a:8 * b], lat[a:b])
 
             run_chunks(_classify, parents.shape[0], 1 << 11)
             logger.debug("DVG level %d: %d cells classified", level, m)
@@ -245,8 +246,8 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
                 fn = np.empty(fail.size, dtype=np.int32)
 
                 def _multi(a, b):
-                    _bk.multi_children(fail[a:b], parents, off, lst, pts, origin, size, first,
-                                       *RV, int(max_moves), int(max_seeds), last,
+                    _bk.multi_children(fail[a:b], parents, off, lst, lat, pts, origin, size,
+                                       first, *RV, int(max_moves), int(max_seeds), last,
                                        fkind[a:b], fseeds[a:b], fn[a:b])
 
                 run_chunks(_multi, fail.size, 1 << 10)
@@ -277,11 +278,12 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
                 nxt = 2 * parents[pp] + _CORNER[oc]
 
                 def _lists(a, b):
-                    return _bk.child_lists(ref[a:b], parents, off, lst, pts, origin, size)
+                    return _bk.child_lists(ref[a:b], parents, off, lst, lat, pts, origin,
+                                           size)
 
                 counts, lst = _chunked(_lists, ref.size, 1 << 11)
                 parents, off = nxt, _offsets(counts)
-                del pp, oc, counts
+                del pp, oc, counts, lat
             logger.debug("DVG level %d: candidate lists of the refined cells: %.1f points "
                          "each", level, lst.size / max(1, ref.size))
             blocks.append(np.full(8 * ref.size, _kernels.FAR, dtype=np.int32))
