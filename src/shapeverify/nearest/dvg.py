@@ -16,7 +16,8 @@ Tree
 A regular *top grid* covers the model's bounding box expanded by the maximum query distance
 (cells of 8 spacings, coarser if the grid would get too large).  Cells are refined
 octree-style down to half a spacing.  At build time the exact nearest model point of every cell
-vertex is computed (scipy ``cKDTree``).  A cell is
+vertex is computed (a kd-tree on the top grid, then brute force over candidate lists inherited
+from the parent cell: :mod:`shapeverify.nearest.dvg_build`).  A cell is
 
 * **FAR** when all its vertices are farther than ``max_distance + r`` from the model (r: half
   its diagonal), so no point of it is within ``max_distance``; queries there fall back to an
