@@ -1,6 +1,6 @@
 # The README's two commands: `make demo` and `make test`. Each creates .venv if needed
-# and installs the package into it; re-running is cheap (the install is redone only when
-# pyproject.toml changes).
+# and installs the package into it, then fills numba's cache (python -m shapeverify.warmup);
+# re-running is cheap (the install is redone only when pyproject.toml changes).
 PYTHON ?= python3.11
 VENV := .venv
 BIN := $(VENV)/bin
@@ -14,6 +14,9 @@ $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e ".[dev,service,batch]"
+	@# numba compiles the numeric kernels on first use; do it once here (and say so), so the
+	@# first inspection answers in seconds (python -m shapeverify.warmup; see the README)
+	$(BIN)/python -m shapeverify.warmup
 	@touch $(STAMP)
 
 # `make demo OPTICS=1` adds the optical chain: fringe images -> points -> verdict

@@ -67,9 +67,29 @@ def _setup_logging(verbose: bool) -> None:
     logging.getLogger("py.warnings").setLevel(logging.WARNING if verbose else logging.ERROR)
 
 
+_COMPILE_NOTICES: dict | None = None
+
+
+def _say_compiling(text: str) -> None:
+    console.print(f"[yellow]note:[/yellow] {escape(text)}", soft_wrap=True)
+
+
+def _watch_compiles() -> None:
+    """From the first stage on, say once (with an estimate) when numba compiles a kernel: the
+    first run after installing can take a minute, and it must not look like a hang."""
+    global _COMPILE_NOTICES
+    if _COMPILE_NOTICES is not None:
+        return
+    from shapeverify.warmup import install_compile_notices
+
+    command = next((a for a in sys.argv[1:] if not a.startswith("-")), "inspect")
+    _COMPILE_NOTICES = install_compile_notices(_say_compiling, command)
+
+
 @contextlib.contextmanager
 def _stage(name: str):
     """Show a spinner while a stage runs, then a tick with its duration."""
+    _watch_compiles()
     t0 = time.perf_counter()
     with console.status(f"[bold]{name}…"):
         yield
@@ -123,6 +143,15 @@ def _require_extra(module: str, extra: str, command: str) -> None:
               f"pip install 'shapeverify[{extra}]'")
 
 
+def _prestart_importer(model: Path) -> None:
+    """Start the CAD importer process now when ``model`` is a CAD file: its start (a Python that
+    imports OpenCASCADE, about a second) then overlaps the rest of this process's start-up."""
+    if model.suffix.lower() in (".step", ".stp", ".igs", ".iges") and model.is_file():
+        from shapeverify.cad.occ_worker import prestart
+
+        prestart()
+
+
 def _require_files(*paths: Path) -> None:
     """Fail fast, before any slow work, when an input file does not exist."""
     for p in paths:
@@ -143,6 +172,7 @@ def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges
          features: bool = typer.Option(False, "--features", help="Also list the CAD features an inspection plan can name (hole:N, face:N)"),
          json_out: Optional[Path] = typer.Option(None, "--json", help="With --features: write them as JSON")):
     """Print a summary of a model: faces, units, size (and with --features its holes and faces)."""
+    _prestart_importer(model)
     from shapeverify.pipeline import PREPARED_SUFFIX
 
     _require_files(model)
@@ -199,6 +229,7 @@ def prepare(
     fixture: Optional[Path] = typer.Option(None, "--fixture", help="Fixture pose T_model_scan (T.json or T.npy) saved with the model: inspections start there when no --init is given"),
 ):
     """Import a model and pre-compute its closest-point structure (once per model)."""
+    _prestart_importer(model)
     from shapeverify.pipeline import load_reference
 
     _require_files(model, *([fixture] if fixture is not None else []))
@@ -239,6 +270,7 @@ def inspect(
 
     Exit code: 0 pass, 1 fail, 2 error, 3 incomplete (not enough of the part seen).
     """
+    _prestart_importer(model)
     from shapeverify.pipeline import run_inspection
 
     _require_files(model, scan, *([init] if init is not None else []),
@@ -405,7 +437,7 @@ def fit(
     points: Path = typer.Argument(..., help="Points: .ply .xyz .txt .csv .npy .pcd"),
     output: Path = typer.Option(..., "-o", "--output", help=".step, .igs/.iges or .json"),
     surface: bool = typer.Option(False, "--surface", help="Fit a surface (default: a curve)"),
-    ctrl: List[int] = typer.Option([10], "--ctrl", help="Control points: N (curve) or NU NV (surface)"),
+    ctrl: List[int] = typer.Option([10], "--ctrl", help="Control points: N (curve); a surface: --ctrl NU --ctrl NV (one value: NU = NV)"),
     degree: int = typer.Option(3, help="Degree"),
     method: str = typer.Option("odr", help="odr (Gauss-Newton, orthogonal distance) | varpro | fixed"),
     smoothing: float = typer.Option(0.0, help="Smoothness weight (needed when the points leave parts "

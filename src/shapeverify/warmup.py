@@ -31,16 +31,16 @@ from pathlib import Path
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["COLD_SECONDS", "compile_notices", "warm_up", "main"]
+__all__ = ["COLD_SECONDS", "compile_notices", "install_compile_notices", "warm_up", "main"]
 
 #: measured CPU seconds of compiling everything a command needs with an empty cache, on one core
 #: of the 2-core development machine (benchmarks/results_coldstart.md); the estimate in the notice
-COLD_SECONDS = {"inspect": 75.0, "prepare": 45.0, "warmup": 150.0}
+COLD_SECONDS = {"inspect": 60.0, "prepare": 60.0, "warmup": 150.0}
 
 
 def _message(command: str) -> str:
-    est = COLD_SECONDS.get(command)
-    when = f"about {est / 60:.0f} min" if est and est >= 90 else f"about {est:.0f} s" if est else "a while"
+    est = COLD_SECONDS.get(command, 60.0)
+    when = f"about {est / 60:.0f} min" if est >= 90 else f"about {est:.0f} s"
     return (f"compiling the numeric kernels for this machine (first run after installing or "
             f"updating shapeverify: {when} on one core, once; later runs load them from numba's "
             f"cache). To do it ahead: python -m shapeverify.warmup")
@@ -77,6 +77,35 @@ def compile_notices(say, command: str = "inspect"):
     """
     from numba.core import event
 
+    stats, listener = _listener(say, command)
+    event.register("numba:compile", listener)
+    try:
+        yield stats
+    finally:
+        event.unregister("numba:compile", listener)
+        if stats["n"]:
+            logger.info("numba compiled %d kernels in %.1f s (cached for later runs)",
+                        stats["n"], stats["seconds"])
+
+
+def install_compile_notices(say, command: str = "inspect") -> dict:
+    """:func:`compile_notices` for the rest of the process (the command line's choice).
+
+    Returns
+    -------
+    dict
+        The statistics, updated as kernels compile.
+    """
+    from numba.core import event
+
+    stats, listener = _listener(say, command)
+    event.register("numba:compile", listener)
+    return stats
+
+
+def _listener(say, command: str):
+    from numba.core import event
+
     stats = {"n": 0, "seconds": 0.0}
     lock = threading.Lock()
     state = {"depth": 0, "said": False, "t0": 0.0}
@@ -102,15 +131,7 @@ def compile_notices(say, command: str = "inspect"):
                 if state["depth"] == 0:
                     stats["seconds"] += time.perf_counter() - state["t0"]
 
-    listener = _Listener()
-    event.register("numba:compile", listener)
-    try:
-        yield stats
-    finally:
-        event.unregister("numba:compile", listener)
-        if stats["n"]:
-            logger.info("numba compiled %d kernels in %.1f s (cached for later runs)",
-                        stats["n"], stats["seconds"])
+    return stats, _Listener()
 
 
 def _run(argv, cwd: Path) -> float:

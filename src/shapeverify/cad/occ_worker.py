@@ -134,6 +134,16 @@ _LOCK = threading.Lock()
 _CURRENT: _Importer | None = None
 
 
+def prestart() -> None:
+    """Start the importer process now, if none runs, so that its start (a Python that imports
+    numpy and OpenCASCADE) overlaps whatever the caller does before its first import; the
+    command line calls it first thing when its model is a CAD file."""
+    global _CURRENT
+    with _LOCK:
+        if _CURRENT is None or not _CURRENT.alive():
+            _CURRENT = _Importer()
+
+
 def shutdown() -> None:
     """Stop the importer process, if one runs (also done at interpreter exit)."""
     global _CURRENT
@@ -281,6 +291,11 @@ def _serve() -> None:
     root = logging.getLogger("shapeverify")
     root.addHandler(handler)
     root.propagate = False
+    try:  # import now, while the caller is still starting up (see prestart)
+        from . import occ_import  # noqa: F401
+        import OCP  # noqa: F401
+    except Exception:  # noqa: BLE001 - the request will report it
+        pass
     while True:
         head = inp.read(_LEN.size)
         if len(head) < _LEN.size:
