@@ -67,7 +67,7 @@ from .dvg_build import build_tree
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["DVG", "DVGTree", "build_tree", "neighbor_graph", "make_records", "morton_order",
+__all__ = ["DVG", "DVGTree", "QueryAnswer", "build_tree", "neighbor_graph", "make_records", "morton_order",
            "check_points"]
 
 # walk budget at query time: far above what the build allows (max_moves), so a query is never
@@ -236,6 +236,36 @@ class DVGTree:
                 f"{self.nbytes / 2**20:.1f} MiB)")
 
 
+@dataclass(frozen=True, eq=False)
+class QueryAnswer:
+    """Everything :meth:`DVG.query` answers for N queries.
+
+    Attributes
+    ----------
+    index : (N,) int64              nearest model point
+    d2 : (N,) float64               squared distance to it (mm^2)
+    foot : (M, 3) float64           projection onto its tangent patch, clamped to the patch
+    distance : (M,) float64         signed distance to the foot (+ on the normal's side, mm)
+    clamped : (M,) bool             the projection was clamped to the patch's extents
+    normal : (M, 3) float64         the patch's unit normal
+    face : (R,) int32               the nearest model point's face
+    uv : (R, 2) float64             its (u, v) (stored in float32)
+    on_boundary : (R,) bool         clamped and the model point lies on a free edge
+
+    M = N with patches, else 0; R = M when the rows were given, else 0.
+    """
+
+    index: np.ndarray
+    d2: np.ndarray
+    foot: np.ndarray
+    distance: np.ndarray
+    clamped: np.ndarray
+    normal: np.ndarray
+    face: np.ndarray
+    uv: np.ndarray
+    on_boundary: np.ndarray
+
+
 class DVG:
     """Model points with their neighbour graph and tangent patches, and the DVG tree.
 
@@ -323,13 +353,13 @@ class DVG:
             self._kd = cKDTree(np.ascontiguousarray(self.points))
         return self._kd
 
-    def query(self, q: np.ndarray, patches: bool, rows=None, boundary=None):
+    def query(self, q: np.ndarray, patches: bool, rows=None, boundary=None) -> QueryAnswer:
         """All answers for validated queries q (N, 3) float64 (C-contiguous).
 
-        Returns (index, squared distance, foot, signed distance, clamped, normal, face, uv,
-        on_boundary); the patch outputs are empty unless ``patches``, the last three unless
-        ``rows`` (N, 4) int32 (face, u, v as float32 bits, other) and ``boundary`` (N,) bool
-        are given.  FAR queries are answered by the kd-tree fallback.
+        Returns a :class:`QueryAnswer`; its patch outputs are empty unless ``patches``, its
+        face, uv and on_boundary unless ``rows`` (N, 4) int32 (face, u, v as float32 bits,
+        other) and ``boundary`` (N,) bool are given.  FAR queries are answered by the kd-tree
+        fallback.
         """
         n = q.shape[0]
         idx = np.empty(n, dtype=np.int64)
@@ -372,7 +402,7 @@ class DVG:
                                   np.empty(far.size, dtype=np.bool_))
                     _kernels.gather_rows(idx[far], rows, boundary, c, fa, ua, oa)
                     face[far], uv[far], onb[far] = fa, ua, oa
-        return idx, d2, foot, dist, clamped, normal, face, uv, onb
+        return QueryAnswer(idx, d2, foot, dist, clamped, normal, face, uv, onb)
 
     def nearest(self, queries) -> tuple[np.ndarray, np.ndarray]:
         """Nearest model point: (index (N,) int64, distance (N,) float64).
@@ -380,8 +410,8 @@ class DVG:
         Raises ValueError for queries that are not finite (N, 3).
         """
         q = check_points(queries, "queries")
-        idx, d2, *_ = self.query(q, False)
-        return idx, np.sqrt(d2)
+        a = self.query(q, False)
+        return a.index, np.sqrt(a.d2)
 
     def closest_on_patches(self, queries):
         """Fast closest point: projection onto the tangent patch of the nearest model point.
@@ -390,8 +420,8 @@ class DVG:
         normal (N, 3)).  Raises ValueError for bad queries.
         """
         q = check_points(queries, "queries")
-        idx, _, foot, dist, clamped, normal, *_ = self.query(q, True)
-        return idx, foot, dist, clamped, normal
+        a = self.query(q, True)
+        return a.index, a.foot, a.distance, a.clamped, a.normal
 
     def __repr__(self) -> str:
         return (f"DVG(n_points={self.n_points}, "

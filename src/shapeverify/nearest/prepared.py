@@ -207,9 +207,8 @@ class Prepared:
         q = _dvg.check_points(points, "points")
         if exact:
             return self._closest_exact(q)
-        idx, _, foot, dist, _, normals, face, uv, onb = self._fast.query(q, True, self._rows,
-                                                                          self._boundary)
-        return Closest(foot, normals, dist, face, uv, idx, onb)
+        a = self._fast.query(q, True, self._rows, self._boundary)
+        return Closest(a.foot, a.normal, a.distance, a.face, a.uv, a.index, a.on_boundary)
 
     def _closest_exact(self, q: np.ndarray) -> Closest:
         if self._exact is None:
