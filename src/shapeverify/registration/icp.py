@@ -367,7 +367,7 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
     coarse_cfg = StageSettings(method.coarse, convex, scale, floor, radius, cap,
                                max(_COARSE_TOL, tolerance))
     final_cfg = StageSettings(method.final, lossobj, scale, floor, radius, max_iterations,
-                              tolerance)
+                              tolerance, overlap=True)
 
     def coarse(T, check):
         st = _irls.State(T[:3, :3].copy(), T[:3, 3].copy())
