@@ -10,6 +10,11 @@ seeds 0..7, for 2 deg / 2 mm, 6 deg / 12 mm, and 6 deg / 12 mm with 30 % outlier
 Run:  .venv/bin/python benchmarks/bench_impeller_starts.py [--cache /tmp/imp] [--seeds 8]
 (--cache keeps the prepared model and the scans between runs: preparing takes ~80 s CPU and
 each scan ~10 s.)
+
+``--scaling 100000,300000,900000`` instead measures registration's CPU time against the scan
+size (issue 18 item 5): the example panel prepared at 1 mm; scans are random subsets (kept in
+sample order) of a 0.25 mm sampling of the panel with 0.02 mm normal noise, moved 2 deg / 2 mm;
+``register(scan, prep, init='identity')``, best of 2 (printed only).
 """
 from __future__ import annotations
 
@@ -60,12 +65,43 @@ def inputs(cache: Path | None, seeds: int):
     return prep, scans
 
 
+def scaling(sizes):
+    import tempfile
+
+    from shapeverify.cad.examples import example_part_step
+    from shapeverify.registration.rigid import apply_transform
+    from shapeverify.simulate import random_motion
+
+    panel = load_model(example_part_step(Path(tempfile.mkdtemp()) / "panel.step"))
+    prep = prepare(panel, spacing=1.0)
+    mp = panel.sample(0.25)
+    Q = np.asarray(mp.points) + np.random.default_rng(0).normal(
+        scale=0.02, size=(len(mp.points), 1)) * np.asarray(mp.normals)
+    S_all = apply_transform(random_motion(2.0, 2.0, center=Q.mean(0), rng=1), Q)
+    register(S_all[:5000], prep, init="identity")          # warm-up
+    print("| scan points | CPU s | us / point | rigid steps | matchings |")
+    for n in sizes:
+        idx = (np.sort(np.random.default_rng(2).choice(len(S_all), n, replace=False))
+               if n < len(S_all) else np.arange(len(S_all)))
+        best = np.inf
+        for _ in range(2):
+            t = time.process_time()
+            reg = register(S_all[idx], prep, init="identity")
+            best = min(best, time.process_time() - t)
+        print(f"| {n:,} | {best:.3f} | {best / n * 1e6:.2f} | {reg.iterations} | "
+              f"{sum(h.matched for h in reg.history)} |", flush=True)
+
+
 def main():
     ap = argparse.ArgumentParser()
+    ap.add_argument("--scaling", default=None, help="comma-separated scan sizes")
     ap.add_argument("--seeds", type=int, default=8)
     ap.add_argument("--cache", type=Path, default=None)
     ap.add_argument("--out", default=str(Path(__file__).with_name("results_impeller_starts.md")))
     args = ap.parse_args()
+    if args.scaling:
+        warnings.simplefilter("ignore")
+        return scaling([int(x) for x in args.scaling.split(",")])
     if args.cache:
         args.cache.mkdir(parents=True, exist_ok=True)
     load = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
