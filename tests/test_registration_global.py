@@ -215,7 +215,8 @@ def _bun_pose(conf, name):
 @pytest.mark.parametrize("name", ["bun045.ply", "bun090.ply"])
 def test_bunny_views_from_30_degree_starts_with_no_init(shared_data, name):
     """Real partial views given in a frame 30 deg / 20 mm off the bun000 reference, no init:
-    the right pose (bun.conf within 0.5 deg / 0.5 mm), or a pose that says it is not right."""
+    the right pose (bun.conf within 0.15 deg / 0.25 mm: the peers' accuracy, issue 14 item 7;
+    bun090 was 0.26 deg before the overlap-aware scale), or a pose that says it is not right."""
     import dataclasses
 
     from shapeverify.cad.load import load_model
@@ -240,7 +241,7 @@ def test_bunny_views_from_30_degree_starts_with_no_init(shared_data, name):
         cm = apply_transform(T_true, scan.mean(0))
         ang = np.degrees(np.linalg.norm(rotation_vector(dT[:3, :3])))
         trans = np.linalg.norm(dT[:3, :3] @ cm + dT[:3, 3] - cm)
-        right = ang < 0.5 and trans < 0.5
+        right = ang < 0.15 and trans < 0.25
         good += right
         assert right or not reg.converged or reg.warnings, (seed, ang, trans, reg)
-    assert good >= 2
+    assert good == 3

@@ -18,6 +18,15 @@ Stages (see :mod:`shapeverify.registration._irls` for the iterations and the con
    everything only when that asks for a correction); point-to-point re-matches every
    iteration, with Anderson acceleration.
 
+3. *other minima*: the pose direction resting on the fewest points (90 % of its information on
+   at most 10 % of them: an impeller's spin on its thin blades) is probed for another minimum
+   (:mod:`shapeverify.registration._basin`); a better one found is refined by the final stage
+   and kept only if it fits all points better.
+
+The final stage's robust scale is overlap-aware (:func:`._irls.overlap_scale`): when most of a
+partial view lies off the reference (a point cloud has no outline to exclude them), the scale
+of the residuals near zero replaces the broken-down MAD scale.
+
 Only the final stage decides ``converged`` (the test is stated in :func:`register`'s Notes).
 With no start (``init=None``, 'auto'), the identity is kept when the coarse stage from it fits,
 otherwise :mod:`shapeverify.registration.global_search` finds the start.  ``rng`` defaults to
@@ -429,7 +438,8 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
     else:
         Q, Nq = ev.Y, ev.N
     undet = undetermined_directions(undet_c, center, radius)
-    cov = pose_covariance(Q, Nq, ev.d, w, center, radius, undet)
+    cov = pose_covariance(Q, Nq, ev.d, w, center, radius, undet,
+                          loss=ev.loss if ev.sigma > 0 else None, sigma=ev.sigma)
     T = np.eye(4)
     T[:3, :3], T[:3, 3] = st.R, st.t
     msg = (f"converged in {st.iterations} iterations" if converged else
