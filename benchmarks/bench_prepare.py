@@ -67,21 +67,27 @@ class Clock:
     """CPU and wall seconds of named stages."""
 
     def __init__(self):
-        self.rows: list[tuple[str, float, float]] = []
+        self.rows: list[tuple[str, float, float, float]] = []
 
     def run(self, name, fn, *a, **kw):
+        tracing = tracemalloc.is_tracing()
+        if tracing:
+            tracemalloc.reset_peak()
         c, w = time.process_time(), time.perf_counter()
         out = fn(*a, **kw)
-        self.rows.append((name, time.process_time() - c, time.perf_counter() - w))
+        peak = tracemalloc.get_traced_memory()[1] / 2**20 if tracing else float("nan")
+        self.rows.append((name, time.process_time() - c, time.perf_counter() - w, peak))
         return out
 
     def table(self) -> str:
         tc = sum(r[1] for r in self.rows)
         tw = sum(r[2] for r in self.rows)
-        lines = ["| stage | CPU s | share | wall s |", "|---|---:|---:|---:|"]
-        for name, c, w in self.rows:
-            lines.append(f"| {name} | {c:.2f} | {100 * c / max(tc, 1e-9):.0f} % | {w:.2f} |")
-        lines.append(f"| **total** | **{tc:.2f}** | | {tw:.2f} |")
+        lines = ["| stage | CPU s | share | wall s | peak MiB (tracemalloc) |",
+                 "|---|---:|---:|---:|---:|"]
+        for name, c, w, p in self.rows:
+            lines.append(f"| {name} | {c:.2f} | {100 * c / max(tc, 1e-9):.0f} % | {w:.2f} | "
+                         f"{p:.0f} |")
+        lines.append(f"| **total** | **{tc:.2f}** | | {tw:.2f} | |")
         return "\n".join(lines)
 
 

@@ -104,12 +104,14 @@ def neighbor_graph(points: np.ndarray, k: int = _kernels.K,
     if kk <= 0:
         return out
     tree = cKDTree(points) if tree is None else tree
-    _, idx = tree.query(points, k=kk + 1, workers=-1)
-    idx = idx.reshape(n, kk + 1)
-    # drop each point itself (normally column 0; with duplicates it may be elsewhere)
-    not_self = idx != np.arange(n)[:, None]
-    order = np.argsort(~not_self, axis=1, kind="stable")[:, :kk]
-    out[:, :kk] = np.take_along_axis(idx, order, axis=1)
+    for lo in range(0, n, 1 << 16):  # in chunks: no (N, k + 1) temporaries
+        hi = min(n, lo + (1 << 16))
+        _, idx = tree.query(points[lo:hi], k=kk + 1, workers=-1)
+        idx = idx.reshape(hi - lo, kk + 1)
+        # drop each point itself (normally column 0; with duplicates it may be elsewhere)
+        not_self = idx != np.arange(lo, hi)[:, None]
+        order = np.argsort(~not_self, axis=1, kind="stable")[:, :kk]
+        out[lo:hi, :kk] = np.take_along_axis(idx, order, axis=1)
     return out
 
 

@@ -269,8 +269,8 @@ def _other_face_points(points, face, spacing, kd, radius: float = 3.0, k: int = 
     if kk < 2:
         return other
     cand = np.flatnonzero(_near_other_face(points, face, radius * spacing * (1.0 + 1e-6)))
-    for lo in range(0, cand.size, 1 << 18):
-        sel = cand[lo:lo + (1 << 18)]
+    for lo in range(0, cand.size, 1 << 15):  # (chunk, k) distances and indices: 16 MB
+        sel = cand[lo:lo + (1 << 15)]
         d, j = kd.query(points[sel], k=kk, distance_upper_bound=radius * spacing, workers=-1)
         j = j.reshape(sel.size, kk)
         valid = j < n
