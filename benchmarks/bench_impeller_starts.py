@@ -129,7 +129,8 @@ def main():
                          f"cpu={dt:.2f}s ({r['init']})")
             print(lines[-1], flush=True)
     out = ["# Impeller from perturbed starts (issue 14 item 6)", "",
-           f"Command: `.venv/bin/python benchmarks/bench_impeller_starts.py --seeds {args.seeds}`  ",
+           "Command: `.venv/bin/python benchmarks/bench_impeller_starts.py "
+           f"--seeds {args.seeds}`  ",
            f"Date: {datetime.date.today()}, Python {platform.python_version()}, "
            f"{platform.machine()}, one thread.  Load: `{load}`.", "",
            "Inputs and criteria: see the docstring of `benchmarks/bench_impeller_starts.py`.", "",
