@@ -33,7 +33,8 @@ The machine is shared: the load average is printed at the start and at the end; 
 fair single-core figure, wall time shows what a user waits.
 
 Run:  .venv/bin/python benchmarks/bench_closest.py [--queries 1000000] [--exact 200000]
-          [--repeat 3] [--no-impeller] [--no-exact] [--deflections 0.01,0.001] [--threads-only]
+          [--repeat 3] [--no-impeller] [--no-panel] [--no-exact] [--no-threads]
+          [--impeller-spacing 0.5] [--deflections 0.01,0.001] [--threads-only]
           [--out benchmarks/results_closest.md]
 """
 
@@ -362,7 +363,9 @@ def main():
     ap.add_argument("--impeller-spacing", type=float, default=0.5)
     ap.add_argument("--deflections", default="0.01,0.001")
     ap.add_argument("--no-impeller", action="store_true")
+    ap.add_argument("--no-panel", action="store_true")
     ap.add_argument("--no-exact", action="store_true")
+    ap.add_argument("--no-threads", action="store_true")
     ap.add_argument("--threads-only", action="store_true",
                     help="only the one-against-two-threads table (panel)")
     ap.add_argument("--out", default=None)
@@ -372,18 +375,24 @@ def main():
     lines = ["## Closest points against the strongest peers (issue 18 items 1, 4 and 7)", "",
              "Command: `.venv/bin/python benchmarks/bench_closest.py "
              f"--queries {args.queries} --exact {args.exact} --repeat {args.repeat}"
-             + (" --no-impeller" if args.no_impeller else "") + "`  ",
+             + (" --no-impeller" if args.no_impeller else "")
+             + (" --no-panel" if args.no_panel else "")
+             + (" --no-exact" if args.no_exact else "")
+             + (" --no-threads" if args.no_threads else "")
+             + (f" --impeller-spacing {args.impeller_spacing:g}" if args.impeller_spacing != 0.5
+                else "") + "`  ",
              f"{platform.processor() or platform.machine()}, {os.cpu_count()} cores shared with "
              f"other jobs; load average {l0:.1f} at the start; Python "
              f"{platform.python_version()}.  One-core rows: best CPU time of {args.repeat} "
              "runs; all-core rows: best wall time (their CPU time in the last column).", ""]
     models = []
-    c0 = time.process_time()
-    panel = panel_model()
-    pp = prepare(panel, spacing=args.panel_spacing, reach=2.0)
-    lines.append(f"- panel, 2 holes: {pp.n_points:,} model points (spacing {pp.spacing:g} mm, "
-                 f"reach 2 mm), load + prepare {time.process_time() - c0:.1f} s CPU")
-    models.append(("Trimmed panel (2 holes)", pp, panel, panel_occ_shape))
+    if not args.no_panel:
+        c0 = time.process_time()
+        panel = panel_model()
+        pp = prepare(panel, spacing=args.panel_spacing, reach=2.0)
+        lines.append(f"- panel, 2 holes: {pp.n_points:,} model points (spacing {pp.spacing:g} "
+                     f"mm, reach 2 mm), load + prepare {time.process_time() - c0:.1f} s CPU")
+        models.append(("Trimmed panel (2 holes)", pp, panel, panel_occ_shape))
     imp = SHARED / "cad" / "impeller.igs"
     if imp.is_file() and not args.no_impeller and not args.threads_only:
         from shapeverify.cad.load import load_model
@@ -417,8 +426,9 @@ def main():
             exact_table(name, prep, shape(), np.ascontiguousarray(q[::max(1, len(q) // args.exact)]
                                                                   [:args.exact]),
                         defl, args.repeat, lines)
-    name, prep = models[0][0], models[0][1]
-    threads_table(name, prep, queries[name], args.repeat, lines)
+    if models and not args.no_threads:
+        name, prep = models[0][0], models[0][1]
+        threads_table(name, prep, queries[name], args.repeat, lines)
     lines += [f"Load average at the end: {load():.1f}.", ""]
     set_workers(None)
     if args.out:
