@@ -90,9 +90,16 @@ class HistoryDB:
 
     Examples
     --------
-    >>> with HistoryDB("history.sqlite") as db:                       # doctest: +SKIP
-    ...     rid = db.add(result, part="A-0017", model_hash=file_hash("part.step"))
+    >>> import shapeverify as sv
+    >>> from shapeverify.cad.examples import wavy_panel
+    >>> from shapeverify.simulate import virtual_scan
+    >>> prep = sv.prepare(wavy_panel(), spacing=2.0)
+    >>> result = sv.inspect(prep, virtual_scan(prep, pixel=2.0, rng=1).scan, tolerance=0.2)
+    >>> with HistoryDB("history.sqlite") as db:      # a new file in the working directory
+    ...     rid = db.add(result, part="A-0017", model_hash="(file_hash of the model file)")
     ...     rows = db.query(part="A-0017", limit=50)
+    >>> [(r["part"], r["verdict"]) for r in rows]
+    [('A-0017', 'pass')]
     """
 
     def __init__(self, path):
