@@ -131,7 +131,7 @@ def probe(P, prep, ev, R, t, cfg: StageSettings, null_scaled, fit_distance: floa
         dR = rodrigues(s * u[:3])
         Rs = dR @ R
         ts = dR @ (t - center) + center + s * u[3:]
-        m = _irls.match(Q, prep, Rs, ts, cfg.exact)
+        m = _irls.match(Q, prep, Rs, ts)
         u2 = np.where(m.valid, np.minimum((m.d / k) ** 2, 1.0), 1.0)
         return float(np.mean(1.0 - (1.0 - u2) ** 3)), (Rs, ts)   # Tukey rho / (k^2 / 6)
 

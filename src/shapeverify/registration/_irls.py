@@ -36,7 +36,6 @@ Zhang, Yao, Deng, "Fast and robust iterative closest point", IEEE TPAMI 44 (2022
 """
 from __future__ import annotations
 
-import weakref
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -135,10 +134,11 @@ def centroid(X, w) -> np.ndarray:
     return _kernels.weighted_centroid(X, w)
 
 
-def match(P, prep, R, t, exact: bool) -> Match:
-    """Closest points of the moved scan (scan points P moved by R, t)."""
+def match(P, prep, R, t) -> Match:
+    """Closest points of the moved scan (scan points P moved by R, t): the fast tangent-patch
+    feet (the exact refinement is the inspection's, after the pose is found)."""
     X = P @ R.T + t
-    cl = prep.closest(X, exact=exact)
+    cl = prep.closest(X)
     d = np.asarray(cl.distances, np.float64)
     valid = np.isfinite(d) & ~np.asarray(cl.on_boundary, bool)
     Y = np.where(valid[:, None], np.asarray(cl.points, np.float64), X)
@@ -225,7 +225,7 @@ def weigh(m: Match, loss: Loss, scale, floor, overlap: bool = False) -> Eval:
 
 
 def evaluate(P, prep, R, t, cfg: StageSettings) -> Eval:
-    return weigh(match(P, prep, R, t, cfg.exact), cfg.loss, cfg.scale, cfg.floor, cfg.overlap)
+    return weigh(match(P, prep, R, t), cfg.loss, cfg.scale, cfg.floor, cfg.overlap)
 
 
 def evaluate_fixed(P, R, t, m: Match, cfg: StageSettings) -> Eval:
@@ -249,7 +249,6 @@ def _check_weights(w):
                                 "rejected almost everything (bad start or wrong model?)")
 
 
-_MODEL_POINTS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 #: relative eigenvalue under which the tangent-patch feet are suspected of faking information
 _SUSPECT = 1e-3
 #: about this many points (a regular subset) give the exact-point information matrix
@@ -259,21 +258,14 @@ INFO_POINTS = 4000
 def model_points(prep):
     """(points, normals) (M, 3) of the model points ``Closest.index`` refers to, or None.
 
-    Cached per Prepared object (``prep.points`` rebuilds its arrays on every access).
+    ``prep.points`` is assembled once per Prepared model (and its arrays are C-contiguous
+    float64, so nothing is copied here).
     """
-    try:
-        return _MODEL_POINTS[prep]
-    except KeyError:
-        pass
-    except TypeError:  # not weak-referenceable
-        return None
     mp = getattr(prep, "points", None)
     if mp is None or not hasattr(mp, "normals"):
         return None
-    arrs = (np.ascontiguousarray(mp.points, np.float64),
+    return (np.ascontiguousarray(mp.points, np.float64),
             np.ascontiguousarray(mp.normals, np.float64))
-    _MODEL_POINTS[prep] = arrs
-    return arrs
 
 
 def information_points(ev: "Eval", mp):
@@ -443,7 +435,7 @@ def stage_rematch(name, P, prep, st: State, cfg: StageSettings, first=None,
     Returns the final evaluation, whether it converged, and why not ('' when it did).
     """
     method, loss, radius, max_it = cfg.method, cfg.loss, cfg.radius, cfg.max_iterations
-    m0 = match(P, prep, st.R, st.t, cfg.exact)
+    m0 = match(P, prep, st.R, st.t)
     if first is not None:
         first(m0.d, m0.valid)
     ev = weigh(m0, loss, cfg.scale, cfg.floor, cfg.overlap)
@@ -504,7 +496,7 @@ def _verify(P, prep, st: State, ev: Eval, cfg: StageSettings, rng, mp):
     radius, tol = cfg.radius, cfg.tolerance
     n = P.shape[0]
     S = np.arange(n) if n <= VERIFY else np.sort(rng.choice(n, VERIFY, replace=False))
-    fresh = match(P[S], prep, st.R, st.t, cfg.exact)
+    fresh = match(P[S], prep, st.R, st.t)
     df, vf = fresh.d, fresh.valid
     if np.mean(vf == ev.valid[S]) < 0.999:
         return False, np.inf, np.inf
@@ -541,7 +533,7 @@ def stage_final_plane(P, prep, st: State, cfg: StageSettings, rng,
     ev = None
     mp = model_points(prep)
     for _ in range(rounds):
-        m0 = match(P, prep, st.R, st.t, cfg.exact)
+        m0 = match(P, prep, st.R, st.t)
         ev = weigh(m0, loss, cfg.scale, cfg.floor, cfg.overlap)
         crit = _Criterion(cfg.tolerance, Method.POINT_TO_PLANE)
         prev = None

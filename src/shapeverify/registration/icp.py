@@ -40,7 +40,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._arrays import count_nonfinite_rows
+from .._arrays import check_points
 
 from . import _basin, _irls
 from ._irls import IterationRecord
@@ -163,20 +163,10 @@ class Registration:
 
 # ------------------------------------------------------------------------------ validation
 def _check_scan(scan) -> np.ndarray:
-    try:
-        P = np.asarray(scan, dtype=np.float64)
-    except (TypeError, ValueError) as exc:
-        raise ScanError(f"scan must be an (N, 3) array of numbers: {exc}") from None
-    if P.ndim != 2 or P.shape[1] != 3:
-        raise ScanError(f"scan must have shape (N, 3), got {P.shape}; pass the points as rows")
+    P = check_points(scan, "scan", single=False, error=ScanError)
     if P.shape[0] < 6:
         raise ScanError(f"scan has {P.shape[0]} points; registration needs at least 6 "
                         "(six pose parameters)")
-    if count_nonfinite_rows(P):
-        bad = ~np.isfinite(P).all(axis=1)
-        raise ScanError(f"scan has {int(bad.sum())} rows with NaN/inf (first at row "
-                        f"{int(np.flatnonzero(bad)[0])}); drop them, e.g. "
-                        "scan[np.isfinite(scan).all(axis=1)]")
     return P
 
 

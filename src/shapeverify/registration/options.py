@@ -129,8 +129,6 @@ class StageSettings:
         Rigid steps allowed in the stage.
     tolerance : float
         Relative stopping tolerance (see :func:`~shapeverify.registration.register`).
-    exact : bool
-        Closest points by exact point inversion (True) or the fast tangent patches (False).
     overlap : bool
         The robust scale may drop to that of the residuals near zero when most points lie off
         the model (a partial overlap, see :func:`._irls.overlap_scale`); the final stage's.
@@ -143,5 +141,4 @@ class StageSettings:
     radius: float
     max_iterations: int
     tolerance: float
-    exact: bool = False
     overlap: bool = False
