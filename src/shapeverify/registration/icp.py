@@ -48,10 +48,7 @@ from .losses import get_loss
 from .options import InitMode, InitName, LossName, Method, MethodName, StageSettings
 from .rigid import pose_covariance, undetermined_directions
 
-try:  # the project's error classes (ScanError is a ValueError)
-    from ..errors import RegistrationError, ScanError
-except ImportError:  # pragma: no cover - errors.py not present
-    RegistrationError = ScanError = ValueError
+from ..errors import RegistrationError, ScanError
 
 __all__ = ["register", "Registration", "IterationRecord", "DegenerateGeometryWarning"]
 
