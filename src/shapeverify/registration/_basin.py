@@ -104,6 +104,12 @@ def probe(P, prep, ev, R, t, cfg: StageSettings, null_scaled, fit_distance: floa
         total = float(info.sum())
         if total <= 0:
             continue
+        k_few = int(FEW * nv)                       # a direction needs 90 % on <= k_few points
+        if k_few < 1:
+            continue
+        if (k_few < info.size
+                and np.partition(info, info.size - k_few - 1)[-k_few:].sum() < 0.8 * total):
+            continue                                # clearly spread (< 80 %): no sort needed
         order = np.argsort(-info, kind="stable")
         share = np.cumsum(info[order]) / total
         few = int(np.searchsorted(share, HOLD)) + 1
