@@ -200,3 +200,28 @@ def test_history_stores_incomplete_and_upgrades_version_1(tmp_path, panel, good)
         h.add(res, part="few")
         rows = h.query()
     assert [r["verdict"] for r in rows] == ["pass", "incomplete"]
+
+
+def test_small_part_dent_ranked_before_edge_outliers(shared_data):
+    """Pins: on the 1.86 mm wavy cube (tolerance 2 µm) the default evaluation distance was the
+    absolute 1 mm floor, half the part; outliers beside a cube edge projected onto the edge
+    and became region 1 ahead of a 10 µm dent. The default is now capped at 5 % of the size."""
+    model = sv.load_model(shared_data / "cad" / "wavy-cube.stp")
+    prep = sv.prepare(model, spacing=0.01)
+    sim = virtual_scan(model, pixel=0.015, noise=0.0002, outlier_fraction=0.05,
+                       dents=[(0.01, 0.3)], rng=2)
+    res = sv.inspect(prep, sim.scan, tolerance=0.002)
+    assert res.deviations.evaluation_distance == pytest.approx(0.05 * model.size)
+    assert res.verdict == "fail"
+    worst = res.regions[0]
+    dent = sim.points[sim.labels == DENT].mean(axis=0)
+    assert worst.extreme == pytest.approx(-0.01, abs=0.0005)
+    assert np.linalg.norm(np.asarray(worst.centroid) - dent) < 0.3
+
+
+def test_virtual_scan_too_coarse_pixel_is_a_clear_error(shared_data):
+    """Pins: a 1 mm pixel on a 1.86 mm part met two rays, and placing a dent crashed with
+    numpy's 'Eigenvalues did not converge'."""
+    model = sv.load_model(shared_data / "cad" / "wavy-cube.stp")
+    with pytest.raises(ValueError, match="too coarse"):
+        virtual_scan(model, pixel=1.0, dents=[(0.01, 0.3)], rng=2)
