@@ -178,7 +178,28 @@ def warm_up(say=logger.info) -> float:
         _run(["inspect", work / "panel.svm", work / "scan.ply", "--tolerance", "0.2",
               "--json", work / "r.json", "--report", work / "r.html", "--png", work / "r.png",
               "--colored", work / "r.ply", "--db", work / "h.sqlite", "--part", "warm-up"], work)
+        say("closest points beyond the reach of the structure")
+        _far_queries(work / "panel.svm")
     return time.perf_counter() - t0
+
+
+def _far_queries(svm: Path) -> None:
+    """Queries farther than the prepared model's reach take a fallback path (a k-d tree, then the
+    patches) that a scan hits only sometimes; a loaded model's arrays are read-only, which numba
+    compiles separately from a freshly prepared model's: run both, fast and exact."""
+    import numpy as np
+
+    from shapeverify.nearest import load_prepared
+
+    prep = load_prepared(svm)
+    lo, hi = prep.model.bounds
+    size = float(np.linalg.norm(hi - lo))
+    mp = prep.points
+    near = mp.points[:: max(1, len(mp.points) // 200)] + 0.1 * mp.normals[:: max(1, len(mp.points) // 200)]
+    far = near + 3.0 * max(prep.reach, 0.01 * size) * mp.normals[:: max(1, len(mp.points) // 200)]
+    q = np.ascontiguousarray(np.vstack([near, far]))
+    for exact in (False, True):
+        prep.closest(q, exact=exact)
 
 
 def main(argv=None) -> int:
