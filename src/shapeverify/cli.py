@@ -50,7 +50,7 @@ EXIT_PASS, EXIT_FAIL, EXIT_ERROR, EXIT_INCOMPLETE = 0, 1, 2, 3
 _EVALUATION_DISTANCE = typer.Option(
     None, "--evaluation-distance", "--max-distance",
     help="Scan points farther than this from the CAD are not evaluated [mm] "
-         "(default: max(1 mm, 5 x the tolerance))")
+         "(default: max(5 x the tolerance, min(1 mm, 5 % of the model size)))")
 VERDICT_EXIT = {"pass": EXIT_PASS, "fail": EXIT_FAIL, "error": EXIT_ERROR,
                 "incomplete": EXIT_INCOMPLETE}
 
