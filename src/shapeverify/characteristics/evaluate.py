@@ -468,7 +468,7 @@ def evaluate_characteristics(prep, scan, plan, alignment: AlignmentResult, exclu
     from ..inspection.inspect import default_evaluation_distance
 
     md = float(evaluation_distance or plan.max_distance
-               or default_evaluation_distance(_largest_tolerance(plan)))
+               or default_evaluation_distance(_largest_tolerance(plan), prep.model.size))
     S = _Scan(prep, scan, alignment.T_model_scan, md, exclude)
     feats = model_features(prep.model) if prep.model.kind == "cad" else []
     k = float(plan.coverage_factor)
