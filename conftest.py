@@ -44,8 +44,8 @@ def pytest_make_collect_report(collector):
     if name:
         try:
             importlib.import_module(name)
-        except ModuleNotFoundError as exc:
-            top = (exc.name or "").split(".")[0]
+        except Exception as exc:  # noqa: BLE001 - any other failure: pytest reports it as usual
+            top = ((exc.name or "") if isinstance(exc, ModuleNotFoundError) else "").split(".")[0]
             if top in _OPTIONAL:
                 from _pytest.reports import CollectReport
 
