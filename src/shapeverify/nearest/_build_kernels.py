@@ -285,9 +285,16 @@ def classify_children(parents, off, lst, pts, origin, size, rf, ri, rh, rs, max_
 @njit(cache=True, nogil=True)
 def _walks_ok(q0, q1, q2, seeds, n0, cnt, cache_d, cache_m, rf, ri, rh, rs, max_moves,
               i_exact, d_exact, tol):
-    """_kernels._seeded_ok with the walks of seeds[:n0] taken from the cache (and the walks of
-    seeds[n0:cnt] added to it).  A walk from the exact nearest point ``i_exact`` stays there
-    (no point is strictly closer): it is not walked."""
+    """_kernels._seeded_ok with the walks of seeds[:n0] taken from the cache and those of
+    seeds[n0:cnt] added to it.  Returns (ok, number of cached walks).
+
+    A walk from the exact nearest point ``i_exact`` stays there (no point is strictly closer):
+    it is not walked.  A walk longer than ``max_moves`` decides the answer (False) at once,
+    the later seeds are then walked only if asked again.
+    """
+    for s in range(n0):
+        if cache_m[s] > max_moves:
+            return False, n0
     for s in range(n0, cnt):
         if seeds[s] == i_exact:
             e0 = rf[i_exact, 0] - q0
@@ -299,12 +306,12 @@ def _walks_ok(q0, q1, q2, seeds, n0, cnt, cache_d, cache_m, rf, ri, rh, rs, max_
         _, d2, k = walk(q0, q1, q2, seeds[s], rf, ri, rh, rs, max_moves + 1)
         cache_d[s] = d2
         cache_m[s] = k
+        if k > max_moves:
+            return False, s + 1
     bd = np.inf
-    mv = 0
     for s in range(cnt):
-        mv = max(mv, cache_m[s])
         bd = min(bd, cache_d[s])
-    return mv <= max_moves and np.sqrt(bd) <= d_exact * (1.0 + 1e-12) + tol
+    return np.sqrt(bd) <= d_exact * (1.0 + 1e-12) + tol, cnt
 
 
 @njit(cache=True, nogil=True)
@@ -349,9 +356,8 @@ def multi_children(ids, parents, off, lst, lat, pts, origin, size, first_seed, r
                 q0 = origin[0] + size * (c[0] + _CX[o])
                 q1 = origin[1] + size * (c[1] + _CY[o])
                 q2 = origin[2] + size * (c[2] + _CZ[o])
-                good = _walks_ok(q0, q1, q2, seeds, nc[o], cnt, cd[o], cm[o], rf, ri, rh, rs,
-                                 max_moves, vi[o], vd[o], tol)
-                nc[o] = cnt
+                good, nc[o] = _walks_ok(q0, q1, q2, seeds, nc[o], cnt, cd[o], cm[o], rf, ri,
+                                        rh, rs, max_moves, vi[o], vd[o], tol)
                 if not good:
                     if rnd == 0 and cnt < cap:
                         seeds[cnt] = vi[o]
@@ -370,7 +376,7 @@ def multi_children(ids, parents, off, lst, lat, pts, origin, size, first_seed, r
                 q2 = origin[2] + h * (2 * c[2] + EXTRA[e, 2])
                 xi, xd = _nn(q0, q1, q2, pts, lst, a, b)
                 if not _walks_ok(q0, q1, q2, seeds, 0, cnt, ed, em, rf, ri, rh, rs, max_moves,
-                                 xi, xd, tol):
+                                 xi, xd, tol)[0]:
                     ok = False
                     if last_level and cnt < cap:
                         seeds[cnt] = xi
