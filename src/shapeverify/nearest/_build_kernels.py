@@ -54,16 +54,6 @@ def _nn(q0, q1, q2, pts, lst, a, b):
 
 
 @njit(cache=True, nogil=True)
-def _vertex_nn(c, origin, size, pts, lst, a, b, out_i, out_d):
-    """Exact nearest points of the 8 vertices of cell c (integer coordinates, size ``size``)."""
-    for o in range(8):
-        q0 = origin[0] + size * (c[0] + _CX[o])
-        q1 = origin[1] + size * (c[1] + _CY[o])
-        q2 = origin[2] + size * (c[2] + _CZ[o])
-        out_i[o], out_d[o] = _nn(q0, q1, q2, pts, lst, a, b)
-
-
-@njit(cache=True, nogil=True)
 def _vertex_from_lattice(lat_p, oc, c, origin, size, pts, out_i, out_d):
     """The 8 vertices' nearest points of child ``oc`` (coordinates c) from its parent's lattice
     row ``lat_p`` (27,), and their distances (computed as in :func:`_nn`)."""
