@@ -68,10 +68,36 @@ def _vertex_from_lattice(lat_p, oc, c, origin, size, pts, out_i, out_d):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _keep(p, c0, c1, c2, half, pts, wit, U):
+def _witnesses(wit, pts, c0, c1, c2, out_i, out_xyz, out_d):
+    """The distinct witnesses of a cell (its vertices' nearest points ``wit`` (8,)), their
+    coordinates and squared distances to the centre c; returns how many."""
+    nw = 0
+    for w in range(wit.shape[0]):
+        a = wit[w]
+        dup = False
+        for v in range(nw):
+            if out_i[v] == a:
+                dup = True
+        if dup:
+            continue
+        y0 = pts[a, 0]
+        y1 = pts[a, 1]
+        y2 = pts[a, 2]
+        out_i[nw] = a
+        out_xyz[nw, 0] = y0
+        out_xyz[nw, 1] = y1
+        out_xyz[nw, 2] = y2
+        out_d[nw] = (y0 - c0) ** 2 + (y1 - c1) ** 2 + (y2 - c2) ** 2
+        nw += 1
+    return nw
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _keep(p, c0, c1, c2, half, pts, nw, wi, wxyz, wd, U):
     """Whether model point p can be the nearest one somewhere in the cube (centre c, half
-    side ``half``) whose vertices' nearest points are ``wit`` (8,) and nearest distances are
-    all <= U (see the module docstring)."""
+    side ``half``) whose vertices' nearest points (the ``nw`` distinct witnesses ``wi``, with
+    coordinates ``wxyz`` and squared distances to c ``wd``, :func:`_witnesses`) are all within
+    U of every point of it (see the module docstring)."""
     x0 = pts[p, 0]
     x1 = pts[p, 1]
     x2 = pts[p, 2]
@@ -81,14 +107,13 @@ def _keep(p, c0, c1, c2, half, pts, wit, U):
     if g0 * g0 + g1 * g1 + g2 * g2 > U * U:
         return False
     dp = (x0 - c0) ** 2 + (x1 - c1) ** 2 + (x2 - c2) ** 2
-    for w in range(wit.shape[0]):
-        a = wit[w]
-        if a == p:
+    for w in range(nw):
+        if wi[w] == p:
             continue
-        y0 = pts[a, 0]
-        y1 = pts[a, 1]
-        y2 = pts[a, 2]
-        da = (y0 - c0) ** 2 + (y1 - c1) ** 2 + (y2 - c2) ** 2
+        y0 = wxyz[w, 0]
+        y1 = wxyz[w, 1]
+        y2 = wxyz[w, 2]
+        da = wd[w]
         worst = da - dp + 2.0 * half * (abs(x0 - y0) + abs(x1 - y1) + abs(x2 - y2))
         if worst < -1e-9 * (da + dp):
             return False
@@ -167,6 +192,9 @@ def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
     pos = 0
     half = 0.5 * size
     wit = np.empty(8, dtype=np.int64)
+    wi = np.empty(8, dtype=np.int64)
+    wxyz = np.empty((8, 3))
+    wd = np.empty(8)
     for m in range(R):
         for o in range(8):
             wit[o] = vnn_i[m, o]
@@ -174,6 +202,7 @@ def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
         c1 = origin[1] + size * (cells[m, 1] + 0.5)
         c2 = origin[2] + size * (cells[m, 2] + 0.5)
         U = _bound(vnn_d[m], wit, pts, c0, c1, c2, half) * (1.0 + 1e-9)
+        nw = _witnesses(wit, pts, c0, c1, c2, wi, wxyz, wd)
         k = int(np.ceil(U / size)) + 1
         x0 = max(0, cells[m, 0] - k)
         x1 = min(dims[0] - 1, cells[m, 0] + k)
@@ -197,13 +226,13 @@ def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
                     gz = max(abs(iz - cells[m, 2]) - 1, 0) * size
                     if gx * gx + gy * gy + gz * gz > U * U:
                         continue
-                    if _bin_beaten(ix, iy, iz, origin, size, c0, c1, c2, pts, wit):
+                    if _bin_beaten(ix, iy, iz, origin, size, c0, c1, c2, pts, wi[:nw]):
                         continue
                     if a1 - a0 + pos > buf.shape[0]:
                         buf = _grow(buf, a1 - a0 + pos)
                     for s in range(a0, a1):
                         p = order[s]
-                        if _keep(p, c0, c1, c2, half, pts, wit, U):
+                        if _keep(p, c0, c1, c2, half, pts, nw, wi, wxyz, wd, U):
                             buf[pos] = p
                             pos += 1
         counts[m] = pos - n0
@@ -389,6 +418,9 @@ def child_lists(ids, parents, off, lst, lat, pts, origin, size):
     half = 0.5 * size
     vi = np.empty(8, dtype=np.int64)
     vd = np.empty(8)
+    wi = np.empty(8, dtype=np.int64)
+    wxyz = np.empty((8, 3))
+    wd = np.empty(8)
     c = np.empty(3, dtype=np.int64)
     for f in range(n):
         m = ids[f]
@@ -404,12 +436,13 @@ def child_lists(ids, parents, off, lst, lat, pts, origin, size):
         c1 = origin[1] + size * (c[1] + 0.5)
         c2 = origin[2] + size * (c[2] + 0.5)
         U = _bound(vd, vi, pts, c0, c1, c2, half) * (1.0 + 1e-9)
+        nw = _witnesses(vi, pts, c0, c1, c2, wi, wxyz, wd)
         if pos + (b - a) > buf.shape[0]:
             buf = _grow(buf, pos + (b - a))
         n0 = pos
         for s in range(a, b):
             q = lst[s]
-            if _keep(q, c0, c1, c2, half, pts, vi, U):
+            if _keep(q, c0, c1, c2, half, pts, nw, wi, wxyz, wd, U):
                 buf[pos] = q
                 pos += 1
         counts[f] = pos - n0
