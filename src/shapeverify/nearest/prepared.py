@@ -10,8 +10,8 @@ Morton curve, links each to its 8 nearest neighbours and builds the DVG tree
 
 Defaults (``size`` = bounding-box diagonal of the model, mm)
 -------------------------------------------------------------
-``spacing = size / 500`` and ``max_distance = 0.03 * size`` (3 % of the size = 15 spacings,
-at least 2 spacings).  Queries farther than ``max_distance`` from the model are still
+``spacing = size / 500`` and ``max_distance = 0.03 * size`` (3 % of the size = 15 spacings;
+at most 15 and at least 2 spacings for other spacings).  Queries farther than ``max_distance`` from the model are still
 answered exactly, by a kd-tree (slower).
 
 Memory (:attr:`Prepared.nbytes`) per model point: a 128-byte record (coordinates, 8
@@ -63,8 +63,21 @@ def default_spacing(size: float) -> float:
 
 
 def default_max_distance(size: float, spacing: float) -> float:
-    """Tree reach used when none is given: 3 % of the size, at least 2 spacings."""
-    return float(max(0.03 * size, 2.0 * spacing))
+    """Tree reach used when none is given: 3 % of the size, at most 15 and at least 2 spacings.
+
+    At the default spacing (size / 500) 3 % of the size is 15 spacings. A finer spacing keeps
+    the reach at 15 spacings: a 3 % reach at a third of the default spacing asked the tree for
+    so many cells that it stopped refining (its memory budget) and near-surface queries got
+    12x slower (1.7 us instead of 0.14 us on the panel at 0.35 mm); queries beyond the reach
+    are still answered exactly, by the kd-tree.
+
+    >>> [round(default_max_distance(360.0, h), 6) for h in (0.72, 0.35, 10.0)]
+    [10.8, 5.25, 20.0]
+    """
+    reach = 0.03 * size
+    if 15.0 * spacing < reach * (1.0 - 1e-9):   # (not an ulp below 3 % at the default spacing)
+        reach = 15.0 * spacing
+    return float(max(reach, 2.0 * spacing))
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -323,7 +336,8 @@ def prepare(model, spacing: float | None = None, reach: float | None = None, *,
         the cloud's own point spacing).
     reach : float, optional
         The closest-point structure's reach: queries within this distance (mm) are answered by
-        the DVG tree, farther ones by a kd-tree; default ``max(0.03 * model.size, 2 * spacing)``.
+        the DVG tree, farther ones by a kd-tree; default
+        ``max(min(0.03 * model.size, 15 * spacing), 2 * spacing)``.
         (Not the inspection's evaluation distance, which decides which scan points count.)
     max_distance : float, optional
         Old name of ``reach``.
