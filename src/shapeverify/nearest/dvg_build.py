@@ -235,6 +235,10 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         # (about 8 more int32 per refined cell); beyond the budget this level is the last
         last = level == max_level or (
             level > 0 and 4 * (n_nodes + n_list + 16 * fail.size) > tree_budget * n)
+        if last and level < max_level - 1 and fail.size:
+            logger.warning("DVG tree: memory budget reached at level %d of %d (%d cells left "
+                           "unrefined): near-surface queries will be slower; give a smaller "
+                           "max_distance or a coarser spacing", level, max_level, fail.size)
         if fail.size and (size <= multi_size or last):
             if level == 0:
                 fkind, fseeds, fn = _top_multi(fail, cells, origin, size, dims, kd, n, RV,
