@@ -330,3 +330,33 @@ def test_fixture_pose_is_saved_with_the_prepared_model_and_starts_inspections(tm
     np.testing.assert_array_equal(back.fixture, prep.fixture)
     res = sv.inspect(back, vs.scan, tolerance=0.2)
     assert res.registration.init == "given" and res.verdict == "pass", res.reasons
+
+
+def test_load_prepared_reads_bytes_and_file_objects_like_a_path(tmp_path):
+    """Pins: load_prepared took only a path, so batch wrote the model's bytes to a temporary
+    file in every worker. Bytes and binary file objects now give the same model; damaged
+    bytes give the same ModelFileError as a damaged file."""
+    import io
+
+    from shapeverify.cad.examples import wavy_panel
+    from shapeverify.errors import ModelFileError
+    from shapeverify.nearest import load_prepared, prepare
+
+    prep = prepare(wavy_panel(), spacing=2.0)
+    path = tmp_path / "m.svm"
+    prep.save(path)
+    data = path.read_bytes()
+    q = np.random.default_rng(0).uniform(-5, 5, (200, 3)) + prep.points.points[:200]
+    want = load_prepared(path).closest(q)
+    with open(path, "rb") as fh:
+        for src in (data, bytearray(data), io.BytesIO(data), fh):
+            got = load_prepared(src).closest(q)
+            np.testing.assert_array_equal(got.points, want.points)
+            np.testing.assert_array_equal(got.index, want.index)
+    with pytest.raises(ModelFileError, match="damaged or truncated|not a prepared-model"):
+        load_prepared(data[: len(data) // 2])
+    with pytest.raises(ModelFileError, match="empty"):
+        load_prepared(b"")
+    with open(path, "r", encoding="latin-1") as text:
+        with pytest.raises(TypeError, match="binary mode"):
+            load_prepared(text)

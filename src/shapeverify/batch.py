@@ -42,19 +42,12 @@ _NOT_STORED = ("worker_seconds", "record_id")  # keys of a batch result the hist
 
 
 def _prepared_from_bytes(svm: bytes, digest: str):
-    """Load (once per process) the prepared model shipped as bytes (``load_prepared`` reads a
-    path, so the bytes go through one temporary file per worker process)."""
+    """Load (once per process) the prepared model shipped as bytes."""
     prep = _WORKER_MODELS.get(digest)
     if prep is None:
         from shapeverify.nearest import load_prepared
 
-        fd, path = tempfile.mkstemp(suffix=".svm")
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                fh.write(svm)
-            prep = load_prepared(path)
-        finally:
-            os.unlink(path)
+        prep = load_prepared(svm)
         _WORKER_MODELS[digest] = prep
     return prep
 

@@ -30,6 +30,7 @@ Int. J. Adv. Manuf. Technol. 54 (2011) 677-689 (Paper I of the thesis).
 
 from __future__ import annotations
 
+import io
 import json
 import logging
 import os
@@ -405,8 +406,11 @@ def prepare(model, spacing: float | None = None, reach: float | None = None, *,
     return prep
 
 
-def load_prepared(path) -> Prepared:
+def load_prepared(source) -> Prepared:
     """Read a ``.svm`` file written by :meth:`Prepared.save`.
+
+    ``source`` is a path, the file's bytes, or a binary file object (e.g. a model shipped to
+    a batch worker in memory).
 
     Raises
     ------
@@ -420,28 +424,38 @@ def load_prepared(path) -> Prepared:
     from shapeverify.cad.persist import DAMAGED_FILE_ERRORS
     from shapeverify.errors import EmptyModelError, ModelFileError
 
-    path = Path(os.fspath(path))
-    if not path.is_file():
-        import errno
-        raise FileNotFoundError(errno.ENOENT, f"no such prepared-model file: {path}", str(path))
+    if isinstance(source, (bytes, bytearray, memoryview)):
+        data, where = bytes(source), "<prepared model bytes>"
+    elif hasattr(source, "read"):
+        data, where = source.read(), str(getattr(source, "name", "<prepared model file object>"))
+        if not isinstance(data, bytes):
+            raise TypeError(f"{where}: open the .svm file in binary mode ('rb')")
+    else:
+        path = Path(os.fspath(source))
+        if not path.is_file():
+            import errno
+            raise FileNotFoundError(errno.ENOENT, f"no such prepared-model file: {path}",
+                                    str(path))
+        data, where = None, path
     redo = "run `shapeverify prepare CAD -o MODEL.svm` again to make a new one"
     try:
-        return _load_prepared(path)
+        return _load_prepared(where if data is None else io.BytesIO(data), where,
+                              len(data) if data is not None else where.stat().st_size)
     except (ModelFileError, EmptyModelError) as exc:
         raise ModelFileError(f"{exc}; {redo}") from None
     except DAMAGED_FILE_ERRORS as exc:
-        raise ModelFileError(f"{path}: not a readable prepared-model (.svm) file, damaged or "
+        raise ModelFileError(f"{where}: not a readable prepared-model (.svm) file, damaged or "
                              f"truncated ({type(exc).__name__}: {exc}); {redo}") from None
 
 
-def _load_prepared(path: Path) -> Prepared:
+def _load_prepared(src, path, n_bytes: int) -> Prepared:
     from shapeverify.cad.persist import model_from_arrays
     from shapeverify.errors import ModelFileError
 
-    if path.stat().st_size == 0:
+    if n_bytes == 0:
         raise ModelFileError(f"{path}: the prepared-model (.svm) file is empty (0 bytes)")
     try:
-        z = np.load(path, allow_pickle=False)
+        z = np.load(src, allow_pickle=False)
     except (ValueError, OSError, zipfile.BadZipFile) as exc:
         raise ModelFileError(f"{path}: not a prepared-model (.svm) file ({exc})") from None
     with z:
