@@ -401,7 +401,7 @@ def rps_alignment(scan, prep, points, init=None, radius: float = 4.0, max_iterat
         else:
             holes = [f for f in feats if f.kind == "hole"]
             if holes:
-                h = find_feature(holes, near=at, kind="hole")
+                h = find_feature(holes, near=at, kind="hole", strict=False)
                 q = at - h.center
                 if np.linalg.norm(q - (q @ h.axis) * h.axis) <= 0.5 * h.diameter:
                     hole = h
