@@ -192,34 +192,34 @@ def _far_queries(svm: Path) -> None:
     from shapeverify.nearest import load_prepared
 
     prep = load_prepared(svm)
-    lo, hi = prep.model.bounds
-    size = float(np.linalg.norm(hi - lo))
+    size = prep.model.size
     mp = prep.points
-    near = mp.points[:: max(1, len(mp.points) // 200)] + 0.1 * mp.normals[:: max(1, len(mp.points) // 200)]
-    far = near + 3.0 * max(prep.reach, 0.01 * size) * mp.normals[:: max(1, len(mp.points) // 200)]
+    step = max(1, len(mp.points) // 200)
+    pts, nrm = mp.points[::step], mp.normals[::step]
+    near = pts + 0.1 * nrm
+    far = near + 3.0 * max(prep.reach, 0.01 * size) * nrm
     q = np.ascontiguousarray(np.vstack([near, far]))
     for exact in (False, True):
         prep.closest(q, exact=exact)
 
 
 def main(argv=None) -> int:
-    """``python -m shapeverify.warmup [--quiet]``."""
+    """``python -m shapeverify.warmup [--quiet]``: the set-up step; it reports through this
+    module's logger, shown on standard output unless ``--quiet``."""
     argv = sys.argv[1:] if argv is None else argv
-    quiet = "--quiet" in argv or "-q" in argv
-
-    def say(text):
-        if not quiet:
-            print(f"  warm-up: {text}", flush=True)
-
-    if not quiet:
-        est = COLD_SECONDS["warmup"]
-        print(f"shapeverify: compiling the numeric kernels once for this machine (numba; about "
-              f"{est / 60:.0f} min on one core with an empty cache, a few seconds when they are "
-              f"cached already). Cache: {os.environ.get('NUMBA_CACHE_DIR') or '__pycache__ beside the sources'}",
-              flush=True)
-    seconds = warm_up(say)
-    if not quiet:
-        print(f"shapeverify: kernels ready ({seconds:.0f} s)", flush=True)
+    if not ("--quiet" in argv or "-q" in argv):
+        handler = logging.StreamHandler(sys.stdout)
+        handler.setFormatter(logging.Formatter("%(message)s"))
+        logger.addHandler(handler)
+        logger.setLevel(logging.INFO)
+        logger.propagate = False
+    est = COLD_SECONDS["warmup"]
+    logger.info("shapeverify: compiling the numeric kernels once for this machine (numba; about "
+                "%.0f min on one core with an empty cache, a few seconds when they are cached "
+                "already). Cache: %s", est / 60,
+                os.environ.get("NUMBA_CACHE_DIR") or "__pycache__ beside the sources")
+    seconds = warm_up(lambda text: logger.info("  warm-up: %s", text))
+    logger.info("shapeverify: kernels ready (%.0f s)", seconds)
     return 0
 
 
