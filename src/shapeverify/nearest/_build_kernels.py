@@ -151,6 +151,20 @@ def _grow(buf, need):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _append_kept(src, a, b, buf, pos, c0, c1, c2, half, pts, nw, wi, wxyz, wd, U):
+    """Append to ``buf`` (grown as needed) the points ``src[a:b]`` that :func:`_keep` keeps
+    for the cube centred at c; returns (buf, new end)."""
+    if pos + (b - a) > buf.shape[0]:
+        buf = _grow(buf, pos + (b - a))
+    for s in range(a, b):
+        p = src[s]
+        if _keep(p, c0, c1, c2, half, pts, nw, wi, wxyz, wd, U):
+            buf[pos] = p
+            pos += 1
+    return buf, pos
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _bin_beaten(ix, iy, iz, origin, size, c0, c1, c2, pts, wit):
     """Whether one witness beats every point of bin (ix, iy, iz) (a top grid cell) everywhere
     in the cube of side ``size`` centred at c: the largest value of ``_keep``'s witness
@@ -228,13 +242,8 @@ def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
                         continue
                     if _bin_beaten(ix, iy, iz, origin, size, c0, c1, c2, pts, wi[:nw]):
                         continue
-                    if a1 - a0 + pos > buf.shape[0]:
-                        buf = _grow(buf, a1 - a0 + pos)
-                    for s in range(a0, a1):
-                        p = order[s]
-                        if _keep(p, c0, c1, c2, half, pts, nw, wi, wxyz, wd, U):
-                            buf[pos] = p
-                            pos += 1
+                    buf, pos = _append_kept(order, a0, a1, buf, pos, c0, c1, c2, half, pts,
+                                            nw, wi, wxyz, wd, U)
         counts[m] = pos - n0
     return counts, buf[:pos].copy()
 
@@ -437,14 +446,8 @@ def child_lists(ids, parents, off, lst, lat, pts, origin, size):
         c2 = origin[2] + size * (c[2] + 0.5)
         U = _bound(vd, vi, pts, c0, c1, c2, half) * (1.0 + 1e-9)
         nw = _witnesses(vi, pts, c0, c1, c2, wi, wxyz, wd)
-        if pos + (b - a) > buf.shape[0]:
-            buf = _grow(buf, pos + (b - a))
         n0 = pos
-        for s in range(a, b):
-            q = lst[s]
-            if _keep(q, c0, c1, c2, half, pts, nw, wi, wxyz, wd, U):
-                buf[pos] = q
-                pos += 1
+        buf, pos = _append_kept(lst, a, b, buf, pos, c0, c1, c2, half, pts, nw, wi, wxyz, wd, U)
         counts[f] = pos - n0
     return counts, buf[:pos].copy()
 
