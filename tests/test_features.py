@@ -107,6 +107,41 @@ def _name_by_position(c) -> str:
     return "bore"
 
 
+def _name_faces(tool, label, shape, name_of) -> None:
+    """Name each face of ``shape`` (the shape of XCAF ``label``) ``name_of(centre)``; None
+    leaves it unnamed."""
+    from OCP.BRepGProp import BRepGProp
+    from OCP.GProp import GProp_GProps
+    from OCP.TCollection import TCollection_ExtendedString
+    from OCP.TDataStd import TDataStd_Name
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp_Explorer
+
+    exp = TopExp_Explorer(shape, TopAbs_FACE)
+    while exp.More():
+        props = GProp_GProps()
+        BRepGProp.SurfaceProperties_s(exp.Current(), props)
+        c = props.CentreOfMass()
+        name = name_of((c.X(), c.Y(), c.Z()))
+        if name is not None:
+            TDataStd_Name.Set_s(tool.AddSubShape(label, exp.Current()),
+                                TCollection_ExtendedString(name))
+        exp.Next()
+
+
+def _write_xcaf_step(doc, path) -> None:
+    """Write an XCAF document to STEP with the names of its sub-shapes."""
+    from OCP.Interface import Interface_Static
+    from OCP.STEPCAFControl import STEPCAFControl_Writer
+    from OCP.STEPControl import STEPControl_AsIs
+
+    writer = STEPCAFControl_Writer()
+    assert Interface_Static.SetIVal_s("write.stepcaf.subshapes.name", 1)
+    writer.SetNameMode(True)
+    assert writer.Transfer(doc, STEPControl_AsIs)
+    writer.Write(str(path))
+
+
 def _write_named_block(path):
     """A 40 x 30 x 10 mm block with a 10 mm through hole at (20, 15), its faces named through
     OCP's XCAF writer (sub-shape names), the face list of the shell then reversed in the text
@@ -114,17 +149,9 @@ def _write_named_block(path):
     import re
 
     from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut
-    from OCP.BRepGProp import BRepGProp
     from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox, BRepPrimAPI_MakeCylinder
-    from OCP.GProp import GProp_GProps
-    from OCP.Interface import Interface_Static
-    from OCP.STEPCAFControl import STEPCAFControl_Writer
-    from OCP.STEPControl import STEPControl_AsIs
     from OCP.TCollection import TCollection_ExtendedString
-    from OCP.TDataStd import TDataStd_Name
     from OCP.TDocStd import TDocStd_Document
-    from OCP.TopAbs import TopAbs_FACE
-    from OCP.TopExp import TopExp_Explorer
     from OCP.XCAFDoc import XCAFDoc_DocumentTool
     from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
 
@@ -134,19 +161,8 @@ def _write_named_block(path):
     doc = TDocStd_Document(TCollection_ExtendedString("XmlXCAF"))
     tool = XCAFDoc_DocumentTool.ShapeTool_s(doc.Main())
     label = tool.AddShape(part, False)
-    exp = TopExp_Explorer(part, TopAbs_FACE)
-    while exp.More():
-        props = GProp_GProps()
-        BRepGProp.SurfaceProperties_s(exp.Current(), props)
-        c = props.CentreOfMass()
-        TDataStd_Name.Set_s(tool.AddSubShape(label, exp.Current()),
-                            TCollection_ExtendedString(_name_by_position((c.X(), c.Y(), c.Z()))))
-        exp.Next()
-    writer = STEPCAFControl_Writer()
-    assert Interface_Static.SetIVal_s("write.stepcaf.subshapes.name", 1)
-    writer.SetNameMode(True)
-    assert writer.Transfer(doc, STEPControl_AsIs)
-    writer.Write(str(path))
+    _name_faces(tool, label, part, _name_by_position)
+    _write_xcaf_step(doc, path)
     text = path.read_text()
     shell = re.search(r"CLOSED_SHELL\('([^']*)',\(([^)]*)\)\)", text)
     ids = [s.strip() for s in shell.group(2).split(",")]
@@ -273,17 +289,9 @@ def test_info_features_lists_the_step_face_names(named_step, tmp_path):
 
 
 def test_a_named_face_of_a_part_placed_twice_in_an_assembly_is_named_on_both(tmp_path):
-    from OCP.BRepGProp import BRepGProp
     from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
-    from OCP.GProp import GProp_GProps
-    from OCP.Interface import Interface_Static
-    from OCP.STEPCAFControl import STEPCAFControl_Writer
-    from OCP.STEPControl import STEPControl_AsIs
     from OCP.TCollection import TCollection_ExtendedString
-    from OCP.TDataStd import TDataStd_Name
     from OCP.TDocStd import TDocStd_Document
-    from OCP.TopAbs import TopAbs_FACE
-    from OCP.TopExp import TopExp_Explorer
     from OCP.TopLoc import TopLoc_Location
     from OCP.XCAFDoc import XCAFDoc_DocumentTool
     from OCP.gp import gp_Trsf, gp_Vec
@@ -294,25 +302,14 @@ def test_a_named_face_of_a_part_placed_twice_in_an_assembly_is_named_on_both(tmp
     doc = TDocStd_Document(TCollection_ExtendedString("XmlXCAF"))
     tool = XCAFDoc_DocumentTool.ShapeTool_s(doc.Main())
     part = tool.AddShape(box, False)
-    exp = TopExp_Explorer(box, TopAbs_FACE)
-    while exp.More():
-        props = GProp_GProps()
-        BRepGProp.SurfaceProperties_s(exp.Current(), props)
-        if abs(props.CentreOfMass().Z() - 30.0) < 1e-9:
-            TDataStd_Name.Set_s(tool.AddSubShape(part, exp.Current()),
-                                TCollection_ExtendedString("top"))
-        exp.Next()
+    _name_faces(tool, part, box, lambda c: "top" if abs(c[2] - 30.0) < 1e-9 else None)
     assembly = tool.NewShape()
     for dx in (0.0, 50.0):
         move = gp_Trsf()
         move.SetTranslation(gp_Vec(dx, 0.0, 0.0))
         tool.AddComponent(assembly, part, TopLoc_Location(move))
     tool.UpdateAssemblies()
-    writer = STEPCAFControl_Writer()
-    Interface_Static.SetIVal_s("write.stepcaf.subshapes.name", 1)
-    writer.SetNameMode(True)
-    assert writer.Transfer(doc, STEPControl_AsIs)
-    writer.Write(str(tmp_path / "asm.step"))
+    _write_xcaf_step(doc, tmp_path / "asm.step")
     model = read_cad(tmp_path / "asm.step", isolated=False)
     assert len(model.faces) == 12
     tops = sorted(float(f.center[0]) for f in model_features(model) if f.name == "top")
