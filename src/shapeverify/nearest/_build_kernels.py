@@ -68,6 +68,20 @@ def _vertex_from_lattice(lat_p, oc, c, origin, size, pts, out_i, out_d):
 
 
 @njit(cache=True, nogil=True, inline="always")
+def _child_cell(m, parents, lat, origin, size, pts, c, vi, vd):
+    """Child ``m`` (8 p + octant) of the refined parents: its cell coordinates into ``c`` (3,)
+    and its vertices' nearest points and distances into ``vi``, ``vd`` (8,) from the parent's
+    lattice; returns the parent p."""
+    p = m // 8
+    oc = m % 8
+    c[0] = 2 * parents[p, 0] + _CX[oc]
+    c[1] = 2 * parents[p, 1] + _CY[oc]
+    c[2] = 2 * parents[p, 2] + _CZ[oc]
+    _vertex_from_lattice(lat[p], oc, c, origin, size, pts, vi, vd)
+    return p
+
+
+@njit(cache=True, nogil=True, inline="always")
 def _witnesses(wit, pts, c0, c1, c2, out_i, out_xyz, out_d):
     """The distinct witnesses of a cell (its vertices' nearest points ``wit`` (8,)), their
     coordinates and squared distances to the centre c; returns how many."""
@@ -365,14 +379,9 @@ def multi_children(ids, parents, off, lst, lat, pts, origin, size, first_seed, r
     c = np.empty(3, dtype=np.int64)
     for f in range(ids.shape[0]):
         m = ids[f]
-        p = m // 8
-        oc = m % 8
+        p = _child_cell(m, parents, lat, origin, size, pts, c, vi, vd)
         a = off[p]
         b = off[p + 1]
-        c[0] = 2 * parents[p, 0] + _CX[oc]
-        c[1] = 2 * parents[p, 1] + _CY[oc]
-        c[2] = 2 * parents[p, 2] + _CZ[oc]
-        _vertex_from_lattice(lat[p], oc, c, origin, size, pts, vi, vd)
         seeds = out_seeds[f]
         seeds[0] = first_seed[m]
         cnt = 1
@@ -433,14 +442,9 @@ def child_lists(ids, parents, off, lst, lat, pts, origin, size):
     c = np.empty(3, dtype=np.int64)
     for f in range(n):
         m = ids[f]
-        p = m // 8
-        oc = m % 8
+        p = _child_cell(m, parents, lat, origin, size, pts, c, vi, vd)
         a = off[p]
         b = off[p + 1]
-        c[0] = 2 * parents[p, 0] + _CX[oc]
-        c[1] = 2 * parents[p, 1] + _CY[oc]
-        c[2] = 2 * parents[p, 2] + _CZ[oc]
-        _vertex_from_lattice(lat[p], oc, c, origin, size, pts, vi, vd)
         c0 = origin[0] + size * (c[0] + 0.5)
         c1 = origin[1] + size * (c[1] + 0.5)
         c2 = origin[2] + size * (c[2] + 0.5)
