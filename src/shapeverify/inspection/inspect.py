@@ -16,7 +16,7 @@ from ..errors import EmptyModelError, RegistrationError, ScanError
 from ..units import MIXUPS, fitting_factor, unit_hint
 from .coverage import MIN_COVERAGE, compute_coverage
 from .deviations import _deviations
-from .material import find_material, floating_surfaces
+from .material import beside_surface, find_material, floating_surfaces
 from .plan_link import PlanPose, with_characteristics
 from .regions import MIN_POINTS, find_regions, median_spacing
 from .result import InspectionResult
@@ -415,7 +415,8 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
     regions, outliers, _ = find_regions(dev.foot_points, dev.values, ev, within, dev.face,
                                         dev.normals, weights, min_points=opts.min_region_points,
                                         spacing=spacing, limits=tol.limits(dev.face), tree=tree)
-    material = find_material(dev, spacing, tol.upper)
+    beside = beside_surface(dev)                    # material and floating surfaces share it
+    material = find_material(dev, spacing, tol.upper, beside=beside)
     regions = sorted(regions + material, key=lambda r: -r.severity)
     timings["regions"] = time.perf_counter() - t0
 
@@ -445,7 +446,7 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
         notes.append(f"{outliers.n} isolated out-of-tolerance points treated as measurement "
                      f"outliers ({outliers.n_low_weight} rejected by the registration) and left "
                      "out of the statistics")
-    for fs in floating_surfaces(dev, spacing)[:3]:
+    for fs in floating_surfaces(dev, spacing, beside=beside)[:3]:
         c = fs["centroid"]
         notes.append(f"{fs['n']} scan points form a surface {fs['height'][0]:.2f}-{fs['height'][1]:.2f} mm "
                      f"above the CAD around ({c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f}) mm, beyond the "

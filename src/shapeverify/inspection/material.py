@@ -53,7 +53,7 @@ MAX_NORMAL_SHARE = 0.5
 
 
 def find_material(dev, spacing: float, upper_limit: float,
-                  min_points: int = MIN_MATERIAL_POINTS) -> list[DefectRegion]:
+                  min_points: int = MIN_MATERIAL_POINTS, *, beside=None) -> list[DefectRegion]:
     """Material regions of an inspection (see the module docstring).
 
     Parameters
@@ -65,6 +65,8 @@ def find_material(dev, spacing: float, upper_limit: float,
         The tolerance's upper limit (mm), for the severity.
     min_points : int
         Fewest too-far points of a region.
+    beside : ((N,) bool, (N,) float64), optional
+        :func:`beside_surface` of ``dev``, when the caller has it (it is computed otherwise).
 
     Returns
     -------
@@ -76,7 +78,7 @@ def find_material(dev, spacing: float, upper_limit: float,
     too_far = dev.reason == TOO_FAR
     if np.count_nonzero(too_far) < min_points or dev.n_evaluated == 0:
         return []
-    beside, dist = _beside(dev)
+    beside, dist = beside_surface(dev) if beside is None else beside
     cand = np.flatnonzero((too_far & beside) | (dev.reason == ON_BOUNDARY))
     if cand.size < min_points:
         return []
@@ -118,25 +120,35 @@ def find_material(dev, spacing: float, upper_limit: float,
     return out
 
 
-def _beside(dev):
-    """``(beside (N,) bool, distance (N,))``: offset from the foot point mostly along the surface."""
-    delta = dev.points_model - dev.foot_points
+def beside_surface(dev):
+    """``(beside (N,) bool, distance (N,) mm)`` of the *too-far* points: is the scan point's
+    offset from its foot point mostly along the surface (at most :data:`MAX_NORMAL_SHARE` of
+    it along the normal), and the offset's length; False and NaN for the other points (neither
+    :func:`find_material` nor :func:`floating_surfaces`, which both use it, looks at them)."""
+    n = dev.reason.shape[0]
+    beside = np.zeros(n, bool)
+    dist = np.full(n, np.nan)
+    rows = np.flatnonzero(dev.reason == TOO_FAR)
+    delta = dev.points_model[rows] - dev.foot_points[rows]
     with np.errstate(invalid="ignore"):
-        dist = np.linalg.norm(delta, axis=1)
-        along_n = np.abs(np.einsum("ij,ij->i", delta, dev.normals))
-        beside = np.isfinite(dist) & (along_n <= MAX_NORMAL_SHARE * dist)
+        d = np.linalg.norm(delta, axis=1)
+        along_n = np.abs(np.einsum("ij,ij->i", delta, dev.normals[rows]))
+        beside[rows] = np.isfinite(d) & (along_n <= MAX_NORMAL_SHARE * d)
+    dist[rows] = d
     return beside, dist
 
 
-def floating_surfaces(dev, spacing: float, min_points: int = 3 * MIN_MATERIAL_POINTS) -> list[dict]:
+def floating_surfaces(dev, spacing: float, min_points: int = 3 * MIN_MATERIAL_POINTS, *,
+                      beside=None) -> list[dict]:
     """Dense clusters of too-far points *above* the CAD faces (offset along the normal).
 
     Returns ``[{"n", "centroid", "faces", "height": [min, max]}]`` (mm, model frame), largest
     first: a reflection, a foreign object, or a deviation beyond the evaluation distance.
+    ``beside``: :func:`beside_surface` of ``dev`` if the caller has it.
     """
     if not (np.isfinite(spacing) and spacing > 0):
         return []
-    beside, dist = _beside(dev)
+    beside, dist = beside_surface(dev) if beside is None else beside
     idx = np.flatnonzero((dev.reason == TOO_FAR) & ~beside & np.isfinite(dist))
     if idx.size < min_points:
         return []

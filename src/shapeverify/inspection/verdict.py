@@ -264,6 +264,8 @@ def statistics(values: np.ndarray, within: np.ndarray | None = None,
 def per_face_statistics(values: np.ndarray, face: np.ndarray, within: np.ndarray,
                         above: np.ndarray) -> dict[int, Statistics]:
     """:func:`statistics` for each face that has evaluated points: ``{face: Statistics}``."""
+    if face.shape[0] and face.min() == face.max():     # one face: its points are all of them
+        return {int(face[0]): statistics(values, within, above)}
     order = np.argsort(face, kind="stable")
     f_sorted = face[order]
     faces, starts = np.unique(f_sorted, return_index=True)

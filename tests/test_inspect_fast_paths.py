@@ -1,0 +1,67 @@
+"""The inspection's shortcuts give exactly what the plain computations give (issue 9's CPU cost).
+
+Each shortcut skips work whose answer is not looked at or is already known; pinned here against
+the computation it replaces, on inputs where that computation is written out in full.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from shapeverify.inspection import per_face_statistics, statistics
+from shapeverify.inspection.deviations import (EVALUATED, ON_BOUNDARY, TOO_FAR, Deviations)
+from shapeverify.inspection.material import MAX_NORMAL_SHARE, beside_surface
+
+
+def _random_deviations(rng, n=4000):
+    """Deviations of a wavy sheet z = f(x, y) with every reason and some points without a foot."""
+    q = np.column_stack([rng.uniform(0, 100, n), rng.uniform(0, 60, n), rng.normal(0, 1.5, n)])
+    foot = q.copy()
+    foot[:, 2] = 0.0
+    edge = rng.random(n) < 0.2                  # feet on an edge: offsets along the surface
+    foot[edge, 0] += rng.uniform(-3, 3, edge.sum())
+    normals = np.tile([0.0, 0.0, 1.0], (n, 1))
+    d = np.linalg.norm(q - foot, axis=1) * np.sign(q[:, 2])
+    reason = np.where(np.abs(d) > 1.0, TOO_FAR, EVALUATED).astype(np.int8)
+    reason[rng.random(n) < 0.05] = ON_BOUNDARY
+    lost = rng.random(n) < 0.02                 # no foot point found
+    foot[lost] = np.nan
+    normals[lost] = np.nan
+    reason[lost] = TOO_FAR
+    ev = reason == EVALUATED
+    return Deviations(np.where(ev, d, np.nan), ev, reason, np.zeros(n, np.int32), foot, normals,
+                      q, 1.0)
+
+
+def test_beside_surface_of_the_too_far_points_equals_the_full_computation():
+    rng = np.random.default_rng(4)
+    dev = _random_deviations(rng)
+    beside, dist = beside_surface(dev)
+    delta = dev.points_model - dev.foot_points            # the computation on every point
+    with np.errstate(invalid="ignore"):
+        full_dist = np.linalg.norm(delta, axis=1)
+        full = np.isfinite(full_dist) & (np.abs(np.einsum("ij,ij->i", delta, dev.normals))
+                                         <= MAX_NORMAL_SHARE * full_dist)
+    far = dev.reason == TOO_FAR
+    assert 100 < far.sum() < len(far) and 0 < (far & full).sum() < far.sum()
+    np.testing.assert_array_equal(beside[far], full[far])
+    np.testing.assert_array_equal(dist[far], full_dist[far])      # bit for bit, NaN included
+    assert not beside[~far].any() and np.isnan(dist[~far]).all()
+
+
+def test_per_face_statistics_of_one_face_equal_the_sorted_computation():
+    rng = np.random.default_rng(5)
+    v = rng.normal(0, 0.1, 5001)
+    within = np.abs(v) <= 0.2
+    for f in (0, 7):
+        face = np.full(v.size, f, np.int32)
+        got = per_face_statistics(v, face, within, v > 0)
+        assert list(got) == [f]
+        # what the general path computes: the face's points in sorted order
+        order = np.argsort(face, kind="stable")
+        assert got[f] == statistics(v[order], within[order], (v > 0)[order]) == statistics(v, within, v > 0)
+    two = np.where(np.arange(v.size) % 3 == 0, 2, 1).astype(np.int32)
+    got = per_face_statistics(v, two, within, v > 0)
+    assert got[2] == statistics(v[two == 2], within[two == 2], (v > 0)[two == 2])
+    assert got[1].n + got[2].n == v.size
+    assert per_face_statistics(v[:0], two[:0], within[:0], v[:0] > 0) == {}
