@@ -68,3 +68,37 @@ def test_any_within_surface_samples_like_the_coverage():
     got = _grid_answer(seen, samples, 2.0)
     np.testing.assert_array_equal(got, _tree_answer(seen, samples, 2.0))
     assert got[samples[:, 0] < 148].all() and not got[samples[:, 0] > 152].any()
+
+
+def _tree_nearest_other(ref, idx):
+    d, _ = cKDTree(ref).query(ref[idx], k=2)
+    return d[:, 1]
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_nearest_distances_equal_the_tree_query_bit_for_bit(seed):
+    from shapeverify.inspection.regions import nearest_distances
+
+    rng = np.random.default_rng(10 + seed)
+    for _ in range(15):
+        n = int(rng.integers(2, 3000))
+        scale = 10.0 ** rng.uniform(-3, 3)
+        ref = rng.uniform(-1, 1, (n, 3)) * scale * rng.uniform(0, 1, 3)
+        if rng.random() < 0.3:                          # isolated points far from the rest
+            ref[: max(1, n // 50)] += rng.uniform(-20, 20, (max(1, n // 50), 3)) * scale
+        if rng.random() < 0.3:                          # duplicates: distance 0
+            ref[-3:] = ref[0]
+        idx = np.arange(0, n, max(1, n // 400))
+        np.testing.assert_array_equal(nearest_distances(ref, idx), _tree_nearest_other(ref, idx))
+
+
+def test_nearest_distances_of_two_points_and_of_a_line():
+    from shapeverify.inspection.regions import nearest_distances
+
+    two = np.array([[0.0, 0.0, 0.0], [3.0, 4.0, 0.0]])
+    assert nearest_distances(two, np.array([0, 1])).tolist() == [5.0, 5.0]
+    line = np.column_stack([np.cumsum(np.arange(1.0, 40.0)), np.zeros(39), np.zeros(39)])
+    np.testing.assert_array_equal(nearest_distances(line, np.arange(39)),
+                                  _tree_nearest_other(line, np.arange(39)))
+    same = np.zeros((5, 3))
+    assert nearest_distances(same, np.arange(5)).tolist() == [0.0] * 5

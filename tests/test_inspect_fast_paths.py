@@ -65,3 +65,42 @@ def test_per_face_statistics_of_one_face_equal_the_sorted_computation():
     assert got[2] == statistics(v[two == 2], within[two == 2], (v > 0)[two == 2])
     assert got[1].n + got[2].n == v.size
     assert per_face_statistics(v[:0], two[:0], within[:0], v[:0] > 0) == {}
+
+
+def test_regions_from_the_neighbourhood_tree_equal_those_from_the_whole_tree():
+    """find_regions without a tree builds one of the evaluated points near the out-of-tolerance
+    ones only; the regions, outliers and spacing are those the whole tree gives."""
+    from scipy.spatial import cKDTree
+
+    from shapeverify.inspection import find_regions
+
+    rng = np.random.default_rng(8)
+    x, y = np.meshgrid(np.arange(0, 120, 0.7), np.arange(0, 80, 0.7))
+    x = x.ravel() + rng.uniform(-0.2, 0.2, x.size)
+    y = y.ravel() + rng.uniform(-0.2, 0.2, y.size)
+    v = rng.normal(0, 0.03, x.size)
+    for cx, cy, depth in ((30, 30, -0.5), (90, 50, 0.4), (60, 10, -0.3)):
+        v += depth * np.exp(-((x - cx) ** 2 + (y - cy) ** 2) / (2 * 4.0 ** 2))
+    spikes = rng.choice(x.size, 80, replace=False)
+    v[spikes] += rng.choice([-1, 1], 80) * 0.6
+    pts = np.column_stack([x, y, np.zeros_like(x)])
+    normals = np.tile([0.0, 0.0, 1.0], (x.size, 1))
+    ev = rng.random(x.size) > 0.03
+    vals = np.where(ev, v, np.nan)
+    within = np.abs(vals) <= 0.2
+    face = (x > 60).astype(np.int32)
+    limits = (np.full(x.size, -0.2), np.full(x.size, 0.2))
+    whole = cKDTree(pts[ev])
+    for spacing in (None, 0.7):
+        a = find_regions(pts, vals, ev, within, face, normals, spacing=spacing, limits=limits)
+        b = find_regions(pts, vals, ev, within, face, normals, spacing=spacing, limits=limits,
+                         tree=whole)
+        assert len(a[0]) == len(b[0]) == 3 and a[2] == b[2]
+        np.testing.assert_array_equal(a[1].indices, b[1].indices)
+        for ra, rb in zip(a[0], b[0]):
+            np.testing.assert_array_equal(ra.indices, rb.indices)
+            assert (ra.n, ra.area, ra.severity, ra.extreme_raw, ra.faces, ra.side) == \
+                   (rb.n, rb.area, rb.severity, rb.extreme_raw, rb.faces, rb.side)
+            # the quadratic fit sums its neighbours in another order: the last bits may differ
+            assert abs(ra.extreme - rb.extreme) < 1e-12
+            np.testing.assert_allclose(ra.extreme_point, rb.extreme_point, rtol=0, atol=1e-9)

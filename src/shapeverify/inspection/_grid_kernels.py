@@ -1,24 +1,31 @@
-"""numba kernels of the coverage test (private; callers validate their input).
+"""numba kernels of the inspection's neighbour questions (private; callers validate their input).
 
-``any_within`` answers "is some reference point closer than r?" for every query point with a
-uniform grid of cells at least r wide: only the 27 cells around a query can hold such a point,
-and the search stops at the first one found.  It gives the same answer as
-``np.isfinite(cKDTree(ref).query(q, k=1, distance_upper_bound=r)[0])`` (a squared distance
-``dx*dx + dy*dy + dz*dz < r*r``), without looking for the nearest point.
+Both search a uniform grid of cells at least ``h`` wide (a counting sort of the points by
+cell): every point closer than ``h`` to a query lies in the 27 cells around the query's.
+
+* ``any_within`` answers "is some reference point closer than r?" and stops at the first one
+  found: the same answer as ``np.isfinite(cKDTree(ref).query(q, k=1,
+  distance_upper_bound=r)[0])`` (squared distance ``dx*dx + dy*dy + dz*dz < r*r``) without
+  looking for the nearest point.
+* ``nearest_other`` gives the distance from a point of the set to its nearest other point
+  (``cKDTree(ref).query(ref[i], k=2)[0][1]``, the same ``sqrt`` of the same sum), or -1 when
+  that is not closer than the cell width (then the caller asks the tree).
 """
 import numpy as np
 from numba import njit
 
-#: at most this many grid cells per reference point (cells are widened beyond r to stay below)
+#: at most this many grid cells per reference point, plus MIN_CELLS (cells are widened beyond
+#: h to stay below)
 CELLS_PER_POINT = 4
+MIN_CELLS = 1 << 16
+#: margin of the cell width over the distance asked about: rounding never hides a cell
+MARGIN = 1e-6
 
 
 @njit(cache=True, nogil=True)
-def any_within(ref, q, r, out):
-    """``out[i] = True`` when a row of ``ref`` is closer than ``r`` to ``q[i]`` (strictly).
-
-    ref : (n, 3) float64, n >= 1; q : (m, 3) float64; r : float > 0; out : (m,) bool, written.
-    """
+def _grid(ref, h):
+    """Grid of ``ref`` with cells at least ``h`` wide: ``(lo, dims, h, start, order, pts)``;
+    the points of cell c are ``pts[start[c]:start[c + 1]]`` (rows ``order[...]`` of ref)."""
     n = ref.shape[0]
     lo = np.empty(3)
     hi = np.empty(3)
@@ -32,10 +39,7 @@ def any_within(ref, q, r, out):
                 lo[a] = v
             if v > hi[a]:
                 hi[a] = v
-    # cells of side h >= r; widened until the grid has at most CELLS_PER_POINT * n + 64 cells
-    h = r * (1.0 + 1e-6)     # a margin over r: rounding never hides a cell
-    limit = CELLS_PER_POINT * n + 64
-    dims = np.empty(3, np.int64)
+    limit = CELLS_PER_POINT * n + MIN_CELLS
     while True:
         total = 1.0
         for a in range(3):
@@ -43,11 +47,11 @@ def any_within(ref, q, r, out):
         if total <= limit:
             break
         h *= 1.5
+    dims = np.empty(3, np.int64)
     for a in range(3):
         dims[a] = np.int64(np.floor((hi[a] - lo[a]) / h)) + 1
     ny, nz = dims[1], dims[2]
     n_cells = dims[0] * ny * nz
-    # counting sort of the reference points by cell
     cell = np.empty(n, np.int64)
     start = np.zeros(n_cells + 1, np.int64)
     for k in range(n):
@@ -60,41 +64,87 @@ def any_within(ref, q, r, out):
     for c in range(n_cells):
         start[c + 1] += start[c]
     fill = start[:-1].copy()
+    order = np.empty(n, np.int64)
     pts = np.empty((n, 3))
     for k in range(n):
         j = fill[cell[k]]
         fill[cell[k]] += 1
+        order[j] = k
         for a in range(3):
             pts[j, a] = ref[k, a]
+    return lo, dims, h, start, order, pts
+
+
+@njit(cache=True, nogil=True)
+def _block(x, y, z, lo, dims, h):
+    """The cell ranges ``(x0, x1, y0, y1, z0, z1)`` (inclusive) within one cell of a query's,
+    clamped to the grid; x0 > x1 when the query is more than a cell outside the grid."""
+    fx = np.floor((x - lo[0]) / h)
+    fy = np.floor((y - lo[1]) / h)
+    fz = np.floor((z - lo[2]) / h)
+    if fx < -1.0 or fy < -1.0 or fz < -1.0 or fx > dims[0] or fy > dims[1] or fz > dims[2]:
+        return 1, 0, 1, 0, 1, 0
+    cx, cy, cz = np.int64(fx), np.int64(fy), np.int64(fz)
+    return (max(cx - 1, 0), min(cx + 1, dims[0] - 1), max(cy - 1, 0), min(cy + 1, dims[1] - 1),
+            max(cz - 1, 0), min(cz + 1, dims[2] - 1))
+
+
+@njit(cache=True, nogil=True)
+def any_within(ref, q, r, out):
+    """``out[i] = True`` when a row of ``ref`` is closer than ``r`` to ``q[i]`` (strictly).
+
+    ref : (n, 3) float64, n >= 1; q : (m, 3) float64; r : float > 0; out : (m,) bool, written.
+    """
+    lo, dims, h, start, order, pts = _grid(ref, r * (1.0 + MARGIN))
+    ny, nz = dims[1], dims[2]
     r2 = r * r
     for i in range(q.shape[0]):
         x, y, z = q[i, 0], q[i, 1], q[i, 2]
-        out[i] = False
-        # the cells within one cell of the query's (clamped to the grid; none when it is
-        # more than a cell outside the grid in any direction)
-        fx = np.floor((x - lo[0]) / h)
-        fy = np.floor((y - lo[1]) / h)
-        fz = np.floor((z - lo[2]) / h)
-        if (fx < -1.0 or fy < -1.0 or fz < -1.0 or fx > dims[0] or fy > ny or fz > nz):
-            continue
-        cx, cy, cz = np.int64(fx), np.int64(fy), np.int64(fz)
+        x0, x1, y0, y1, z0, z1 = _block(x, y, z, lo, dims, h)
         found = False
-        for ix in range(max(cx - 1, 0), min(cx + 1, dims[0] - 1) + 1):
-            for iy in range(max(cy - 1, 0), min(cy + 1, ny - 1) + 1):
+        for ix in range(x0, x1 + 1):
+            for iy in range(y0, y1 + 1):
                 base = (ix * ny + iy) * nz
-                for iz in range(max(cz - 1, 0), min(cz + 1, nz - 1) + 1):
-                    c = base + iz
-                    for j in range(start[c], start[c + 1]):
-                        dx = x - pts[j, 0]
-                        dy = y - pts[j, 1]
-                        dz = z - pts[j, 2]
-                        if dx * dx + dy * dy + dz * dz < r2:
-                            found = True
-                            break
-                    if found:
+                for j in range(start[base + z0], start[base + z1 + 1] if z1 >= z0 else 0):
+                    dx = x - pts[j, 0]
+                    dy = y - pts[j, 1]
+                    dz = z - pts[j, 2]
+                    if dx * dx + dy * dy + dz * dz < r2:
+                        found = True
                         break
                 if found:
                     break
             if found:
                 break
         out[i] = found
+
+
+@njit(cache=True, nogil=True)
+def nearest_other(ref, idx, h, out):
+    """``out[k]`` = distance from ``ref[idx[k]]`` to the nearest other row of ``ref`` (0 for a
+    duplicate), or -1 when none is closer than the cell width (at least ``h``): search farther.
+
+    ref : (n, 3) float64, n >= 1; idx : (m,) int64; h : float > 0; out : (m,) float64, written.
+    """
+    lo, dims, hh, start, order, pts = _grid(ref, h)
+    ny, nz = dims[1], dims[2]
+    sure = hh * (1.0 - MARGIN)
+    sure2 = sure * sure
+    for k in range(idx.shape[0]):
+        i = idx[k]
+        x, y, z = ref[i, 0], ref[i, 1], ref[i, 2]
+        x0, x1, y0, y1, z0, z1 = _block(x, y, z, lo, dims, hh)
+        best = np.inf
+        for ix in range(x0, x1 + 1):
+            for iy in range(y0, y1 + 1):
+                base = (ix * ny + iy) * nz
+                for j in range(start[base + z0], start[base + z1 + 1] if z1 >= z0 else 0):
+                    if order[j] == i:
+                        continue
+                    dx = x - pts[j, 0]
+                    dy = y - pts[j, 1]
+                    dz = z - pts[j, 2]
+                    d2 = dx * dx + dy * dy + dz * dz
+                    if d2 < best:
+                        best = d2
+        out[k] = np.sqrt(best) if best < sure2 else -1.0

@@ -9,8 +9,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from scipy.spatial import cKDTree
-
 from .. import _arrays
 from ..errors import EmptyModelError, RegistrationError, ScanError
 from ..units import MIXUPS, fitting_factor, unit_hint
@@ -405,16 +403,16 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
     tol = opts.tol
     ev = dev.evaluated
     ev_feet = dev.foot_points[ev]
-    # one tree of the evaluated foot points serves the spacing, the regions and the coverage
-    tree = cKDTree(ev_feet, balanced_tree=False, compact_nodes=False) if ev_feet.shape[0] else None
-    spacing = median_spacing(tree, ev_feet) if ev_feet.shape[0] >= 2 else float("nan")
+    # the spacing and the coverage are grid searches; the regions build their k-d tree of the
+    # evaluated foot points only when there are out-of-tolerance points to look at
+    spacing = median_spacing(None, ev_feet) if ev_feet.shape[0] >= 2 else float("nan")
     within = tol.within(dev.values, dev.face)
     weights = getattr(reg, "weights", None)
     if weights is not None and np.shape(weights) != (scan.shape[0],):
         weights = None
     regions, outliers, _ = find_regions(dev.foot_points, dev.values, ev, within, dev.face,
                                         dev.normals, weights, min_points=opts.min_region_points,
-                                        spacing=spacing, limits=tol.limits(dev.face), tree=tree)
+                                        spacing=spacing, limits=tol.limits(dev.face))
     beside = beside_surface(dev)                    # material and floating surfaces share it
     material = find_material(dev, spacing, tol.upper, beside=beside)
     regions = sorted(regions + material, key=lambda r: -r.severity)
@@ -423,14 +421,18 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
     t0 = time.perf_counter()
     model_size = _model_size(prep)
     coverage = compute_coverage(prep, ev_feet, spacing, faces=opts.faces, model_size=model_size,
-                                min_coverage=opts.min_coverage, tree=tree)
+                                min_coverage=opts.min_coverage)
     timings["coverage"] = time.perf_counter() - t0
 
     inl = ev.copy()
     inl[outliers.indices] = False
     v, f, w = dev.values[inl], dev.face[inl], within[inl]
-    stats = statistics(v, w, v > 0)
-    per_face_stats = per_face_statistics(v, f, w, v > 0) if v.size else {}
+    above = v > 0
+    stats = statistics(v, w, above)
+    if v.size and f.min() == f.max():           # one face: its statistics are the overall ones
+        per_face_stats = {int(f[0]): stats}
+    else:
+        per_face_stats = per_face_statistics(v, f, w, above) if v.size else {}
     n_material = int(sum(r.n for r in material))
     excluded = {"too_far": dev.n_too_far - n_material, "material": n_material,
                 "on_boundary": dev.n_on_boundary, "outside_faces": dev.n_outside_faces,

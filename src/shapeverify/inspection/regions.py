@@ -41,6 +41,9 @@ from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
+from .._arrays import bounds
+from ._grid_kernels import any_within, nearest_other
+
 logger = logging.getLogger(__name__)
 
 __all__ = ["DefectRegion", "Outliers", "find_regions", "median_spacing", "MIN_POINTS",
@@ -52,6 +55,8 @@ MIN_POINTS = 5
 LINK_FACTOR = 2.5
 #: Registration weight below which a point counts as rejected by the robust registration.
 LOW_WEIGHT = 1e-3
+#: Widest neighbourhood of an out-of-tolerance point looked at, in spacings (the quadratic peak).
+NEIGHBOURHOOD = 4.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -122,15 +127,48 @@ class Outliers:
         return f"Outliers(n={self.n}, low_weight={self.n_low_weight})"
 
 
-def median_spacing(tree: cKDTree, points: np.ndarray, max_samples: int = 1500) -> float:
-    """Median nearest-neighbour distance of ``points`` (evenly subsampled to ``max_samples``)."""
+def median_spacing(tree: cKDTree | None, points: np.ndarray, max_samples: int = 1500) -> float:
+    """Median nearest-neighbour distance of ``points`` (evenly subsampled to ``max_samples``).
+
+    ``tree``: a k-d tree of ``points``, or None: the distances are found on a grid
+    (:func:`nearest_distances`, the same numbers without building a tree)."""
     if points.shape[0] < 2:
         return float("nan")
     step = max(1, points.shape[0] // max_samples)
-    d, _ = tree.query(points[::step], k=2)
-    d = d[:, 1]
+    if tree is None:
+        d = nearest_distances(points, np.arange(0, points.shape[0], step))
+    else:
+        d, _ = tree.query(points[::step], k=2)
+        d = d[:, 1]
     d = d[np.isfinite(d) & (d > 0)]
     return float(np.median(d)) if d.size else float("nan")
+
+
+def nearest_distances(points: np.ndarray, idx: np.ndarray) -> np.ndarray:
+    """Distance (mm) from each ``points[idx]`` to its nearest other point of ``points`` (0 for a
+    duplicate); ``points`` (N, 3) with N >= 2.  Equal to ``cKDTree(points).query(points[idx],
+    k=2)[0][:, 1]``: a grid search (:func:`._grid_kernels.nearest_other`) whose cells start at
+    three times the spacing a surface of the points' extent would have and grow fourfold for
+    the points it leaves undecided (isolated points), until the grid is one cell."""
+    pts = np.ascontiguousarray(points, dtype=np.float64)
+    idx = np.ascontiguousarray(idx, dtype=np.int64)
+    out = np.empty(idx.shape[0])
+    lo, hi = bounds(pts)
+    ext = np.sort(hi - lo)
+    diag = float(np.linalg.norm(ext))
+    if not diag > 0:
+        return np.zeros(idx.shape[0])
+    area = ext[2] * ext[1] if ext[1] > 0 else ext[2] * ext[2]
+    h = max(3.0 * float(np.sqrt(area / pts.shape[0])), 1e-9 * diag)
+    todo = np.arange(idx.shape[0])
+    while True:
+        part = np.empty(todo.shape[0])
+        nearest_other(pts, idx[todo], h, part)
+        out[todo] = part
+        todo = todo[part < 0]
+        if todo.size == 0:
+            return out
+        h *= 4.0
 
 
 def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
@@ -162,7 +200,10 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
         which points are core points and the severity. None: just inside the smallest
         out-of-tolerance deviation on each side.
     tree : scipy.spatial.cKDTree, optional
-        A tree of ``points[evaluated]`` the caller already built (it is built here otherwise).
+        A tree of ``points[evaluated]`` the caller already built.  Otherwise one is built here
+        of only the evaluated points within 4 spacings of an out-of-tolerance point: every
+        neighbourhood looked at (the median's 3, the area's 2, the quadratic peak's 4
+        spacings) lies there, so the answers are those of the whole tree.
 
     Returns
     -------
@@ -178,14 +219,14 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
         return [], no_outliers, (float("nan") if spacing is None else float(spacing))
     ev_idx = np.flatnonzero(evaluated)
     ev_pts = points[ev_idx]
-    if tree is None:
-        tree = cKDTree(ev_pts, balanced_tree=False, compact_nodes=False)   # faster to build
     if spacing is None:
         spacing = median_spacing(tree, ev_pts)
     if not np.isfinite(spacing) or spacing <= 0:
         # A single evaluated point (or all coincident): nothing can be connected.
         low = _low_weight(weights, out_idx)
         return [], Outliers(out_idx, low), float(spacing)
+    if tree is None:
+        ev_idx, tree = _neighbourhood_tree(points, out_idx, ev_idx, ev_pts, NEIGHBOURHOOD * spacing)
     if limits is None:           # the tightest limits consistent with ``within``
         v_out = values[out_idx]
         hi = v_out[v_out > 0].min(initial=np.inf)
@@ -219,6 +260,16 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
     logger.debug("regions: %d out-of-tolerance points -> %d regions, %d outliers (spacing %.3g mm)",
                  out_idx.size, len(regions), outliers.n, spacing)
     return regions, outliers, float(spacing)
+
+
+def _neighbourhood_tree(points, out_idx, ev_idx, ev_pts, reach):
+    """``(ev_idx[near], tree of ev_pts[near])``: the evaluated points within ``reach`` of an
+    out-of-tolerance point (a little more: the grid test is strict, the ball queries are not)."""
+    near = np.empty(ev_pts.shape[0], bool)
+    any_within(np.ascontiguousarray(points[out_idx], dtype=np.float64),
+               np.ascontiguousarray(ev_pts, dtype=np.float64), float(reach) * (1.0 + 1e-6), near)
+    keep = np.flatnonzero(near)
+    return ev_idx[keep], cKDTree(ev_pts[keep], balanced_tree=False, compact_nodes=False)
 
 
 def linked_components(n: int, pairs: np.ndarray) -> tuple[int, np.ndarray]:
@@ -268,7 +319,7 @@ def _describe(idx, med, core, points, values, face, normals, tree, ev_idx, spaci
     k = int(ci[np.argmax(np.abs(med[ci]))])
     fallback = float(med[k])
     extreme, at = _quadratic_peak(points[idx[k]], normals[idx[k]], tree, ev_idx, points, values,
-                                  4.0 * spacing, fallback)
+                                  NEIGHBOURHOOD * spacing, fallback)
     beyond = extreme > limit[k] if above else extreme < limit[k]
     if not beyond or abs(extreme) > abs(extreme_raw):
         extreme, at = fallback, points[idx[k]].copy()
@@ -284,7 +335,8 @@ def _quadratic_peak(center, normal, tree, ev_idx, points, values, radius, fallba
 
     Returns ``(value, position)``; falls back to ``(fallback, center)`` with too few neighbours.
     """
-    nb = ev_idx[tree.query_ball_point(center, radius)]
+    # in scan order: the fit does not depend on how the tree was built
+    nb = np.sort(ev_idx[tree.query_ball_point(center, radius)])
     if nb.size < 12:
         return fallback, center.copy()
     n = normal / (np.linalg.norm(normal) or 1.0)
