@@ -388,7 +388,8 @@ def multi_children(ids, parents, off, lst, lat, pts, origin, size, first_seed, r
         ok = True
         stop = False
         nc[:] = 0
-        for rnd in range(2):
+        # the second round only decides ``ok``, which the last level does not need
+        for rnd in range(1 if last_level else 2):
             for o in range(8):
                 q0 = origin[0] + size * (c[0] + _CX[o])
                 q1 = origin[1] + size * (c[1] + _CY[o])

@@ -255,6 +255,7 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
                                        fkind[a:b], fseeds[a:b], fn[a:b])
 
                 run_chunks(_multi, fail.size, 1 << 10)
+            logger.debug("DVG level %d: multi-seed pass over %d failed cells", level, fail.size)
             kind[fail] = fkind
             ok = fkind == 1
             mi = fail[ok]
@@ -264,6 +265,7 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
                 code[mi] = -(n + n_list + where + 2)
                 lists.append(buf)
                 n_list += buf.shape[0]
+                logger.debug("DVG level %d: %d seed lists packed", level, mi.size)
             del fkind, fseeds, fn
         ref = np.flatnonzero(kind == 2)
         code[ref] = n_nodes + 8 * np.arange(ref.size, dtype=np.int64)
@@ -307,16 +309,32 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
 def _pack_lists(seeds: np.ndarray, count: np.ndarray):
     """Seed lists (M, 16) with counts (M,) -> (buffer of count, seeds..., offset of each list).
 
-    Identical lists (same seeds in any order) are stored once.
+    Identical lists (same seeds in any order) are stored once, in lexicographic order of their
+    sorted seeds (as ``np.unique(axis=0)`` orders them; sorted here by pairs of seeds packed
+    into one int64 key, and only over the columns some list uses).
     """
     cnt = count.astype(np.int64)
-    col = np.arange(seeds.shape[1])[None, :] < cnt[:, None]
-    key = np.sort(np.where(col, seeds, np.iinfo(np.int32).max), axis=1)
-    uniq, inv = np.unique(key, axis=0, return_inverse=True)
-    ucnt = (uniq != np.iinfo(np.int32).max).sum(axis=1).astype(np.int64)
+    m, ncol = seeds.shape
+    big = np.iinfo(np.int32).max
+    col = np.arange(ncol)[None, :] < cnt[:, None]
+    key = np.sort(np.where(col, seeds, big), axis=1)
+    nk = (int(cnt.max()) + 1) // 2 if m else 0
+    k64 = key[:, :2 * nk].astype(np.int64)
+    pairs = (k64[:, 0::2] << 32) | k64[:, 1::2]  # seeds >= 0: same order as the columns
+    del k64
+    order = np.lexsort(pairs.T[::-1]) if nk else np.arange(m)
+    sp = pairs[order]
+    new = np.ones(m, dtype=bool)
+    if m > 1:
+        new[1:] = np.any(sp[1:] != sp[:-1], axis=1)
+    del sp, pairs
+    inv = np.empty(m, dtype=np.int64)
+    inv[order] = np.cumsum(new) - 1
+    uniq = key[order[new]]
+    ucnt = (uniq != big).sum(axis=1).astype(np.int64)
     pos = np.concatenate([[0], np.cumsum(ucnt + 1)[:-1]]).astype(np.int64)
     buf = np.empty(int((ucnt + 1).sum()), dtype=np.int32)
     buf[pos] = ucnt
-    ucol = np.arange(uniq.shape[1])[None, :] < ucnt[:, None]
-    buf[(pos[:, None] + 1 + np.arange(uniq.shape[1])[None, :])[ucol]] = uniq[ucol]
-    return buf, pos[inv.ravel()]
+    ucol = np.arange(ncol)[None, :] < ucnt[:, None]
+    buf[(pos[:, None] + 1 + np.arange(ncol)[None, :])[ucol]] = uniq[ucol]
+    return buf, pos[inv]
