@@ -264,14 +264,16 @@ def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
 
 @njit(cache=True, nogil=True)
 def classify_children(parents, off, lst, pts, origin, size, rf, ri, rh, rs, max_distance,
-                      max_moves, out_kind, out_seed, out_lat):
+                      max_moves, out_kind, out_seed, out_lat, out_fail):
     """:func:`shapeverify.nearest._kernels.classify` for the 8 children (cell size ``size``)
     of each refined parent cell, the vertices' nearest points found in the parent's list.
 
     parents : (R, 3) int64 parent coordinates at the level above; off : (R + 1,) int64 offsets
     of their lists in ``lst``.  Child 8 p + o (octant o) has coordinates 2 parents[p] + corner.
     out_kind, out_seed : (8 R,); out_lat : (R, 27) int32, the nearest point of each parent's
-    lattice point ``(t % 3, t // 3 % 3, t // 9)`` (in child cell units), for the later passes.
+    lattice point ``(t % 3, t // 3 % 3, t // 9)`` (in child cell units), for the later passes;
+    out_fail : (8 R,) int8, for a failed cell the first vertex (octant order) that the walk
+    from its seed gets wrong (all before it are right), else 8.
     """
     r = 0.5 * np.sqrt(3.0) * size
     tol = 1e-12 * size
@@ -302,6 +304,7 @@ def classify_children(parents, off, lst, pts, origin, size, rf, ri, rh, rs, max_
                     dmin = ld[t]
                     vmin = t
             out_seed[m] = -1
+            out_fail[m] = 8
             if not (dmin <= max_distance + r):
                 out_kind[m] = 0
                 continue
@@ -321,6 +324,7 @@ def classify_children(parents, off, lst, pts, origin, size, rf, ri, rh, rs, max_
                 _, d2, mv = walk(q0, q1, q2, seed, rf, ri, rh, rs, max_moves + 1)
                 if mv > max_moves or np.sqrt(d2) > ld[t] * (1.0 + 1e-12) + tol:
                     out_kind[m] = 2
+                    out_fail[m] = o
                     break
 
 
@@ -357,14 +361,18 @@ def _walks_ok(q0, q1, q2, seeds, n0, cnt, cache_d, cache_m, rf, ri, rh, rs, max_
 
 
 @njit(cache=True, nogil=True)
-def multi_children(ids, parents, off, lst, lat, pts, origin, size, first_seed, rf, ri, rh, rs,
-                   max_moves, max_seeds, last_level, out_kind, out_seeds, out_nseeds):
+def multi_children(ids, parents, off, lst, lat, pts, origin, size, first_seed, first_fail, rf,
+                   ri, rh, rs, max_moves, max_seeds, last_level, out_kind, out_seeds,
+                   out_nseeds):
     """:func:`shapeverify.nearest._kernels.classify_multi` for the failed children ``ids``
     (child numbers 8 p + octant), the samples' nearest points found in the parent's list.
 
     Same result as ``classify_multi``; the walks from each seed to each vertex are done once
     (the second round reuses them), and above the last level a cell stops as soon as it is
-    certain to be refined (its seeds are then not needed).
+    certain to be refined (its seeds are then not needed).  On the last level only the seeds
+    matter: the second round (which only decides ``ok``) is skipped, and the vertices that
+    :func:`classify_children` already walked from the first seed (``first_fail`` (8 R,): all
+    before the first failing one pass, that one fails) are not walked again.
     """
     tol = 1e-12 * size
     h = 0.5 * size
@@ -391,11 +399,16 @@ def multi_children(ids, parents, off, lst, lat, pts, origin, size, first_seed, r
         # the second round only decides ``ok``, which the last level does not need
         for rnd in range(1 if last_level else 2):
             for o in range(8):
+                if last_level and o < first_fail[m]:
+                    continue  # right with the first seed alone (classify_children walked it)
                 q0 = origin[0] + size * (c[0] + _CX[o])
                 q1 = origin[1] + size * (c[1] + _CY[o])
                 q2 = origin[2] + size * (c[2] + _CZ[o])
-                good, nc[o] = _walks_ok(q0, q1, q2, seeds, nc[o], cnt, cd[o], cm[o], rf, ri,
-                                        rh, rs, max_moves, vi[o], vd[o], tol)
+                if last_level and o == first_fail[m]:
+                    good = False  # wrong with the first seed alone, the only one so far
+                else:
+                    good, nc[o] = _walks_ok(q0, q1, q2, seeds, nc[o], cnt, cd[o], cm[o], rf,
+                                            ri, rh, rs, max_moves, vi[o], vd[o], tol)
                 if not good:
                     if rnd == 0 and cnt < cap:
                         seeds[cnt] = vi[o]

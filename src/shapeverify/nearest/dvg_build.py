@@ -218,11 +218,12 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
             kind = np.empty(m, dtype=np.int8)
             first = np.empty(m, dtype=np.int64)
             lat = np.empty((parents.shape[0], 27), dtype=np.int32)
+            ffail = np.empty(m, dtype=np.int8)
 
             def _classify(a, b):
                 _bk.classify_children(parents[a:b], off[a:b + 1], lst, pts, origin, size, *RV,
                                       md, int(max_moves), kind[8 * a:8 * b],
-                                      first[8 * a:8 * b], lat[a:b])
+                                      first[8 * a:8 * b], lat[a:b], ffail[8 * a:8 * b])
 
             run_chunks(_classify, parents.shape[0], 1 << 11)
             logger.debug("DVG level %d: %d cells classified", level, m)
@@ -251,7 +252,7 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
 
                 def _multi(a, b):
                     _bk.multi_children(fail[a:b], parents, off, lst, lat, pts, origin, size,
-                                       first, *RV, int(max_moves), int(max_seeds), last,
+                                       first, ffail, *RV, int(max_moves), int(max_seeds), last,
                                        fkind[a:b], fseeds[a:b], fn[a:b])
 
                 run_chunks(_multi, fail.size, 1 << 10)
@@ -289,7 +290,7 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
 
                 counts, lst = _chunked(_lists, ref.size, 1 << 11)
                 parents, off = nxt, _offsets(counts)
-                del pp, oc, counts, lat
+                del pp, oc, counts, lat, ffail
             logger.debug("DVG level %d: candidate lists of the refined cells: %.1f points "
                          "each", level, lst.size / max(1, ref.size))
             blocks.append(np.full(8 * ref.size, _kernels.FAR, dtype=np.int32))
