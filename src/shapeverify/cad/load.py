@@ -81,6 +81,9 @@ def load_model(path):
             f"{' '.join(MODEL_EXTENSIONS)}")
     if not path.exists():
         raise FileNotFoundError(errno.ENOENT, f"{path}: file not found", str(path))
+    if path.is_dir():
+        raise IsADirectoryError(errno.EISDIR, f"{path}: is a directory, not a model file",
+                                str(path))
     if ext in _CAD:
         from shapeverify.cad.occ_import import read_cad
 
@@ -122,20 +125,20 @@ def _cloud_model(path, points, normals):
 
 
 def _ply_model(path):
-    from shapeverify.io.points import drop_nonfinite, read_ply_full
+    from shapeverify.io.points import drop_nonfinite, read_ply_full, valid_rows
 
     ply = read_ply_full(path)
     if ply.faces is not None and len(ply.faces):
-        if not np.isfinite(ply.vertices).all():
-            bad = int((~np.isfinite(ply.vertices).all(axis=1)).sum())
-            raise CADImportError(f"{path}: {bad} mesh vertices have NaN or infinite coordinates")
+        from shapeverify.io.mesh import check_vertices
+
+        check_vertices(ply.vertices, path)
         return _mesh_model(path, ply.vertices, ply.faces.astype(np.int32))
     pts = ply.vertices
     normals = None
     if all(c in ply.properties for c in ("nx", "ny", "nz")):
         normals = np.column_stack([ply.properties[c].astype(np.float64)
                                    for c in ("nx", "ny", "nz")])
-    ok = np.isfinite(pts).all(axis=1)
+    ok = valid_rows(pts)             # the rows drop_nonfinite keeps
     pts = drop_nonfinite(pts, path)
     if normals is not None:
         normals = normals[ok]

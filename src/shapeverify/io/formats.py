@@ -36,7 +36,7 @@ from shapeverify.io.ply import read_ply_points
 from shapeverify.io.tables import read_table
 
 __all__ = ["SCAN_READERS", "SCAN_SUFFIXES", "scan_reader", "source_bytes", "source_suffix",
-           "check_file"]
+           "check_file", "sniff_format", "suffix_hint"]
 
 #: file suffix (lower case, with the dot) -> reader ``(data: bytes, name: str) -> (N, 3) array``
 SCAN_READERS: dict[str, Callable[[bytes, str], np.ndarray]] = {
@@ -145,3 +145,53 @@ def source_bytes(source, name: str | None = None) -> tuple[bytes, str]:
     if not data:
         raise ScanError(f"{name}: is empty (0 bytes)")
     return data, name
+
+
+# the file families a content sniff can tell apart: suffix -> family
+_FAMILY = {".ply": "PLY", ".npy": "NumPy .npy", ".pcd": "PCD", ".step": "STEP", ".stp": "STEP",
+           ".igs": "IGES", ".iges": "IGES", ".stl": "STL", ".obj": "OBJ", ".xyz": "text",
+           ".txt": "text", ".csv": "text"}
+_SUFFIX = {"PLY": ".ply", "NumPy .npy": ".npy", "PCD": ".pcd", "STEP": ".step", "IGES": ".igs",
+           "STL": ".stl", "OBJ": ".obj"}
+
+
+def sniff_format(data: bytes) -> str | None:
+    """What a file's first bytes say it is: ``"PLY"``, ``"NumPy .npy"``, ``"PCD"``, ``"STEP"``,
+    ``"IGES"``, ``"STL"``, ``"OBJ"``, or None (plain text tables and unknown content).
+
+    Only for messages: the readers never guess a format from the content.
+
+    >>> sniff_format(b"ply\\nformat ascii 1.0\\n"), sniff_format(b"1 2 3\\n")
+    ('PLY', None)
+    """
+    head = bytes(data[:4096])
+    if head.startswith((b"ply\n", b"ply\r", b"ply ")):
+        return "PLY"
+    if head.startswith(b"\x93NUMPY"):
+        return "NumPy .npy"
+    text = head.lstrip()
+    if text.startswith(b"ISO-10303-21"):
+        return "STEP"
+    if len(head) >= 80 and head[72:73] == b"S" and head[73:80].strip().isdigit():
+        return "IGES"
+    if text.startswith(b"# .PCD") or (b"\nFIELDS " in head and b"\nDATA " in head):
+        return "PCD"
+    if text[:5].lower() == b"solid" and b"facet" in head:
+        return "STL"
+    if len(data) >= 84:
+        n = int(np.frombuffer(data, "<u4", 1, 80)[0])
+        if len(data) == 84 + 50 * n and n > 0:
+            return "STL"
+    if b"\0" not in head and (head.startswith(b"v ") or b"\nv " in head) and b"\nf " in head:
+        return "OBJ"
+    return None
+
+
+def suffix_hint(data: bytes, suffix: str | None) -> str:
+    """``"; the content looks like a PLY file: give it the suffix .ply"`` when the content's
+    format (:func:`sniff_format`) is not the one its suffix names, else ``""``."""
+    seems = sniff_format(data)
+    if seems is None or _FAMILY.get(str(suffix or "").lower()) == seems:
+        return ""
+    article = "an" if seems in ("STL", "IGES", "OBJ") else "a"
+    return f"; the content looks like {article} {seems} file: give it the suffix {_SUFFIX[seems]}"

@@ -20,7 +20,7 @@ from shapeverify.errors import CADImportError, EmptyModelError, ScanError, Unsup
 from shapeverify.io.formats import check_file as _check_file
 from shapeverify.io.ply import read_ply_full
 
-__all__ = ["read_mesh", "MESH_EXTENSIONS"]
+__all__ = ["read_mesh", "check_vertices", "MESH_EXTENSIONS"]
 
 logger = logging.getLogger(__name__)
 
@@ -61,27 +61,60 @@ def read_mesh(path):
     except ScanError as exc:  # empty file: a broken model file, not a broken scan
         raise CADImportError(str(exc)) from None
     ext = path.suffix.lower()
+    try:
+        v, t = _read_any(path, ext)
+    except (CADImportError, EmptyModelError) as exc:  # content of another format: say which
+        from shapeverify.io.formats import suffix_hint
+
+        with open(path, "rb") as fh:
+            hint = suffix_hint(fh.read(4096), ext)
+        if hint and hint not in str(exc):
+            raise type(exc)(f"{exc}{hint}") from None
+        raise
+    if len(t) == 0:
+        raise EmptyModelError(f"{path}: mesh has no triangles")
+    check_vertices(v, path)
+    return np.ascontiguousarray(v, dtype=np.float64), np.ascontiguousarray(t, dtype=np.int32)
+
+
+def _read_any(path: Path, ext: str):
+    """(vertices, triangles) of the mesh file ``path`` by its extension ``ext``."""
     if ext == ".stl":
-        v, t = _read_stl(path)
-    elif ext == ".ply":
+        return _read_stl(path)
+    if ext == ".ply":
         try:
             ply = read_ply_full(path)
         except ScanError as exc:
             raise CADImportError(str(exc)) from None
         if ply.faces is None or len(ply.faces) == 0:
             raise EmptyModelError(f"{path}: PLY file has no faces (a point cloud, not a mesh)")
-        v, t = ply.vertices, ply.faces
-    elif ext == ".obj":
-        v, t = _read_obj(path)
-    else:
-        raise UnsupportedFormatError(f"{path}: unsupported mesh extension {path.suffix!r}; "
-                                     f"supported: {', '.join(MESH_EXTENSIONS)}")
-    if len(t) == 0:
-        raise EmptyModelError(f"{path}: mesh has no triangles")
-    if not np.isfinite(v).all():
-        bad = int((~np.isfinite(v).all(axis=1)).sum())
+        return ply.vertices, ply.faces
+    if ext == ".obj":
+        return _read_obj(path)
+    raise UnsupportedFormatError(f"{path}: unsupported mesh extension {path.suffix!r}; "
+                                 f"supported: {', '.join(MESH_EXTENSIONS)}")
+
+
+def check_vertices(vertices: np.ndarray, path) -> None:
+    """Refuse mesh vertices with NaN/inf coordinates or coordinates beyond
+    :data:`shapeverify.io.points.MAX_COORDINATE` (a mesh cannot drop vertices as a scan drops
+    rows: its triangles index them).
+
+    Raises
+    ------
+    CADImportError
+        The message counts the bad vertices and names the file.
+    """
+    from shapeverify.io.points import MAX_COORDINATE
+
+    if not np.isfinite(vertices).all():
+        bad = int((~np.isfinite(vertices).all(axis=1)).sum())
         raise CADImportError(f"{path}: {bad} mesh vertices have NaN or infinite coordinates")
-    return np.ascontiguousarray(v, dtype=np.float64), np.ascontiguousarray(t, dtype=np.int32)
+    huge = (np.abs(vertices) > MAX_COORDINATE).any(axis=1)
+    if huge.any():
+        raise CADImportError(f"{path}: {int(huge.sum())} mesh vertices have coordinates beyond "
+                             f"+-{MAX_COORDINATE:g} (up to {float(np.abs(vertices).max()):.3g}): "
+                             "not a part in any length unit; the file is damaged")
 
 
 # ---------------------------------------------------------------------------------------- STL

@@ -82,7 +82,15 @@ def read_ply_full(source, *, name: str | None = None) -> PlyData:
     from shapeverify.io.formats import source_bytes
 
     data, name = source_bytes(source, name)
-    return parse_ply(data, name, want_faces=True)
+    try:
+        return parse_ply(data, name, want_faces=True)
+    except ScanError as exc:  # a file of another format named .ply: say which
+        from shapeverify.io.formats import suffix_hint
+
+        hint = suffix_hint(data, ".ply")
+        if hint:
+            raise ScanError(f"{exc}{hint}") from None
+        raise
 
 
 def read_ply_points(data: bytes, name: str) -> np.ndarray:
@@ -309,6 +317,13 @@ def parse_ply(data: bytes, name: str, want_faces: bool) -> PlyData:
             if el.name in wanted:
                 values[el.name] = _ply_ascii_element(name, el, chunk)
             pos += el.count
+        declared = sum(e.count for e in elements)
+        if len(lines) > declared:
+            counts = ", ".join(f"{e.name} {e.count}" for e in elements)
+            raise ScanError(f"{name}: the PLY header declares {declared} lines of data "
+                            f"({counts}), the file has {len(lines)}: the element counts in the "
+                            "header are too small (or data was appended); correct the "
+                            "'element' lines")
     else:
         endian = _PLY_FORMATS[fmt]
         for el in elements[: last + 1]:
@@ -316,6 +331,7 @@ def parse_ply(data: bytes, name: str, want_faces: bool) -> PlyData:
                                                  parse=el.name in wanted)
             if el.name in wanted:
                 values[el.name] = arrays
+        _check_binary_end(name, elements, last, data, offset, endian)
 
     v = values["vertex"]
     vertices = np.column_stack([np.asarray(v[c], dtype=np.float64) for c in "xyz"])
@@ -331,6 +347,29 @@ def parse_ply(data: bytes, name: str, want_faces: bool) -> PlyData:
             "vertex_index" if "vertex_index" in lists else lists[0]
         faces = _fan_triangulate(name, values["face"][key], len(vertices))
     return PlyData(vertices, faces, props, fmt)
+
+
+def _check_binary_end(name, elements, last: int, data: bytes, offset: int, endian: str) -> None:
+    """Refuse a binary PLY with at least one more record after its declared elements (their
+    counts in the header are too small: part of the data would be ignored silently).  The
+    elements after ``last`` (not parsed) are stepped over when they have no list properties."""
+    rest = elements[last + 1:]
+    if any(len(p) == 3 for el in rest for p in el.props):
+        return  # variable-size records: stepping over them costs a walk; trust the header
+    for el in rest:
+        try:
+            _, offset = _ply_binary_element(name, el, data, offset, endian, parse=False)
+        except ScanError:
+            return  # a truncated element nobody reads
+    tail = len(data) - offset
+    unit = min((sum(np.dtype(p[1]).itemsize for p in el.props)
+                for el in elements if el.props and not any(len(p) == 3 for p in el.props)),
+               default=0)
+    if unit and tail >= unit:
+        counts = ", ".join(f"{e.name} {e.count}" for e in elements)
+        raise ScanError(f"{name}: {tail} bytes follow the data the PLY header declares "
+                        f"({counts}): the element counts in the header are too small (or data "
+                        "was appended); correct the 'element' lines")
 
 
 def _ply_ascii_element(name, el: _PlyElement, lines: list) -> dict:

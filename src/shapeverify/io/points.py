@@ -18,8 +18,9 @@ registry :mod:`shapeverify.io.formats`; the parsers live in :mod:`.ply`, :mod:`.
     Point Cloud Library files with ``DATA ascii`` or ``DATA binary`` and fields ``x y z``.
     ``binary_compressed`` is not supported (UnsupportedFormatError names it).
 
-Rows with a NaN or infinite coordinate are dropped; the number dropped is logged as a warning
-with the file name.  Empty or malformed files raise :class:`~shapeverify.errors.ScanError` (or
+Rows with a NaN or infinite coordinate, or one beyond +-1e12 (:data:`MAX_COORDINATE`: no length
+unit makes that a measurement; it is what garbage bytes decode to), are dropped; the number
+dropped is logged as a warning with the file name.  Empty or malformed files raise :class:`~shapeverify.errors.ScanError` (or
 :class:`~shapeverify.errors.UnsupportedFormatError` for an unknown extension) whose message starts
 with the file name and says what is wrong.  Units are whatever the file holds (the library works
 in millimetres; converting a scanner's metres is the caller's business).
@@ -35,16 +36,20 @@ import numpy as np
 from .._arrays import count_nonfinite_rows
 
 from shapeverify.errors import ScanError
-from shapeverify.io.formats import SCAN_SUFFIXES, check_file, scan_reader, source_bytes, source_suffix
+from shapeverify.io.formats import (SCAN_SUFFIXES, check_file, scan_reader, source_bytes,
+                                    source_suffix, suffix_hint)
 from shapeverify.io.ply import PlyData, ply_bytes, read_ply_full, write_ply
 
 __all__ = ["read_points", "read_ply_full", "write_ply", "ply_bytes", "PlyData", "POINT_EXTENSIONS",
-           "drop_nonfinite"]
+           "drop_nonfinite", "valid_rows", "MAX_COORDINATE"]
 
 logger = logging.getLogger(__name__)
 
 #: File extensions :func:`read_points` understands (the registry's list).
 POINT_EXTENSIONS = SCAN_SUFFIXES
+#: Largest coordinate magnitude read as a measurement (in any unit: 1e12 mm is a million km);
+#: rows beyond it are dropped like NaN rows.
+MAX_COORDINATE = 1e12
 _check_file = check_file  # the name io.mesh and older code import
 
 
@@ -103,11 +108,25 @@ def read_points(source, format: str | None = None, *, name: str | None = None) -
             raise ValueError(f"{name}: give the format of the scan data (format='.ply', one of "
                              f"{', '.join(SCAN_SUFFIXES)})")
         reader = scan_reader(fmt, name)
-    return drop_nonfinite(reader(data, name), name)
+    try:
+        points = reader(data, name)
+    except ScanError as exc:  # a file named for another format: say which suffix fits
+        hint = suffix_hint(data, fmt)
+        if hint:
+            raise type(exc)(f"{exc}{hint}") from None
+        raise
+    return drop_nonfinite(points, name)
+
+
+def valid_rows(points: np.ndarray) -> np.ndarray:
+    """(N,) bool: the rows :func:`drop_nonfinite` keeps (finite, within :data:`MAX_COORDINATE`)."""
+    with np.errstate(invalid="ignore"):
+        return (np.abs(points) <= MAX_COORDINATE).all(axis=1)
 
 
 def drop_nonfinite(points: np.ndarray, path) -> np.ndarray:
-    """Drop rows with a NaN/inf coordinate (logging their count); error if nothing is left."""
+    """Drop rows with a NaN/inf coordinate or one beyond :data:`MAX_COORDINATE` (logging their
+    count); error if nothing is left."""
     n_bad = count_nonfinite_rows(points) if points.ndim == 2 else 0
     if len(points) == 0:
         raise ScanError(f"{path}: contains no points")
@@ -117,4 +136,16 @@ def drop_nonfinite(points: np.ndarray, path) -> np.ndarray:
         points = points[np.isfinite(points).all(axis=1)]
         if len(points) == 0:
             raise ScanError(f"{path}: all {n_bad} points have NaN or infinite coordinates")
+    if points.ndim == 2 and len(points):
+        huge = (np.abs(points) > MAX_COORDINATE).any(axis=1)
+        n_huge = int(np.count_nonzero(huge))
+        if n_huge == len(points):
+            raise ScanError(f"{path}: all {n_huge} points have coordinates beyond "
+                            f"+-{MAX_COORDINATE:g} (up to {float(np.abs(points).max()):.3g}): "
+                            "not a measurement in any length unit; the file is damaged or its "
+                            "columns are not x y z")
+        if n_huge:
+            logger.warning("%s: dropped %d of %d rows with coordinates beyond +-%g (garbage "
+                           "values, not measurements)", path, n_huge, len(points), MAX_COORDINATE)
+            points = points[~huge]
     return np.ascontiguousarray(points, dtype=np.float64)
