@@ -68,7 +68,8 @@ class PlanError(ShapeVerifyError, ValueError):
 
 
 class _Strict(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    # NaN and infinity are no limits and no coordinates (a tol of .inf would pass anything)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
 
 class Tol(_Strict):
@@ -413,7 +414,16 @@ def load_plan(plan) -> Plan:
             p = Path(s)
             if not p.exists():
                 raise FileNotFoundError(2, "no such plan file", s)
-            return parse_plan(p.read_text(), source=p.name)
+            if p.is_dir():
+                raise PlanError(f"{s}: is a directory; give the plan file (plan.yaml)")
+            data = p.read_bytes()
+            try:
+                text = data.decode("utf-8-sig")
+            except UnicodeDecodeError as exc:
+                line = data[:exc.start].count(b"\n") + 1
+                raise PlanError(f"{p.name}, line {line}: not UTF-8 text (byte 0x{data[exc.start]:02x}); "
+                                "a plan is a YAML text file: save it as UTF-8", line=line) from None
+            return parse_plan(text, source=p.name)
         return parse_plan(s)
     raise PlanError(f"plan must be a Plan, a dict, a YAML file or YAML text, got "
                     f"{type(plan).__name__}")

@@ -49,7 +49,11 @@ class _Repr:
 # ----------------------------------------------------------------------------------------------
 # input checks and robust weights
 # ----------------------------------------------------------------------------------------------
-def _check_points(points, dims: tuple[int, ...], minimum: int, what: str) -> np.ndarray:
+def _check_points(points, dims: tuple[int, ...], minimum: int, what: str,
+                  spread: int = 1) -> np.ndarray:
+    """``points`` as float64 after checking shape, count, finiteness and that they span at least
+    ``spread`` directions (1: not all the same point, 2: not all on one line): degenerate data
+    would otherwise give a zero radius or an arbitrary normal reported as converged."""
     x = np.asarray(points, dtype=np.float64)
     if x.ndim != 2 or x.shape[1] not in dims:
         want = " or ".join(f"(N, {d})" for d in dims)
@@ -59,7 +63,21 @@ def _check_points(points, dims: tuple[int, ...], minimum: int, what: str) -> np.
     if not np.all(np.isfinite(x)):
         bad = int(np.count_nonzero(~np.isfinite(x).all(axis=1)))
         raise ValueError(f"{what}: {bad} point(s) contain NaN or inf; remove them before fitting")
+    _check_spread(x, spread, what)
     return x
+
+
+def _check_spread(x: np.ndarray, spread: int, what: str) -> None:
+    y = x - x.mean(axis=0)
+    rms = np.sqrt(np.clip(np.linalg.eigvalsh(y.T @ y), 0.0, None) / len(x))[::-1]  # descending
+    size = float(np.abs(x).max())
+    if not rms[0] > 1e-12 * size:
+        raise ValueError(f"{what}: all {len(x)} points are the same point {x[0].tolist()}; "
+                         "nothing to fit")
+    if spread >= 2 and not rms[1] > 1e-10 * rms[0]:
+        raise ValueError(f"{what}: the {len(x)} points lie on a straight line (rms spread "
+                         f"{rms[1]:.3g} across it, {rms[0]:.3g} along it); a {what[4:]} needs "
+                         "points spread in two directions")
 
 
 def _check_loss(loss: str, scale) -> None:

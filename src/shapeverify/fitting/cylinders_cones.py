@@ -200,7 +200,7 @@ def fit_cylinder(points, loss: str = "l2", scale: float | None = None, axis=None
     ValueError
         Wrong shape, too few points, non-finite values, unknown loss, no start converged.
     """
-    x = _check_points(points, (3,), 5, "fit_cylinder")
+    x = _check_points(points, (3,), 5, "fit_cylinder", spread=2)
     _check_loss(loss, scale)
     p, a, (R,), r, w, s, it, ok = _fit_axial(x, loss, scale, axis, max_iterations, tolerance, "cylinder")
     if R <= 0:
@@ -231,7 +231,7 @@ def fit_cone(points, loss: str = "l2", scale: float | None = None, axis=None,
     ValueError
         Wrong shape, too few points, non-finite values, unknown loss, no start converged.
     """
-    x = _check_points(points, (3,), 6, "fit_cone")
+    x = _check_points(points, (3,), 6, "fit_cone", spread=2)
     _check_loss(loss, scale)
     p, a, (R, psi), r, w, s, it, ok = _fit_axial(x, loss, scale, axis, max_iterations, tolerance, "cone")
     return ConeFit(p, a, float(R), float(psi), float(np.sqrt(np.mean(r * r))), r, w, s, loss, it, ok)

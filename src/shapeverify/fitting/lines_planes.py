@@ -119,7 +119,7 @@ def fit_plane(points, loss: str = "l2", scale: float | None = None,
     >>> fit_plane([[0, 0, 1], [1, 0, 1], [0, 1, 1], [1, 1, 1]]).normal
     array([0., 0., 1.])
     """
-    x = _check_points(points, (3,), 3, "fit_plane")
+    x = _check_points(points, (3,), 3, "fit_plane", spread=2)
     _check_loss(loss, scale)
     floor = 1e-12 * (1.0 + float(np.ptp(x)))
 

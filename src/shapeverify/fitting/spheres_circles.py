@@ -194,7 +194,7 @@ def fit_sphere(points, loss: str = "l2", scale: float | None = None,
     >>> fit.center.round(9), round(fit.radius, 9)
     (array([1., 2., 3.]), 2.0)
     """
-    x = _check_points(points, (3,), 4, "fit_sphere")
+    x = _check_points(points, (3,), 4, "fit_sphere", spread=2)
     _check_loss(loss, scale)
     c, R, r, w, s, it, ok = _fit_hypersphere(x, loss, scale, max_iterations, tolerance, "fit_sphere", rng)
     return SphereFit(c, R, float(np.sqrt(np.mean(r * r))), r, w, s, loss, it, ok)
@@ -232,7 +232,7 @@ def fit_circle(points, loss: str = "l2", scale: float | None = None,
     >>> fit.center.round(9), round(fit.radius, 9)
     (array([ 1., -2.]), 3.0)
     """
-    x = _check_points(points, (2, 3), 3, "fit_circle")
+    x = _check_points(points, (2, 3), 3, "fit_circle", spread=2)
     _check_loss(loss, scale)
     if x.shape[1] == 2:
         c, R, r, w, s, it, ok = _fit_hypersphere(x, loss, scale, max_iterations, tolerance, "fit_circle", rng)
