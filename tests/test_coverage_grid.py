@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 from scipy.spatial import cKDTree
 
-from shapeverify.inspection._grid_kernels import any_within
+from shapeverify.inspection._grid_kernels import any_within, mark_within
 
 
 def _tree_answer(ref, q, r):
@@ -38,6 +38,10 @@ def test_any_within_equals_the_tree_query_on_random_clouds(seed):
         q = rng.uniform(-1.5, 1.5, (m, 3)) * scale
         r = scale * 10.0 ** rng.uniform(-3, 0.5)
         np.testing.assert_array_equal(_grid_answer(ref, q, r), _tree_answer(ref, q, r))
+        if m:                              # the other way round: q's points mark ref's
+            marked = np.empty(n, bool)
+            mark_within(ref, q, r, marked)
+            np.testing.assert_array_equal(marked, _tree_answer(q, ref, r))
 
 
 def test_any_within_a_point_at_exactly_r_is_not_within():

@@ -7,6 +7,8 @@ cell): every point closer than ``h`` to a query lies in the 27 cells around the 
   found: the same answer as ``np.isfinite(cKDTree(ref).query(q, k=1,
   distance_upper_bound=r)[0])`` (squared distance ``dx*dx + dy*dy + dz*dz < r*r``) without
   looking for the nearest point.
+* ``mark_within`` answers the same question the other way round (each of a few query points
+  marks the reference points around it).
 * ``nearest_other`` gives the distance from a point of the set to its nearest other point
   (``cKDTree(ref).query(ref[i], k=2)[0][1]``, the same ``sqrt`` of the same sum), or -1 when
   that is not closer than the cell width (then the caller asks the tree).
@@ -102,6 +104,22 @@ def any_within(ref, q, r, out):
         x, y, z = q[i, 0], q[i, 1], q[i, 2]
         x0, x1, y0, y1, z0, z1 = _block(x, y, z, lo, dims, h)
         found = False
+        if x0 <= x1:                   # the query's own cell first: on a dense surface it has one
+            fx = (x - lo[0]) / h
+            fy = (y - lo[1]) / h
+            fz = (z - lo[2]) / h
+            if 0.0 <= fx < dims[0] and 0.0 <= fy < ny and 0.0 <= fz < nz:
+                c = (np.int64(fx) * ny + np.int64(fy)) * nz + np.int64(fz)
+                for j in range(start[c], start[c + 1]):
+                    dx = x - pts[j, 0]
+                    dy = y - pts[j, 1]
+                    dz = z - pts[j, 2]
+                    if dx * dx + dy * dy + dz * dz < r2:
+                        found = True
+                        break
+        if found:
+            out[i] = True
+            continue
         for ix in range(x0, x1 + 1):
             for iy in range(y0, y1 + 1):
                 base = (ix * ny + iy) * nz
@@ -148,3 +166,29 @@ def nearest_other(ref, idx, h, out):
                     if d2 < best:
                         best = d2
         out[k] = np.sqrt(best) if best < sure2 else -1.0
+
+
+@njit(cache=True, nogil=True)
+def mark_within(ref, q, r, out):
+    """``out[j] = True`` when a row of ``q`` is closer than ``r`` to ``ref[j]`` (strictly); the
+    same answer as ``any_within(q, ref, r, out)``, fast when ``q`` holds few points: each of
+    them marks the points of ``ref`` around it.
+
+    ref : (n, 3) float64, n >= 1; q : (m, 3) float64; r : float > 0; out : (n,) bool, written.
+    """
+    lo, dims, h, start, order, pts = _grid(ref, r * (1.0 + MARGIN))
+    ny, nz = dims[1], dims[2]
+    r2 = r * r
+    out[:] = False
+    for i in range(q.shape[0]):
+        x, y, z = q[i, 0], q[i, 1], q[i, 2]
+        x0, x1, y0, y1, z0, z1 = _block(x, y, z, lo, dims, h)
+        for ix in range(x0, x1 + 1):
+            for iy in range(y0, y1 + 1):
+                base = (ix * ny + iy) * nz
+                for j in range(start[base + z0], start[base + z1 + 1] if z1 >= z0 else 0):
+                    dx = pts[j, 0] - x
+                    dy = pts[j, 1] - y
+                    dz = pts[j, 2] - z
+                    if dx * dx + dy * dy + dz * dz < r2:
+                        out[order[j]] = True

@@ -42,7 +42,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 
 from .._arrays import bounds
-from ._grid_kernels import any_within, nearest_other
+from ._grid_kernels import mark_within, nearest_other
 
 logger = logging.getLogger(__name__)
 
@@ -266,8 +266,9 @@ def _neighbourhood_tree(points, out_idx, ev_idx, ev_pts, reach):
     """``(ev_idx[near], tree of ev_pts[near])``: the evaluated points within ``reach`` of an
     out-of-tolerance point (a little more: the grid test is strict, the ball queries are not)."""
     near = np.empty(ev_pts.shape[0], bool)
-    any_within(np.ascontiguousarray(points[out_idx], dtype=np.float64),
-               np.ascontiguousarray(ev_pts, dtype=np.float64), float(reach) * (1.0 + 1e-6), near)
+    mark_within(np.ascontiguousarray(ev_pts, dtype=np.float64),
+                np.ascontiguousarray(points[out_idx], dtype=np.float64),
+                float(reach) * (1.0 + 1e-6), near)
     keep = np.flatnonzero(near)
     return ev_idx[keep], cKDTree(ev_pts[keep], balanced_tree=False, compact_nodes=False)
 
