@@ -45,6 +45,8 @@ Scratch space is allocated once per call, never per query point.  All kernels tr
 
 from __future__ import annotations
 
+from typing import NamedTuple
+
 import numpy as np
 from llvmlite import ir
 from numba import njit, types
@@ -121,7 +123,15 @@ def _ring(q0, q1, q2, b, rf, rh, rs):
     return best, bd
 
 
-@njit(cache=True, nogil=True)
+# one compiled version for every caller: int32 start points (seed lists), int64 ones and
+# literal budgets are converted to int64 at the call
+_F8 = types.float64
+_WALK_SIG = types.Tuple((types.int64, _F8, types.int64))(
+    _F8, _F8, _F8, types.int64, types.Array(_F8, 2, "C"), types.Array(types.int32, 2, "C"),
+    types.Array(types.int16, 2, "C"), types.Array(types.float32, 2, "C"), types.int64)
+
+
+@njit(_WALK_SIG, cache=True, nogil=True)
 def walk(q0, q1, q2, b, rf, ri, rh, rs, max_moves):
     """Greedy descent on the neighbour graph from model point ``b``.
 
@@ -134,7 +144,7 @@ def walk(q0, q1, q2, b, rf, ri, rh, rs, max_moves):
         k, de = _ring(q0, q1, q2, b, rf, rh, rs)
         if not de < db:
             break
-        j = ri[b, NBR + k]
+        j = np.int64(ri[b, NBR + k])
         dj = _d2(q0, q1, q2, rf, j)
         if not dj < db:
             break
@@ -298,37 +308,99 @@ def _project_one(q0, q1, q2, b, rf, rh, rs):
     return f0, f1, f2, d, clamped, n0, n1, n2
 
 
-@njit(cache=True, nogil=True)
-def project_patches(Q, idx, rf, rh, rs, out_foot, out_dist, out_clamped, out_normal):
-    """Fast-mode answer for known nearest model points ``idx`` (all >= 0)."""
-    for i in range(Q.shape[0]):
-        f0, f1, f2, d, cl, n0, n1, n2 = _project_one(Q[i, 0], Q[i, 1], Q[i, 2], idx[i],
-                                                     rf, rh, rs)
-        out_foot[i, 0] = f0
-        out_foot[i, 1] = f1
-        out_foot[i, 2] = f2
-        out_dist[i] = d
-        out_clamped[i] = cl
-        out_normal[i, 0] = n0
-        out_normal[i, 1] = n1
-        out_normal[i, 2] = n2
+class TreeArrays(NamedTuple):
+    """What a fast query reads (one numba type: C-contiguous, writable arrays).
+
+    origin (3,) float64, cell float, dims (3,) int64, nodes (T,) int32, lists (L,) int32: the
+    tree; rf, ri, rh, rs: the four views of the records; rows (N, 4) int32 (face, u, v as
+    float32 bits, other) and boundary (N,) bool, or (0, 4) / (0,) when the caller wants no
+    face, uv and on_boundary.
+    """
+
+    origin: np.ndarray
+    cell: float
+    dims: np.ndarray
+    nodes: np.ndarray
+    lists: np.ndarray
+    rf: np.ndarray
+    ri: np.ndarray
+    rh: np.ndarray
+    rs: np.ndarray
+    rows: np.ndarray
+    boundary: np.ndarray
+
+
+class Answers(NamedTuple):
+    """Output arrays of :func:`query_block` (see :class:`shapeverify.nearest.dvg.QueryAnswer`):
+    index (N,) int64, d2 (N,) float64, foot (M, 3), distance (M,), clamped (M,) bool,
+    normal (M, 3), face (R,) int32, uv (R, 2) float64, on_boundary (R,) bool."""
+
+    index: np.ndarray
+    d2: np.ndarray
+    foot: np.ndarray
+    distance: np.ndarray
+    clamped: np.ndarray
+    normal: np.ndarray
+    face: np.ndarray
+    uv: np.ndarray
+    on_boundary: np.ndarray
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _answer(q0, q1, q2, i, b, rf, rh, rs, rows, uv, boundary, foot, dist, clamped, normal,
+            face, out_uv, onb, with_rows):
+    """Write query i's patch projection and (with_rows) face, uv, on_boundary for model
+    point b.  (Plain arrays, not the named tuples: every array taken out of a tuple in a
+    per-query callee costs a reference count pair.)"""
+    f0, f1, f2, d, cl, n0, n1, n2 = _project_one(q0, q1, q2, b, rf, rh, rs)
+    foot[i, 0] = f0
+    foot[i, 1] = f1
+    foot[i, 2] = f2
+    dist[i] = d
+    clamped[i] = cl
+    normal[i, 0] = n0
+    normal[i, 1] = n1
+    normal[i, 2] = n2
+    if with_rows:
+        face[i] = rows[b, 0]
+        out_uv[i, 0] = uv[b, 1]
+        out_uv[i, 1] = uv[b, 2]
+        onb[i] = cl and boundary[b]
 
 
 @njit(cache=True, nogil=True)
-def query_block(Q, origin, s0, dims, nodes, lists, rf, ri, rh, rs, max_moves, patches,
-                out_idx, out_d2, out_foot, out_dist, out_clamped, out_normal,
-                rows, boundary, out_face, out_uv, out_onb):
-    """Nearest model point of every query (``out_idx = -1`` where the tree says FAR).
+def answer_known(Q, sel, T, A, patches):
+    """Fast-mode answer (patch projection, face, uv, on_boundary) of the queries ``sel``
+    (int64) whose nearest model point ``A.index[sel]`` is already known (the kd-tree
+    fallback of FAR queries)."""
+    rf, rh, rs, rows, boundary = T.rf, T.rh, T.rs, T.rows, T.boundary
+    index, foot, dist, clamped, normal = A.index, A.foot, A.distance, A.clamped, A.normal
+    face, out_uv, onb = A.face, A.uv, A.on_boundary
+    with_rows = patches and rows.shape[0] > 0
+    uv = rows.view(np.float32)
+    if patches:
+        for s in range(sel.shape[0]):
+            i = sel[s]
+            _answer(Q[i, 0], Q[i, 1], Q[i, 2], i, index[i], rf, rh, rs, rows, uv, boundary,
+                    foot, dist, clamped, normal, face, out_uv, onb, with_rows)
+
+
+@njit(cache=True, nogil=True)
+def query_block(Q, T, A, lo, hi, max_moves, patches):
+    """Nearest model point of queries ``lo:hi`` (``A.index = -1`` where the tree says FAR).
 
     With ``patches`` also the tangent-patch projection (foot, signed distance, clamped,
-    normal) for the answered queries, and when ``rows`` is not empty the nearest point's face,
-    (u, v) and on_boundary (as :func:`gather_rows`).  Queries run in blocks of BLOCK, one
-    stage at a time (top grid, one tree level, seed, each walk round), prefetching what the
-    next stage reads.
+    normal) for the answered queries, and when ``T.rows`` is not empty the nearest point's
+    face, (u, v) and on_boundary (the boundary flag is read only for clamped projections).
+    Queries run in blocks of BLOCK, one stage at a time (top grid, one tree level, seed, each
+    walk round), prefetching what the next stage reads.
     """
+    # every array taken out of the tuples once (not per query: reference counts)
+    rf, ri, rh, rs, rows, boundary = T.rf, T.ri, T.rh, T.rs, T.rows, T.boundary
+    nodes, lists, origin, dims = T.nodes, T.lists, T.origin, T.dims
+    index, d2, foot, dist, clamped, normal = A.index, A.d2, A.foot, A.distance, A.clamped, A.normal
+    face, out_uv, onb = A.face, A.uv, A.on_boundary
     n = rf.shape[0] - 1
-    nq = Q.shape[0]
-    rows_f = rows.view(np.float32)
     fx = np.empty(BLOCK)
     fy = np.empty(BLOCK)
     fz = np.empty(BLOCK)
@@ -337,9 +409,11 @@ def query_block(Q, origin, s0, dims, nodes, lists, rf, ri, rh, rs, max_moves, pa
     cand = np.empty(BLOCK, dtype=np.int64)
     bd = np.empty(BLOCK)
     act = np.empty(BLOCK, dtype=np.bool_)
-    inv = 1.0 / s0
-    for s in range(0, nq, BLOCK):
-        m = min(BLOCK, nq - s)
+    inv = 1.0 / T.cell
+    with_rows = patches and rows.shape[0] > 0
+    uv = rows.view(np.float32)
+    for s in range(lo, hi, BLOCK):
+        m = min(BLOCK, hi - s)
         # top grid
         for t in range(m):
             i = s + t
@@ -409,7 +483,7 @@ def query_block(Q, origin, s0, dims, nodes, lists, rf, ri, rh, rs, max_moves, pa
                     b = best[t]
                     k, de = _ring(Q[i, 0], Q[i, 1], Q[i, 2], b, rf, rh, rs)
                     if de < bd[t]:
-                        j = ri[b, NBR + k]
+                        j = np.int64(ri[b, NBR + k])
                         cand[t] = j
                         _fetch(rf, j)
                         more = True
@@ -426,7 +500,6 @@ def query_block(Q, origin, s0, dims, nodes, lists, rf, ri, rh, rs, max_moves, pa
                             bd[t] = d
                         else:
                             act[t] = False
-        with_rows = patches and rows.shape[0] > 0
         if with_rows:
             for t in range(m):
                 if best[t] >= 0:
@@ -434,46 +507,27 @@ def query_block(Q, origin, s0, dims, nodes, lists, rf, ri, rh, rs, max_moves, pa
         for t in range(m):
             b = best[t]
             i = s + t
-            out_idx[i] = b
+            index[i] = b
             if b < 0:
-                out_d2[i] = np.inf
+                d2[i] = np.inf
                 continue
-            out_d2[i] = bd[t]
+            d2[i] = bd[t]
             if patches:
                 f0, f1, f2, d, cl, n0, n1, n2 = _project_one(Q[i, 0], Q[i, 1], Q[i, 2], b,
                                                              rf, rh, rs)
-                out_foot[i, 0] = f0
-                out_foot[i, 1] = f1
-                out_foot[i, 2] = f2
-                out_dist[i] = d
-                out_clamped[i] = cl
-                out_normal[i, 0] = n0
-                out_normal[i, 1] = n1
-                out_normal[i, 2] = n2
+                foot[i, 0] = f0
+                foot[i, 1] = f1
+                foot[i, 2] = f2
+                dist[i] = d
+                clamped[i] = cl
+                normal[i, 0] = n0
+                normal[i, 1] = n1
+                normal[i, 2] = n2
                 if with_rows:
-                    out_face[i] = rows[b, 0]
-                    out_uv[i, 0] = rows_f[b, 1]
-                    out_uv[i, 1] = rows_f[b, 2]
-                    out_onb[i] = cl and boundary[b]
-
-
-@njit(cache=True, nogil=True)
-def gather_rows(idx, rows, boundary, clamped, out_face, out_uv, out_onb):
-    """Fast-mode face, (u, v) and on_boundary of each query's nearest model point.
-
-    rows (N, 4) int32: face, u, v (float32 bits), other; on_boundary = boundary & clamped
-    (the boundary flag is read only for clamped projections).
-    """
-    uv = rows.view(np.float32)
-    n = idx.shape[0]
-    for i in range(n):
-        if i + 16 < n:
-            prefetch(rows, idx[i + 16] * 4)
-        b = idx[i]
-        out_face[i] = rows[b, 0]
-        out_uv[i, 0] = uv[b, 1]
-        out_uv[i, 1] = uv[b, 2]
-        out_onb[i] = clamped[i] and boundary[b]
+                    face[i] = rows[b, 0]
+                    out_uv[i, 0] = uv[b, 1]
+                    out_uv[i, 1] = uv[b, 2]
+                    onb[i] = cl and boundary[b]
 
 
 # ------------------------------------------------------------------------------------- build

@@ -160,6 +160,19 @@ def make_records(points: np.ndarray, graph: np.ndarray, frames: np.ndarray | Non
     return rec
 
 
+_NO_ROWS = np.zeros((0, 4), dtype=np.int32)
+_NO_BOUNDARY = np.zeros(0, dtype=np.bool_)
+
+
+def writable(a: np.ndarray, dtype) -> np.ndarray:
+    """``a`` itself when it is a C-contiguous writable array of ``dtype``, else such a copy
+    (the kernels are compiled for writable arrays only: a read-only one would compile them
+    again)."""
+    if a.dtype == dtype and a.flags.c_contiguous and a.flags.writeable:
+        return a
+    return np.array(a, dtype=dtype, order="C")
+
+
 def views(rec: np.ndarray):
     """The four typed views (float64, int32, int16, float32) of a record array."""
     return (rec, rec.view(np.int32), rec.view(np.int16), rec.view(np.float32))
@@ -280,9 +293,18 @@ class DVG:
     """
 
     def __init__(self, rec: np.ndarray, tree: DVGTree):
+        if not (rec.flags.writeable and rec.flags.c_contiguous and rec.dtype == np.float64):
+            rec, rec0 = aligned_empty(rec.shape, np.float64), rec
+            rec[...] = rec0
         self.rec = rec
         self.tree = tree
         self._kd = None
+        # what the query kernel reads, as one named tuple of C-contiguous writable arrays: one
+        # compiled version of the kernel, whether the arrays come from prepare or from a file
+        self._arrays = _kernels.TreeArrays(
+            writable(tree.origin, np.float64), float(tree.cell), writable(tree.dims, np.int64),
+            writable(tree.nodes, np.int32), writable(tree.lists, np.int32), *views(rec),
+            _NO_ROWS, _NO_BOUNDARY)
 
     @classmethod
     def build(cls, points, spacing: float, max_distance: float, frames=None, *,
@@ -363,47 +385,27 @@ class DVG:
         other) and ``boundary`` (N,) bool are given.  FAR queries are answered by the kd-tree
         fallback.
         """
+        q = writable(q, np.float64)
         n = q.shape[0]
-        idx = np.empty(n, dtype=np.int64)
-        d2 = np.empty(n)
         m = n if patches else 0
-        foot = np.empty((m, 3))
-        dist = np.empty(m)
-        clamped = np.zeros(m, dtype=np.bool_)
-        normal = np.empty((m, 3))
         r = 0 if rows is None else m
-        face = np.empty(r, dtype=np.int32)
-        uv = np.empty((r, 2))
-        onb = np.empty(r, dtype=np.bool_)
-        if rows is None:
-            rows = np.zeros((0, 4), dtype=np.int32)
-            boundary = np.zeros(0, dtype=np.bool_)
-        t = self.tree
-        rv = views(self.rec)
+        A = _kernels.Answers(np.empty(n, dtype=np.int64), np.empty(n), np.empty((m, 3)),
+                             np.empty(m), np.empty(m, dtype=np.bool_), np.empty((m, 3)),
+                             np.empty(r, dtype=np.int32), np.empty((r, 2)),
+                             np.empty(r, dtype=np.bool_))
+        T = self._arrays if rows is None else self._arrays._replace(rows=rows, boundary=boundary)
 
         def chunk(a, b):
-            _kernels.query_block(q[a:b], t.origin, t.cell, t.dims, t.nodes, t.lists, *rv,
-                                 _QUERY_MOVES, patches, idx[a:b], d2[a:b], foot[a:b],
-                                 dist[a:b], clamped[a:b], normal[a:b], rows, boundary,
-                                 face[a:b], uv[a:b], onb[a:b])
+            _kernels.query_block(q, T, A, a, b, _QUERY_MOVES, patches)
 
         run_chunks(chunk, n)
-        far = np.flatnonzero(idx < 0)
+        far = np.flatnonzero(A.index < 0)
         if far.size:
             d, j = self.kd().query(q[far])
-            idx[far] = j
-            d2[far] = d * d
-            if patches:
-                _, _, rh, rs = views(self.rec)
-                f, g, c, nn = (np.empty((far.size, 3)), np.empty(far.size),
-                               np.empty(far.size, dtype=np.bool_), np.empty((far.size, 3)))
-                _kernels.project_patches(q[far], idx[far], self.rec, rh, rs, f, g, c, nn)
-                foot[far], dist[far], clamped[far], normal[far] = f, g, c, nn
-                if r:
-                    fa, ua, oa = (np.empty(far.size, dtype=np.int32), np.empty((far.size, 2)),
-                                  np.empty(far.size, dtype=np.bool_))
-                    _kernels.gather_rows(idx[far], rows, boundary, c, fa, ua, oa)
-                    face[far], uv[far], onb[far] = fa, ua, oa
+            A.index[far] = j
+            A.d2[far] = d * d
+            _kernels.answer_known(q, far, T, A, patches)
+        idx, d2, foot, dist, clamped, normal, face, uv, onb = A
         return QueryAnswer(idx, d2, foot, dist, clamped, normal, face, uv, onb)
 
     def nearest(self, queries) -> tuple[np.ndarray, np.ndarray]:

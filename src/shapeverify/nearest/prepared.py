@@ -139,6 +139,9 @@ class Prepared:
         self._fast = fast
         # one 16-byte row per model point: face (int32), u, v (float32), other-face point
         # (int32, -1 if none): what the fast and exact answers read besides the record
+        # (writable C-contiguous: the query kernel is compiled for that flavour only)
+        rows = _dvg.writable(rows, np.int32)
+        boundary = _dvg.writable(boundary, np.bool_)
         self._rows = rows
         self._face = rows[:, 0]
         self._uv = rows.view(np.float32)[:, 1:3]
