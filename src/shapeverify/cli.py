@@ -22,6 +22,8 @@ from rich.markup import escape
 from rich.table import Table
 from typer.core import TyperGroup
 
+from shapeverify.cli_errors import clean, cli_hint, os_error_message
+
 class _GuardedGroup(TyperGroup):
     """Runs every command so that an unexpected exception (a bug) also ends with exit code 2 and
     one line -- never exit code 1, which ``inspect`` reserves for "the part fails"."""
@@ -91,6 +93,7 @@ def _stage(name: str):
     """Show a spinner while a stage runs, then a tick with its duration."""
     _watch_compiles()
     t0 = time.perf_counter()
+    name = escape(clean(name))  # a non-UTF-8 file name must not stop the command
     with console.status(f"[bold]{name}…"):
         yield
     console.print(f"[green]✓[/green] {name} [dim]({time.perf_counter() - t0:.2f} s)[/dim]")
@@ -98,7 +101,7 @@ def _stage(name: str):
 
 def _fail(message: str) -> None:
     """Print ``error: MESSAGE`` on one line (no markup, no wrapping) and exit with code 2."""
-    console.print(f"[bold red]error:[/bold red] {escape(' '.join(str(message).split()))}",
+    console.print(f"[bold red]error:[/bold red] {escape(' '.join(clean(message).split()))}",
                   soft_wrap=True)
     raise typer.Exit(EXIT_ERROR)
 
@@ -108,7 +111,7 @@ def _internal_error(exc: BaseException, verbose: bool) -> None:
     the traceback with ``--verbose``."""
     if verbose:
         console.print_exception()
-    what = escape(" ".join(f"{type(exc).__name__}: {exc}".split()))
+    what = escape(" ".join(clean(f"{type(exc).__name__}: {exc}").split()))
     hint = "the traceback is above" if verbose else "run with --verbose for the traceback"
     console.print(f"[bold red]internal error:[/bold red] {what} (a bug in shapeverify, please "
                   f"report it); {hint}", soft_wrap=True)
@@ -118,20 +121,21 @@ def _internal_error(exc: BaseException, verbose: bool) -> None:
 _VERBOSE_KEY = "shapeverify.verbose"
 
 
-def _guard(fn, *args, **kwargs):
+def _guard(fn, *args, _scan_unit=None, **kwargs):
     """Run ``fn``; turn shapeverify's errors (and unreadable or missing files) into a one-line
     message and exit code 2.  Anything else is a bug and propagates to the command group, which
-    reports it as an internal error (also exit code 2)."""
+    reports it as an internal error (also exit code 2).  ``_scan_unit``: the ``--scan-unit``
+    given, for the command-line hint of a unit mismatch (:func:`cli_errors.cli_hint`)."""
     from shapeverify.errors import is_input_error
 
     try:
         return fn(*args, **kwargs)
-    except FileNotFoundError as exc:
-        _fail(f"{exc.filename or exc}: no such file")
+    except OSError as exc:      # a missing input, an output folder that is not there, no room
+        _fail(os_error_message(exc))
     except Exception as exc:  # noqa: BLE001 - sorted: input errors here, bugs further up
         if not is_input_error(exc):
             raise
-        _fail(str(exc))
+        _fail(str(exc) + cli_hint(str(exc), _scan_unit))
 
 
 def _require_extra(module: str, extra: str, command: str) -> None:
@@ -157,6 +161,8 @@ def _require_files(*paths: Path) -> None:
     for p in paths:
         if not p.exists():
             _fail(f"{p}: no such file")
+        if p.is_dir():
+            _fail(f"{p}: is a directory; give a file")
 
 
 @app.callback()
@@ -186,7 +192,7 @@ def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges
         with _stage(f"Importing {model.name}"):
             m = _guard(load_model, model)
         prep = None
-    out.print(model_summary_table(m, title=str(model)))
+    out.print(model_summary_table(m, title=clean(model)))
     if prep is not None:
         out.print(f"prepared: {prep.n_points:,} model points at {prep.spacing:.3g} mm spacing, "
                   f"reach {prep.reach:.3g} mm")
@@ -254,7 +260,7 @@ def inspect(
     evaluation_distance: Optional[float] = _EVALUATION_DISTANCE,
     faces: Optional[str] = typer.Option(None, "--faces", help="Inspect only these CAD faces, e.g. '0,3,7' (default: all)"),
     min_coverage: Optional[float] = typer.Option(None, "--min-coverage", help="Least share of the inspected CAD area that must be seen (0..1, default 0.2 = shapeverify.inspection.MIN_COVERAGE); below it the verdict is 'incomplete'"),
-    init: Optional[Path] = typer.Option(None, "--init", help="Start pose T_model_scan: a 4x4 in T.json or T.npy (default: found automatically)"),
+    init: Optional[str] = typer.Option(None, "--init", help="Start pose T_model_scan: a 4x4 in T.json or T.npy, or a strategy: auto (default: the identity when the scan overlaps the model, else a global search), identity, principal-axes, global"),
     scan_unit: Optional[str] = typer.Option(None, "--scan-unit", help="Unit of the scan file (mm, cm, m, in, um; default mm)"),
     model_unit: Optional[str] = typer.Option(None, "--model-unit", help="Unit of an STL/PLY/OBJ/point-cloud model (default mm; CAD files declare theirs)"),
     plan: Optional[Path] = typer.Option(None, "--plan", help="Inspection plan (plan.yaml): alignment, characteristics with uncertainty; without --tolerance the colour map uses half its first surface profile's zone"),
@@ -273,20 +279,23 @@ def inspect(
     _prestart_importer(model)
     from shapeverify.pipeline import run_inspection
 
-    _require_files(model, scan, *([init] if init is not None else []),
+    from shapeverify.registration.icp import INIT_MODES
+
+    init_file = Path(init) if init is not None and init not in INIT_MODES else None
+    _require_files(model, scan, *([init_file] if init_file is not None else []),
                    *([plan] if plan is not None else []))
     if tolerance is None and lower is None and upper is None:
         if plan is None:
             _fail("give --tolerance MM (or --lower/--upper limits in mm, or a --plan)")
         from shapeverify.cli_plan import default_tolerance
         tolerance = _guard(default_tolerance, plan)
-    T0 = _guard(_read_init, init) if init is not None else None
+    T0 = _guard(_read_init, init_file) if init_file is not None else init
     result, outputs = _guard(
         run_inspection, model, scan, tolerance=tolerance, evaluation_distance=evaluation_distance,
         lower=lower, upper=upper, faces=faces, min_coverage=min_coverage, init=T0,
         scan_unit=scan_unit, model_unit=model_unit, plan=plan, pdf_path=pdf,
         json_path=json_path, report_path=report, png_path=png,
-        colored_path=colored, db_path=db, part=part, stage=_stage)
+        colored_path=colored, db_path=db, part=part, stage=_stage, _scan_unit=scan_unit)
     _print_result(result)
     for label, path in (("JSON", outputs.json), ("report", outputs.report), ("PDF", outputs.pdf),
                         ("PNG", outputs.png), ("coloured PLY", outputs.colored)):
@@ -368,7 +377,7 @@ def history(
     csv_out: Optional[Path] = typer.Option(None, "--csv", help="With --characteristic: export its history as CSV"),
 ):
     """List past inspections and draw trend charts for process control (SPC)."""
-    from shapeverify.report.history import HistoryDB, plot_trend
+    from shapeverify.report.history import plot_trend
 
     if characteristic is not None:
         from shapeverify.cli_plan import print_characteristic_history
@@ -378,8 +387,7 @@ def history(
 
     if not db.exists():
         _fail(f"{db}: no such history file (create one with `shapeverify inspect ... --db {db}`)")
-    with HistoryDB(db) as h:
-        rows = h.query(part=part, limit=limit)
+    rows = _guard(_history_rows, db, part, limit)
     t = Table(title=f"{db} ({len(rows)} records)")
     for col in ("id", "time", "part", "verdict", "mean [mm]", "p95 [mm]", "max [mm]"):
         t.add_column(col)
@@ -389,8 +397,15 @@ def history(
                   f"{r.get('max', float('nan')):.4f}")
     out.print(t)
     if plot:
-        plot_trend(rows, plot)
+        _guard(plot_trend, rows, plot)
         out.print(f"trend chart: {plot}")
+
+
+def _history_rows(db: Path, part, limit: int) -> list:
+    from shapeverify.report.history import HistoryDB
+
+    with HistoryDB(db) as h:
+        return h.query(part=part, limit=limit)
 
 
 @app.command()
