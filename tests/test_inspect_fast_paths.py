@@ -104,3 +104,38 @@ def test_regions_from_the_neighbourhood_tree_equal_those_from_the_whole_tree():
             # the quadratic fit sums its neighbours in another order: the last bits may differ
             assert abs(ra.extreme - rb.extreme) < 1e-12
             np.testing.assert_allclose(ra.extreme_point, rb.extreme_point, rtol=0, atol=1e-9)
+
+
+def test_linked_components_label_like_scipy_connected_components():
+    """Union-find labels: the same numbering as scipy's (components by their lowest index)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+
+    from shapeverify.inspection.regions import linked_components
+
+    rng = np.random.default_rng(9)
+    for _ in range(200):
+        n = int(rng.integers(1, 300))
+        pairs = rng.integers(0, n, (int(rng.integers(0, 2 * n)), 2))
+        g = coo_matrix((np.ones(len(pairs), np.int8), (pairs[:, 0], pairs[:, 1])), shape=(n, n))
+        count, labels = connected_components(g, directed=False)
+        got = linked_components(n, pairs)
+        assert got[0] == count
+        np.testing.assert_array_equal(got[1], labels)
+    assert linked_components(3, np.zeros((0, 2), np.int64))[1].tolist() == [0, 1, 2]
+
+
+def test_row_medians_equal_numpy_nanmedian_bit_for_bit():
+    import warnings
+
+    from shapeverify.inspection.regions import _nanmedian_rows
+
+    rng = np.random.default_rng(11)
+    for t in range(100):
+        a = rng.normal(0, 1, (int(rng.integers(1, 300)), int(rng.integers(1, 12))))
+        if t % 3 == 0:
+            a = np.round(a, 1)                                  # ties
+        a[rng.random(a.shape) < rng.uniform(0, 0.9)] = np.nan  # all-NaN rows too
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", RuntimeWarning)
+            np.testing.assert_array_equal(_nanmedian_rows(a), np.nanmedian(a, axis=1))
