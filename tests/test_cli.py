@@ -13,6 +13,12 @@ from shapeverify.cli import app
 runner = CliRunner()
 
 
+@pytest.fixture(autouse=True)
+def _own_summary_cache(tmp_path, monkeypatch):
+    """A fresh cache of ``info`` summaries per test (not the user's; every ``info`` reads)."""
+    monkeypatch.setenv("SHAPEVERIFY_CACHE_DIR", str(tmp_path / "summary-cache"))
+
+
 @pytest.fixture(scope="module")
 def panel(tmp_path_factory):
     """The example panel as STEP and prepared .svm, plus a clean and a dented simulated scan."""

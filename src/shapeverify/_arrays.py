@@ -10,32 +10,9 @@ twenty of them per scan.  One numba pass does each in a few microseconds.
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
-
-@njit(cache=True, nogil=True)
-def _count_nonfinite_rows(a):
-    n = 0
-    for i in range(a.shape[0]):
-        for j in range(a.shape[1]):
-            if not np.isfinite(a[i, j]):
-                n += 1
-                break
-    return n
-
-
-@njit(cache=True, nogil=True)
-def _bounds(a, lo, hi):
-    for j in range(a.shape[1]):
-        lo[j] = np.inf
-        hi[j] = -np.inf
-    for i in range(a.shape[0]):
-        for j in range(a.shape[1]):
-            x = a[i, j]
-            if x < lo[j]:
-                lo[j] = x
-            if x > hi[j]:
-                hi[j] = x
+# the numba passes live in ``_array_kernels``, imported on first use: importing this module (as
+# building a model does, e.g. for ``shapeverify info``) needs no numba.
 
 
 def count_nonfinite_rows(a: np.ndarray) -> int:
@@ -45,6 +22,8 @@ def count_nonfinite_rows(a: np.ndarray) -> int:
     with np.errstate(invalid="ignore", over="ignore"):   # inf - inf, huge + huge
         if np.isfinite(a.sum()):                # a sum is finite only if every value is
             return 0
+    from ._array_kernels import _count_nonfinite_rows
+
     return int(_count_nonfinite_rows(np.ascontiguousarray(a, dtype=np.float64)))
 
 
@@ -53,6 +32,8 @@ def bounds(a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     a = np.ascontiguousarray(a, dtype=np.float64)
     lo = np.empty(a.shape[1])
     hi = np.empty(a.shape[1])
+    from ._array_kernels import _bounds
+
     _bounds(a, lo, hi)
     return lo, hi
 

@@ -89,9 +89,13 @@ def _watch_compiles() -> None:
 
 
 @contextlib.contextmanager
-def _stage(name: str):
-    """Show a spinner while a stage runs, then a tick with its duration."""
-    _watch_compiles()
+def _stage(name: str, watch: bool = True):
+    """Show a spinner while a stage runs, then a tick with its duration.
+
+    ``watch=False``: do not install the compile notices (they import numba, ~1.3 s), for a
+    stage that runs no numba kernel in this process (``info`` of a CAD file or mesh)."""
+    if watch:
+        _watch_compiles()
     t0 = time.perf_counter()
     name = escape(clean(name))  # a non-UTF-8 file name must not stop the command
     with console.status(f"[bold]{name}…"):
@@ -178,21 +182,34 @@ def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges
          features: bool = typer.Option(False, "--features", help="Also list the CAD features an inspection plan can name (hole:N, face:N)"),
          json_out: Optional[Path] = typer.Option(None, "--json", help="With --features: write them as JSON")):
     """Print a summary of a model: faces, units, size (and with --features its holes and faces)."""
-    _prestart_importer(model)
     from shapeverify.pipeline import PREPARED_SUFFIX
 
     _require_files(model)
+    prep = m = None
     if model.suffix.lower() == PREPARED_SUFFIX:
         from shapeverify.nearest import load_prepared
         with _stage(f"Loading {model.name}"):
             prep = _guard(load_prepared, model)
         m = prep.model
-    else:
+        summary = m
+    elif features:
+        _prestart_importer(model)
         from shapeverify.cad.load import load_model
-        with _stage(f"Importing {model.name}"):
+        with _stage(f"Importing {model.name}", watch=False):  # numba runs only in the importer
             m = _guard(load_model, model)
-        prep = None
-    out.print(model_summary_table(m, title=clean(model)))
+        summary = m
+    else:
+        # the summary of a file read before comes from the cache (no OpenCASCADE, no numba)
+        from shapeverify.cad.summary import cached_summary
+
+        def load(path):
+            _prestart_importer(path)
+            from shapeverify.cad.load import load_model
+            return load_model(path)
+
+        with _stage(f"Importing {model.name}", watch=False):  # numba runs only in the importer
+            summary, _ = _guard(cached_summary, model, load)
+    out.print(model_summary_table(summary, title=clean(model)))
     if prep is not None:
         out.print(f"prepared: {prep.n_points:,} model points at {prep.spacing:.3g} mm spacing, "
                   f"reach {prep.reach:.3g} mm")
@@ -202,23 +219,26 @@ def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges
 
 
 def model_summary_table(m, title: str) -> Table:
+    """The summary table of a :class:`~shapeverify.cad.model.Model` or of its
+    :class:`~shapeverify.cad.summary.ModelSummary`."""
     import numpy as np
 
-    lo, hi = m.bounds
+    from shapeverify.cad.summary import ModelSummary, summarize
+
+    s = m if isinstance(m, ModelSummary) else summarize(m)
+    lo, hi = np.array(s.lo), np.array(s.hi)
     t = Table(title=title, show_header=False)
-    t.add_row("kind", m.kind)
-    t.add_row("faces", str(len(m.faces)))
-    if m.kind == "cad":
-        rational = sum(1 for f in m.faces if f.surface.rational)
-        holes = sum(1 for f in m.faces if len(f.loops) > 1)
-        t.add_row("rational faces", str(rational))
-        t.add_row("faces with holes", str(holes))
-    if m.vertices is not None:
-        t.add_row("vertices", f"{len(m.vertices):,}")
-    t.add_row("file unit", f"{m.unit} (x{m.scale_to_mm:g} to mm)")
+    t.add_row("kind", s.kind)
+    t.add_row("faces", str(s.faces))
+    if s.kind == "cad":
+        t.add_row("rational faces", str(s.rational_faces))
+        t.add_row("faces with holes", str(s.faces_with_holes))
+    if s.vertices is not None:
+        t.add_row("vertices", f"{s.vertices:,}")
+    t.add_row("file unit", f"{s.unit} (x{s.scale_to_mm:g} to mm)")
     t.add_row("bounding box [mm]", f"{np.array2string(lo, precision=2, suppress_small=True)} .. "
                                    f"{np.array2string(hi, precision=2, suppress_small=True)}")
-    t.add_row("size (diagonal) [mm]", f"{m.size:.3f}")
+    t.add_row("size (diagonal) [mm]", f"{s.size:.3f}")
     return t
 
 

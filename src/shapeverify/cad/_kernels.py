@@ -584,17 +584,3 @@ def surface_derivs(p, q, U, V, Pw, u, v, order, out):
     per point.
     """
     _surface_loop(p, q, U, V, Pw, u, v, order, out)
-
-
-@njit(cache=True)
-def surface_derivs_bicubic(U, V, Pw, u, v, order, out):
-    """:func:`surface_derivs` for degrees (3, 3), compiled with the degrees and the order as
-    compile-time constants (constant loop trip counts): about 1.4x faster per point.  One extra
-    compile (three orders), cached on disk.
-    """
-    if order == 0:
-        _surface_loop(3, 3, U, V, Pw, u, v, 0, out)
-    elif order == 1:
-        _surface_loop(3, 3, U, V, Pw, u, v, 1, out)
-    else:
-        _surface_loop(3, 3, U, V, Pw, u, v, 2, out)

@@ -21,13 +21,11 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._arrays import readonly as _readonly
-from . import _kernels
+
+# The numba kernels (``from . import _kernels``) are imported where they are called, not here:
+# building surfaces and models (e.g. for ``shapeverify info``) then needs no numba (~1.3 s).
 
 logger = logging.getLogger(__name__)
-
-#: Bicubic surfaces evaluated at this many (u, v) or more use a kernel compiled for degree 3
-#: (constant loop bounds, about 1.3x faster; one extra compile, cached on disk).
-BICUBIC_MIN_POINTS = 20_000
 
 __all__ = [
     "NurbsCurve",
@@ -182,6 +180,8 @@ class NurbsCurve:
         order = _check_order(order, range(0, max(self.degree, 2) + 2), "curve")
         t = _params(t, *self.domain, "t")
         out = np.empty((t.shape[0], order + 1, self.dim))
+        from . import _kernels
+
         _kernels.curve_derivs(self.degree, self.knots, self._pw, t, order, out)
         return out
 
@@ -276,11 +276,12 @@ class NurbsSurface:
         order = _check_order(order, range(0, 3), "surface")
         u, v = self._uv(u, v)
         out = np.empty((u.shape[0], order + 1, order + 1, 3))
-        if self.degree_u == self.degree_v == 3 and u.shape[0] >= BICUBIC_MIN_POINTS:
-            _kernels.surface_derivs_bicubic(self.knots_u, self.knots_v, self._pw, u, v, order, out)
-        else:
-            _kernels.surface_derivs(self.degree_u, self.degree_v, self.knots_u, self.knots_v,
-                                    self._pw, u, v, order, out)
+        from . import _kernels
+
+        # one kernel for every degree and order (a copy compiled for degree 3 was 1.3x faster
+        # per point, same bits, but cost 10 s of compiling on a fresh install)
+        _kernels.surface_derivs(self.degree_u, self.degree_v, self.knots_u, self.knots_v,
+                                self._pw, u, v, order, out)
         return out
 
     def evaluate(self, u, v) -> np.ndarray:
@@ -447,6 +448,8 @@ def evaluate_packed(packed: PackedSurfaces, face_ids, uv, order: int = 0) -> np.
                          f"u {tuple(dom[i, 0])} x v {tuple(dom[i, 1])}")
     uv = np.clip(uv, lo, hi)
     out = np.empty((f.shape[0], order + 1, order + 1, 3))
+    from . import _kernels
+
     _kernels.surface_derivs_packed_many(*packed.kernel_args, f, np.ascontiguousarray(uv[:, 0]),
                                         np.ascontiguousarray(uv[:, 1]), order, out)
     return out

@@ -291,8 +291,9 @@ def _serve() -> None:
     root = logging.getLogger("shapeverify")
     root.addHandler(handler)
     root.propagate = False
-    try:  # import now, while the caller is still starting up (see prestart)
-        from . import occ_import  # noqa: F401
+    try:  # import now, while the caller is still starting up (see prestart); every import
+        # samples edges and bounds faces with the numba kernels, which the modules import lazily
+        from . import _kernels, _trim_kernels, occ_import  # noqa: F401
         import OCP  # noqa: F401
     except Exception:  # noqa: BLE001 - the request will report it
         pass

@@ -31,7 +31,7 @@ from typing import NamedTuple
 
 import numpy as np
 
-from . import _trim_kernels
+# ``_trim_kernels`` (numba) is imported where it is called: building a model needs no numba.
 
 __all__ = ["TrimDomain", "check_loops", "PackedTrims", "pack_trims", "loop_segments"]
 
@@ -226,6 +226,8 @@ class TrimDomain:
         u = np.ascontiguousarray(p[:, 0])
         v = np.ascontiguousarray(p[:, 1])
         out = np.empty(p.shape[0], dtype=np.bool_)
+        from . import _trim_kernels
+
         return _trim_kernels.contains(self._trims, 0, u, v, out)
 
     def __repr__(self) -> str:

@@ -1,0 +1,168 @@
+"""What ``shapeverify info`` prints about a model, and a cache of it keyed by the file's content.
+
+Reading a STEP file costs about 1.5 s of OpenCASCADE import and 0.9 s of numba start in the
+importer process before the first answer (``benchmarks/results_coldstart.md``), however small
+the file.  :func:`cached_summary` keeps the :class:`ModelSummary` of each model file it read in
+the user's cache directory, under the SHA-256 of the file's bytes, so that ``info`` of the same
+file again needs neither OpenCASCADE nor numba.
+
+The cache is safe to lose or damage: an entry is used only when its file content hash, its
+format version and the stamp of the importing code (size and modification time of every module
+of :mod:`shapeverify.cad`, and the package version) all match; a corrupt or unreadable entry is
+ignored (and replaced); writing it is best effort (a read-only cache directory only costs the
+speed-up).  Directory: ``$SHAPEVERIFY_CACHE_DIR``, else ``$XDG_CACHE_HOME/shapeverify``, else
+``~/.cache/shapeverify``.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import json
+import logging
+import os
+import tempfile
+from dataclasses import asdict, dataclass
+from pathlib import Path
+
+__all__ = ["ModelSummary", "summarize", "cached_summary", "cache_dir"]
+
+logger = logging.getLogger(__name__)
+
+_FORMAT = 1  # bump when ModelSummary's fields change
+_MAX_ENTRIES = 256  # the oldest entries beyond this are removed when one is written
+
+
+@dataclass(frozen=True)
+class ModelSummary:
+    """The figures ``shapeverify info`` shows.
+
+    Attributes
+    ----------
+    kind : str
+        "cad", "mesh" or "points".
+    faces : int
+        CAD faces held (0 for a mesh or a point cloud).
+    rational_faces, faces_with_holes : int
+        Faces whose surface is rational; faces with more than one trimming loop (0 unless CAD).
+    vertices : int or None
+        Mesh vertices or cloud points (None for CAD).
+    unit : str
+        The unit the file declares; ``scale_to_mm`` converts it to mm.
+    scale_to_mm : float
+    lo, hi : tuple of 3 float
+        Axis-aligned bounding box [mm] (:attr:`shapeverify.cad.model.Model.bounds`).
+    size : float
+        Its diagonal [mm].
+    """
+
+    kind: str
+    faces: int
+    rational_faces: int
+    faces_with_holes: int
+    vertices: int | None
+    unit: str
+    scale_to_mm: float
+    lo: tuple
+    hi: tuple
+    size: float
+
+
+def summarize(model) -> ModelSummary:
+    """The :class:`ModelSummary` of a :class:`~shapeverify.cad.model.Model`."""
+    lo, hi = model.bounds
+    cad = model.kind == "cad"
+    return ModelSummary(
+        kind=str(model.kind.value), faces=len(model.faces),
+        rational_faces=sum(1 for f in model.faces if f.surface.rational) if cad else 0,
+        faces_with_holes=sum(1 for f in model.faces if len(f.loops) > 1) if cad else 0,
+        vertices=None if model.vertices is None else int(len(model.vertices)),
+        unit=model.unit, scale_to_mm=float(model.scale_to_mm),
+        lo=tuple(float(x) for x in lo), hi=tuple(float(x) for x in hi), size=float(model.size))
+
+
+def cache_dir() -> Path:
+    """Where :func:`cached_summary` keeps its entries (see the module docstring)."""
+    d = os.environ.get("SHAPEVERIFY_CACHE_DIR")
+    if d:
+        return Path(d)
+    xdg = os.environ.get("XDG_CACHE_HOME")
+    return (Path(xdg) if xdg else Path.home() / ".cache") / "shapeverify"
+
+
+def _code_stamp() -> str:
+    """Changes whenever a module of shapeverify.cad (the importer and the model) changes."""
+    from shapeverify import __version__
+
+    here = Path(__file__).resolve().parent
+    h = hashlib.sha256(f"{__version__}/{_FORMAT}".encode())
+    for p in sorted(here.glob("*.py")):
+        st = p.stat()
+        h.update(f"{p.name}:{st.st_size}:{st.st_mtime_ns};".encode())
+    return h.hexdigest()[:16]
+
+
+def _file_hash(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as f:
+        for block in iter(lambda: f.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _read_entry(entry: Path, stamp: str) -> ModelSummary | None:
+    try:
+        data = json.loads(entry.read_text())
+        if data.pop("stamp") != stamp:
+            return None
+        data["lo"], data["hi"] = tuple(map(float, data["lo"])), tuple(map(float, data["hi"]))
+        s = ModelSummary(**data)
+        if not (len(s.lo) == len(s.hi) == 3 and isinstance(s.faces, int)):
+            raise ValueError("malformed entry")
+        return s
+    except FileNotFoundError:
+        return None
+    except Exception as exc:  # noqa: BLE001 - a damaged entry is only a missed speed-up
+        logger.debug("ignoring the damaged cache entry %s: %s", entry, exc)
+        return None
+
+
+def _write_entry(entry: Path, summary: ModelSummary, stamp: str) -> None:
+    try:
+        entry.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(dir=entry.parent, prefix=".tmp-", suffix=".json")
+        with os.fdopen(fd, "w") as f:
+            json.dump({**asdict(summary), "stamp": stamp}, f)
+        os.replace(tmp, entry)
+        old = sorted(entry.parent.glob("info-*.json"), key=lambda p: p.stat().st_mtime)
+        for p in old[:-_MAX_ENTRIES]:
+            p.unlink(missing_ok=True)
+    except OSError as exc:
+        logger.debug("could not write the cache entry %s: %s", entry, exc)
+
+
+def cached_summary(path, load) -> tuple[ModelSummary, bool]:
+    """The :class:`ModelSummary` of the model file ``path``, from the cache when it holds one.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        A model file (its bytes are hashed: SHA-256, about 1 GB/s).
+    load : callable(path) -> Model
+        Reads the file on a cache miss (``shapeverify.cad.load.load_model``); its exceptions
+        propagate and nothing is cached.
+
+    Returns
+    -------
+    (ModelSummary, bool)
+        The summary, and whether it came from the cache.
+    """
+    path = Path(path)
+    stamp = _code_stamp()
+    entry = cache_dir() / f"info-{_file_hash(path)}{path.suffix.lower()}.json"
+    hit = _read_entry(entry, stamp)
+    if hit is not None:
+        logger.info("%s: summary from the cache (%s)", path, entry)
+        return hit, True
+    summary = summarize(load(path))
+    _write_entry(entry, summary, stamp)
+    return summary, False
