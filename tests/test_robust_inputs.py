@@ -251,3 +251,17 @@ def test_plan_path_that_is_a_directory_is_a_plan_error(tmp_path):
     d.mkdir()
     with pytest.raises(PlanError, match="is a directory"):
         load_plan(d)
+
+
+def test_semicolon_table_with_decimal_commas_is_read(tmp_path):
+    # was: "1,5;2,5;3,5" split at the commas, the first row taken for a header, then refused
+    p = tmp_path / "eu.csv"
+    p.write_text("1,5;2,5;3,5\n4,0;5,0;6,25\n")
+    np.testing.assert_array_equal(read_points(p), [[1.5, 2.5, 3.5], [4.0, 5.0, 6.25]])
+
+
+def test_table_with_a_delimiter_closing_every_row_is_read(tmp_path):
+    # was: "'' is not a number" (Excel-style exports end rows with the delimiter)
+    p = tmp_path / "trail.csv"
+    p.write_text("x,y,z,\n1,2,3,\n4,5,6,\n")
+    np.testing.assert_array_equal(read_points(p), [[1, 2, 3], [4, 5, 6]])

@@ -1,7 +1,8 @@
 """Point tables (``.xyz .txt .csv``): one point per line, separated by whitespace, ``,`` or ``;``.
 
 An optional header line; ``#`` and ``//`` comments; the first three columns are ``x y z``,
-further columns are ignored.  Text is UTF-8 (a byte-order mark is skipped) or, with its
+further columns are ignored; a delimiter closing every row is allowed; with ``;`` as the
+delimiter a decimal comma is read as a decimal point (``1,5;2,5;3,5``, European exports).  Text is UTF-8 (a byte-order mark is skipped) or, with its
 byte-order mark, UTF-16 (as some Windows tools write it).
 """
 
@@ -50,11 +51,16 @@ def read_table(data: bytes, name: str) -> np.ndarray:
         if nxt is None:
             raise ScanError(f"{name}: contains a header line but no points")
         delim = _split_pattern(lines[nxt])
+    rows = lines[skip:]
+    if delim == ";" and any("," in ln for ln in rows[:50]):
+        rows = [ln.replace(",", ".") for ln in rows]  # "1,5;2,5;3,5": decimal commas
+    if delim is not None and rows and rows[0].rstrip().endswith(delim):
+        rows = [ln.rstrip().rstrip(delim) for ln in rows]  # a delimiter closing every row
     try:
-        table = np.loadtxt(lines[skip:], dtype=np.float64, delimiter=delim, comments=_COMMENTS,
+        table = np.loadtxt(rows, dtype=np.float64, delimiter=delim, comments=_COMMENTS,
                            ndmin=2)
     except ValueError:
-        raise ScanError(_malformed(name, lines, skip, delim)) from None
+        raise ScanError(_malformed(name, lines[:skip] + rows, skip, delim)) from None
     if table.shape[0] == 0:
         raise ScanError(f"{name}: contains no points")
     if table.shape[1] < 3:
@@ -99,14 +105,16 @@ def _is_float(tok: str) -> bool:
 
 
 def _split_pattern(line: str):
+    if ";" in line:   # before ",": "1,5;2,5;3,5" has decimal commas
+        return ";"
     if "," in line:
         return ","
-    if ";" in line:
-        return ";"
     return None
 
 
 def _is_numeric_row(line: str, delim) -> bool:
+    if delim == ";":
+        line = line.replace(",", ".")
     tok = [t for t in (line.split(delim) if delim else line.split()) if t.strip()]
     try:
         [float(t) for t in tok[:3]]
