@@ -71,7 +71,7 @@ def test_candidate_lists_hold_the_nearest_point_of_every_point_of_the_cell(md):
     kind1, seed1 = np.empty(m, np.int8), np.empty(m, np.int64)
     lat = np.empty((parents.shape[0], 27), np.int32)
     bk.classify_children(parents, off, lst, pts, origin, 0.5 * cell, *rv, md, 2, kind1, seed1,
-                         lat)
+                         lat, np.empty(m, np.int8))
     counts, clst = bk.child_lists(sel, parents, off, lst, lat, pts, origin, 0.5 * cell)
     coff = np.concatenate([[0], np.cumsum(counts)])
     children = 2 * parents[sel // 8] + np.array(
@@ -94,3 +94,34 @@ def test_built_tree_answers_near_queries_like_a_kd_tree_on_two_sheets():
     right = d <= d_true * (1 + 1e-12) + 1e-12
     assert right.mean() >= 0.999
     assert np.all(d - d_true <= H)
+
+
+def _pack_with_unique(seeds, count):
+    """The seed-list packing as np.unique(axis=0) gave it (the reference order)."""
+    big = np.iinfo(np.int32).max
+    col = np.arange(seeds.shape[1])[None, :] < count[:, None]
+    key = np.sort(np.where(col, seeds, big), axis=1)
+    uniq, inv = np.unique(key, axis=0, return_inverse=True)
+    ucnt = (uniq != big).sum(axis=1)
+    pos = np.concatenate([[0], np.cumsum(ucnt + 1)[:-1]])
+    buf = np.empty(int((ucnt + 1).sum()), dtype=np.int32)
+    buf[pos] = ucnt
+    ucol = np.arange(uniq.shape[1])[None, :] < ucnt[:, None]
+    buf[(pos[:, None] + 1 + np.arange(uniq.shape[1])[None, :])[ucol]] = uniq[ucol]
+    return buf, pos[inv.ravel()]
+
+
+@pytest.mark.parametrize("seed", range(4))
+def test_seed_list_packing_equals_the_np_unique_packing(seed):
+    """Repeated lists in any order, duplicates inside a list, 1-16 seeds: the same buffer and
+    offsets as np.unique(axis=0) of the sorted, padded rows; every row reads back its set."""
+    rng = np.random.default_rng(seed)
+    m = int(rng.integers(1, 2000))
+    seeds = rng.integers(0, int(rng.integers(2, 60)), (m, 16)).astype(np.int32)
+    count = rng.integers(1, 17, m).astype(np.int32)
+    want = _pack_with_unique(seeds, count)
+    buf, where = dvg_build._pack_lists(seeds.copy(), count)
+    assert np.array_equal(buf, want[0]) and np.array_equal(where, want[1])
+    for i in range(m):
+        got = buf[where[i] + 1:where[i] + 1 + buf[where[i]]]
+        assert np.array_equal(got, np.sort(seeds[i, :count[i]]))

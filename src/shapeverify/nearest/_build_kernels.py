@@ -496,3 +496,75 @@ def fill_neighbours(points, graph, nbr, off_col, qstep, ri, rh, rs):
             for c in range(3):
                 v = np.rint((points[g[k], c] - points[i, c]) / s)
                 rh[i, off_col + 3 * k + c] = np.int16(min(max(v, -32767.0), 32767.0))
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _row_less(seeds, cnt, i, j):
+    """Row i before row j: lexicographic over the sorted seeds, a missing seed counting as
+    larger than any (as int32 max padding sorts)."""
+    n = min(cnt[i], cnt[j])
+    for k in range(n):
+        a = seeds[i, k]
+        b = seeds[j, k]
+        if a != b:
+            return a < b
+    return cnt[i] > cnt[j]
+
+
+@njit(cache=True, nogil=True)
+def pack_seed_lists(seeds, cnt):
+    """The kernel of ``dvg_build._pack_lists``: sorts each row's ``cnt`` seeds in place,
+    orders the rows lexicographically (a stable merge sort of row numbers, no (M, 16)
+    temporaries) and stores each distinct list once as (count, seeds...).  Returns (buffer
+    int32, offset of each row's list (M,) int64)."""
+    m = seeds.shape[0]
+    for i in range(m):  # insertion sort of each row (at most 16 seeds)
+        for v in range(1, cnt[i]):
+            x = seeds[i, v]
+            w = v
+            while w > 0 and seeds[i, w - 1] > x:
+                seeds[i, w] = seeds[i, w - 1]
+                w -= 1
+            seeds[i, w] = x
+    order = np.arange(m)
+    tmp = np.empty(m, dtype=np.int64)
+    width = 1
+    while width < m:  # bottom-up merge sort (stable)
+        for lo in range(0, m, 2 * width):
+            mid = min(lo + width, m)
+            hi = min(lo + 2 * width, m)
+            a = lo
+            b = mid
+            for k in range(lo, hi):
+                if a < mid and (b >= hi or not _row_less(seeds, cnt, order[b], order[a])):
+                    tmp[k] = order[a]
+                    a += 1
+                else:
+                    tmp[k] = order[b]
+                    b += 1
+        order, tmp = tmp, order
+        width *= 2
+    pos_of = tmp  # reused: offset of each row's list
+    total = 0
+    for k in range(m):
+        i = order[k]
+        if k > 0:
+            j = order[k - 1]
+            same = cnt[i] == cnt[j]
+            if same:
+                for s in range(cnt[i]):
+                    if seeds[i, s] != seeds[j, s]:
+                        same = False
+                        break
+            if same:
+                pos_of[i] = pos_of[j]
+                continue
+        pos_of[i] = total
+        total += cnt[i] + 1
+    buf = np.empty(total, dtype=np.int32)
+    for i in range(m):
+        p = pos_of[i]
+        buf[p] = cnt[i]
+        for s in range(cnt[i]):
+            buf[p + 1 + s] = seeds[i, s]
+    return buf, pos_of

@@ -311,31 +311,7 @@ def _pack_lists(seeds: np.ndarray, count: np.ndarray):
     """Seed lists (M, 16) with counts (M,) -> (buffer of count, seeds..., offset of each list).
 
     Identical lists (same seeds in any order) are stored once, in lexicographic order of their
-    sorted seeds (as ``np.unique(axis=0)`` orders them; sorted here by pairs of seeds packed
-    into one int64 key, and only over the columns some list uses).
+    sorted seeds (the order ``np.unique(axis=0)`` gave; :func:`._build_kernels.pack_seed_lists`,
+    without its (M, 16) temporaries).  ``seeds`` is sorted in place.
     """
-    cnt = count.astype(np.int64)
-    m, ncol = seeds.shape
-    big = np.iinfo(np.int32).max
-    col = np.arange(ncol)[None, :] < cnt[:, None]
-    key = np.sort(np.where(col, seeds, big), axis=1)
-    nk = (int(cnt.max()) + 1) // 2 if m else 0
-    k64 = key[:, :2 * nk].astype(np.int64)
-    pairs = (k64[:, 0::2] << 32) | k64[:, 1::2]  # seeds >= 0: same order as the columns
-    del k64
-    order = np.lexsort(pairs.T[::-1]) if nk else np.arange(m)
-    sp = pairs[order]
-    new = np.ones(m, dtype=bool)
-    if m > 1:
-        new[1:] = np.any(sp[1:] != sp[:-1], axis=1)
-    del sp, pairs
-    inv = np.empty(m, dtype=np.int64)
-    inv[order] = np.cumsum(new) - 1
-    uniq = key[order[new]]
-    ucnt = (uniq != big).sum(axis=1).astype(np.int64)
-    pos = np.concatenate([[0], np.cumsum(ucnt + 1)[:-1]]).astype(np.int64)
-    buf = np.empty(int((ucnt + 1).sum()), dtype=np.int32)
-    buf[pos] = ucnt
-    ucol = np.arange(ncol)[None, :] < ucnt[:, None]
-    buf[(pos[:, None] + 1 + np.arange(ncol)[None, :])[ucol]] = uniq[ucol]
-    return buf, pos[inv]
+    return _bk.pack_seed_lists(seeds, count.astype(np.int64))
