@@ -56,8 +56,15 @@ def _chunked(fn, n, min_chunk):
     run_chunks(one, n, min_chunk)
     keys = sorted(parts)
     counts = np.concatenate([parts[k][0] for k in keys]) if keys else np.zeros(0, np.int64)
-    buf = (np.concatenate([parts[k][1] for k in keys]) if keys
-           else np.zeros(0, np.int32))
+    # joined part by part, each freed once copied: the pages of ``buf`` are touched as the
+    # parts go, so the lists are not resident twice (np.concatenate would hold both)
+    buf = np.empty(sum(parts[k][1].shape[0] for k in keys), dtype=np.int32)
+    pos = 0
+    for k in keys:
+        b = parts.pop(k)[1]
+        buf[pos:pos + b.shape[0]] = b
+        pos += b.shape[0]
+        del b
     return counts, buf
 
 
