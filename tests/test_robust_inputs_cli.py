@@ -152,3 +152,36 @@ def test_point_cloud_of_1e30_coordinates_is_refused_by_prepare(tmp_path):
     np.savetxt(p, np.random.default_rng(0).uniform(0, 100, (50, 3)) * 1e30)
     line = _error_line(runner.invoke(app, ["prepare", str(p), "-o", str(tmp_path / "b.svm")]))
     assert "all 50 points have coordinates beyond +-1e+12" in line
+
+
+def test_fit_element_sphere_on_a_laser_scan_in_metres(shared_data, tmp_path):
+    # was: no sphere fit on the command line (`fit` fitted a NURBS curve through the ball)
+    import json
+
+    src = shared_data / "scans" / "nist_tls_spheres" / "SPH101.xyz"
+    out = tmp_path / "s.json"
+    res = runner.invoke(app, ["fit", str(src), "-o", str(out), "--element", "sphere",
+                              "--loss", "tukey", "--unit", "m"])
+    assert res.exit_code == 0, res.output
+    fit = json.loads(out.read_text())["fit"]
+    assert fit["units"] == "mm" and fit["converged"]
+    assert abs(fit["radius"] - 50.0) < 1.5 and fit["rms_inliers"] < 2.0
+    from shapeverify import fitting
+    from shapeverify.io.points import read_points
+
+    ref = fitting.fit_sphere(read_points(src) * 1000.0, loss="tukey")
+    assert fit["radius"] == ref.radius and fit["center"] == ref.center.tolist()
+
+
+def test_fit_element_refuses_degenerate_points_and_wrong_options(tmp_path):
+    p = tmp_path / "same.xyz"
+    p.write_text("1 2 3\n" * 20)
+    line = _error_line(runner.invoke(app, ["fit", str(p), "-o", str(tmp_path / "s.json"),
+                                           "--element", "sphere"]))
+    assert "all 20 points are the same point" in line
+    line = _error_line(runner.invoke(app, ["fit", str(p), "-o", str(tmp_path / "s.step"),
+                                           "--element", "plane"]))
+    assert "a fitted plane is written as .json" in line
+    line = _error_line(runner.invoke(app, ["fit", str(p), "-o", str(tmp_path / "s.json"),
+                                           "--element", "torus"]))
+    assert "unknown element 'torus'; use one of sphere, cylinder" in line

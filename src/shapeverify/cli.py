@@ -470,8 +470,11 @@ def hologram(
 @app.command()
 def fit(
     points: Path = typer.Argument(..., help="Points: .ply .xyz .txt .csv .npy .pcd"),
-    output: Path = typer.Option(..., "-o", "--output", help=".step, .igs/.iges or .json"),
+    output: Path = typer.Option(..., "-o", "--output", help=".step, .igs/.iges or .json (an --element: .json)"),
     surface: bool = typer.Option(False, "--surface", help="Fit a surface (default: a curve)"),
+    element: Optional[str] = typer.Option(None, "--element", help="Fit a geometric element instead of a NURBS: sphere, cylinder, cone, plane, line or circle"),
+    loss: str = typer.Option("l2", "--loss", help="With --element: l2 (least squares) or a robust loss (tukey, huber, cauchy, welsch) that ignores stray points"),
+    unit: Optional[str] = typer.Option(None, "--unit", help="With --element: the unit of the points file (mm, cm, m, in, um); the result is then in mm"),
     ctrl: List[int] = typer.Option([10], "--ctrl", help="Control points: N (curve); a surface: --ctrl NU --ctrl NV (one value: NU = NV)"),
     degree: int = typer.Option(3, help="Degree"),
     method: str = typer.Option("odr", help="odr (Gauss-Newton, orthogonal distance) | varpro | fixed"),
@@ -481,8 +484,20 @@ def fit(
                                                       "the shape (0: plain orthogonal distance, which "
                                                       "folds to follow noisy data)"),
 ):
-    """Fit a NURBS curve or surface to points by orthogonal distance and write it out."""
+    """Fit a NURBS curve or surface (or, with --element, a sphere, cylinder, ...) to points by
+    orthogonal distance and write it out."""
     from shapeverify.fitting.export import fit_points_file
+
+    if element is not None:
+        from shapeverify.fitting.element_file import fit_element_file
+
+        if surface:
+            _fail("--surface fits a NURBS surface; leave it out with --element")
+        with _stage(f"Fitting a {element} to {points.name}"):
+            summary = _guard(fit_element_file, points, output, element, loss=loss, unit=unit)
+        for k, v in summary.items():
+            out.print(f"{k}: {v}")
+        return
 
     n = tuple(ctrl) if surface else ctrl[0]
     if surface and len(n) == 1:
