@@ -66,8 +66,10 @@ def test_thin_walls_seen_from_one_side_end_in_the_right_minimum(finned, monkeypa
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             monkeypatch.setattr(icp, "PROBE", False)
+            monkeypatch.setattr(icp, "RESTART", False)    # the spin restarts (_restart) too
             plain = register(vs.scan, prep, init=start)
             monkeypatch.setattr(icp, "PROBE", True)
+            monkeypatch.setattr(icp, "RESTART", True)
             reg = register(vs.scan, prep, init=start)
             again = register(vs.scan, prep, init=start)
         wrong_without_probe += vs.accuracy(plain.T_model_scan).rotation_deg > 0.5

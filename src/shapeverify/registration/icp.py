@@ -42,7 +42,7 @@ import numpy as np
 
 from .._arrays import check_points
 
-from . import _basin, _irls
+from . import _basin, _irls, _restart
 from ._irls import IterationRecord
 from .losses import get_loss
 from .options import InitMode, InitName, LossName, Method, MethodName, StageSettings
@@ -67,6 +67,8 @@ _STAGE_CAP = 60
 PROBE = True
 #: probe rounds at most (another direction may rest on few points once one is right)
 PROBE_ROUNDS = 3
+#: restart a pose flagged as a wrong minimum about the model's near-symmetry axis (:mod:`._restart`)
+RESTART = True
 
 
 class DegenerateGeometryWarning(UserWarning):
@@ -403,25 +405,42 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
             return _irls.stage_final_plane(P, prep, st, final_cfg, rng)
         return _irls.stage_rematch("final", P, prep, st, final_cfg)
 
-    ev, converged, why = final(st)
-    # another minimum along the least-determined direction (thin walls, see _basin)
-    for _ in range(PROBE_ROUNDS if PROBE else 0):
-        from .global_search import fit_distance
-        c0 = _irls.centroid(ev.X, ev.w)
-        null0 = _irls.null_directions(ev, _irls.model_points(prep),
-                                      _irls.system(ev.Y, ev.Y, ev.N, ev.w, c0)[0], c0, radius)
-        sigma0, best, moved = ev.sigma, ev.objective, False
-        for R_alt, t_alt in _basin.probe(P, prep, ev, st.R, st.t, final_cfg, null0,
-                                         fit_distance(prep)):
-            st2 = _irls.State(R_alt, t_alt, st.iterations, list(st.history))
-            ev2, conv2, why2 = final(st2)
-            obj = _irls._mean_rho(ev2, sigma0)
-            if obj < best:
-                logger.info("registration: another minimum along the direction resting on the "
-                            "fewest points fits better (objective %.4g < %.4g): taken", obj, best)
-                best, st, ev, converged, why, moved = obj, st2, ev2, conv2, why2, True
-        if not moved:
-            break
+    def settle(st, ev, converged, why):
+        # another minimum along the least-determined direction (thin walls, see _basin)
+        for _ in range(PROBE_ROUNDS if PROBE else 0):
+            c0 = _irls.centroid(ev.X, ev.w)
+            null0 = _irls.null_directions(ev, _irls.model_points(prep),
+                                          _irls.system(ev.Y, ev.Y, ev.N, ev.w, c0)[0], c0, radius)
+            sigma0, best, moved = ev.sigma, ev.objective, False
+            for R_alt, t_alt in _basin.probe(P, prep, ev, st.R, st.t, final_cfg, null0, tau):
+                st2 = _irls.State(R_alt, t_alt, st.iterations, list(st.history))
+                ev2, conv2, why2 = final(st2)
+                obj = _irls._mean_rho(ev2, sigma0)
+                if obj < best:
+                    logger.info("registration: another minimum along the direction resting on "
+                                "the fewest points fits better (objective %.4g < %.4g): taken",
+                                obj, best)
+                    best, st, ev, converged, why, moved = obj, st2, ev2, conv2, why2, True
+            if not moved:
+                break
+        return st, ev, converged, why
+
+    from .global_search import fit_distance
+    tau = fit_distance(prep)
+    st, ev, converged, why = settle(st, *final(st))
+    # a pose flagged as a wrong minimum on a near-axisymmetric part: spin restarts (_restart)
+    if RESTART and _flagged(ev, converged, tau, radius, prep):
+        T_alt = _restart.restart(P, prep, T0 if T0 is not None else np.eye(4), _pose(st),
+                                 radius, rng)
+        if T_alt is not None:
+            st2 = _irls.State(T_alt[:3, :3].copy(), T_alt[:3, 3].copy(), st.iterations,
+                              list(st.history))
+            st2, ev2, conv2, why2 = settle(st2, *final(st2))
+            obj, obj0 = _irls._mean_rho(ev2, ev.sigma), ev.objective
+            if obj < obj0:
+                logger.info("registration: the restart about the model's near-symmetry axis "
+                            "fits better (objective %.4g < %.4g): taken", obj, obj0)
+                st, ev, converged, why = st2, ev2, conv2, why2
 
     w = ev.w
     center = _irls.centroid(ev.X, w)
@@ -440,8 +459,7 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
     msg = (f"converged in {st.iterations} iterations" if converged else
            f"not converged: {why}")
     desc = tuple(_describe(undet))
-    from .global_search import fit_distance
-    notes = list(_pose_warnings(ev, w, ga, fit_distance(prep), radius))
+    notes = list(_pose_warnings(ev, w, ga, tau, radius))
     if undet.shape[0]:
         txt = ("scan geometry leaves %d pose direction(s) undetermined: %s"
                % (undet.shape[0], "; ".join(desc)))
@@ -456,6 +474,16 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
                         covariance=cov, history=tuple(st.history), scale=ev.sigma, message=msg,
                         undetermined=desc, method=method.value, loss=lossobj.name,
                         undetermined_directions=undet, warnings=tuple(notes), init=how)
+
+
+def _flagged(ev, converged, tau, radius, prep) -> bool:
+    """The final pose may be a wrong minimum: not converged or a warning of
+    :func:`_pose_warnings`, and every direction determined (a free spin is not a wrong minimum)."""
+    if converged and not any(True for _ in _pose_warnings(ev, ev.w, None, tau, radius)):
+        return False
+    c = _irls.centroid(ev.X, ev.w)
+    H, _ = _irls.system(ev.Y, ev.Y, ev.N, ev.w, c)
+    return _irls.null_directions(ev, _irls.model_points(prep), H, c, radius).shape[0] == 0
 
 
 def _pose(st) -> np.ndarray:
