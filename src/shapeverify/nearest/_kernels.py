@@ -102,25 +102,71 @@ def _d2(q0, q1, q2, rf, j):
     return a * a + b * b + c * c
 
 
+@intrinsic
+def _ring8(typingctx, rh, i, r0, r1, r2, s):
+    """(slot k, value) of the smallest of the 8 values (r0 - s x_k)^2 + (r1 - s y_k)^2 +
+    (r2 - s z_k)^2, (x_k, y_k, z_k) = int16 elements ``i + 3k .. i + 3k + 2`` of ``rh`` (flat).
+
+    One 48-byte load, three shuffles, then 8-wide float64 arithmetic in the order of the
+    scalar loop ``for k: d = (r0 - s*x)**2 + ...; if d < best: ...`` (no fused or reordered
+    operations), so the values and the slot (the first one of the smallest value) are
+    bit-identical to it; about a fifth of its instructions.
+    """
+    if not (isinstance(rh, types.Array) and rh.dtype == types.int16):
+        return None
+    sig = types.Tuple((types.int64, types.float64))(rh, i, r0, r1, r2, s)
+
+    def codegen(context, builder, signature, args):
+        aryty = signature.args[0]
+        ary = context.make_array(aryty)(context, builder, args[0])
+        i16, i32, i64, f64 = ir.IntType(16), ir.IntType(32), ir.IntType(64), ir.DoubleType()
+        v24 = ir.VectorType(i16, 3 * K)
+        ptr = builder.bitcast(builder.gep(ary.data, [args[1]]), v24.as_pointer())
+        raw = builder.load(ptr, align=2)
+        vd = ir.VectorType(f64, K)
+
+        def splat(x):
+            v = builder.insert_element(ir.Constant(vd, ir.Undefined), x, ir.Constant(i32, 0))
+            return builder.shuffle_vector(v, ir.Constant(vd, ir.Undefined),
+                                          ir.Constant(ir.VectorType(i32, K), [0] * K))
+
+        sv = splat(args[5])
+        d = None
+        for c in range(3):
+            lane = builder.shuffle_vector(raw, ir.Constant(v24, ir.Undefined),
+                                          ir.Constant(ir.VectorType(i32, K),
+                                                      [3 * k + c for k in range(K)]))
+            o = builder.sitofp(lane, vd)
+            e = builder.fsub(splat(args[2 + c]), builder.fmul(sv, o))
+            e2 = builder.fmul(e, e)
+            d = e2 if d is None else builder.fadd(d, e2)
+        # smallest value: a tree of compare + select (no NaN: finite coordinates)
+        m = d
+        width = K
+        while width > 1:
+            width //= 2
+            hi = builder.shuffle_vector(m, ir.Constant(vd, ir.Undefined),
+                                        ir.Constant(ir.VectorType(i32, K),
+                                                    [(k + width) % K for k in range(K)]))
+            m = builder.select(builder.fcmp_ordered("<", hi, m), hi, m)
+        best = builder.extract_element(m, ir.Constant(i32, 0))
+        eq = builder.fcmp_ordered("==", d, splat(best))
+        bits = builder.bitcast(eq, ir.IntType(K))
+        cttz = cgutils.get_or_insert_function(
+            builder.module, ir.FunctionType(ir.IntType(K), [ir.IntType(K), ir.IntType(1)]),
+            f"llvm.cttz.i{K}")
+        k = builder.zext(builder.call(cttz, [bits, ir.Constant(ir.IntType(1), 1)]), i64)
+        return context.make_tuple(builder, signature.return_type, [k, best])
+
+    return sig, codegen
+
+
 @njit(cache=True, nogil=True, inline="always")
 def _ring(q0, q1, q2, b, rf, rh, rs):
     """Neighbour slot k of b that looks closest to q (from the quantised offsets) and its
-    estimated squared distance."""
-    r0 = q0 - rf[b, 0]
-    r1 = q1 - rf[b, 1]
-    r2 = q2 - rf[b, 2]
-    s = np.float64(rs[b, QSTEP])
-    best = 0
-    bd = np.inf
-    for k in range(K):
-        e0 = r0 - s * rh[b, OFF + 3 * k]
-        e1 = r1 - s * rh[b, OFF + 3 * k + 1]
-        e2 = r2 - s * rh[b, OFF + 3 * k + 2]
-        d = e0 * e0 + e1 * e1 + e2 * e2
-        lt = d < bd
-        bd = d if lt else bd
-        best = k if lt else best
-    return best, bd
+    estimated squared distance ``|q - p_b - s * offset_k|^2``."""
+    return _ring8(rh, b * rh.shape[1] + OFF, q0 - rf[b, 0], q1 - rf[b, 1], q2 - rf[b, 2],
+                  np.float64(rs[b, QSTEP]))
 
 
 # one compiled version for every caller: int32 start points (seed lists), int64 ones and

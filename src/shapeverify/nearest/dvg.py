@@ -393,7 +393,8 @@ class DVG:
                              np.empty(m), np.empty(m, dtype=np.bool_), np.empty((m, 3)),
                              np.empty(r, dtype=np.int32), np.empty((r, 2)),
                              np.empty(r, dtype=np.bool_))
-        T = self._arrays if rows is None else self._arrays._replace(rows=rows, boundary=boundary)
+        T = self._arrays if rows is None else self._arrays._replace(
+            rows=writable(rows, np.int32), boundary=writable(boundary, np.bool_))
 
         def chunk(a, b):
             _kernels.query_block(q, T, A, a, b, _QUERY_MOVES, patches)

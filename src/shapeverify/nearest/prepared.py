@@ -172,14 +172,15 @@ class Prepared:
     @cached_property
     def points(self):
         """The model points (:class:`~shapeverify.cad.model.ModelPoints`), assembled from the
-        tree's records on first access and kept (the same object every time)."""
+        tree's records on first access and kept (the same object every time).  (Its boundary
+        is a copy: ModelPoints makes its arrays read-only, the query kernel reads this one.)"""
         from shapeverify.cad.model import ModelPoints
 
         fr = self._fast.frames()
         return ModelPoints(points=np.array(self._fast.points), normals=fr[:, 0:3],
                            face=self._face, uv=self._uv, tangent_u=fr[:, 3:6],
                            tangent_v=fr[:, 6:9], half_extent=fr[:, 9:11],
-                           boundary=self._boundary, spacing=self.spacing)
+                           boundary=self._boundary.copy(), spacing=self.spacing)
 
     @property
     def nbytes(self) -> int:
