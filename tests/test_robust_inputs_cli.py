@@ -185,3 +185,16 @@ def test_fit_element_refuses_degenerate_points_and_wrong_options(tmp_path):
     line = _error_line(runner.invoke(app, ["fit", str(p), "-o", str(tmp_path / "s.json"),
                                            "--element", "torus"]))
     assert "unknown element 'torus'; use one of sphere, cylinder" in line
+
+
+def test_info_of_a_cloud_in_metres_says_it_is_read_as_mm_and_names_the_option(tmp_path):
+    # was: "size (diagonal) [mm] 0.247" without a word (the bunny views are in metres)
+    p = tmp_path / "cloud.xyz"
+    np.savetxt(p, np.random.default_rng(1).uniform(0.0, 0.15, (200, 3)))
+    res = runner.invoke(app, ["info", str(p)])
+    assert res.exit_code == 0, res.output
+    text = " ".join(res.output.split())
+    assert "carry no unit: read as mm" in text and "give --model-unit m" in text
+    q = tmp_path / "part.xyz"
+    np.savetxt(q, np.random.default_rng(1).uniform(0.0, 150.0, (200, 3)))
+    assert "note:" not in runner.invoke(app, ["info", str(q)]).output

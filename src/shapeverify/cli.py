@@ -22,7 +22,7 @@ from rich.markup import escape
 from rich.table import Table
 from typer.core import TyperGroup
 
-from shapeverify.cli_errors import clean, cli_hint, os_error_message
+from shapeverify.cli_errors import clean, cli_hint, os_error_message, size_note
 
 class _GuardedGroup(TyperGroup):
     """Runs every command so that an unexpected exception (a bug) also ends with exit code 2 and
@@ -210,6 +210,9 @@ def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges
         with _stage(f"Importing {model.name}", watch=False):  # numba runs only in the importer
             summary, _ = _guard(cached_summary, model, load)
     out.print(model_summary_table(summary, title=clean(model)))
+    note = size_note(summary.kind, summary.unit, summary.size)
+    if note:
+        console.print(f"[yellow]note:[/yellow] {escape(note)}", soft_wrap=True)
     if prep is not None:
         out.print(f"prepared: {prep.n_points:,} model points at {prep.spacing:.3g} mm spacing, "
                   f"reach {prep.reach:.3g} mm")

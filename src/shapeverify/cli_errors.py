@@ -18,7 +18,7 @@ import os
 import re
 from pathlib import Path
 
-__all__ = ["clean", "os_error_message", "cli_hint"]
+__all__ = ["clean", "os_error_message", "cli_hint", "size_note"]
 
 
 def clean(text) -> str:
@@ -84,3 +84,32 @@ def cli_hint(message: str, scan_unit: str | None = None) -> str:
         return ("; on the command line: --init principal-axes, --init global (search), or "
                 "--init T.json (a 4x4 start pose)")
     return ""
+
+
+def size_note(kind: str, unit: str, size: float) -> str:
+    """A note when a model's size (bounding-box diagonal, mm) is implausible for a part, else
+    ``""``: a unitless mesh or point cloud read as mm that is under 2 mm or over 10 m across
+    (with the unit that makes it a part of 5 mm .. 5 m, and the option), or a CAD model over
+    10 m across in its declared unit.
+
+    >>> size_note("points", "mm", 0.247)[:66]
+    'STL/PLY/OBJ and point-cloud files carry no unit: read as mm, this '
+    >>> size_note("cad", "MM", 40854.0)[:48], size_note("cad", "mm", 300.0)
+    ('this CAD model is 40.9 m across in its declared ', '')
+    """
+    if not size > 0:
+        return ""
+    if kind == "cad":
+        if size > 10_000.0:
+            return (f"this CAD model is {size / 1000:.3g} m across in its declared unit "
+                    f"({unit}): check the unit the CAD system exported")
+        return ""
+    if 2.0 <= size <= 10_000.0 or unit not in ("mm", None):
+        return ""
+    from shapeverify.units import MIXUPS, fitting_factor
+
+    fit = fitting_factor(size / 100.0, MIXUPS, 0.05, 50.0, 1.0)
+    guess = (f": if it is in {fit[2]}, give --model-unit {fit[3]} to prepare and inspect"
+             if fit else "")
+    return (f"STL/PLY/OBJ and point-cloud files carry no unit: read as mm, this model is "
+            f"{size:.3g} mm across{guess}")
