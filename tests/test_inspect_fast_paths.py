@@ -139,3 +139,41 @@ def test_row_medians_equal_numpy_nanmedian_bit_for_bit():
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", RuntimeWarning)
             np.testing.assert_array_equal(_nanmedian_rows(a), np.nanmedian(a, axis=1))
+
+
+def test_an_inspection_gives_what_the_plain_tree_computations_give():
+    """End to end on a simulated scan (dent, blob, outliers): the spacing, the coverage and the
+    regions of ``inspect`` are those of the k-d tree computations they replaced."""
+    from scipy.spatial import cKDTree
+
+    import shapeverify as sv
+    from shapeverify.cad.examples import wavy_panel
+    from shapeverify.inspection import find_regions
+    from shapeverify.simulate import virtual_scan
+
+    prep = sv.prepare(wavy_panel(), spacing=2.0)
+    sim = virtual_scan(prep, pixel=1.2, noise=0.02, outlier_fraction=0.03, blobs=1,
+                       dents=[(0.5, 12.0)], motion=(2.0, 3.0), rng=4)
+    res = sv.inspect(prep, sim.scan, tolerance=0.2)
+    dev, ev = res.deviations, res.deviations.evaluated
+    feet = dev.foot_points[ev]
+    tree = cKDTree(feet)
+    d, _ = tree.query(feet[:: max(1, feet.shape[0] // 1500)], k=2)
+    d = d[:, 1]
+    assert res.spacing == float(np.median(d[np.isfinite(d) & (d > 0)]))
+    cov = res.coverage
+    near, _ = tree.query(cov.points, k=1, distance_upper_bound=cov.radius)
+    np.testing.assert_array_equal(cov.covered, np.isfinite(near))
+    assert cov.fraction == float(np.isfinite(near).mean()) > 0.5
+    within = res.tolerance.within(dev.values, dev.face)
+    regions, outliers, _ = find_regions(dev.foot_points, dev.values, ev, within, dev.face,
+                                        dev.normals, res.registration.weights,
+                                        spacing=res.spacing, limits=res.tolerance.limits(dev.face),
+                                        tree=tree)
+    mine = [r for r in res.regions if r.kind == "deviation"]
+    assert res.verdict == "fail" and len(mine) == len(regions) >= 1
+    for a, b in zip(mine, regions):
+        np.testing.assert_array_equal(a.indices, b.indices)
+        assert (a.area, a.severity, a.extreme_raw) == (b.area, b.severity, b.extreme_raw)
+        assert abs(a.extreme - b.extreme) < 1e-12 and abs(a.extreme + 0.5) < 0.05
+    np.testing.assert_array_equal(res.outliers.indices, outliers.indices)
