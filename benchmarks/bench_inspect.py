@@ -10,15 +10,28 @@ Peer, same process, same scan: Open3D 0.18+ (bench extra) -- point-to-plane ICP
 signed distances to a fine tessellation (``RaycastingScene.compute_signed_distance``): the usual
 "mesh + ICP" way of doing the same job approximately.  The ratio printed is peer time / ours.
 
-Run:  .venv/bin/python benchmarks/bench_inspect.py [--points 30000] [--repeat 7]
-      [--out benchmarks/results_inspection.md]
+CPU per stage (issue 9: the service's throughput is the inspection's CPU cost): for the wavy
+panel and for the bundled example panel (300 x 200 mm with a hole, default spacing, the scan of
+``bench_service.py``: 30,000 points, 3 % outliers), the CPU seconds of one inspection (all
+threads of the process, ``time.process_time``; median of ``--repeat`` runs) and of each stage
+(cProfile with a CPU clock: the inclusive CPU of the stage's function; the closest-point
+queries' worker threads count towards the stage that waits for them), plus the registration's
+iterations and closest-point queries.  ``--profile N`` prints the N functions of most
+inclusive CPU of the example panel's inspection; ``--workers`` sets the query threads.
+
+Run:  .venv/bin/python benchmarks/bench_inspect.py [--points 30000] [--repeat 7] [--workers N]
+      [--profile 30] [--out benchmarks/results_inspection.md]
 """
 
 from __future__ import annotations
 
 import argparse
+import cProfile
 import datetime
+import os
 import platform
+import pstats
+import sys
 import tempfile
 import time
 from pathlib import Path
@@ -26,6 +39,90 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[1]
+
+
+#: (label, module, function): the stages whose inclusive CPU the table gives, in order; a label
+#: starting with spaces is a part of the stage above it
+STAGES = [
+    ("inspect under the profiler", "shapeverify/inspection/inspect.py", "inspect"),
+    ("register", "shapeverify/registration/icp.py", "register"),
+    ("  coarse stage (subset, re-matched every step)", "shapeverify/registration/_irls.py", "stage_rematch"),
+    ("  final stage (all points, fixed planes, verified)", "shapeverify/registration/_irls.py", "stage_final_plane"),
+    ("  thin-wall probe", "shapeverify/registration/_basin.py", "probe"),
+    ("  pose covariance", "shapeverify/registration/rigid.py", "pose_covariance"),
+    ("deviations", "shapeverify/inspection/deviations.py", "_deviations"),
+    ("  exact closest points", "shapeverify/nearest/prepared.py", "_closest_exact"),
+    ("spacing (grid)", "shapeverify/inspection/regions.py", "median_spacing"),
+    ("regions (out-of-tolerance clusters)", "shapeverify/inspection/regions.py", "find_regions"),
+    ("material", "shapeverify/inspection/material.py", "find_material"),
+    ("floating surfaces", "shapeverify/inspection/material.py", "floating_surfaces"),
+    ("coverage", "shapeverify/inspection/coverage.py", "compute_coverage"),
+    ("statistics", "shapeverify/inspection/verdict.py", "statistics"),
+]
+
+
+def _cpu_median(fn, repeat: int) -> float:
+    times = []
+    for _ in range(repeat):
+        c0 = time.process_time()
+        fn()
+        times.append(time.process_time() - c0)
+    return float(np.median(times))
+
+
+def cpu_profile(fn, repeat: int):
+    """``(per-stage CPU seconds per call {label: s}, pstats.Stats)`` of ``repeat`` calls."""
+    prof = cProfile.Profile(time.process_time)
+    prof.enable()
+    for _ in range(repeat):
+        fn()
+    prof.disable()
+    st = pstats.Stats(prof)
+    out = {}
+    for label, path, name in STAGES:
+        tot = sum(v[3] for (file, _, func), v in st.stats.items()
+                  if func == name and file.replace(os.sep, "/").endswith(path))
+        out[label] = tot / repeat
+    return out, st
+
+
+def registration_queries(prep, scan):
+    """Closest-point queries of one registration: ``{"calls": .., "points": ..}``."""
+    calls = [0, 0]
+    orig = type(prep).closest
+
+    def counting(self, q, exact=False):
+        calls[0] += 1
+        calls[1] += len(np.atleast_2d(q))
+        return orig(self, q, exact)
+
+    from shapeverify.registration import register
+    type(prep).closest = counting
+    try:
+        reg = register(scan, prep)
+    finally:
+        type(prep).closest = orig
+    stages = {}
+    for h in reg.history:
+        stages.setdefault(h.stage, [0, 0, 0])
+        stages[h.stage][0] += 1
+        stages[h.stage][1] += int(h.matched)
+        stages[h.stage][2] = h.n_points
+    return {"calls": calls[0], "points": calls[1], "iterations": reg.iterations, "stages": stages}
+
+
+def panel_case():
+    """The example panel at the default spacing and the scan of bench_service.py (seed 7)."""
+    sys.path.insert(0, str(ROOT / "benchmarks"))
+    from bench_service import make_scan
+
+    from shapeverify.cad.examples import example_part_step
+    from shapeverify.cad.load import load_model
+    from shapeverify.nearest import prepare
+
+    model = load_model(example_part_step(Path(tempfile.mkdtemp(prefix="bench_inspect_")) / "panel.step"))
+    prep = prepare(model)
+    return prep, make_scan(model, 7)
 
 
 def _median_time(fn, repeat: int):
@@ -73,15 +170,23 @@ def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--points", type=int, default=30_000)
     ap.add_argument("--repeat", type=int, default=7)
+    ap.add_argument("--workers", type=int, default=None,
+                    help="threads of the closest-point queries (default: every core)")
+    ap.add_argument("--profile", type=int, default=0, metavar="N",
+                    help="print the N functions of most inclusive CPU (example panel)")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results_inspection.md"))
     args = ap.parse_args()
+    load_start = os.getloadavg()[0]
 
     from shapeverify.cad.examples import wavy_panel
 
     from shapeverify.inspection import inspect
-    from shapeverify.nearest import prepare
+    from shapeverify.nearest import get_workers, prepare, set_workers
     from shapeverify.report import write_colored_ply, write_html_report, write_png_summary
     from shapeverify.simulate import virtual_scan
+
+    if args.workers is not None:
+        set_workers(args.workers)
 
     t0 = time.perf_counter()
     prep = prepare(wavy_panel(), spacing=1.0)
@@ -100,15 +205,32 @@ def main() -> None:
     t_png, _, _ = _median_time(lambda: write_png_summary(res, scan, out_dir / "s.png"), 3)
     t_ply, _, _ = _median_time(lambda: write_colored_ply(res, scan, out_dir / "d.ply"), 3)
 
+    # CPU per stage: the wavy panel and the example panel (the service's model and scan)
+    cases = {"wavy panel": (prep, scan)}
+    cases["example panel"] = panel_case()
+    cpu = {}
+    for name, (p, sc) in cases.items():
+        r = inspect(p, sc, tolerance=0.2)                   # warm-up (and the exact tables)
+        total = _cpu_median(lambda: inspect(p, sc, tolerance=0.2), args.repeat)
+        per_stage, st = cpu_profile(lambda: inspect(p, sc, tolerance=0.2), args.repeat)
+        cpu[name] = {"total": total, "stages": per_stage, "queries": registration_queries(p, sc),
+                     "n_model": p.n_points, "n_scan": len(sc), "verdict": str(r.verdict)}
+        if args.profile and name == "example panel":
+            st.sort_stats("cumulative").print_stats(args.profile)
+    load_end = os.getloadavg()[0]
+
     peer = _open3d_peer(prep, scan, vs.T_model_scan, args.repeat)
     acc = vs.accuracy(res.T_model_scan)
+    opts = "".join(f" {o}" for o in (f"--workers {args.workers}" if args.workers else "",) if o)
     lines = [
         "# Inspection timing (issue 5)",
         "",
         f"Command: `.venv/bin/python benchmarks/bench_inspect.py --points {args.points} "
-        f"--repeat {args.repeat}`  ",
+        f"--repeat {args.repeat}{opts}`  ",
         f"Date: {datetime.date.today()}, {platform.processor() or platform.machine()}, "
-        f"Python {platform.python_version()}; machine shared with other jobs (2 cores).",
+        f"Python {platform.python_version()}; machine shared with other jobs (2 cores, load "
+        f"average {load_start:.1f} at the start, {load_end:.1f} at the end); closest-point "
+        f"queries on {get_workers()} thread(s).",
         "",
         f"Model: 2-face bicubic panel 120 x 90 mm, prepared in {t_prep:.2f} s "
         f"({len(prep.points.points):,} model points).  Scan: {len(scan):,} points (virtual "
@@ -141,9 +263,45 @@ def main() -> None:
         ]
     else:
         lines += ["", "Peer Open3D: not importable (install the bench extra)."]
+    lines += _cpu_table(cpu, args.repeat)
     text = "\n".join(lines) + "\n"
     print(text)
     Path(args.out).write_text(text)
+
+
+def _cpu_table(cpu: dict, repeat: int) -> list[str]:
+    names = list(cpu)
+    lines = ["", "### CPU per inspection and per stage (issue 9)", "",
+             "CPU seconds of all the process's threads (`time.process_time`), median of "
+             f"{repeat} inspections; stages: inclusive CPU of the stage's function under cProfile "
+             "with a CPU clock, per inspection (a part of the stage above it is indented; the "
+             "profiler's own cost makes them add up to more than the plain total).", "",
+             "| | " + " | ".join(f"{n} ({cpu[n]['n_model']:,} model points, {cpu[n]['n_scan']:,} "
+                                 "scan points)" for n in names) + " |",
+             "|---|" + "---:|" * len(names),
+             "| **inspect, CPU [ms]** | " + " | ".join(f"**{1e3 * cpu[n]['total']:.1f}**"
+                                                    for n in names) + " |"]
+    for label, _, _ in STAGES:
+        shown = label.replace("  ", "&nbsp; ", 1) if label.startswith("  ") else label
+        lines.append(f"| {shown} | " + " | ".join(f"{1e3 * cpu[n]['stages'][label]:.1f}"
+                                                  for n in names) + " |")
+    lines.append("| rest (validation, limits, outliers, verdict, notes) | " + " | ".join(
+        f"{1e3 * (cpu[n]['stages'][STAGES[0][0]] - _top(cpu[n]['stages'])):.1f}"
+        for n in names) + " |")
+    lines.append("| verdict | " + " | ".join(cpu[n]["verdict"] for n in names) + " |")
+    lines += ["", "Registration, one run: iterations and closest-point queries (fast tangent-patch "
+              "answers; stage: steps / re-matchings / points per matching):", ""]
+    for n in names:
+        q = cpu[n]["queries"]
+        st = ", ".join(f"{k} {v[0]} / {v[1]} / {v[2]:,}" for k, v in q["stages"].items())
+        lines.append(f"- {n}: {q['iterations']} iterations, {q['calls']} queries of "
+                     f"{q['points']:,} points in all ({st})")
+    return lines
+
+
+def _top(stages: dict) -> float:
+    """CPU of the stages inside ``inspect`` (labels without indent, but the total's)."""
+    return sum(v for k, v in stages.items() if not k.startswith(" ") and k != STAGES[0][0])
 
 
 if __name__ == "__main__":
