@@ -125,3 +125,68 @@ def test_seed_list_packing_equals_the_np_unique_packing(seed):
     for i in range(m):
         got = buf[where[i] + 1:where[i] + 1 + buf[where[i]]]
         assert np.array_equal(got, np.sort(seeds[i, :count[i]]))
+
+
+@pytest.mark.parametrize("last", [False, True])
+def test_children_classification_and_multi_seed_pass_equal_the_kd_tree_kernels(last):
+    """One level below the top grid of the two sheets: ``classify_children`` and
+    ``multi_children`` (candidate lists, lattice reuse, the last level's skipped re-walks)
+    give the kinds, first seeds and seed lists of ``_kernels.classify`` /
+    ``classify_multi`` fed with a kd-tree's exact nearest points."""
+    from shapeverify.nearest import _kernels
+
+    md = 1.0
+    pts = _two_sheets()
+    n = pts.shape[0]
+    kd = cKDTree(pts)
+    rec = dvg.make_records(pts, dvg.neighbor_graph(pts, tree=kd))
+    rv = dvg.views(rec)
+    pad = 1e-9 * (1.0 + float(np.abs(pts).max()))
+    origin = pts.min(axis=0) - md - pad
+    cell, dims = dvg_build._top_grid(origin, pts.max(axis=0) + md + pad, H, 1 << 22)
+    ii, jj, kk = np.meshgrid(*(np.arange(d) for d in dims), indexing="ij")
+    cells = np.stack([ii.ravel(), jj.ravel(), kk.ravel()], axis=1).astype(np.int64)
+    kind, first, samples, nn_i, nn_d = dvg_build._top_level(cells, origin, cell, dims, kd, n,
+                                                            rv, md, 2, 1)
+    ref = np.flatnonzero(kind == 2)
+    parents, off, lst = dvg_build._top_candidates(ref, cells, samples, nn_i, nn_d, pts,
+                                                  origin, cell, dims)
+    size = 0.5 * cell
+    m = 8 * parents.shape[0]
+    kind1, first1 = np.empty(m, np.int8), np.empty(m, np.int64)
+    lat, ffail = np.empty((parents.shape[0], 27), np.int32), np.empty(m, np.int8)
+    bk.classify_children(parents, off, lst, pts, origin, size, *rv, md, 2, kind1, first1, lat,
+                         ffail)
+    # the reference: the same cells with kd-tree nearest points at vertices and extra samples
+    child = (2 * parents[:, None, :] + dvg_build._CORNER[None, :, :]).reshape(-1, 3)
+    vert = (child[:, None, :] + dvg_build._CORNER[None, :, :]).reshape(-1, 3)
+    vd, vi = kd.query(origin + size * vert)
+    kind0, first0 = np.empty(m, np.int8), np.empty(m, np.int64)
+    smp = np.arange(8 * m, dtype=np.int64).reshape(m, 8)
+    _kernels.classify(child, origin, size, smp, vi.astype(np.int64), vd, *rv, md, 2, kind0,
+                      first0)
+    assert np.array_equal(kind1, kind0)
+    assert np.array_equal(first1[kind0 > 0], first0[kind0 > 0])
+    fail = np.flatnonzero(kind1 == 2)
+    assert fail.size > 50
+    fk, fs, fn = (np.empty(fail.size, np.int8), np.zeros((fail.size, 16), np.int32),
+                  np.empty(fail.size, np.int32))
+    bk.multi_children(fail, parents, off, lst, lat, pts, origin, size, first1, ffail, *rv, 2, 4,
+                      last, fk, fs, fn)
+    ext = (2 * child[fail][:, None, :] + _kernels.EXTRA[None, :, :]).reshape(-1, 3)
+    xd, xi = kd.query(origin + 0.5 * size * ext)
+    gk, gs, gn = (np.empty(fail.size, np.int8), np.zeros((fail.size, 16), np.int32),
+                  np.empty(fail.size, np.int32))
+    _kernels.classify_multi(child[fail], origin, size, smp[fail], vi.astype(np.int64), vd,
+                            np.arange(7 * fail.size, dtype=np.int64).reshape(-1, 7),
+                            xi.astype(np.int64), xd, first1[fail], *rv, 2, 4, last, gk, gs, gn)
+    if last:  # every cell a leaf, with all its seeds
+        assert np.all(fk == 1) and np.array_equal(fn, gn)
+        col = np.arange(16)[None, :] < gn[:, None]
+        assert np.array_equal(np.where(col, fs, 0), np.where(col, gs, 0))
+    else:  # refined cells stop early (seeds not needed); the leaves' seeds are the same
+        assert np.array_equal(fk, gk)
+        leaf = gk == 1
+        assert np.array_equal(fn[leaf], gn[leaf])
+        col = np.arange(16)[None, :] < gn[leaf, None]
+        assert np.array_equal(np.where(col, fs[leaf], 0), np.where(col, gs[leaf], 0))
