@@ -134,8 +134,22 @@ def _model_samples(prep, faces, max_samples):
         keep = np.isin(face, np.asarray(faces, dtype=np.int32))
         pts, face = pts[keep], face[keep]
     step = max(1, int(np.ceil(pts.shape[0] / max_samples)))
-    pts, face = pts[::step], face[::step]
+    pts, face = np.ascontiguousarray(pts[::step], dtype=np.float64), face[::step]
     return pts, face, _area_per_point(pts, float(mp.spacing) * np.sqrt(step))
+
+
+def _face_index(prep, faces, face):
+    """``(faces present (F,), index of each sample's face in them (K,), samples per face (F,))``
+    of the samples of :func:`model_samples` (kept beside them on ``prep``)."""
+    key = ("faces", None if faces is None else tuple(int(f) for f in faces), face.shape[0])
+    cache = getattr(prep, "_coverage_samples", None)
+    if cache is not None and key in cache:
+        return cache[key]
+    fs, inv = np.unique(face, return_inverse=True)
+    out = (fs, inv, np.bincount(inv, minlength=fs.size))
+    if cache is not None:
+        cache[key] = out
+    return out
 
 
 def _area_per_point(pts: np.ndarray, spacing: float, n_probe: int = 2000) -> float:
@@ -178,16 +192,15 @@ def compute_coverage(prep, foot_points: np.ndarray, scan_spacing: float, *, face
         # "an evaluated foot point closer than r": the first one found in the grid cells
         # around a sample answers it (a nearest-neighbour query finds the nearest: 6x slower)
         covered = np.empty(pts.shape[0], bool)
-        any_within(np.ascontiguousarray(foot_points, dtype=np.float64),
-                   np.ascontiguousarray(pts, dtype=np.float64), float(radius), covered)
+        any_within(np.ascontiguousarray(foot_points, dtype=np.float64), pts, float(radius),
+                   covered)
     else:
         covered = np.zeros(pts.shape[0], bool)
     n = pts.shape[0]
     fraction = float(covered.mean()) if n else 0.0
     per_face = {}
     if n:
-        fs, inv = np.unique(face, return_inverse=True)
-        tot = np.bincount(inv, minlength=fs.size)
+        fs, inv, tot = _face_index(prep, faces, face)
         cov = np.bincount(inv, weights=covered.astype(np.float64), minlength=fs.size)
         per_face = {int(f): float(c / t) for f, c, t in zip(fs, cov, tot)}
     gaps = _gaps(pts[~covered], face[~covered], a_pt, 2.5 * max(h, np.sqrt(a_pt)))
