@@ -136,8 +136,10 @@ def _listener(say, command: str):
 
 def _run(argv, cwd: Path) -> float:
     t0 = time.perf_counter()
+    # its own cache of info summaries: info must really import the file (and its kernels)
+    env = {**os.environ, "SHAPEVERIFY_CACHE_DIR": str(cwd / "summaries")}
     proc = subprocess.run([sys.executable, "-m", "shapeverify.cli", *map(str, argv)], cwd=cwd,
-                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True)
+                          stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, text=True, env=env)
     if proc.returncode not in (0, 1, 3):  # inspect: 1 fail and 3 incomplete are answers too
         raise RuntimeError(f"shapeverify {' '.join(map(str, argv))} exited {proc.returncode}:\n"
                            f"{proc.stderr[-3000:]}")

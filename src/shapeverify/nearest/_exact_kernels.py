@@ -267,7 +267,7 @@ def refine_cad(Q, idx, rf, nbr, aux, pt_face, pt_uv, rh, rs, spacing, tab, domai
                         onb = free[s2]
                 if not d2 < best:
                     continue
-                D = _eval_call(tab, f, u, v, 1)
+                D = _eval_call(tab, f, u, v, np.int64(1))  # int64: one compiled _eval_call
                 if c == 0:
                     primary_on_edge = True
             # a patch's foot must beat the seeds' clearly: a tie (the same point, found

@@ -27,7 +27,8 @@ _RESTORE = 3   # back at the current iterate after a failed line search: stop
 _ZERO18 = (0.0,) * 18
 
 
-@njit(cache=True, nogil=True, inline="always")
+# small: LLVM inlines it; numba's inline="always" rebuilt and re-typed it at every call site
+@njit(cache=True, nogil=True)
 def _dist2(D, q0, q1, q2):
     a = D[0] - q0
     b = D[1] - q1
@@ -35,7 +36,8 @@ def _dist2(D, q0, q1, q2):
     return a * a + b * b + c * c
 
 
-@njit(cache=True, nogil=True, inline="always")
+# small: LLVM inlines it; numba's inline="always" rebuilt and re-typed it at every call site
+@njit(cache=True, nogil=True)
 def _wrap(x, lo, hi, closed):
     if closed:  # into [lo, hi): the seam belongs to the start of the domain
         if x < lo or x >= hi:
@@ -177,7 +179,8 @@ def newton_face(tab, domains, closed, f, u, v, q0, q1, q2):
     return u, v, d0, at_bound, D
 
 
-@njit(cache=True, nogil=True, inline="always")
+# small: LLVM inlines it; numba's inline="always" rebuilt and re-typed it at every call site
+@njit(cache=True, nogil=True)
 def _chord_d2(q0, q1, q2, a3, b3, s):
     e0 = b3[s, 0] - a3[s, 0]
     e1 = b3[s, 1] - a3[s, 1]
@@ -212,7 +215,7 @@ def newton_segment(tab, domains, f, s, t, x0, y0, x1, y1, q0, q1, q2):
     dv = y1[s] - av
     u = min(max(au + t * du, u0), u1)
     v = min(max(av + t * dv, v0), v1)
-    D = _eval_call(tab, f, u, v, 2)
+    D = _eval_call(tab, f, u, v, np.int64(2))  # not a literal 2: one compiled _eval_call
     d0 = _dist2(D, q0, q1, q2)
     for it in range(_MAX_NEWTON):
         r0 = D[0] - q0
@@ -257,7 +260,7 @@ def newton_segment(tab, domains, f, s, t, x0, y0, x1, y1, q0, q1, q2):
             tn = min(max(t + lam * dt, 0.0), 1.0)
             un = min(max(au + tn * du, u0), u1)
             vn = min(max(av + tn * dv, v0), v1)
-            Dn = _eval_call(tab, f, un, vn, 2)
+            Dn = _eval_call(tab, f, un, vn, np.int64(2))
             dn = _dist2(Dn, q0, q1, q2)
             if dn <= d0:
                 accepted = True

@@ -18,7 +18,8 @@ from numba import njit
 #   (u - mu_i)^a (v - mv_j)^b on span (i, j).  Homogeneous, divided back with the quotient rule.
 # Derivatives travel as 18-tuples D: S = D[0:3], S_u = D[3:6], S_v = D[6:9], S_uu = D[9:12],
 # S_uv = D[12:15], S_vv = D[15:18] (x, y, z each).
-@njit(cache=True, nogil=True, inline="always")
+# small: LLVM inlines it; numba's inline="always" rebuilt and re-typed it at every call site
+@njit(cache=True, nogil=True)
 def _span(x, br, lo, hi):
     """Index i of the span [br[lo+i], br[lo+i+1]] holding x (clamped to the ends)."""
     a = lo
@@ -36,7 +37,8 @@ def _span(x, br, lo, hi):
     return a - lo
 
 
-@njit(cache=True, nogil=True, inline="always")
+# small: LLVM inlines it; numba's inline="always" rebuilt and re-typed it at every call site
+@njit(cache=True, nogil=True)
 def _span_near(x, br, lo, hi, g):
     """:func:`_span`, trying span g first (the span of a nearby point, -1 for none); the same
     answer, since the spans are non-empty."""
@@ -203,7 +205,7 @@ def _eval(tab, f, u, v, order, gi, gj):
 @njit(cache=True, nogil=True)
 def _eval_call(tab, f, u, v, order):
     """:func:`_eval` as a call, for the rare paths (one inlined copy is enough)."""
-    return _eval(tab, f, u, v, order, -1, -1)[0]
+    return _eval(tab, f, u, v, order, np.int64(-1), np.int64(-1))[0]
 
 
 @njit(cache=True, nogil=True)
@@ -213,7 +215,7 @@ def eval_many(tab, faces, u, v, out):
     ``out`` (N, 3, 3, 3); entries with k + l > 2 are left as they are.
     """
     for i in range(u.shape[0]):
-        D = _eval(tab, faces[i], u[i], v[i], 2, -1, -1)[0]
+        D = _eval(tab, faces[i], u[i], v[i], 2, np.int64(-1), np.int64(-1))[0]
         for c in range(3):
             out[i, 0, 0, c] = D[c]
             out[i, 1, 0, c] = D[3 + c]
