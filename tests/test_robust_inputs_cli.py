@@ -198,3 +198,37 @@ def test_info_of_a_cloud_in_metres_says_it_is_read_as_mm_and_names_the_option(tm
     q = tmp_path / "part.xyz"
     np.savetxt(q, np.random.default_rng(1).uniform(0.0, 150.0, (200, 3)))
     assert "note:" not in runner.invoke(app, ["info", str(q)]).output
+
+
+def test_a_named_pipe_is_refused_not_read_for_ever(tmp_path):
+    # was: `info pipe.step` waited for ever (the summary cache hashed the FIFO)
+    from shapeverify.cad.load import load_model
+    from shapeverify.errors import CADImportError, ScanError
+    from shapeverify.io.points import read_points
+
+    for name in ("pipe.step", "pipe.ply"):
+        os.mkfifo(tmp_path / name)
+    line = _error_line(runner.invoke(app, ["info", str(tmp_path / "pipe.step")]))
+    assert "pipe.step: is not a regular file (a pipe, socket or device)" in line
+    with pytest.raises(CADImportError, match="is not a regular file"):
+        load_model(tmp_path / "pipe.step")
+    with pytest.raises(ScanError, match="is not a regular file"):
+        read_points(tmp_path / "pipe.ply")
+
+
+def test_model_and_scan_swapped_is_said_before_any_preparing(small):
+    # was: the scan prepared as a model (seconds), then "unsupported point-cloud extension '.svm'"
+    line = _error_line(runner.invoke(app, ["inspect", str(small / "scan.ply"),
+                                           str(small / "panel.svm"), "--tolerance", "0.2"]))
+    assert "panel.svm: is a model file, not a scan (the arguments seem swapped)" in line
+    assert "Preparing" not in runner.invoke(app, ["inspect", str(small / "scan.ply"),
+                                                  str(small / "panel.svm"),
+                                                  "--tolerance", "0.2"]).output
+
+
+def test_a_mesh_given_as_the_scan_says_how_to_give_it(small, tmp_path):
+    p = tmp_path / "scan.stl"
+    p.write_text("solid s\nendsolid s\n")
+    line = _error_line(runner.invoke(app, ["inspect", str(small / "panel.svm"), str(p),
+                                           "--tolerance", "0.2"]))
+    assert "can be given as PLY (its vertices are the scan points)" in line

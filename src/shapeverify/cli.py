@@ -167,6 +167,8 @@ def _require_files(*paths: Path) -> None:
             _fail(f"{p}: no such file")
         if p.is_dir():
             _fail(f"{p}: is a directory; give a file")
+        if not p.is_file():     # a pipe or device: reading it would wait (info hashed a FIFO for ever)
+            _fail(f"{p}: is not a regular file (a pipe, socket or device); give a file")
 
 
 @app.callback()
@@ -307,6 +309,7 @@ def inspect(
     init_file = Path(init) if init is not None and init not in INIT_MODES else None
     _require_files(model, scan, *([init_file] if init_file is not None else []),
                    *([plan] if plan is not None else []))
+    _check_scan_suffix(model, scan)
     if tolerance is None and lower is None and upper is None:
         if plan is None:
             _fail("give --tolerance MM (or --lower/--upper limits in mm, or a --plan)")
@@ -327,6 +330,29 @@ def inspect(
     if outputs.record_id is not None:
         out.print(f"history record {outputs.record_id} in {db}")
     raise typer.Exit(VERDICT_EXIT.get(result.verdict, EXIT_ERROR))
+
+
+def _check_scan_suffix(model: Path, scan: Path) -> None:
+    """Fail at once (before a model is prepared) when the scan's suffix is not a scan format --
+    a model file given second: the arguments swapped."""
+    from shapeverify.cad.load import MODEL_EXTENSIONS
+    from shapeverify.io.formats import SCAN_SUFFIXES
+    from shapeverify.pipeline import PREPARED_SUFFIX
+
+    suffix = scan.suffix.lower()
+    if suffix in SCAN_SUFFIXES:
+        return
+    if suffix in (".stl", ".obj"):
+        _fail(f"{scan}: a mesh file is read as a reference model, not as a scan; a scanner's "
+              "mesh can be given as PLY (its vertices are the scan points); scan formats: "
+              f"{', '.join(SCAN_SUFFIXES)}")
+    if suffix == PREPARED_SUFFIX or suffix in MODEL_EXTENSIONS:
+        swapped = (" (the arguments seem swapped)" if model.suffix.lower() in SCAN_SUFFIXES
+                   else "")
+        _fail(f"{scan}: is a model file, not a scan{swapped}; the order is "
+              "`shapeverify inspect MODEL SCAN`")
+    _fail(f"{scan}: unsupported scan extension {scan.suffix or '(none)'!r}; supported: "
+          f"{', '.join(SCAN_SUFFIXES)}")
 
 
 def _read_init(path: Path):

@@ -84,6 +84,9 @@ def load_model(path):
     if path.is_dir():
         raise IsADirectoryError(errno.EISDIR, f"{path}: is a directory, not a model file",
                                 str(path))
+    if not path.is_file():  # a pipe or a device: reading it would wait for ever
+        raise CADImportError(f"{path}: is not a regular file (a pipe, socket or device); save "
+                             "the model to a file and give that")
     if ext in _CAD:
         from shapeverify.cad.occ_import import read_cad
 

@@ -82,13 +82,16 @@ def check_file(path) -> Path:
     FileNotFoundError
         It does not exist.
     ScanError
-        It is a directory or empty.
+        It is a directory, a pipe, socket or device, or empty.
     """
     path = Path(path)
     if not path.exists():
         raise FileNotFoundError(errno.ENOENT, f"{path}: file not found", str(path))
     if path.is_dir():
         raise ScanError(f"{path}: is a directory, not a file")
+    if not path.is_file():   # reading a pipe or a device would wait or never end
+        raise ScanError(f"{path}: is not a regular file (a pipe, socket or device); save the "
+                        "data to a file and give that")
     if path.stat().st_size == 0:
         raise ScanError(f"{path}: file is empty (0 bytes)")
     return path
