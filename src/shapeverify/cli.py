@@ -24,6 +24,13 @@ from typer.core import TyperGroup
 
 from shapeverify.cli_errors import clean, cli_hint, os_error_message, size_note
 
+# typer >= 0.2x vendors its own click (typer._click): its usage errors (a missing argument, an
+# unknown option) are not click's classes, so both are named here
+_CLICK_OWN = tuple(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
+_NOT_A_BUG = (click.exceptions.Exit, click.exceptions.Abort, click.ClickException,
+              typer.Exit, typer.Abort) + _CLICK_OWN
+
+
 class _GuardedGroup(TyperGroup):
     """Runs every command so that an unexpected exception (a bug) also ends with exit code 2 and
     one line -- never exit code 1, which ``inspect`` reserves for "the part fails"."""
@@ -31,8 +38,7 @@ class _GuardedGroup(TyperGroup):
     def invoke(self, ctx):
         try:
             return super().invoke(ctx)
-        except (click.exceptions.Exit, click.exceptions.Abort, click.ClickException,
-                typer.Exit, typer.Abort):
+        except _NOT_A_BUG:
             raise
         except Exception as exc:  # noqa: BLE001 - the last line of defence
             _internal_error(exc, bool(ctx.meta.get(_VERBOSE_KEY)))

@@ -52,6 +52,21 @@ DAMAGED_FILE_ERRORS = (ValueError, LookupError, TypeError, AttributeError, Runti
                        EOFError, zipfile.BadZipFile, zlib.error, struct.error, OverflowError,
                        MemoryError)
 
+
+
+def damage_text(exc: BaseException) -> str:
+    """``exc`` as a message part for a damaged file, without numpy's advice to load unsafely.
+
+    numpy refuses object arrays with "... load it unsafely using the `allow_pickle=`
+    keyword": shapeverify never writes such arrays, and loading pickled data from a file of
+    unknown origin can run any code, so the message says what the file holds instead.
+    """
+    text = str(exc)
+    if "allow_pickle" in text or "pickle" in text.lower():
+        return "it holds Python objects (pickled data), which shapeverify files never contain"
+    return f"{type(exc).__name__}: {text}"
+
+
 _REDO = ("make it again from the CAD file (`shapeverify prepare CAD -o MODEL.svm`, or "
          "`load_model(CAD).save(PATH)` for a .svmodel)")
 
@@ -260,7 +275,7 @@ def load_saved_model(path):
         raise
     except DAMAGED_FILE_ERRORS as exc:
         raise ModelFileError(f"{path}: not a readable shapeverify model file, damaged or "
-                             f"truncated ({type(exc).__name__}: {exc}); {_REDO}") from None
+                             f"truncated ({damage_text(exc)}); {_REDO}") from None
 
 
 def _face_names(names, n: int, where: str):

@@ -100,7 +100,11 @@ def hole_center_on_face(face, point, axis, uv0=None, iterations: int = 30) -> np
     surf = face.surface
     (u0, u1), (v0, v1) = surf.domain
     if uv0 is None:
+        # the trims' (u, v) box can reach a little beyond the surface's domain (hammer.iges:
+        # -6.2e-5 below u = 0); the search grid stays inside the domain
         (a0, a1), (b0, b1) = face.uv_bounds
+        a0, a1 = max(a0, u0), min(a1, u1)
+        b0, b1 = max(b0, v0), min(b1, v1)
         g = np.stack(np.meshgrid(np.linspace(a0, a1, 24), np.linspace(b0, b1, 24)), -1)
         g = g.reshape(-1, 2)
         x = surf.evaluate(g[:, 0], g[:, 1]) - p

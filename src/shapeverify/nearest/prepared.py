@@ -425,7 +425,7 @@ def load_prepared(source) -> Prepared:
         CRC check) or truncated, an unsupported version, or inconsistent arrays.  The message
         names the file and says to run ``shapeverify prepare`` again.
     """
-    from shapeverify.cad.persist import DAMAGED_FILE_ERRORS
+    from shapeverify.cad.persist import DAMAGED_FILE_ERRORS, damage_text
     from shapeverify.errors import EmptyModelError, ModelFileError
 
     if isinstance(source, (bytes, bytearray, memoryview)):
@@ -449,7 +449,7 @@ def load_prepared(source) -> Prepared:
         raise ModelFileError(f"{exc}; {redo}") from None
     except DAMAGED_FILE_ERRORS as exc:
         raise ModelFileError(f"{where}: not a readable prepared-model (.svm) file, damaged or "
-                             f"truncated ({type(exc).__name__}: {exc}); {redo}") from None
+                             f"truncated ({damage_text(exc)}); {redo}") from None
 
 
 def _load_prepared(src, path, n_bytes: int) -> Prepared:
