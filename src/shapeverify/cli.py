@@ -14,7 +14,6 @@ import time
 from pathlib import Path
 from typing import List, Optional
 
-import click
 import typer
 from rich.console import Console
 from rich.logging import RichHandler
@@ -24,11 +23,11 @@ from typer.core import TyperGroup
 
 from shapeverify.cli_errors import clean, cli_hint, os_error_message, size_note
 
-# typer >= 0.2x vendors its own click (typer._click): its usage errors (a missing argument, an
-# unknown option) are not click's classes, so both are named here
-_CLICK_OWN = tuple(c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
-_NOT_A_BUG = (click.exceptions.Exit, click.exceptions.Abort, click.ClickException,
-              typer.Exit, typer.Abort) + _CLICK_OWN
+# usage errors (a missing argument, an unknown option) and exits are not bugs.  typer >= 0.2x
+# vendors its own click (typer._click, and click is no longer installed with it), older typer
+# uses click: the base class is taken from typer's own BadParameter, so both work
+_NOT_A_BUG = (typer.Exit, typer.Abort) + tuple(
+    c for c in typer.BadParameter.__mro__ if c.__name__ == "ClickException")
 
 
 class _GuardedGroup(TyperGroup):
