@@ -79,3 +79,16 @@ def test_hole_centre_search_stays_inside_the_surface_domain():
     target = face.surface.evaluate(np.array([0.3]), np.array([0.6]))[0]
     got = hole_center_on_face(wide, target + [0.0, 0.0, 5.0], [0.0, 0.0, 1.0])
     assert np.allclose(got, target, atol=1e-9)
+
+
+@pytest.mark.parametrize("points", [np.tile([1.0, 2.0, 3.0], (500, 1)), np.zeros((2, 3))])
+def test_a_point_cloud_reference_of_one_repeated_point_says_so(points, tmp_path):
+    # was: "need at least 3 points to estimate normals, got 1" (after thinning)
+    from shapeverify.cad.load import load_model
+
+    p = tmp_path / "same.xyz"
+    np.savetxt(p, points)
+    from shapeverify.nearest.prepared import prepare
+
+    with pytest.raises(ValueError, match="point-cloud model (has|is)"):
+        prepare(load_model(p))

@@ -16,6 +16,12 @@ def _sample_cloud(model, s, rng):
     X = np.asarray(model.vertices, dtype=np.float64)
     if X.ndim != 2 or X.shape[1] != 3 or len(X) == 0:
         raise ValueError(f"point-cloud model has no points (vertices shape {X.shape})")
+    extent = float(np.ptp(X, axis=0).max())
+    if len(X) < 3 or extent == 0.0:
+        what = "is one point" if len(X) == 1 else (
+            f"has only {len(X)} points" if len(X) < 3 else f"has {len(X)} points, all the same point")
+        raise ValueError(f"point-cloud model {what} ({X[0].round(6).tolist()}): a reference "
+                         "needs points spread over the part's surface; check the file")
     given = getattr(model, "cloud_normals", None)
     r = _RADIUS * s
     # 1. thin without normals to half the final radius (cheap normals on fewer points)
