@@ -221,16 +221,19 @@ def main() -> None:
 
     peer = _open3d_peer(prep, scan, vs.T_model_scan, args.repeat)
     acc = vs.accuracy(res.T_model_scan)
+    blas = (f"OPENBLAS_NUM_THREADS={os.environ['OPENBLAS_NUM_THREADS']} "
+            if "OPENBLAS_NUM_THREADS" in os.environ else "")
     opts = "".join(f" {o}" for o in (f"--workers {args.workers}" if args.workers else "",) if o)
     lines = [
         "# Inspection timing (issue 5)",
         "",
-        f"Command: `.venv/bin/python benchmarks/bench_inspect.py --points {args.points} "
+        f"Command: `{blas}.venv/bin/python benchmarks/bench_inspect.py --points {args.points} "
         f"--repeat {args.repeat}{opts}`  ",
         f"Date: {datetime.date.today()}, {platform.processor() or platform.machine()}, "
         f"Python {platform.python_version()}; machine shared with other jobs (2 cores, load "
         f"average {load_start:.1f} at the start, {load_end:.1f} at the end); closest-point "
-        f"queries on {get_workers()} thread(s).",
+        f"queries on {get_workers()} thread(s); OPENBLAS_NUM_THREADS="
+        f"{os.environ.get('OPENBLAS_NUM_THREADS', 'unset (every core)')}.",
         "",
         f"Model: 2-face bicubic panel 120 x 90 mm, prepared in {t_prep:.2f} s "
         f"({len(prep.points.points):,} model points).  Scan: {len(scan):,} points (virtual "
