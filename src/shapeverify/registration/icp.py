@@ -22,6 +22,13 @@ Stages (see :mod:`shapeverify.registration._irls` for the iterations and the con
    at most 10 % of them: an impeller's spin on its thin blades) is probed for another minimum
    (:mod:`shapeverify.registration._basin`); a better one found is refined by the final stage
    and kept only if it fits all points better.
+4. *restarts*: a pose still flagged as a wrong minimum (not converged, or a warning of
+   ``Registration.warnings``) of a part that is nearly a solid of revolution (an impeller,
+   whose hub leaves x, y and the spin to the few blade points, so a start half a blade pitch
+   off converges onto the wrong blades) is restarted from spins about the model's own
+   near-symmetry axis (:mod:`shapeverify.registration._restart`); of the copies that fit
+   alike, the one nearest the start is refined by the final stage and kept only if it fits
+   better (at the sharper of the two robust scales).
 
 The final stage's robust scale is overlap-aware (:func:`._irls.overlap_scale`): when most of a
 partial view lies off the reference (a point cloud has no outline to exclude them), the scale
@@ -65,8 +72,9 @@ ANNEAL = None
 _STAGE_CAP = 60
 #: probe the least-determined direction for a better minimum (:mod:`._basin`)
 PROBE = True
-#: probe rounds at most (another direction may rest on few points once one is right)
-PROBE_ROUNDS = 3
+#: probe rounds at most (another direction may rest on few points once one is right; a start
+#: several wall thicknesses deep moves one wall per round: 3 left one impeller scan locked)
+PROBE_ROUNDS = 6
 #: restart a pose flagged as a wrong minimum about the model's near-symmetry axis (:mod:`._restart`)
 RESTART = True
 
@@ -436,7 +444,10 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
             st2 = _irls.State(T_alt[:3, :3].copy(), T_alt[:3, 3].copy(), st.iterations,
                               list(st.history))
             st2, ev2, conv2, why2 = settle(st2, *final(st2))
-            obj, obj0 = _irls._mean_rho(ev2, ev.sigma), ev.objective
+            # compared at the sharper of the two scales: the right pose fits to the noise
+            # level, a wrong minimum only loosely (at its own broad scale both look alike)
+            s0 = min(ev.sigma, ev2.sigma)
+            obj, obj0 = _irls._mean_rho(ev2, s0), _irls._mean_rho(ev, s0)
             if obj < obj0:
                 logger.info("registration: the restart about the model's near-symmetry axis "
                             "fits better (objective %.4g < %.4g): taken", obj, obj0)
