@@ -24,6 +24,7 @@ against scipy's cKDTree.
 Run:  .venv/bin/python benchmarks/bench_prepare.py impeller --spacing 0.175
       .venv/bin/python benchmarks/bench_prepare.py panel --spacing 0.6 --reach 2
       /usr/bin/time -v .venv/bin/python benchmarks/bench_prepare.py impeller --spacing 0.175
+      .venv/bin/python benchmarks/bench_prepare.py impeller --spacing 0.35 --levels
 """
 
 from __future__ import annotations
@@ -103,6 +104,7 @@ def staged_prepare(model, spacing, reach, clock: Clock):
     kd = clock.run("kd", cKDTree, pts)
     graph = clock.run("graph", dvg.neighbor_graph, pts, tree=kd)
     rec = clock.run("records", dvg.make_records, pts, graph, frames)
+    _STEP_CLOCK[0] = time.process_time()
     tree = clock.run("tree", dvg.build_tree, rec, h, maxd, kd=kd)
     fast = dvg.DVG(rec, tree)
     fast._kd = kd
@@ -126,6 +128,28 @@ def queries(pts, normals, h, reach, n, rng=0):
     return rand, scan
 
 
+_STEP_CLOCK = [0.0]  # CPU seconds at the previous tree step (reset when the tree starts)
+
+
+def _log_tree_steps():
+    """Print each debug line of the tree build with the CPU seconds since the previous one
+    (``time.process_time``: all threads)."""
+    import logging
+
+    last = _STEP_CLOCK
+
+    class Steps(logging.Handler):
+        def emit(self, record):
+            t = time.process_time()
+            print(f"  tree +{t - last[0]:6.2f} s CPU  {record.getMessage()}", flush=True)
+            last[0] = t
+
+    lg = logging.getLogger("shapeverify.nearest.dvg_build")
+    lg.setLevel(logging.DEBUG)
+    lg.addHandler(Steps())
+    lg.propagate = False
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("model", help="impeller | panel | a model file")
@@ -136,7 +160,12 @@ def main():
     ap.add_argument("--queries", type=int, default=200_000)
     ap.add_argument("--save-answers", type=Path, default=None)
     ap.add_argument("--compare", type=Path, default=None)
+    ap.add_argument("--levels", action="store_true",
+                    help="print the tree's steps (per level: classification, multi-seed pass, "
+                         "seed-list packing, candidate lists) with their CPU seconds")
     args = ap.parse_args()
+    if args.levels:
+        _log_tree_steps()
     from shapeverify.nearest import set_workers
     set_workers(args.workers)
     model = load(args.model)
