@@ -96,14 +96,26 @@ def test_impeller_from_half_a_blade_pitch_off_registers_right(impeller, monkeypa
 
 
 def test_restart_needs_a_near_symmetric_model(monkeypatch):
-    """A model with three distinct principal moments gets no restart (None)."""
+    """A model with three distinct principal moments gets no restart (None), decided from its
+    points before the global search's (costly) model side is built."""
     import shapeverify.registration.global_search as gs
 
     rng = np.random.default_rng(1)
     box = rng.random((3000, 3)) * np.array([100.0, 60.0, 20.0])
-    side = _side(box)
-    side.tau = 1.0
-    monkeypatch.setattr(gs, "_model_side", lambda prep: side)
+    up = np.tile([0.0, 0.0, 1.0], (3000, 1))
+    prep = SimpleNamespace(points=SimpleNamespace(points=box, normals=up))
+
+    def built(prep):
+        raise AssertionError("the model side must not be built for a model with no axis")
+
+    monkeypatch.setattr(gs, "_model_side", built)
     T = make_transform(np.eye(3), np.zeros(3))
-    assert _restart.restart(box[:100], SimpleNamespace(), T, T, 30.0,
-                            np.random.default_rng(0)) is None
+    assert _restart.restart(box[:100], prep, T, T, 30.0, np.random.default_rng(0)) is None
+    # the same points as a wheel-like cloud (x, y moments equal) do have an axis
+    phi = 2 * np.pi * rng.random(3000)
+    r = 40.0 * np.sqrt(rng.random(3000))
+    wheel = SimpleNamespace(points=SimpleNamespace(points=np.c_[r * np.cos(phi), r * np.sin(phi),
+                                                                 2.0 * rng.random(3000)],
+                                                   normals=up))
+    axis, _ = _restart._model_axis(wheel)
+    assert abs(abs(axis[2]) - 1.0) < 1e-3

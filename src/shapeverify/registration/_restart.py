@@ -2,8 +2,8 @@
 
 Why: a part that is nearly a solid of revolution (an impeller, a fan, a gear, a wheel) fixes
 the spin about its axis, and often the slide across it, with a small share of its points
-(an impeller seen from above: 95 % of the scan on a flat hub that leaves x, y and the spin
-free, 5 % on the blade sides at the rim).  From a start whose slide is about half the feature
+(an impeller seen from above: 95 % of the scan on the hub -- a flat top and small chamfers --
+which leaves x, y and the spin free or nearly so, 5 % on the blade sides at the rim).  From a start whose slide is about half the feature
 pitch at the rim (12 mm on the bundled impeller, blade pitch 24 mm at r = 42 mm), the
 closest points of those few points lie on the neighbouring feature: every local method --
 any loss, subset, scale or step tried -- converges into a wrong minimum 16-18 deg / 14 mm
@@ -20,15 +20,16 @@ flagged end, the pose is first shifted along the axis to where a subset of the s
 nowhere, so they do not move it), the scan's centroid (of the points within :data:`CLEAN` fit
 distances of the model there) is put on the axis -- a full view of a near-axisymmetric part
 has its centroid on the axis -- the height searched again, and the pose is spun
-about the axis in :data:`SPIN_STEPS` steps over the full turn (finer than any basin of the
-spin).  Each hypothesis is refined by the global search's short Huber ICP on a subset and
+about the axis in :data:`SPIN_STEPS` steps over the full turn (10 deg apart; from the
+impeller's hypotheses every one of the 36 ended on one of its 11 blade copies).  Each hypothesis is refined by the global search's short Huber ICP on a subset and
 scored by its fit at the sharp fit distance (three times the smallest robust scale among
 them, :func:`.global_search._sharp_fits`).  Near-symmetric copies fit alike (the impeller:
 11 blade copies within 1 %), so among the hypotheses within :data:`TIE` of the best fit the
 one nearest the start is chosen (the start is the only information that tells the copies
 apart), and of the hypotheses within :data:`COPY_DEG` of it (the same copy, e.g. a thin-wall
-lock 1.31 deg off it) the best fit is returned.  The caller refines it with the final stage and keeps it only if it fits all points
-better than the flagged end (so nothing changes where there is no better minimum).
+lock 1.31 deg off it) the best fit is returned.  The caller refines it with the final stage and
+keeps it only if it fits better than the flagged end, at the sharper of the two robust scales
+(so nothing changes where there is no better minimum).
 
 Not used when the model has three distinct principal moments (no axis to spin about), or when
 the data leave a direction undetermined (an exactly symmetric part, whose spin is free).
@@ -43,6 +44,8 @@ symmetries as a prior of registration).
 from __future__ import annotations
 
 import logging
+import weakref
+from types import SimpleNamespace
 
 import numpy as np
 
@@ -74,23 +77,40 @@ TIE = 0.97
 def symmetry_axis(side):
     """(axis (3,), centre (3,)) of the model's near-symmetry, or None.
 
-    From the principal moments of the model points of the global search (a regular subset of
-    about 5,000): two of them within :data:`SYMMETRY_RTOL` (relative to the larger) make the
-    third eigenvector an axis of near-rotational symmetry through the centroid.
+    ``side.axes_points`` (m, 3): model points (the global search's regular subset of about
+    5,000).  Two principal moments within :data:`SYMMETRY_RTOL` (relative to the larger) make
+    the third eigenvector an axis of near-rotational symmetry through the centroid.
     """
-    cached = getattr(side, "_symmetry_axis", False)
-    if cached is not False:
-        return cached
-    M = side.axes_points
+    M = np.asarray(side.axes_points, np.float64)
     c = M.mean(axis=0)
     lam, V = np.linalg.eigh(np.cov((M - c).T))
-    out = None
     if lam[2] > 0:
         if lam[2] - lam[1] <= SYMMETRY_RTOL * lam[2]:
-            out = (V[:, 0].copy(), c)
-        elif lam[1] - lam[0] <= SYMMETRY_RTOL * lam[1]:
-            out = (V[:, 2].copy(), c)
-    side._symmetry_axis = out
+            return V[:, 0].copy(), c
+        if lam[1] - lam[0] <= SYMMETRY_RTOL * lam[1]:
+            return V[:, 2].copy(), c
+    return None
+
+
+_AXES: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def _model_axis(prep):
+    """:func:`symmetry_axis` of the prepared model (the same regular subset of its points as
+    the global search's), cached per Prepared object; None without model points."""
+    try:
+        return _AXES[prep]
+    except (KeyError, TypeError):
+        pass
+    mp = _irls.model_points(prep)
+    out = None
+    if mp is not None and mp[0].shape[0] >= 10:
+        M = mp[0]
+        out = symmetry_axis(SimpleNamespace(axes_points=M[::max(1, M.shape[0] // 5000)]))
+    try:
+        _AXES[prep] = out
+    except TypeError:   # not weak-referenceable
+        pass
     return out
 
 
@@ -103,7 +123,8 @@ def _spin(axis, centre, phi) -> np.ndarray:
 def _distance(T1, T2, c, radius) -> float:
     """How far apart two poses move the scan: rotation angle x radius + shift of its centroid."""
     ang = float(np.linalg.norm(rotation_vector(T1[:3, :3] @ T2[:3, :3].T)))
-    return ang * radius + float(np.linalg.norm((T1[:3, :3] - T2[:3, :3]) @ c + T1[:3, 3] - T2[:3, 3]))
+    shift = (T1[:3, :3] - T2[:3, :3]) @ c + T1[:3, 3] - T2[:3, 3]
+    return ang * radius + float(np.linalg.norm(shift))
 
 
 def _axial(S, prep, T, axis, tau, reach) -> np.ndarray:
@@ -134,14 +155,11 @@ def restart(P, prep, T_start, T_end, radius: float, rng):
     """
     from .global_search import _model_side, _sharp_fits, refine
 
-    try:
-        side = _model_side(prep)
-    except (ValueError, AttributeError):
-        return None
-    sym = symmetry_axis(side)
-    if sym is None:
+    sym = _model_axis(prep)
+    if sym is None:       # decided before the global search's model side is built (costly)
         return None
     axis, centre = sym
+    side = _model_side(prep)
     probe = P if P.shape[0] <= POINTS else P[np.sort(rng.choice(P.shape[0], POINTS,
                                                                  replace=False))]
     reach = AXIAL_REACH * side.size
