@@ -20,9 +20,9 @@ flagged end, the pose is first shifted along the axis to where a subset of the s
 nowhere, so they do not move it), the scan's centroid (of the points within :data:`CLEAN` fit
 distances of the model there) is put on the axis -- a full view of a near-axisymmetric part
 has its centroid on the axis -- the height searched again, and the pose is spun
-about the axis in :data:`SPIN_STEPS` steps over the full turn (10 deg apart; from the
-impeller's scans most of the 36 (20-36) end on one of its 11 blade copies).  Each hypothesis is refined by the global search's short Huber ICP on a subset and
-scored by its fit at the sharp fit distance (three times the smallest robust scale among
+about the axis in :data:`SPIN_STEPS` steps over the full turn (10 deg apart; on the
+impeller's scans most of the 36 (20-36) end on one of its 11 blade copies).  Each hypothesis is
+refined by the global search's short Huber ICP on a subset and scored by its fit at the sharp fit distance (three times the smallest robust scale among
 them, :func:`.global_search._sharp_fits`).  Near-symmetric copies fit alike (the impeller:
 11 blade copies within 1 %), so among the hypotheses within :data:`TIE` of the best fit the
 one nearest the start is chosen (the start is the only information that tells the copies
