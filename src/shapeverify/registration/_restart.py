@@ -1,35 +1,35 @@
 """Restarts about the model's near-symmetry axis for a pose flagged as a wrong minimum.
 
-Why: a part that is nearly a solid of revolution (an impeller, a fan, a gear, a wheel) fixes
-the spin about its axis, and often the slide across it, with a small share of its points
-(an impeller seen from above: 95 % of the scan on the hub -- a flat top and small chamfers --
-which leaves x, y and the spin free or nearly so, 5 % on the blade sides at the rim).  From a start whose slide is about half the feature
-pitch at the rim (12 mm on the bundled impeller, blade pitch 24 mm at r = 42 mm), the
-closest points of those few points lie on the neighbouring feature: every local method --
-any loss, subset, scale or step tried -- converges into a wrong minimum 16-18 deg / 14 mm
-off (robust scale 8 x the noise).  The minimum is detected (the rejected points hold more
-information than the kept ones, the robust scale is high, or the final stage does not settle)
-but no local rule can leave it.  The global search does not help either: the principal axes
-of such a part leave the spin arbitrary, and its screening at two voxels (6 mm) cannot tell
-one spin from another (every spin fits the hub).
+Why: a part that is nearly a solid of revolution (an impeller, a fan, a gear, a wheel) fixes the
+spin about its axis, and often the slide across it, with a small share of its points (an
+impeller seen from above: 95 % of the scan on the hub -- a flat top and small chamfers -- which
+leaves x, y and the spin free or nearly so, 5 % on the blade sides at the rim). From a start
+whose slide is about half the feature pitch at the rim (12 mm on the bundled impeller, blade
+pitch 24 mm at r = 42 mm), the closest points of those few points lie on the neighbouring
+feature: every local method -- any loss, subset, scale or step tried -- converges into a wrong
+minimum 16-18 deg / 14 mm off (robust scale 8 x the noise). The minimum is detected (the
+rejected points hold more information than the kept ones, the robust scale is high, or the final
+stage does not settle) but no local rule can leave it. The global search does not help either:
+the principal axes of such a part leave the spin arbitrary, and its screening at two voxels (6
+mm) cannot tell one spin from another (every spin fits the hub).
 
-What: the model's own near-symmetry is found from the model (its principal moments: two
-within :data:`SYMMETRY_RTOL` give an axis through the centroid).  From the start and from the
-flagged end, the pose is first shifted along the axis to where a subset of the scan fits best
-(the spin-invariant bulk -- the hub -- fixes the height whatever the spin; outliers fit
-nowhere, so they do not move it), the scan's centroid (of the points within :data:`CLEAN` fit
-distances of the model there) is put on the axis -- a full view of a near-axisymmetric part
-has its centroid on the axis -- the height searched again, and the pose is spun
-about the axis in :data:`SPIN_STEPS` steps over the full turn (10 deg apart; on the
-impeller's scans most of the 36 (20-36) end on one of its 11 blade copies).  Each hypothesis is
-refined by the global search's short Huber ICP on a subset and scored by its fit at the sharp fit distance (three times the smallest robust scale among
-them, :func:`.global_search._sharp_fits`).  Near-symmetric copies fit alike (the impeller:
-11 blade copies within 1 %), so among the hypotheses within :data:`TIE` of the best fit the
-one nearest the start is chosen (the start is the only information that tells the copies
-apart), and of the hypotheses within :data:`COPY_DEG` of it (the same copy, e.g. a thin-wall
-lock 1.31 deg off it) the best fit is returned.  The caller refines it with the final stage and
-keeps it only if it fits better than the flagged end, at the sharper of the two robust scales
-(so nothing changes where there is no better minimum).
+What: the model's own near-symmetry is found from the model (its principal moments: two within
+:data:`SYMMETRY_RTOL` give an axis through the centroid). From the start and from the flagged
+end, the pose is first shifted along the axis to where a subset of the scan fits best (the
+spin-invariant bulk -- the hub -- fixes the height whatever the spin; outliers fit nowhere, so
+they do not move it), the scan's centroid (of the points within :data:`CLEAN` fit distances of
+the model there) is put on the axis -- a full view of a near-axisymmetric part has its centroid
+on the axis -- the height searched again, and the pose is spun about the axis in
+:data:`SPIN_STEPS` steps over the full turn (10 deg apart; on the impeller's scans most of the
+36 (20-36) end on one of its 11 blade copies). Each hypothesis is refined by the global search's
+short Huber ICP on a subset and scored by its fit at the sharp fit distance (three times the
+smallest robust scale among them, :func:`.global_search._sharp_fits`). Near-symmetric copies fit
+alike (the impeller: 11 blade copies within 1 %), so among the hypotheses within :data:`TIE` of
+the best fit the one nearest the start is chosen (the start is the only information that tells
+the copies apart), and of the hypotheses within :data:`COPY_DEG` of it (the same copy, e.g. a
+thin-wall lock 1.31 deg off it) the best fit is returned. The caller refines it with the final
+stage and keeps it only if it fits better than the flagged end, at the sharper of the two robust
+scales (so nothing changes where there is no better minimum).
 
 Not used when the model has three distinct principal moments (no axis to spin about), or when
 the data leave a direction undetermined (an exactly symmetric part, whose spin is free).
