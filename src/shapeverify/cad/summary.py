@@ -7,10 +7,10 @@ the user's cache directory, under the SHA-256 of the file's bytes, so that ``inf
 file again needs neither OpenCASCADE nor numba.
 
 The cache is safe to lose or damage: an entry is used only when its file content hash, its
-format version and the stamp of the importing code (size and modification time of every module
-of :mod:`shapeverify.cad`, and the package version) all match; a corrupt or unreadable entry is
-ignored (and replaced); writing it is best effort (a read-only cache directory only costs the
-speed-up).  Directory: ``$SHAPEVERIFY_CACHE_DIR``, else ``$XDG_CACHE_HOME/shapeverify``, else
+format version and the stamp of the reading code (size and modification time of every module
+of :mod:`shapeverify.cad` and :mod:`shapeverify.io`, and the package version) all match; a
+corrupt or unreadable entry is ignored (and replaced); writing it is best effort (a read-only
+cache directory only costs the speed-up).  Directory: ``$SHAPEVERIFY_CACHE_DIR``, else ``$XDG_CACHE_HOME/shapeverify``, else
 ``~/.cache/shapeverify``.
 """
 
@@ -90,12 +90,13 @@ def cache_dir() -> Path:
 
 
 def _code_stamp() -> str:
-    """Changes whenever a module of shapeverify.cad (the importer and the model) changes."""
+    """Changes whenever a module of shapeverify.cad (the importer and the model) or of
+    shapeverify.io (the mesh and point-cloud readers) changes."""
     from shapeverify import __version__
 
     here = Path(__file__).resolve().parent
     h = hashlib.sha256(f"{__version__}/{_FORMAT}".encode())
-    for p in sorted(here.glob("*.py")):
+    for p in sorted(here.glob("*.py")) + sorted((here.parent / "io").glob("*.py")):
         st = p.stat()
         h.update(f"{p.name}:{st.st_size}:{st.st_mtime_ns};".encode())
     return h.hexdigest()[:16]
