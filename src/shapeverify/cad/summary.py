@@ -10,8 +10,8 @@ The cache is safe to lose or damage: an entry is used only when its file content
 format version and the stamp of the reading code (size and modification time of every module
 of :mod:`shapeverify.cad` and :mod:`shapeverify.io`, and the package version) all match; a
 corrupt or unreadable entry is ignored (and replaced); writing it is best effort (a read-only
-cache directory only costs the speed-up).  Directory: ``$SHAPEVERIFY_CACHE_DIR``, else ``$XDG_CACHE_HOME/shapeverify``, else
-``~/.cache/shapeverify``.
+cache directory only costs the speed-up).  Directory: ``$SHAPEVERIFY_CACHE_DIR``, else
+``$XDG_CACHE_HOME/shapeverify``, else ``~/.cache/shapeverify``.
 """
 
 from __future__ import annotations
