@@ -35,7 +35,7 @@ __all__ = ["COLD_SECONDS", "compile_notices", "install_compile_notices", "warm_u
 
 #: measured CPU seconds of compiling everything a command needs with an empty cache, on one core
 #: of the 2-core development machine (benchmarks/results_coldstart.md); the estimate in the notice
-COLD_SECONDS = {"inspect": 60.0, "prepare": 60.0, "warmup": 150.0}
+COLD_SECONDS = {"inspect": 50.0, "prepare": 40.0, "warmup": 120.0}
 
 
 def _message(command: str) -> str:
@@ -171,7 +171,8 @@ def warm_up(say=logger.info) -> float:
         say("importing the example panel")
         _run(["info", step], work)
         say("preparing it (closest-point structure)")
-        _run(["prepare", step, "-o", work / "panel.svm", "--spacing", "3"], work)
+        # the default spacing, as a user's first prepare: a coarser one skips kernels (classify)
+        _run(["prepare", step, "-o", work / "panel.svm"], work)
         say("simulating a scan")
         sim = virtual_scan(load_model(step), pixel=3.0, noise=0.02, shadows=1, blobs=1,
                            outlier_fraction=0.05, dents=[(0.4, 15.0)], motion=(4.0, 8.0), rng=2011)
