@@ -24,6 +24,14 @@ MIN_CELLS = 1 << 16
 MARGIN = 1e-6
 
 
+def kernel_array(a, dtype=np.float64) -> np.ndarray:
+    """``a`` as the one array flavour the kernels are compiled for: C-contiguous, writable,
+    ``dtype`` (a copy only when ``a`` is not; numba compiles another version for a read-only
+    array, e.g. a loaded model's points)."""
+    a = np.ascontiguousarray(a, dtype=dtype)
+    return a if a.flags.writeable else a.copy()
+
+
 @njit(cache=True, nogil=True)
 def _grid(ref, h):
     """Grid of ``ref`` with cells at least ``h`` wide: ``(lo, dims, h, start, order, pts)``;

@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial import cKDTree
 
-from ._grid_kernels import any_within
+from ._grid_kernels import any_within, kernel_array
 from .regions import linked_components
 
 __all__ = ["Coverage", "compute_coverage", "MIN_COVERAGE", "MAX_SAMPLES"]
@@ -134,7 +134,7 @@ def _model_samples(prep, faces, max_samples):
         keep = np.isin(face, np.asarray(faces, dtype=np.int32))
         pts, face = pts[keep], face[keep]
     step = max(1, int(np.ceil(pts.shape[0] / max_samples)))
-    pts, face = np.ascontiguousarray(pts[::step], dtype=np.float64), face[::step]
+    pts, face = kernel_array(pts[::step]), face[::step]
     return pts, face, _area_per_point(pts, float(mp.spacing) * np.sqrt(step))
 
 
@@ -192,8 +192,7 @@ def compute_coverage(prep, foot_points: np.ndarray, scan_spacing: float, *, face
         # "an evaluated foot point closer than r": the first one found in the grid cells
         # around a sample answers it (a nearest-neighbour query finds the nearest: 6x slower)
         covered = np.empty(pts.shape[0], bool)
-        any_within(np.ascontiguousarray(foot_points, dtype=np.float64), pts, float(radius),
-                   covered)
+        any_within(kernel_array(foot_points), pts, float(radius), covered)
     else:
         covered = np.zeros(pts.shape[0], bool)
     n = pts.shape[0]

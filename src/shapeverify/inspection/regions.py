@@ -41,7 +41,7 @@ from scipy.spatial import cKDTree
 
 from .._arrays import bounds
 from ._cluster_kernels import component_labels
-from ._grid_kernels import mark_within, nearest_other
+from ._grid_kernels import kernel_array, mark_within, nearest_other
 
 logger = logging.getLogger(__name__)
 
@@ -149,8 +149,8 @@ def nearest_distances(points: np.ndarray, idx: np.ndarray) -> np.ndarray:
     k=2)[0][:, 1]``: a grid search (:func:`._grid_kernels.nearest_other`) whose cells start at
     three times the spacing a surface of the points' extent would have and grow fourfold for
     the points it leaves undecided (isolated points), until the grid is one cell."""
-    pts = np.ascontiguousarray(points, dtype=np.float64)
-    idx = np.ascontiguousarray(idx, dtype=np.int64)
+    pts = kernel_array(points)
+    idx = kernel_array(idx, np.int64)
     out = np.empty(idx.shape[0])
     lo, hi = bounds(pts)
     ext = np.sort(hi - lo)
@@ -265,8 +265,7 @@ def _neighbourhood_tree(points, out_idx, ev_idx, ev_pts, reach):
     """``(ev_idx[near], tree of ev_pts[near])``: the evaluated points within ``reach`` of an
     out-of-tolerance point (a little more: the grid test is strict, the ball queries are not)."""
     near = np.empty(ev_pts.shape[0], bool)
-    mark_within(np.ascontiguousarray(ev_pts, dtype=np.float64),
-                np.ascontiguousarray(points[out_idx], dtype=np.float64),
+    mark_within(kernel_array(ev_pts), kernel_array(points[out_idx]),
                 float(reach) * (1.0 + 1e-6), near)
     keep = np.flatnonzero(near)
     return ev_idx[keep], cKDTree(ev_pts[keep], balanced_tree=False, compact_nodes=False)
@@ -277,7 +276,7 @@ def linked_components(n: int, pairs: np.ndarray) -> tuple[int, np.ndarray]:
     ``cKDTree.query_pairs``): ``(count, labels (n,))``.  The clustering of regions, material,
     floating surfaces and coverage gaps."""
     labels = np.empty(n, np.int32)
-    pairs = np.ascontiguousarray(np.asarray(pairs, dtype=np.int64).reshape(-1, 2))
+    pairs = kernel_array(np.asarray(pairs).reshape(-1, 2), np.int64)
     # union-find: scipy.sparse.csgraph.connected_components' labels without its set-up cost
     return int(component_labels(int(n), pairs, labels)), labels
 
