@@ -14,6 +14,16 @@ import pytest
 SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
 
+@pytest.fixture(scope="session", autouse=True)
+def _summary_cache(tmp_path_factory):
+    """``info``'s summary cache (shapeverify.cad.summary) in a temporary folder, not the user's:
+    no test writes to ~/.cache, and none sees entries of earlier runs."""
+    mp = pytest.MonkeyPatch()
+    mp.setenv("SHAPEVERIFY_CACHE_DIR", str(tmp_path_factory.mktemp("summary-cache")))
+    yield
+    mp.undo()
+
+
 @pytest.fixture(scope="session")
 def shared_data() -> Path:
     """Path of ``../shared/data`` (relative to the repository root); skips when absent."""
