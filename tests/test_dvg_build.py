@@ -60,8 +60,8 @@ def test_candidate_lists_hold_the_nearest_point_of_every_point_of_the_cell(md):
     ref = np.flatnonzero(kind == 2)
     assert ref.size > 20
     rng = np.random.default_rng(1)
-    parents, pvert, off, lst = dvg_build._top_candidates(ref, cells, samples, nn_i, nn_d, pts,
-                                                         origin, cell, dims)
+    parents, off, lst = dvg_build._top_candidates(ref, cells, samples, nn_i, nn_d, pts,
+                                                  origin, cell, dims)
     mean_top = _check_lists(parents, off, lst, origin, cell, pts, kd, rng)
     # the lists are short: witnesses prune far more than the distance bound alone
     assert mean_top < 0.25 * pts.shape[0]
@@ -70,10 +70,9 @@ def test_candidate_lists_hold_the_nearest_point_of_every_point_of_the_cell(md):
     m = 8 * parents.shape[0]
     kind1, seed1 = np.empty(m, np.int8), np.empty(m, np.int64)
     lat = np.empty((parents.shape[0], 27), np.int32)
-    bk.classify_children(parents, pvert, off, lst, pts, origin, 0.5 * cell, *rv, md, 2, kind1,
-                         seed1, lat, np.empty(m, np.int8))
-    counts, clst = bk.child_lists(sel, parents, off, lst, lat, pts, origin, 0.5 * cell,
-                                  np.empty((sel.size, 8), np.int32))
+    bk.classify_children(parents, off, lst, pts, origin, 0.5 * cell, *rv, md, 2, kind1, seed1,
+                         lat, np.empty(m, np.int8))
+    counts, clst = bk.child_lists(sel, parents, off, lst, lat, pts, origin, 0.5 * cell)
     coff = np.concatenate([[0], np.cumsum(counts)])
     children = 2 * parents[sel // 8] + np.array(
         [[o & 1, (o >> 1) & 1, (o >> 2) & 1] for o in range(8)])[sel % 8]
@@ -128,12 +127,10 @@ def test_seed_list_packing_equals_the_np_unique_packing(seed):
         assert np.array_equal(got, np.sort(seeds[i, :count[i]]))
 
 
-@pytest.mark.parametrize("last,known_vertices", [(False, False), (True, False), (True, True)])
-def test_children_classification_and_multi_seed_pass_equal_the_kd_tree_kernels(last,
-                                                                              known_vertices):
+@pytest.mark.parametrize("last", [False, True])
+def test_children_classification_and_multi_seed_pass_equal_the_kd_tree_kernels(last):
     """One level below the top grid of the two sheets: ``classify_children`` and
-    ``multi_children`` (candidate lists, lattice reuse, the parents' known vertex answers, the
-    last level's skipped re-walks)
+    ``multi_children`` (candidate lists, lattice reuse, the last level's skipped re-walks)
     give the kinds, first seeds and seed lists of ``_kernels.classify`` /
     ``classify_multi`` fed with a kd-tree's exact nearest points."""
     from shapeverify.nearest import _kernels
@@ -152,17 +149,14 @@ def test_children_classification_and_multi_seed_pass_equal_the_kd_tree_kernels(l
     kind, first, samples, nn_i, nn_d = dvg_build._top_level(cells, origin, cell, dims, kd, n,
                                                             rv, md, 2, 1)
     ref = np.flatnonzero(kind == 2)
-    parents, pvert, off, lst = dvg_build._top_candidates(ref, cells, samples, nn_i, nn_d, pts,
-                                                         origin, cell, dims)
-    if known_vertices:  # the parents' vertex answers given (as deeper levels get them)
-        pv = (parents[:, None, :] + dvg_build._CORNER[None, :, :]).reshape(-1, 3)
-        pvert = kd.query(origin + cell * pv)[1].astype(np.int32).reshape(-1, 8)
+    parents, off, lst = dvg_build._top_candidates(ref, cells, samples, nn_i, nn_d, pts,
+                                                  origin, cell, dims)
     size = 0.5 * cell
     m = 8 * parents.shape[0]
     kind1, first1 = np.empty(m, np.int8), np.empty(m, np.int64)
     lat, ffail = np.empty((parents.shape[0], 27), np.int32), np.empty(m, np.int8)
-    bk.classify_children(parents, pvert, off, lst, pts, origin, size, *rv, md, 2, kind1, first1,
-                         lat, ffail)
+    bk.classify_children(parents, off, lst, pts, origin, size, *rv, md, 2, kind1, first1, lat,
+                         ffail)
     # the reference: the same cells with kd-tree nearest points at vertices and extra samples
     child = (2 * parents[:, None, :] + dvg_build._CORNER[None, :, :]).reshape(-1, 3)
     vert = (child[:, None, :] + dvg_build._CORNER[None, :, :]).reshape(-1, 3)

@@ -263,16 +263,12 @@ def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
 
 
 @njit(cache=True, nogil=True)
-def classify_children(parents, pvert, off, lst, pts, origin, size, rf, ri, rh, rs,
-                      max_distance, max_moves, out_kind, out_seed, out_lat, out_fail):
+def classify_children(parents, off, lst, pts, origin, size, rf, ri, rh, rs, max_distance,
+                      max_moves, out_kind, out_seed, out_lat, out_fail):
     """:func:`shapeverify.nearest._kernels.classify` for the 8 children (cell size ``size``)
     of each refined parent cell, the vertices' nearest points found in the parent's list.
 
-    parents : (R, 3) int64 parent coordinates at the level above; pvert : (R, 8) int32 the
-    exact nearest point of each parent's vertices (known from the level above: 8 of the 27
-    lattice points are not searched again; the parent's list holds it, with the same lowest
-    index on ties, since no point nearest at a vertex is pruned), -1 where unknown (the top
-    grid's come from the kd-tree, whose choice among tied points may differ); off : (R + 1,) int64 offsets
+    parents : (R, 3) int64 parent coordinates at the level above; off : (R + 1,) int64 offsets
     of their lists in ``lst``.  Child 8 p + o (octant o) has coordinates 2 parents[p] + corner.
     out_kind, out_seed : (8 R,); out_lat : (R, 27) int32, the nearest point of each parent's
     lattice point ``(t % 3, t // 3 % 3, t // 9)`` (in child cell units), for the later passes;
@@ -293,17 +289,7 @@ def classify_children(parents, pvert, off, lst, pts, origin, size, rf, ri, rh, r
             q0 = origin[0] + size * (b0 + t % 3)
             q1 = origin[1] + size * (b1 + (t // 3) % 3)
             q2 = origin[2] + size * (b2 + t // 9)
-            j = -1
-            if t % 3 != 1 and (t // 3) % 3 != 1 and t // 9 != 1:  # a vertex of the parent
-                j = pvert[p, (t % 3) // 2 + ((t // 3) % 3) // 2 * 2 + (t // 9) // 2 * 4]
-            if j >= 0:
-                e0 = pts[j, 0] - q0
-                e1 = pts[j, 1] - q1
-                e2 = pts[j, 2] - q2
-                li[t] = j
-                ld[t] = np.sqrt(e0 * e0 + e1 * e1 + e2 * e2)
-            else:
-                li[t], ld[t] = _nn(q0, q1, q2, pts, lst, a, b)
+            li[t], ld[t] = _nn(q0, q1, q2, pts, lst, a, b)
             out_lat[p, t] = li[t]
         for oc in range(8):
             m = 8 * p + oc
@@ -453,11 +439,10 @@ def multi_children(ids, parents, off, lst, lat, pts, origin, size, first_seed, f
 
 
 @njit(cache=True, nogil=True)
-def child_lists(ids, parents, off, lst, lat, pts, origin, size, out_vert):
+def child_lists(ids, parents, off, lst, lat, pts, origin, size):
     """Candidate lists of the refined children ``ids`` (child numbers 8 p + octant) from their
-    parents' lists and lattice nearest points ``lat`` (:func:`classify_children`), and their
-    vertices' nearest points into ``out_vert`` (len(ids), 8) int32.  Returns (counts
-    (len(ids),) int64, concatenated lists int32)."""
+    parents' lists and lattice nearest points ``lat`` (:func:`classify_children`).  Returns
+    (counts (len(ids),) int64, concatenated lists int32)."""
     n = ids.shape[0]
     counts = np.zeros(n, dtype=np.int64)
     buf = np.empty(max(1024, 16 * n), dtype=np.int32)
@@ -472,8 +457,6 @@ def child_lists(ids, parents, off, lst, lat, pts, origin, size, out_vert):
     for f in range(n):
         m = ids[f]
         p = _child_cell(m, parents, lat, origin, size, pts, c, vi, vd)
-        for o in range(8):
-            out_vert[f, o] = vi[o]
         a = off[p]
         b = off[p + 1]
         c0 = origin[0] + size * (c[0] + 0.5)

@@ -132,8 +132,7 @@ def _top_multi(fail, cells, origin, size, dims, kd, n, RV, samples, nn_i, nn_d, 
 
 
 def _top_candidates(ref, cells, samples, nn_i, nn_d, pts, origin, cell, dims):
-    """Candidate lists of the refined top cells (points binned on the top grid): (cells,
-    their vertices' nearest points (R, 8) int32, list offsets, lists)."""
+    """Candidate lists of the refined top cells (points binned on the top grid)."""
     g = np.floor((pts - origin) / cell).astype(np.int64)
     np.clip(g, 0, dims - 1, out=g)
     bid = (g[:, 0] * dims[1] + g[:, 1]) * dims[2] + g[:, 2]
@@ -148,9 +147,7 @@ def _top_candidates(ref, cells, samples, nn_i, nn_d, pts, origin, cell, dims):
     counts, lst = _chunked(lambda a, b: _bk.top_lists(rc[a:b], vi[a:b], vd[a:b], pts, order,
                                                       start, dims, origin, cell),
                            ref.size, 1 << 10)
-    # the kd-tree's vertex answers may pick another of two tied points than the lists' search
-    # (lowest index): the children search the top cells' vertices again (-1)
-    return rc, np.full((ref.size, 8), -1, dtype=np.int32), _offsets(counts), lst
+    return rc, _offsets(counts), lst
 
 
 def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
@@ -214,8 +211,7 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
     lists: list[np.ndarray] = []
     n_list = 0
     depth = 0
-    # refined cells of the level above, their vertices' nearest points and candidate lists
-    parents = pvert = off = lst = None
+    parents = off = lst = None  # refined cells of the level above and their candidate lists
     m = n_top
     for level in range(max_level + 1):
         if m == 0:
@@ -232,8 +228,7 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
             ffail = np.empty(m, dtype=np.int8)
 
             def _classify(a, b):
-                _bk.classify_children(parents[a:b], pvert[a:b], off[a:b + 1], lst, pts, origin,
-                                      size, *RV,
+                _bk.classify_children(parents[a:b], off[a:b + 1], lst, pts, origin, size, *RV,
                                       md, int(max_moves), kind[8 * a:8 * b],
                                       first[8 * a:8 * b], lat[a:b], ffail[8 * a:8 * b])
 
@@ -289,21 +284,19 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         del code, kind, single
         if ref.size:
             if level == 0:
-                parents, pvert, off, lst = _top_candidates(ref, cells, samples, nn_i, nn_d,
-                                                           pts, origin, cell, dims)
+                parents, off, lst = _top_candidates(ref, cells, samples, nn_i, nn_d, pts,
+                                                    origin, cell, dims)
                 del cells, samples, nn_i, nn_d
             else:
                 pp, oc = ref // 8, ref % 8
                 nxt = 2 * parents[pp] + _CORNER[oc]
 
-                nvert = np.empty((ref.size, 8), dtype=np.int32)
-
                 def _lists(a, b):
                     return _bk.child_lists(ref[a:b], parents, off, lst, lat, pts, origin,
-                                           size, nvert[a:b])
+                                           size)
 
                 counts, lst = _chunked(_lists, ref.size, 1 << 11)
-                parents, pvert, off = nxt, nvert, _offsets(counts)
+                parents, off = nxt, _offsets(counts)
                 del pp, oc, counts, lat, ffail
             logger.debug("DVG level %d: candidate lists of the refined cells: %.1f points "
                          "each", level, lst.size / max(1, ref.size))
