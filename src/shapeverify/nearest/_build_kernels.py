@@ -7,8 +7,9 @@ failed, of 7 more samples).  Instead of a kd-tree query per vertex, every refine
 list is its parent's list, pruned:
 
 * by distance: a point farther from the cell (box distance) than ``U`` cannot be nearest
-  anywhere in it, where ``U = min(min_o d_o + 2 r, max_o d_o + r, max_q |q - a_o|)`` bounds the nearest distance
-  of every point of the cell (d_o: nearest distances of the vertices, r: half diagonal);
+  anywhere in it, where ``U = min(min_o d_o + 2 r, max_o d_o + r, max_q |q - a_o|)`` bounds
+  the nearest distance of every point of the cell (d_o: nearest distances of the vertices,
+  r: half diagonal);
 * by *witnesses*, the vertices' nearest points a: a point p is dropped when a is strictly
   closer than p everywhere in the cell.  ``|v - a|^2 - |v - p|^2`` is linear in v, so its
   largest value over the box is ``|c - a|^2 - |c - p|^2 + size * sum_k |p_k - a_k|`` (c: the
