@@ -92,3 +92,38 @@ def test_a_point_cloud_reference_of_one_repeated_point_says_so(points, tmp_path)
 
     with pytest.raises(ValueError, match="point-cloud model (has|is)"):
         prepare(load_model(p))
+
+
+@pytest.mark.parametrize("copies", [2, 3])
+def test_a_scan_holding_its_points_several_times_is_refused(copies):
+    # the demo's dented scan with every point written 2 or 3 times passed: the copies made the
+    # spacing 0 and the dent "isolated outliers"; a clean scan copied 3 times failed
+    from shapeverify.errors import ScanError
+    from shapeverify.inspection.inspect import check_scan
+
+    rng = np.random.default_rng(0)
+    scan = rng.random((2000, 3)) * [100.0, 80.0, 1.0]
+    assert check_scan(scan) is not None
+    assert check_scan(np.vstack([scan, scan[:15]])).shape == (2015, 3)   # 0.7 % copies: kept
+    with pytest.raises(ScanError, match="exact copies"):
+        check_scan(np.repeat(scan, copies, axis=0))
+
+
+def test_scan_coordinates_beyond_1e12_and_a_huge_scale_ratio_read_well():
+    from shapeverify.errors import ScanError
+    from shapeverify.inspection.inspect import _unit_message, check_scan
+
+    rng = np.random.default_rng(1)
+    with pytest.raises(ScanError, match="coordinates reach 9.99e\\+29"):
+        check_scan(rng.random((100, 3)) * 1e30)
+    assert "4.75e+29 times larger" in _unit_message(4.75e31, 100.0, 4.75e29)
+
+
+@pytest.mark.parametrize("kwargs", [dict(tolerance=float("inf")),
+                                    dict(lower=-0.2, upper=float("inf"))])
+def test_an_infinite_tolerance_is_refused(kwargs):
+    # `inspect --tolerance inf` passed every part
+    from shapeverify.inspection.verdict import Tolerance
+
+    with pytest.raises(ValueError, match="finite"):
+        Tolerance.from_args(**kwargs)

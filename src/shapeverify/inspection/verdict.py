@@ -62,6 +62,9 @@ def _limit(x, name: str) -> float:
         raise ValueError(f"{name} must be a number (mm), got {x!r}") from None
     if math.isnan(v):
         raise ValueError(f"{name} must not be NaN")
+    if math.isinf(v):           # an infinite zone passes every part, however far it is off
+        raise ValueError(f"{name} must be finite (mm), got {v:g}; a zone that accepts any "
+                         "deviation decides nothing")
     return v
 
 
