@@ -44,19 +44,24 @@ def _check_lists(cells, off, lst, origin, size, pts, kd, rng):
     return (off[1:] - off[:-1]).mean()
 
 
-@pytest.mark.parametrize("md", [0.5, 2.0])
-def test_candidate_lists_hold_the_nearest_point_of_every_point_of_the_cell(md):
+def _top_level_of_two_sheets(md):
+    """The two sheets' points, kd-tree, record views and top grid classified at reach ``md``."""
     pts = _two_sheets()
     kd = cKDTree(pts)
-    rec = dvg.make_records(pts, dvg.neighbor_graph(pts, tree=kd))
-    rv = dvg.views(rec)
+    rv = dvg.views(dvg.make_records(pts, dvg.neighbor_graph(pts, tree=kd)))
     pad = 1e-9 * (1.0 + float(np.abs(pts).max()))
     origin = pts.min(axis=0) - md - pad
     cell, dims = dvg_build._top_grid(origin, pts.max(axis=0) + md + pad, H, 1 << 22)
     ii, jj, kk = np.meshgrid(*(np.arange(d) for d in dims), indexing="ij")
     cells = np.stack([ii.ravel(), jj.ravel(), kk.ravel()], axis=1).astype(np.int64)
-    kind, first, samples, nn_i, nn_d = dvg_build._top_level(cells, origin, cell, dims, kd,
-                                                            pts.shape[0], rv, md, 2, 1)
+    top = dvg_build._top_level(cells, origin, cell, dims, kd, pts.shape[0], rv, md, 2, 1)
+    return pts, kd, rv, origin, cell, dims, cells, top
+
+
+@pytest.mark.parametrize("md", [0.5, 2.0])
+def test_candidate_lists_hold_the_nearest_point_of_every_point_of_the_cell(md):
+    pts, kd, rv, origin, cell, dims, cells, top = _top_level_of_two_sheets(md)
+    kind, first, samples, nn_i, nn_d = top
     ref = np.flatnonzero(kind == 2)
     assert ref.size > 20
     rng = np.random.default_rng(1)
@@ -136,18 +141,9 @@ def test_children_classification_and_multi_seed_pass_equal_the_kd_tree_kernels(l
     from shapeverify.nearest import _kernels
 
     md = 1.0
-    pts = _two_sheets()
+    pts, kd, rv, origin, cell, dims, cells, top = _top_level_of_two_sheets(md)
     n = pts.shape[0]
-    kd = cKDTree(pts)
-    rec = dvg.make_records(pts, dvg.neighbor_graph(pts, tree=kd))
-    rv = dvg.views(rec)
-    pad = 1e-9 * (1.0 + float(np.abs(pts).max()))
-    origin = pts.min(axis=0) - md - pad
-    cell, dims = dvg_build._top_grid(origin, pts.max(axis=0) + md + pad, H, 1 << 22)
-    ii, jj, kk = np.meshgrid(*(np.arange(d) for d in dims), indexing="ij")
-    cells = np.stack([ii.ravel(), jj.ravel(), kk.ravel()], axis=1).astype(np.int64)
-    kind, first, samples, nn_i, nn_d = dvg_build._top_level(cells, origin, cell, dims, kd, n,
-                                                            rv, md, 2, 1)
+    kind, first, samples, nn_i, nn_d = top
     ref = np.flatnonzero(kind == 2)
     parents, off, lst = dvg_build._top_candidates(ref, cells, samples, nn_i, nn_d, pts,
                                                   origin, cell, dims)
