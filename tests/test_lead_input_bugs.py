@@ -127,3 +127,22 @@ def test_an_infinite_tolerance_is_refused(kwargs):
 
     with pytest.raises(ValueError, match="finite"):
         Tolerance.from_args(**kwargs)
+
+
+def test_a_scan_that_fits_at_no_pose_is_an_error_not_incomplete():
+    # `inspect impeller.svm bun000.ply --scan-unit m` (the wrong part) said "incomplete: only
+    # 15 % seen"; a robust scale of 59 mm beyond the 2.5 mm evaluation distance says it fits
+    # nowhere
+    from shapeverify.inspection.verdict import Verdict, decide
+
+    reg = SimpleNamespace(converged=False, inlier_fraction=1.0, iterations=91, message="moving",
+                          scale=59.1)
+    dev = SimpleNamespace(n=100, n_evaluated=40, max_distance=2.5, n_too_far=60, n_on_boundary=0)
+    cov = SimpleNamespace(sufficient=False, fraction=0.15, covered_area=2413.0, area=15966.0,
+                          min_coverage=0.2, describe_gap=lambda: "")
+    verdict, reasons, rule = decide(reg, dev, [], cov)
+    assert (verdict, rule) == (Verdict.ERROR, "registration")
+    assert "does not fit the model" in reasons[0]
+    # a small patch of the right part that fits closely stays incomplete
+    verdict, _, rule = decide(SimpleNamespace(**{**vars(reg), "scale": 0.03}), dev, [], cov)
+    assert (verdict, rule) == (Verdict.INCOMPLETE, "coverage")

@@ -6,17 +6,20 @@ the result's ``rule``:
 1. ``error`` (rule ``no_data``): no scan point lies within the evaluation distance of the
    inspected CAD faces (wrong scan, wrong model, failed registration, or a scan nowhere near the
    part);
-2. ``incomplete`` (rule ``coverage``): less than ``min_coverage`` (default 20 %) of the inspected
+2. ``error`` (rule ``registration``): the registration did not converge and its robust
+   residual scale exceeds the evaluation distance: the scan fits the model at no pose found (a
+   wrong part, a wrong scan, wrong units);
+3. ``incomplete`` (rule ``coverage``): less than ``min_coverage`` (default 20 %) of the inspected
    CAD area has evaluated scan points near it (:mod:`.coverage`). A part that was not seen is never
    passed and never failed; the reasons say how much was seen, where the largest gap is, whether
    out-of-tolerance regions were found in what was seen, and any registration problem (a small
    patch often cannot fix the pose: that too is a matter of not having seen enough);
-3. ``error`` (rule ``registration``): the registration is not trustworthy: it did not converge,
+4. ``error`` (rule ``registration``): the registration is not trustworthy: it did not converge,
    or its inlier fraction is below ``min_inlier_fraction`` (default 0.25);
-4. ``fail`` (rule ``regions``): at least one region fails the part: a connected out-of-tolerance
+5. ``fail`` (rule ``regions``): at least one region fails the part: a connected out-of-tolerance
    surface area (``kind="deviation"``, :mod:`.regions`) or measured material where the CAD has
    none (``kind="material"``, :mod:`.material`);
-5. ``pass`` (rule ``within_tolerance``) otherwise. Isolated out-of-tolerance points (measurement
+6. ``pass`` (rule ``within_tolerance``) otherwise. Isolated out-of-tolerance points (measurement
    outliers) are counted and reported but do not fail the part.
 
 Exit codes of ``shapeverify inspect``: 0 pass, 1 fail, 2 error, 3 incomplete.
@@ -317,6 +320,15 @@ def decide(registration, deviations, regions, coverage=None, *,
                          f"distance) of the inspected CAD faces ({deviations.n_too_far} of {n} too "
                          f"far, {deviations.n_on_boundary} past the CAD's edges); is this the right "
                          "scan and model?",) + tuple(errors), "no_data"
+    scale = float(getattr(registration, "scale", float("nan"))) if registration is not None \
+        else float("nan")
+    if errors and not bool(registration.converged) and scale > deviations.max_distance:
+        # not a patch too small to fix the pose: the scan fits the model at no pose found
+        return Verdict.ERROR, (f"the scan does not fit the model: at the best pose found its "
+                               f"robust residual scale is {scale:.3g} mm, more than the "
+                               f"evaluation distance {deviations.max_distance:g} mm (a wrong "
+                               "part, a wrong scan or wrong units?)",) + tuple(errors), \
+            "registration"
     listed = [f"region {i + 1}: {r.describe()}" for i, r in enumerate(regions[:5])]
     if len(regions) > 5:
         listed.append(f"... and {len(regions) - 5} more regions")
