@@ -115,3 +115,25 @@ def test_info_of_a_step_file_imports_neither_numba_nor_scipy_in_the_caller(examp
                          text=True, timeout=300)
     assert res.returncode == 0, res.stderr
     assert "LOADED []" in res.stdout and "faces" in res.stdout
+
+
+def test_info_model_unit_scales_a_unitless_cloud_and_refuses_cad(tmp_path):
+    # info had no --model-unit: a bunny in metres showed as a 0.247 mm part, with no way to
+    # see its size in mm before preparing it
+    import numpy as np
+    from typer.testing import CliRunner
+
+    from shapeverify.cli import app
+
+    pts = np.random.default_rng(0).random((300, 3)) * [0.2, 0.1, 0.05]
+    p = tmp_path / "cloud.xyz"
+    np.savetxt(p, pts)
+    run = CliRunner()
+    plain = run.invoke(app, ["info", str(p)])
+    metres = run.invoke(app, ["info", str(p), "--model-unit", "m"])
+    again = run.invoke(app, ["info", str(p)])          # the cache holds the file's own figures
+    size = float(np.linalg.norm(pts.max(axis=0) - pts.min(axis=0)))
+    assert plain.exit_code == metres.exit_code == again.exit_code == 0
+    assert f"{size:.3f}" in plain.output and f"{size * 1000:.3f}" in metres.output
+    assert "x1000 to mm" in metres.output and f"{size:.3f}" in again.output
+    assert "note:" in plain.output and "note:" not in metres.output

@@ -194,13 +194,18 @@ def _main(ctx: typer.Context,
 @app.command()
 def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges), mesh, point cloud or .svm/.svmodel"),
          features: bool = typer.Option(False, "--features", help="Also list the CAD features an inspection plan can name (hole:N, face:N)"),
-         json_out: Optional[Path] = typer.Option(None, "--json", help="With --features: write them as JSON")):
+         json_out: Optional[Path] = typer.Option(None, "--json", help="With --features: write them as JSON"),
+         model_unit: Optional[str] = typer.Option(None, "--model-unit", help="Unit of an STL/PLY/OBJ/point-cloud model (default mm; CAD files declare theirs)")):
     """Print a summary of a model: faces, units, size (and with --features its holes and faces)."""
+    from shapeverify.cad.summary import in_unit
     from shapeverify.pipeline import PREPARED_SUFFIX
 
     _require_files(model)
     prep = m = None
     if model.suffix.lower() == PREPARED_SUFFIX:
+        if model_unit not in (None, "mm"):
+            _fail(f"{clean(model)} is a prepared model, already in mm; give the unit when "
+                  "preparing it (shapeverify prepare MODEL --model-unit ...)")
         from shapeverify.nearest import load_prepared
         with _stage(f"Loading {model.name}"):
             prep = _guard(load_prepared, model)
@@ -223,6 +228,12 @@ def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges
 
         with _stage(f"Importing {model.name}", watch=False):  # numba runs only in the importer
             summary, _ = _guard(cached_summary, model, load)
+    if model_unit is not None and prep is None:
+        if features:
+            from shapeverify.units import scale_model
+            summary = m = _guard(scale_model, m, model_unit)
+        else:
+            summary = _guard(in_unit, summary, model_unit)
     out.print(model_summary_table(summary, title=clean(model)))
     note = size_note(summary.kind, summary.unit, summary.size)
     if note:

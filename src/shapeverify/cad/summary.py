@@ -80,6 +80,34 @@ def summarize(model) -> ModelSummary:
         lo=tuple(float(x) for x in lo), hi=tuple(float(x) for x in hi), size=float(model.size))
 
 
+def in_unit(summary: ModelSummary, unit: str | None) -> ModelSummary:
+    """``summary`` of a mesh or point cloud whose coordinates are really in ``unit`` (the
+    ``--model-unit`` of ``info``, as :func:`shapeverify.units.scale_model` applies it when
+    preparing); ``None`` or "mm": unchanged.
+
+    Raises
+    ------
+    ValueError
+        For a CAD model (STEP and IGES declare their unit) or an unknown unit.
+    """
+    from dataclasses import replace
+
+    from shapeverify.units import unit_factor
+
+    if unit is None:
+        return summary
+    f = unit_factor(unit)
+    if f == 1.0:
+        return summary
+    if summary.kind == "cad":
+        raise ValueError(f"a CAD file declares its own unit ({summary.unit}), already converted "
+                         "to mm at import; --model-unit is for STL, PLY, OBJ and point-cloud "
+                         "models")
+    return replace(summary, unit=str(unit), scale_to_mm=summary.scale_to_mm * f,
+                   lo=tuple(x * f for x in summary.lo), hi=tuple(x * f for x in summary.hi),
+                   size=summary.size * f)
+
+
 def cache_dir() -> Path:
     """Where :func:`cached_summary` keeps its entries (see the module docstring)."""
     d = os.environ.get("SHAPEVERIFY_CACHE_DIR")
