@@ -136,9 +136,9 @@ def test_seed_list_packing_equals_the_np_unique_packing(seed):
 def test_children_classification_and_multi_seed_pass_equal_the_kd_tree_kernels(last):
     """One level below the top grid of the two sheets: ``classify_children`` and
     ``multi_children`` (candidate lists, lattice reuse, the last level's skipped re-walks)
-    give the kinds, first seeds and seed lists of ``_kernels.classify`` /
+    give the kinds, first seeds and seed lists of ``_classify_kernels.classify`` /
     ``classify_multi`` fed with a kd-tree's exact nearest points."""
-    from shapeverify.nearest import _kernels
+    from shapeverify.nearest import _classify_kernels as _kernels
 
     md = 1.0
     pts, kd, rv, origin, cell, dims, cells, top = _top_level_of_two_sheets(md)

@@ -561,85 +561,12 @@ def fit(
         out.print(f"{k}: {v}")
 
 
-@app.command()
-def serve(
-    models: List[Path] = typer.Argument(..., help="Prepared models (.svm); the file stem is the model name"),
-    host: str = typer.Option("127.0.0.1", help="Address to bind (loopback by default)"),
-    port: int = typer.Option(8000, help="Port"),
-    db: Path = typer.Option(Path("history.sqlite"), "--db", help="SQLite history (WAL mode)"),
-    token: Optional[str] = typer.Option(None, "--token", envvar="SHAPEVERIFY_TOKEN",
-                                        help="Require 'Authorization: Bearer TOKEN' on every request"),
-    max_body_mb: float = typer.Option(64.0, help="Largest accepted scan upload [MB] (413 above)"),
-    time_limit: float = typer.Option(60.0, help="Per-request time limit in seconds (504 above; nothing is stored)"),
-    threads: int = typer.Option(2, help="Inspections run at once per server process (one per core: the "
-                                        "numeric kernels release Python's lock)"),
-    workers: int = typer.Option(1, help="Server processes sharing the port (keep-alive connections stay "
-                                        "with one process, so few clients may load them unevenly; "
-                                        "prefer --threads on one machine)"),
-    keep_scans: bool = typer.Option(True, "--keep-scans/--no-keep-scans",
-                                    help="Store each scan beside the history (GET /report/{id} needs it)"),
-):
-    """Serve inspections over HTTP with the prepared models kept in memory."""
-    _require_extra("fastapi", "service", "serve")
-    _require_extra("uvicorn", "service", "serve")
-    from shapeverify.service import serve as run_server
-
-    if max_body_mb <= 0 or time_limit <= 0 or threads < 1 or workers < 1:
-        _fail("--max-body-mb and --time-limit must be > 0; --threads and --workers >= 1")
-
-    def ready(loaded: dict) -> None:
-        console.print(f"[green]✓[/green] serving {sorted(loaded)} on http://{host}:{port} "
-                      f"(history: {db}; {workers} process(es) x {threads} thread(s)); "
-                      f"API docs at http://{host}:{port}/docs")
-
-    console.print(f"loading and warming up {len(models)} prepared model(s)…")
-    _guard(run_server, models, host=host, port=port, db_path=db, token=token,
-           max_body_bytes=int(max_body_mb * 1024 * 1024), time_limit_s=time_limit, threads=threads,
-           workers=workers, keep_scans=keep_scans, on_ready=ready)
-
-
-@app.command()
-def batch(
-    model: Path = typer.Argument(..., help="Prepared model (.svm)"),
-    scans_dir: Path = typer.Argument(..., help="Folder of scans"),
-    out_dir: Path = typer.Option(..., "--out", help="Output folder (JSON per scan, summary.csv)"),
-    tolerance: float = typer.Option(..., help="Symmetric tolerance ±MM"),
-    evaluation_distance: Optional[float] = _EVALUATION_DISTANCE,
-    scheduler: Optional[str] = typer.Option(None, help="Existing Dask scheduler address (default: local cluster)"),
-    workers: int = typer.Option(2, help="Local worker processes"),
-    reports: bool = typer.Option(False, "--reports", help="Also write an HTML report per scan"),
-    db: Optional[Path] = typer.Option(None, "--db", help="Append every result to this SQLite history"),
-    retry_errors: bool = typer.Option(False, "--retry-errors", help="Inspect again the scans that failed before"),
-):
-    """Inspect every scan in a folder in parallel on Dask (resumable: done scans are skipped)."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
-
-    _require_extra("distributed", "batch", "batch")
-    from shapeverify.batch import run_batch
-
-    with Progress("[progress.description]{task.description}", BarColumn(), MofNCompleteColumn(),
-                  TimeRemainingColumn(), console=console) as bar:
-        task = bar.add_task("inspecting", total=None)
-
-        def tick(done: int, total: int, name: str) -> None:
-            bar.update(task, completed=done, total=total, description=name)
-
-        summary = _guard(run_batch, model, scans_dir, out_dir, tolerance=tolerance,
-                         evaluation_distance=evaluation_distance,
-                         scheduler=scheduler, workers=workers, reports=reports, db_path=db,
-                         retry_errors=retry_errors, progress=tick)
-    s = summary
-    out.print(f"{s.total} scans ({s.skipped} already done): {s.passed} pass, {s.failed} fail, "
-              f"{s.incomplete} incomplete, {s.errors} error; {s.scans_per_minute:.1f} scans/min; "
-              f"summary: {s.summary_csv}")
-    raise typer.Exit(EXIT_ERROR if s.errors else EXIT_FAIL if s.failed else
-                     EXIT_INCOMPLETE if s.incomplete else EXIT_PASS)
-
-
-# the commands of the optical chain live in their own module
+# the commands of the optical chain and of the front ends live in their own modules
+from .cli_frontends import register_commands as _register_frontends  # noqa: E402 (serve, batch)
 from .cli_optics import register_commands as _register_optics  # noqa: E402  (measure, calibrate)
 
 _register_optics(app)
+_register_frontends(app)
 
 
 def main() -> None:  # pragma: no cover - entry point

@@ -1,6 +1,6 @@
 """numba kernels that build the DVG tree below the top grid (private; see :mod:`.dvg`).
 
-The classification of a cell (:func:`shapeverify.nearest._kernels.classify` and
+The classification of a cell (:func:`shapeverify.nearest._classify_kernels.classify` and
 ``classify_multi``) needs the exact nearest model point of its 8 vertices (and, for a cell that
 failed, of 7 more samples).  Instead of a kd-tree query per vertex, every refined cell carries a
 *candidate list*: the model points that can be the nearest one anywhere in the cell.  A child's
@@ -29,7 +29,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._kernels import EXTRA, walk
+from ._classify_kernels import EXTRA
+from ._kernels import walk
 
 # lattice offsets of a cell's 8 vertices (octant order: x | y << 1 | z << 2)
 _CX = np.array([o & 1 for o in range(8)], dtype=np.int64)
@@ -266,7 +267,7 @@ def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
 @njit(cache=True, nogil=True)
 def classify_children(parents, off, lst, pts, origin, size, rf, ri, rh, rs, max_distance,
                       max_moves, out_kind, out_seed, out_lat, out_fail):
-    """:func:`shapeverify.nearest._kernels.classify` for the 8 children (cell size ``size``)
+    """:func:`shapeverify.nearest._classify_kernels.classify` for the 8 children (cell size ``size``)
     of each refined parent cell, the vertices' nearest points found in the parent's list.
 
     parents : (R, 3) int64 parent coordinates at the level above; off : (R + 1,) int64 offsets
@@ -332,7 +333,7 @@ def classify_children(parents, off, lst, pts, origin, size, rf, ri, rh, rs, max_
 @njit(cache=True, nogil=True)
 def _walks_ok(q0, q1, q2, seeds, n0, cnt, cache_d, cache_m, rf, ri, rh, rs, max_moves,
               i_exact, d_exact, tol):
-    """_kernels._seeded_ok with the walks of seeds[:n0] taken from the cache and those of
+    """_classify_kernels._seeded_ok with the walks of seeds[:n0] taken from the cache and those of
     seeds[n0:cnt] added to it.  Returns (ok, number of cached walks).
 
     A walk from the exact nearest point ``i_exact`` stays there (no point is strictly closer):
@@ -365,7 +366,7 @@ def _walks_ok(q0, q1, q2, seeds, n0, cnt, cache_d, cache_m, rf, ri, rh, rs, max_
 def multi_children(ids, parents, off, lst, lat, pts, origin, size, first_seed, first_fail, rf,
                    ri, rh, rs, max_moves, max_seeds, last_level, out_kind, out_seeds,
                    out_nseeds):
-    """:func:`shapeverify.nearest._kernels.classify_multi` for the failed children ``ids``
+    """:func:`shapeverify.nearest._classify_kernels.classify_multi` for the failed children ``ids``
     (child numbers 8 p + octant), the samples' nearest points found in the parent's list.
 
     Same result as ``classify_multi``; the walks from each seed to each vertex are done once

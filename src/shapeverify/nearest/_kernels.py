@@ -1,4 +1,5 @@
-"""numba kernels of the Distance Varying Grid tree: build classification and queries (private).
+"""numba kernels of the Distance Varying Grid tree: queries (private; the build's classification of
+cells is in :mod:`._classify_kernels`).
 
 Model point records
 -------------------
@@ -42,7 +43,7 @@ local minimum of the distance.  :func:`query_block` runs blocks of queries stage
 prefetches the next stage's cache lines, so the memory latencies of different queries overlap.
 Its inputs and outputs are two named tuples (:class:`TreeArrays`, :class:`Answers`) of
 C-contiguous writable arrays, so each kernel is compiled once.  A walk step's ring (which of
-the 8 neighbours looks closest) runs in 8-wide vectors (:func:`_ring8`), bit-identical to the
+the 8 neighbours looks closest) runs in 8-wide vectors (:func:`._intrinsics._ring8`), bit-identical to the
 scalar loop.  Scratch space is allocated once per call, never per query point.  All kernels
 trust their input.
 """
@@ -52,10 +53,9 @@ from __future__ import annotations
 from typing import NamedTuple
 
 import numpy as np
-from llvmlite import ir
 from numba import njit, types
-from numba.core import cgutils
-from numba.extending import intrinsic
+
+from ._intrinsics import _ring8, prefetch  # noqa: F401 - prefetch: also _exact_kernels'
 
 FAR = -1
 K = 8          # neighbours per model point
@@ -71,26 +71,6 @@ EXT = 30       # rs columns of the half extents
 _I16 = 1.0 / 32767.0
 
 
-@intrinsic
-def prefetch(typingctx, arr, i):
-    """Prefetch the cache line of flat element ``i`` of ``arr`` (llvm.prefetch, read, keep)."""
-    sig = types.void(arr, i)
-
-    def codegen(context, builder, signature, args):
-        aryty = signature.args[0]
-        ary = context.make_array(aryty)(context, builder, args[0])
-        ptr = builder.gep(ary.data, [args[1]])
-        i8p = ir.IntType(8).as_pointer()
-        i32 = ir.IntType(32)
-        fnty = ir.FunctionType(ir.VoidType(), [i8p, i32, i32, i32])
-        fn = cgutils.get_or_insert_function(builder.module, fnty, "llvm.prefetch.p0i8")
-        builder.call(fn, [builder.bitcast(ptr, i8p), ir.Constant(i32, 0), ir.Constant(i32, 3),
-                          ir.Constant(i32, 1)])
-        return context.get_dummy_value()
-
-    return sig, codegen
-
-
 @njit(cache=True, nogil=True, inline="always")
 def _fetch(rf, j):
     """Prefetch both cache lines of record j."""
@@ -104,65 +84,6 @@ def _d2(q0, q1, q2, rf, j):
     b = rf[j, 1] - q1
     c = rf[j, 2] - q2
     return a * a + b * b + c * c
-
-
-@intrinsic
-def _ring8(typingctx, rh, i, r0, r1, r2, s):
-    """(slot k, value) of the smallest of the 8 values (r0 - s x_k)^2 + (r1 - s y_k)^2 +
-    (r2 - s z_k)^2, (x_k, y_k, z_k) = int16 elements ``i + 3k .. i + 3k + 2`` of ``rh`` (flat).
-
-    One 48-byte load, three shuffles, then 8-wide float64 arithmetic in the order of the
-    scalar loop ``for k: d = (r0 - s*x)**2 + ...; if d < best: ...`` (no fused or reordered
-    operations), so the values and the slot (the first one of the smallest value) are
-    bit-identical to it; about a fifth of its instructions.
-    """
-    if not (isinstance(rh, types.Array) and rh.dtype == types.int16):
-        return None
-    sig = types.Tuple((types.int64, types.float64))(rh, i, r0, r1, r2, s)
-
-    def codegen(context, builder, signature, args):
-        aryty = signature.args[0]
-        ary = context.make_array(aryty)(context, builder, args[0])
-        i16, i32, i64, f64 = ir.IntType(16), ir.IntType(32), ir.IntType(64), ir.DoubleType()
-        v24 = ir.VectorType(i16, 3 * K)
-        ptr = builder.bitcast(builder.gep(ary.data, [args[1]]), v24.as_pointer())
-        raw = builder.load(ptr, align=2)
-        vd = ir.VectorType(f64, K)
-
-        def splat(x):
-            v = builder.insert_element(ir.Constant(vd, ir.Undefined), x, ir.Constant(i32, 0))
-            return builder.shuffle_vector(v, ir.Constant(vd, ir.Undefined),
-                                          ir.Constant(ir.VectorType(i32, K), [0] * K))
-
-        sv = splat(args[5])
-        d = None
-        for c in range(3):
-            lane = builder.shuffle_vector(raw, ir.Constant(v24, ir.Undefined),
-                                          ir.Constant(ir.VectorType(i32, K),
-                                                      [3 * k + c for k in range(K)]))
-            o = builder.sitofp(lane, vd)
-            e = builder.fsub(splat(args[2 + c]), builder.fmul(sv, o))
-            e2 = builder.fmul(e, e)
-            d = e2 if d is None else builder.fadd(d, e2)
-        # smallest value: a tree of compare + select (no NaN: finite coordinates)
-        m = d
-        width = K
-        while width > 1:
-            width //= 2
-            hi = builder.shuffle_vector(m, ir.Constant(vd, ir.Undefined),
-                                        ir.Constant(ir.VectorType(i32, K),
-                                                    [(k + width) % K for k in range(K)]))
-            m = builder.select(builder.fcmp_ordered("<", hi, m), hi, m)
-        best = builder.extract_element(m, ir.Constant(i32, 0))
-        eq = builder.fcmp_ordered("==", d, splat(best))
-        bits = builder.bitcast(eq, ir.IntType(K))
-        cttz = cgutils.get_or_insert_function(
-            builder.module, ir.FunctionType(ir.IntType(K), [ir.IntType(K), ir.IntType(1)]),
-            f"llvm.cttz.i{K}")
-        k = builder.zext(builder.call(cttz, [bits, ir.Constant(ir.IntType(1), 1)]), i64)
-        return context.make_tuple(builder, signature.return_type, [k, best])
-
-    return sig, codegen
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -578,114 +499,3 @@ def query_block(Q, T, A, lo, hi, max_moves, patches):
                     out_uv[i, 0] = uv[b, 1]
                     out_uv[i, 1] = uv[b, 2]
                     onb[i] = cl and boundary[b]
-
-
-# ------------------------------------------------------------------------------------- build
-# the 7 extra samples of a cell in half-cell units: centre, then the 6 face centres
-EXTRA = np.array([[1, 1, 1], [0, 1, 1], [2, 1, 1], [1, 0, 1], [1, 2, 1], [1, 1, 0], [1, 1, 2]],
-                 dtype=np.int64)
-
-
-@njit(cache=True, nogil=True)
-def classify(cells, origin, size, samples, nn_idx, nn_d, rf, ri, rh, rs, max_distance,
-             max_moves, out_kind, out_seed):
-    """First pass over the cells of one level: FAR (0), single-seed leaf (1) or failed (2).
-
-    cells : (M, 3) int64 integer cell coordinates at this level (cell size ``size``).
-    samples : (M, 8) int64 row of each cell's 8 vertices (octant order) in ``nn_idx`` /
-        ``nn_d`` (exact nearest model point and distance; inf beyond the query bound).
-
-    A cell is FAR when every vertex is farther than ``max_distance + r`` (r = half diagonal):
-    every point of the cell is within r of a vertex, so none is within ``max_distance``.  The
-    seed is the end of a walk towards the centre from the nearest point of the closest vertex.
-    The cell is a single-seed leaf when the walk from the seed reaches the exact nearest point
-    of every vertex within ``max_moves`` moves; else it has failed (see :func:`classify_multi`).
-    """
-    r = 0.5 * np.sqrt(3.0) * size
-    tol = 1e-12 * size
-    for m in range(cells.shape[0]):
-        dmin = np.inf
-        vmin = 0
-        for o in range(8):
-            d = nn_d[samples[m, o]]
-            if d < dmin:
-                dmin = d
-                vmin = o
-        out_seed[m] = -1
-        if not (dmin <= max_distance + r):
-            out_kind[m] = 0
-            continue
-        c0 = origin[0] + size * (cells[m, 0] + 0.5)
-        c1 = origin[1] + size * (cells[m, 1] + 0.5)
-        c2 = origin[2] + size * (cells[m, 2] + 0.5)
-        seed, _, _ = walk(c0, c1, c2, nn_idx[samples[m, vmin]], rf, ri, rh, rs, 64)
-        out_seed[m] = seed
-        out_kind[m] = 1
-        for o in range(8):
-            q0 = origin[0] + size * (cells[m, 0] + (o & 1))
-            q1 = origin[1] + size * (cells[m, 1] + ((o >> 1) & 1))
-            q2 = origin[2] + size * (cells[m, 2] + ((o >> 2) & 1))
-            _, d2, mv = walk(q0, q1, q2, seed, rf, ri, rh, rs, max_moves + 1)
-            if mv > max_moves or np.sqrt(d2) > nn_d[samples[m, o]] * (1.0 + 1e-12) + tol:
-                out_kind[m] = 2
-                break
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _seeded_ok(q0, q1, q2, seeds, cnt, rf, ri, rh, rs, max_moves, d_exact, tol):
-    """Whether the query procedure (a walk from each seed) finds the exact nearest point."""
-    bd = np.inf
-    mv = 0
-    for s in range(cnt):
-        _, d2, k = walk(q0, q1, q2, seeds[s], rf, ri, rh, rs, max_moves + 1)
-        mv = max(mv, k)
-        bd = min(bd, d2)
-    return mv <= max_moves and np.sqrt(bd) <= d_exact * (1.0 + 1e-12) + tol
-
-
-@njit(cache=True, nogil=True)
-def classify_multi(cells, origin, size, samples, nn_idx, nn_d, extra, xn_idx, xn_d, first_seed,
-                   rf, ri, rh, rs, max_moves, max_seeds, last_level, out_kind, out_seeds,
-                   out_nseeds):
-    """Second pass over the cells that failed :func:`classify`: multi-seed leaf (1) or refine (2).
-
-    Seeds: the cell's seed plus the exact nearest point of each vertex that the query
-    procedure (a walk of at most ``max_moves`` from each seed) still gets wrong.  The leaf
-    is accepted when it has at most ``max_seeds`` seeds and the procedure is right at all 8
-    vertices and at the 7 extra samples (centre and face centres, ``extra`` (M, 7) rows into
-    ``xn_idx`` / ``xn_d``).  On the last level the cell is always a leaf; it keeps the
-    nearest points of failing extra samples as further seeds (out_seeds has 16 columns).
-    """
-    tol = 1e-12 * size
-    h = 0.5 * size
-    cap = out_seeds.shape[1]
-    for m in range(cells.shape[0]):
-        seeds = out_seeds[m]
-        seeds[0] = first_seed[m]
-        cnt = 1
-        ok = True
-        for rnd in range(2):
-            for o in range(8):
-                q0 = origin[0] + size * (cells[m, 0] + (o & 1))
-                q1 = origin[1] + size * (cells[m, 1] + ((o >> 1) & 1))
-                q2 = origin[2] + size * (cells[m, 2] + ((o >> 2) & 1))
-                iv = samples[m, o]
-                if not _seeded_ok(q0, q1, q2, seeds, cnt, rf, ri, rh, rs, max_moves, nn_d[iv],
-                                  tol):
-                    if rnd == 0 and cnt < cap:
-                        seeds[cnt] = nn_idx[iv]
-                        cnt += 1
-                    else:
-                        ok = False
-        for e in range(7):
-            q0 = origin[0] + h * (2 * cells[m, 0] + EXTRA[e, 0])
-            q1 = origin[1] + h * (2 * cells[m, 1] + EXTRA[e, 1])
-            q2 = origin[2] + h * (2 * cells[m, 2] + EXTRA[e, 2])
-            ix = extra[m, e]
-            if not _seeded_ok(q0, q1, q2, seeds, cnt, rf, ri, rh, rs, max_moves, xn_d[ix], tol):
-                ok = False
-                if last_level and cnt < cap:
-                    seeds[cnt] = xn_idx[ix]
-                    cnt += 1
-        out_nseeds[m] = cnt
-        out_kind[m] = 1 if (ok and cnt <= max_seeds) or last_level else 2

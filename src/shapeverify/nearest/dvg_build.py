@@ -22,7 +22,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from . import _build_kernels as _bk
-from . import _kernels
+from . import _classify_kernels, _kernels
 from ._threads import run_chunks
 
 logger = logging.getLogger(__name__)
@@ -98,7 +98,7 @@ def _top_level(cells, origin, size, dims, kd, n, RV, max_distance, max_moves, wo
     first = np.empty(m, dtype=np.int64)
 
     def _classify(a, b):
-        _kernels.classify(cells[a:b], origin, size, samples[a:b], nn_i, nn_d, *RV,
+        _classify_kernels.classify(cells[a:b], origin, size, samples[a:b], nn_i, nn_d, *RV,
                           float(max_distance), int(max_moves), kind[a:b], first[a:b])
 
     run_chunks(_classify, m, 1 << 14)
@@ -111,7 +111,7 @@ def _top_multi(fail, cells, origin, size, dims, kd, n, RV, samples, nn_i, nn_d, 
     level): extra samples from the kd-tree."""
     r = 0.5 * np.sqrt(3.0) * size
     fc = cells[fail]
-    E = (2 * fc[:, None, :] + _kernels.EXTRA[None, :, :]).reshape(-1, 3)
+    E = (2 * fc[:, None, :] + _classify_kernels.EXTRA[None, :, :]).reshape(-1, 3)
     edims = 2 * dims + 1
     ekey = (E[:, 0] * edims[1] + E[:, 1]) * edims[2] + E[:, 2]
     uek, einv = np.unique(ekey, return_inverse=True)
@@ -126,7 +126,7 @@ def _top_multi(fail, cells, origin, size, dims, kd, n, RV, samples, nn_i, nn_d, 
     fs = np.ascontiguousarray(samples[fail])
     ex = np.ascontiguousarray(einv.reshape(-1, 7), dtype=np.int64)
     f1 = np.ascontiguousarray(first[fail])
-    _kernels.classify_multi(fc, origin, size, fs, nn_i, nn_d, ex, xn_i, xn_d, f1, *RV,
+    _classify_kernels.classify_multi(fc, origin, size, fs, nn_i, nn_d, ex, xn_i, xn_d, f1, *RV,
                             int(max_moves), int(max_seeds), last, fkind, fseeds, fn)
     return fkind, fseeds, fn
 

@@ -1,0 +1,90 @@
+"""The command line's front ends: ``serve`` (HTTP, the ``service`` extra) and ``batch`` (a folder
+of scans on Dask, the ``batch`` extra).  Both call the one pipeline
+(:func:`shapeverify.pipeline.inspect_scan`); see :mod:`shapeverify.cli` for the exit codes.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import List, Optional
+
+import typer
+
+
+def register_commands(app: typer.Typer) -> None:
+    """Add ``serve`` and ``batch`` to ``app``."""
+    from shapeverify import cli as _cli
+
+    @app.command()
+    def serve(
+        models: List[Path] = typer.Argument(..., help="Prepared models (.svm); the file stem is the model name"),
+        host: str = typer.Option("127.0.0.1", help="Address to bind (loopback by default)"),
+        port: int = typer.Option(8000, help="Port"),
+        db: Path = typer.Option(Path("history.sqlite"), "--db", help="SQLite history (WAL mode)"),
+        token: Optional[str] = typer.Option(None, "--token", envvar="SHAPEVERIFY_TOKEN",
+                                            help="Require 'Authorization: Bearer TOKEN' on every request"),
+        max_body_mb: float = typer.Option(64.0, help="Largest accepted scan upload [MB] (413 above)"),
+        time_limit: float = typer.Option(60.0, help="Per-request time limit in seconds (504 above; nothing is stored)"),
+        threads: int = typer.Option(2, help="Inspections run at once per server process (one per core: the "
+                                            "numeric kernels release Python's lock)"),
+        workers: int = typer.Option(1, help="Server processes sharing the port (keep-alive connections stay "
+                                            "with one process, so few clients may load them unevenly; "
+                                            "prefer --threads on one machine)"),
+        keep_scans: bool = typer.Option(True, "--keep-scans/--no-keep-scans",
+                                        help="Store each scan beside the history (GET /report/{id} needs it)"),
+    ):
+        """Serve inspections over HTTP with the prepared models kept in memory."""
+        _cli._require_extra("fastapi", "service", "serve")
+        _cli._require_extra("uvicorn", "service", "serve")
+        from shapeverify.service import serve as run_server
+
+        if max_body_mb <= 0 or time_limit <= 0 or threads < 1 or workers < 1:
+            _cli._fail("--max-body-mb and --time-limit must be > 0; --threads and --workers >= 1")
+
+        def ready(loaded: dict) -> None:
+            _cli.console.print(f"[green]✓[/green] serving {sorted(loaded)} on http://{host}:{port} "
+                          f"(history: {db}; {workers} process(es) x {threads} thread(s)); "
+                          f"API docs at http://{host}:{port}/docs")
+
+        _cli.console.print(f"loading and warming up {len(models)} prepared model(s)…")
+        _cli._guard(run_server, models, host=host, port=port, db_path=db, token=token,
+               max_body_bytes=int(max_body_mb * 1024 * 1024), time_limit_s=time_limit, threads=threads,
+               workers=workers, keep_scans=keep_scans, on_ready=ready)
+
+
+    @app.command()
+    def batch(
+        model: Path = typer.Argument(..., help="Prepared model (.svm)"),
+        scans_dir: Path = typer.Argument(..., help="Folder of scans"),
+        out_dir: Path = typer.Option(..., "--out", help="Output folder (JSON per scan, summary.csv)"),
+        tolerance: float = typer.Option(..., help="Symmetric tolerance ±MM"),
+        evaluation_distance: Optional[float] = _cli._EVALUATION_DISTANCE,
+        scheduler: Optional[str] = typer.Option(None, help="Existing Dask scheduler address (default: local cluster)"),
+        workers: int = typer.Option(2, help="Local worker processes"),
+        reports: bool = typer.Option(False, "--reports", help="Also write an HTML report per scan"),
+        db: Optional[Path] = typer.Option(None, "--db", help="Append every result to this SQLite history"),
+        retry_errors: bool = typer.Option(False, "--retry-errors", help="Inspect again the scans that failed before"),
+    ):
+        """Inspect every scan in a folder in parallel on Dask (resumable: done scans are skipped)."""
+        from rich.progress import BarColumn, MofNCompleteColumn, Progress, TimeRemainingColumn
+
+        _cli._require_extra("distributed", "batch", "batch")
+        from shapeverify.batch import run_batch
+
+        with Progress("[progress.description]{task.description}", BarColumn(), MofNCompleteColumn(),
+                      TimeRemainingColumn(), console=_cli.console) as bar:
+            task = bar.add_task("inspecting", total=None)
+
+            def tick(done: int, total: int, name: str) -> None:
+                bar.update(task, completed=done, total=total, description=name)
+
+            summary = _cli._guard(run_batch, model, scans_dir, out_dir, tolerance=tolerance,
+                             evaluation_distance=evaluation_distance,
+                             scheduler=scheduler, workers=workers, reports=reports, db_path=db,
+                             retry_errors=retry_errors, progress=tick)
+        s = summary
+        _cli.out.print(f"{s.total} scans ({s.skipped} already done): {s.passed} pass, {s.failed} fail, "
+                  f"{s.incomplete} incomplete, {s.errors} error; {s.scans_per_minute:.1f} scans/min; "
+                  f"summary: {s.summary_csv}")
+        raise typer.Exit(_cli.EXIT_ERROR if s.errors else _cli.EXIT_FAIL if s.failed else
+                         _cli.EXIT_INCOMPLETE if s.incomplete else _cli.EXIT_PASS)
