@@ -99,6 +99,18 @@ def _block(x, y, z, lo, dims, h):
             max(cz - 1, 0), min(cz + 1, dims[2] - 1))
 
 
+@njit(cache=True, nogil=True, inline="always")
+def _hit(x, y, z, pts, j0, j1, r2):
+    """Whether one of ``pts[j0:j1]`` is closer than ``sqrt(r2)`` to (x, y, z) (strictly)."""
+    for j in range(j0, j1):
+        dx = x - pts[j, 0]
+        dy = y - pts[j, 1]
+        dz = z - pts[j, 2]
+        if dx * dx + dy * dy + dz * dz < r2:
+            return True
+    return False
+
+
 @njit(cache=True, nogil=True)
 def any_within(ref, q, r, out):
     """``out[i] = True`` when a row of ``ref`` is closer than ``r`` to ``q[i]`` (strictly).
@@ -118,27 +130,15 @@ def any_within(ref, q, r, out):
             fz = (z - lo[2]) / h
             if 0.0 <= fx < dims[0] and 0.0 <= fy < ny and 0.0 <= fz < nz:
                 c = (np.int64(fx) * ny + np.int64(fy)) * nz + np.int64(fz)
-                for j in range(start[c], start[c + 1]):
-                    dx = x - pts[j, 0]
-                    dy = y - pts[j, 1]
-                    dz = z - pts[j, 2]
-                    if dx * dx + dy * dy + dz * dz < r2:
-                        found = True
-                        break
+                found = _hit(x, y, z, pts, start[c], start[c + 1], r2)
         if found:
             out[i] = True
             continue
         for ix in range(x0, x1 + 1):
             for iy in range(y0, y1 + 1):
                 base = (ix * ny + iy) * nz
-                for j in range(start[base + z0], start[base + z1 + 1] if z1 >= z0 else 0):
-                    dx = x - pts[j, 0]
-                    dy = y - pts[j, 1]
-                    dz = z - pts[j, 2]
-                    if dx * dx + dy * dy + dz * dz < r2:
-                        found = True
-                        break
-                if found:
+                if z1 >= z0 and _hit(x, y, z, pts, start[base + z0], start[base + z1 + 1], r2):
+                    found = True
                     break
             if found:
                 break
