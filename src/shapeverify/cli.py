@@ -163,13 +163,14 @@ def _require_extra(module: str, extra: str, command: str) -> None:
               f"pip install 'shapeverify[{extra}]'")
 
 
-def _prestart_importer(model: Path) -> None:
+def _prestart_importer(model: Path, summary: bool = False) -> None:
     """Start the CAD importer process now when ``model`` is a CAD file: its start (a Python that
-    imports OpenCASCADE, about a second) then overlaps the rest of this process's start-up."""
+    imports OpenCASCADE, about a second) then overlaps the rest of this process's start-up
+    (``summary``: for a summary only, so without numba)."""
     if model.suffix.lower() in (".step", ".stp", ".igs", ".iges") and model.is_file():
         from shapeverify.cad.occ_worker import prestart
 
-        prestart()
+        prestart(summary)
 
 
 def _require_files(*paths: Path) -> None:
@@ -218,13 +219,13 @@ def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges
             m = _guard(load_model, model)
         summary = m
     else:
-        # the summary of a file read before comes from the cache (no OpenCASCADE, no numba)
-        from shapeverify.cad.summary import cached_summary
+        # the summary of a file read before comes from the cache (no OpenCASCADE, no numba);
+        # of a new CAD file from OpenCASCADE alone, in the importer (no numba either)
+        from shapeverify.cad.summary import cached_summary, read_summary
 
         def load(path):
-            _prestart_importer(path)
-            from shapeverify.cad.load import load_model
-            return load_model(path)
+            _prestart_importer(path, summary=True)
+            return read_summary(path)
 
         with _stage(f"Importing {model.name}", watch=False):  # numba runs only in the importer
             summary, _ = _guard(cached_summary, model, load)

@@ -192,11 +192,14 @@ def _wire_edges(wire, face):
     return stored
 
 
-def _face_loops(work_face, orig_face, conv, surface: NurbsSurface, edge_faces, tol: float,
-                index: int, path: Path):
-    """Trimming loops of a face: per loop uv (k, 2), xyz (k, 3), topologically free flags (k,),
-    the tolerances (k,) of the segments' edges and the segments' edge numbers (k,) within the
-    face."""
+def _face_wires(work_face, orig_face, conv, edge_faces, index: int, path: Path):
+    """The wires of a face as pcurves, without sampling them: per wire ``(pcurves, free,
+    tolerances)`` (lists, one entry per edge in wire order), outer wire first.
+
+    ``edge_faces`` None skips the free-edge flags (all False).  Raises
+    :class:`CADImportError` for a face without a boundary wire or an edge without a pcurve
+    (after trying to compute one); the import then skips the face.
+    """
     from OCP.BRep import BRep_Tool
     from OCP.BRepTools import BRepTools
     from OCP.ShapeFix import ShapeFix_Edge
@@ -206,7 +209,7 @@ def _face_loops(work_face, orig_face, conv, surface: NurbsSurface, edge_faces, t
 
     # edges of the converted face -> edges of the original shape (for the edge -> face map)
     originals = None
-    if conv is not None:
+    if conv is not None and edge_faces is not None:
         originals = []
         exp = TopExp_Explorer(orig_face, TopAbs_EDGE)
         while exp.More():
@@ -215,6 +218,8 @@ def _face_loops(work_face, orig_face, conv, surface: NurbsSurface, edge_faces, t
             exp.Next()
 
     def is_free(edge) -> bool:
+        if edge_faces is None:
+            return False
         if BRep_Tool.Degenerated_s(edge) or BRep_Tool.IsClosed_s(edge, work_face):
             return False
         key = edge
@@ -236,12 +241,9 @@ def _face_loops(work_face, orig_face, conv, surface: NurbsSurface, edge_faces, t
     if not wires:
         raise CADImportError(f"{path}: face {index} has no boundary wire")
 
-    loops_uv, loops_xyz, loops_free, loops_tol, loops_edge = [], [], [], [], []
-    n_edges = 0
+    out = []
     fixer = None
-    for w_index, wire in enumerate(wires):
-        shift = (_seam_shift(work_face, wire, surface)
-                 if w_index == 0 and conv is not None else None)
+    for wire in wires:
         pcurves, free, etol = [], [], []
         for edge in _wire_edges(wire, work_face):
             c2d = BRep_Tool.CurveOnSurface_s(edge, work_face, 0.0, 0.0)
@@ -256,9 +258,34 @@ def _face_loops(work_face, orig_face, conv, surface: NurbsSurface, edge_faces, t
             f, l = BRep_Tool.Range_s(edge, work_face)
             if edge.Orientation() == TopAbs_REVERSED:
                 f, l = l, f
-            pcurves.append(_PCurve(c2d, f, l, BRep_Tool.Degenerated_s(edge), shift))
+            pcurves.append(_PCurve(c2d, f, l, BRep_Tool.Degenerated_s(edge)))
             free.append(is_free(edge))
             etol.append(BRep_Tool.Tolerance_s(edge))
+        out.append((wire, pcurves, free, etol))
+    return out
+
+
+def _usable_loop(pcurves) -> bool:
+    """Whether :func:`_face_loops` keeps a wire of these pcurves as a loop (two or more
+    segments), told without sampling: each edge gives at least ``n_init`` >= 4 segments,
+    except a degenerated straight one, which gives one."""
+    return sum(1 if (pc.line is not None and pc.degenerated) else pc.n_init
+               for pc in pcurves) >= 2
+
+
+def _face_loops(work_face, orig_face, conv, surface: NurbsSurface, edge_faces, tol: float,
+                index: int, path: Path):
+    """Trimming loops of a face: per loop uv (k, 2), xyz (k, 3), topologically free flags (k,),
+    the tolerances (k,) of the segments' edges and the segments' edge numbers (k,) within the
+    face."""
+    loops_uv, loops_xyz, loops_free, loops_tol, loops_edge = [], [], [], [], []
+    n_edges = 0
+    wires = _face_wires(work_face, orig_face, conv, edge_faces, index, path)
+    for w_index, (wire, pcurves, free, etol) in enumerate(wires):
+        shift = (_seam_shift(work_face, wire, surface)
+                 if w_index == 0 and conv is not None else None)
+        for pc in pcurves:
+            pc.shift = shift
         if not pcurves:
             continue
         _, uvs, xyzs = _sample_edges(pcurves, surface, tol)

@@ -274,6 +274,46 @@ def _nurbs_surface(surf, face) -> NurbsSurface:
                         _array1(surf.VKnotSequence()), ctrl, weights)
 
 
+def _shape_faces(path: Path, fmt: str, shape) -> list:
+    """The faces of a shape (``TopExp_Explorer`` order); raises when there are none."""
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    from .face_count import declared_faces
+
+    faces = []
+    exp = TopExp_Explorer(shape, TopAbs_FACE)
+    while exp.More():
+        faces.append(TopoDS.Face(exp.Current()))
+        exp.Next()
+    if not faces:
+        try:
+            declared, _ = declared_faces(path, fmt)
+        except (OSError, ValueError):
+            declared = 0
+        if declared:
+            raise CADImportError(f"{path}: the {fmt.upper()} file declares {declared} face(s) but "
+                                 "OpenCASCADE could read none of them; is the file damaged or "
+                                 "truncated? export it again from the CAD system")
+        raise EmptyModelError(f"{path}: the {fmt.upper()} file holds no faces (only "
+                              f"{shape.ShapeType().name.replace('TopAbs_', '').lower()} "
+                              "geometry without surfaces)")
+    return faces
+
+
+def _face_surface(face, index: int, path: Path):
+    """(face whose surface is a B-spline, its :class:`NurbsSurface`, the converter or None);
+    raises :class:`CADImportError` when the face cannot be converted (it is then skipped)."""
+    work, gsurf, conv = _to_bspline_face(face, index, path)
+    try:
+        surface = _nurbs_surface(gsurf, work)
+    except ValueError as exc:
+        raise CADImportError(f"{path}: face {index} has an invalid B-spline surface: "
+                             f"{exc}") from exc
+    return work, surface, conv
+
+
 def read_cad(path, *, chord_tol: float = 0.002, gap_tol: float = 0.02, isolated: bool = True,
              timeout: float | None = None) -> Model:
     """Read a STEP (.step/.stp) or IGES (.igs/.iges) file into a trimmed-NURBS :class:`Model`.
@@ -351,29 +391,11 @@ def _read_cad_here(path: Path, fmt: str, chord_tol: float, gap_tol: float) -> Mo
 
     t_start = time.perf_counter()
     _init_ocp()
-    from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
-    from OCP.TopExp import TopExp_Explorer
-    from OCP.TopoDS import TopoDS
+    from OCP.TopAbs import TopAbs_REVERSED
 
     shape, unit, scale, names_doc = _read_shape_named(path, fmt)
     t_read = time.perf_counter()
-    faces = []
-    exp = TopExp_Explorer(shape, TopAbs_FACE)
-    while exp.More():
-        faces.append(TopoDS.Face(exp.Current()))
-        exp.Next()
-    if not faces:
-        try:
-            declared, _ = declared_faces(path, fmt)
-        except (OSError, ValueError):
-            declared = 0
-        if declared:
-            raise CADImportError(f"{path}: the {fmt.upper()} file declares {declared} face(s) but "
-                                 "OpenCASCADE could read none of them; is the file damaged or "
-                                 "truncated? export it again from the CAD system")
-        raise EmptyModelError(f"{path}: the {fmt.upper()} file holds no faces (only "
-                              f"{shape.ShapeType().name.replace('TopAbs_', '').lower()} "
-                              "geometry without surfaces)")
+    faces = _shape_faces(path, fmt, shape)
     edge_faces = _edge_face_map(shape)
     if names_doc is not None:
         from .step_names import face_names
@@ -388,12 +410,7 @@ def _read_cad_here(path: Path, fmt: str, chord_tol: float, gap_tol: float) -> Mo
     skipped = []
     for i, face in enumerate(faces):
         try:
-            work, gsurf, conv = _to_bspline_face(face, i, path)
-            try:
-                surface = _nurbs_surface(gsurf, work)
-            except ValueError as exc:
-                raise CADImportError(f"{path}: face {i} has an invalid B-spline surface: "
-                                     f"{exc}") from exc
+            work, surface, conv = _face_surface(face, i, path)
             uv, xyz, fr, tl, ed = _face_loops(work, face, conv, surface, edge_faces, chord_tol,
                                               i, path)
         except Exception as exc:  # noqa: BLE001 - one bad face does not spoil the others

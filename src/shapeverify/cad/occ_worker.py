@@ -8,6 +8,11 @@ first use with ``python -m shapeverify.cad.occ_worker``, kept for later imports 
 after a crash) and gets back the project's own numpy NURBS data
 (:func:`shapeverify.cad.persist.model_to_arrays`, pickled over a pipe), never OCP objects.
 
+:func:`summary_isolated` asks the same process for only the figures ``shapeverify info`` shows
+(:func:`shapeverify.cad.occ_summary.read_summary`: OpenCASCADE alone, no numba); an importer
+started for that (``prestart(summary=True)``, ``python -m shapeverify.cad.occ_worker --summary``)
+does not import numba and the kernels ahead, so a new file's ``info`` pays neither.
+
 * A crash of the importer (a signal, or an exit without an answer) raises
   :class:`~shapeverify.errors.CADImportError` ("the CAD importer crashed on FILE (signal 11,
   SIGSEGV) ...").
@@ -48,7 +53,7 @@ from ..errors import CADImportError, EmptyModelError, ShapeVerifyError, Unsuppor
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["read_cad_isolated", "shutdown"]
+__all__ = ["read_cad_isolated", "summary_isolated", "prestart", "shutdown"]
 
 _LEN = struct.Struct("<Q")
 _MAX_USES = 64  # imports per importer process before it is replaced
@@ -61,14 +66,15 @@ _ERRORS = {c.__name__: c for c in (CADImportError, EmptyModelError, UnsupportedF
 class _Importer:
     """One importer child process and its pipes (used under ``_LOCK``)."""
 
-    def __init__(self):
+    def __init__(self, summary: bool = False):
         root = str(Path(__file__).resolve().parents[2])  # the folder holding ``shapeverify``
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join([root] + [p for p in
                                                       env.get("PYTHONPATH", "").split(os.pathsep) if p])
         self.pid_owner = os.getpid()
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "shapeverify.cad.occ_worker"], stdin=subprocess.PIPE,
+            [sys.executable, "-m", "shapeverify.cad.occ_worker"] + (["--summary"] if summary else []),
+            stdin=subprocess.PIPE,
             stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, env=env, close_fds=True)
         self.uses = 0
 
@@ -134,14 +140,18 @@ _LOCK = threading.Lock()
 _CURRENT: _Importer | None = None
 
 
-def prestart() -> None:
+def prestart(summary: bool = False) -> None:
     """Start the importer process now, if none runs, so that its start (a Python that imports
     numpy and OpenCASCADE) overlaps whatever the caller does before its first import; the
-    command line calls it first thing when its model is a CAD file."""
+    command line calls it first thing when its model is a CAD file.
+
+    ``summary``: the caller wants only :func:`summary_isolated`, so the importer does not
+    import numba and its kernels ahead (a later full import still works: it imports them
+    then)."""
     global _CURRENT
     with _LOCK:
         if _CURRENT is None or not _CURRENT.alive():
-            _CURRENT = _Importer()
+            _CURRENT = _Importer(summary)
 
 
 def shutdown() -> None:
@@ -192,26 +202,64 @@ def read_cad_isolated(path, *, chord_tol: float, gap_tol: float, timeout: float 
     EmptyModelError, UnsupportedFormatError, FileNotFoundError
         As raised by ``read_cad`` in the child.
     """
-    global _CURRENT
     from .persist import model_from_arrays
 
     path = Path(path)
-    # the child logs at the most verbose level any shapeverify logger of this process wants
-    level = min([logging.getLogger("shapeverify").getEffectiveLevel()]
-                + [lg.getEffectiveLevel() for name, lg in list(logging.root.manager.loggerDict.items())
-                   if name.startswith("shapeverify.") and isinstance(lg, logging.Logger)])
-    req = ("read", os.getcwd(), os.fspath(path), float(chord_tol), float(gap_tol), level)
+    t0 = time.perf_counter()
+    payload = _call(path, ("read", os.getcwd(), os.fspath(path), float(chord_tol),
+                           float(gap_tol), _level()), timeout)
+    model = model_from_arrays(payload, str(path))
+    logger.debug("%s: imported in the importer process in %.3f s", path.name,
+                 time.perf_counter() - t0)
+    return model
+
+
+def summary_isolated(path, *, timeout: float | None = None):
+    """:func:`shapeverify.cad.occ_summary.read_summary` run in the importer child process
+    (OpenCASCADE alone: neither the caller nor the importer imports numba for it).
+
+    Parameters
+    ----------
+    path : str or Path
+        STEP or IGES file (already checked to exist).
+    timeout : float, optional
+        As for :func:`read_cad_isolated`.
+
+    Returns
+    -------
+    ModelSummary
+
+    Raises
+    ------
+    CADImportError, EmptyModelError, UnsupportedFormatError, FileNotFoundError
+        As :func:`read_cad_isolated`.
+    """
+    path = Path(path)
+    return _call(path, ("summary", os.getcwd(), os.fspath(path), _level()), timeout)
+
+
+def _level() -> int:
+    """The most verbose level any shapeverify logger of this process wants (the child logs
+    at it)."""
+    return min([logging.getLogger("shapeverify").getEffectiveLevel()]
+               + [lg.getEffectiveLevel() for name, lg in list(logging.root.manager.loggerDict.items())
+                  if name.startswith("shapeverify.") and isinstance(lg, logging.Logger)])
+
+
+def _call(path: Path, req, timeout: float | None):
+    """Send one request to the importer (started if needed); return its answer's payload or
+    raise what the importer raised (or :class:`CADImportError` for a crash or time-out)."""
+    global _CURRENT
     if timeout is None:
         timeout = DEFAULT_TIMEOUT_S
     deadline = None if timeout is None else time.monotonic() + float(timeout)
-    t0 = time.perf_counter()
     with _LOCK:
         if _CURRENT is not None and (not _CURRENT.alive() or _CURRENT.uses >= _MAX_USES):
             if _CURRENT.pid_owner == os.getpid():
                 _CURRENT.close()
             _CURRENT = None
         if _CURRENT is None:
-            _CURRENT = _Importer()
+            _CURRENT = _Importer(summary=req[0] == "summary")
         worker = _CURRENT
         try:
             reply = worker.request(req, deadline)
@@ -237,10 +285,7 @@ def read_cad_isolated(path, *, chord_tol: float, gap_tol: float, timeout: float 
         if lg.isEnabledFor(lvl):
             lg.log(lvl, msg)
     if kind == "ok":
-        model = model_from_arrays(payload, str(path))
-        logger.debug("%s: imported in the importer process in %.3f s", path.name,
-                     time.perf_counter() - t0)
-        return model
+        return payload
     if kind == "oserror":
         err, text, fname = payload
         raise (FileNotFoundError if err == 2 else OSError)(err, text, fname)
@@ -263,15 +308,24 @@ class _Collect(logging.Handler):
 
 def _answer(req, handler: _Collect):
     from . import occ_import
-    from .persist import model_to_arrays
 
-    _, cwd, path, chord_tol, gap_tol, level = req
+    kind, cwd, path, *args = req
+    level = args[-1]
     logging.getLogger("shapeverify").setLevel(level)
     handler.records = []
     try:
         os.chdir(cwd)  # the path is read as the caller gave it (and named so in messages)
-        model = occ_import.read_cad(path, chord_tol=chord_tol, gap_tol=gap_tol, isolated=False)
-        reply = ("ok", model_to_arrays(model))
+        if kind == "summary":
+            from .occ_summary import read_summary
+
+            reply = ("ok", read_summary(path))
+        else:
+            from .persist import model_to_arrays
+
+            chord_tol, gap_tol = args[0], args[1]
+            model = occ_import.read_cad(path, chord_tol=chord_tol, gap_tol=gap_tol,
+                                        isolated=False)
+            reply = ("ok", model_to_arrays(model))
     except OSError as exc:
         reply = ("oserror", (exc.errno, exc.strerror or str(exc), exc.filename))
     except ShapeVerifyError as exc:
@@ -292,9 +346,14 @@ def _serve() -> None:
     root.addHandler(handler)
     root.propagate = False
     try:  # import now, while the caller is still starting up (see prestart); every import
-        # samples edges and bounds faces with the numba kernels, which the modules import lazily
-        from . import _kernels, _trim_kernels, occ_import  # noqa: F401
-        import OCP  # noqa: F401
+        # samples edges and bounds faces with the numba kernels, which the modules import
+        # lazily; an importer started for summaries only (``--summary``) needs no numba
+        if "--summary" in sys.argv[1:]:
+            from . import occ_summary  # noqa: F401
+            import OCP.STEPControl  # noqa: F401
+        else:
+            from . import _kernels, _trim_kernels, occ_import  # noqa: F401
+            import OCP  # noqa: F401
     except Exception:  # noqa: BLE001 - the request will report it
         pass
     while True:

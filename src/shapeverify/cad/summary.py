@@ -1,8 +1,9 @@
 """What ``shapeverify info`` prints about a model, and a cache of it keyed by the file's content.
 
-Reading a STEP file costs about 1.5 s of OpenCASCADE import and 0.9 s of numba start in the
-importer process before the first answer (``benchmarks/results_coldstart.md``), however small
-the file.  :func:`cached_summary` keeps the :class:`ModelSummary` of each model file it read in
+Reading a STEP file costs about 1 s of OpenCASCADE import in the importer process before the
+first answer (``benchmarks/results_coldstart.md``), however small the file; :func:`read_summary`
+answers from OpenCASCADE alone, without numba and without building the model's trimming loops
+(:mod:`shapeverify.cad.occ_summary`).  :func:`cached_summary` keeps the :class:`ModelSummary` of each model file it read in
 the user's cache directory, under the SHA-256 of the file's bytes, so that ``info`` of the same
 file again needs neither OpenCASCADE nor numba.
 
@@ -24,7 +25,7 @@ import tempfile
 from dataclasses import asdict, dataclass
 from pathlib import Path
 
-__all__ = ["ModelSummary", "summarize", "cached_summary", "cache_dir"]
+__all__ = ["ModelSummary", "summarize", "read_summary", "cached_summary", "cache_dir"]
 
 logger = logging.getLogger(__name__)
 
@@ -78,6 +79,31 @@ def summarize(model) -> ModelSummary:
         vertices=None if model.vertices is None else int(len(model.vertices)),
         unit=model.unit, scale_to_mm=float(model.scale_to_mm),
         lo=tuple(float(x) for x in lo), hi=tuple(float(x) for x in hi), size=float(model.size))
+
+
+def read_summary(path) -> ModelSummary:
+    """The :class:`ModelSummary` of a model file, read afresh.
+
+    A STEP or IGES file is summarised by OpenCASCADE alone in the importer process
+    (:func:`shapeverify.cad.occ_summary.read_summary`: the model's figures, its bounds to about
+    1e-6 of its size, with neither numba nor the model's trimming loops); any other file is
+    loaded (:func:`shapeverify.cad.load.load_model`) and summarised.
+
+    Raises
+    ------
+    As :func:`shapeverify.cad.load.load_model`.
+    """
+    from .load import MODEL_EXTENSIONS, load_model
+
+    path = Path(path)
+    ext = path.suffix.lower()
+    if ext in (".step", ".stp", ".igs", ".iges") and path.is_file():
+        from .occ_worker import summary_isolated
+
+        return summary_isolated(path)
+    if ext not in MODEL_EXTENSIONS or not path.is_file():
+        load_model(path)  # raises the loader's error for a missing or unsupported file
+    return summarize(load_model(path))
 
 
 def in_unit(summary: ModelSummary, unit: str | None) -> ModelSummary:
@@ -176,9 +202,9 @@ def cached_summary(path, load) -> tuple[ModelSummary, bool]:
     ----------
     path : str or os.PathLike
         A model file (its bytes are hashed: SHA-256, about 1 GB/s).
-    load : callable(path) -> Model
-        Reads the file on a cache miss (``shapeverify.cad.load.load_model``); its exceptions
-        propagate and nothing is cached.
+    load : callable(path) -> Model or ModelSummary
+        Reads the file on a cache miss (:func:`read_summary`, or
+        ``shapeverify.cad.load.load_model``); its exceptions propagate and nothing is cached.
 
     Returns
     -------
@@ -192,6 +218,7 @@ def cached_summary(path, load) -> tuple[ModelSummary, bool]:
     if hit is not None:
         logger.info("%s: summary from the cache (%s)", path, entry)
         return hit, True
-    summary = summarize(load(path))
+    got = load(path)
+    summary = got if isinstance(got, ModelSummary) else summarize(got)
     _write_entry(entry, summary, stamp)
     return summary, False
