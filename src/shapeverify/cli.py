@@ -167,10 +167,23 @@ def _prestart_importer(model: Path, summary: bool = False) -> None:
     """Start the CAD importer process now when ``model`` is a CAD file: its start (a Python that
     imports OpenCASCADE, about a second) then overlaps the rest of this process's start-up
     (``summary``: for a summary only, so without numba)."""
-    if model.suffix.lower() in (".step", ".stp", ".igs", ".iges") and model.is_file():
+    if model.suffix.lower() in _CAD_SUFFIXES and model.is_file():
         from shapeverify.cad.occ_worker import prestart
 
         prestart(summary)
+
+
+_CAD_SUFFIXES = (".step", ".stp", ".igs", ".iges")
+
+
+def _is_prepared(model: Path) -> bool:
+    """Whether ``model`` is a prepared model (.svm); for a CAD file told without importing the
+    pipeline (numpy), which would delay the start of the importer."""
+    if model.suffix.lower() in _CAD_SUFFIXES:
+        return False
+    from shapeverify.pipeline import PREPARED_SUFFIX
+
+    return model.suffix.lower() == PREPARED_SUFFIX
 
 
 def _require_files(*paths: Path) -> None:
@@ -199,11 +212,10 @@ def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges
          model_unit: Optional[str] = typer.Option(None, "--model-unit", help="Unit of an STL/PLY/OBJ/point-cloud model (default mm; CAD files declare theirs)")):
     """Print a summary of a model: faces, units, size (and with --features its holes and faces)."""
     from shapeverify.cad.summary import in_unit
-    from shapeverify.pipeline import PREPARED_SUFFIX
 
     _require_files(model)
     prep = m = None
-    if model.suffix.lower() == PREPARED_SUFFIX:
+    if _is_prepared(model):
         if model_unit not in (None, "mm"):
             _fail(f"{clean(model)} is a prepared model, already in mm; give the unit when "
                   "preparing it (shapeverify prepare MODEL --model-unit ...)")

@@ -10,8 +10,10 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
 import typer
+
+# numpy is imported where it is used: `shapeverify info` of a new CAD file starts its importer
+# only after this module is imported, so every import here delays the answer
 
 __all__ = ["register_commands", "read_image", "read_pose"]
 
@@ -19,6 +21,7 @@ __all__ = ["register_commands", "read_image", "read_pose"]
 def read_image(path: Path) -> np.ndarray:
     """A single-channel image (uint8 or uint16 as stored) from PNG/TIFF/... via ``cv2.imread``."""
     import cv2
+    import numpy as np
 
     if not Path(path).exists():
         raise FileNotFoundError(2, "no such file", str(path))
@@ -34,6 +37,8 @@ def read_image(path: Path) -> np.ndarray:
 
 def read_pose(path: Path) -> np.ndarray:
     """A 4 x 4 pose (model -> left camera) from .json (nested list or {"T_left_model": ...}), .npy or text."""
+    import numpy as np
+
     path = Path(path)
     if path.suffix.lower() == ".json":
         data = json.loads(path.read_text())
@@ -81,6 +86,8 @@ def register_commands(app: typer.Typer) -> None:
         from shapeverify.camera.rig import load_rig
         from shapeverify.camera.stereo import measure as _measure
         from shapeverify.io.points import write_ply
+
+        import numpy as np
 
         _cli._require_files(rig, left, right, *([model] if model else []), *([pose] if pose else []))
         with _cli._stage("reading rig and images"):
