@@ -168,12 +168,13 @@ def test_a_step_file_that_crashes_opencascade_is_exit_2_not_a_dead_process(panel
 
 def test_an_unexpected_exception_is_an_internal_error_exit_2_traceback_with_verbose(
         panel, monkeypatch):
-    import shapeverify.cad.load
+    import shapeverify.cad.summary
 
     def bug(path):
         return {}["no such key"]  # a bug, not a message about the input
 
-    monkeypatch.setattr(shapeverify.cad.load, "load_model", bug)
+    # what info reads a new file with (a CAD file's summary comes from OpenCASCADE alone)
+    monkeypatch.setattr(shapeverify.cad.summary, "read_summary", bug)
     res = runner.invoke(app, ["info", str(panel / "panel.step")])
     assert res.exit_code == 2, res.output
     lines = _error_lines(res.output)
@@ -190,12 +191,12 @@ def test_a_valueerror_is_a_message_from_shapeverify_but_a_bug_from_elsewhere(pan
                               "--spacing", "-1"])
     assert res.exit_code == 2, res.output
     assert _error_lines(res.output)[0].startswith("error: ") and "spacing" in res.output
-    import shapeverify.cad.load
+    import shapeverify.cad.summary
 
     def numpy_bug(path):
         return np.zeros(3) + np.zeros(4)  # ValueError raised inside numpy: a bug
 
-    monkeypatch.setattr(shapeverify.cad.load, "load_model", numpy_bug)
+    monkeypatch.setattr(shapeverify.cad.summary, "read_summary", numpy_bug)
     res = runner.invoke(app, ["info", str(panel / "panel.step")])
     assert res.exit_code == 2
     assert _error_lines(res.output)[0].startswith("internal error: ValueError")

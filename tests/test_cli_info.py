@@ -92,11 +92,13 @@ def test_info_prints_the_same_table_from_the_cache_without_importing(example_ste
     first = runner.invoke(app, ["info", str(example_step)])
     assert first.exit_code == 0, first.output
     import shapeverify.cad.load
+    import shapeverify.cad.summary
 
     def no_import(path):
         raise AssertionError("the cached summary must not read the file again")
 
     monkeypatch.setattr(shapeverify.cad.load, "load_model", no_import)
+    monkeypatch.setattr(shapeverify.cad.summary, "read_summary", no_import)
     second = runner.invoke(app, ["info", str(example_step)])
     assert second.exit_code == 0, second.output
     table = lambda out: out[out.index("┌"):]  # noqa: E731  (the stage line's duration differs)
