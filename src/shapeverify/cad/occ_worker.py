@@ -154,16 +154,24 @@ def prestart(summary: bool = False) -> None:
             _CURRENT = _Importer(summary)
 
 
-def shutdown() -> None:
-    """Stop the importer process, if one runs (also done at interpreter exit)."""
+def shutdown(kill: bool = False) -> None:
+    """Stop the importer process, if one runs (also done at interpreter exit).
+
+    ``kill``: end it with SIGKILL instead of letting it finish (what interpreter exit does: the
+    importer holds nothing to save between requests, and a Python that has imported
+    OpenCASCADE takes ~0.2-0.4 s to tear itself down, which the caller would wait for)."""
     global _CURRENT
     with _LOCK:
         if _CURRENT is not None:
-            _CURRENT.close()
+            _CURRENT.close(kill=kill)
             _CURRENT = None
 
 
-atexit.register(shutdown)
+def _shutdown_at_exit() -> None:
+    shutdown(kill=True)
+
+
+atexit.register(_shutdown_at_exit)
 
 
 def _describe(status: int | None) -> str:
