@@ -139,3 +139,27 @@ def test_info_model_unit_scales_a_unitless_cloud_and_refuses_cad(tmp_path):
     assert f"{size:.3f}" in plain.output and f"{size * 1000:.3f}" in metres.output
     assert "x1000 to mm" in metres.output and f"{size:.3f}" in again.output
     assert "note:" in plain.output and "note:" not in metres.output
+
+
+def test_info_of_a_new_cad_file_starts_the_importer_before_parsing(example_step, cache, tmp_path):
+    """cli_start.early_importer: ``info`` of a CAD file not in the cache starts the importer
+    (for a summary: no numba) before typer parses; a cached file, another command, or a
+    non-CAD file start nothing."""
+    from shapeverify.cad import occ_worker
+    from shapeverify.cli_start import early_importer
+
+    occ_worker.shutdown(kill=True)
+    early_importer(["prepare", str(example_step), "-o", "x.svm"])
+    early_importer(["--verbose", "info", str(tmp_path / "missing.step")])
+    early_importer(["info", str(tmp_path)])
+    assert occ_worker._CURRENT is None
+    early_importer(["--verbose", "info", "--model-unit", "mm", str(example_step)])
+    assert occ_worker._CURRENT is not None and "--summary" in occ_worker._CURRENT.proc.args
+    occ_worker.shutdown(kill=True)
+    S.cached_summary(example_step, lambda p: S.read_summary(p))  # now cached
+    occ_worker.shutdown(kill=True)
+    early_importer(["info", str(example_step)])
+    assert occ_worker._CURRENT is None
+    early_importer(["info", "--features", str(example_step)])  # the full import: numba ahead
+    assert occ_worker._CURRENT is not None and "--summary" not in occ_worker._CURRENT.proc.args
+    occ_worker.shutdown(kill=True)

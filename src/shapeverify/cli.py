@@ -29,6 +29,9 @@ from rich.table import Table
 from typer.core import TyperGroup
 
 from shapeverify.cli_errors import clean, cli_hint, os_error_message, size_note
+from shapeverify.cli_start import CAD_SUFFIXES as _CAD_SUFFIXES
+from shapeverify.cli_start import early_importer as _early_importer
+from shapeverify.cli_start import is_prepared as _is_prepared
 
 # usage errors (a missing argument, an unknown option) and exits are not bugs.  typer >= 0.2x
 # vendors its own click (typer._click, and click is no longer installed with it), older typer
@@ -40,6 +43,10 @@ _NOT_A_BUG = (typer.Exit, typer.Abort) + tuple(
 class _GuardedGroup(TyperGroup):
     """Runs every command so that an unexpected exception (a bug) also ends with exit code 2 and
     one line -- never exit code 1, which ``inspect`` reserves for "the part fails"."""
+
+    def main(self, args=None, *rest, **kwargs):
+        _early_importer(sys.argv[1:] if args is None else list(args))
+        return super().main(args, *rest, **kwargs)
 
     def invoke(self, ctx):
         try:
@@ -171,19 +178,6 @@ def _prestart_importer(model: Path, summary: bool = False) -> None:
         from shapeverify.cad.occ_worker import prestart
 
         prestart(summary)
-
-
-_CAD_SUFFIXES = (".step", ".stp", ".igs", ".iges")
-
-
-def _is_prepared(model: Path) -> bool:
-    """Whether ``model`` is a prepared model (.svm); for a CAD file told without importing the
-    pipeline (numpy), which would delay the start of the importer."""
-    if model.suffix.lower() in _CAD_SUFFIXES:
-        return False
-    from shapeverify.pipeline import PREPARED_SUFFIX
-
-    return model.suffix.lower() == PREPARED_SUFFIX
 
 
 def _require_files(*paths: Path) -> None:

@@ -195,6 +195,16 @@ def _write_entry(entry: Path, summary: ModelSummary, stamp: str) -> None:
         logger.debug("could not write the cache entry %s: %s", entry, exc)
 
 
+def is_cached(path) -> bool:
+    """Whether :func:`cached_summary` would answer ``path`` from the cache (hashes the file)."""
+    try:
+        path = Path(path)
+        entry = cache_dir() / f"info-{_file_hash(path)}{path.suffix.lower()}.json"
+        return _read_entry(entry, _code_stamp()) is not None
+    except OSError:
+        return False
+
+
 def cached_summary(path, load) -> tuple[ModelSummary, bool]:
     """The :class:`ModelSummary` of the model file ``path``, from the cache when it holds one.
 
