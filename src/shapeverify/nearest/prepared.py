@@ -10,8 +10,10 @@ Morton curve, links each to its 8 nearest neighbours and builds the DVG tree
 
 Defaults (``size`` = bounding-box diagonal of the model, mm)
 -------------------------------------------------------------
-``spacing = size / 500`` and ``max_distance = 0.03 * size`` (3 % of the size = 15 spacings;
-at most 15 and at least 2 spacings for other spacings).  Queries farther than ``max_distance`` from the model are still
+``spacing = size / 500`` (coarser where the model needs less:
+:func:`shapeverify.cad.sampling.needed_spacing`: a mesh's triangles, a cloud's own spacing, a
+solid CAD part up to 2x coarser, to about 150,000 model points) and ``max_distance = 0.03 * size``
+(3 % of the size = 15 spacings; at most 15 and at least 2 spacings for other spacings).  Queries farther than ``max_distance`` from the model are still
 answered exactly, by a kd-tree (slower).
 
 Memory (:attr:`Prepared.nbytes`) per model point: a 128-byte record (coordinates, 8
@@ -336,9 +338,11 @@ def prepare(model, spacing: float | None = None, reach: float | None = None, *,
     model : Model
         CAD, mesh or point-cloud model (:func:`shapeverify.load_model`).
     spacing : float, optional
-        Model point spacing in mm; default ``model.size / 500`` (for meshes and clouds at
-        least :func:`shapeverify.cad.sampling.needed_spacing`: about 4 points per triangle,
-        the cloud's own point spacing).
+        Model point spacing in mm; default ``model.size / 500``, or coarser where
+        :func:`shapeverify.cad.sampling.needed_spacing` says the model needs less: about 4
+        points per triangle of a mesh, a cloud's own point spacing, and for a solid CAD part
+        (whose ``size / 500`` gives 3-5e5 points) the spacing of about 150,000 points, at most
+        2x coarser and at most 1/2.5 of its thinnest walls.
     reach : float, optional
         The closest-point structure's reach: queries within this distance (mm) are answered by
         the DVG tree, farther ones by a kd-tree; default
@@ -384,7 +388,7 @@ def prepare(model, spacing: float | None = None, reach: float | None = None, *,
                                  "or None for the default")
     t0 = time.perf_counter()
     size = model.size
-    if spacing is None:  # a mesh or cloud needs no finer spacing than its own geometry
+    if spacing is None:  # no finer than the model's geometry needs (mesh, cloud, solid CAD)
         from shapeverify.cad.sampling import needed_spacing
         h = max(default_spacing(size), needed_spacing(model))
     else:
