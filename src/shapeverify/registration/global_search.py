@@ -38,7 +38,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from . import _features, _irls
+from . import _features, _irls, _revolution
 from .losses import get_loss
 from .rigid import make_transform, rotation_vector
 
@@ -340,6 +340,7 @@ def global_alignment(scan, prep, rng=0, extra=()) -> GlobalAlignment:
     seed = int(rng.integers(2 ** 31))
     hyps = [("identity", np.eye(4))] + [(k, np.asarray(T, float)) for k, T in extra]
     hyps += [("principal-axes", T) for T in axes_hypotheses(P, side)]
+    hyps += [("revolution-axis", T) for T in _revolution.hypotheses(P, prep, side)]
     hyps += [("fpfh-ransac", T) for T in feature_hypotheses(P, side, seed)]
     tq = 2.0 * side.voxel    # screening: kd-tree on the voxel subsample of the model
     Sq = S[:SCREEN_POINTS]
