@@ -99,13 +99,20 @@ def _model_size(prep) -> float:
 
 
 def fit_distance(prep) -> float:
-    """Fit distance tau (mm): ``max(4 x model point spacing, 0.005 x model size)``.
+    """Fit distance tau (mm): ``max(4 x model point spacing, 0.005 x model size)``, the spacing
+    of a CAD model taken at most ``size / 500``.
 
     Generous enough for depth-camera noise, small against the model, so a wrong pose fits
-    only where surfaces happen to cross.
+    only where surfaces happen to cross.  A mesh's or a cloud's model points are as sparse as
+    its geometry (the fit cannot be sharper); a CAD model's are not, and its coarser default
+    spacing for solid parts (up to 2 x ``size / 500``, :func:`~shapeverify.cad.sampling.needed_spacing`)
+    leaves the fit distance as it was (it also sets the scale beyond which a pose is flagged).
     """
     sp = float(getattr(prep, "spacing", 0.0) or 0.0)
-    return max(4.0 * sp, 0.005 * _model_size(prep))
+    size = _model_size(prep)
+    if getattr(getattr(prep, "model", None), "kind", None) == "cad":
+        sp = min(sp, size / 500.0)
+    return max(4.0 * sp, 0.005 * size)
 
 
 def _voxel_subsample(X: np.ndarray, voxel: float) -> np.ndarray:
