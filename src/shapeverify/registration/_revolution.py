@@ -132,10 +132,10 @@ def model_axis(side):
     return out
 
 
-def hypotheses(P: np.ndarray, prep, side) -> list[np.ndarray]:
+def hypotheses(P: np.ndarray, side) -> list[np.ndarray]:
     """Up to :data:`KEEP` poses (4, 4) with the scan's axis on the model's (module docstring),
     best fit first; [] when the model is not a solid of revolution or the scan shows no axis."""
-    from .global_search import _voxel_subsample, fit_score
+    from .global_search import _quick_fit, _voxel_subsample
 
     ax = model_axis(side)
     if ax is None:
@@ -149,7 +149,7 @@ def hypotheses(P: np.ndarray, prep, side) -> list[np.ndarray]:
         return []
     hs = (X - c) @ a
     S = X[np.linspace(0, X.shape[0] - 1, min(400, X.shape[0])).astype(np.int64)]
-    tau = side.tau
+    tau, tree = side.tau, side.all_tree     # nearest model points: a fit to the spacing
     out = []
     for up in (1.0, -1.0):
         R0 = _onto(up * a, am)
@@ -157,12 +157,12 @@ def hypotheses(P: np.ndarray, prep, side) -> list[np.ndarray]:
         s0, s1 = sorted((up * hs.min(), up * hs.max()))
         zs = np.arange(lo - s1, hi - s0 + 0.5 * tau, 0.5 * tau)
         # the height at spin 0 (a turned part's fit does not depend on the spin), then the spins
-        fz = [fit_score(prep, S, make_transform(R0, cm + z * am - R0 @ c), tau) for z in zs]
+        fz = [_quick_fit(tree, S, make_transform(R0, cm + z * am - R0 @ c), tau) for z in zs]
         z = zs[int(np.argmax(fz))]
         for j in range(SPINS):
             R = rodrigues(am * (2.0 * np.pi * j / SPINS)) @ R0
             T = make_transform(R, cm + z * am - R @ c)
-            out.append((fit_score(prep, S, T, tau), T))
+            out.append((_quick_fit(tree, S, T, tau), T))
     out.sort(key=lambda ft: -ft[0])
     return [T for _, T in out[:KEEP]]
 

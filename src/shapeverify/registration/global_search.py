@@ -71,7 +71,8 @@ class GlobalAlignment:
     distance (share of the scored scan points on the surface, see the module docstring); source : which hypothesis it
     came from ('identity', 'principal-axes', 'fpfh-ransac'); n_hypotheses : poses scored;
     runner_up : (fit, rotation deg, normal displacement mm) of the best refined hypothesis that
-    moves the scan differently (None if none); seconds : wall time.
+    moves the scan differently (None if none); seconds : wall time; runner_up_pose : that
+    hypothesis' pose (4, 4) or None.
     """
 
     T_model_scan: np.ndarray
@@ -80,6 +81,7 @@ class GlobalAlignment:
     n_hypotheses: int
     runner_up: tuple | None
     seconds: float
+    runner_up_pose: np.ndarray | None = None
 
     def __repr__(self) -> str:
         return (f"GlobalAlignment(fit={self.fit:.3f}, source={self.source!r}, "
@@ -347,7 +349,7 @@ def global_alignment(scan, prep, rng=0, extra=()) -> GlobalAlignment:
     seed = int(rng.integers(2 ** 31))
     hyps = [("identity", np.eye(4))] + [(k, np.asarray(T, float)) for k, T in extra]
     hyps += [("principal-axes", T) for T in axes_hypotheses(P, side)]
-    hyps += [("revolution-axis", T) for T in _revolution.hypotheses(P, prep, side)]
+    hyps += [("revolution-axis", T) for T in _revolution.hypotheses(P, side)]
     hyps += [("fpfh-ransac", T) for T in feature_hypotheses(P, side, seed)]
     tq = 2.0 * side.voxel    # screening: kd-tree on the voxel subsample of the model
     Sq = S[:SCREEN_POINTS]
@@ -373,13 +375,13 @@ def global_alignment(scan, prep, rng=0, extra=()) -> GlobalAlignment:
     refined = [(f, names[i], poses[i]) for f, i in zip(fits, keep)]
     refined.sort(key=lambda r: -r[0])
     best_fit, best_src, best_T = refined[0]
-    runner = None
+    runner = runner_T = None
     for f, _, T in refined[1:]:
         ang, dn = _distinct(best_T, T, S, side, full=True)
         if dn > tau:
-            runner = (f, ang, dn)
+            runner, runner_T = (f, ang, dn), T
             break
     out = GlobalAlignment(best_T, best_fit, best_src, len(hyps), runner,
-                          time.perf_counter() - t0)
+                          time.perf_counter() - t0, runner_T)
     logger.info("global alignment: %r", out)
     return out
