@@ -1,6 +1,6 @@
 """Global registration: the pose of a scan given in any frame, with no start.
 
-:func:`global_alignment` generates pose hypotheses from two published methods and keeps the one
+:func:`global_alignment` generates pose hypotheses from published methods and keeps the one
 that fits best under one robust objective:
 
 1. *principal axes*: the scan's centroid and principal axes matched with those of the model's
@@ -12,7 +12,10 @@ that fits best under one robust objective:
    nearest-descriptor correspondences, and RANSAC over correspondence triples with the
    edge-length pre-check of Zhou, Park, Koltun ("Fast global registration", ECCV 2016) -- the
    pipeline of Open3D's ``registration_ransac_based_on_feature_matching``;
-3. the identity (the scan may already be in the model's frame).
+3. *axis of revolution* (only for a model that is a solid of revolution, e.g. a turned part):
+   the scan's own axis, read from its normal lines (Pottmann, Randrup 1998), put on the
+   model's both ways up at the best height (:mod:`shapeverify.registration._revolution`);
+4. the identity (the scan may already be in the model's frame).
 
 Every hypothesis is scored by the *fit* of a fixed subset of scan points: the mean over the
 subset of ``max(0, 1 - (d / tau)^2)`` with ``d`` the point's distance to the model (0 for a
