@@ -19,7 +19,7 @@ How:
    fix the direction only.
 2. The model's axis comes from the same fit on its model points; the model counts as a solid
    of revolution when :data:`SHARE` of its normal lines meet the axis within 3 deg
-   (:data:`SLOPE`) (checked once per prepared model).  The scan's axis is used when the same share of
+   (:data:`SLOPE`) (checked once per prepared model).  The scan's axis is used when :data:`SCAN_SHARE` of
    its normal lines agree with it.
 3. Hypotheses: the scan's axis onto the model's, both ways up, shifted along the axis to where
    the scan fits best (truncated fit at the global search's fit distance, steps of half of it
@@ -36,9 +36,14 @@ from scipy.spatial import cKDTree
 
 from .rigid import make_transform, rodrigues
 
-#: share of the normal lines that must pass near the axis (model: solid of revolution; scan:
-#: the axis is read from it)
+#: share of the model's normal lines that must meet its axis (a solid of revolution)
 SHARE = 0.6
+#: share of the scan's normal lines that must meet the axis read from them (noisy normals of a
+#: depth camera's scan miss by more than 3 deg while the axis is right to 0.1-0.6 deg; a wrong
+#: axis only costs the hypotheses' time: they are judged by the fit like the others)
+SCAN_SHARE = 0.4
+#: the scan's normals: PCA of this many neighbours on a voxel subsample of size / VOXELS
+NEIGHBOURS, VOXELS = 20, 80.0
 #: "near": the normal misses the plane of its point and the axis by less than this sine (3 deg)
 SLOPE = 0.05
 #: the re-weighting's scale floor, as a share of the model's size
@@ -141,11 +146,11 @@ def hypotheses(P: np.ndarray, side) -> list[np.ndarray]:
     if ax is None:
         return []
     am, cm, (lo, hi) = ax
-    X = P[_voxel_subsample(P, side.size / 150.0)]
-    if X.shape[0] < 20:
+    X = P[_voxel_subsample(P, side.size / VOXELS)]
+    if X.shape[0] < NEIGHBOURS:
         return []
-    a, c, d = axis_of_normals(X, _normals(X), NEAR * side.size)
-    if _agree(d) < SHARE:
+    a, c, d = axis_of_normals(X, _normals(X, NEIGHBOURS), NEAR * side.size)
+    if _agree(d) < SCAN_SHARE:
         return []
     hs = (X - c) @ a
     S = X[np.linspace(0, X.shape[0] - 1, min(400, X.shape[0])).astype(np.int64)]
