@@ -202,14 +202,19 @@ def main():
                   f"({int((~right[inside]).sum())} not), largest excess "
                   f"{np.max(dist - d_true):.3g} mm")
             out[name] = idx
+        tree = {"nodes": fast.tree.nodes, "lists": fast.tree.lists}
         if args.save_answers:
-            np.savez(args.save_answers, **out)
+            np.savez(args.save_answers, **out, **tree)
         if args.compare:
             ref = np.load(args.compare)
             for name, idx in out.items():
                 same = ref[name] == idx
                 print(f"{name}: identical to {args.compare}: {same.mean():.6f} "
                       f"({int((~same).sum())} differ)")
+            for name, arr in tree.items():  # the tree arrays themselves
+                if name in ref.files:
+                    print(f"tree {name}: identical to {args.compare}: "
+                          f"{bool(np.array_equal(ref[name], arr))} ({arr.size:,} entries)")
 
 
 if __name__ == "__main__":

@@ -132,6 +132,36 @@ def test_seed_list_packing_equals_the_np_unique_packing(seed):
         assert np.array_equal(got, np.sort(seeds[i, :count[i]]))
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_lattice_searches_equal_one_search_per_point(seed):
+    """The 27 lattice points' (and 7 extra samples') nearest points found in one pass over a
+    list are those of one linear scan per point, distances bit for bit, ties to the lower
+    index (a coarse integer grid of points makes many exact ties)."""
+    from shapeverify.nearest import _classify_kernels as ck
+    from shapeverify.nearest import _lattice_kernels as lk
+
+    rng = np.random.default_rng(seed)
+    pts = np.ascontiguousarray(rng.integers(-4, 5, (400, 3)).astype(np.float64)
+                               * rng.choice([0.5, 0.1]))
+    pts[::2] += rng.normal(0.0, 0.05, (200, 3))
+    lst = rng.permutation(400).astype(np.int32)
+    origin = rng.normal(0.0, 0.1, 3) if seed else np.zeros(3)
+    size = 0.5
+    sq = np.empty(9)
+    for a, b in ((0, 400), (17, 90), (5, 5)):
+        base = rng.integers(-3, 3, 3)
+        qx, qy, qz = (origin[k] + size * (base[k] + np.arange(3)) for k in range(3))
+        li, ld = np.empty(27, np.int64), np.empty(27)
+        lk.nn_lattice(qx, qy, qz, pts, lst, a, b, sq, li, ld)
+        for t in range(27):
+            want = lk.nn_one(qx[t % 3], qy[t // 3 % 3], qz[t // 9], pts, lst, a, b)
+            assert (li[t], ld[t]) == want
+        xi, xd = np.empty(7, np.int64), np.empty(7)
+        lk.nn_extra(qx, qy, qz, ck.EXTRA, pts, lst, a, b, sq, xi, xd)
+        for e, (i, j, k) in enumerate(ck.EXTRA):
+            assert (xi[e], xd[e]) == lk.nn_one(qx[i], qy[j], qz[k], pts, lst, a, b)
+
+
 @pytest.mark.parametrize("last", [False, True])
 def test_children_classification_and_multi_seed_pass_equal_the_kd_tree_kernels(last):
     """One level below the top grid of the two sheets: ``classify_children`` and
