@@ -102,7 +102,7 @@ def staged_prepare(model, spacing, reach, clock: Clock):
     pts = clock.run("points", lambda: np.ascontiguousarray(mp.points[order]))
     frames = _prepared._frames(mp)[order]
     kd = clock.run("kd", cKDTree, pts)
-    graph = clock.run("graph", dvg.neighbor_graph, pts, tree=kd)
+    graph = clock.run("graph", dvg.neighbor_graph, pts, tree=kd, spacing=h)
     rec = clock.run("records", dvg.make_records, pts, graph, frames)
     _STEP_CLOCK[0] = time.process_time()
     tree = clock.run("tree", dvg.build_tree, rec, h, maxd, kd=kd)

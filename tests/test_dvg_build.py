@@ -216,3 +216,20 @@ def test_children_classification_and_multi_seed_pass_equal_the_kd_tree_kernels(l
         assert np.array_equal(fn[leaf], gn[leaf])
         col = np.arange(16)[None, :] < gn[leaf, None]
         assert np.array_equal(np.where(col, fs[leaf], 0), np.where(col, gs[leaf], 0))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_grid_neighbour_graph_equals_the_kd_tree_graph(seed):
+    """The grid search (with the kd-tree asked about points with near ties) gives the kd-tree's
+    graph, order included: a jittered sheet, an exact lattice full of equal distances,
+    duplicated points, a sparse outlier."""
+    rng = np.random.default_rng(seed)
+    a = np.stack(np.meshgrid(np.arange(40.0), np.arange(30.0), [0.0], indexing="ij"),
+                 -1).reshape(-1, 3) * 0.5
+    b = a + np.array([0.1, 0.2, 3.0]) + rng.normal(0.0, 0.05, a.shape)
+    pts = np.concatenate([a, b, b[:50], [[100.0, 100.0, 100.0]]])
+    pts = np.ascontiguousarray(pts[rng.permutation(len(pts))])
+    kd = cKDTree(pts)
+    want = dvg.neighbor_graph(pts, tree=kd)
+    got = dvg.neighbor_graph(pts, tree=kd, spacing=0.5 * rng.uniform(0.5, 2.0))
+    assert np.array_equal(got, want)
