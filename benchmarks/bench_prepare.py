@@ -93,7 +93,8 @@ class Clock:
 
 
 def staged_prepare(model, spacing, reach, clock: Clock):
-    """The steps of ``prepare`` one by one (same calls, same order, same result)."""
+    """The steps of ``prepare`` one by one (same calls, same order, same result, the same
+    arrays held)."""
     size = model.size
     h = float(spacing)
     maxd = _prepared.default_max_distance(size, h) if reach is None else float(reach)
@@ -104,13 +105,19 @@ def staged_prepare(model, spacing, reach, clock: Clock):
     kd = clock.run("kd", cKDTree, pts)
     graph = clock.run("graph", dvg.neighbor_graph, pts, tree=kd, spacing=h)
     rec = clock.run("records", dvg.make_records, pts, graph, frames)
+    face = np.ascontiguousarray(mp.face[order])
+    rows = np.empty((face.shape[0], 4), dtype=np.int32)  # prepare's rows and boundary
+    rows[:, 0] = face
+    rows.view(np.float32)[:, 1:3] = mp.uv[order]
+    boundary = np.ascontiguousarray(mp.boundary[order])
+    del mp, frames, graph, pts  # as prepare does: only the records are held during the tree
     _STEP_CLOCK[0] = time.process_time()
     tree = clock.run("tree", dvg.build_tree, rec, h, maxd, kd=kd)
     fast = dvg.DVG(rec, tree)
     fast._kd = kd
-    face = np.ascontiguousarray(mp.face[order])
     if model.kind == "cad":
-        clock.run("other", _prepared._other_face_points, fast.points, face, h, kd)
+        rows[:, 3] = clock.run("other", _prepared._other_face_points, fast.points, face, h, kd)
+    del rows, boundary
     return fast, maxd
 
 

@@ -362,6 +362,16 @@ class DVG:
                                  f"({pts.shape[0]}, 8), got {frames.shape}")
         kd = cKDTree(pts)
         rec = make_records(pts, neighbor_graph(pts, tree=kd, spacing=spacing), frames)
+        return cls.from_records(rec, spacing, max_distance, kd, max_moves=max_moves,
+                                workers=workers)
+
+    @classmethod
+    def from_records(cls, rec, spacing: float, max_distance: float, kd: cKDTree, *,
+                     max_moves: int = 2, workers: int = -1) -> "DVG":
+        """The second half of :meth:`build`: the tree over records made by
+        :func:`make_records` (``kd``: a cKDTree over their points).  A caller that made the
+        records itself can free the points and frames they came from before the tree, the
+        build's memory peak (``prepare`` does)."""
         tree = build_tree(rec, float(spacing), float(max_distance), kd=kd,
                           max_moves=max_moves, workers=workers)
         out = cls(rec, tree)
