@@ -1,5 +1,6 @@
 """numba kernels: the k nearest model points of every model point on a uniform grid (private;
-used by :func:`shapeverify.nearest.dvg.neighbor_graph`).
+used by :func:`shapeverify.nearest.dvg.neighbor_graph`), and the Morton codes of
+:func:`shapeverify.nearest.dvg.morton_order`.
 
 Model points sample a surface about ``spacing`` apart, so a grid of cells of twice the spacing
 holds a few points per cell and the 9 nearest points of a point lie in its own and the 26
@@ -159,3 +160,18 @@ def knn(points, lo, cell, gc, dims, keys, cstart, cend, order, xyz, k, a, b, out
             if out_d2[r, w] - out_d2[r, w - 1] <= 1e-12 * out_d2[r, w]:
                 t = True
         tie[r] = t
+
+
+@njit(cache=True, nogil=True)
+def morton_codes(g):
+    """Morton (Z-order) codes of (N, 3) int64 grid coordinates of at most 21 bits: bit b of
+    axis a goes to bit 3 b + a."""
+    n = g.shape[0]
+    code = np.zeros(n, dtype=np.int64)
+    for i in range(n):
+        c = np.int64(0)
+        for bit in range(21):
+            for ax in range(3):
+                c |= ((g[i, ax] >> bit) & 1) << (3 * bit + ax)
+        code[i] = c
+    return code

@@ -85,11 +85,8 @@ def morton_order(points: np.ndarray, cell: float) -> np.ndarray:
         return np.zeros(0, dtype=np.int64)
     g = np.floor((p - p.min(axis=0)) / cell).astype(np.int64)
     g >>= max(0, int(g.max()).bit_length() - 21)  # at most 21 bits per axis
-    code = np.zeros(p.shape[0], dtype=np.int64)
-    for bit in range(21):
-        for ax in range(3):
-            code |= ((g[:, ax] >> bit) & 1) << (3 * bit + ax)
-    return np.argsort(code, kind="stable")
+    from ._knn_kernels import morton_codes
+    return np.argsort(morton_codes(np.ascontiguousarray(g)), kind="stable")
 
 
 def neighbor_graph(points: np.ndarray, k: int = _kernels.K,
