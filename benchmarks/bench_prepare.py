@@ -18,8 +18,9 @@ Python-level peak allocation with ``tracemalloc`` (numpy arrays included); the p
 peak RSS is best taken with ``/usr/bin/time -v``.
 
 ``--save-answers FILE`` writes the nearest-model-point indices of fixed queries (random and
-scan-like, see :func:`queries`) and ``--compare FILE`` checks a later build against them and
-against scipy's cKDTree.
+scan-like, see :func:`queries`) and the tree's ``nodes`` and ``lists``; ``--compare FILE``
+checks a later build against them (tree arrays included, when the file has them) and against
+scipy's cKDTree.
 
 Run:  .venv/bin/python benchmarks/bench_prepare.py impeller --spacing 0.175
       .venv/bin/python benchmarks/bench_prepare.py panel --spacing 0.6 --reach 2
