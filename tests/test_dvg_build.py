@@ -247,3 +247,15 @@ def test_morton_order_equals_the_bitwise_numpy_codes():
             for ax in range(3):
                 code |= ((g[:, ax] >> bit) & 1) << (3 * bit + ax)
         assert np.array_equal(dvg.morton_order(p, cell), np.argsort(code, kind="stable"))
+
+
+def test_grid_neighbour_graph_falls_back_for_a_tiny_spacing_and_checks_it():
+    """A spacing so small that the grid's cell keys would overflow: the kd-tree's graph; a
+    spacing that is not a number > 0: ValueError."""
+    pts = np.random.default_rng(0).uniform(-1e6, 1e6, (500, 3))
+    kd = cKDTree(pts)
+    assert np.array_equal(dvg.neighbor_graph(pts, tree=kd, spacing=1e-9),
+                          dvg.neighbor_graph(pts, tree=kd))
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="spacing"):
+            dvg.neighbor_graph(pts, tree=kd, spacing=bad)

@@ -103,6 +103,8 @@ def neighbor_graph(points: np.ndarray, k: int = _kernels.K,
     out = np.full((n, k), -1, dtype=np.int32)
     if kk <= 0:
         return out
+    if spacing is not None and not (np.isfinite(spacing) and spacing > 0):
+        raise ValueError(f"spacing must be finite and > 0, got {spacing!r}")
     tree = cKDTree(points) if tree is None else tree
     ask = np.arange(n)
     if spacing is not None and kk == k and n > 4 * k:
@@ -127,6 +129,8 @@ def _grid_graph(points, k, spacing, out):
     pts = np.ascontiguousarray(points, dtype=np.float64)
     lo = pts.min(axis=0)
     cell = 2.0 * spacing
+    if np.prod((pts.max(axis=0) - lo) / cell + 2.0) > 2.0**62:  # cell keys would overflow
+        return np.arange(pts.shape[0])
     grid = _kk.grid_cells(pts, lo, cell)
     tie = np.empty(pts.shape[0], dtype=np.bool_)
 
