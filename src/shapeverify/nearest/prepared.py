@@ -399,15 +399,17 @@ def prepare(model, spacing: float | None = None, reach: float | None = None, *,
     # DVG.build in two steps: the sampled model points (and the frames) are freed before the
     # tree, the memory peak of the preparation (they live on in the records)
     pts = _dvg.check_points(mp.points[order], allow_empty=False)
+    frames = _frames(mp)[order]
+    if not np.all(np.isfinite(frames)):  # as DVG.build checks
+        raise ValueError(f"frames must be finite with shape (N, 8) = ({pts.shape[0]}, 8)")
     kd = cKDTree(pts)
-    rec = _dvg.make_records(pts, _dvg.neighbor_graph(pts, tree=kd, spacing=h),
-                            _frames(mp)[order])
+    rec = _dvg.make_records(pts, _dvg.neighbor_graph(pts, tree=kd, spacing=h), frames)
     face = np.ascontiguousarray(mp.face[order])
     rows = np.empty((face.shape[0], 4), dtype=np.int32)
     rows[:, 0] = face
     rows.view(np.float32)[:, 1:3] = mp.uv[order]
     boundary = np.ascontiguousarray(mp.boundary[order])
-    del mp, pts, order
+    del mp, pts, order, frames
     fast = _dvg.DVG.from_records(rec, h, maxd, kd)
     del rec, kd
     rows[:, 3] = (_other_face_points(fast.points, face, h, fast.kd()) if model.kind == "cad"
