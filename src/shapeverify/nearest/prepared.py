@@ -43,6 +43,7 @@ from functools import cached_property
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from . import dvg as _dvg
 from .exact import for_model
@@ -399,18 +400,29 @@ def prepare(model, spacing: float | None = None, reach: float | None = None, *,
         raise ValueError(f"{model!r} gave no model points at spacing {h} mm")
     t1 = time.perf_counter()
     order = _dvg.morton_order(mp.points, h)
-    fast = _dvg.DVG.build(mp.points[order], h, maxd, _frames(mp)[order])
+    # DVG.build in two steps: the sampled model points (and the frames) are freed before the
+    # tree, the memory peak of the preparation (they live on in the records)
+    pts = _dvg.check_points(mp.points[order], allow_empty=False)
+    frames = _frames(mp)[order]
+    if not np.all(np.isfinite(frames)):  # as DVG.build checks
+        raise ValueError(f"frames must be finite with shape (N, 8) = ({pts.shape[0]}, 8)")
+    kd = cKDTree(pts)
+    rec = _dvg.make_records(pts, _dvg.neighbor_graph(pts, tree=kd, spacing=h), frames)
     face = np.ascontiguousarray(mp.face[order])
-    rows = np.empty((len(mp), 4), dtype=np.int32)
+    rows = np.empty((face.shape[0], 4), dtype=np.int32)
     rows[:, 0] = face
     rows.view(np.float32)[:, 1:3] = mp.uv[order]
+    boundary = np.ascontiguousarray(mp.boundary[order])
+    del mp, pts, order, frames
+    fast = _dvg.DVG.from_records(rec, h, maxd, kd)
+    del rec, kd
     rows[:, 3] = (_other_face_points(fast.points, face, h, fast.kd()) if model.kind == "cad"
                   else -1)
     t2 = time.perf_counter()
-    prep = Prepared(model, fast, rows, np.ascontiguousarray(mp.boundary[order]), h, maxd)
+    prep = Prepared(model, fast, rows, boundary, h, maxd)
     logger.info("prepared %d model points (spacing %.4g mm, max distance %.4g mm): sampling "
-                "%.2f s, tree %.2f s, %.0f bytes/point", len(mp), h, maxd, t1 - t0, t2 - t1,
-                prep.memory_per_point)
+                "%.2f s, tree %.2f s, %.0f bytes/point", face.shape[0], h, maxd, t1 - t0,
+                t2 - t1, prep.memory_per_point)
     return prep
 
 
