@@ -18,8 +18,9 @@ Python-level peak allocation with ``tracemalloc`` (numpy arrays included); the p
 peak RSS is best taken with ``/usr/bin/time -v``.
 
 ``--save-answers FILE`` writes the nearest-model-point indices of fixed queries (random and
-scan-like, see :func:`queries`) and ``--compare FILE`` checks a later build against them and
-against scipy's cKDTree.
+scan-like, see :func:`queries`) and the tree's ``nodes`` and ``lists``; ``--compare FILE``
+checks a later build against them (tree arrays included, when the file has them) and against
+scipy's cKDTree.
 
 Run:  .venv/bin/python benchmarks/bench_prepare.py impeller --spacing 0.175
       .venv/bin/python benchmarks/bench_prepare.py panel --spacing 0.6 --reach 2
@@ -93,7 +94,8 @@ class Clock:
 
 
 def staged_prepare(model, spacing, reach, clock: Clock):
-    """The steps of ``prepare`` one by one (same calls, same order, same result)."""
+    """The steps of ``prepare`` one by one (same calls, same order, same result, the same
+    arrays held)."""
     size = model.size
     h = float(spacing)
     maxd = _prepared.default_max_distance(size, h) if reach is None else float(reach)
@@ -102,15 +104,21 @@ def staged_prepare(model, spacing, reach, clock: Clock):
     pts = clock.run("points", lambda: np.ascontiguousarray(mp.points[order]))
     frames = _prepared._frames(mp)[order]
     kd = clock.run("kd", cKDTree, pts)
-    graph = clock.run("graph", dvg.neighbor_graph, pts, tree=kd)
+    graph = clock.run("graph", dvg.neighbor_graph, pts, tree=kd, spacing=h)
     rec = clock.run("records", dvg.make_records, pts, graph, frames)
+    face = np.ascontiguousarray(mp.face[order])
+    rows = np.empty((face.shape[0], 4), dtype=np.int32)  # prepare's rows and boundary
+    rows[:, 0] = face
+    rows.view(np.float32)[:, 1:3] = mp.uv[order]
+    boundary = np.ascontiguousarray(mp.boundary[order])
+    del mp, frames, graph, pts  # as prepare does: only the records are held during the tree
     _STEP_CLOCK[0] = time.process_time()
     tree = clock.run("tree", dvg.build_tree, rec, h, maxd, kd=kd)
     fast = dvg.DVG(rec, tree)
     fast._kd = kd
-    face = np.ascontiguousarray(mp.face[order])
     if model.kind == "cad":
-        clock.run("other", _prepared._other_face_points, fast.points, face, h, kd)
+        rows[:, 3] = clock.run("other", _prepared._other_face_points, fast.points, face, h, kd)
+    del rows, boundary
     return fast, maxd
 
 
@@ -202,14 +210,19 @@ def main():
                   f"({int((~right[inside]).sum())} not), largest excess "
                   f"{np.max(dist - d_true):.3g} mm")
             out[name] = idx
+        tree = {"nodes": fast.tree.nodes, "lists": fast.tree.lists}
         if args.save_answers:
-            np.savez(args.save_answers, **out)
+            np.savez(args.save_answers, **out, **tree)
         if args.compare:
             ref = np.load(args.compare)
             for name, idx in out.items():
                 same = ref[name] == idx
                 print(f"{name}: identical to {args.compare}: {same.mean():.6f} "
                       f"({int((~same).sum())} differ)")
+            for name, arr in tree.items():  # the tree arrays themselves
+                if name in ref.files:
+                    print(f"tree {name}: identical to {args.compare}: "
+                          f"{bool(np.array_equal(ref[name], arr))} ({arr.size:,} entries)")
 
 
 if __name__ == "__main__":

@@ -11,7 +11,7 @@ import platform
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-ORDER = ["nurbs", "cad_import", "closest", "register", "impeller_starts", "inspect", "rays", "phase", "fitting", "service"]
+ORDER = ["nurbs", "cad_import", "closest", "register", "impeller_starts", "turned", "inspect", "rays", "phase", "fitting", "service"]
 
 
 def main() -> None:

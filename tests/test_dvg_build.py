@@ -132,6 +132,36 @@ def test_seed_list_packing_equals_the_np_unique_packing(seed):
         assert np.array_equal(got, np.sort(seeds[i, :count[i]]))
 
 
+@pytest.mark.parametrize("seed", range(3))
+def test_lattice_searches_equal_one_search_per_point(seed):
+    """The 27 lattice points' (and 7 extra samples') nearest points found in one pass over a
+    list are those of one linear scan per point, distances bit for bit, ties to the lower
+    index (a coarse integer grid of points makes many exact ties)."""
+    from shapeverify.nearest import _classify_kernels as ck
+    from shapeverify.nearest import _lattice_kernels as lk
+
+    rng = np.random.default_rng(seed)
+    pts = np.ascontiguousarray(rng.integers(-4, 5, (400, 3)).astype(np.float64)
+                               * rng.choice([0.5, 0.1]))
+    pts[::2] += rng.normal(0.0, 0.05, (200, 3))
+    lst = rng.permutation(400).astype(np.int32)
+    origin = rng.normal(0.0, 0.1, 3) if seed else np.zeros(3)
+    size = 0.5
+    sq = np.empty(9)
+    for a, b in ((0, 400), (17, 90), (5, 5)):
+        base = rng.integers(-3, 3, 3)
+        qx, qy, qz = (origin[k] + size * (base[k] + np.arange(3)) for k in range(3))
+        li, ld = np.empty(27, np.int64), np.empty(27)
+        lk.nn_lattice(qx, qy, qz, pts, lst, a, b, sq, li, ld)
+        for t in range(27):
+            want = lk.nn_one(qx[t % 3], qy[t // 3 % 3], qz[t // 9], pts, lst, a, b)
+            assert (li[t], ld[t]) == want
+        xi, xd = np.empty(7, np.int64), np.empty(7)
+        lk.nn_extra(qx, qy, qz, ck.EXTRA, pts, lst, a, b, sq, xi, xd)
+        for e, (i, j, k) in enumerate(ck.EXTRA):
+            assert (xi[e], xd[e]) == lk.nn_one(qx[i], qy[j], qz[k], pts, lst, a, b)
+
+
 @pytest.mark.parametrize("last", [False, True])
 def test_children_classification_and_multi_seed_pass_equal_the_kd_tree_kernels(last):
     """One level below the top grid of the two sheets: ``classify_children`` and
@@ -186,3 +216,46 @@ def test_children_classification_and_multi_seed_pass_equal_the_kd_tree_kernels(l
         assert np.array_equal(fn[leaf], gn[leaf])
         col = np.arange(16)[None, :] < gn[leaf, None]
         assert np.array_equal(np.where(col, fs[leaf], 0), np.where(col, gs[leaf], 0))
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_grid_neighbour_graph_equals_the_kd_tree_graph(seed):
+    """The grid search (with the kd-tree asked about points with near ties) gives the kd-tree's
+    graph, order included: a jittered sheet, an exact lattice full of equal distances,
+    duplicated points, a sparse outlier."""
+    rng = np.random.default_rng(seed)
+    a = np.stack(np.meshgrid(np.arange(40.0), np.arange(30.0), [0.0], indexing="ij"),
+                 -1).reshape(-1, 3) * 0.5
+    b = a + np.array([0.1, 0.2, 3.0]) + rng.normal(0.0, 0.05, a.shape)
+    pts = np.concatenate([a, b, b[:50], [[100.0, 100.0, 100.0]]])
+    pts = np.ascontiguousarray(pts[rng.permutation(len(pts))])
+    kd = cKDTree(pts)
+    want = dvg.neighbor_graph(pts, tree=kd)
+    got = dvg.neighbor_graph(pts, tree=kd, spacing=0.5 * rng.uniform(0.5, 2.0))
+    assert np.array_equal(got, want)
+
+
+def test_morton_order_equals_the_bitwise_numpy_codes():
+    """The Morton codes of the kernel are those of the numpy bit loop it replaced."""
+    rng = np.random.default_rng(3)
+    p = rng.normal(0.0, 50.0, (5000, 3))
+    for cell in (0.1, 1e-7, 10.0):
+        g = np.floor((p - p.min(axis=0)) / cell).astype(np.int64)
+        g >>= max(0, int(g.max()).bit_length() - 21)
+        code = np.zeros(p.shape[0], dtype=np.int64)
+        for bit in range(21):
+            for ax in range(3):
+                code |= ((g[:, ax] >> bit) & 1) << (3 * bit + ax)
+        assert np.array_equal(dvg.morton_order(p, cell), np.argsort(code, kind="stable"))
+
+
+def test_grid_neighbour_graph_falls_back_for_a_tiny_spacing_and_checks_it():
+    """A spacing so small that the grid's cell keys would overflow: the kd-tree's graph; a
+    spacing that is not a number > 0: ValueError."""
+    pts = np.random.default_rng(0).uniform(-1e6, 1e6, (500, 3))
+    kd = cKDTree(pts)
+    assert np.array_equal(dvg.neighbor_graph(pts, tree=kd, spacing=1e-9),
+                          dvg.neighbor_graph(pts, tree=kd))
+    for bad in (0.0, -1.0, float("nan")):
+        with pytest.raises(ValueError, match="spacing"):
+            dvg.neighbor_graph(pts, tree=kd, spacing=bad)

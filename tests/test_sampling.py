@@ -8,7 +8,8 @@ from scipy.spatial import cKDTree
 
 from shapeverify.cad.model import Face, Model
 from shapeverify.cad.nurbs import NurbsSurface, sphere
-from shapeverify.cad.sampling import MAX_POINTS, sample_model
+from shapeverify.cad.sampling import (CAD_MAX_COARSENING, CAD_TARGET_POINTS, MAX_POINTS,
+                                      sample_model)
 
 UNIT_SQUARE = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
 
@@ -390,8 +391,36 @@ def test_needed_spacing_follows_the_geometry():
     X = np.stack(np.meshgrid(g, g, [0.0]), axis=-1).reshape(-1, 3)
     cloud = Model(kind="points", vertices=X, source="grid")
     assert needed_spacing(cloud) == pytest.approx(0.7)
-    face = square_face(sphere(10.0))
-    assert needed_spacing(cad(face)) == 0.0
+    # CAD: a sheet keeps size / 500 (about 1e5 points); a closed solid gets the spacing of
+    # about CAD_TARGET_POINTS points (a sphere: area / size^2 = 1.05 -> 2.6e5 at size / 500)
+    sheet = cad(square_face(plane(0, 100, 0, 60)))
+    assert needed_spacing(sheet) == 0.0
+    ball = cad(square_face(sphere(10.0)))
+    h = needed_spacing(ball)
+    assert ball.size / 500 * 1.2 < h <= ball.size / 500 * CAD_MAX_COARSENING
+    assert 0.85 * CAD_TARGET_POINTS < len(sample_model(ball, h)) < 1.15 * CAD_TARGET_POINTS
+
+
+def test_needed_spacing_of_cad_coarsens_at_most_twofold():
+    """A solid whose size / 500 gives far more than CAD_TARGET_POINTS points is made at most
+    2x coarser (the fast answers' tangent-patch error at most 4x), not down to the count."""
+    from shapeverify.cad.sampling import needed_spacing
+
+    onion = cad(*(square_face(sphere(r)) for r in (10.0, 9.0, 8.0, 7.0)))  # area 3.1 size^2
+    assert needed_spacing(onion) == pytest.approx(onion.size / 500 * CAD_MAX_COARSENING)
+
+
+def test_needed_spacing_of_cad_keeps_thin_walls_resolved():
+    """A 0.1 mm shell (a ball and its inside skin) is not coarsened: at a spacing near the
+    wall's thickness a query's nearest model point lies on the other skin (the impeller's
+    blades at 0.49 mm spacing: registrations locked onto the wrong side of a blade)."""
+    from shapeverify.cad.sampling import CAD_SPACINGS_PER_WALL, needed_spacing
+
+    shell = cad(square_face(sphere(10.0)), square_face(sphere(9.9), reversed=True))
+    assert needed_spacing(shell) == 0.0
+    thick = cad(square_face(sphere(10.0)), square_face(sphere(9.0), reversed=True))
+    h = needed_spacing(thick)          # 1 mm wall: coarser, but 2.5 spacings across the wall
+    assert thick.size / 500 < h <= 1.0 / CAD_SPACINGS_PER_WALL + 1e-9
 
 
 def test_prepare_of_a_coarse_mesh_costs_what_its_triangles_need():

@@ -281,7 +281,7 @@ def model_summary_table(m, title: str) -> Table:
 def prepare(
     model: Path = typer.Argument(..., help="CAD file, mesh or point cloud"),
     output: Path = typer.Option(..., "-o", "--output", help="Output .svm file"),
-    spacing: Optional[float] = typer.Option(None, help="Model-point spacing [mm] (default: from the model size)"),
+    spacing: Optional[float] = typer.Option(None, help="Model-point spacing [mm] (default: model size / 500, up to 2x coarser for a solid part; see prepare)"),
     reach: Optional[float] = typer.Option(None, "--reach", "--max-distance",
                                           help="Reach of the closest-point structure [mm]: queries "
                                                "within it are answered by the grid tree, farther ones "

@@ -24,7 +24,8 @@ from pathlib import Path
 
 import numpy as np
 
-__all__ = ["panel_height", "panel_shape", "example_part_step", "wavy_panel", "PANEL_SIZE", "PANEL_HOLE"]
+__all__ = ["panel_height", "panel_shape", "example_part_step", "wavy_panel", "PANEL_SIZE", "PANEL_HOLE",
+           "turned_part_shape", "turned_part_step", "TURNED_PROFILE"]
 
 #: (length along x, width along y) of the panel in mm
 PANEL_SIZE = (300.0, 200.0)
@@ -111,6 +112,66 @@ def example_part_step(path, holes=(PANEL_HOLE,)) -> Path:
     OSError
         If the file cannot be written.
     """
+    return _write_step(panel_shape(holes), path, _NAME)
+
+
+#: (r, z) profile of the turned example part (mm): bore 8, flange 30, groove 22, shaft 25, 18
+TURNED_PROFILE = ((8, 0), (30, 0), (30, 20), (22, 20), (22, 26), (25, 26), (25, 60), (18, 60),
+                  (18, 95), (8, 95))
+#: its outer circular edges (r, z) rounded with TURNED_FILLET mm fillets
+TURNED_FILLETED = ((30, 0), (30, 20), (22, 26), (25, 60), (18, 95))
+TURNED_FILLET = 1.5
+
+
+def turned_part_shape():
+    """A turned part as an OpenCASCADE solid: the :data:`TURNED_PROFILE` revolved about z, with
+    :data:`TURNED_FILLETED` edges filleted (15 faces: planes, cylinders, tori)."""
+    from OCP.BRepAdaptor import BRepAdaptor_Curve
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakePolygon
+    from OCP.BRepFilletAPI import BRepFilletAPI_MakeFillet
+    from OCP.BRepPrimAPI import BRepPrimAPI_MakeRevol
+    from OCP.GeomAbs import GeomAbs_Circle
+    from OCP.gp import gp_Ax1, gp_Dir, gp_Pnt
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    poly = BRepBuilderAPI_MakePolygon()
+    for r, z in TURNED_PROFILE:
+        poly.Add(gp_Pnt(float(r), 0.0, float(z)))
+    poly.Close()
+    face = BRepBuilderAPI_MakeFace(poly.Wire()).Face()
+    solid = BRepPrimAPI_MakeRevol(face, gp_Ax1(gp_Pnt(0, 0, 0), gp_Dir(0, 0, 1)), False).Shape()
+    fillet = BRepFilletAPI_MakeFillet(solid)
+    ex, seen = TopExp_Explorer(solid, TopAbs_EDGE), set()
+    while ex.More():
+        edge = TopoDS.Edge(ex.Current())      # OCP 8: no _s suffix (ocp-notes)
+        c = BRepAdaptor_Curve(edge)
+        if c.GetType() == GeomAbs_Circle:
+            key = (round(c.Circle().Radius(), 3), round(c.Circle().Location().Z(), 3))
+            if key in TURNED_FILLETED and key not in seen:
+                seen.add(key)
+                fillet.Add(TURNED_FILLET, edge)
+        ex.Next()
+    return fillet.Shape()
+
+
+def turned_part_step(path) -> Path:
+    """Write the turned example part (:func:`turned_part_shape`, mm) to a STEP file.
+
+    >>> import tempfile, pathlib
+    >>> from shapeverify.cad.load import load_model
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     m = load_model(turned_part_step(pathlib.Path(d) / "turned.step"))
+    >>> len(m.faces), round(m.size, 1)
+    (15, 127.4)
+    """
+    return _write_step(turned_part_shape(), path, "shapeverify turned part")
+
+
+def _write_step(shape, path, name) -> Path:
+    """Write an OpenCASCADE shape to STEP (mm) with a fixed time stamp and product name (the
+    file's bytes are a pure function of the shape)."""
     from OCP.IFSelect import IFSelect_RetDone
     from OCP.Interface import Interface_Static
     from OCP.Message import Message, Message_PrinterOStream
@@ -118,7 +179,6 @@ def example_part_step(path, holes=(PANEL_HOLE,)) -> Path:
 
     Message.DefaultMessenger_s().RemovePrinters(Message_PrinterOStream.get_type_descriptor_s())
     path = Path(path)
-    shape = panel_shape(holes)
     Interface_Static.SetCVal_s("write.step.unit", "MM")
     writer = STEPControl_Writer()
     writer.Transfer(shape, STEPControl_AsIs)
@@ -127,7 +187,7 @@ def example_part_step(path, holes=(PANEL_HOLE,)) -> Path:
     text = path.read_text()
     text = re.sub(r"(FILE_NAME\('[^']*',)'[^']*'", rf"\1'{_STAMP}'", text, count=1)
     # the writer numbers products per session ("... panel 2"): make the name fixed
-    text = re.sub(r"PRODUCT\('[^']*',\s*'[^']*'", f"PRODUCT('{_NAME}','{_NAME}'", text)
+    text = re.sub(r"PRODUCT\('[^']*',\s*'[^']*'", f"PRODUCT('{name}','{name}'", text)
     path.write_text(text)
     return path
 

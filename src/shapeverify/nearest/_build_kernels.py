@@ -31,6 +31,7 @@ from numba import njit
 
 from ._classify_kernels import EXTRA
 from ._kernels import walk
+from ._lattice_kernels import nn_extra, nn_lattice
 
 # lattice offsets of a cell's 8 vertices (octant order: x | y << 1 | z << 2)
 _CX = np.array([o & 1 for o in range(8)], dtype=np.int64)
@@ -38,27 +39,11 @@ _CY = np.array([(o >> 1) & 1 for o in range(8)], dtype=np.int64)
 _CZ = np.array([(o >> 2) & 1 for o in range(8)], dtype=np.int64)
 
 
-@njit(cache=True, nogil=True, inline="always")
-def _nn(q0, q1, q2, pts, lst, a, b):
-    """Exact nearest point of q among lst[a:b] (lowest index on ties): (index, distance)."""
-    best = -1
-    bd = np.inf
-    for s in range(a, b):
-        j = lst[s]
-        e0 = pts[j, 0] - q0
-        e1 = pts[j, 1] - q1
-        e2 = pts[j, 2] - q2
-        d = e0 * e0 + e1 * e1 + e2 * e2
-        if d < bd or (d == bd and j < best):
-            bd = d
-            best = j
-    return best, np.sqrt(bd)
-
-
 @njit(cache=True, nogil=True)
 def _vertex_from_lattice(lat_p, oc, c, origin, size, pts, out_i, out_d):
     """The 8 vertices' nearest points of child ``oc`` (coordinates c) from its parent's lattice
-    row ``lat_p`` (27,), and their distances (computed as in :func:`_nn`)."""
+    row ``lat_p`` (27,), and their distances (computed as in
+    :func:`._lattice_kernels.nn_lattice`)."""
     for o in range(8):
         t = (_CX[oc] + _CX[o]) + 3 * (_CY[oc] + _CY[o]) + 9 * (_CZ[oc] + _CZ[o])
         j = lat_p[t]
@@ -281,17 +266,22 @@ def classify_children(parents, off, lst, pts, origin, size, rf, ri, rh, rs, max_
     tol = 1e-12 * size
     li = np.empty(27, dtype=np.int64)
     ld = np.empty(27)
+    qx = np.empty(3)
+    qy = np.empty(3)
+    qz = np.empty(3)
+    sq = np.empty(9)
     for p in range(parents.shape[0]):
         a = off[p]
         b = off[p + 1]
         b0 = 2 * parents[p, 0]
         b1 = 2 * parents[p, 1]
         b2 = 2 * parents[p, 2]
+        for i in range(3):  # lattice point t: (qx[t % 3], qy[t // 3 % 3], qz[t // 9])
+            qx[i] = origin[0] + size * (b0 + i)
+            qy[i] = origin[1] + size * (b1 + i)
+            qz[i] = origin[2] + size * (b2 + i)
+        nn_lattice(qx, qy, qz, pts, lst, a, b, sq, li, ld)
         for t in range(27):
-            q0 = origin[0] + size * (b0 + t % 3)
-            q1 = origin[1] + size * (b1 + (t // 3) % 3)
-            q2 = origin[2] + size * (b2 + t // 9)
-            li[t], ld[t] = _nn(q0, q1, q2, pts, lst, a, b)
             out_lat[p, t] = li[t]
         for oc in range(8):
             m = 8 * p + oc
@@ -387,6 +377,12 @@ def multi_children(ids, parents, off, lst, lat, pts, origin, size, first_seed, f
     ed = np.empty(cap)
     em = np.empty(cap, dtype=np.int64)
     c = np.empty(3, dtype=np.int64)
+    qx = np.empty(3)
+    qy = np.empty(3)
+    qz = np.empty(3)
+    sq = np.empty(9)
+    xi = np.empty(7, dtype=np.int64)
+    xd = np.empty(7)
     for f in range(ids.shape[0]):
         m = ids[f]
         p = _child_cell(m, parents, lat, origin, size, pts, c, vi, vd)
@@ -423,16 +419,20 @@ def multi_children(ids, parents, off, lst, lat, pts, origin, size, first_seed, f
             if stop:
                 break
         if not stop:
+            for i in range(3):  # the extra samples' nearest points, all 7 in one pass
+                qx[i] = origin[0] + h * (2 * c[0] + i)
+                qy[i] = origin[1] + h * (2 * c[1] + i)
+                qz[i] = origin[2] + h * (2 * c[2] + i)
+            nn_extra(qx, qy, qz, EXTRA, pts, lst, a, b, sq, xi, xd)
             for e in range(7):
-                q0 = origin[0] + h * (2 * c[0] + EXTRA[e, 0])
-                q1 = origin[1] + h * (2 * c[1] + EXTRA[e, 1])
-                q2 = origin[2] + h * (2 * c[2] + EXTRA[e, 2])
-                xi, xd = _nn(q0, q1, q2, pts, lst, a, b)
+                q0 = qx[EXTRA[e, 0]]
+                q1 = qy[EXTRA[e, 1]]
+                q2 = qz[EXTRA[e, 2]]
                 if not _walks_ok(q0, q1, q2, seeds, 0, cnt, ed, em, rf, ri, rh, rs, max_moves,
-                                 xi, xd, tol)[0]:
+                                 xi[e], xd[e], tol)[0]:
                     ok = False
                     if last_level and cnt < cap:
-                        seeds[cnt] = xi
+                        seeds[cnt] = xi[e]
                         cnt += 1
                     elif not last_level:
                         break

@@ -10,8 +10,10 @@ Morton curve, links each to its 8 nearest neighbours and builds the DVG tree
 
 Defaults (``size`` = bounding-box diagonal of the model, mm)
 -------------------------------------------------------------
-``spacing = size / 500`` and ``max_distance = 0.03 * size`` (3 % of the size = 15 spacings;
-at most 15 and at least 2 spacings for other spacings).  Queries farther than ``max_distance`` from the model are still
+``spacing = size / 500`` (coarser where the model needs less:
+:func:`shapeverify.cad.sampling.needed_spacing`: a mesh's triangles, a cloud's own spacing, a
+solid CAD part up to 2x coarser, to about 150,000 model points) and ``max_distance = 0.03 * size``
+(3 % of the size = 15 spacings; at most 15 and at least 2 spacings for other spacings).  Queries farther than ``max_distance`` from the model are still
 answered exactly, by a kd-tree (slower).
 
 Memory (:attr:`Prepared.nbytes`) per model point: a 128-byte record (coordinates, 8
@@ -41,6 +43,7 @@ from functools import cached_property
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from . import dvg as _dvg
 from .exact import for_model
@@ -336,9 +339,11 @@ def prepare(model, spacing: float | None = None, reach: float | None = None, *,
     model : Model
         CAD, mesh or point-cloud model (:func:`shapeverify.load_model`).
     spacing : float, optional
-        Model point spacing in mm; default ``model.size / 500`` (for meshes and clouds at
-        least :func:`shapeverify.cad.sampling.needed_spacing`: about 4 points per triangle,
-        the cloud's own point spacing).
+        Model point spacing in mm; default ``model.size / 500``, or coarser where
+        :func:`shapeverify.cad.sampling.needed_spacing` says the model needs less: about 4
+        points per triangle of a mesh, a cloud's own point spacing, and for a solid CAD part
+        (whose ``size / 500`` gives 3-5e5 points) the spacing of about 150,000 points, at most
+        2x coarser and at most 1/2.5 of its thinnest walls.
     reach : float, optional
         The closest-point structure's reach: queries within this distance (mm) are answered by
         the DVG tree, farther ones by a kd-tree; default
@@ -384,7 +389,7 @@ def prepare(model, spacing: float | None = None, reach: float | None = None, *,
                                  "or None for the default")
     t0 = time.perf_counter()
     size = model.size
-    if spacing is None:  # a mesh or cloud needs no finer spacing than its own geometry
+    if spacing is None:  # no finer than the model's geometry needs (mesh, cloud, solid CAD)
         from shapeverify.cad.sampling import needed_spacing
         h = max(default_spacing(size), needed_spacing(model))
     else:
@@ -395,18 +400,29 @@ def prepare(model, spacing: float | None = None, reach: float | None = None, *,
         raise ValueError(f"{model!r} gave no model points at spacing {h} mm")
     t1 = time.perf_counter()
     order = _dvg.morton_order(mp.points, h)
-    fast = _dvg.DVG.build(mp.points[order], h, maxd, _frames(mp)[order])
+    # DVG.build in two steps: the sampled model points (and the frames) are freed before the
+    # tree, the memory peak of the preparation (they live on in the records)
+    pts = _dvg.check_points(mp.points[order], allow_empty=False)
+    frames = _frames(mp)[order]
+    if not np.all(np.isfinite(frames)):  # as DVG.build checks
+        raise ValueError(f"frames must be finite with shape (N, 8) = ({pts.shape[0]}, 8)")
+    kd = cKDTree(pts)
+    rec = _dvg.make_records(pts, _dvg.neighbor_graph(pts, tree=kd, spacing=h), frames)
     face = np.ascontiguousarray(mp.face[order])
-    rows = np.empty((len(mp), 4), dtype=np.int32)
+    rows = np.empty((face.shape[0], 4), dtype=np.int32)
     rows[:, 0] = face
     rows.view(np.float32)[:, 1:3] = mp.uv[order]
+    boundary = np.ascontiguousarray(mp.boundary[order])
+    del mp, pts, order, frames
+    fast = _dvg.DVG.from_records(rec, h, maxd, kd)
+    del rec, kd
     rows[:, 3] = (_other_face_points(fast.points, face, h, fast.kd()) if model.kind == "cad"
                   else -1)
     t2 = time.perf_counter()
-    prep = Prepared(model, fast, rows, np.ascontiguousarray(mp.boundary[order]), h, maxd)
+    prep = Prepared(model, fast, rows, boundary, h, maxd)
     logger.info("prepared %d model points (spacing %.4g mm, max distance %.4g mm): sampling "
-                "%.2f s, tree %.2f s, %.0f bytes/point", len(mp), h, maxd, t1 - t0, t2 - t1,
-                prep.memory_per_point)
+                "%.2f s, tree %.2f s, %.0f bytes/point", face.shape[0], h, maxd, t1 - t0,
+                t2 - t1, prep.memory_per_point)
     return prep
 
 

@@ -1,6 +1,6 @@
 """Global registration: the pose of a scan given in any frame, with no start.
 
-:func:`global_alignment` generates pose hypotheses from two published methods and keeps the one
+:func:`global_alignment` generates pose hypotheses from published methods and keeps the one
 that fits best under one robust objective:
 
 1. *principal axes*: the scan's centroid and principal axes matched with those of the model's
@@ -12,7 +12,10 @@ that fits best under one robust objective:
    nearest-descriptor correspondences, and RANSAC over correspondence triples with the
    edge-length pre-check of Zhou, Park, Koltun ("Fast global registration", ECCV 2016) -- the
    pipeline of Open3D's ``registration_ransac_based_on_feature_matching``;
-3. the identity (the scan may already be in the model's frame).
+3. *axis of revolution* (only for a model that is a solid of revolution, e.g. a turned part):
+   the scan's own axis, read from its normal lines (Pottmann, Randrup 1998), put on the
+   model's both ways up at the best height (:mod:`shapeverify.registration._revolution`);
+4. the identity (the scan may already be in the model's frame).
 
 Every hypothesis is scored by the *fit* of a fixed subset of scan points: the mean over the
 subset of ``max(0, 1 - (d / tau)^2)`` with ``d`` the point's distance to the model (0 for a
@@ -38,7 +41,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from . import _features, _irls
+from . import _features, _irls, _revolution
 from .losses import get_loss
 from .rigid import make_transform, rotation_vector
 
@@ -71,7 +74,8 @@ class GlobalAlignment:
     distance (share of the scored scan points on the surface, see the module docstring); source : which hypothesis it
     came from ('identity', 'principal-axes', 'fpfh-ransac'); n_hypotheses : poses scored;
     runner_up : (fit, rotation deg, normal displacement mm) of the best refined hypothesis that
-    moves the scan differently (None if none); seconds : wall time.
+    moves the scan differently (None if none); seconds : wall time; runner_up_pose : that
+    hypothesis' pose (4, 4) or None.
     """
 
     T_model_scan: np.ndarray
@@ -80,6 +84,7 @@ class GlobalAlignment:
     n_hypotheses: int
     runner_up: tuple | None
     seconds: float
+    runner_up_pose: np.ndarray | None = None
 
     def __repr__(self) -> str:
         return (f"GlobalAlignment(fit={self.fit:.3f}, source={self.source!r}, "
@@ -99,13 +104,20 @@ def _model_size(prep) -> float:
 
 
 def fit_distance(prep) -> float:
-    """Fit distance tau (mm): ``max(4 x model point spacing, 0.005 x model size)``.
+    """Fit distance tau (mm): ``max(4 x model point spacing, 0.005 x model size)``, the spacing
+    of a CAD model taken at most ``size / 500``.
 
     Generous enough for depth-camera noise, small against the model, so a wrong pose fits
-    only where surfaces happen to cross.
+    only where surfaces happen to cross.  A mesh's or a cloud's model points are as sparse as
+    its geometry (the fit cannot be sharper); a CAD model's are not, and its coarser default
+    spacing for solid parts (up to 2 x ``size / 500``, :func:`~shapeverify.cad.sampling.needed_spacing`)
+    leaves the fit distance as it was (it also sets the scale beyond which a pose is flagged).
     """
     sp = float(getattr(prep, "spacing", 0.0) or 0.0)
-    return max(4.0 * sp, 0.005 * _model_size(prep))
+    size = _model_size(prep)
+    if getattr(getattr(prep, "model", None), "kind", None) == "cad":
+        sp = min(sp, size / 500.0)
+    return max(4.0 * sp, 0.005 * size)
 
 
 def _voxel_subsample(X: np.ndarray, voxel: float) -> np.ndarray:
@@ -340,6 +352,7 @@ def global_alignment(scan, prep, rng=0, extra=()) -> GlobalAlignment:
     seed = int(rng.integers(2 ** 31))
     hyps = [("identity", np.eye(4))] + [(k, np.asarray(T, float)) for k, T in extra]
     hyps += [("principal-axes", T) for T in axes_hypotheses(P, side)]
+    hyps += [("revolution-axis", T) for T in _revolution.hypotheses(P, side)]
     hyps += [("fpfh-ransac", T) for T in feature_hypotheses(P, side, seed)]
     tq = 2.0 * side.voxel    # screening: kd-tree on the voxel subsample of the model
     Sq = S[:SCREEN_POINTS]
@@ -365,13 +378,13 @@ def global_alignment(scan, prep, rng=0, extra=()) -> GlobalAlignment:
     refined = [(f, names[i], poses[i]) for f, i in zip(fits, keep)]
     refined.sort(key=lambda r: -r[0])
     best_fit, best_src, best_T = refined[0]
-    runner = None
+    runner = runner_T = None
     for f, _, T in refined[1:]:
         ang, dn = _distinct(best_T, T, S, side, full=True)
         if dn > tau:
-            runner = (f, ang, dn)
+            runner, runner_T = (f, ang, dn), T
             break
     out = GlobalAlignment(best_T, best_fit, best_src, len(hyps), runner,
-                          time.perf_counter() - t0)
+                          time.perf_counter() - t0, runner_T)
     logger.info("global alignment: %r", out)
     return out

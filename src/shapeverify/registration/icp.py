@@ -470,7 +470,7 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
     msg = (f"converged in {st.iterations} iterations" if converged else
            f"not converged: {why}")
     desc = tuple(_describe(undet))
-    notes = list(_pose_warnings(ev, w, ga, tau, radius))
+    notes = list(_pose_warnings(ev, w, ga, tau, radius, T, undet))
     if undet.shape[0]:
         txt = ("scan geometry leaves %d pose direction(s) undetermined: %s"
                % (undet.shape[0], "; ".join(desc)))
@@ -536,8 +536,25 @@ def _rejected_information(ev, w, radius) -> float:
     return float(np.max(np.einsum("ij,ik,kj->j", V, Hr * D, V) / lam))
 
 
-def _pose_warnings(ev, w, ga, tau, radius):
-    """Signs that the final pose is not the right minimum (see ``Registration.warnings``)."""
+def _free_spin(D, undet, tol, radius) -> bool:
+    """The relative pose D (4, 4) is a rotation about an undetermined spin axis (a turned
+    part's spin copies: the deviations are the same) -- D moves two points of that axis, one
+    radius apart, by less than ``tol``."""
+    for e in undet:
+        om = np.linalg.norm(e[:3])
+        if om < 1e-9:
+            continue                                   # a slide, not a spin
+        a, c = e[:3] / om, np.cross(e[:3] / om, e[3:] / om)  # the axis point nearest the origin
+        ends = np.stack([c, c + radius * a])
+        if np.max(np.linalg.norm(ends @ D[:3, :3].T + D[:3, 3] - ends, axis=1)) <= tol:
+            return True
+    return False
+
+
+def _pose_warnings(ev, w, ga, tau, radius, T=None, undet=()):
+    """Signs that the final pose is not the right minimum (see ``Registration.warnings``);
+    with the final pose T and its undetermined directions, a global runner-up that is only
+    a free spin of T is no sign."""
     inl = float(ev.inliers.mean())
     if inl < WARN_INLIERS:
         yield (f"only {100 * inl:.0f} % of the scan points are inliers at the final pose: it "
@@ -559,7 +576,9 @@ def _pose_warnings(ev, w, ga, tau, radius):
             yield (f"the weighted mean residual is {mean:+.3g} mm ({mean / ev.sigma:+.2g} "
                    "sigma): the scan lies systematically on one side of the model (wrong "
                    "minimum, wrong scale or units, or a part that differs everywhere)")
-    if ga is not None and ga.runner_up is not None and ga.runner_up[0] >= WARN_RUNNER_UP * ga.fit:
+    if ga is not None and ga.runner_up is not None and ga.runner_up[0] >= WARN_RUNNER_UP * ga.fit \
+            and not (T is not None and ga.runner_up_pose is not None and _free_spin(
+                ga.runner_up_pose @ np.linalg.inv(T), undet, tau, radius)):
         f, ang, dn = ga.runner_up
         yield (f"another start fits nearly as well (fit {f:.3f} vs {ga.fit:.3f}, {ang:.1f} deg "
                f"away, moving the scan {dn:.3g} mm RMS along the normals): the pose may be a "

@@ -1,0 +1,185 @@
+"""Pose hypotheses for a part that is a solid of revolution: the scan's axis onto the model's.
+
+Why: a partial view of a turned part (a shaft, a flange, a bushing) has principal axes that
+say little about the part's axis (a side view of a stepped shaft: tilted 14-20 deg and shifted
+13-20 mm from the truth), and its FPFH features repeat all around the part, so neither of the
+global search's other generators starts near the right basin (a simulated turned part from
+random sensor poses: 3-4 of 8 views ended 1.7-3.8 mm off, some "converged").  But every normal
+line of a surface of revolution meets its axis, so the axis can be read from the scan itself.
+
+How:
+
+1. The axis of the normal lines (Pottmann, Randrup, "Rotational and helical surface
+   approximation for reverse engineering", Computing 60 (1998) 307-322): a line with direction
+   ``a`` (unit) and moment ``m = c x a`` meets the normal line of point ``p`` with normal ``n``
+   iff ``a . (p x n) + m . n = 0``; the axis minimises the sum of squares of these over the
+   points, with ``m`` eliminated in closed form (a 3 x 3 eigenproblem), re-weighted (Tukey) so
+   that outliers and the parts of the scan that are not turned do not move it.  Normal lines
+   parallel to the axis (plane faces across it) satisfy the condition for any position: they
+   fix the direction only.
+2. The model's axis comes from the same fit on its model points; the model counts as a solid
+   of revolution when :data:`SHARE` of its normal lines meet the axis within 3 deg
+   (:data:`SLOPE`) (checked once per prepared model).  The scan's axis is used when :data:`SCAN_SHARE` of
+   its normal lines agree with it.
+3. Hypotheses: the scan's axis onto the model's, both ways up, shifted along the axis to where
+   the scan fits best (truncated fit at the global search's fit distance, steps of half of it
+   over every overlap of the two axial extents), at :data:`SPINS` spins (a near-symmetric
+   part's features).  The best
+   :data:`KEEP` join the global search's other hypotheses under the same objective.
+"""
+from __future__ import annotations
+
+import weakref
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from .rigid import make_transform, rodrigues
+
+#: share of the model's normal lines that must meet its axis (a solid of revolution)
+SHARE = 0.6
+#: share of the scan's normal lines that must meet the axis read from them (noisy normals of a
+#: depth camera's scan miss by more than 3 deg while the axis is right to 0.1-0.6 deg; a wrong
+#: axis only costs the hypotheses' time: they are judged by the fit like the others)
+SCAN_SHARE = 0.4
+#: the scan's normals: PCA of this many neighbours on a voxel subsample of size / VOXELS
+NEIGHBOURS, VOXELS = 20, 80.0
+#: "near": the normal misses the plane of its point and the axis by less than this sine (3 deg)
+SLOPE = 0.05
+#: the re-weighting's scale floor, as a share of the model's size
+NEAR = 0.004
+#: spins about the axis tried for each way up (30 deg apart)
+SPINS = 12
+#: hypotheses handed to the global search
+KEEP = 4
+
+
+def axis_of_normals(X: np.ndarray, N: np.ndarray, scale: float, iterations: int = 8):
+    """The line (direction (3,), point (3,)) that the normal lines of X (n, 3) with unit
+    normals N (n, 3) meet best (module docstring, step 1), and each normal's misfit (n,): the
+    sine of the angle by which it misses the plane through its point and the axis (0 on a
+    surface of revolution, for a normal along the axis too).  ``scale`` (mm): the floor of the
+    re-weighting's scale (the misfit times the distance from the axis).
+
+    >>> t = np.linspace(0, 2 * np.pi, 50, endpoint=False)
+    >>> X = np.c_[3 + 10 * np.cos(t), -1 + 10 * np.sin(t), np.linspace(0, 20, 50)]
+    >>> N = np.c_[np.cos(t), np.sin(t), 0 * t]
+    >>> a, c, miss = axis_of_normals(X, N, 0.01)
+    >>> np.round(np.abs(a), 6).tolist(), np.round(c[:2], 6).tolist(), float(miss.max()) < 1e-9
+    ([0.0, 0.0, 1.0], [3.0, -1.0], True)
+    """
+    o = X.mean(axis=0)
+    Y = X - o
+    Mo = np.cross(Y, N)
+    w = np.ones(X.shape[0])
+    a = c = None
+    miss = np.zeros(X.shape[0])
+    for _ in range(iterations):
+        W = w[:, None]
+        A = (Mo * W).T @ Mo
+        B = (Mo * W).T @ N
+        C = (N * W).T @ N
+        Cp = np.linalg.pinv(C, rcond=1e-9)
+        K = A - B @ Cp @ B.T
+        _, V = np.linalg.eigh(0.5 * (K + K.T))
+        a = V[:, 0]
+        m = -Cp @ B.T @ a
+        m -= (m @ a) * a                     # Pluecker: the moment is normal to the direction
+        c = np.cross(a, m)                   # the axis point nearest the scan's centroid
+        R = (Y - c) - np.outer((Y - c) @ a, a)           # from the axis to the point
+        rho = np.linalg.norm(R, axis=1)
+        et = np.cross(a, R) / np.maximum(rho, 1e-300)[:, None]  # the spin direction there
+        miss = np.abs(np.einsum("ij,ij->i", N, et))
+        r = miss * rho                       # the intersection condition's residual (mm)
+        sig = max(1.4826 * float(np.median(r)), scale)
+        u = r / (4.685 * sig)
+        w = np.where(u < 1.0, (1.0 - u ** 2) ** 2, 0.0)
+        if w.sum() < 6:
+            break
+    return a, c + o, miss
+
+
+def _agree(miss) -> float:
+    """Share of the normals that meet the axis within SLOPE (about 3 deg)."""
+    return float(np.mean(miss <= SLOPE))
+
+
+def _normals(X: np.ndarray, k: int = 12) -> np.ndarray:
+    _, nb = cKDTree(X).query(X, k=min(k, X.shape[0]))
+    Q = X[nb] - X[nb].mean(axis=1, keepdims=True)
+    _, V = np.linalg.eigh(np.einsum("nki,nkj->nij", Q, Q))
+    return np.ascontiguousarray(V[:, :, 0])
+
+
+_MODEL: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
+def model_axis(side):
+    """(direction, point, (lo, hi) axial extent) of the model's axis of revolution, or None
+    (module docstring, step 2); cached per global-search model side.  A model whose normals
+    all lie along one direction (a flat plate: they meet any parallel line) has none."""
+    try:
+        return _MODEL[side]
+    except (KeyError, TypeError):
+        pass
+    M, Nm = np.asarray(side.axes_points, float), np.asarray(side.axes_normals, float)
+    out = None
+    if M.shape[0] >= 20:
+        a, c, miss = axis_of_normals(M, Nm, NEAR * side.size)
+        around = np.mean(np.abs(Nm @ a) < 0.9) >= 0.1     # faces around the axis, not across
+        if around and _agree(miss) >= SHARE:
+            h = (M - c) @ a
+            out = (a, c, (float(h.min()), float(h.max())))
+    try:
+        _MODEL[side] = out
+    except TypeError:   # not weak-referenceable
+        pass
+    return out
+
+
+def hypotheses(P: np.ndarray, side) -> list[np.ndarray]:
+    """Up to :data:`KEEP` poses (4, 4) with the scan's axis on the model's (module docstring),
+    best fit first; [] when the model is not a solid of revolution or the scan shows no axis."""
+    from .global_search import _quick_fit, _voxel_subsample
+
+    ax = model_axis(side)
+    if ax is None:
+        return []
+    am, cm, (lo, hi) = ax
+    X = P[_voxel_subsample(P, side.size / VOXELS)]
+    if X.shape[0] < NEIGHBOURS:
+        return []
+    a, c, d = axis_of_normals(X, _normals(X, NEIGHBOURS), NEAR * side.size)
+    if _agree(d) < SCAN_SHARE:
+        return []
+    hs = (X - c) @ a
+    S = X[np.linspace(0, X.shape[0] - 1, min(400, X.shape[0])).astype(np.int64)]
+    tau, tree = side.tau, side.all_tree     # nearest model points: a fit to the spacing
+    out = []
+    for up in (1.0, -1.0):
+        R0 = _onto(up * a, am)
+        # scan heights s map to model heights s + z: every overlap of [s0, s1] + z with [lo, hi]
+        s0, s1 = sorted((up * hs.min(), up * hs.max()))
+        zs = np.arange(lo - s1, hi - s0 + 0.5 * tau, 0.5 * tau)
+        # the height at spin 0 (a turned part's fit does not depend on the spin), then the spins
+        fz = [_quick_fit(tree, S, make_transform(R0, cm + z * am - R0 @ c), tau) for z in zs]
+        z = zs[int(np.argmax(fz))]
+        for j in range(SPINS):
+            R = rodrigues(am * (2.0 * np.pi * j / SPINS)) @ R0
+            T = make_transform(R, cm + z * am - R @ c)
+            out.append((_quick_fit(tree, S, T, tau), T))
+    out.sort(key=lambda ft: -ft[0])
+    return [T for _, T in out[:KEEP]]
+
+
+def _onto(u: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """The smallest rotation (3, 3) taking the unit vector u to the unit vector v."""
+    w = np.cross(u, v)
+    s, cth = np.linalg.norm(w), float(u @ v)
+    if s < 1e-12:
+        if cth > 0:
+            return np.eye(3)
+        p = np.eye(3)[np.argmin(np.abs(u))]
+        w = np.cross(u, p)
+        return rodrigues(np.pi * w / np.linalg.norm(w))
+    return rodrigues(w / s * np.arctan2(s, cth))
