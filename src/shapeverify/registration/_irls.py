@@ -36,6 +36,7 @@ Zhang, Yao, Deng, "Fast and robust iterative closest point", IEEE TPAMI 44 (2022
 """
 from __future__ import annotations
 
+import weakref
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
@@ -255,17 +256,66 @@ _SUSPECT = 1e-3
 INFO_POINTS = 4000
 
 
+class ModelArrays(tuple):
+    """(points, normals) (M, 3) of a prepared model, with ``kind`` ("cad", "mesh", "points")
+    and ``size`` (mm) of its model; ``spin`` caches its axis of revolution (see
+    :func:`_spin_direction`)."""
+
+
+_MODEL_ARRAYS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
+
+
 def model_points(prep):
-    """(points, normals) (M, 3) of the model points ``Closest.index`` refers to, or None.
+    """(points, normals) (M, 3) of the model points ``Closest.index`` refers to, or None
+    (a :class:`ModelArrays`, made once per Prepared model).
 
     ``prep.points`` is assembled once per Prepared model (and its arrays are C-contiguous
     float64, so nothing is copied here).
     """
+    try:
+        return _MODEL_ARRAYS[prep]
+    except (KeyError, TypeError):
+        pass
     mp = getattr(prep, "points", None)
     if mp is None or not hasattr(mp, "normals"):
         return None
-    return (np.ascontiguousarray(mp.points, np.float64),
-            np.ascontiguousarray(mp.normals, np.float64))
+    out = ModelArrays((np.ascontiguousarray(mp.points, np.float64),
+                       np.ascontiguousarray(mp.normals, np.float64)))
+    model = getattr(prep, "model", None)
+    out.kind = str(getattr(getattr(model, "kind", None), "value", getattr(model, "kind", "")))
+    out.size = float(getattr(model, "size", 0.0) or 0.0)
+    try:
+        _MODEL_ARRAYS[prep] = out
+    except TypeError:   # not weak-referenceable
+        pass
+    return out
+
+
+#: a mesh's or a cloud's weakest direction within this angle (deg) of a spin about its model's
+#: axis of revolution counts as undetermined (see null_directions)
+SPIN_DEG = 5.0
+
+
+def _spin_direction(mp, center, radius):
+    """The spin about the model's axis of revolution as a scaled direction (6,) about
+    ``center`` (as the eigenvectors of :func:`null_directions`), or None: a mesh or a cloud
+    whose model is a solid of revolution (:func:`._revolution.model_axis`) only."""
+    if getattr(mp, "kind", "cad") not in ("mesh", "points"):
+        return None
+    if not hasattr(mp, "spin"):
+        from types import SimpleNamespace
+
+        from . import _revolution
+        M, Nm = mp
+        s = max(1, M.shape[0] // 5000)
+        size = mp.size or float(np.linalg.norm(np.ptp(M, axis=0)))
+        mp.spin = _revolution.model_axis(SimpleNamespace(axes_points=M[::s],
+                                                         axes_normals=Nm[::s], size=size))
+    if mp.spin is None:
+        return None
+    a, p, _ = mp.spin
+    u = np.r_[a * radius, np.cross(p - center, a)]
+    return u / np.linalg.norm(u)
 
 
 def information_points(ev: "Eval", mp):
@@ -287,7 +337,9 @@ def null_directions(ev: "Eval", mp, H, center, radius) -> np.ndarray:
 
     Cheap test on H first; only when it shows a weak direction (relative eigenvalue below
     1e-3) is the information recomputed from the exact model points and tested against
-    :data:`~shapeverify.registration.rigid.DEGENERATE_RTOL`.
+    :data:`~shapeverify.registration.rigid.DEGENERATE_RTOL`.  A mesh's or a cloud's weak
+    direction that is the spin about its model's axis of revolution (within :data:`SPIN_DEG`)
+    is undetermined too: the symmetry is the part's, the information its facets'.
     """
     D = np.array([1.0 / radius] * 3 + [1.0] * 3)
     lam, V = np.linalg.eigh(H * np.outer(D, D))
@@ -303,7 +355,15 @@ def null_directions(ev: "Eval", mp, H, center, radius) -> np.ndarray:
     else:
         Hq, _ = system(ev.Y, ev.Y, ev.N, ev.w, center)
     lam, V = np.linalg.eigh(Hq * np.outer(D, D))
-    return V[:, lam <= DEGENERATE_RTOL * max(lam[-1], 1e-300)].T.copy()
+    null = V[:, lam <= DEGENERATE_RTOL * max(lam[-1], 1e-300)].T.copy()
+    if null.shape[0] == 0 and lam[0] < _SUSPECT * lam[-1]:
+        # a tessellated (or scanned) solid of revolution: its facets give the spin a weak,
+        # spurious information (relative 1e-4 on a 14k-triangle turned part, against 0 on its
+        # CAD), so the pose drifts along it and never settles; the part itself is symmetric
+        spin = _spin_direction(mp, center, radius)
+        if spin is not None and abs(float(V[:, 0] @ spin)) >= np.cos(np.radians(SPIN_DEG)):
+            null = V[:, :1].T.copy()
+    return null
 
 
 def _pinv_psd(H, radius):
