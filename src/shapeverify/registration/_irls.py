@@ -36,13 +36,13 @@ Zhang, Yao, Deng, "Fast and robust iterative closest point", IEEE TPAMI 44 (2022
 """
 from __future__ import annotations
 
-import weakref
 from dataclasses import dataclass, field
 from typing import NamedTuple
 
 import numpy as np
 
 from . import _kernels
+from ._model_arrays import SPIN_DEG, ModelArrays, information_points, model_points, spin_direction  # noqa: F401,E501
 from .losses import LOSSES, MAD_TO_SIGMA, Loss, robust_scale
 from .options import Method, StageSettings
 from .rigid import (
@@ -256,82 +256,6 @@ _SUSPECT = 1e-3
 INFO_POINTS = 4000
 
 
-class ModelArrays(tuple):
-    """(points, normals) (M, 3) of a prepared model, with ``kind`` ("cad", "mesh", "points")
-    and ``size`` (mm) of its model; ``spin`` caches its axis of revolution (see
-    :func:`_spin_direction`)."""
-
-
-_MODEL_ARRAYS: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
-
-
-def model_points(prep):
-    """(points, normals) (M, 3) of the model points ``Closest.index`` refers to, or None
-    (a :class:`ModelArrays`, made once per Prepared model).
-
-    ``prep.points`` is assembled once per Prepared model (and its arrays are C-contiguous
-    float64, so nothing is copied here).
-    """
-    try:
-        return _MODEL_ARRAYS[prep]
-    except (KeyError, TypeError):
-        pass
-    mp = getattr(prep, "points", None)
-    if mp is None or not hasattr(mp, "normals"):
-        return None
-    out = ModelArrays((np.ascontiguousarray(mp.points, np.float64),
-                       np.ascontiguousarray(mp.normals, np.float64)))
-    model = getattr(prep, "model", None)
-    out.kind = str(getattr(getattr(model, "kind", None), "value", getattr(model, "kind", "")))
-    out.size = float(getattr(model, "size", 0.0) or 0.0)
-    try:
-        _MODEL_ARRAYS[prep] = out
-    except TypeError:   # not weak-referenceable
-        pass
-    return out
-
-
-#: a mesh's or a cloud's weakest direction within this angle (deg) of a spin about its model's
-#: axis of revolution counts as undetermined (see null_directions)
-SPIN_DEG = 5.0
-
-
-def _spin_direction(mp, center, radius):
-    """The spin about the model's axis of revolution as a scaled direction (6,) about
-    ``center`` (as the eigenvectors of :func:`null_directions`), or None: a mesh or a cloud
-    whose model is a solid of revolution (:func:`._revolution.model_axis`) only."""
-    if getattr(mp, "kind", "cad") not in ("mesh", "points"):
-        return None
-    if not hasattr(mp, "spin"):
-        from types import SimpleNamespace
-
-        from . import _revolution
-        M, Nm = mp
-        s = max(1, M.shape[0] // 5000)
-        size = mp.size or float(np.linalg.norm(np.ptp(M, axis=0)))
-        mp.spin = _revolution.model_axis(SimpleNamespace(axes_points=M[::s],
-                                                         axes_normals=Nm[::s], size=size))
-    if mp.spin is None:
-        return None
-    a, p, _ = mp.spin
-    u = np.r_[a * radius, np.cross(p - center, a)]
-    return u / np.linalg.norm(u)
-
-
-def information_points(ev: "Eval", mp):
-    """Exact surface points and normals (the nearest model points) for the information matrix.
-
-    The feet of the fast closest points lie on tangent patches, off the surface by up to
-    spacing^2 x curvature, which gives e.g. a cylinder's rotation about its axis some spurious
-    information; the model points themselves lie on the surface with exact normals.
-    """
-    if mp is None or not np.all(ev.index[ev.valid] >= 0):
-        return ev.Y, ev.N
-    i = np.where(ev.valid, ev.index, 0)
-    valid = ev.valid[:, None]
-    return (np.where(valid, mp[0][i], ev.X), np.where(valid, mp[1][i], 0.0))
-
-
 def null_directions(ev: "Eval", mp, H, center, radius) -> np.ndarray:
     """Scaled-centred directions (k, 6) the geometry does not determine.
 
@@ -360,7 +284,7 @@ def null_directions(ev: "Eval", mp, H, center, radius) -> np.ndarray:
         # a tessellated (or scanned) solid of revolution: its facets give the spin a weak,
         # spurious information (relative 1e-4 on a 14k-triangle turned part, against 0 on its
         # CAD), so the pose drifts along it and never settles; the part itself is symmetric
-        spin = _spin_direction(mp, center, radius)
+        spin = spin_direction(mp, center, radius)
         if spin is not None and abs(float(V[:, 0] @ spin)) >= np.cos(np.radians(SPIN_DEG)):
             null = V[:, :1].T.copy()
     return null
