@@ -22,9 +22,9 @@ How:
    (:data:`SLOPE`) (checked once per prepared model).  The scan's axis is used when :data:`SCAN_SHARE` of
    its normal lines agree with it.
 3. Hypotheses: the scan's axis onto the model's, both ways up, shifted along the axis to where
-   the scan fits best (truncated fit at the global search's fit distance, steps of half of it
-   over every overlap of the two axial extents), at :data:`SPINS` spins (a near-symmetric
-   part's features).  The best
+   the scan fits best (truncated fit at the global search's fit distance, in steps of it over
+   every overlap of the two axial extents, then of a quarter of it around the best), at
+   :data:`SPINS` spins (a near-symmetric part's features).  The best
    :data:`KEEP` join the global search's other hypotheses under the same objective.
 """
 from __future__ import annotations
@@ -160,8 +160,12 @@ def hypotheses(P: np.ndarray, side) -> list[np.ndarray]:
         R0 = _onto(up * a, am)
         # scan heights s map to model heights s + z: every overlap of [s0, s1] + z with [lo, hi]
         s0, s1 = sorted((up * hs.min(), up * hs.max()))
-        zs = np.arange(lo - s1, hi - s0 + 0.5 * tau, 0.5 * tau)
-        # the height at spin 0 (a turned part's fit does not depend on the spin), then the spins
+        # the height at spin 0 (a turned part's fit does not depend on the spin): steps of tau
+        # on a third of the points, then of tau / 4 around the best; then the spins
+        zs = np.arange(lo - s1, hi - s0 + tau, tau)
+        fz = [_quick_fit(tree, S[::3], make_transform(R0, cm + z * am - R0 @ c), tau)
+              for z in zs]
+        zs = zs[int(np.argmax(fz))] + 0.25 * tau * np.arange(-4, 5)
         fz = [_quick_fit(tree, S, make_transform(R0, cm + z * am - R0 @ c), tau) for z in zs]
         z = zs[int(np.argmax(fz))]
         for j in range(SPINS):

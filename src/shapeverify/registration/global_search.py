@@ -199,9 +199,14 @@ def fit_score(prep, S: np.ndarray, T: np.ndarray, tau: float) -> float:
 
 def _distances(side, S, T):
     """Distances (n,) of the moved points S to the model: to the tangent plane of the nearest
-    model point within 3 spacings of it, to the point itself farther away (all valid)."""
+    model point within 3 spacings of it, to the point itself farther away (all valid), inf
+    beyond both 3 spacings and the fit distance (a far point fits at no sharp fit distance and
+    moves no robust scale below it: the fits are the same, and a far-off hypothesis' kd-tree
+    search stops early)."""
     X = S @ T[:3, :3].T + T[:3, 3]
-    e, j = side.all_tree.query(X)
+    cap = max(side.tau, 3.0 * side.spacing)
+    e, j = side.all_tree.query(X, distance_upper_bound=cap * (1.0 + 1e-12))
+    j = np.minimum(j, side.all_points.shape[0] - 1)
     dn = np.abs(np.einsum("ij,ij->i", X - side.all_points[j], side.all_normals[j]))
     d = np.where(e <= 3.0 * side.spacing, dn, e)
     return d, np.ones(d.shape[0], bool)
