@@ -104,13 +104,6 @@ def _agree(miss) -> float:
     return float(np.mean(miss <= SLOPE))
 
 
-def _normals(X: np.ndarray, k: int = 12) -> np.ndarray:
-    _, nb = cKDTree(X).query(X, k=min(k, X.shape[0]))
-    Q = X[nb] - X[nb].mean(axis=1, keepdims=True)
-    _, V = np.linalg.eigh(np.einsum("nki,nkj->nij", Q, Q))
-    return np.ascontiguousarray(V[:, :, 0])
-
-
 _MODEL: "weakref.WeakKeyDictionary" = weakref.WeakKeyDictionary()
 
 
@@ -140,7 +133,7 @@ def model_axis(side):
 def hypotheses(P: np.ndarray, side) -> list[np.ndarray]:
     """Up to :data:`KEEP` poses (4, 4) with the scan's axis on the model's (module docstring),
     best fit first; [] when the model is not a solid of revolution or the scan shows no axis."""
-    from .global_search import _quick_fit, _voxel_subsample
+    from .global_search import _normals, _quick_fit, _voxel_subsample
 
     ax = model_axis(side)
     if ax is None:
@@ -149,7 +142,7 @@ def hypotheses(P: np.ndarray, side) -> list[np.ndarray]:
     X = P[_voxel_subsample(P, side.size / VOXELS)]
     if X.shape[0] < NEIGHBOURS:
         return []
-    a, c, d = axis_of_normals(X, _normals(X, NEIGHBOURS), NEAR * side.size)
+    a, c, d = axis_of_normals(X, _normals(X, cKDTree(X), NEIGHBOURS), NEAR * side.size)
     if _agree(d) < SCAN_SHARE:
         return []
     hs = (X - c) @ a
