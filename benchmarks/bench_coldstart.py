@@ -78,8 +78,9 @@ def cache_files(cache: Path) -> set[str]:
     return {p.name for p in cache.rglob("*.nbc")} if cache.is_dir() else set()
 
 
-def make_inputs(work: Path) -> tuple[Path, Path]:
-    """The example panel (STEP) and a simulated scan of it, made with their own numba cache."""
+def make_inputs(work: Path, env: dict | None = None) -> tuple[Path, Path]:
+    """The example panel (STEP) and a simulated scan of it, made with their own numba cache
+    (or in the environment ``env``)."""
     code = (
         "import sys; from pathlib import Path\n"
         "from shapeverify.cad.examples import example_part_step\n"
@@ -90,8 +91,8 @@ def make_inputs(work: Path) -> tuple[Path, Path]:
         "sim = virtual_scan(load_model(step), pixel=1.2, noise=0.02, shadows=1, blobs=1,\n"
         "                   outlier_fraction=0.05, dents=[(0.4, 15.0)], motion=(4.0, 8.0), rng=2011)\n"
         "write_ply(w / 'scan.ply', sim.scan)\n")
-    cache = work / "inputs-cache"
-    subprocess.run([sys.executable, "-c", code, str(work)], check=True, env=_env(cache), cwd=work)
+    env = _env(work / "inputs-cache") if env is None else env
+    subprocess.run([sys.executable, "-c", code, str(work)], check=True, env=env, cwd=work)
     return work / "panel.step", work / "scan.ply"
 
 

@@ -44,21 +44,11 @@ ROOT = Path(__file__).resolve().parents[1]
 
 
 def make_inputs(work: Path) -> tuple[Path, Path]:
-    """The example panel (STEP) and the simulated scan of ``bench_coldstart.py``, made with this
-    tree's own (warm) cache so that they compile nothing of the measured caches."""
-    code = (
-        "import sys; from pathlib import Path\n"
-        "from shapeverify.cad.examples import example_part_step\n"
-        "from shapeverify.cad.load import load_model\n"
-        "from shapeverify.io.points import write_ply\n"
-        "from shapeverify.simulate import virtual_scan\n"
-        "w = Path(sys.argv[1]); step = example_part_step(w / 'panel.step')\n"
-        "sim = virtual_scan(load_model(step), pixel=1.2, noise=0.02, shadows=1, blobs=1,\n"
-        "                   outlier_fraction=0.05, dents=[(0.4, 15.0)], motion=(4.0, 8.0), rng=2011)\n"
-        "write_ply(w / 'scan.ply', sim.scan)\n")
-    env = dict(os.environ, PYTHONPATH=str(ROOT / "src"))
-    subprocess.run([sys.executable, "-c", code, str(work)], check=True, env=env, cwd=work)
-    return work / "panel.step", work / "scan.ply"
+    """The inputs of ``bench_coldstart.py``, made with this tree's own (warm) cache so that they
+    compile nothing of the measured caches."""
+    from bench_coldstart import make_inputs as coldstart_inputs
+
+    return coldstart_inputs(work, env=dict(os.environ, PYTHONPATH=str(ROOT / "src")))
 
 
 def env_for(src: Path, generic: bool) -> dict:
