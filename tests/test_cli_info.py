@@ -163,3 +163,28 @@ def test_info_of_a_new_cad_file_starts_the_importer_before_parsing(example_step,
     early_importer(["info", "--features", str(example_step)])  # the full import: numba ahead
     assert occ_worker._CURRENT is not None and "--summary" not in occ_worker._CURRENT.proc.args
     occ_worker.shutdown(kill=True)
+
+
+@pytest.mark.slow
+def test_the_command_starts_the_importer_before_it_imports_typer(example_step, cache):
+    """``shapeverify`` (``cli_start.main``, also ``python -m shapeverify``) starts the importer of
+    a new file's ``info`` before typer and rich are imported (~0.2 s the importer's start used
+    to wait for), and answers as ``python -m shapeverify.cli`` does."""
+    code = ("import sys, shapeverify.cli_start as s\n"
+            "from shapeverify.cad import occ_worker\n"
+            "seen = []\n"
+            "real = occ_worker.prestart\n"
+            "def spy(*a, **kw):\n    seen.append('typer' in sys.modules)\n    real(*a, **kw)\n"
+            "occ_worker.prestart = spy\n"
+            "sys.argv = ['shapeverify', 'info', sys.argv[1]]\n"
+            "try:\n    s.main()\n"
+            "except SystemExit as e:\n    print('EXIT', e.code)\n"
+            "print('TYPER BEFORE THE IMPORTER', seen)\n")
+    res = subprocess.run([sys.executable, "-c", code, str(example_step)], capture_output=True,
+                         text=True, timeout=300)
+    assert res.returncode == 0, res.stderr
+    assert "TYPER BEFORE THE IMPORTER [False" in res.stdout, res.stdout
+    assert "EXIT 0" in res.stdout and "faces" in res.stdout
+    plain = subprocess.run([sys.executable, "-m", "shapeverify", "--help"], capture_output=True,
+                           text=True, timeout=300)
+    assert plain.returncode == 0 and "inspect" in plain.stdout

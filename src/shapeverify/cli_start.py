@@ -1,18 +1,30 @@
 """What the command line does before it parses its arguments: start the CAD importer early.
 
 ``shapeverify info`` of a CAD file not read before waits for the importer process (a Python that
-imports OpenCASCADE, about a second); typer needs ~0.2 s to import its helpers and parse the
-command line, so the importer is started before that (:func:`early_importer`, called by
-``cli._GuardedGroup.main``).  Nothing here imports numpy, OCP or numba.
+imports OpenCASCADE, about 1.2 s); importing typer and rich and parsing the command line takes
+~0.2 s, so the importer is started before that: :func:`main` (the ``shapeverify`` command and
+``python -m shapeverify``) calls :func:`early_importer` before it imports the command line
+(``cli._GuardedGroup.main`` calls it too, for ``python -m shapeverify.cli`` and tests; a second
+call finds the importer running).  Nothing here imports numpy, OCP or numba.
 """
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
-__all__ = ["CAD_SUFFIXES", "early_importer", "is_prepared"]
+__all__ = ["CAD_SUFFIXES", "early_importer", "is_prepared", "main"]
 
 CAD_SUFFIXES = (".step", ".stp", ".igs", ".iges")
+
+
+def main() -> int | None:
+    """The ``shapeverify`` command: start the importer if the command will need it, then run the
+    command line (exit codes in :mod:`shapeverify.cli`)."""
+    early_importer(sys.argv[1:])
+    from shapeverify.cli import main as run
+
+    return run()
 
 
 def early_importer(argv: list) -> None:

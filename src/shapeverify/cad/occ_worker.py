@@ -71,6 +71,9 @@ class _Importer:
         env = dict(os.environ)
         env["PYTHONPATH"] = os.pathsep.join([root] + [p for p in
                                                       env.get("PYTHONPATH", "").split(os.pathsep) if p])
+        if summary:  # no linear algebra in a summary: OpenBLAS's thread pool start (~0.1-0.2 s
+            # of numpy's import) is saved where the caller did not choose
+            env.setdefault("OPENBLAS_NUM_THREADS", "1")
         self.pid_owner = os.getpid()
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "shapeverify.cad.occ_worker"] + (["--summary"] if summary else []),
