@@ -1,6 +1,6 @@
 """Cold start: the time to the first answer, with a fresh numba cache directory and with a warm one.
 
-Each step is one fresh process (``python -m shapeverify.cli ...`` or ``python -c ...``), timed as
+Each step is one fresh process (``python -m shapeverify ...``, what the ``shapeverify`` command runs, or ``python -c ...``), timed as
 wall-clock time and as CPU time (user + system of the process and of the children it waited for,
 e.g. the OpenCASCADE importer): on this shared 2-core machine the CPU time is the fair single-core
 figure, the wall time also counts waiting for a core.  Goals (issue 16 item 7):
@@ -127,7 +127,7 @@ def main() -> None:
     try:
         step_file, scan = make_inputs(work)
         small = args.small_step if args.small_step.is_file() else step_file
-        cli = ["-m", "shapeverify.cli"]
+        cli = ["-m", "shapeverify"]  # what the `shapeverify` command runs (cli_start.main)
         insp = cli + ["inspect", "panel.svm", str(scan), "--tolerance", "0.2", "--json", "r.json"]
         warm = work / "cache-warm"
         for i in range(2):
