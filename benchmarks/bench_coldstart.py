@@ -3,7 +3,8 @@
 Each step is one fresh process (``python -m shapeverify ...``, what the ``shapeverify`` command
 runs, or ``python -c ...``), timed as wall-clock time and as CPU time (user + system of the
 process and of the children it waited for, e.g. the OpenCASCADE importer): on this shared 2-core
-machine the CPU time is the fair single-core figure, the wall time also counts waiting for a core.  Goals (issue 16 item 7):
+machine the CPU time is the fair single-core figure, the wall time also counts waiting for a
+core.  Goals (issue 16 item 7):
 
 * ``import shapeverify`` and ``shapeverify info`` of a small STEP file <= 1.5 s;
 * the first ``shapeverify inspect`` after set-up (``make demo`` / ``make test`` run
