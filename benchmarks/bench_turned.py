@@ -5,15 +5,16 @@ with a bore, a groove and five 1.5 mm fillets, 15 faces, 127 mm) written to STEP
 
 1. *Preparation*: ``load_model`` (wall, with the importer process) and ``prepare`` (CPU) at the
    default spacing and at ``size / 500`` (the default before the spacing followed the geometry).
-2. *Pose from the sensor frame*: ``--views`` virtual scans (pixel 0.3 mm, noise 0.015 mm, 2 %
-   outliers) from random view directions, each moved by a random rotation and a translation of
+2. *Pose from the sensor frame*: ``--views`` virtual scans (pixel 0.3 mm, noise ``--noise``
+   0.015 mm, ``--outliers`` 2 %) from random view directions, each moved by a random rotation and a translation of
    up to 800 mm (seeded), registered with no start.  Right: the scan's points lie on the part
    (median exact distance < 0.05 mm) and the part's axis is recovered (tilt < 0.05 deg); the
    spin about the axis is free (the deviations do not depend on it).  Peer: Open3D FPFH +
    RANSAC + point-to-plane ICP with the settings of ``bench_global.py`` (when open3d is
    installed: the ``bench`` extra).  One thread.
 
-Run:  .venv/bin/python benchmarks/bench_turned.py [--views 10] [--out benchmarks/results_turned.md]
+Run:  .venv/bin/python benchmarks/bench_turned.py [--views 10] [--noise 0.015] [--outliers 0.02]
+      [--out benchmarks/results_turned.md]
 """
 from __future__ import annotations
 
@@ -54,6 +55,8 @@ def judge(prep, scan, T, T_true):
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--views", type=int, default=10)
+    ap.add_argument("--noise", type=float, default=0.015, help="scan noise (mm, standard deviation)")
+    ap.add_argument("--outliers", type=float, default=0.02, help="share of outliers in each scan")
     ap.add_argument("--out", default=str(Path(__file__).with_name("results_turned.md")))
     args = ap.parse_args()
     load = subprocess.run(["uptime"], capture_output=True, text=True).stdout.strip()
@@ -95,8 +98,8 @@ def main():
         M = np.eye(4)
         M[:3, :3] = Rotation.random(random_state=100 + k).as_matrix()
         M[:3, 3] = rng.uniform(-800, 800, 3)
-        vs = virtual_scan(model, view=view, pixel=0.3, noise=0.015, motion=M,
-                          outlier_fraction=0.02, rng=k)
+        vs = virtual_scan(model, view=view, pixel=0.3, noise=args.noise, motion=M,
+                          outlier_fraction=args.outliers, rng=k)
         c = time.process_time()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -131,7 +134,8 @@ def main():
         say(r["txt"])
     say("```")
     head = (f"# Turned part: preparation and pose with no start (issue 14)\n\n"
-            f"Command: `.venv/bin/python benchmarks/bench_turned.py --views {args.views}`  \n"
+            f"Command: `.venv/bin/python benchmarks/bench_turned.py --views {args.views} "
+            f"--noise {args.noise} --outliers {args.outliers}`  \n"
             f"Date: {datetime.date.today()}, Python {platform.python_version()}, "
             f"{platform.machine()}, one thread.  Load: `{load}`.\n"
             f"Inputs and criteria: see the docstring of `benchmarks/bench_turned.py`.\n\n")

@@ -43,7 +43,10 @@ SHARE = 0.6
 #: axis only costs the hypotheses' time: they are judged by the fit like the others)
 SCAN_SHARE = 0.4
 #: the scan's normals: PCA of this many neighbours on a voxel subsample of size / VOXELS
+#: (the voxels dense enough to be surface: :func:`_dense_voxels`)
 NEIGHBOURS, VOXELS = 20, 80.0
+#: the scan's voxels that count: those holding at least this share of a typical point's voxel
+DENSE = 0.1
 #: "near": the normal misses the plane of its point and the axis by less than this sine (3 deg)
 SLOPE = 0.05
 #: the re-weighting's scale floor, as a share of the model's size
@@ -133,13 +136,13 @@ def model_axis(side):
 def hypotheses(P: np.ndarray, side) -> list[np.ndarray]:
     """Up to :data:`KEEP` poses (4, 4) with the scan's axis on the model's (module docstring),
     best fit first; [] when the model is not a solid of revolution or the scan shows no axis."""
-    from .global_search import _normals, _quick_fit, _voxel_subsample
+    from .global_search import _normals, _quick_fit
 
     ax = model_axis(side)
     if ax is None:
         return []
     am, cm, (lo, hi) = ax
-    X = P[_voxel_subsample(P, side.size / VOXELS)]
+    X = P[_dense_voxels(P, side.size / VOXELS)]
     if X.shape[0] < NEIGHBOURS:
         return []
     a, c, d = axis_of_normals(X, _normals(X, cKDTree(X), NEIGHBOURS), NEAR * side.size)
@@ -167,6 +170,39 @@ def hypotheses(P: np.ndarray, side) -> list[np.ndarray]:
             out.append((_quick_fit(tree, S, T, tau), T))
     out.sort(key=lambda ft: -ft[0])
     return [T for _, T in out[:KEEP]]
+
+
+def _dense_voxels(P: np.ndarray, voxel: float) -> np.ndarray:
+    """One point per voxel of ``voxel`` (the first in scan order), of the voxels where the scan
+    is dense: whose cell holds at least :data:`DENSE` of the points a typical scan point's cell
+    holds, and at least 3.
+
+    Isolated outliers sit alone in their cells: one point per voxel gave 10 % outliers about
+    half the subsample, and only 10-21 % of the normals met the axis (a turned part's views,
+    noise 0.05 mm), against 70-75 % with the sparse voxels left out.  The cells are the voxels,
+    or larger where a typical voxel holds fewer than 6 points (a coarse scan): then sized to
+    hold about 12.
+
+    >>> P = np.r_[np.repeat([[0.5, 0.5, 0.5], [1.5, 0.5, 0.5]], 10, axis=0), [[9.5, 9.5, 9.5]]]
+    >>> _dense_voxels(P, 1.0).tolist()
+    [0, 10]
+    """
+    from .global_search import _voxel_subsample
+
+    def counts(cell):   # points in each point's cell
+        key = np.floor((P - P.min(axis=0)) / cell).astype(np.int64)
+        dims = key.max(axis=0) + 1
+        flat = (key[:, 0] * dims[1] + key[:, 1]) * dims[2] + key[:, 2]
+        _, inverse, count = np.unique(flat, return_inverse=True, return_counts=True)
+        return count[inverse.ravel()]
+
+    n = counts(voxel)
+    typical = float(np.median(n))
+    if typical < 6:
+        n = counts(voxel * np.sqrt(12.0 / typical))
+        typical = float(np.median(n))
+    sub = _voxel_subsample(P, voxel)
+    return sub[n[sub] >= max(3.0, DENSE * typical)]
 
 
 def _onto(u: np.ndarray, v: np.ndarray) -> np.ndarray:
