@@ -17,6 +17,11 @@ from shapeverify.cli import app
 runner = CliRunner()
 
 
+def _python(*args):
+    """Run this Python with ``args`` in a new process (output captured as text)."""
+    return subprocess.run([sys.executable, *args], capture_output=True, text=True, timeout=300)
+
+
 @pytest.fixture()
 def cache(tmp_path, monkeypatch):
     d = tmp_path / "cache"
@@ -113,8 +118,7 @@ def test_info_of_a_step_file_imports_neither_numba_nor_scipy_in_the_caller(examp
             "try:\n    app(['info', sys.argv[1]], standalone_mode=False)\n"
             "finally:\n    print('LOADED', sorted(m for m in ('numba', 'scipy', 'OCP') "
             "if m in sys.modules))\n")
-    res = subprocess.run([sys.executable, "-c", code, str(example_step)], capture_output=True,
-                         text=True, timeout=300)
+    res = _python("-c", code, str(example_step))
     assert res.returncode == 0, res.stderr
     assert "LOADED []" in res.stdout and "faces" in res.stdout
 
@@ -180,11 +184,9 @@ def test_the_command_starts_the_importer_before_it_imports_typer(example_step, c
             "try:\n    s.main()\n"
             "except SystemExit as e:\n    print('EXIT', e.code)\n"
             "print('TYPER BEFORE THE IMPORTER', seen)\n")
-    res = subprocess.run([sys.executable, "-c", code, str(example_step)], capture_output=True,
-                         text=True, timeout=300)
+    res = _python("-c", code, str(example_step))
     assert res.returncode == 0, res.stderr
     assert "TYPER BEFORE THE IMPORTER [False" in res.stdout, res.stdout
     assert "EXIT 0" in res.stdout and "faces" in res.stdout
-    plain = subprocess.run([sys.executable, "-m", "shapeverify", "--help"], capture_output=True,
-                           text=True, timeout=300)
+    plain = _python("-m", "shapeverify", "--help")
     assert plain.returncode == 0 and "inspect" in plain.stdout
