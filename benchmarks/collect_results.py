@@ -1,7 +1,9 @@
 """Assemble benchmarks/RESULTS.md from the per-benchmark result files (results_*.md).
 
 Each benchmark script writes its own results_<topic>.md with the command that produced it; this
-script puts them together in the order of the data flow. Run: .venv/bin/python benchmarks/collect_results.py
+script puts them together in the order of the data flow.  What is measured or written by hand
+beside a benchmark goes in results_<topic>_notes.md (a benchmark's --out rewrites its own file),
+so RESULTS.md is always what this script makes. Run: .venv/bin/python benchmarks/collect_results.py
 """
 
 from __future__ import annotations
@@ -11,7 +13,9 @@ import platform
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
-ORDER = ["nurbs", "cad_import", "closest", "register", "impeller_starts", "turned", "inspect", "rays", "phase", "fitting", "service"]
+ORDER = ["nurbs", "cad_import", "closest", "closest_notes", "prepare", "register", "global",
+         "impeller_starts", "turned", "inspection", "coldstart", "rays", "measure", "phase",
+         "fitting", "service"]
 
 
 def main() -> None:
