@@ -121,11 +121,15 @@ TURNED_PROFILE = ((8, 0), (30, 0), (30, 20), (22, 20), (22, 26), (25, 26), (25, 
 #: its outer circular edges (r, z) rounded with TURNED_FILLET mm fillets
 TURNED_FILLETED = ((30, 0), (30, 20), (22, 26), (25, 60), (18, 95))
 TURNED_FILLET = 1.5
+#: the keyway's box (mm, corners): 6 wide, 3 deep, 25 long, into the 18 mm radius shaft at +x
+KEYWAY = ((15.0, -3.0, 65.0), (19.0, 3.0, 90.0))
 
 
-def turned_part_shape():
+def turned_part_shape(keyway: bool = False):
     """A turned part as an OpenCASCADE solid: the :data:`TURNED_PROFILE` revolved about z, with
-    :data:`TURNED_FILLETED` edges filleted (15 faces: planes, cylinders, tori)."""
+    :data:`TURNED_FILLETED` edges filleted (15 faces: planes, cylinders, tori); with ``keyway``
+    also a :data:`KEYWAY` slot cut into the 36 mm shaft on the +x side (20 faces), which fixes
+    the spin about the axis."""
     from OCP.BRepAdaptor import BRepAdaptor_Curve
     from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakePolygon
     from OCP.BRepFilletAPI import BRepFilletAPI_MakeFillet
@@ -153,10 +157,17 @@ def turned_part_shape():
                 seen.add(key)
                 fillet.Add(TURNED_FILLET, edge)
         ex.Next()
-    return fillet.Shape()
+    if not keyway:
+        return fillet.Shape()
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut
+    from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
+
+    (x0, y0, z0), (x1, y1, z1) = KEYWAY
+    box = BRepPrimAPI_MakeBox(gp_Pnt(x0, y0, z0), gp_Pnt(x1, y1, z1)).Shape()
+    return BRepAlgoAPI_Cut(fillet.Shape(), box).Shape()
 
 
-def turned_part_step(path) -> Path:
+def turned_part_step(path, keyway: bool = False) -> Path:
     """Write the turned example part (:func:`turned_part_shape`, mm) to a STEP file.
 
     >>> import tempfile, pathlib
@@ -166,7 +177,7 @@ def turned_part_step(path) -> Path:
     >>> len(m.faces), round(m.size, 1)
     (15, 127.4)
     """
-    return _write_step(turned_part_shape(), path, "shapeverify turned part")
+    return _write_step(turned_part_shape(keyway), path, "shapeverify turned part")
 
 
 def _write_step(shape, path, name) -> Path:
