@@ -261,7 +261,7 @@ def model_summary_table(m, title: str) -> Table:
     from shapeverify.cad.summary import ModelSummary, summarize
 
     s = m if isinstance(m, ModelSummary) else summarize(m)
-    lo, hi = np.array(s.lo), np.array(s.hi)
+    lo, hi = np.round(s.lo, 2) + 0.0, np.round(s.hi, 2) + 0.0   # + 0.0: no "-0." shown
     t = Table(title=title, show_header=False)
     t.add_row("kind", s.kind)
     t.add_row("faces", str(s.faces))
