@@ -378,6 +378,7 @@ def query_block(Q, T, A, lo, hi, max_moves, patches):
     code = np.empty(BLOCK, dtype=np.int64)
     best = np.empty(BLOCK, dtype=np.int64)
     cand = np.empty(BLOCK, dtype=np.int64)
+    live = np.empty(BLOCK, dtype=np.int64)
     bd = np.empty(BLOCK)
     act = np.empty(BLOCK, dtype=np.bool_)
     inv = 1.0 / T.cell
@@ -401,25 +402,27 @@ def query_block(Q, T, A, lo, hi, max_moves, patches):
                     fy[t] = y - iy
                     fz[t] = z - iz
                     code[t] = nodes[(ix * dims[1] + iy) * dims[2] + iz]
-        # descend one level per sweep
-        more = True
+        # descend one level per sweep, without branches on the codes just read (a branch on
+        # a loaded code waits for the load: it kept random-order queries' cache misses apart)
+        more = 1
         while more:
-            more = False
+            more = 0
             for t in range(m):
                 c = code[t]
-                if c >= 0:
-                    x = fx[t] + fx[t]
-                    y = fy[t] + fy[t]
-                    z = fz[t] + fz[t]
-                    bx = 1 if x >= 1.0 else 0
-                    by = 1 if y >= 1.0 else 0
-                    bz = 1 if z >= 1.0 else 0
-                    fx[t] = x - bx
-                    fy[t] = y - by
-                    fz[t] = z - bz
-                    c = nodes[c + (bx | (by << 1) | (bz << 2))]
-                    code[t] = c
-                    more = more or c >= 0
+                go = c >= 0
+                x = fx[t] + fx[t]
+                y = fy[t] + fy[t]
+                z = fz[t] + fz[t]
+                bx = 1 if x >= 1.0 else 0
+                by = 1 if y >= 1.0 else 0
+                bz = 1 if z >= 1.0 else 0
+                fx[t] = x - bx
+                fy[t] = y - by
+                fz[t] = z - bz
+                child = nodes[c + (bx | (by << 1) | (bz << 2)) if go else 0]
+                c = child if go else c
+                code[t] = c
+                more |= c >= 0
         # seeds; the rare multi-seed leaves are answered at once
         for t in range(m):
             c = code[t]
@@ -442,35 +445,39 @@ def query_block(Q, T, A, lo, hi, max_moves, patches):
             if act[t]:
                 i = s + t
                 bd[t] = _d2(Q[i, 0], Q[i, 1], Q[i, 2], rf, best[t])
-        # walk: the neighbour that looks closest, then confirm with its exact coordinates
+        # walk: the neighbour that looks closest, then confirm with its exact coordinates; the
+        # queries still walking are listed in live[:k] (compacted without branches)
+        k = 0
+        for t in range(m):
+            live[k] = t
+            k += act[t]
         moves = 0
-        more = True
-        while more and moves < max_moves:
-            more = False
+        while k > 0 and moves < max_moves:
             moves += 1
-            for t in range(m):
-                if act[t]:
-                    i = s + t
-                    b = best[t]
-                    k, de = _ring(Q[i, 0], Q[i, 1], Q[i, 2], b, rf, rh, rs)
-                    if de < bd[t]:
-                        j = np.int64(ri[b, NBR + k])
-                        cand[t] = j
-                        _fetch(rf, j)
-                        more = True
-                    else:
-                        act[t] = False
-            if more:
-                for t in range(m):
-                    if act[t]:
-                        i = s + t
-                        j = cand[t]
-                        d = _d2(Q[i, 0], Q[i, 1], Q[i, 2], rf, j)
-                        if d < bd[t]:
-                            best[t] = j
-                            bd[t] = d
-                        else:
-                            act[t] = False
+            k2 = 0
+            for u in range(k):
+                t = live[u]
+                i = s + t
+                b = best[t]
+                kk, de = _ring(Q[i, 0], Q[i, 1], Q[i, 2], b, rf, rh, rs)
+                j = np.int64(ri[b, NBR + kk])
+                cand[t] = j
+                _fetch(rf, j)
+                live[k2] = t
+                k2 += de < bd[t]
+            k = k2
+            k2 = 0
+            for u in range(k):
+                t = live[u]
+                i = s + t
+                j = cand[t]
+                d = _d2(Q[i, 0], Q[i, 1], Q[i, 2], rf, j)
+                ok = d < bd[t]
+                best[t] = j if ok else best[t]
+                bd[t] = d if ok else bd[t]
+                live[k2] = t
+                k2 += ok
+            k = k2
         if with_rows:
             for t in range(m):
                 if best[t] >= 0:
