@@ -441,43 +441,55 @@ def query_block(Q, T, A, lo, hi, max_moves, patches):
                                        max_moves)
                 best[t] = b
                 bd[t] = d
-        for t in range(m):
-            if act[t]:
-                i = s + t
-                bd[t] = _d2(Q[i, 0], Q[i, 1], Q[i, 2], rf, best[t])
-        # walk: the neighbour that looks closest, then confirm with its exact coordinates; the
-        # queries still walking are listed in live[:k] (compacted without branches)
+        # walk: the neighbour that looks closest (ring), then confirm with its exact
+        # coordinates; a confirmed move computes the next round's ring at once.  The queries
+        # still walking are listed in live[:k] (compacted without branches).  Round 1: the
+        # seed's distance and ring.
         k = 0
         for t in range(m):
+            i = s + t
+            q0 = Q[i, 0]
+            q1 = Q[i, 1]
+            q2 = Q[i, 2]
+            b = best[t] if act[t] else n  # (the sentinel: harmless reads, never live)
+            db = _d2(q0, q1, q2, rf, b)
+            kk, de = _ring(q0, q1, q2, b, rf, rh, rs)
+            j = np.int64(ri[b, NBR + kk])
+            cand[t] = j
+            _fetch(rf, j)
+            if act[t]:
+                bd[t] = db
             live[k] = t
-            k += act[t]
-        moves = 0
-        while k > 0 and moves < max_moves:
-            moves += 1
+            k += act[t] & (de < db)
+        if max_moves < 1:
+            k = 0
+        moves = 1
+        while k > 0:
             k2 = 0
             for u in range(k):
                 t = live[u]
                 i = s + t
-                b = best[t]
-                kk, de = _ring(Q[i, 0], Q[i, 1], Q[i, 2], b, rf, rh, rs)
-                j = np.int64(ri[b, NBR + kk])
-                cand[t] = j
-                _fetch(rf, j)
-                live[k2] = t
-                k2 += de < bd[t]
-            k = k2
-            k2 = 0
-            for u in range(k):
-                t = live[u]
-                i = s + t
+                q0 = Q[i, 0]
+                q1 = Q[i, 1]
+                q2 = Q[i, 2]
                 j = cand[t]
-                d = _d2(Q[i, 0], Q[i, 1], Q[i, 2], rf, j)
+                d = _d2(q0, q1, q2, rf, j)
                 ok = d < bd[t]
-                best[t] = j if ok else best[t]
-                bd[t] = d if ok else bd[t]
+                if ok:
+                    best[t] = j
+                    bd[t] = d
+                    # the next round's ring (not used after the last allowed round)
+                    kk, de = _ring(q0, q1, q2, j, rf, rh, rs)
+                    jn = np.int64(ri[j, NBR + kk])
+                    cand[t] = jn
+                    _fetch(rf, jn)
+                    ok = de < d
                 live[k2] = t
                 k2 += ok
             k = k2
+            moves += 1
+            if moves > max_moves:
+                break
         if with_rows:
             for t in range(m):
                 if best[t] >= 0:
