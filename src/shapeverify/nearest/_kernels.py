@@ -358,7 +358,8 @@ def answer_known(Q, sel, T, A, patches):
 
 @njit(cache=True, nogil=True)
 def query_block(Q, T, A, lo, hi, max_moves, patches):
-    """Nearest model point of queries ``lo:hi`` (``A.index = -1`` where the tree says FAR).
+    """Nearest model point of queries ``lo:hi`` (``A.index = -1`` where the tree says FAR);
+    returns the number of FAR queries.
 
     With ``patches`` also the tangent-patch projection (foot, signed distance, clamped,
     normal) for the answered queries, and when ``T.rows`` is not empty the nearest point's
@@ -384,6 +385,7 @@ def query_block(Q, T, A, lo, hi, max_moves, patches):
     inv = 1.0 / T.cell
     with_rows = patches and rows.shape[0] > 0
     uv = rows.view(np.float32)
+    n_far = 0
     for s in range(lo, hi, BLOCK):
         m = min(BLOCK, hi - s)
         # top grid
@@ -500,6 +502,7 @@ def query_block(Q, T, A, lo, hi, max_moves, patches):
             index[i] = b
             if b < 0:
                 d2[i] = np.inf
+                n_far += 1
                 continue
             d2[i] = bd[t]
             if patches:
@@ -520,3 +523,4 @@ def query_block(Q, T, A, lo, hi, max_moves, patches):
                     out_uv[i, 0] = uv[b, 1]
                     out_uv[i, 1] = uv[b, 2]
                     onb[i] = cl and boundary[b]
+    return n_far
