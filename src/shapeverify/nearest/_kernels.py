@@ -40,7 +40,9 @@ One int32 array ``nodes``.  The first ``nx * ny * nz`` entries are the top grid,
 A query descends from the top grid by doubling its fractional cell coordinate (exact in binary
 floating point), walks greedily from the leaf's seed (from each seed of a multi-seed leaf) to a
 local minimum of the distance.  :func:`query_block` runs blocks of queries stage by stage and
-prefetches the next stage's cache lines, so the memory latencies of different queries overlap.
+prefetches the next stage's cache lines, so the memory latencies of different queries overlap;
+the stages do not branch on values just loaded (a tree code, a ring's verdict): such a branch
+waits for its load and kept the cache misses of different queries apart.
 Its inputs and outputs are two named tuples (:class:`TreeArrays`, :class:`Answers`) of
 C-contiguous writable arrays, so each kernel is compiled once.  A walk step's ring (which of
 the 8 neighbours looks closest) runs in 8-wide vectors (:func:`._intrinsics._ring8`), bit-identical to the
@@ -365,7 +367,8 @@ def query_block(Q, T, A, lo, hi, max_moves, patches):
     normal) for the answered queries, and when ``T.rows`` is not empty the nearest point's
     face, (u, v) and on_boundary (the boundary flag is read only for clamped projections).
     Queries run in blocks of BLOCK, one stage at a time (top grid, one tree level, seed, each
-    walk round), prefetching what the next stage reads.
+    walk round: confirm a move and ring the new point), prefetching what the next stage reads;
+    the queries still walking are kept in a list compacted without branches.
     """
     # every array taken out of the tuples once (not per query: reference counts)
     rf, ri, rh, rs, rows, boundary = T.rf, T.ri, T.rh, T.rs, T.rows, T.boundary
