@@ -97,6 +97,25 @@ def test_far_queries_fall_back_to_exact(sheet):
     assert d[0] == pytest.approx(np.linalg.norm(pts - outside, axis=1).min(), rel=1e-12)
 
 
+def test_query_kernel_counts_the_far_queries_it_leaves_to_the_kd_tree(sheet):
+    """query_block returns how many queries the tree calls FAR (DVG.query skips its pass over
+    the answers when there are none)."""
+    from shapeverify.nearest import _kernels as K
+
+    tree, pts = sheet
+    rng = np.random.default_rng(5)
+    q = np.ascontiguousarray(_near_queries(pts, 2000, 40.0, rng))
+    n = q.shape[0]
+    A = K.Answers(np.empty(n, np.int64), np.empty(n), *(np.empty((0, 3)), np.empty(0),
+                  np.empty(0, np.bool_), np.empty((0, 3)), np.empty(0, np.int32),
+                  np.empty((0, 2)), np.empty(0, np.bool_)))
+    n_far = K.query_block(q, tree._arrays, A, 0, n, 256, False)
+    far = tree.tree.locate(q) == -1
+    assert 0 < n_far == int(far.sum()) < n
+    np.testing.assert_array_equal(A.index < 0, far)
+    assert K.query_block(q[~far].copy(), tree._arrays, A, 0, int((~far).sum()), 256, False) == 0
+
+
 def test_queries_on_grid_vertices_and_cell_faces(sheet):
     tree, pts = sheet
     t = tree.tree

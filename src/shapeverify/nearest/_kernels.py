@@ -40,7 +40,9 @@ One int32 array ``nodes``.  The first ``nx * ny * nz`` entries are the top grid,
 A query descends from the top grid by doubling its fractional cell coordinate (exact in binary
 floating point), walks greedily from the leaf's seed (from each seed of a multi-seed leaf) to a
 local minimum of the distance.  :func:`query_block` runs blocks of queries stage by stage and
-prefetches the next stage's cache lines, so the memory latencies of different queries overlap.
+prefetches the next stage's cache lines, so the memory latencies of different queries overlap;
+the stages do not branch on values just loaded (a tree code, a ring's verdict): such a branch
+waits for its load and kept the cache misses of different queries apart.
 Its inputs and outputs are two named tuples (:class:`TreeArrays`, :class:`Answers`) of
 C-contiguous writable arrays, so each kernel is compiled once.  A walk step's ring (which of
 the 8 neighbours looks closest) runs in 8-wide vectors (:func:`._intrinsics._ring8`), bit-identical to the
@@ -358,13 +360,15 @@ def answer_known(Q, sel, T, A, patches):
 
 @njit(cache=True, nogil=True)
 def query_block(Q, T, A, lo, hi, max_moves, patches):
-    """Nearest model point of queries ``lo:hi`` (``A.index = -1`` where the tree says FAR).
+    """Nearest model point of queries ``lo:hi`` (``A.index = -1`` where the tree says FAR);
+    returns the number of FAR queries.
 
     With ``patches`` also the tangent-patch projection (foot, signed distance, clamped,
     normal) for the answered queries, and when ``T.rows`` is not empty the nearest point's
     face, (u, v) and on_boundary (the boundary flag is read only for clamped projections).
     Queries run in blocks of BLOCK, one stage at a time (top grid, one tree level, seed, each
-    walk round), prefetching what the next stage reads.
+    walk round: confirm a move and ring the new point), prefetching what the next stage reads;
+    the queries still walking are kept in a list compacted without branches.
     """
     # every array taken out of the tuples once (not per query: reference counts)
     rf, ri, rh, rs, rows, boundary = T.rf, T.ri, T.rh, T.rs, T.rows, T.boundary
@@ -378,11 +382,13 @@ def query_block(Q, T, A, lo, hi, max_moves, patches):
     code = np.empty(BLOCK, dtype=np.int64)
     best = np.empty(BLOCK, dtype=np.int64)
     cand = np.empty(BLOCK, dtype=np.int64)
+    live = np.empty(BLOCK, dtype=np.int64)
     bd = np.empty(BLOCK)
     act = np.empty(BLOCK, dtype=np.bool_)
     inv = 1.0 / T.cell
     with_rows = patches and rows.shape[0] > 0
     uv = rows.view(np.float32)
+    n_far = 0
     for s in range(lo, hi, BLOCK):
         m = min(BLOCK, hi - s)
         # top grid
@@ -401,25 +407,27 @@ def query_block(Q, T, A, lo, hi, max_moves, patches):
                     fy[t] = y - iy
                     fz[t] = z - iz
                     code[t] = nodes[(ix * dims[1] + iy) * dims[2] + iz]
-        # descend one level per sweep
-        more = True
+        # descend one level per sweep, without branches on the codes just read (a branch on
+        # a loaded code waits for the load: it kept random-order queries' cache misses apart)
+        more = 1
         while more:
-            more = False
+            more = 0
             for t in range(m):
                 c = code[t]
-                if c >= 0:
-                    x = fx[t] + fx[t]
-                    y = fy[t] + fy[t]
-                    z = fz[t] + fz[t]
-                    bx = 1 if x >= 1.0 else 0
-                    by = 1 if y >= 1.0 else 0
-                    bz = 1 if z >= 1.0 else 0
-                    fx[t] = x - bx
-                    fy[t] = y - by
-                    fz[t] = z - bz
-                    c = nodes[c + (bx | (by << 1) | (bz << 2))]
-                    code[t] = c
-                    more = more or c >= 0
+                go = c >= 0
+                x = fx[t] + fx[t]
+                y = fy[t] + fy[t]
+                z = fz[t] + fz[t]
+                bx = 1 if x >= 1.0 else 0
+                by = 1 if y >= 1.0 else 0
+                bz = 1 if z >= 1.0 else 0
+                fx[t] = x - bx
+                fy[t] = y - by
+                fz[t] = z - bz
+                child = nodes[c + (bx | (by << 1) | (bz << 2)) if go else 0]
+                c = child if go else c
+                code[t] = c
+                more |= c >= 0
         # seeds; the rare multi-seed leaves are answered at once
         for t in range(m):
             c = code[t]
@@ -438,39 +446,55 @@ def query_block(Q, T, A, lo, hi, max_moves, patches):
                                        max_moves)
                 best[t] = b
                 bd[t] = d
+        # walk: the neighbour that looks closest (ring), then confirm with its exact
+        # coordinates; a confirmed move computes the next round's ring at once.  The queries
+        # still walking are listed in live[:k] (compacted without branches).  Round 1: the
+        # seed's distance and ring.
+        k = 0
         for t in range(m):
+            i = s + t
+            q0 = Q[i, 0]
+            q1 = Q[i, 1]
+            q2 = Q[i, 2]
+            b = best[t] if act[t] else n  # (the sentinel: harmless reads, never live)
+            db = _d2(q0, q1, q2, rf, b)
+            kk, de = _ring(q0, q1, q2, b, rf, rh, rs)
+            j = np.int64(ri[b, NBR + kk])
+            cand[t] = j
+            _fetch(rf, j)
             if act[t]:
+                bd[t] = db
+            live[k] = t
+            k += act[t] & (de < db)
+        if max_moves < 1:
+            k = 0
+        moves = 1
+        while k > 0:
+            k2 = 0
+            for u in range(k):
+                t = live[u]
                 i = s + t
-                bd[t] = _d2(Q[i, 0], Q[i, 1], Q[i, 2], rf, best[t])
-        # walk: the neighbour that looks closest, then confirm with its exact coordinates
-        moves = 0
-        more = True
-        while more and moves < max_moves:
-            more = False
+                q0 = Q[i, 0]
+                q1 = Q[i, 1]
+                q2 = Q[i, 2]
+                j = cand[t]
+                d = _d2(q0, q1, q2, rf, j)
+                ok = d < bd[t]
+                if ok:
+                    best[t] = j
+                    bd[t] = d
+                    # the next round's ring (not used after the last allowed round)
+                    kk, de = _ring(q0, q1, q2, j, rf, rh, rs)
+                    jn = np.int64(ri[j, NBR + kk])
+                    cand[t] = jn
+                    _fetch(rf, jn)
+                    ok = de < d
+                live[k2] = t
+                k2 += ok
+            k = k2
             moves += 1
-            for t in range(m):
-                if act[t]:
-                    i = s + t
-                    b = best[t]
-                    k, de = _ring(Q[i, 0], Q[i, 1], Q[i, 2], b, rf, rh, rs)
-                    if de < bd[t]:
-                        j = np.int64(ri[b, NBR + k])
-                        cand[t] = j
-                        _fetch(rf, j)
-                        more = True
-                    else:
-                        act[t] = False
-            if more:
-                for t in range(m):
-                    if act[t]:
-                        i = s + t
-                        j = cand[t]
-                        d = _d2(Q[i, 0], Q[i, 1], Q[i, 2], rf, j)
-                        if d < bd[t]:
-                            best[t] = j
-                            bd[t] = d
-                        else:
-                            act[t] = False
+            if moves > max_moves:
+                break
         if with_rows:
             for t in range(m):
                 if best[t] >= 0:
@@ -481,6 +505,7 @@ def query_block(Q, T, A, lo, hi, max_moves, patches):
             index[i] = b
             if b < 0:
                 d2[i] = np.inf
+                n_far += 1
                 continue
             d2[i] = bd[t]
             if patches:
@@ -501,3 +526,4 @@ def query_block(Q, T, A, lo, hi, max_moves, patches):
                     out_uv[i, 0] = uv[b, 1]
                     out_uv[i, 1] = uv[b, 2]
                     onb[i] = cl and boundary[b]
+    return n_far

@@ -437,12 +437,14 @@ class DVG:
         T = self._arrays if rows is None else self._arrays._replace(
             rows=writable(rows, np.int32), boundary=writable(boundary, np.bool_))
 
+        n_far = []  # per chunk (list.append is atomic)
+
         def chunk(a, b):
-            _kernels.query_block(q, T, A, a, b, _QUERY_MOVES, patches)
+            n_far.append(_kernels.query_block(q, T, A, a, b, _QUERY_MOVES, patches))
 
         run_chunks(chunk, n)
-        far = np.flatnonzero(A.index < 0)
-        if far.size:
+        if sum(n_far):  # (no pass over the answers when the tree answered every query)
+            far = np.flatnonzero(A.index < 0)
             d, j = self.kd().query(q[far])
             A.index[far] = j
             A.d2[far] = d * d
