@@ -4,10 +4,11 @@ issue 14 item 4).
 The stages are those of :func:`shapeverify.nearest.prepared.prepare`, run one after the other
 here so that each gets its own clock:
 
-* ``sample``      ``Model.sample`` (candidates on every face, trims, thinning, frames);
+* ``sample``      ``Model.sample`` (candidates on every face, trims, thinning, tangents);
 * ``order``       the Morton order of the model points;
 * ``kd``          the scipy kd-tree over the model points (neighbour graph, exact fallback);
 * ``graph``       the 8 nearest neighbours of each model point;
+* ``frames``      normals, tangents and the patches' half extents (from the graph);
 * ``records``     the 128-byte model point records;
 * ``tree``        the DVG cell tree (:func:`shapeverify.nearest.dvg.build_tree`);
 * ``other``       the other-face links of the exact mode.
@@ -93,18 +94,18 @@ class Clock:
         return "\n".join(lines)
 
 
-def staged_prepare(model, spacing, reach, clock: Clock):
+def staged_prepare(model, spacing, reach, clock: Clock, finest=None):
     """The steps of ``prepare`` one by one (same calls, same order, same result, the same
     arrays held)."""
     size = model.size
     h = float(spacing)
     maxd = _prepared.default_max_distance(size, h) if reach is None else float(reach)
-    mp = clock.run("sample", model.sample, h)
+    mp = clock.run("sample", model.sample, h, half_extents=False)
     order = clock.run("order", dvg.morton_order, mp.points, h)
     pts = clock.run("points", lambda: np.ascontiguousarray(mp.points[order]))
-    frames = _prepared._frames(mp)[order]
     kd = clock.run("kd", cKDTree, pts)
     graph = clock.run("graph", dvg.neighbor_graph, pts, tree=kd, spacing=h)
+    frames = clock.run("frames", _prepared._frames_from_graph, mp, order, pts, graph, h)
     rec = clock.run("records", dvg.make_records, pts, graph, frames)
     face = np.ascontiguousarray(mp.face[order])
     rows = np.empty((face.shape[0], 4), dtype=np.int32)  # prepare's rows and boundary
@@ -113,7 +114,8 @@ def staged_prepare(model, spacing, reach, clock: Clock):
     boundary = np.ascontiguousarray(mp.boundary[order])
     del mp, frames, graph, pts  # as prepare does: only the records are held during the tree
     _STEP_CLOCK[0] = time.process_time()
-    tree = clock.run("tree", dvg.build_tree, rec, h, maxd, kd=kd)
+    tree = clock.run("tree", dvg.build_tree, rec, h, maxd, kd=kd,
+                     finest=None if finest is None else finest * h)
     fast = dvg.DVG(rec, tree)
     fast._kd = kd
     if model.kind == "cad":
@@ -163,6 +165,8 @@ def main():
     ap.add_argument("model", help="impeller | panel | a model file")
     ap.add_argument("--spacing", type=float, default=None)
     ap.add_argument("--reach", type=float, default=None)
+    ap.add_argument("--finest", type=float, default=None,
+                    help="finest tree cell in spacings (build_tree's default: 0.5)")
     ap.add_argument("--peak", action="store_true", help="tracemalloc peak (slower)")
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--queries", type=int, default=200_000)
@@ -182,7 +186,7 @@ def main():
         tracemalloc.start()
     clock = Clock()
     load_avg = os.getloadavg()[0]
-    fast, maxd = staged_prepare(model, h, args.reach, clock)
+    fast, maxd = staged_prepare(model, h, args.reach, clock, args.finest)
     peak = tracemalloc.get_traced_memory()[1] if args.peak else None
     if args.peak:
         tracemalloc.stop()

@@ -275,6 +275,20 @@ def _frames(mp) -> np.ndarray:
     return np.concatenate([mp.normals, mp.tangent_u, mp.half_extent], axis=1)
 
 
+def _frames_from_graph(mp, order, pts, graph, spacing) -> np.ndarray:
+    """The frames (N, 8) of the model points ``mp`` in ``order`` (points ``pts``), their half
+    extents measured from the neighbour ``graph`` of ``pts``
+    (:func:`shapeverify.cad.sampling.half_extents_from_graph`)."""
+    from shapeverify.cad.sampling import half_extents_from_graph
+
+    frames = np.empty((pts.shape[0], 8))
+    frames[:, 0:3] = mp.normals[order]
+    frames[:, 3:6] = mp.tangent_u[order]
+    frames[:, 6:8] = half_extents_from_graph(pts, frames[:, 3:6], mp.tangent_v[order], spacing,
+                                             graph)
+    return frames
+
+
 def _other_face_points(points, face, spacing, kd, radius: float = 3.0, k: int = 32):
     """For each model point, the nearest model point of another face within radius * spacing.
 
@@ -395,7 +409,9 @@ def prepare(model, spacing: float | None = None, reach: float | None = None, *,
     else:
         h = float(spacing)
     maxd = default_max_distance(size, h) if max_distance is None else float(max_distance)
-    mp = model.sample(h)
+    # the patches' half extents are measured below from the neighbour graph, which the tree
+    # needs anyway (the sampling's own kd-tree search for them would double that work)
+    mp = model.sample(h, half_extents=False)
     if len(mp) == 0:
         raise ValueError(f"{model!r} gave no model points at spacing {h} mm")
     t1 = time.perf_counter()
@@ -403,11 +419,13 @@ def prepare(model, spacing: float | None = None, reach: float | None = None, *,
     # DVG.build in two steps: the sampled model points (and the frames) are freed before the
     # tree, the memory peak of the preparation (they live on in the records)
     pts = _dvg.check_points(mp.points[order], allow_empty=False)
-    frames = _frames(mp)[order]
+    kd = cKDTree(pts)
+    graph = _dvg.neighbor_graph(pts, tree=kd, spacing=h)
+    frames = _frames_from_graph(mp, order, pts, graph, h)
     if not np.all(np.isfinite(frames)):  # as DVG.build checks
         raise ValueError(f"frames must be finite with shape (N, 8) = ({pts.shape[0]}, 8)")
-    kd = cKDTree(pts)
-    rec = _dvg.make_records(pts, _dvg.neighbor_graph(pts, tree=kd, spacing=h), frames)
+    rec = _dvg.make_records(pts, graph, frames)
+    del graph
     face = np.ascontiguousarray(mp.face[order])
     rows = np.empty((face.shape[0], 4), dtype=np.int32)
     rows[:, 0] = face
