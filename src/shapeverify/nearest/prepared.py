@@ -296,7 +296,9 @@ def _other_face_points(points, face, spacing, kd, radius: float = 3.0, k: int = 
     near a face border is refined on every face that can hold its closest point.  (Among the
     k nearest model points: the first of another face.)  Only points whose grid cell of side
     ``radius * spacing`` has another face in it or in one of its 26 neighbours can have one;
-    the kd-tree is asked about those only.
+    they are searched on a grid (:func:`_other_face_on_grid`: about 5x less CPU than the
+    kd-tree at 1M points), and the kd-tree is asked only where its order among equal
+    distances decides the answer, so the links are the kd-tree's either way.
     """
     n = points.shape[0]
     other = np.full(n, -1, dtype=np.int32)
@@ -304,6 +306,8 @@ def _other_face_points(points, face, spacing, kd, radius: float = 3.0, k: int = 
     if kk < 2:
         return other
     cand = np.flatnonzero(_near_other_face(points, face, radius * spacing * (1.0 + 1e-6)))
+    if cand.size:
+        cand = _other_face_on_grid(points, face, radius * spacing, kk, cand, other)
     for lo in range(0, cand.size, 1 << 15):  # (chunk, k) distances and indices: 16 MB
         sel = cand[lo:lo + (1 << 15)]
         d, j = kd.query(points[sel], k=kk, distance_upper_bound=radius * spacing, workers=-1)
@@ -316,6 +320,32 @@ def _other_face_points(points, face, spacing, kd, radius: float = 3.0, k: int = 
         has = diff[rows, first]
         other[sel] = np.where(has, jj[rows, first], -1)
     return other
+
+
+def _other_face_on_grid(points, face, r, k, cand, other):
+    """:func:`_other_face_points` for the points ``cand`` on a grid of cells of side ``r``
+    (:func:`._knn_kernels.other_face_first`, the kd-tree's answers) into ``other``; returns
+    the points whose answer depends on the kd-tree's order among equal distances, for the
+    kd-tree to answer."""
+    from . import _knn_kernels as _kk
+    from ._threads import run_chunks
+
+    pts = np.ascontiguousarray(points, dtype=np.float64)
+    lo = pts.min(axis=0)
+    if np.prod((pts.max(axis=0) - lo) / r + 2.0) > 2.0**62:  # cell keys would overflow
+        return cand
+    grid = _kk.grid_cells(pts, lo, float(r))
+    f = np.ascontiguousarray(face, dtype=np.int32)
+    ans = np.empty(cand.size, dtype=np.int64)
+    flag = np.empty(cand.size, dtype=np.bool_)
+
+    def one(a, b):
+        _kk.other_face_first(pts, f, lo, float(r), *grid, cand[a:b], int(k), ans[a:b],
+                             flag[a:b])
+
+    run_chunks(one, cand.size, 1 << 14)
+    other[cand] = ans
+    return cand[flag]
 
 
 def _near_other_face(points, face, cell):
