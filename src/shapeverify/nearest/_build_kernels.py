@@ -144,9 +144,12 @@ def _bound(vd, wit, pts, c0, c1, c2, half):
 
 @njit(cache=True, nogil=True)
 def _grow(buf, need):
+    """``buf`` with room for ``need`` entries: itself, or a copy 1.5x larger (at least
+    ``need``; 1.5x, not 2x: the slack of the two threads' buffers, each as large as a chunk's
+    lists, was the preparation's memory peak at 1M points)."""
     if need <= buf.shape[0]:
         return buf
-    new = np.empty(max(need, 2 * buf.shape[0]), dtype=buf.dtype)
+    new = np.empty(max(need, buf.shape[0] + buf.shape[0] // 2), dtype=buf.dtype)
     new[:buf.shape[0]] = buf
     return new
 
