@@ -46,6 +46,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from . import dvg as _dvg
+from ._malloc import PREPARE_MMAP_THRESHOLD, lean_malloc, release_memory  # noqa: F401
 from .exact import for_model
 
 logger = logging.getLogger(__name__)
@@ -445,9 +446,25 @@ def prepare(model, spacing: float | None = None, reach: float | None = None, *,
     if len(mp) == 0:
         raise ValueError(f"{model!r} gave no model points at spacing {h} mm")
     t1 = time.perf_counter()
+    held = [mp]
+    del mp  # _structure frees the sampled model points before the tree
+    with lean_malloc():  # the arrays from here on are returned to the system when freed
+        face, rows, boundary, fast = _structure(held, h, maxd, model.kind == "cad")
+    t2 = time.perf_counter()
+    prep = Prepared(model, fast, rows, boundary, h, maxd)
+    logger.info("prepared %d model points (spacing %.4g mm, max distance %.4g mm): sampling "
+                "%.2f s, tree %.2f s, %.0f bytes/point", face.shape[0], h, maxd, t1 - t0,
+                t2 - t1, prep.memory_per_point)
+    return prep
+
+
+def _structure(held, h, maxd, cad):
+    """The second half of :func:`prepare`: (face, rows, boundary, DVG) of the sampled model
+    points ``held[0]``, which are taken out of ``held`` and freed before the tree (the memory
+    peak of the preparation; they live on in the records)."""
+    mp = held.pop()
     order = _dvg.morton_order(mp.points, h)
-    # DVG.build in two steps: the sampled model points (and the frames) are freed before the
-    # tree, the memory peak of the preparation (they live on in the records)
+    # DVG.build in two steps (from_records), so that the frames are freed before the tree too
     pts = _dvg.check_points(mp.points[order], allow_empty=False)
     kd = cKDTree(pts)
     graph = _dvg.neighbor_graph(pts, tree=kd, spacing=h)
@@ -462,16 +479,11 @@ def prepare(model, spacing: float | None = None, reach: float | None = None, *,
     rows.view(np.float32)[:, 1:3] = mp.uv[order]
     boundary = np.ascontiguousarray(mp.boundary[order])
     del mp, pts, order, frames
+    release_memory()  # the heap pages of the freed arrays, before the tree
     fast = _dvg.DVG.from_records(rec, h, maxd, kd)
     del rec, kd
-    rows[:, 3] = (_other_face_points(fast.points, face, h, fast.kd()) if model.kind == "cad"
-                  else -1)
-    t2 = time.perf_counter()
-    prep = Prepared(model, fast, rows, boundary, h, maxd)
-    logger.info("prepared %d model points (spacing %.4g mm, max distance %.4g mm): sampling "
-                "%.2f s, tree %.2f s, %.0f bytes/point", face.shape[0], h, maxd, t1 - t0,
-                t2 - t1, prep.memory_per_point)
-    return prep
+    rows[:, 3] = _other_face_points(fast.points, face, h, fast.kd()) if cad else -1
+    return face, rows, boundary, fast
 
 
 def load_prepared(source) -> Prepared:
