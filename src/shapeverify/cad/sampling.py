@@ -82,7 +82,8 @@ from ._sample_faces import (  # noqa: F401
     _n_coarse, _plan, _sample_cad, _tile_grid)
 from ._sample_mesh import _lattice_count_fill, _mesh_free_edge_flags, _mesh_free_edges, _sample_mesh  # noqa: F401
 
-__all__ = ["sample_model", "half_extents_from_graph", "needed_spacing", "MAX_POINTS", "CAD_TARGET_POINTS", "CAD_MAX_COARSENING"]
+__all__ = ["sample_model", "half_extents_from_graph", "needed_spacing", "MAX_POINTS",
+           "CAD_TARGET_POINTS", "CAD_MAX_COARSENING"]
 
 logger = logging.getLogger(__name__)
 

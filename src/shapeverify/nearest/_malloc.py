@@ -15,9 +15,9 @@ _AFTER_MMAP_THRESHOLD = 32 << 20  # the ceiling of glibc's own (dynamic) thresho
 
 @contextmanager
 def lean_malloc(threshold: int = PREPARE_MMAP_THRESHOLD):
-    """Within the block (entered with :func:`release_memory`), glibc's malloc serves every allocation of ``threshold`` bytes or more
-    with its own memory map, returned to the system when freed (process-wide while the block
-    runs; nothing is done on other C libraries).
+    """Within the block (entered with :func:`release_memory`), glibc's malloc serves every
+    allocation of ``threshold`` bytes or more with its own memory map, returned to the system
+    when freed (process-wide while the block runs; nothing is done on other C libraries).
 
     glibc raises its mmap threshold up to 32 MB after the first large array is freed, so the
     many 1-32 MB temporaries of a preparation then come from the heap, whose freed holes the
