@@ -10,7 +10,9 @@ __all__ = ["lean_malloc", "release_memory", "PREPARE_MMAP_THRESHOLD"]
 _M_MMAP_THRESHOLD = -3  # glibc mallopt parameter
 #: while ``prepare`` runs, arrays from this size on get their own memory map (glibc)
 PREPARE_MMAP_THRESHOLD = 1 << 20
+_M_TRIM_THRESHOLD = -1
 _AFTER_MMAP_THRESHOLD = 32 << 20  # the ceiling of glibc's own (dynamic) threshold, 64 bit
+_AFTER_TRIM_THRESHOLD = 64 << 20  # glibc's trim threshold with it (twice the mmap threshold)
 
 
 @contextmanager
@@ -22,8 +24,9 @@ def lean_malloc(threshold: int = PREPARE_MMAP_THRESHOLD):
     glibc raises its mmap threshold up to 32 MB after the first large array is freed, so the
     many 1-32 MB temporaries of a preparation then come from the heap, whose freed holes the
     process keeps: the 1M-point impeller's peak RSS was about 220 MB higher than with the
-    threshold held down.  Afterwards the threshold is set to 32 MB, where glibc's own
-    adjustment ends up after the first large array (it is no longer adjusted).
+    threshold held down.  Afterwards the thresholds are set where glibc's own adjustment
+    ends up after the first large arrays are freed (mmap 32 MB, trim 64 MB; they are no
+    longer adjusted).
     """
     libc = _glibc()
     if libc is None:
@@ -35,6 +38,7 @@ def lean_malloc(threshold: int = PREPARE_MMAP_THRESHOLD):
         yield
     finally:
         libc.mallopt(_M_MMAP_THRESHOLD, _AFTER_MMAP_THRESHOLD)
+        libc.mallopt(_M_TRIM_THRESHOLD, _AFTER_TRIM_THRESHOLD)
 
 
 def release_memory() -> None:
