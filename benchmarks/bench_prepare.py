@@ -4,10 +4,11 @@ issue 14 item 4).
 The stages are those of :func:`shapeverify.nearest.prepared.prepare`, run one after the other
 here so that each gets its own clock:
 
-* ``sample``      ``Model.sample`` (candidates on every face, trims, thinning, frames);
+* ``sample``      ``Model.sample`` (candidates on every face, trims, thinning, tangents);
 * ``order``       the Morton order of the model points;
 * ``kd``          the scipy kd-tree over the model points (neighbour graph, exact fallback);
 * ``graph``       the 8 nearest neighbours of each model point;
+* ``frames``      normals, tangents and the patches' half extents (from the graph);
 * ``records``     the 128-byte model point records;
 * ``tree``        the DVG cell tree (:func:`shapeverify.nearest.dvg.build_tree`);
 * ``other``       the other-face links of the exact mode.
@@ -78,33 +79,41 @@ class Clock:
         c, w = time.process_time(), time.perf_counter()
         out = fn(*a, **kw)
         peak = tracemalloc.get_traced_memory()[1] / 2**20 if tracing else float("nan")
-        self.rows.append((name, time.process_time() - c, time.perf_counter() - w, peak))
+        self.rows.append((name, time.process_time() - c, time.perf_counter() - w, peak,
+                          _rss_kb("VmRSS") / 1024, _rss_kb("VmHWM") / 1024))
         return out
 
     def table(self) -> str:
         tc = sum(r[1] for r in self.rows)
         tw = sum(r[2] for r in self.rows)
-        lines = ["| stage | CPU s | share | wall s | peak MiB (tracemalloc) |",
-                 "|---|---:|---:|---:|---:|"]
-        for name, c, w, p in self.rows:
+        lines = ["| stage | CPU s | share | wall s | peak MiB (tracemalloc) | RSS after, MiB "
+                 "| peak RSS so far |", "|---|---:|---:|---:|---:|---:|---:|"]
+        for name, c, w, p, rss, hwm in self.rows:
             lines.append(f"| {name} | {c:.2f} | {100 * c / max(tc, 1e-9):.0f} % | {w:.2f} | "
-                         f"{p:.0f} |")
-        lines.append(f"| **total** | **{tc:.2f}** | | {tw:.2f} | |")
+                         f"{p:.0f} | {rss:.0f} | {hwm:.0f} |")
+        lines.append(f"| **total** | **{tc:.2f}** | | {tw:.2f} | | | |")
         return "\n".join(lines)
 
 
-def staged_prepare(model, spacing, reach, clock: Clock):
+def staged_prepare(model, spacing, reach, clock: Clock, finest=None,
+                   mmap_threshold=_prepared.PREPARE_MMAP_THRESHOLD):
     """The steps of ``prepare`` one by one (same calls, same order, same result, the same
-    arrays held)."""
+    arrays held, glibc's malloc held lean after the sampling)."""
     size = model.size
     h = float(spacing)
     maxd = _prepared.default_max_distance(size, h) if reach is None else float(reach)
-    mp = clock.run("sample", model.sample, h)
+    held = [clock.run("sample", model.sample, h, half_extents=False)]
+    with _prepared.lean_malloc(mmap_threshold):
+        return _staged_structure(model, held, h, maxd, clock, finest)
+
+
+def _staged_structure(model, held, h, maxd, clock, finest):
+    mp = held.pop()  # freed before the tree, as prepare does
     order = clock.run("order", dvg.morton_order, mp.points, h)
     pts = clock.run("points", lambda: np.ascontiguousarray(mp.points[order]))
-    frames = _prepared._frames(mp)[order]
     kd = clock.run("kd", cKDTree, pts)
     graph = clock.run("graph", dvg.neighbor_graph, pts, tree=kd, spacing=h)
+    frames = clock.run("frames", _prepared._frames_from_graph, mp, order, pts, graph, h)
     rec = clock.run("records", dvg.make_records, pts, graph, frames)
     face = np.ascontiguousarray(mp.face[order])
     rows = np.empty((face.shape[0], 4), dtype=np.int32)  # prepare's rows and boundary
@@ -112,8 +121,10 @@ def staged_prepare(model, spacing, reach, clock: Clock):
     rows.view(np.float32)[:, 1:3] = mp.uv[order]
     boundary = np.ascontiguousarray(mp.boundary[order])
     del mp, frames, graph, pts  # as prepare does: only the records are held during the tree
+    _prepared.release_memory()
     _STEP_CLOCK[0] = time.process_time()
-    tree = clock.run("tree", dvg.build_tree, rec, h, maxd, kd=kd)
+    tree = clock.run("tree", dvg.build_tree, rec, h, maxd, kd=kd,
+                     finest=None if finest is None else finest * h)
     fast = dvg.DVG(rec, tree)
     fast._kd = kd
     if model.kind == "cad":
@@ -141,7 +152,7 @@ _STEP_CLOCK = [0.0]  # CPU seconds at the previous tree step (reset when the tre
 
 def _log_tree_steps():
     """Print each debug line of the tree build with the CPU seconds since the previous one
-    (``time.process_time``: all threads)."""
+    (``time.process_time``: all threads) and the process' RSS (now and peak so far)."""
     import logging
 
     last = _STEP_CLOCK
@@ -149,7 +160,8 @@ def _log_tree_steps():
     class Steps(logging.Handler):
         def emit(self, record):
             t = time.process_time()
-            print(f"  tree +{t - last[0]:6.2f} s CPU  {record.getMessage()}", flush=True)
+            print(f"  tree +{t - last[0]:6.2f} s CPU, RSS {_rss_kb('VmRSS') / 1024:4.0f} MiB "
+                  f"(peak {_rss_kb('VmHWM') / 1024:4.0f})  {record.getMessage()}", flush=True)
             last[0] = t
 
     lg = logging.getLogger("shapeverify.nearest.dvg_build")
@@ -158,11 +170,30 @@ def _log_tree_steps():
     lg.propagate = False
 
 
+def _rss_kb(field):
+    """A field of /proc/self/status in kB (VmRSS: now, VmHWM: peak); nan elsewhere."""
+    try:
+        with open("/proc/self/status") as f:
+            for line in f:
+                if line.startswith(field + ":"):
+                    return float(line.split()[1])
+    except OSError:
+        pass
+    return float("nan")
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("model", help="impeller | panel | a model file")
     ap.add_argument("--spacing", type=float, default=None)
     ap.add_argument("--reach", type=float, default=None)
+    ap.add_argument("--finest", type=float, default=None,
+                    help="finest tree cell in spacings (build_tree's default: 0.5)")
+    ap.add_argument("--mmap-threshold", type=int, default=_prepared.PREPARE_MMAP_THRESHOLD,
+                    help="glibc mmap threshold while preparing (prepared.lean_malloc)")
+    ap.add_argument("--warm", action="store_true",
+                    help="prepare at 8x the spacing first, so that the RSS before the measured "
+                         "preparation holds the loaded numba kernels")
     ap.add_argument("--peak", action="store_true", help="tracemalloc peak (slower)")
     ap.add_argument("--workers", type=int, default=None)
     ap.add_argument("--queries", type=int, default=200_000)
@@ -170,7 +201,7 @@ def main():
     ap.add_argument("--compare", type=Path, default=None)
     ap.add_argument("--levels", action="store_true",
                     help="print the tree's steps (per level: classification, multi-seed pass, "
-                         "seed-list packing, candidate lists) with their CPU seconds")
+                         "seed-list packing, candidate lists) with their CPU seconds and RSS")
     args = ap.parse_args()
     if args.levels:
         _log_tree_steps()
@@ -178,11 +209,14 @@ def main():
     set_workers(args.workers)
     model = load(args.model)
     h = _prepared.default_spacing(model.size) if args.spacing is None else args.spacing
+    if args.warm:  # every kernel loaded (as in a service that prepared a model before)
+        staged_prepare(model, 8 * h, args.reach, Clock())
     if args.peak:
         tracemalloc.start()
     clock = Clock()
     load_avg = os.getloadavg()[0]
-    fast, maxd = staged_prepare(model, h, args.reach, clock)
+    rss0 = _rss_kb("VmRSS")
+    fast, maxd = staged_prepare(model, h, args.reach, clock, args.finest, args.mmap_threshold)
     peak = tracemalloc.get_traced_memory()[1] if args.peak else None
     if args.peak:
         tracemalloc.stop()
@@ -191,6 +225,11 @@ def main():
           f"load average {load_avg:.1f} on {os.cpu_count()} cores, workers {args.workers}")
     print(repr(fast.tree))
     print(clock.table())
+    hwm = _rss_kb("VmHWM")
+    print(f"RSS before preparing (Python, imports, model{', kernels' if args.warm else ''}) "
+          f"{rss0 / 1024:.0f} MiB, peak RSS "
+          f"{hwm / 1024:.0f} MiB: {(hwm - rss0) / 1024:.0f} MiB above = "
+          f"{(hwm - rss0) * 1024 / result:.2f}x the result")
     print(f"result {result / 2**20:.1f} MiB" + (
         f", tracemalloc peak {peak / 2**20:.1f} MiB ({peak / result:.2f}x the result)"
         if peak else ""))

@@ -259,3 +259,45 @@ def test_grid_neighbour_graph_falls_back_for_a_tiny_spacing_and_checks_it():
     for bad in (0.0, -1.0, float("nan")):
         with pytest.raises(ValueError, match="spacing"):
             dvg.neighbor_graph(pts, tree=kd, spacing=bad)
+
+
+def _other_face_by_kd_tree(points, face, spacing, radius=3.0, k=32):
+    """The other-face links as the kd-tree alone gave them (the first point of another face
+    among the k nearest within radius * spacing)."""
+    n = points.shape[0]
+    d, j = cKDTree(points).query(points, k=k, distance_upper_bound=radius * spacing)
+    valid = j < n
+    jj = np.where(valid, j, 0)
+    diff = valid & (face[jj] != face[:, None])
+    first = np.argmax(diff, axis=1)
+    has = diff[np.arange(n), first]
+    return np.where(has, jj[np.arange(n), first], -1).astype(np.int32)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_other_face_links_on_the_grid_equal_the_kd_tree_links(seed):
+    """prepare's other-face links, searched on a grid, are the kd-tree's: an exact lattice full
+    of equal distances (points exactly at the search radius too) split into faces, a second
+    jittered sheet, duplicates on another face, a dense cluster (more than k points within
+    the radius) and a lone point."""
+    from shapeverify.nearest.prepared import _other_face_points
+
+    rng = np.random.default_rng(seed)
+    h = 0.5
+    a = np.stack(np.meshgrid(np.arange(30.0), np.arange(20.0), [0.0], indexing="ij"),
+                 -1).reshape(-1, 3) * h
+    fa = (a[:, 0] > 7.0).astype(np.int32) + 2 * (a[:, 1] > 4.0)
+    b = a[::2] + np.array([0.1, 0.2, 0.6]) + rng.normal(0.0, 0.05, a[::2].shape)
+    fb = np.full(len(b), 4, np.int32)
+    dup = a[:40]
+    fd = np.full(40, 5, np.int32)
+    cl = np.array([5.0, 5.0, -0.3]) + rng.normal(0.0, 0.05, (60, 3))
+    fc = rng.integers(0, 6, 60).astype(np.int32)
+    pts = np.concatenate([a, b, dup, cl, [[100.0, 100.0, 100.0]]])
+    face = np.concatenate([fa, fb, fd, fc, [0]]).astype(np.int32)
+    perm = rng.permutation(len(pts))
+    pts, face = np.ascontiguousarray(pts[perm]), face[perm]
+    want = _other_face_by_kd_tree(pts, face, h)
+    got = _other_face_points(pts, face, h, cKDTree(pts))
+    assert (want >= 0).sum() > 300
+    assert np.array_equal(got, want)

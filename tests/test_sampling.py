@@ -207,6 +207,29 @@ def test_repeatable_and_model_sample():
     assert a.spacing == 0.5
 
 
+def test_half_extents_from_the_neighbour_graph_equal_the_sampling_own():
+    """prepare measures the patches' half extents on its neighbour graph (sample_model's
+    ``half_extents=False``): the same values wherever the 6 nearest points are not tied."""
+    from shapeverify.cad.sampling import half_extents_from_graph
+    from shapeverify.nearest.dvg import neighbor_graph
+
+    s = 0.4
+    m = cad(square_face(clustered_patch()), square_face(sphere(3.0)))
+    ref = sample_model(m, s)
+    mp = m.sample(s, half_extents=False)
+    np.testing.assert_array_equal(mp.points, ref.points)
+    np.testing.assert_array_equal(mp.half_extent, s)  # the placeholder
+    order = np.random.default_rng(1).permutation(len(mp))  # as prepare reorders them
+    pts = np.ascontiguousarray(mp.points[order])
+    graph = neighbor_graph(pts, spacing=s)
+    half = half_extents_from_graph(pts, mp.tangent_u[order], mp.tangent_v[order], s, graph)
+    d = np.linalg.norm(pts[graph[:, 5:7]] - pts[:, None, :], axis=2)
+    untied = d[:, 0] < d[:, 1]
+    assert untied.mean() > 0.9
+    np.testing.assert_array_equal(half[untied], ref.half_extent[order][untied])
+    assert np.all((half >= 0.5 * s) & (half <= 1.5 * s))
+
+
 @pytest.mark.parametrize("spacing", [0, -1.0, np.nan, np.inf, "abc", None])
 def test_bad_spacing(spacing):
     with pytest.raises(ValueError, match="spacing"):

@@ -317,10 +317,10 @@ class Model:
         """Bounding-box diagonal in mm."""
         return float(np.linalg.norm(self.bounds[1] - self.bounds[0]))
 
-    def sample(self, spacing: float, rng=None) -> ModelPoints:
+    def sample(self, spacing: float, rng=None, *, half_extents: bool = True) -> ModelPoints:
         """Model points about ``spacing`` mm apart (see :func:`shapeverify.cad.sampling.sample_model`)."""
         from .sampling import sample_model
-        return sample_model(self, spacing, rng)
+        return sample_model(self, spacing, rng, half_extents=half_extents)
 
     def save(self, path) -> None:
         """Write the model to one file (see :func:`shapeverify.cad.persist.save_model`)."""

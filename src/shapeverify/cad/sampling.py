@@ -82,13 +82,14 @@ from ._sample_faces import (  # noqa: F401
     _n_coarse, _plan, _sample_cad, _tile_grid)
 from ._sample_mesh import _lattice_count_fill, _mesh_free_edge_flags, _mesh_free_edges, _sample_mesh  # noqa: F401
 
-__all__ = ["sample_model", "needed_spacing", "MAX_POINTS", "CAD_TARGET_POINTS", "CAD_MAX_COARSENING"]
+__all__ = ["sample_model", "half_extents_from_graph", "needed_spacing", "MAX_POINTS",
+           "CAD_TARGET_POINTS", "CAD_MAX_COARSENING"]
 
 logger = logging.getLogger(__name__)
 
 
 # ----------------------------------------------------------------------------------- public
-def sample_model(model, spacing, rng=None):
+def sample_model(model, spacing, rng=None, *, half_extents=True):
     """Sample a model's surface with points about ``spacing`` apart in 3D.
 
     Parameters
@@ -100,6 +101,11 @@ def sample_model(model, spacing, rng=None):
     rng : None, int or numpy.random.Generator
         Mesh lattice offsets and point-cloud visiting order; None means a fixed seed
         (repeatable result).  CAD sampling does not use it.
+    half_extents : bool
+        False: ``half_extent`` is left at ``spacing`` (a placeholder), for a caller that
+        measures it later from its own neighbour graph (:func:`half_extents_from_graph`, as
+        ``prepare`` does: it needs the graph anyway, and the kd-tree search here is a quarter
+        of the sampling time at 1M points).
 
     Returns
     -------
@@ -143,7 +149,7 @@ def sample_model(model, spacing, rng=None):
         parts = _sample_cloud(model, s, rng)
     else:
         raise ValueError(f"model.kind must be 'cad', 'mesh' or 'points', got {kind!r}")
-    return _finish(parts, s, model)
+    return _finish(parts, s, model, half_extents)
 
 
 def needed_spacing(model) -> float:
@@ -254,7 +260,7 @@ def _wall_thickness(P, N, probe, upto, share=0.05):
 
 
 # ---------------------------------------------------------------------------------- finish
-def _finish(parts, s, model):
+def _finish(parts, s, model, half_extents=True):
     from shapeverify.cad.model import ModelPoints
 
     P, N, T, F, UV, boundary = parts
@@ -265,19 +271,22 @@ def _finish(parts, s, model):
     T = T - np.einsum("ij,ij->i", T, N)[:, None] * N
     T /= np.linalg.norm(T, axis=1)[:, None]
     Tv = _cross(N, T)
-    half = _half_extents(P, T, Tv, s)
+    half = _half_extents(P, T, Tv, s) if half_extents else np.full((len(P), 2), s)
     return ModelPoints(points=P, normals=N, face=F.astype(np.int32), uv=UV, tangent_u=T,
                        tangent_v=Tv, half_extent=half, boundary=boundary, spacing=s)
 
 
-@njit(cache=True)
-def _max_projections(P, nb, Tu, Tv, out):
-    """out[i] = max over neighbours j of |(P_j - P_i) . Tu_i|, |(P_j - P_i) . Tv_i|."""
+@njit(cache=True, nogil=True)
+def _max_projections(P, nb, Tu, Tv, out, c0=1):
+    """out[i] = max over neighbours j = nb[i, c0:] (-1: none) of |(P_j - P_i) . Tu_i|,
+    |(P_j - P_i) . Tv_i|."""
     for i in range(P.shape[0]):
         mu = 0.0
         mv = 0.0
-        for c in range(1, nb.shape[1]):
+        for c in range(c0, nb.shape[1]):
             j = nb[i, c]
+            if j < 0:
+                continue
             d0 = P[j, 0] - P[i, 0]
             d1 = P[j, 1] - P[i, 1]
             d2 = P[j, 2] - P[i, 2]
@@ -289,6 +298,21 @@ def _max_projections(P, nb, Tu, Tv, out):
                 mv = pv
         out[i, 0] = mu
         out[i, 1] = mv
+
+
+def half_extents_from_graph(P, Tu, Tv, s, graph, k=6):
+    """``half_extent`` (N, 2) of model points ``P`` with tangents ``Tu``, ``Tv`` from their
+    neighbour graph (N, >= k) int32 (other points nearest first, -1 where missing; e.g.
+    :func:`shapeverify.nearest.dvg.neighbor_graph`): the rule of :func:`sample_model` on the
+    first ``k`` neighbours.  The same values as the sampling's own kd-tree search wherever
+    the k nearest are the same points (they can differ only at exact distance ties)."""
+    n = len(P)
+    if n <= 1:
+        return np.full((n, 2), s)
+    proj = np.empty((n, 2))
+    _max_projections(np.ascontiguousarray(P), np.ascontiguousarray(graph[:, :k]),
+                     np.ascontiguousarray(Tu), np.ascontiguousarray(Tv), proj, 0)
+    return np.clip(0.6 * proj, 0.5 * s, 1.5 * s)
 
 
 def _half_extents(P, Tu, Tv, s, k=6):

@@ -144,9 +144,11 @@ def _bound(vd, wit, pts, c0, c1, c2, half):
 
 @njit(cache=True, nogil=True)
 def _grow(buf, need):
+    """``buf`` with room for ``need`` entries: itself, or a copy 1.5x larger (at least
+    ``need``)."""
     if need <= buf.shape[0]:
         return buf
-    new = np.empty(max(need, 2 * buf.shape[0]), dtype=buf.dtype)
+    new = np.empty(max(need, buf.shape[0] + buf.shape[0] // 2), dtype=buf.dtype)
     new[:buf.shape[0]] = buf
     return new
 
@@ -203,7 +205,9 @@ def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
     """
     R = cells.shape[0]
     counts = np.zeros(R, dtype=np.int64)
-    buf = np.empty(max(1024, 64 * R), dtype=np.int32)
+    # room for 512 per cell (about 290 at 1M impeller points): pages never written are never
+    # resident, and the buffer seldom grows (each growth is a copy)
+    buf = np.empty(max(1024, 512 * R), dtype=np.int32)
     pos = 0
     half = 0.5 * size
     wit = np.empty(8, dtype=np.int64)
@@ -447,7 +451,11 @@ def child_lists(ids, parents, off, lst, lat, pts, origin, size):
     (counts (len(ids),) int64, concatenated lists int32)."""
     n = ids.shape[0]
     counts = np.zeros(n, dtype=np.int64)
-    buf = np.empty(max(1024, 16 * n), dtype=np.int32)
+    cap = 0  # a child's list is part of its parent's: room for those, never grown (pages
+    for f in range(n):  # never written are never resident)
+        p = ids[f] // 8
+        cap += off[p + 1] - off[p]
+    buf = np.empty(max(1024, cap), dtype=np.int32)
     pos = 0
     half = 0.5 * size
     vi = np.empty(8, dtype=np.int64)

@@ -1,5 +1,6 @@
 """numba kernels: the k nearest model points of every model point on a uniform grid (private;
-used by :func:`shapeverify.nearest.dvg.neighbor_graph`), and the Morton codes of
+used by :func:`shapeverify.nearest.dvg.neighbor_graph`), the other-face links of ``prepare``
+(:func:`other_face_first`) and the Morton codes of
 :func:`shapeverify.nearest.dvg.morton_order`.
 
 Model points sample a surface about ``spacing`` apart, so a grid of cells of twice the spacing
@@ -175,3 +176,85 @@ def morton_codes(g):
                 c |= ((g[i, ax] >> bit) & 1) << (3 * bit + ax)
         code[i] = c
     return code
+
+
+@njit(cache=True, nogil=True)
+def other_face_first(points, face, lo, cell, gc, dims, keys, cstart, cend, order, xyz, cand,
+                     k, out, flag):
+    """For each point i = cand[c]: among its k nearest points (itself included) closer than
+    ``cell`` (the grid's side, so its own and the 26 neighbouring cells hold them all), the
+    first of another face, as scipy's ``cKDTree.query(k=k, distance_upper_bound=cell)`` lists
+    them; into ``out[c]`` (-1: none).  That is the nearest point a of another face if fewer
+    than k points are closer than a.  ``flag[c]`` is set where the answer depends on the
+    kd-tree's own order: another point's distance is within a relative 1e-12 of a's (a tie
+    for the first place or across the k-th), a distance is within a relative 1e-9 of the
+    bound, or more than 1024 points lie within it.  Squared distances are formed as the
+    kd-tree forms them."""
+    mask = keys.shape[0] - 1
+    cap = 1024
+    bd = np.empty(cap)
+    r2 = cell * cell
+    for c in range(cand.shape[0]):
+        i = cand[c]
+        fi = face[i]
+        q0 = points[i, 0]
+        q1 = points[i, 1]
+        q2 = points[i, 2]
+        fx = q0 - (lo[0] + cell * gc[i, 0])
+        fy = q1 - (lo[1] + cell * gc[i, 1])
+        fz = q2 - (lo[2] + cell * gc[i, 2])
+        cnt = 0
+        bad = False
+        da = np.inf
+        a = -1
+        for dx in range(-1, 2):
+            cx = gc[i, 0] + dx
+            if cx < 0 or cx >= dims[0]:
+                continue
+            for dy in range(-1, 2):
+                cy = gc[i, 1] + dy
+                if cy < 0 or cy >= dims[1]:
+                    continue
+                gxy = _gap(dx, fx, cell) + _gap(dy, fy, cell)
+                for dz in range(-1, 2):
+                    cz = gc[i, 2] + dz
+                    if cz < 0 or cz >= dims[2]:
+                        continue
+                    if gxy + _gap(dz, fz, cell) > r2 * (1.0 + 1e-9):
+                        continue
+                    h = _slot(keys, (cx * dims[1] + cy) * dims[2] + cz, mask)
+                    if keys[h] == -1:
+                        continue
+                    for s in range(cstart[h], cend[h]):
+                        e0 = xyz[s, 0] - q0
+                        e1 = xyz[s, 1] - q1
+                        e2 = xyz[s, 2] - q2
+                        d = ((0.0 + e0 * e0) + e1 * e1) + e2 * e2
+                        if d >= r2 * (1.0 + 1e-9):
+                            continue
+                        if d >= r2 * (1.0 - 1e-9):
+                            bad = True  # at the bound: in or out is the kd-tree's call
+                        if cnt == cap:
+                            bad = True
+                            continue
+                        bd[cnt] = d
+                        cnt += 1
+                        j = order[s]
+                        if face[j] != fi and (d < da or (d == da and j < a)):
+                            da = d
+                            a = j
+        ans = -1
+        if a >= 0:
+            closer = 0
+            near = 0
+            for t in range(cnt):
+                if abs(bd[t] - da) <= 1e-12 * da:
+                    near += 1
+                elif bd[t] < da:
+                    closer += 1
+            if near > 1:  # a itself is one of them
+                bad = True
+            if closer < k:
+                ans = a
+        out[c] = ans
+        flag[c] = bad

@@ -223,7 +223,7 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
                                                           RV, md, max_moves, workers)
         else:
             kind = np.empty(m, dtype=np.int8)
-            first = np.empty(m, dtype=np.int64)
+            first = np.empty(m, dtype=np.int32)  # point indices (n < 2**31)
             lat = np.empty((parents.shape[0], 27), dtype=np.int32)
             ffail = np.empty(m, dtype=np.int8)
 
@@ -234,9 +234,11 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
 
             run_chunks(_classify, parents.shape[0], 1 << 11)
             logger.debug("DVG level %d: %d cells classified", level, m)
-        code = np.full(m, _kernels.FAR, dtype=np.int64)
+        # the node codes go straight into the level's int32 block (FAR already), each kind's
+        # range checked before it is written
+        code = blocks[-1]
         single = kind == 1
-        code[single] = -(first[single] + 2)
+        code[single] = -(first[single].astype(np.int64) + 2)
         fail = np.flatnonzero(kind == 2)
         n_multi = 0
         # refining the failed cells adds 8 nodes each and, on the next level, seed lists
@@ -270,14 +272,15 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
             n_multi = mi.size
             if mi.size:
                 buf, where = _pack_lists(fseeds[ok], fn[ok])
+                _check_codes(n + n_list + buf.shape[0] + 2)
                 code[mi] = -(n + n_list + where + 2)
                 lists.append(buf)
                 n_list += buf.shape[0]
                 logger.debug("DVG level %d: %d seed lists packed", level, mi.size)
             del fkind, fseeds, fn
         ref = np.flatnonzero(kind == 2)
+        _check_codes(n_nodes + 8 * ref.size)
         code[ref] = n_nodes + 8 * np.arange(ref.size, dtype=np.int64)
-        blocks[-1][:] = code
         logger.debug("DVG level %d: %d cells (size %.4g): %d far, %d leaves (%d multi-seed), "
                      "%d refined%s", level, m, size, int((kind == 0).sum()),
                      int((kind == 1).sum()), n_multi, ref.size, " (last level)" if last else "")
@@ -305,13 +308,19 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
             m = 8 * ref.size
         else:
             m = 0
-        if n_nodes + n + n_list >= 2**31 - 2:
-            raise ValueError("the DVG tree is too large for int32 codes; increase the spacing "
-                             "or decrease max_distance")
-    nodes = np.concatenate(blocks).astype(np.int32)
+        _check_codes(n_nodes + n + n_list)
+    nodes = np.concatenate(blocks)  # int32 blocks
     lst_out = (np.concatenate(lists).astype(np.int32) if lists
                else np.zeros(0, dtype=np.int32))
     return DVGTree(origin, float(cell), dims.astype(np.int64), nodes, lst_out, n, md, depth)
+
+
+def _check_codes(largest: int) -> None:
+    """ValueError if a node code (a child index, or -(point or seed-list index + 2)) as
+    large as ``largest`` would not fit in int32."""
+    if largest >= 2**31 - 2:
+        raise ValueError("the DVG tree is too large for int32 codes; increase the spacing "
+                         "or decrease max_distance")
 
 
 def _pack_lists(seeds: np.ndarray, count: np.ndarray):
