@@ -89,11 +89,10 @@ def _across_share(M, Nm, spin) -> float:
     >>> _across_share(M, Nm, a)
     0.25
     """
-    a, p, _ = spin
-    r = (M - p) - np.outer((M - p) @ a, a)
-    lever = np.einsum("ij,ij->i", Nm, np.cross(a, r))
-    rho = np.maximum(np.linalg.norm(r, axis=1), 1e-300)
-    return float(np.mean(np.abs(lever) / rho >= np.sin(np.radians(FEATURE_DEG))))
+    from ._revolution import normal_misfit
+
+    miss, _ = normal_misfit(M, Nm, spin[0], spin[1])
+    return float(np.mean(miss >= np.sin(np.radians(FEATURE_DEG))))
 
 
 def information_points(ev, mp):

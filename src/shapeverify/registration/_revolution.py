@@ -53,8 +53,8 @@ SLOPE = 0.05
 #: the re-weighting's scale floor, as a share of the model's size
 NEAR = 0.004
 #: spins about the axis tried for each way up (15 deg apart; the best one moved to the best of
-#: its neighbours 3.75 and 7.5 deg on either side): a keyway 6 mm wide on a 36 mm shaft spans 19 deg, and at
-#: 30 deg apart (before) a 4.3-131 deg wrong spin was taken in 2 of 8 views of such a part
+#: its neighbours 3.75 and 7.5 deg on either side): a keyway 6 mm wide on a 36 mm shaft spans
+#: 19 deg; at 30 deg apart (before) one of 4 views of such a part ended 131 deg off
 SPINS = 24
 #: scan points the spins are judged on (a feature that fixes the spin is a few % of them)
 SPIN_POINTS = 2000
@@ -94,10 +94,7 @@ def axis_of_normals(X: np.ndarray, N: np.ndarray, scale: float, iterations: int 
         m = -Cp @ B.T @ a
         m -= (m @ a) * a                     # Pluecker: the moment is normal to the direction
         c = np.cross(a, m)                   # the axis point nearest the scan's centroid
-        R = (Y - c) - np.outer((Y - c) @ a, a)           # from the axis to the point
-        rho = np.linalg.norm(R, axis=1)
-        et = np.cross(a, R) / np.maximum(rho, 1e-300)[:, None]  # the spin direction there
-        miss = np.abs(np.einsum("ij,ij->i", N, et))
+        miss, rho = normal_misfit(Y, N, a, c)
         r = miss * rho                       # the intersection condition's residual (mm)
         sig = max(1.4826 * float(np.median(r)), scale)
         u = r / (4.685 * sig)
@@ -105,6 +102,23 @@ def axis_of_normals(X: np.ndarray, N: np.ndarray, scale: float, iterations: int 
         if w.sum() < 6:
             break
     return a, c + o, miss
+
+
+def normal_misfit(X: np.ndarray, N: np.ndarray, a: np.ndarray, c: np.ndarray):
+    """(miss, rho), each (n,): the sine of the angle by which each unit normal N misses the
+    plane through its point X and the axis (direction a, unit; through c), and the point's
+    distance from the axis.  0 on a surface of revolution about that axis.
+
+    >>> X = np.array([[2.0, 0, 0], [0, 3.0, 1.0]])
+    >>> N = np.array([[1.0, 0, 0], [1.0, 0, 0]])
+    >>> miss, rho = normal_misfit(X, N, np.array([0, 0, 1.0]), np.zeros(3))
+    >>> miss.tolist(), rho.tolist()
+    ([0.0, 1.0], [2.0, 3.0])
+    """
+    R = (X - c) - np.outer((X - c) @ a, a)           # from the axis to the point
+    rho = np.linalg.norm(R, axis=1)
+    et = np.cross(a, R) / np.maximum(rho, 1e-300)[:, None]  # the spin direction there
+    return np.abs(np.einsum("ij,ij->i", N, et)), rho
 
 
 def _agree(miss) -> float:
@@ -191,12 +205,12 @@ def hypotheses(P: np.ndarray, side) -> list[np.ndarray]:
 
 
 def _spin_fit(side, F: np.ndarray, T: np.ndarray) -> float:
-    """Fit of the points F moved by T: mean of ``max(0, 1 - (d / tau)^2)``, d the distance to
-    the nearest model point's tangent plane (:func:`.global_search._distances`)."""
+    """Fit of the points F moved by T (:func:`._features.truncated_fit` at the fit distance), d
+    the distance to the nearest model point's tangent plane (:func:`.global_search._distances`)."""
+    from . import _features
     from .global_search import _distances
 
-    d, _ = _distances(side, F, T)
-    return float(np.mean(np.maximum(0.0, 1.0 - (d / side.tau) ** 2)))
+    return float(_features.truncated_fit(*_distances(side, F, T), side.tau))
 
 
 def _dense_voxels(P: np.ndarray, voxel: float) -> np.ndarray:
@@ -214,13 +228,11 @@ def _dense_voxels(P: np.ndarray, voxel: float) -> np.ndarray:
     >>> _dense_voxels(P, 1.0).tolist()
     [0, 10]
     """
-    from .global_search import _voxel_subsample
+    from .global_search import _voxel_keys, _voxel_subsample
 
     def counts(cell):   # points in each point's cell
-        key = np.floor((P - P.min(axis=0)) / cell).astype(np.int64)
-        dims = key.max(axis=0) + 1
-        flat = (key[:, 0] * dims[1] + key[:, 1]) * dims[2] + key[:, 2]
-        _, inverse, count = np.unique(flat, return_inverse=True, return_counts=True)
+        _, inverse, count = np.unique(_voxel_keys(P, cell), return_inverse=True,
+                                      return_counts=True)
         return count[inverse.ravel()]
 
     n = counts(voxel)

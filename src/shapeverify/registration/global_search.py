@@ -120,12 +120,16 @@ def fit_distance(prep) -> float:
     return max(4.0 * sp, 0.005 * size)
 
 
-def _voxel_subsample(X: np.ndarray, voxel: float) -> np.ndarray:
-    """Index of one point per occupied voxel (the first in scan order: deterministic)."""
+def _voxel_keys(X: np.ndarray, voxel: float) -> np.ndarray:
+    """The voxel (side ``voxel``, from the points' lower corner) of each point, as one int64."""
     key = np.floor((X - X.min(axis=0)) / voxel).astype(np.int64)
     dims = key.max(axis=0) + 1
-    flat = (key[:, 0] * dims[1] + key[:, 1]) * dims[2] + key[:, 2]
-    _, first = np.unique(flat, return_index=True)
+    return (key[:, 0] * dims[1] + key[:, 1]) * dims[2] + key[:, 2]
+
+
+def _voxel_subsample(X: np.ndarray, voxel: float) -> np.ndarray:
+    """Index of one point per occupied voxel (the first in scan order: deterministic)."""
+    _, first = np.unique(_voxel_keys(X, voxel), return_index=True)
     return np.sort(first)
 
 
