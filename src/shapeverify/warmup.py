@@ -33,14 +33,20 @@ logger = logging.getLogger(__name__)
 
 __all__ = ["COLD_SECONDS", "compile_notices", "install_compile_notices", "warm_up", "main"]
 
-#: measured CPU seconds of compiling everything a command needs with an empty cache, on one core
-#: of the 2-core development machine (benchmarks/results_coldstart.md); the estimate in the notice
-COLD_SECONDS = {"inspect": 50.0, "prepare": 40.0, "warmup": 120.0}
+#: measured CPU seconds (fastest, slowest) of compiling everything a command needs with an empty
+#: cache, on one core of the 2-core development machines (benchmarks/results_coldstart.md: 14-20 s
+#: per command on 2026-12-05, 35-50 s on a slower machine on 2026-12-04); the notice's estimate
+COLD_SECONDS = {"inspect": (20.0, 50.0), "prepare": (15.0, 40.0), "warmup": (55.0, 120.0)}
+
+
+def _when(command: str) -> str:
+    """The estimate as text: ``about 20-50 s``."""
+    lo, hi = COLD_SECONDS.get(command, (20.0, 60.0))
+    return f"about {lo:.0f}-{hi:.0f} s"
 
 
 def _message(command: str) -> str:
-    est = COLD_SECONDS.get(command, 60.0)
-    when = f"about {est / 60:.0f} min" if est >= 90 else f"about {est:.0f} s"
+    when = _when(command)
     return (f"compiling the numeric kernels for this machine (first run after installing or "
             f"updating shapeverify: {when} on one core, once; later runs load them from numba's "
             f"cache). To do it ahead: python -m shapeverify.warmup")
@@ -216,10 +222,9 @@ def main(argv=None) -> int:
         logger.addHandler(handler)
         logger.setLevel(logging.INFO)
         logger.propagate = False
-    est = COLD_SECONDS["warmup"]
-    logger.info("shapeverify: compiling the numeric kernels once for this machine (numba; about "
-                "%.0f min on one core with an empty cache, a few seconds when they are cached "
-                "already). Cache: %s", est / 60,
+    logger.info("shapeverify: compiling the numeric kernels once for this machine (numba; %s "
+                "on one core with an empty cache, a few seconds when they are cached "
+                "already). Cache: %s", _when("warmup"),
                 os.environ.get("NUMBA_CACHE_DIR") or "__pycache__ beside the sources")
     seconds = warm_up(lambda text: logger.info("  warm-up: %s", text))
     logger.info("shapeverify: kernels ready (%.0f s)", seconds)
