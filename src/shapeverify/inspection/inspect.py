@@ -57,8 +57,9 @@ def check_scan(scan, model_size: float | None = None) -> np.ndarray:
     if scan.shape[0] == 0:
         raise ScanError("the scan is empty (0 points); nothing to inspect")
     if scan.shape[0] < MIN_SCAN_POINTS:
-        raise ScanError(f"the scan has only {scan.shape[0]} points; at least {MIN_SCAN_POINTS} are "
-                        "needed to register it")
+        n = scan.shape[0]
+        raise ScanError(f"the scan has only {n} point{'s' if n > 1 else ''}; at least "
+                        f"{MIN_SCAN_POINTS} are needed to register it")
     size = _bbox_diagonal(scan)
     if size == 0:
         raise ScanError(f"all {scan.shape[0]} scan points are the same point {scan[0].tolist()}")
