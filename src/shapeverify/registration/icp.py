@@ -50,6 +50,8 @@ import numpy as np
 from .._arrays import check_points
 
 from . import _basin, _irls, _restart
+from ._noise import scan_noise
+from ._pose_warnings import pose_warnings
 from ._irls import IterationRecord
 from .losses import get_loss
 from .options import InitMode, InitName, LossName, Method, MethodName, StageSettings
@@ -75,6 +77,8 @@ PROBE = True
 #: probe rounds at most (another direction may rest on few points once one is right; a start
 #: several wall thicknesses deep moves one wall per round: 3 left one impeller scan locked)
 PROBE_ROUNDS = 6
+#: scan points (a uniform subset) whose local scatter gives the scan's noise (:mod:`._noise`)
+NOISE_POINTS = 200_000
 #: restart a pose flagged as a wrong minimum about the model's near-symmetry axis (:mod:`._restart`)
 RESTART = True
 
@@ -437,9 +441,18 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
     tau = fit_distance(prep)
     st, ev, converged, why = settle(st, *final(st))
     # a pose flagged as a wrong minimum on a near-axisymmetric part: spin restarts (_restart)
-    if RESTART and _flagged(ev, converged, tau, radius, prep):
+    # ... or found by the global search on such a part: its hypotheses hold few spins, and a
+    # wrong spin can fit its subset well enough to pass every check (an impeller seen at an
+    # angle: 31 deg off at 16 x the noise, converged, no warning)
+    # (its own generator: the registration's stream, and so its result, stays as it was)
+    sub = np.random.default_rng(0)
+    noise = scan_noise(P if n <= NOISE_POINTS else P[np.sort(sub.choice(n, NOISE_POINTS,
+                                                                         replace=False))], sub)
+    flagged = RESTART and _flagged(ev, converged, tau, radius, prep, noise)
+    if flagged or (RESTART and ga is not None and _restart._model_axis(prep) is not None
+                   and _determined(ev, prep, radius)):
         T_alt = _restart.restart(P, prep, T0 if T0 is not None else np.eye(4), _pose(st),
-                                 radius, rng)
+                                 radius, rng, in_place=not flagged)
         if T_alt is not None:
             st2 = _irls.State(T_alt[:3, :3].copy(), T_alt[:3, 3].copy(), st.iterations,
                               list(st.history))
@@ -470,7 +483,7 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
     msg = (f"converged in {st.iterations} iterations" if converged else
            f"not converged: {why}")
     desc = tuple(_describe(undet))
-    notes = list(_pose_warnings(ev, w, ga, tau, radius, T, undet))
+    notes = list(pose_warnings(ev, w, ga, tau, radius, T, undet, noise))
     if undet.shape[0]:
         txt = ("scan geometry leaves %d pose direction(s) undetermined: %s"
                % (undet.shape[0], "; ".join(desc)))
@@ -487,11 +500,17 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
                         undetermined_directions=undet, warnings=tuple(notes), init=how)
 
 
-def _flagged(ev, converged, tau, radius, prep) -> bool:
+def _flagged(ev, converged, tau, radius, prep, noise=float("nan")) -> bool:
     """The final pose may be a wrong minimum: not converged or a warning of
-    :func:`_pose_warnings`, and every direction determined (a free spin is not a wrong minimum)."""
-    if converged and not any(True for _ in _pose_warnings(ev, ev.w, None, tau, radius)):
+    :func:`.pose_warnings`, and every direction determined (a free spin is not a wrong minimum)."""
+    if converged and not any(True for _ in pose_warnings(ev, ev.w, None, tau, radius,
+                                                         noise=noise)):
         return False
+    return _determined(ev, prep, radius)
+
+
+def _determined(ev, prep, radius) -> bool:
+    """The data determine every pose direction (no free spin or slide)."""
     c = _irls.centroid(ev.X, ev.w)
     H, _ = _irls.system(ev.Y, ev.Y, ev.N, ev.w, c)
     return _irls.null_directions(ev, _irls.model_points(prep), H, c, radius).shape[0] == 0
@@ -501,86 +520,3 @@ def _pose(st) -> np.ndarray:
     T = np.eye(4)
     T[:3, :3], T[:3, 3] = st.R, st.t
     return T
-
-
-#: below this inlier fraction the pose is flagged (it may be a wrong minimum)
-WARN_INLIERS = 0.5
-#: rejected points holding more than this many times the kept points' information in some
-#: pose direction are flagged
-WARN_REJECTED_INFO = 2.0
-#: a robust scale beyond this many fit distances is flagged
-WARN_SCALE = 2.0
-#: a weighted mean residual beyond this many sigma is flagged as systematic
-WARN_MEAN_SIGMA = 0.5
-#: another global hypothesis with at least this share of the best fit is flagged
-WARN_RUNNER_UP = 0.97
-
-
-def _rejected_information(ev, w, radius) -> float:
-    """Largest ratio ``v^T H_rej v / v^T H_w v`` over the eigenvectors v of the weighted
-    point-to-plane information H_w (rotation scaled by the scan's radius), H_rej the
-    unweighted information of the valid points with weight 0."""
-    rej = ev.valid & (w == 0)
-    if not rej.any():
-        return 0.0
-    c = _irls.centroid(ev.X, w)
-    r = radius
-    D = np.outer(*(2 * [np.r_[[1.0 / r] * 3, [1.0] * 3]]))
-    Hw, _ = _irls.system(ev.Y, ev.Y, ev.N, w, c)
-    Hr, _ = _irls.system(ev.Y, ev.Y, ev.N, rej.astype(np.float64), c)
-    lam, V = np.linalg.eigh(Hw * D)
-    ok = lam > 1e-4 * max(lam[-1], 1e-300)   # not the undetermined directions
-    if not ok.any():
-        return 0.0
-    V, lam = V[:, ok], lam[ok]
-    return float(np.max(np.einsum("ij,ik,kj->j", V, Hr * D, V) / lam))
-
-
-def _free_spin(D, undet, tol, radius) -> bool:
-    """The relative pose D (4, 4) is a rotation about an undetermined spin axis (a turned
-    part's spin copies: the deviations are the same) -- D moves two points of that axis, one
-    radius apart, by less than ``tol``."""
-    for e in undet:
-        om = np.linalg.norm(e[:3])
-        if om < 1e-9:
-            continue                                   # a slide, not a spin
-        a, c = e[:3] / om, np.cross(e[:3] / om, e[3:] / om)  # the axis point nearest the origin
-        ends = np.stack([c, c + radius * a])
-        if np.max(np.linalg.norm(ends @ D[:3, :3].T + D[:3, 3] - ends, axis=1)) <= tol:
-            return True
-    return False
-
-
-def _pose_warnings(ev, w, ga, tau, radius, T=None, undet=()):
-    """Signs that the final pose is not the right minimum (see ``Registration.warnings``);
-    with the final pose T and its undetermined directions, a global runner-up that is only
-    a free spin of T is no sign."""
-    inl = float(ev.inliers.mean())
-    if inl < WARN_INLIERS:
-        yield (f"only {100 * inl:.0f} % of the scan points are inliers at the final pose: it "
-               "may be a wrong minimum, or the scan shows much that is not on the model")
-    if tau is not None and ev.sigma > WARN_SCALE * tau:
-        yield (f"the robust residual scale is {ev.sigma:.3g} mm, more than {WARN_SCALE:g} x "
-               f"the fit distance {tau:.3g} mm (4 model point spacings or 0.5 % of the size): "
-               "the pose is likely a wrong minimum (or the scan is very noisy)")
-    share = _rejected_information(ev, w, radius)
-    if share > WARN_REJECTED_INFO:
-        yield (f"the scan points the robust loss rejected hold {share:.2g} x the information "
-               "of the points it kept in the least determined pose direction: the pose rests "
-               "on the points that fit and ignores those that would move it (a wrong minimum, "
-               "e.g. a blade locked onto its neighbour)")
-    sw = float(w.sum())
-    if sw > 0:
-        mean = float(w @ ev.d) / sw
-        if abs(mean) > WARN_MEAN_SIGMA * ev.sigma:
-            yield (f"the weighted mean residual is {mean:+.3g} mm ({mean / ev.sigma:+.2g} "
-                   "sigma): the scan lies systematically on one side of the model (wrong "
-                   "minimum, wrong scale or units, or a part that differs everywhere)")
-    if ga is not None and ga.runner_up is not None and ga.runner_up[0] >= WARN_RUNNER_UP * ga.fit \
-            and not (T is not None and ga.runner_up_pose is not None and _free_spin(
-                ga.runner_up_pose @ np.linalg.inv(T), undet, tau, radius)):
-        f, ang, dn = ga.runner_up
-        yield (f"another start fits nearly as well (fit {f:.3f} vs {ga.fit:.3f}, {ang:.1f} deg "
-               f"away, moving the scan {dn:.3g} mm RMS along the normals): the pose may be a "
-               "symmetric copy of the true one; give init= to choose")
-
