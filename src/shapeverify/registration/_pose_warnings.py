@@ -21,8 +21,9 @@ WARN_MEAN_SIGMA = 0.5
 #: another global hypothesis with at least this share of the best fit is flagged
 WARN_RUNNER_UP = 0.97
 #: a robust scale beyond this many times the scan's own noise (:func:`._noise.scan_noise`) is
-#: flagged: right poses measured 0.9-1.2 x (simulated impeller, panel, turned part; the real
-#: bunny scans ...), wrong impeller minima 40-65 x
+#: flagged: right poses measured 1.0-1.1 x on simulated scans (panel with 5 % outliers,
+#: impeller), 3.0 x on the real bunny scans (against another noisy scan as the reference);
+#: wrong impeller minima 43-62 x
 WARN_NOISE = 5.0
 
 

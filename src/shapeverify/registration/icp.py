@@ -444,10 +444,7 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
     # ... or found by the global search on such a part: its hypotheses hold few spins, and a
     # wrong spin can fit its subset well enough to pass every check (an impeller seen at an
     # angle: 31 deg off at 16 x the noise, converged, no warning)
-    # (its own generator: the registration's stream, and so its result, stays as it was)
-    sub = np.random.default_rng(0)
-    noise = scan_noise(P if n <= NOISE_POINTS else P[np.sort(sub.choice(n, NOISE_POINTS,
-                                                                         replace=False))], sub)
+    noise = scan_noise(P[::max(1, n // NOISE_POINTS)])
     flagged = RESTART and _flagged(ev, converged, tau, radius, prep, noise)
     if flagged or (RESTART and ga is not None and _restart._model_axis(prep) is not None
                    and _determined(ev, prep, radius)):
