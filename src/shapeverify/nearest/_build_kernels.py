@@ -30,7 +30,7 @@ import numpy as np
 from numba import njit
 
 from ._classify_kernels import EXTRA
-from ._kernels import walk
+from ._kernels import walk_inline as walk
 from ._lattice_kernels import nn_extra, nn_lattice
 
 # lattice offsets of a cell's 8 vertices (octant order: x | y << 1 | z << 2)

@@ -104,13 +104,11 @@ _WALK_SIG = types.Tuple((types.int64, _F8, types.int64))(
     types.Array(types.int16, 2, "C"), types.Array(types.float32, 2, "C"), types.int64)
 
 
-@njit(_WALK_SIG, cache=True, nogil=True)
-def walk(q0, q1, q2, b, rf, ri, rh, rs, max_moves):
-    """Greedy descent on the neighbour graph from model point ``b``.
-
-    Each round picks the neighbour that looks closest (quantised offsets) and moves there if it
-    is strictly closer in exact coordinates.  Returns (index, squared distance, moves).
-    """
+@njit(cache=True, nogil=True, inline="always")
+def walk_inline(q0, q1, q2, b, rf, ri, rh, rs, max_moves):
+    """:func:`walk`, inlined into the caller (the build's kernels walk tens of millions of
+    times: a call passes four array structs and costs about as much as the walk itself)."""
+    b = np.int64(b)
     db = _d2(q0, q1, q2, rf, b)
     moves = 0
     while moves < max_moves:
@@ -125,6 +123,16 @@ def walk(q0, q1, q2, b, rf, ri, rh, rs, max_moves):
         db = dj
         moves += 1
     return b, db, moves
+
+
+@njit(_WALK_SIG, cache=True, nogil=True)
+def walk(q0, q1, q2, b, rf, ri, rh, rs, max_moves):
+    """Greedy descent on the neighbour graph from model point ``b``.
+
+    Each round picks the neighbour that looks closest (quantised offsets) and moves there if it
+    is strictly closer in exact coordinates.  Returns (index, squared distance, moves).
+    """
+    return walk_inline(q0, q1, q2, b, rf, ri, rh, rs, max_moves)
 
 
 @njit(cache=True, nogil=True)
