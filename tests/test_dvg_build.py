@@ -147,7 +147,7 @@ def test_lattice_searches_equal_one_search_per_point(seed):
     lst = rng.permutation(400).astype(np.int32)
     origin = rng.normal(0.0, 0.1, 3) if seed else np.zeros(3)
     size = 0.5
-    sq = np.empty(9)
+    sq = np.empty(lk.SCRATCH)
     for a, b in ((0, 400), (17, 90), (5, 5)):
         base = rng.integers(-3, 3, 3)
         qx, qy, qz = (origin[k] + size * (base[k] + np.arange(3)) for k in range(3))

@@ -31,7 +31,7 @@ from numba import njit
 
 from ._classify_kernels import EXTRA
 from ._kernels import walk_inline as walk
-from ._lattice_kernels import nn_extra, nn_lattice
+from ._lattice_kernels import SCRATCH, nn_extra, nn_lattice
 
 # lattice offsets of a cell's 8 vertices (octant order: x | y << 1 | z << 2)
 _CX = np.array([o & 1 for o in range(8)], dtype=np.int64)
@@ -273,7 +273,7 @@ def classify_children(parents, off, lst, pts, origin, size, rf, ri, rh, rs, max_
     qx = np.empty(3)
     qy = np.empty(3)
     qz = np.empty(3)
-    sq = np.empty(9)
+    sq = np.empty(SCRATCH)
     for p in range(parents.shape[0]):
         a = off[p]
         b = off[p + 1]
@@ -384,7 +384,7 @@ def multi_children(ids, parents, off, lst, lat, pts, origin, size, first_seed, f
     qx = np.empty(3)
     qy = np.empty(3)
     qz = np.empty(3)
-    sq = np.empty(9)
+    sq = np.empty(SCRATCH)
     xi = np.empty(7, dtype=np.int64)
     xd = np.empty(7)
     for f in range(ids.shape[0]):
