@@ -30,6 +30,7 @@ import numpy as np
 from numba import njit
 
 from ._classify_kernels import EXTRA
+from ._intrinsics import beaten8
 from ._kernels import walk_inline as walk
 from ._lattice_kernels import SCRATCH, nn_extra, nn_lattice
 
@@ -69,36 +70,40 @@ def _child_cell(m, parents, lat, origin, size, pts, c, vi, vd):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _witnesses(wit, pts, c0, c1, c2, out_i, out_xyz, out_d):
-    """The distinct witnesses of a cell (its vertices' nearest points ``wit`` (8,)), their
-    coordinates and squared distances to the centre c; returns how many."""
+def _witnesses(wit, pts, c0, c1, c2, out):
+    """The distinct witnesses of a cell (its vertices' nearest points ``wit`` (8,)) into
+    ``out`` (40,) float64 for :func:`._intrinsics.beaten8`: their coordinates, squared
+    distances to the centre c and indices, 8 lanes each (the last one repeated in the lanes
+    beyond); returns how many."""
     nw = 0
     for w in range(wit.shape[0]):
         a = wit[w]
         dup = False
         for v in range(nw):
-            if out_i[v] == a:
+            if out[32 + v] == a:
                 dup = True
         if dup:
             continue
         y0 = pts[a, 0]
         y1 = pts[a, 1]
         y2 = pts[a, 2]
-        out_i[nw] = a
-        out_xyz[nw, 0] = y0
-        out_xyz[nw, 1] = y1
-        out_xyz[nw, 2] = y2
-        out_d[nw] = (y0 - c0) ** 2 + (y1 - c1) ** 2 + (y2 - c2) ** 2
+        out[nw] = y0
+        out[8 + nw] = y1
+        out[16 + nw] = y2
+        out[24 + nw] = (y0 - c0) ** 2 + (y1 - c1) ** 2 + (y2 - c2) ** 2
+        out[32 + nw] = np.float64(a)
         nw += 1
+    for v in range(nw, 8):
+        for k in range(0, 40, 8):
+            out[k + v] = out[k + nw - 1]
     return nw
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _keep(p, c0, c1, c2, half, pts, nw, wi, wxyz, wd, U):
+def _keep(p, c0, c1, c2, half, pts, wit, U):
     """Whether model point p can be the nearest one somewhere in the cube (centre c, half
-    side ``half``) whose vertices' nearest points (the ``nw`` distinct witnesses ``wi``, with
-    coordinates ``wxyz`` and squared distances to c ``wd``, :func:`_witnesses`) are all within
-    U of every point of it (see the module docstring)."""
+    side ``half``) whose vertices' nearest points (the witnesses ``wit``, :func:`_witnesses`)
+    are all within U of every point of it (see the module docstring)."""
     x0 = pts[p, 0]
     x1 = pts[p, 1]
     x2 = pts[p, 2]
@@ -108,17 +113,7 @@ def _keep(p, c0, c1, c2, half, pts, nw, wi, wxyz, wd, U):
     if g0 * g0 + g1 * g1 + g2 * g2 > U * U:
         return False
     dp = (x0 - c0) ** 2 + (x1 - c1) ** 2 + (x2 - c2) ** 2
-    for w in range(nw):
-        if wi[w] == p:
-            continue
-        y0 = wxyz[w, 0]
-        y1 = wxyz[w, 1]
-        y2 = wxyz[w, 2]
-        da = wd[w]
-        worst = da - dp + 2.0 * half * (abs(x0 - y0) + abs(x1 - y1) + abs(x2 - y2))
-        if worst < -1e-9 * (da + dp):
-            return False
-    return True
+    return not beaten8(wit, x0, x1, x2, dp, 2.0 * half, np.float64(p))
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -154,24 +149,24 @@ def _grow(buf, need):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _append_kept(src, a, b, buf, pos, c0, c1, c2, half, pts, nw, wi, wxyz, wd, U):
+def _append_kept(src, a, b, buf, pos, c0, c1, c2, half, pts, wit, U):
     """Append to ``buf`` (grown as needed) the points ``src[a:b]`` that :func:`_keep` keeps
     for the cube centred at c; returns (buf, new end)."""
     if pos + (b - a) > buf.shape[0]:
         buf = _grow(buf, pos + (b - a))
     for s in range(a, b):
         p = src[s]
-        if _keep(p, c0, c1, c2, half, pts, nw, wi, wxyz, wd, U):
+        if _keep(p, c0, c1, c2, half, pts, wit, U):
             buf[pos] = p
             pos += 1
     return buf, pos
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _bin_beaten(ix, iy, iz, origin, size, c0, c1, c2, pts, wit):
+def _bin_beaten(ix, iy, iz, origin, size, c0, c1, c2, wit, nw):
     """Whether one witness beats every point of bin (ix, iy, iz) (a top grid cell) everywhere
     in the cube of side ``size`` centred at c: the largest value of ``_keep``'s witness
-    expression over the bin's box is negative."""
+    expression over the bin's box is negative (``wit``, ``nw``: :func:`_witnesses`)."""
     half = 0.5 * size
     l0 = origin[0] + size * ix
     l1 = origin[1] + size * iy
@@ -181,12 +176,11 @@ def _bin_beaten(ix, iy, iz, origin, size, c0, c1, c2, pts, wit):
     e1 = max(l1 - c1, c1 - (l1 + size), 0.0)
     e2 = max(l2 - c2, c2 - (l2 + size), 0.0)
     dp = e0 * e0 + e1 * e1 + e2 * e2
-    for w in range(wit.shape[0]):
-        a = wit[w]
-        y0 = pts[a, 0]
-        y1 = pts[a, 1]
-        y2 = pts[a, 2]
-        da = (y0 - c0) ** 2 + (y1 - c1) ** 2 + (y2 - c2) ** 2
+    for w in range(nw):
+        y0 = wit[w]
+        y1 = wit[8 + w]
+        y2 = wit[16 + w]
+        da = wit[24 + w]
         s = (max(abs(l0 - y0), abs(l0 + size - y0)) + max(abs(l1 - y1), abs(l1 + size - y1))
              + max(abs(l2 - y2), abs(l2 + size - y2)))
         if da - dp + 2.0 * half * s < -1e-9 * (da + dp) - 1e-12 * size * size:
@@ -211,9 +205,7 @@ def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
     pos = 0
     half = 0.5 * size
     wit = np.empty(8, dtype=np.int64)
-    wi = np.empty(8, dtype=np.int64)
-    wxyz = np.empty((8, 3))
-    wd = np.empty(8)
+    wv = np.empty(40)
     for m in range(R):
         for o in range(8):
             wit[o] = vnn_i[m, o]
@@ -221,7 +213,7 @@ def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
         c1 = origin[1] + size * (cells[m, 1] + 0.5)
         c2 = origin[2] + size * (cells[m, 2] + 0.5)
         U = _bound(vnn_d[m], wit, pts, c0, c1, c2, half) * (1.0 + 1e-9)
-        nw = _witnesses(wit, pts, c0, c1, c2, wi, wxyz, wd)
+        nw = _witnesses(wit, pts, c0, c1, c2, wv)
         k = int(np.ceil(U / size)) + 1
         x0 = max(0, cells[m, 0] - k)
         x1 = min(dims[0] - 1, cells[m, 0] + k)
@@ -245,10 +237,10 @@ def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
                     gz = max(abs(iz - cells[m, 2]) - 1, 0) * size
                     if gx * gx + gy * gy + gz * gz > U * U:
                         continue
-                    if _bin_beaten(ix, iy, iz, origin, size, c0, c1, c2, pts, wi[:nw]):
+                    if _bin_beaten(ix, iy, iz, origin, size, c0, c1, c2, wv, nw):
                         continue
                     buf, pos = _append_kept(order, a0, a1, buf, pos, c0, c1, c2, half, pts,
-                                            nw, wi, wxyz, wd, U)
+                                            wv, U)
         counts[m] = pos - n0
     return counts, buf[:pos].copy()
 
@@ -460,9 +452,7 @@ def child_lists(ids, parents, off, lst, lat, pts, origin, size):
     half = 0.5 * size
     vi = np.empty(8, dtype=np.int64)
     vd = np.empty(8)
-    wi = np.empty(8, dtype=np.int64)
-    wxyz = np.empty((8, 3))
-    wd = np.empty(8)
+    wv = np.empty(40)
     c = np.empty(3, dtype=np.int64)
     for f in range(n):
         m = ids[f]
@@ -473,9 +463,9 @@ def child_lists(ids, parents, off, lst, lat, pts, origin, size):
         c1 = origin[1] + size * (c[1] + 0.5)
         c2 = origin[2] + size * (c[2] + 0.5)
         U = _bound(vd, vi, pts, c0, c1, c2, half) * (1.0 + 1e-9)
-        nw = _witnesses(vi, pts, c0, c1, c2, wi, wxyz, wd)
+        _witnesses(vi, pts, c0, c1, c2, wv)
         n0 = pos
-        buf, pos = _append_kept(lst, a, b, buf, pos, c0, c1, c2, half, pts, nw, wi, wxyz, wd, U)
+        buf, pos = _append_kept(lst, a, b, buf, pos, c0, c1, c2, half, pts, wv, U)
         counts[f] = pos - n0
     return counts, buf[:pos].copy()
 

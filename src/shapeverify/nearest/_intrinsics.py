@@ -149,3 +149,47 @@ def _nearest_update(width):
 
 nearest_update32 = _nearest_update(32)
 nearest_update8 = _nearest_update(8)
+
+
+@intrinsic
+def beaten8(typingctx, w, x0, x1, x2, dp, h2, p):
+    """Whether one of 8 witnesses beats point p (at x, squared distance ``dp`` to a cube's
+    centre) everywhere in the cube: ``(da - dp) + h2 * ((|x0 - y0| + |x1 - y1|) + |x2 - y2|)
+    < -1e-9 * (da + dp)`` for a witness y (squared distance da to the centre) that is not p
+    itself, evaluated in that order for the 8 at once (bit for bit the scalar test).
+    ``w`` (40,) float64, C-contiguous: the witnesses' y0, y1, y2, da and indices (float64),
+    8 each."""
+    if not (isinstance(w, types.Array) and w.dtype == types.float64):
+        return None
+    sig = types.boolean(w, x0, x1, x2, dp, h2, p)
+
+    def codegen(context, builder, signature, args):
+        ary = context.make_array(signature.args[0])(context, builder, args[0])
+        f64, i32, i64 = ir.DoubleType(), ir.IntType(32), ir.IntType(64)
+        vd = ir.VectorType(f64, RING)
+
+        def block(k):
+            return builder.load(builder.bitcast(
+                builder.gep(ary.data, [ir.Constant(i64, k * RING)]), vd.as_pointer()), align=8)
+
+        def splat(v):
+            e = builder.insert_element(ir.Constant(vd, ir.Undefined), v, ir.Constant(i32, 0))
+            return builder.shuffle_vector(e, ir.Constant(vd, ir.Undefined),
+                                          ir.Constant(ir.VectorType(i32, RING), [0] * RING))
+
+        fabs = cgutils.get_or_insert_function(builder.module, ir.FunctionType(vd, [vd]),
+                                              f"llvm.fabs.v{RING}f64")
+        s = None
+        for c in range(3):
+            a = builder.call(fabs, [builder.fsub(splat(args[1 + c]), block(c))])
+            s = a if s is None else builder.fadd(s, a)
+        da = block(3)
+        dpv = splat(args[4])
+        worst = builder.fadd(builder.fsub(da, dpv), builder.fmul(splat(args[5]), s))
+        thr = builder.fmul(ir.Constant(vd, [-1e-9] * RING), builder.fadd(da, dpv))
+        beat = builder.and_(builder.fcmp_ordered("<", worst, thr),
+                            builder.fcmp_unordered("!=", block(4), splat(args[6])))
+        bits = builder.bitcast(beat, ir.IntType(RING))
+        return builder.icmp_unsigned("!=", bits, ir.Constant(ir.IntType(RING), 0))
+
+    return sig, codegen
