@@ -23,6 +23,7 @@ from scipy.spatial import cKDTree
 
 from . import _build_kernels as _bk
 from . import _classify_kernels, _kernels
+from . import _seedlist_kernels as _sk
 from ._threads import run_chunks
 
 logger = logging.getLogger(__name__)
@@ -327,7 +328,9 @@ def _pack_lists(seeds: np.ndarray, count: np.ndarray):
     """Seed lists (M, 16) with counts (M,) -> (buffer of count, seeds..., offset of each list).
 
     Identical lists (same seeds in any order) are stored once, in lexicographic order of their
-    sorted seeds (the order ``np.unique(axis=0)`` gave; :func:`._build_kernels.pack_seed_lists`,
-    without its (M, 16) temporaries).  ``seeds`` is sorted in place.
+    sorted seeds (the order ``np.unique(axis=0)`` gave; :mod:`._seedlist_kernels`, without
+    (M, 16) temporaries).  ``seeds`` is sorted in place.
     """
-    return _bk.pack_seed_lists(seeds, count.astype(np.int64))
+    cnt = count.astype(np.int64)
+    key = _sk.sort_rows(seeds, cnt)
+    return _sk.pack_sorted(seeds, cnt, key, np.argsort(key, kind="stable"))
