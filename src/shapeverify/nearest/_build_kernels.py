@@ -195,7 +195,7 @@ def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
     cells : (R, 3) int64 top cell coordinates; vnn_i, vnn_d : (R, 8) exact nearest point and
     distance of each vertex; order, start : the points sorted by top cell and the start of
     each cell's run (``start`` has dims.prod() + 1 entries).  Returns (counts (R,) int64,
-    concatenated lists int32).
+    concatenated lists int32: the front of a larger buffer, to be copied out).
     """
     R = cells.shape[0]
     counts = np.zeros(R, dtype=np.int64)
@@ -242,7 +242,7 @@ def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
                     buf, pos = _append_kept(order, a0, a1, buf, pos, c0, c1, c2, half, pts,
                                             wv, U)
         counts[m] = pos - n0
-    return counts, buf[:pos].copy()
+    return counts, buf[:pos]  # a view: _chunked copies it out (no second copy here)
 
 
 @njit(cache=True, nogil=True)
@@ -440,7 +440,8 @@ def multi_children(ids, parents, off, lst, lat, pts, origin, size, first_seed, f
 def child_lists(ids, parents, off, lst, lat, pts, origin, size):
     """Candidate lists of the refined children ``ids`` (child numbers 8 p + octant) from their
     parents' lists and lattice nearest points ``lat`` (:func:`classify_children`).  Returns
-    (counts (len(ids),) int64, concatenated lists int32)."""
+    (counts (len(ids),) int64, concatenated lists int32: the front of a larger buffer, to be
+    copied out)."""
     n = ids.shape[0]
     counts = np.zeros(n, dtype=np.int64)
     cap = 0  # a child's list is part of its parent's: room for those, never grown (pages
@@ -467,7 +468,7 @@ def child_lists(ids, parents, off, lst, lat, pts, origin, size):
         n0 = pos
         buf, pos = _append_kept(lst, a, b, buf, pos, c0, c1, c2, half, pts, wv, U)
         counts[f] = pos - n0
-    return counts, buf[:pos].copy()
+    return counts, buf[:pos]  # a view: _chunked copies it out (no second copy here)
 
 
 @njit(cache=True, nogil=True)
