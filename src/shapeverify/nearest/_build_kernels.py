@@ -32,12 +32,14 @@ from numba import njit
 from ._classify_kernels import EXTRA
 from ._intrinsics import beaten8
 from ._kernels import walk_inline as walk
+from ._kernels import walk_many
 from ._lattice_kernels import SCRATCH, nn_extra, nn_lattice
 
 # lattice offsets of a cell's 8 vertices (octant order: x | y << 1 | z << 2)
 _CX = np.array([o & 1 for o in range(8)], dtype=np.int64)
 _CY = np.array([(o >> 1) & 1 for o in range(8)], dtype=np.int64)
 _CZ = np.array([(o >> 2) & 1 for o in range(8)], dtype=np.int64)
+WALK_GROUP = 4  # vertex walks of classify_children advanced together
 
 
 @njit(cache=True, nogil=True)
@@ -266,6 +268,13 @@ def classify_children(parents, off, lst, pts, origin, size, rf, ri, rh, rs, max_
     qy = np.empty(3)
     qz = np.empty(3)
     sq = np.empty(SCRATCH)
+    qv = np.empty((8, 3))
+    qo = np.empty(8, dtype=np.int64)
+    qt = np.empty(8, dtype=np.int64)
+    wb = np.empty(8, dtype=np.int64)
+    wd = np.empty(8)
+    wm = np.empty(8, dtype=np.int64)
+    live = np.empty(8, dtype=np.bool_)
     for p in range(parents.shape[0]):
         a = off[p]
         b = off[p + 1]
@@ -302,17 +311,29 @@ def classify_children(parents, off, lst, pts, origin, size, rf, ri, rh, rs, max_
             seed, _, _ = walk(c0, c1, c2, li[vmin], rf, ri, rh, rs, 64)
             out_seed[m] = seed
             out_kind[m] = 1
+            nq = 0  # the vertices to walk to (a walk from the exact nearest point stays there)
             for o in range(8):
                 t = (cx + _CX[o]) + 3 * (cy + _CY[o]) + 9 * (cz + _CZ[o])
                 if li[t] == seed:
-                    continue  # a walk from the exact nearest point stays there: passes
-                q0 = origin[0] + size * (b0 + cx + _CX[o])
-                q1 = origin[1] + size * (b1 + cy + _CY[o])
-                q2 = origin[2] + size * (b2 + cz + _CZ[o])
-                _, d2, mv = walk(q0, q1, q2, seed, rf, ri, rh, rs, max_moves + 1)
-                if mv > max_moves or np.sqrt(d2) > ld[t] * (1.0 + 1e-12) + tol:
-                    out_kind[m] = 2
-                    out_fail[m] = o
+                    continue
+                qv[nq, 0] = origin[0] + size * (b0 + cx + _CX[o])
+                qv[nq, 1] = origin[1] + size * (b1 + cy + _CY[o])
+                qv[nq, 2] = origin[2] + size * (b2 + cz + _CZ[o])
+                qo[nq] = o
+                qt[nq] = t
+                nq += 1
+            # walked WALK_GROUP at a time (a group's walks overlap), up to the group of the
+            # first failing vertex in octant order
+            for g in range(0, nq, WALK_GROUP):
+                ng = min(WALK_GROUP, nq - g)
+                walk_many(qv[g:], ng, seed, rf, ri, rh, rs, max_moves + 1, wb, wd, wm, live)
+                for k in range(ng):
+                    if (wm[k] > max_moves
+                            or np.sqrt(wd[k]) > ld[qt[g + k]] * (1.0 + 1e-12) + tol):
+                        out_kind[m] = 2
+                        out_fail[m] = qo[g + k]
+                        break
+                if out_kind[m] == 2:
                     break
 
 

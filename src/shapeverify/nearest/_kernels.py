@@ -125,6 +125,43 @@ def walk_inline(q0, q1, q2, b, rf, ri, rh, rs, max_moves):
     return b, db, moves
 
 
+@njit(cache=True, nogil=True, inline="always")
+def walk_many(qv, nq, b0, rf, ri, rh, rs, max_moves, out_b, out_d, out_m, live):
+    """:func:`walk` from model point ``b0`` to each of the ``nq`` points ``qv[:nq]`` (rows
+    x, y, z), the walks advanced in turn, one move each per round: their chains of dependent
+    loads and comparisons overlap in the processor.  Each walk is exactly :func:`walk`'s
+    (same moves, same end): results into ``out_b``, ``out_d`` (squared distance), ``out_m``
+    (moves); ``live`` (>= nq,) bool scratch."""
+    b0 = np.int64(b0)
+    for i in range(nq):
+        out_b[i] = b0
+        out_d[i] = _d2(qv[i, 0], qv[i, 1], qv[i, 2], rf, b0)
+        out_m[i] = 0
+        live[i] = True
+    left = nq
+    moves = 0
+    while moves < max_moves and left > 0:
+        for i in range(nq):
+            if not live[i]:
+                continue
+            b = out_b[i]
+            k, de = _ring(qv[i, 0], qv[i, 1], qv[i, 2], b, rf, rh, rs)
+            if not de < out_d[i]:
+                live[i] = False
+                left -= 1
+                continue
+            j = np.int64(ri[b, NBR + k])
+            dj = _d2(qv[i, 0], qv[i, 1], qv[i, 2], rf, j)
+            if not dj < out_d[i]:
+                live[i] = False
+                left -= 1
+                continue
+            out_b[i] = j
+            out_d[i] = dj
+            out_m[i] += 1
+        moves += 1
+
+
 @njit(_WALK_SIG, cache=True, nogil=True)
 def walk(q0, q1, q2, b, rf, ri, rh, rs, max_moves):
     """Greedy descent on the neighbour graph from model point ``b``.
