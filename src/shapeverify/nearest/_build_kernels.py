@@ -32,7 +32,7 @@ from numba import njit
 from ._classify_kernels import EXTRA
 from ._intrinsics import beaten8
 from ._kernels import walk_inline as walk
-from ._kernels import walk_many
+from ._kernels import NBR, _d2, _ring, walk_many
 from ._lattice_kernels import SCRATCH, nn_extra, nn_lattice
 
 # lattice offsets of a cell's 8 vertices (octant order: x | y << 1 | z << 2)
@@ -339,32 +339,53 @@ def classify_children(parents, off, lst, pts, origin, size, rf, ri, rh, rs, max_
 
 @njit(cache=True, nogil=True)
 def _walks_ok(q0, q1, q2, seeds, n0, cnt, cache_d, cache_m, rf, ri, rh, rs, max_moves,
-              i_exact, d_exact, tol):
+              i_exact, d_exact, tol, cur, live):
     """_classify_kernels._seeded_ok with the walks of seeds[:n0] taken from the cache and those of
     seeds[n0:cnt] added to it.  Returns (ok, number of cached walks).
 
     A walk from the exact nearest point ``i_exact`` stays there (no point is strictly closer):
-    it is not walked.  A walk longer than ``max_moves`` decides the answer (False) at once,
-    the later seeds are then walked only if asked again.
+    it is not walked.  The new walks are advanced in turn, one move each per round (their
+    chains of dependent loads overlap; each is exactly :func:`._kernels.walk`'s); a walk
+    longer than ``max_moves`` makes the answer False, now and whenever asked again.
+    ``cur``, ``live``: scratch as long as ``seeds``.
     """
     for s in range(n0):
         if cache_m[s] > max_moves:
             return False, n0
+    left = 0
     for s in range(n0, cnt):
-        if seeds[s] == i_exact:
-            e0 = rf[i_exact, 0] - q0
-            e1 = rf[i_exact, 1] - q1
-            e2 = rf[i_exact, 2] - q2
-            cache_d[s] = e0 * e0 + e1 * e1 + e2 * e2
-            cache_m[s] = 0
-            continue
-        _, d2, k = walk(q0, q1, q2, seeds[s], rf, ri, rh, rs, max_moves + 1)
-        cache_d[s] = d2
-        cache_m[s] = k
-        if k > max_moves:
-            return False, s + 1
+        b = np.int64(seeds[s])
+        cache_d[s] = _d2(q0, q1, q2, rf, b)
+        cache_m[s] = 0
+        cur[s] = b
+        live[s] = b != i_exact
+        if live[s]:
+            left += 1
+    moves = 0
+    while moves < max_moves + 1 and left > 0:
+        for s in range(n0, cnt):
+            if not live[s]:
+                continue
+            b = cur[s]
+            k, de = _ring(q0, q1, q2, b, rf, rh, rs)
+            if not de < cache_d[s]:
+                live[s] = False
+                left -= 1
+                continue
+            j = np.int64(ri[b, NBR + k])
+            dj = _d2(q0, q1, q2, rf, j)
+            if not dj < cache_d[s]:
+                live[s] = False
+                left -= 1
+                continue
+            cur[s] = j
+            cache_d[s] = dj
+            cache_m[s] += 1
+        moves += 1
     bd = np.inf
     for s in range(cnt):
+        if cache_m[s] > max_moves:
+            return False, cnt
         bd = min(bd, cache_d[s])
     return np.sqrt(bd) <= d_exact * (1.0 + 1e-12) + tol, cnt
 
@@ -393,6 +414,8 @@ def multi_children(ids, parents, off, lst, lat, pts, origin, size, first_seed, f
     nc = np.zeros(8, dtype=np.int64)
     ed = np.empty(cap)
     em = np.empty(cap, dtype=np.int64)
+    cur = np.empty(cap, dtype=np.int64)
+    live = np.empty(cap, dtype=np.bool_)
     c = np.empty(3, dtype=np.int64)
     qx = np.empty(3)
     qy = np.empty(3)
@@ -423,7 +446,8 @@ def multi_children(ids, parents, off, lst, lat, pts, origin, size, first_seed, f
                     good = False  # wrong with the first seed alone, the only one so far
                 else:
                     good, nc[o] = _walks_ok(q0, q1, q2, seeds, nc[o], cnt, cd[o], cm[o], rf,
-                                            ri, rh, rs, max_moves, vi[o], vd[o], tol)
+                                            ri, rh, rs, max_moves, vi[o], vd[o], tol, cur,
+                                            live)
                 if not good:
                     if rnd == 0 and cnt < cap:
                         seeds[cnt] = vi[o]
@@ -446,7 +470,7 @@ def multi_children(ids, parents, off, lst, lat, pts, origin, size, first_seed, f
                 q1 = qy[EXTRA[e, 1]]
                 q2 = qz[EXTRA[e, 2]]
                 if not _walks_ok(q0, q1, q2, seeds, 0, cnt, ed, em, rf, ri, rh, rs, max_moves,
-                                 xi[e], xd[e], tol)[0]:
+                                 xi[e], xd[e], tol, cur, live)[0]:
                     ok = False
                     if last_level and cnt < cap:
                         seeds[cnt] = xi[e]
