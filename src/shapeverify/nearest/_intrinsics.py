@@ -1,12 +1,14 @@
 """LLVM intrinsics of the closest-point kernels (private): a cache-line prefetch, the walk
-step's 8-wide ring (which of a model point's 8 neighbours looks closest to a query) and the
-tree build's many-point nearest update (one candidate against 32 or 8 query points at once).
+step's 8-wide ring (which of a model point's 8 neighbours looks closest to a query), and for
+the tree build a many-point nearest update (one candidate against 32 or 8 query points at
+once) and an 8-witness test (is a candidate beaten everywhere in a cell?).
 
 All are written in LLVM IR through numba's ``@intrinsic``; they are used by
-:mod:`shapeverify.nearest._kernels`, :mod:`shapeverify.nearest._exact_kernels` and
-:mod:`shapeverify.nearest._lattice_kernels`.  The ring is tested bit for bit against a plain
-numpy evaluation (``tests/test_query_speedpath.py``), the nearest update against one linear
-scan per point (``tests/test_dvg_build.py``).
+:mod:`shapeverify.nearest._kernels`, :mod:`shapeverify.nearest._exact_kernels`,
+:mod:`shapeverify.nearest._lattice_kernels` and :mod:`shapeverify.nearest._build_kernels`.
+The ring is tested bit for bit against a plain numpy evaluation
+(``tests/test_query_speedpath.py``), the nearest update against one linear scan per point and
+the witness test against the scalar loop (``tests/test_dvg_build.py``).
 """
 
 from __future__ import annotations
