@@ -147,7 +147,7 @@ def test_lattice_searches_equal_one_search_per_point(seed):
     lst = rng.permutation(400).astype(np.int32)
     origin = rng.normal(0.0, 0.1, 3) if seed else np.zeros(3)
     size = 0.5
-    sq = np.empty(9)
+    sq = np.empty(lk.SCRATCH)
     for a, b in ((0, 400), (17, 90), (5, 5)):
         base = rng.integers(-3, 3, 3)
         qx, qy, qz = (origin[k] + size * (base[k] + np.arange(3)) for k in range(3))
@@ -301,3 +301,64 @@ def test_other_face_links_on_the_grid_equal_the_kd_tree_links(seed):
     got = _other_face_points(pts, face, h, cKDTree(pts))
     assert (want >= 0).sum() > 300
     assert np.array_equal(got, want)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_vector_witness_test_equals_the_scalar_one(seed):
+    """``_intrinsics.beaten8`` (8 witnesses in one vector test, the last repeated in unused
+    lanes, the point itself skipped) decides as the scalar loop it replaced, on points whose
+    margin is near zero (coarse integer coordinates: many exact ties)."""
+    from numba import njit
+
+    from shapeverify.nearest._intrinsics import beaten8
+
+    @njit
+    def vector(w, x, dp, h2, p):
+        return beaten8(w, x[0], x[1], x[2], dp, h2, p)
+
+    rng = np.random.default_rng(seed)
+    seen = set()
+    for _ in range(300):
+        nw = int(rng.integers(1, 9))
+        y = rng.integers(-3, 4, (nw, 3)) * 0.25
+        c = rng.integers(-2, 3, 3) * 0.125
+        half = float(rng.choice([0.125, 0.25]))
+        x = rng.integers(-3, 4, 3) * 0.25 + (rng.normal(0, 1e-3, 3) if rng.random() < 0.5 else 0)
+        ids = rng.permutation(20)[:nw].astype(float)
+        p = float(ids[0] if rng.random() < 0.3 else 99)
+        da = ((y - c) ** 2).sum(axis=1)
+        dp = float(((x - c) ** 2).sum())
+        w = np.empty(40)
+        for k, col in enumerate((y[:, 0], y[:, 1], y[:, 2], da, ids)):
+            w[8 * k:8 * k + nw] = col
+            w[8 * k + nw:8 * k + 8] = col[-1]
+        want = False
+        for i in range(nw):
+            if ids[i] == p:
+                continue
+            worst = da[i] - dp + 2.0 * half * (abs(x[0] - y[i, 0]) + abs(x[1] - y[i, 1])
+                                               + abs(x[2] - y[i, 2]))
+            want |= worst < -1e-9 * (da[i] + dp)
+        assert vector(w, x, dp, 2.0 * half, p) == want
+        seen.add(bool(want))
+    assert seen == {True, False}
+
+
+def test_walks_advanced_together_equal_single_walks():
+    """``_kernels.walk_many`` (walks advanced in turn) ends every walk where ``walk`` does,
+    with the same squared distance and number of moves, for every budget."""
+    from shapeverify.nearest import _kernels as K
+
+    pts = _two_sheets(30)
+    rv = dvg.views(dvg.make_records(pts, dvg.neighbor_graph(pts)))
+    rng = np.random.default_rng(3)
+    q = pts[rng.integers(0, pts.shape[0], 64)] + rng.normal(0, 0.4, (64, 3))
+    starts = rng.integers(0, pts.shape[0], 64)
+    ob, od, om = np.empty(8, np.int64), np.empty(8), np.empty(8, np.int64)
+    live = np.empty(8, np.bool_)
+    for budget in (0, 1, 3, 64):
+        for g in range(0, 64, 8):
+            K.walk_many(np.ascontiguousarray(q[g:g + 8]), 8, int(starts[g]), *rv, budget, ob,
+                        od, om, live)
+            for i in range(8):
+                assert (ob[i], od[i], om[i]) == K.walk(*q[g + i], int(starts[g]), *rv, budget)

@@ -30,13 +30,16 @@ import numpy as np
 from numba import njit
 
 from ._classify_kernels import EXTRA
-from ._kernels import walk
-from ._lattice_kernels import nn_extra, nn_lattice
+from ._intrinsics import beaten8
+from ._kernels import walk_inline as walk
+from ._kernels import NBR, _d2, _ring, walk_many
+from ._lattice_kernels import SCRATCH, nn_extra, nn_lattice
 
 # lattice offsets of a cell's 8 vertices (octant order: x | y << 1 | z << 2)
 _CX = np.array([o & 1 for o in range(8)], dtype=np.int64)
 _CY = np.array([(o >> 1) & 1 for o in range(8)], dtype=np.int64)
 _CZ = np.array([(o >> 2) & 1 for o in range(8)], dtype=np.int64)
+WALK_GROUP = 4  # vertex walks of classify_children advanced together
 
 
 @njit(cache=True, nogil=True)
@@ -69,36 +72,40 @@ def _child_cell(m, parents, lat, origin, size, pts, c, vi, vd):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _witnesses(wit, pts, c0, c1, c2, out_i, out_xyz, out_d):
-    """The distinct witnesses of a cell (its vertices' nearest points ``wit`` (8,)), their
-    coordinates and squared distances to the centre c; returns how many."""
+def _witnesses(wit, pts, c0, c1, c2, out):
+    """The distinct witnesses of a cell (its vertices' nearest points ``wit`` (8,)) into
+    ``out`` (40,) float64 for :func:`._intrinsics.beaten8`: their coordinates, squared
+    distances to the centre c and indices, 8 lanes each (the last one repeated in the lanes
+    beyond); returns how many."""
     nw = 0
     for w in range(wit.shape[0]):
         a = wit[w]
         dup = False
         for v in range(nw):
-            if out_i[v] == a:
+            if out[32 + v] == a:
                 dup = True
         if dup:
             continue
         y0 = pts[a, 0]
         y1 = pts[a, 1]
         y2 = pts[a, 2]
-        out_i[nw] = a
-        out_xyz[nw, 0] = y0
-        out_xyz[nw, 1] = y1
-        out_xyz[nw, 2] = y2
-        out_d[nw] = (y0 - c0) ** 2 + (y1 - c1) ** 2 + (y2 - c2) ** 2
+        out[nw] = y0
+        out[8 + nw] = y1
+        out[16 + nw] = y2
+        out[24 + nw] = (y0 - c0) ** 2 + (y1 - c1) ** 2 + (y2 - c2) ** 2
+        out[32 + nw] = np.float64(a)
         nw += 1
+    for v in range(nw, 8):
+        for k in range(0, 40, 8):
+            out[k + v] = out[k + nw - 1]
     return nw
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _keep(p, c0, c1, c2, half, pts, nw, wi, wxyz, wd, U):
+def _keep(p, c0, c1, c2, half, pts, wit, U):
     """Whether model point p can be the nearest one somewhere in the cube (centre c, half
-    side ``half``) whose vertices' nearest points (the ``nw`` distinct witnesses ``wi``, with
-    coordinates ``wxyz`` and squared distances to c ``wd``, :func:`_witnesses`) are all within
-    U of every point of it (see the module docstring)."""
+    side ``half``) whose vertices' nearest points (the witnesses ``wit``, :func:`_witnesses`)
+    are all within U of every point of it (see the module docstring)."""
     x0 = pts[p, 0]
     x1 = pts[p, 1]
     x2 = pts[p, 2]
@@ -108,17 +115,7 @@ def _keep(p, c0, c1, c2, half, pts, nw, wi, wxyz, wd, U):
     if g0 * g0 + g1 * g1 + g2 * g2 > U * U:
         return False
     dp = (x0 - c0) ** 2 + (x1 - c1) ** 2 + (x2 - c2) ** 2
-    for w in range(nw):
-        if wi[w] == p:
-            continue
-        y0 = wxyz[w, 0]
-        y1 = wxyz[w, 1]
-        y2 = wxyz[w, 2]
-        da = wd[w]
-        worst = da - dp + 2.0 * half * (abs(x0 - y0) + abs(x1 - y1) + abs(x2 - y2))
-        if worst < -1e-9 * (da + dp):
-            return False
-    return True
+    return not beaten8(wit, x0, x1, x2, dp, 2.0 * half, np.float64(p))
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -154,24 +151,24 @@ def _grow(buf, need):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _append_kept(src, a, b, buf, pos, c0, c1, c2, half, pts, nw, wi, wxyz, wd, U):
+def _append_kept(src, a, b, buf, pos, c0, c1, c2, half, pts, wit, U):
     """Append to ``buf`` (grown as needed) the points ``src[a:b]`` that :func:`_keep` keeps
     for the cube centred at c; returns (buf, new end)."""
     if pos + (b - a) > buf.shape[0]:
         buf = _grow(buf, pos + (b - a))
     for s in range(a, b):
         p = src[s]
-        if _keep(p, c0, c1, c2, half, pts, nw, wi, wxyz, wd, U):
+        if _keep(p, c0, c1, c2, half, pts, wit, U):
             buf[pos] = p
             pos += 1
     return buf, pos
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _bin_beaten(ix, iy, iz, origin, size, c0, c1, c2, pts, wit):
+def _bin_beaten(ix, iy, iz, origin, size, c0, c1, c2, wit, nw):
     """Whether one witness beats every point of bin (ix, iy, iz) (a top grid cell) everywhere
     in the cube of side ``size`` centred at c: the largest value of ``_keep``'s witness
-    expression over the bin's box is negative."""
+    expression over the bin's box is negative (``wit``, ``nw``: :func:`_witnesses`)."""
     half = 0.5 * size
     l0 = origin[0] + size * ix
     l1 = origin[1] + size * iy
@@ -181,12 +178,11 @@ def _bin_beaten(ix, iy, iz, origin, size, c0, c1, c2, pts, wit):
     e1 = max(l1 - c1, c1 - (l1 + size), 0.0)
     e2 = max(l2 - c2, c2 - (l2 + size), 0.0)
     dp = e0 * e0 + e1 * e1 + e2 * e2
-    for w in range(wit.shape[0]):
-        a = wit[w]
-        y0 = pts[a, 0]
-        y1 = pts[a, 1]
-        y2 = pts[a, 2]
-        da = (y0 - c0) ** 2 + (y1 - c1) ** 2 + (y2 - c2) ** 2
+    for w in range(nw):
+        y0 = wit[w]
+        y1 = wit[8 + w]
+        y2 = wit[16 + w]
+        da = wit[24 + w]
         s = (max(abs(l0 - y0), abs(l0 + size - y0)) + max(abs(l1 - y1), abs(l1 + size - y1))
              + max(abs(l2 - y2), abs(l2 + size - y2)))
         if da - dp + 2.0 * half * s < -1e-9 * (da + dp) - 1e-12 * size * size:
@@ -201,7 +197,7 @@ def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
     cells : (R, 3) int64 top cell coordinates; vnn_i, vnn_d : (R, 8) exact nearest point and
     distance of each vertex; order, start : the points sorted by top cell and the start of
     each cell's run (``start`` has dims.prod() + 1 entries).  Returns (counts (R,) int64,
-    concatenated lists int32).
+    concatenated lists int32: the front of a larger buffer, to be copied out).
     """
     R = cells.shape[0]
     counts = np.zeros(R, dtype=np.int64)
@@ -211,9 +207,7 @@ def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
     pos = 0
     half = 0.5 * size
     wit = np.empty(8, dtype=np.int64)
-    wi = np.empty(8, dtype=np.int64)
-    wxyz = np.empty((8, 3))
-    wd = np.empty(8)
+    wv = np.empty(40)
     for m in range(R):
         for o in range(8):
             wit[o] = vnn_i[m, o]
@@ -221,7 +215,7 @@ def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
         c1 = origin[1] + size * (cells[m, 1] + 0.5)
         c2 = origin[2] + size * (cells[m, 2] + 0.5)
         U = _bound(vnn_d[m], wit, pts, c0, c1, c2, half) * (1.0 + 1e-9)
-        nw = _witnesses(wit, pts, c0, c1, c2, wi, wxyz, wd)
+        nw = _witnesses(wit, pts, c0, c1, c2, wv)
         k = int(np.ceil(U / size)) + 1
         x0 = max(0, cells[m, 0] - k)
         x1 = min(dims[0] - 1, cells[m, 0] + k)
@@ -245,12 +239,12 @@ def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
                     gz = max(abs(iz - cells[m, 2]) - 1, 0) * size
                     if gx * gx + gy * gy + gz * gz > U * U:
                         continue
-                    if _bin_beaten(ix, iy, iz, origin, size, c0, c1, c2, pts, wi[:nw]):
+                    if _bin_beaten(ix, iy, iz, origin, size, c0, c1, c2, wv, nw):
                         continue
                     buf, pos = _append_kept(order, a0, a1, buf, pos, c0, c1, c2, half, pts,
-                                            nw, wi, wxyz, wd, U)
+                                            wv, U)
         counts[m] = pos - n0
-    return counts, buf[:pos].copy()
+    return counts, buf[:pos]  # a view: _chunked copies it out (no second copy here)
 
 
 @njit(cache=True, nogil=True)
@@ -273,7 +267,14 @@ def classify_children(parents, off, lst, pts, origin, size, rf, ri, rh, rs, max_
     qx = np.empty(3)
     qy = np.empty(3)
     qz = np.empty(3)
-    sq = np.empty(9)
+    sq = np.empty(SCRATCH)
+    qv = np.empty((8, 3))
+    qo = np.empty(8, dtype=np.int64)
+    qt = np.empty(8, dtype=np.int64)
+    wb = np.empty(8, dtype=np.int64)
+    wd = np.empty(8)
+    wm = np.empty(8, dtype=np.int64)
+    live = np.empty(8, dtype=np.bool_)
     for p in range(parents.shape[0]):
         a = off[p]
         b = off[p + 1]
@@ -310,48 +311,81 @@ def classify_children(parents, off, lst, pts, origin, size, rf, ri, rh, rs, max_
             seed, _, _ = walk(c0, c1, c2, li[vmin], rf, ri, rh, rs, 64)
             out_seed[m] = seed
             out_kind[m] = 1
+            nq = 0  # the vertices to walk to (a walk from the exact nearest point stays there)
             for o in range(8):
                 t = (cx + _CX[o]) + 3 * (cy + _CY[o]) + 9 * (cz + _CZ[o])
                 if li[t] == seed:
-                    continue  # a walk from the exact nearest point stays there: passes
-                q0 = origin[0] + size * (b0 + cx + _CX[o])
-                q1 = origin[1] + size * (b1 + cy + _CY[o])
-                q2 = origin[2] + size * (b2 + cz + _CZ[o])
-                _, d2, mv = walk(q0, q1, q2, seed, rf, ri, rh, rs, max_moves + 1)
-                if mv > max_moves or np.sqrt(d2) > ld[t] * (1.0 + 1e-12) + tol:
-                    out_kind[m] = 2
-                    out_fail[m] = o
+                    continue
+                qv[nq, 0] = origin[0] + size * (b0 + cx + _CX[o])
+                qv[nq, 1] = origin[1] + size * (b1 + cy + _CY[o])
+                qv[nq, 2] = origin[2] + size * (b2 + cz + _CZ[o])
+                qo[nq] = o
+                qt[nq] = t
+                nq += 1
+            # walked WALK_GROUP at a time (a group's walks overlap), up to the group of the
+            # first failing vertex in octant order
+            for g in range(0, nq, WALK_GROUP):
+                ng = min(WALK_GROUP, nq - g)
+                walk_many(qv[g:], ng, seed, rf, ri, rh, rs, max_moves + 1, wb, wd, wm, live)
+                for k in range(ng):
+                    if (wm[k] > max_moves
+                            or np.sqrt(wd[k]) > ld[qt[g + k]] * (1.0 + 1e-12) + tol):
+                        out_kind[m] = 2
+                        out_fail[m] = qo[g + k]
+                        break
+                if out_kind[m] == 2:
                     break
 
 
 @njit(cache=True, nogil=True)
 def _walks_ok(q0, q1, q2, seeds, n0, cnt, cache_d, cache_m, rf, ri, rh, rs, max_moves,
-              i_exact, d_exact, tol):
+              i_exact, d_exact, tol, cur, live):
     """_classify_kernels._seeded_ok with the walks of seeds[:n0] taken from the cache and those of
     seeds[n0:cnt] added to it.  Returns (ok, number of cached walks).
 
     A walk from the exact nearest point ``i_exact`` stays there (no point is strictly closer):
-    it is not walked.  A walk longer than ``max_moves`` decides the answer (False) at once,
-    the later seeds are then walked only if asked again.
+    it is not walked.  The new walks are advanced in turn, one move each per round (their
+    chains of dependent loads overlap; each is exactly :func:`._kernels.walk`'s); a walk
+    longer than ``max_moves`` makes the answer False, now and whenever asked again.
+    ``cur``, ``live``: scratch as long as ``seeds``.
     """
     for s in range(n0):
         if cache_m[s] > max_moves:
             return False, n0
+    left = 0
     for s in range(n0, cnt):
-        if seeds[s] == i_exact:
-            e0 = rf[i_exact, 0] - q0
-            e1 = rf[i_exact, 1] - q1
-            e2 = rf[i_exact, 2] - q2
-            cache_d[s] = e0 * e0 + e1 * e1 + e2 * e2
-            cache_m[s] = 0
-            continue
-        _, d2, k = walk(q0, q1, q2, seeds[s], rf, ri, rh, rs, max_moves + 1)
-        cache_d[s] = d2
-        cache_m[s] = k
-        if k > max_moves:
-            return False, s + 1
+        b = np.int64(seeds[s])
+        cache_d[s] = _d2(q0, q1, q2, rf, b)
+        cache_m[s] = 0
+        cur[s] = b
+        live[s] = b != i_exact
+        if live[s]:
+            left += 1
+    moves = 0
+    while moves < max_moves + 1 and left > 0:
+        for s in range(n0, cnt):
+            if not live[s]:
+                continue
+            b = cur[s]
+            k, de = _ring(q0, q1, q2, b, rf, rh, rs)
+            if not de < cache_d[s]:
+                live[s] = False
+                left -= 1
+                continue
+            j = np.int64(ri[b, NBR + k])
+            dj = _d2(q0, q1, q2, rf, j)
+            if not dj < cache_d[s]:
+                live[s] = False
+                left -= 1
+                continue
+            cur[s] = j
+            cache_d[s] = dj
+            cache_m[s] += 1
+        moves += 1
     bd = np.inf
     for s in range(cnt):
+        if cache_m[s] > max_moves:
+            return False, cnt
         bd = min(bd, cache_d[s])
     return np.sqrt(bd) <= d_exact * (1.0 + 1e-12) + tol, cnt
 
@@ -380,11 +414,13 @@ def multi_children(ids, parents, off, lst, lat, pts, origin, size, first_seed, f
     nc = np.zeros(8, dtype=np.int64)
     ed = np.empty(cap)
     em = np.empty(cap, dtype=np.int64)
+    cur = np.empty(cap, dtype=np.int64)
+    live = np.empty(cap, dtype=np.bool_)
     c = np.empty(3, dtype=np.int64)
     qx = np.empty(3)
     qy = np.empty(3)
     qz = np.empty(3)
-    sq = np.empty(9)
+    sq = np.empty(SCRATCH)
     xi = np.empty(7, dtype=np.int64)
     xd = np.empty(7)
     for f in range(ids.shape[0]):
@@ -410,7 +446,8 @@ def multi_children(ids, parents, off, lst, lat, pts, origin, size, first_seed, f
                     good = False  # wrong with the first seed alone, the only one so far
                 else:
                     good, nc[o] = _walks_ok(q0, q1, q2, seeds, nc[o], cnt, cd[o], cm[o], rf,
-                                            ri, rh, rs, max_moves, vi[o], vd[o], tol)
+                                            ri, rh, rs, max_moves, vi[o], vd[o], tol, cur,
+                                            live)
                 if not good:
                     if rnd == 0 and cnt < cap:
                         seeds[cnt] = vi[o]
@@ -433,7 +470,7 @@ def multi_children(ids, parents, off, lst, lat, pts, origin, size, first_seed, f
                 q1 = qy[EXTRA[e, 1]]
                 q2 = qz[EXTRA[e, 2]]
                 if not _walks_ok(q0, q1, q2, seeds, 0, cnt, ed, em, rf, ri, rh, rs, max_moves,
-                                 xi[e], xd[e], tol)[0]:
+                                 xi[e], xd[e], tol, cur, live)[0]:
                     ok = False
                     if last_level and cnt < cap:
                         seeds[cnt] = xi[e]
@@ -448,7 +485,8 @@ def multi_children(ids, parents, off, lst, lat, pts, origin, size, first_seed, f
 def child_lists(ids, parents, off, lst, lat, pts, origin, size):
     """Candidate lists of the refined children ``ids`` (child numbers 8 p + octant) from their
     parents' lists and lattice nearest points ``lat`` (:func:`classify_children`).  Returns
-    (counts (len(ids),) int64, concatenated lists int32)."""
+    (counts (len(ids),) int64, concatenated lists int32: the front of a larger buffer, to be
+    copied out)."""
     n = ids.shape[0]
     counts = np.zeros(n, dtype=np.int64)
     cap = 0  # a child's list is part of its parent's: room for those, never grown (pages
@@ -460,9 +498,7 @@ def child_lists(ids, parents, off, lst, lat, pts, origin, size):
     half = 0.5 * size
     vi = np.empty(8, dtype=np.int64)
     vd = np.empty(8)
-    wi = np.empty(8, dtype=np.int64)
-    wxyz = np.empty((8, 3))
-    wd = np.empty(8)
+    wv = np.empty(40)
     c = np.empty(3, dtype=np.int64)
     for f in range(n):
         m = ids[f]
@@ -473,11 +509,11 @@ def child_lists(ids, parents, off, lst, lat, pts, origin, size):
         c1 = origin[1] + size * (c[1] + 0.5)
         c2 = origin[2] + size * (c[2] + 0.5)
         U = _bound(vd, vi, pts, c0, c1, c2, half) * (1.0 + 1e-9)
-        nw = _witnesses(vi, pts, c0, c1, c2, wi, wxyz, wd)
+        _witnesses(vi, pts, c0, c1, c2, wv)
         n0 = pos
-        buf, pos = _append_kept(lst, a, b, buf, pos, c0, c1, c2, half, pts, nw, wi, wxyz, wd, U)
+        buf, pos = _append_kept(lst, a, b, buf, pos, c0, c1, c2, half, pts, wv, U)
         counts[f] = pos - n0
-    return counts, buf[:pos].copy()
+    return counts, buf[:pos]  # a view: _chunked copies it out (no second copy here)
 
 
 @njit(cache=True, nogil=True)
@@ -506,75 +542,3 @@ def fill_neighbours(points, graph, nbr, off_col, qstep, ri, rh, rs):
             for c in range(3):
                 v = np.rint((points[g[k], c] - points[i, c]) / s)
                 rh[i, off_col + 3 * k + c] = np.int16(min(max(v, -32767.0), 32767.0))
-
-
-@njit(cache=True, nogil=True, inline="always")
-def _row_less(seeds, cnt, i, j):
-    """Row i before row j: lexicographic over the sorted seeds, a missing seed counting as
-    larger than any (as int32 max padding sorts)."""
-    n = min(cnt[i], cnt[j])
-    for k in range(n):
-        a = seeds[i, k]
-        b = seeds[j, k]
-        if a != b:
-            return a < b
-    return cnt[i] > cnt[j]
-
-
-@njit(cache=True, nogil=True)
-def pack_seed_lists(seeds, cnt):
-    """The kernel of ``dvg_build._pack_lists``: sorts each row's ``cnt`` seeds in place,
-    orders the rows lexicographically (a stable merge sort of row numbers, no (M, 16)
-    temporaries) and stores each distinct list once as (count, seeds...).  Returns (buffer
-    int32, offset of each row's list (M,) int64)."""
-    m = seeds.shape[0]
-    for i in range(m):  # insertion sort of each row (at most 16 seeds)
-        for v in range(1, cnt[i]):
-            x = seeds[i, v]
-            w = v
-            while w > 0 and seeds[i, w - 1] > x:
-                seeds[i, w] = seeds[i, w - 1]
-                w -= 1
-            seeds[i, w] = x
-    order = np.arange(m)
-    tmp = np.empty(m, dtype=np.int64)
-    width = 1
-    while width < m:  # bottom-up merge sort (stable)
-        for lo in range(0, m, 2 * width):
-            mid = min(lo + width, m)
-            hi = min(lo + 2 * width, m)
-            a = lo
-            b = mid
-            for k in range(lo, hi):
-                if a < mid and (b >= hi or not _row_less(seeds, cnt, order[b], order[a])):
-                    tmp[k] = order[a]
-                    a += 1
-                else:
-                    tmp[k] = order[b]
-                    b += 1
-        order, tmp = tmp, order
-        width *= 2
-    pos_of = tmp  # reused: offset of each row's list
-    total = 0
-    for k in range(m):
-        i = order[k]
-        if k > 0:
-            j = order[k - 1]
-            same = cnt[i] == cnt[j]
-            if same:
-                for s in range(cnt[i]):
-                    if seeds[i, s] != seeds[j, s]:
-                        same = False
-                        break
-            if same:
-                pos_of[i] = pos_of[j]
-                continue
-        pos_of[i] = total
-        total += cnt[i] + 1
-    buf = np.empty(total, dtype=np.int32)
-    for i in range(m):
-        p = pos_of[i]
-        buf[p] = cnt[i]
-        for s in range(cnt[i]):
-            buf[p + 1 + s] = seeds[i, s]
-    return buf, pos_of

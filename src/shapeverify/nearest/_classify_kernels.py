@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
-from ._kernels import walk
+from ._kernels import walk_inline as walk
 
 # the 7 extra samples of a cell in half-cell units: centre, then the 6 face centres
 EXTRA = np.array([[1, 1, 1], [0, 1, 1], [2, 1, 1], [1, 0, 1], [1, 2, 1], [1, 1, 0], [1, 1, 2]],

@@ -1,9 +1,14 @@
-"""LLVM intrinsics of the closest-point kernels (private): a cache-line prefetch and the walk
-step's 8-wide ring (which of a model point's 8 neighbours looks closest to a query).
+"""LLVM intrinsics of the closest-point kernels (private): a cache-line prefetch, the walk
+step's 8-wide ring (which of a model point's 8 neighbours looks closest to a query), and for
+the tree build a many-point nearest update (one candidate against 32 or 8 query points at
+once) and an 8-witness test (is a candidate beaten everywhere in a cell?).
 
-Both are written in LLVM IR through numba's ``@intrinsic``; they are used by
-:mod:`shapeverify.nearest._kernels` and :mod:`shapeverify.nearest._exact_kernels`.  The ring is
-tested bit for bit against a plain numpy evaluation (``tests/test_query_speedpath.py``).
+All are written in LLVM IR through numba's ``@intrinsic``; they are used by
+:mod:`shapeverify.nearest._kernels`, :mod:`shapeverify.nearest._exact_kernels`,
+:mod:`shapeverify.nearest._lattice_kernels` and :mod:`shapeverify.nearest._build_kernels`.
+The ring is tested bit for bit against a plain numpy evaluation
+(``tests/test_query_speedpath.py``), the nearest update against one linear scan per point and
+the witness test against the scalar loop (``tests/test_dvg_build.py``).
 """
 
 from __future__ import annotations
@@ -91,5 +96,102 @@ def _ring8(typingctx, rh, i, r0, r1, r2, s):
             f"llvm.cttz.i{RING}")
         k = builder.zext(builder.call(cttz, [bits, ir.Constant(ir.IntType(1), 1)]), i64)
         return context.make_tuple(builder, signature.return_type, [k, best])
+
+    return sig, codegen
+
+
+def _nearest_update(width):
+    """An intrinsic ``f(st, x, y, z, j)`` that offers candidate j at (x, y, z) to ``width``
+    query points at once.  ``st`` (5 width,) float64, C-contiguous: the query points' x, y, z
+    (a width-block each), then the best squared distances and the best indices (as float64).
+    The squared distance ``((x - qx)^2 + (y - qy)^2) + (z - qz)^2`` is formed in that order
+    (no fused or reordered operations: bit for bit a scalar search's), and the candidate
+    replaces the best when it is closer, or as close with a lower index (a linear scan's
+    tie rule in any candidate order)."""
+
+    @intrinsic
+    def update(typingctx, st, x, y, z, j):
+        if not (isinstance(st, types.Array) and st.dtype == types.float64):
+            return None
+        sig = types.void(st, x, y, z, j)
+
+        def codegen(context, builder, signature, args):
+            ary = context.make_array(signature.args[0])(context, builder, args[0])
+            f64, i32, i64 = ir.DoubleType(), ir.IntType(32), ir.IntType(64)
+            vd = ir.VectorType(f64, width)
+
+            def block(k):
+                return builder.bitcast(builder.gep(ary.data, [ir.Constant(i64, k * width)]),
+                                       vd.as_pointer())
+
+            def splat(v):
+                e = builder.insert_element(ir.Constant(vd, ir.Undefined), v, ir.Constant(i32, 0))
+                return builder.shuffle_vector(e, ir.Constant(vd, ir.Undefined),
+                                              ir.Constant(ir.VectorType(i32, width), [0] * width))
+
+            d = None
+            for c in range(3):
+                e = builder.fsub(splat(args[1 + c]), builder.load(block(c), align=8))
+                e2 = builder.fmul(e, e)
+                d = e2 if d is None else builder.fadd(d, e2)
+            bd = builder.load(block(3), align=8)
+            bi = builder.load(block(4), align=8)
+            sj = splat(args[4])
+            take = builder.or_(builder.fcmp_ordered("<", d, bd),
+                               builder.and_(builder.fcmp_ordered("==", d, bd),
+                                            builder.fcmp_ordered("<", sj, bi)))
+            builder.store(builder.select(take, d, bd), block(3), align=8)
+            builder.store(builder.select(take, sj, bi), block(4), align=8)
+            return context.get_dummy_value()
+
+        return sig, codegen
+
+    return update
+
+
+nearest_update32 = _nearest_update(32)
+nearest_update8 = _nearest_update(8)
+
+
+@intrinsic
+def beaten8(typingctx, w, x0, x1, x2, dp, h2, p):
+    """Whether one of 8 witnesses beats point p (at x, squared distance ``dp`` to a cube's
+    centre) everywhere in the cube: ``(da - dp) + h2 * ((|x0 - y0| + |x1 - y1|) + |x2 - y2|)
+    < -1e-9 * (da + dp)`` for a witness y (squared distance da to the centre) that is not p
+    itself, evaluated in that order for the 8 at once (bit for bit the scalar test).
+    ``w`` (40,) float64, C-contiguous: the witnesses' y0, y1, y2, da and indices (float64),
+    8 each."""
+    if not (isinstance(w, types.Array) and w.dtype == types.float64):
+        return None
+    sig = types.boolean(w, x0, x1, x2, dp, h2, p)
+
+    def codegen(context, builder, signature, args):
+        ary = context.make_array(signature.args[0])(context, builder, args[0])
+        f64, i32, i64 = ir.DoubleType(), ir.IntType(32), ir.IntType(64)
+        vd = ir.VectorType(f64, RING)
+
+        def block(k):
+            return builder.load(builder.bitcast(
+                builder.gep(ary.data, [ir.Constant(i64, k * RING)]), vd.as_pointer()), align=8)
+
+        def splat(v):
+            e = builder.insert_element(ir.Constant(vd, ir.Undefined), v, ir.Constant(i32, 0))
+            return builder.shuffle_vector(e, ir.Constant(vd, ir.Undefined),
+                                          ir.Constant(ir.VectorType(i32, RING), [0] * RING))
+
+        fabs = cgutils.get_or_insert_function(builder.module, ir.FunctionType(vd, [vd]),
+                                              f"llvm.fabs.v{RING}f64")
+        s = None
+        for c in range(3):
+            a = builder.call(fabs, [builder.fsub(splat(args[1 + c]), block(c))])
+            s = a if s is None else builder.fadd(s, a)
+        da = block(3)
+        dpv = splat(args[4])
+        worst = builder.fadd(builder.fsub(da, dpv), builder.fmul(splat(args[5]), s))
+        thr = builder.fmul(ir.Constant(vd, [-1e-9] * RING), builder.fadd(da, dpv))
+        beat = builder.and_(builder.fcmp_ordered("<", worst, thr),
+                            builder.fcmp_unordered("!=", block(4), splat(args[6])))
+        bits = builder.bitcast(beat, ir.IntType(RING))
+        return builder.icmp_unsigned("!=", bits, ir.Constant(ir.IntType(RING), 0))
 
     return sig, codegen

@@ -104,13 +104,11 @@ _WALK_SIG = types.Tuple((types.int64, _F8, types.int64))(
     types.Array(types.int16, 2, "C"), types.Array(types.float32, 2, "C"), types.int64)
 
 
-@njit(_WALK_SIG, cache=True, nogil=True)
-def walk(q0, q1, q2, b, rf, ri, rh, rs, max_moves):
-    """Greedy descent on the neighbour graph from model point ``b``.
-
-    Each round picks the neighbour that looks closest (quantised offsets) and moves there if it
-    is strictly closer in exact coordinates.  Returns (index, squared distance, moves).
-    """
+@njit(cache=True, nogil=True, inline="always")
+def walk_inline(q0, q1, q2, b, rf, ri, rh, rs, max_moves):
+    """:func:`walk`, inlined into the caller (the build's kernels walk tens of millions of
+    times: a call passes four array structs and costs about as much as the walk itself)."""
+    b = np.int64(b)
     db = _d2(q0, q1, q2, rf, b)
     moves = 0
     while moves < max_moves:
@@ -125,6 +123,53 @@ def walk(q0, q1, q2, b, rf, ri, rh, rs, max_moves):
         db = dj
         moves += 1
     return b, db, moves
+
+
+@njit(cache=True, nogil=True, inline="always")
+def walk_many(qv, nq, b0, rf, ri, rh, rs, max_moves, out_b, out_d, out_m, live):
+    """:func:`walk` from model point ``b0`` to each of the ``nq`` points ``qv[:nq]`` (rows
+    x, y, z), the walks advanced in turn, one move each per round: their chains of dependent
+    loads and comparisons overlap in the processor.  Each walk is exactly :func:`walk`'s
+    (same moves, same end): results into ``out_b``, ``out_d`` (squared distance), ``out_m``
+    (moves); ``live`` (>= nq,) bool scratch."""
+    b0 = np.int64(b0)
+    for i in range(nq):
+        out_b[i] = b0
+        out_d[i] = _d2(qv[i, 0], qv[i, 1], qv[i, 2], rf, b0)
+        out_m[i] = 0
+        live[i] = True
+    left = nq
+    moves = 0
+    while moves < max_moves and left > 0:
+        for i in range(nq):
+            if not live[i]:
+                continue
+            b = out_b[i]
+            k, de = _ring(qv[i, 0], qv[i, 1], qv[i, 2], b, rf, rh, rs)
+            if not de < out_d[i]:
+                live[i] = False
+                left -= 1
+                continue
+            j = np.int64(ri[b, NBR + k])
+            dj = _d2(qv[i, 0], qv[i, 1], qv[i, 2], rf, j)
+            if not dj < out_d[i]:
+                live[i] = False
+                left -= 1
+                continue
+            out_b[i] = j
+            out_d[i] = dj
+            out_m[i] += 1
+        moves += 1
+
+
+@njit(_WALK_SIG, cache=True, nogil=True)
+def walk(q0, q1, q2, b, rf, ri, rh, rs, max_moves):
+    """Greedy descent on the neighbour graph from model point ``b``.
+
+    Each round picks the neighbour that looks closest (quantised offsets) and moves there if it
+    is strictly closer in exact coordinates.  Returns (index, squared distance, moves).
+    """
+    return walk_inline(q0, q1, q2, b, rf, ri, rh, rs, max_moves)
 
 
 @njit(cache=True, nogil=True)

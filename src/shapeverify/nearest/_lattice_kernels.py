@@ -3,13 +3,12 @@
 
 A refined cell's children need the exact nearest model point of the parent's 27 lattice points
 (their vertices), a failed cell that of its 7 extra samples, all found by brute force in the
-cell's candidate list.  The points lie on a 3 x 3 x 3 lattice, so their squared distances to a
-candidate p are sums ``(x_i - p_x)^2 + (y_j - p_y)^2 + (z_k - p_z)^2`` of 9 squares: one pass
-over the list computes the 9 squares of each candidate and adds them up for every lattice
-point, instead of one pass (3 subtractions, 3 products) per lattice point.  The sums are
-formed in the same order as a single search does (``(e0 e0 + e1 e1) + e2 e2``, the coordinates
-``q = origin + size * integer``), so the distances, and the nearest points (lowest index on
-ties), are bit for bit those of one search per point.
+cell's candidate list.  One pass over the list offers each candidate to all the points at once,
+in vector registers (:func:`._intrinsics.nearest_update32`: 32 lanes for the 27 lattice
+points, 8 for the 7 samples).  The squared distances are formed in the order a single search
+forms them (``(e0 e0 + e1 e1) + e2 e2``, the coordinates ``q = origin + size * integer``), so
+the distances, and the nearest points (lowest index on ties, in any candidate order), are bit
+for bit those of one search per point.
 """
 
 from __future__ import annotations
@@ -17,70 +16,52 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from ._intrinsics import nearest_update8, nearest_update32
 
-@njit(cache=True, nogil=True, inline="always")
-def _squares(pts, j, qx, qy, qz, sq):
-    """sq[0:3], sq[3:6], sq[6:9]: (p_x - qx[i])^2, (p_y - qy[i])^2, (p_z - qz[i])^2 of
-    model point j."""
-    x = pts[j, 0]
-    y = pts[j, 1]
-    z = pts[j, 2]
-    for i in range(3):
-        e = x - qx[i]
-        sq[i] = e * e
-        e = y - qy[i]
-        sq[3 + i] = e * e
-        e = z - qz[i]
-        sq[6 + i] = e * e
+LANES = 32          # the 27 lattice points, padded to a vector width
+SCRATCH = 5 * LANES  # scratch a search needs (:func:`._intrinsics.nearest_update32`)
 
 
 @njit(cache=True, nogil=True)
-def nn_lattice(qx, qy, qz, pts, lst, a, b, sq, out_i, out_d):
+def nn_lattice(qx, qy, qz, pts, lst, a, b, st, out_i, out_d):
     """Exact nearest point among ``lst[a:b]`` (lowest index on ties, as a linear scan) of each
     of the 27 points ``(qx[t % 3], qy[t // 3 % 3], qz[t // 9])``: into ``out_i`` (27,) int64
-    (-1 for an empty list) and ``out_d`` (27,) (distance).  ``sq`` (9,) scratch."""
-    for t in range(27):
-        out_i[t] = -1
-        out_d[t] = np.inf
+    (-1 for an empty list) and ``out_d`` (27,) (distance).  ``st`` (SCRATCH,) float64
+    scratch."""
+    for t in range(LANES):
+        u = min(t, 26)  # padding lanes: copies of the last point
+        st[t] = qx[u % 3]
+        st[LANES + t] = qy[u // 3 % 3]
+        st[2 * LANES + t] = qz[u // 9]
+        st[3 * LANES + t] = np.inf
+        st[4 * LANES + t] = -1.0
     for s in range(a, b):
         j = lst[s]
-        _squares(pts, j, qx, qy, qz, sq)
-        for k in range(3):
-            ck = sq[6 + k]
-            for jj in range(3):
-                bj = sq[3 + jj]
-                for i in range(3):
-                    t = i + 3 * jj + 9 * k
-                    d = (sq[i] + bj) + ck
-                    bt = out_d[t]
-                    if d <= bt:
-                        if d < bt or j < out_i[t]:
-                            out_d[t] = d
-                            out_i[t] = j
+        nearest_update32(st, pts[j, 0], pts[j, 1], pts[j, 2], np.float64(j))
     for t in range(27):
-        out_d[t] = np.sqrt(out_d[t])
+        out_i[t] = np.int64(st[4 * LANES + t])
+        out_d[t] = np.sqrt(st[3 * LANES + t])
 
 
 @njit(cache=True, nogil=True)
-def nn_extra(qx, qy, qz, extra, pts, lst, a, b, sq, out_i, out_d):
+def nn_extra(qx, qy, qz, extra, pts, lst, a, b, st, out_i, out_d):
     """:func:`nn_lattice` for the points ``(qx[e0], qy[e1], qz[e2])`` of the rows of ``extra``
-    (E, 3) int64 (a failed cell's extra samples), into ``out_i``, ``out_d`` (E,)."""
+    (E, 3) int64, E <= 8 (a failed cell's extra samples), into ``out_i``, ``out_d`` (E,);
+    ``st`` (SCRATCH,) float64 scratch."""
     ne = extra.shape[0]
-    for e in range(ne):
-        out_i[e] = -1
-        out_d[e] = np.inf
+    for e in range(8):
+        u = min(e, ne - 1)
+        st[e] = qx[extra[u, 0]]
+        st[8 + e] = qy[extra[u, 1]]
+        st[16 + e] = qz[extra[u, 2]]
+        st[24 + e] = np.inf
+        st[32 + e] = -1.0
     for s in range(a, b):
         j = lst[s]
-        _squares(pts, j, qx, qy, qz, sq)
-        for e in range(ne):
-            d = (sq[extra[e, 0]] + sq[3 + extra[e, 1]]) + sq[6 + extra[e, 2]]
-            bt = out_d[e]
-            if d <= bt:
-                if d < bt or j < out_i[e]:
-                    out_d[e] = d
-                    out_i[e] = j
+        nearest_update8(st, pts[j, 0], pts[j, 1], pts[j, 2], np.float64(j))
     for e in range(ne):
-        out_d[e] = np.sqrt(out_d[e])
+        out_i[e] = np.int64(st[32 + e])
+        out_d[e] = np.sqrt(st[24 + e])
 
 
 @njit(cache=True, nogil=True)

@@ -23,6 +23,7 @@ from scipy.spatial import cKDTree
 
 from . import _build_kernels as _bk
 from . import _classify_kernels, _kernels
+from . import _seedlist_kernels as _sk
 from ._threads import run_chunks
 
 logger = logging.getLogger(__name__)
@@ -45,13 +46,16 @@ def _views(rec):
     return (rec, rec.view(np.int32), rec.view(np.int16), rec.view(np.float32))
 
 
-def _chunked(fn, n, min_chunk):
+def _chunked(fn, n, min_chunk, part=1 << 14):
     """run_chunks over range(n) for a kernel returning (counts, buffer) per chunk; the chunks'
-    outputs joined in order: (counts (n,) int64, buffer int32)."""
+    outputs joined in order: (counts (n,) int64, buffer int32).  Each thread's chunk is run
+    in parts of at most ``part`` cells, so that the join, which copies one part at a time
+    into the result and frees it, holds little more than the lists themselves."""
     parts = {}
 
     def one(a, b):
-        parts[a] = fn(a, b)
+        for c in range(a, b, part):
+            parts[c] = fn(c, min(b, c + part))
 
     run_chunks(one, n, min_chunk)
     keys = sorted(parts)
@@ -190,7 +194,11 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
     points = rec[:-1, :3]
     RV = _views(rec)
     n = points.shape[0]
-    pts = np.ascontiguousarray(points)
+    if (kd is not None and kd.data.shape == points.shape and kd.data.dtype == np.float64
+            and kd.data.flags.c_contiguous and np.array_equal(kd.data, points)):
+        pts = kd.data  # the kd-tree's points (cKDTree keeps the caller's array): no copy
+    else:
+        pts = np.ascontiguousarray(points)
     kd = cKDTree(pts) if kd is None else kd
     pad = 1e-9 * (1.0 + float(np.abs(pts).max()))
     lo = pts.min(axis=0) - max_distance - pad
@@ -238,7 +246,10 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         # range checked before it is written
         code = blocks[-1]
         single = kind == 1
-        code[single] = -(first[single].astype(np.int64) + 2)
+        sel = first[single]  # -(seed + 2) fits in int32 (see _check_codes): no int64 copies
+        sel += 2
+        code[single] = np.negative(sel, out=sel)
+        del sel
         fail = np.flatnonzero(kind == 2)
         n_multi = 0
         # refining the failed cells adds 8 nodes each and, on the next level, seed lists
@@ -256,7 +267,9 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
                                                max_seeds, last, workers)
             else:
                 fkind = np.empty(fail.size, dtype=np.int8)
-                fseeds = np.empty((fail.size, 16), dtype=np.int32)
+                # above the last level a cell stops as soon as it has more than max_seeds
+                # seeds, so max_seeds + 1 columns hold them (16 on the last level)
+                fseeds = np.empty((fail.size, 16 if last else max_seeds + 1), dtype=np.int32)
                 fn = np.empty(fail.size, dtype=np.int32)
 
                 def _multi(a, b):
@@ -271,7 +284,10 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
             mi = fail[ok]
             n_multi = mi.size
             if mi.size:
-                buf, where = _pack_lists(fseeds[ok], fn[ok])
+                if mi.size == fail.size:  # all of them (always on the last level): no copy
+                    buf, where = _pack_lists(fseeds, fn)
+                else:
+                    buf, where = _pack_lists(fseeds[ok], fn[ok])
                 _check_codes(n + n_list + buf.shape[0] + 2)
                 code[mi] = -(n + n_list + where + 2)
                 lists.append(buf)
@@ -284,7 +300,8 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         logger.debug("DVG level %d: %d cells (size %.4g): %d far, %d leaves (%d multi-seed), "
                      "%d refined%s", level, m, size, int((kind == 0).sum()),
                      int((kind == 1).sum()), n_multi, ref.size, " (last level)" if last else "")
-        del code, kind, single
+        del code, kind, single, first  # (the first seeds are in the codes now)
+        ffail = None
         if ref.size:
             if level == 0:
                 parents, off, lst = _top_candidates(ref, cells, samples, nn_i, nn_d, pts,
@@ -300,7 +317,7 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
 
                 counts, lst = _chunked(_lists, ref.size, 1 << 11)
                 parents, off = nxt, _offsets(counts)
-                del pp, oc, counts, lat, ffail
+                del pp, oc, counts, lat
             logger.debug("DVG level %d: candidate lists of the refined cells: %.1f points "
                          "each", level, lst.size / max(1, ref.size))
             blocks.append(np.full(8 * ref.size, _kernels.FAR, dtype=np.int32))
@@ -327,7 +344,9 @@ def _pack_lists(seeds: np.ndarray, count: np.ndarray):
     """Seed lists (M, 16) with counts (M,) -> (buffer of count, seeds..., offset of each list).
 
     Identical lists (same seeds in any order) are stored once, in lexicographic order of their
-    sorted seeds (the order ``np.unique(axis=0)`` gave; :func:`._build_kernels.pack_seed_lists`,
-    without its (M, 16) temporaries).  ``seeds`` is sorted in place.
+    sorted seeds (the order ``np.unique(axis=0)`` gave; :mod:`._seedlist_kernels`, without
+    (M, 16) temporaries).  ``seeds`` is sorted in place.
     """
-    return _bk.pack_seed_lists(seeds, count.astype(np.int64))
+    cnt = count.astype(np.int64)
+    key = _sk.sort_rows(seeds, cnt)
+    return _sk.pack_sorted(seeds, cnt, key, np.argsort(key, kind="stable"))
