@@ -32,7 +32,7 @@ from numba import njit
 from ._classify_kernels import EXTRA
 from ._intrinsics import beaten8
 from ._kernels import walk_inline as walk
-from ._kernels import NBR, _d2, _ring, walk_many
+from ._kernels import _d2, step, walk_many
 from ._lattice_kernels import SCRATCH, nn_extra, nn_lattice
 
 # lattice offsets of a cell's 8 vertices (octant order: x | y << 1 | z << 2)
@@ -366,15 +366,8 @@ def _walks_ok(q0, q1, q2, seeds, n0, cnt, cache_d, cache_m, rf, ri, rh, rs, max_
         for s in range(n0, cnt):
             if not live[s]:
                 continue
-            b = cur[s]
-            k, de = _ring(q0, q1, q2, b, rf, rh, rs)
-            if not de < cache_d[s]:
-                live[s] = False
-                left -= 1
-                continue
-            j = np.int64(ri[b, NBR + k])
-            dj = _d2(q0, q1, q2, rf, j)
-            if not dj < cache_d[s]:
+            j, dj = step(q0, q1, q2, cur[s], cache_d[s], rf, ri, rh, rs)
+            if j < 0:
                 live[s] = False
                 left -= 1
                 continue

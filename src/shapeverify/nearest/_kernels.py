@@ -105,6 +105,22 @@ _WALK_SIG = types.Tuple((types.int64, _F8, types.int64))(
 
 
 @njit(cache=True, nogil=True, inline="always")
+def step(q0, q1, q2, b, db, rf, ri, rh, rs):
+    """One move of a walk at model point ``b`` (squared distance ``db``): the neighbour that
+    looks closest (the ring), confirmed with its exact coordinates.  Returns (j, dj), or
+    (-1, db) where ``b`` is a local minimum (no move).  Every walk of the tree takes its moves
+    here (:func:`walk`, :func:`walk_many`, the build's ``_walks_ok``)."""
+    k, de = _ring(q0, q1, q2, b, rf, rh, rs)
+    if not de < db:
+        return np.int64(-1), db
+    j = np.int64(ri[b, NBR + k])
+    dj = _d2(q0, q1, q2, rf, j)
+    if not dj < db:
+        return np.int64(-1), db
+    return j, dj
+
+
+@njit(cache=True, nogil=True, inline="always")
 def walk_inline(q0, q1, q2, b, rf, ri, rh, rs, max_moves):
     """:func:`walk`, inlined into the caller (the build's kernels walk tens of millions of
     times: a call passes four array structs and costs about as much as the walk itself)."""
@@ -112,12 +128,8 @@ def walk_inline(q0, q1, q2, b, rf, ri, rh, rs, max_moves):
     db = _d2(q0, q1, q2, rf, b)
     moves = 0
     while moves < max_moves:
-        k, de = _ring(q0, q1, q2, b, rf, rh, rs)
-        if not de < db:
-            break
-        j = np.int64(ri[b, NBR + k])
-        dj = _d2(q0, q1, q2, rf, j)
-        if not dj < db:
+        j, dj = step(q0, q1, q2, b, db, rf, ri, rh, rs)
+        if j < 0:
             break
         b = j
         db = dj
@@ -144,15 +156,8 @@ def walk_many(qv, nq, b0, rf, ri, rh, rs, max_moves, out_b, out_d, out_m, live):
         for i in range(nq):
             if not live[i]:
                 continue
-            b = out_b[i]
-            k, de = _ring(qv[i, 0], qv[i, 1], qv[i, 2], b, rf, rh, rs)
-            if not de < out_d[i]:
-                live[i] = False
-                left -= 1
-                continue
-            j = np.int64(ri[b, NBR + k])
-            dj = _d2(qv[i, 0], qv[i, 1], qv[i, 2], rf, j)
-            if not dj < out_d[i]:
+            j, dj = step(qv[i, 0], qv[i, 1], qv[i, 2], out_b[i], out_d[i], rf, ri, rh, rs)
+            if j < 0:
                 live[i] = False
                 left -= 1
                 continue
