@@ -99,4 +99,3 @@ def pose_warnings(ev, w, ga, tau, radius, T=None, undet=(), noise=float("nan")):
         yield (f"another start fits nearly as well (fit {f:.3f} vs {ga.fit:.3f}, {ang:.1f} deg "
                f"away, moving the scan {dn:.3g} mm RMS along the normals): the pose may be a "
                "symmetric copy of the true one; give init= to choose")
-

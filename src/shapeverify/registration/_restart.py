@@ -32,9 +32,9 @@ thin-wall lock 1.31 deg off it) the best fit is returned. The caller refines it 
 stage and keeps it only if it fits better than the flagged end, at the sharper of the two robust
 scales (so nothing changes where there is no better minimum).
 
-The same spins, of the end where it is (``in_place``: no height search, no centring, which a
-partial view's off-axis centroid would spoil), also check every unflagged end of the global
-search on such a part: its hypotheses hold few spins, and a wrong one can fit the search's
+The flagged end is also spun where it is (no height search, no centring, which a partial
+view's off-axis centroid would spoil).  Those spins alone (``in_place``) also check every
+unflagged end of the global search on such a part: its hypotheses hold few spins, and a wrong one can fit the search's
 subset well enough to pass every check (an impeller rendered from an oblique camera by Open3D:
 31 deg off at 16 x the noise, converged, no warning; ``benchmarks/check_independent_scans.py``).
 About 0.5 s of CPU.

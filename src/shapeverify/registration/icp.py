@@ -444,12 +444,14 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
     # ... or found by the global search on such a part: its hypotheses hold few spins, and a
     # wrong spin can fit its subset well enough to pass every check (an impeller seen at an
     # angle: 31 deg off at 16 x the noise, converged, no warning)
+    # (a free spin or slide is not a wrong minimum: no restart where the data leave one)
     noise = scan_noise(P[::max(1, n // NOISE_POINTS)])
-    flagged = RESTART and _flagged(ev, converged, tau, radius, prep, noise)
-    if flagged or (RESTART and ga is not None and _restart._model_axis(prep) is not None
-                   and _determined(ev, prep, radius)):
+    suspect = RESTART and (not converged or any(True for _ in pose_warnings(
+        ev, ev.w, None, tau, radius, noise=noise)))
+    if RESTART and (suspect or (ga is not None and _restart._model_axis(prep) is not None)) \
+            and _determined(ev, prep, radius):
         T_alt = _restart.restart(P, prep, T0 if T0 is not None else np.eye(4), _pose(st),
-                                 radius, rng, in_place=not flagged)
+                                 radius, rng, in_place=not suspect)
         if T_alt is not None:
             st2 = _irls.State(T_alt[:3, :3].copy(), T_alt[:3, 3].copy(), st.iterations,
                               list(st.history))
@@ -495,15 +497,6 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
                         covariance=cov, history=tuple(st.history), scale=ev.sigma, message=msg,
                         undetermined=desc, method=method.value, loss=lossobj.name,
                         undetermined_directions=undet, warnings=tuple(notes), init=how)
-
-
-def _flagged(ev, converged, tau, radius, prep, noise=float("nan")) -> bool:
-    """The final pose may be a wrong minimum: not converged or a warning of
-    :func:`.pose_warnings`, and every direction determined (a free spin is not a wrong minimum)."""
-    if converged and not any(True for _ in pose_warnings(ev, ev.w, None, tau, radius,
-                                                         noise=noise)):
-        return False
-    return _determined(ev, prep, radius)
 
 
 def _determined(ev, prep, radius) -> bool:
