@@ -15,7 +15,11 @@ that fits best under one robust objective:
 3. *axis of revolution* (only for a model that is a solid of revolution, e.g. a turned part):
    the scan's own axis, read from its normal lines (Pottmann, Randrup 1998), put on the
    model's both ways up at the best height (:mod:`shapeverify.registration._revolution`);
-4. the identity (the scan may already be in the model's frame).
+4. *axis pairs* (only for a model with a near-symmetry axis that is not a solid of revolution,
+   e.g. an impeller): the scan's axis direction put on the model's, and one scan point paired
+   with one model point of like descriptor and like angle to the axis
+   (:mod:`shapeverify.registration._axis_pairs`);
+5. the identity (the scan may already be in the model's frame).
 
 Every hypothesis is scored by the *fit* of a fixed subset of scan points: the mean over the
 subset of ``max(0, 1 - (d / tau)^2)`` with ``d`` the point's distance to the model (0 for a
@@ -41,7 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from . import _features, _irls, _revolution
+from . import _axis_pairs, _features, _irls, _revolution
 from .losses import get_loss
 from .rigid import make_transform, rotation_vector
 
@@ -72,7 +76,8 @@ class GlobalAlignment:
 
     T_model_scan : (4, 4) the best refined pose; fit : its fit score in [0, 1] at the sharp fit
     distance (share of the scored scan points on the surface, see the module docstring); source : which hypothesis it
-    came from ('identity', 'principal-axes', 'fpfh-ransac'); n_hypotheses : poses scored;
+    came from ('identity', 'principal-axes', 'revolution-axis', 'axis-pairs',
+    'fpfh-ransac'); n_hypotheses : poses scored;
     runner_up : (fit, rotation deg, normal displacement mm) of the best refined hypothesis that
     moves the scan differently (None if none); seconds : wall time; runner_up_pose : that
     hypothesis' pose (4, 4) or None.
@@ -276,15 +281,23 @@ def _orient_towards_sensor(X: np.ndarray, Nrm: np.ndarray) -> np.ndarray:
     return Nrm * s[:, None]
 
 
-def feature_hypotheses(P: np.ndarray, side: _ModelSide, rng_seed: int, top: int = 40):
-    """Poses from FPFH correspondences + RANSAC, best inlier counts first (list of 4x4)."""
-    idx = _voxel_subsample(P, side.voxel)
-    if idx.shape[0] < 10:
-        return []
-    X = np.ascontiguousarray(P[idx])
+def scan_features(P: np.ndarray, side: _ModelSide):
+    """(X, normals towards the sensor, FPFH) of the scan's voxel subsample; empty arrays with
+    fewer than 10 voxels."""
+    X = np.ascontiguousarray(P[_voxel_subsample(P, side.voxel)])
+    if X.shape[0] < 10:
+        return X, np.empty((0, 3)), np.empty((0, 33))
     tree = cKDTree(X)
     Nrm = _orient_towards_sensor(X, _normals(X, tree))
-    F = _fpfh(X, Nrm, tree, 5.0 * side.voxel)
+    return X, Nrm, _fpfh(X, Nrm, tree, 5.0 * side.voxel)
+
+
+def feature_hypotheses(features, side: _ModelSide, rng_seed: int, top: int = 40):
+    """Poses from FPFH correspondences + RANSAC, best inlier counts first (list of 4x4);
+    ``features`` from :func:`scan_features`."""
+    X, Nrm, F = features
+    if X.shape[0] < 10:
+        return []
     _, j = side.ftree.query(F, k=1)
     # mutual nearest descriptors, plus every scan point's nearest (if too few are mutual)
     _, back = cKDTree(F).query(side.features[j], k=1)
@@ -362,7 +375,9 @@ def global_alignment(scan, prep, rng=0, extra=()) -> GlobalAlignment:
     hyps = [("identity", np.eye(4))] + [(k, np.asarray(T, float)) for k, T in extra]
     hyps += [("principal-axes", T) for T in axes_hypotheses(P, side)]
     hyps += [("revolution-axis", T) for T in _revolution.hypotheses(P, side)]
-    hyps += [("fpfh-ransac", T) for T in feature_hypotheses(P, side, seed)]
+    features = scan_features(P, side)
+    hyps += [("axis-pairs", T) for T in _axis_pairs.hypotheses(P, side, S, radius, features)]
+    hyps += [("fpfh-ransac", T) for T in feature_hypotheses(features, side, seed)]
     tq = 2.0 * side.voxel    # screening: kd-tree on the voxel subsample of the model
     Sq = S[:SCREEN_POINTS]
     quick = np.array([_quick_fit(side.tree, Sq, T, tq) for _, T in hyps])
