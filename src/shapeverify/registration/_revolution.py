@@ -138,8 +138,12 @@ def axis_directions(X: np.ndarray, N: np.ndarray, scale: float, k: int = 2,
         u = r / (4.685 * sig)
         w = np.where(u < 1.0, (1.0 - u * u) ** 2, 0.0)
     m -= np.sum(m * A, axis=1)[:, None] * A
-    C = np.cross(A, m) + o
-    share = np.array([_agree(normal_misfit(X, N, A[d], C[d])[0]) for d in range(n_dirs)])
+    # normal_misfit for every direction at once: the spin direction a x R / |R| at each point
+    Y = (X - o)[None] - np.cross(A, m)[:, None]                   # from the axis point
+    R = Y - np.einsum("dni,di->dn", Y, A)[..., None] * A[:, None]
+    et = np.cross(A[:, None], R)
+    miss = np.abs(np.einsum("dni,ni->dn", et, N)) / np.maximum(np.linalg.norm(R, axis=2), 1e-300)
+    share = np.mean(miss <= SLOPE, axis=1)
     out: list[np.ndarray] = []
     for d in np.argsort(-share, kind="stable"):
         if all(abs(A[d] @ b) < np.cos(np.radians(10.0)) for b in out):
