@@ -30,7 +30,7 @@ def test_a_true_point_pair_gives_the_true_pose():
     X = M @ Ti[:3, :3].T + Ti[:3, 3]           # the model points in the scan's frame
     Nx = Nm @ Ti[:3, :3].T
     side = type("Side", (), {})()
-    side.points, side.normals = M, Nm
+    side.points, side.normals, side.features = M, Nm, np.zeros((50, 33))
     side.ftree = type("FT", (), {"query": lambda self, F, k: (None, np.tile([[0], [1]], (1, k)))})()
     a = Ti[:3, :3] @ am                        # the scan's axis direction
     poses = _axis_pairs._pair_poses(X, Nx, np.zeros((2, 33)), side, a, am)

@@ -49,9 +49,10 @@ def _pair_poses(X, Nrm, F, side, a, am):
     for the scan axis direction a put on the model's am both ways up."""
     from ._revolution import _onto
 
-    _, J = side.ftree.query(F, k=MATCHES)
-    i = np.repeat(np.arange(X.shape[0]), MATCHES)
-    j = J.ravel()
+    k = min(MATCHES, side.features.shape[0])
+    _, J = side.ftree.query(F, k=k)
+    i = np.repeat(np.arange(X.shape[0]), k)
+    j = np.asarray(J).reshape(-1)
     out = []
     for up in (1.0, -1.0):
         R0 = _onto(up * a, am)

@@ -105,11 +105,12 @@ def axis_of_normals(X: np.ndarray, N: np.ndarray, scale: float, iterations: int 
 
 
 def axis_directions(X: np.ndarray, N: np.ndarray, scale: float, k: int = 2,
-                    n_dirs: int = 600) -> list[np.ndarray]:
+                    n_dirs: int = 600, max_points: int = 500) -> list[np.ndarray]:
     """Up to ``k`` directions (unit (3,), at least 10 deg apart) of lines that many normal lines
     of X (n, 3), unit normals N (n, 3), meet, best share first: for each of ``n_dirs``
     directions over a hemisphere (about 6 deg apart) the best position (a few Tukey re-weighted
-    least-squares steps, vectorised), scored by the share of normals within :data:`SLOPE`.
+    least-squares steps, vectorised), scored by the share of normals within :data:`SLOPE`; on
+    at most ``max_points`` of the points (evenly spaced).
 
     Unlike :func:`axis_of_normals`, which starts from the fit of all normals and converges to
     the nearest minimum, this finds the axis of a near-axisymmetric part whose scan is mostly
@@ -124,25 +125,30 @@ def axis_directions(X: np.ndarray, N: np.ndarray, scale: float, k: int = 2,
     >>> bool(abs(a[2]) > np.cos(np.radians(5)))     # the grid's directions are 6 deg apart
     True
     """
+    if X.shape[0] > max_points:              # an evenly spaced subset (the scan's order)
+        keep = np.linspace(0, X.shape[0] - 1, max_points).astype(np.int64)
+        X, N = X[keep], N[keep]
     i = np.arange(n_dirs) + 0.5
     z, phi = i / n_dirs, np.pi * (1.0 + 5.0 ** 0.5) * i          # a Fibonacci hemisphere
     A = np.c_[np.sqrt(1.0 - z * z) * np.cos(phi), np.sqrt(1.0 - z * z) * np.sin(phi), z]
     o = X.mean(axis=0)
     Q = A @ np.cross(X - o, N).T             # (dirs, n): a . (p x n)
+    NN = (N[:, :, None] * N[:, None, :]).reshape(-1, 9)
     w = np.ones_like(Q)
     for _ in range(4):                       # moment m per direction: the condition Q + m . n
-        C = np.einsum("dn,ni,nj->dij", w, N, N) + 1e-9 * np.eye(3)
-        m = np.linalg.solve(C, -np.einsum("dn,ni->di", w * Q, N)[..., None])[..., 0]
+        C = (w @ NN).reshape(-1, 3, 3) + 1e-9 * np.eye(3)
+        m = np.linalg.solve(C, -((w * Q) @ N)[..., None])[..., 0]
         r = np.abs(Q + m @ N.T)
         sig = np.maximum(1.4826 * np.median(r, axis=1), scale)[:, None]
         u = r / (4.685 * sig)
         w = np.where(u < 1.0, (1.0 - u * u) ** 2, 0.0)
     m -= np.sum(m * A, axis=1)[:, None] * A
-    # normal_misfit for every direction at once: the spin direction a x R / |R| at each point
-    Y = (X - o)[None] - np.cross(A, m)[:, None]                   # from the axis point
-    R = Y - np.einsum("dni,di->dn", Y, A)[..., None] * A[:, None]
-    et = np.cross(A[:, None], R)
-    miss = np.abs(np.einsum("dni,ni->dn", et, N)) / np.maximum(np.linalg.norm(R, axis=2), 1e-300)
+    # normal_misfit for every direction at once: |n . (a x R)| / |R|, R from the axis to the
+    # point; a x R = a x Y for Y from the axis point (the part along a drops out)
+    Y = (X - o)[None] - np.cross(A, m)[:, None]
+    h = np.sum(Y * A[:, None], axis=2)
+    rho = np.sqrt(np.maximum(np.sum(Y * Y, axis=2) - h * h, 0.0))
+    miss = np.abs(np.sum(np.cross(A[:, None], Y) * N[None], axis=2)) / np.maximum(rho, 1e-300)
     share = np.mean(miss <= SLOPE, axis=1)
     out: list[np.ndarray] = []
     for d in np.argsort(-share, kind="stable"):
