@@ -3,8 +3,8 @@
 Levels are built one after the other, breadth first: the top grid (level 0), then the 8
 children of every cell refined on the level above.  Each cell is classified (FAR, single-seed
 leaf, multi-seed leaf or refined, see :mod:`.dvg`) from the exact nearest model point of its
-vertices (and, for the cells that failed, of 7 more samples).  Those nearest points come from
-a kd-tree on the top grid only; every refined cell then carries a candidate list (the model
+vertices (and, for the cells that failed, of 7 more samples).  On the top grid those nearest
+points come from a search of the points binned on it; every refined cell then carries a candidate list (the model
 points that can be nearest anywhere in it, :mod:`._build_kernels`) that its children search by
 brute force and prune for their own children.  The tree is the one the kd-tree at every
 vertex gave (same arrays), at a fraction of the cost: each level's cells search a few dozen
@@ -23,6 +23,7 @@ from scipy.spatial import cKDTree
 
 from . import _build_kernels as _bk
 from . import _classify_kernels, _kernels
+from . import _lattice_kernels as _lk
 from . import _seedlist_kernels as _sk
 from ._threads import run_chunks
 
@@ -78,8 +79,10 @@ def _offsets(counts):
     return off
 
 
-def _top_level(cells, origin, size, dims, kd, n, RV, max_distance, max_moves, workers):
-    """Level 0: exact nearest points of the top grid's vertices (kd-tree), classification.
+def _top_level(cells, origin, size, dims, bins, pts, RV, max_distance, max_moves):
+    """Level 0: exact nearest points of the top grid's vertices (a search of the points
+    binned on the top grid, :func:`._lattice_kernels.grid_nearest`: what the kd-tree gave),
+    classification.
 
     Returns (kind, first, samples, nn_i, nn_d)."""
     m = cells.shape[0]
@@ -94,9 +97,16 @@ def _top_level(cells, origin, size, dims, kd, n, RV, max_distance, max_moves, wo
     uvx = np.stack([ukey // (vdims[1] * vdims[2]), (ukey // vdims[2]) % vdims[1],
                     ukey % vdims[2]], axis=1)
     # a cell that is not FAR has all its vertices within max_distance + 3 r
-    nn_d, nn_i = kd.query(origin + size * uvx, distance_upper_bound=max_distance + 3.03 * r,
-                          workers=workers)
-    nn_i = np.where(nn_i >= n, 0, nn_i).astype(np.int64)
+    nn_i = np.empty(uvx.shape[0], dtype=np.int64)
+    nn_d = np.empty(uvx.shape[0])
+    bound = max_distance + 3.03 * r
+
+    def _search(a, b):
+        _lk.grid_nearest(uvx[a:b], pts, bins[0], bins[1], dims, origin, size, bound,
+                         nn_i[a:b], nn_d[a:b])
+
+    run_chunks(_search, uvx.shape[0], 1 << 12)
+    del uvx
     samples = np.ascontiguousarray(inv.reshape(m, 8), dtype=np.int64)
     kind = np.empty(m, dtype=np.int8)
     first = np.empty(m, dtype=np.int64)
@@ -135,8 +145,9 @@ def _top_multi(fail, cells, origin, size, dims, kd, n, RV, samples, nn_i, nn_d, 
     return fkind, fseeds, fn
 
 
-def _top_candidates(ref, cells, samples, nn_i, nn_d, pts, origin, cell, dims):
-    """Candidate lists of the refined top cells (points binned on the top grid)."""
+def _bin_points(pts, origin, cell, dims):
+    """The points binned on the top grid: (their order by bin, the start of each bin's run
+    (dims.prod() + 1,))."""
     g = np.floor((pts - origin) / cell).astype(np.int64)
     np.clip(g, 0, dims - 1, out=g)
     bid = (g[:, 0] * dims[1] + g[:, 1]) * dims[2] + g[:, 2]
@@ -144,7 +155,12 @@ def _top_candidates(ref, cells, samples, nn_i, nn_d, pts, origin, cell, dims):
     order = np.argsort(bid, kind="stable")
     start = np.zeros(int(np.prod(dims)) + 1, dtype=np.int64)
     np.cumsum(np.bincount(bid, minlength=int(np.prod(dims))), out=start[1:])
-    del bid
+    return order, start
+
+
+def _top_candidates(ref, cells, samples, nn_i, nn_d, pts, origin, cell, dims, bins):
+    """Candidate lists of the refined top cells (``bins``: :func:`_bin_points`)."""
+    order, start = bins
     rc = np.ascontiguousarray(cells[ref])
     vi = np.ascontiguousarray(nn_i[samples[ref]])
     vd = np.ascontiguousarray(nn_d[samples[ref]])
@@ -183,7 +199,8 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         would exceed it, they become multi-seed leaves instead (as on the last level; the
         answers stay verified at their samples, the queries get a little slower).
     workers : int
-        Threads for the kd-tree queries at the top grid's vertices.
+        Threads for the kd-tree queries at the top grid's extra samples (only when the top
+        grid is the last level).
 
     Returns
     -------
@@ -227,8 +244,9 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         depth = level
         size = cell / 2.0 ** level
         if level == 0:
-            kind, first, samples, nn_i, nn_d = _top_level(cells, origin, size, dims, kd, n,
-                                                          RV, md, max_moves, workers)
+            bins = _bin_points(pts, origin, cell, dims)
+            kind, first, samples, nn_i, nn_d = _top_level(cells, origin, size, dims, bins, pts,
+                                                          RV, md, max_moves)
         else:
             kind = np.empty(m, dtype=np.int8)
             first = np.empty(m, dtype=np.int32)  # point indices (n < 2**31)
@@ -305,8 +323,8 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         if ref.size:
             if level == 0:
                 parents, off, lst = _top_candidates(ref, cells, samples, nn_i, nn_d, pts,
-                                                    origin, cell, dims)
-                del cells, samples, nn_i, nn_d
+                                                    origin, cell, dims, bins)
+                del cells, samples, nn_i, nn_d, bins
             else:
                 pp, oc = ref // 8, ref % 8
                 nxt = 2 * parents[pp] + _CORNER[oc]
