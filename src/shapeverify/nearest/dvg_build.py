@@ -161,11 +161,15 @@ def _bin_points(pts, origin, cell, dims):
 def _top_candidates(ref, cells, samples, nn_i, nn_d, pts, origin, cell, dims, bins):
     """Candidate lists of the refined top cells (``bins``: :func:`_bin_points`)."""
     order, start = bins
+    # the points' coordinates and indices in bin order (8 entries of padding): read 8 at a
+    # time by the tests
+    sx, sy, sz = (np.concatenate([pts[order, k], np.zeros(8)]) for k in range(3))
+    sid = np.concatenate([order.astype(np.int32), np.zeros(8, dtype=np.int32)])
     rc = np.ascontiguousarray(cells[ref])
     vi = np.ascontiguousarray(nn_i[samples[ref]])
     vd = np.ascontiguousarray(nn_d[samples[ref]])
-    counts, lst = _chunked(lambda a, b: _bk.top_lists(rc[a:b], vi[a:b], vd[a:b], pts, order,
-                                                      start, dims, origin, cell),
+    counts, lst = _chunked(lambda a, b: _bk.top_lists(rc[a:b], vi[a:b], vd[a:b], pts, sx, sy,
+                                                      sz, sid, start, dims, origin, cell),
                            ref.size, 1 << 10)
     return rc, _offsets(counts), lst
 
