@@ -66,9 +66,9 @@ def test_candidate_lists_hold_the_nearest_point_of_every_point_of_the_cell(md):
     ref = np.flatnonzero(kind == 2)
     assert ref.size > 20
     rng = np.random.default_rng(1)
-    parents, off, lst = dvg_build._top_candidates(ref, cells, samples, nn_i, nn_d, pts,
-                                                  origin, cell, dims,
-                                                  dvg_build._bin_points(pts, origin, cell, dims))
+    parents, [(_, _, off, lst, _)] = dvg_build._top_candidates(
+        ref, cells, samples, nn_i, nn_d, pts, origin, cell, dims,
+        dvg_build._bin_points(pts, origin, cell, dims))
     mean_top = _check_lists(parents, off, lst, origin, cell, pts, kd, rng)
     # the lists are short: witnesses prune far more than the distance bound alone
     assert mean_top < 0.25 * pts.shape[0]
@@ -177,9 +177,9 @@ def test_children_classification_and_multi_seed_pass_equal_the_kd_tree_kernels(l
     n = pts.shape[0]
     kind, first, samples, nn_i, nn_d = top
     ref = np.flatnonzero(kind == 2)
-    parents, off, lst = dvg_build._top_candidates(ref, cells, samples, nn_i, nn_d, pts,
-                                                  origin, cell, dims,
-                                                  dvg_build._bin_points(pts, origin, cell, dims))
+    parents, [(_, _, off, lst, _)] = dvg_build._top_candidates(
+        ref, cells, samples, nn_i, nn_d, pts, origin, cell, dims,
+        dvg_build._bin_points(pts, origin, cell, dims))
     size = 0.5 * cell
     m = 8 * parents.shape[0]
     kind1, first1 = np.empty(m, np.int8), np.empty(m, np.int64)
@@ -445,3 +445,18 @@ def test_grid_search_of_the_top_vertices_equals_a_bounded_scan(coarse):
         assert np.array_equal(od, np.where(inside, d, np.inf))
     if coarse:
         assert (d2 == d2.min(axis=1, keepdims=True)).sum(axis=1).max() > 1  # ties seen
+
+
+def test_tree_is_the_same_for_any_number_of_segments(monkeypatch):
+    """The refined cells of a level handled in segments (each one's lists freed once its
+    children's are built) give the tree of one segment, node for node."""
+    pts = _two_sheets()
+    rec = dvg.make_records(pts, dvg.neighbor_graph(pts))
+    trees = []
+    for k in (1, 3, 8):
+        monkeypatch.setattr(dvg_build, "SEGMENTS", k)
+        trees.append(dvg_build.build_tree(rec, H, 1.0))
+    assert trees[0].depth >= 2
+    for t in trees[1:]:
+        assert np.array_equal(t.nodes, trees[0].nodes)
+        assert np.array_equal(t.lists, trees[0].lists)

@@ -31,6 +31,7 @@ logger = logging.getLogger(__name__)
 
 __all__ = ["build_tree"]
 
+SEGMENTS = 8  # the refined cells of a level are handled in this many segments
 _CORNER = np.array([[o & 1, (o >> 1) & 1, (o >> 2) & 1] for o in range(8)], dtype=np.int64)
 
 
@@ -158,8 +159,10 @@ def _bin_points(pts, origin, cell, dims):
     return order, start
 
 
-def _top_candidates(ref, cells, samples, nn_i, nn_d, pts, origin, cell, dims, bins):
-    """Candidate lists of the refined top cells (``bins``: :func:`_bin_points`)."""
+def _top_candidates(ref, cells, samples, nn_i, nn_d, pts, origin, cell, dims, bins,
+                    segments=1):
+    """Candidate lists of the refined top cells (``bins``: :func:`_bin_points`), in
+    ``segments`` segments (:func:`_classify_level`): (their coordinates, segments)."""
     order, start = bins
     # the points' coordinates and indices in bin order (8 entries of padding): read 8 at a
     # time by the tests
@@ -168,10 +171,80 @@ def _top_candidates(ref, cells, samples, nn_i, nn_d, pts, origin, cell, dims, bi
     rc = np.ascontiguousarray(cells[ref])
     vi = np.ascontiguousarray(nn_i[samples[ref]])
     vd = np.ascontiguousarray(nn_d[samples[ref]])
-    counts, lst = _chunked(lambda a, b: _bk.top_lists(rc[a:b], vi[a:b], vd[a:b], pts, sx, sy,
-                                                      sz, sid, start, dims, origin, cell),
-                           ref.size, 1 << 10)
-    return rc, _offsets(counts), lst
+    segs = []
+    cuts = np.linspace(0, ref.size, segments + 1).astype(np.int64)
+    for s0, s1 in zip(cuts[:-1].tolist(), cuts[1:].tolist()):
+        if s1 > s0:
+            counts, lst = _chunked(lambda a, b: _bk.top_lists(
+                rc[s0 + a:s0 + b], vi[s0 + a:s0 + b], vd[s0 + a:s0 + b], pts, sx, sy, sz, sid,
+                start, dims, origin, cell), s1 - s0, 1 << 10)
+            segs.append([s0, s1, _offsets(counts), lst, None])
+    return rc, segs
+
+
+def _classify_level(segs, parents, m, pts, origin, size, RV, md, max_moves):
+    """:func:`._build_kernels.classify_children` for the children of every segment of the
+    refined cells of the level above.  A segment ``[p0, p1, off, lst, lat]`` holds the
+    candidate lists of parents p0..p1 (``off`` local); the lattice nearest points ``lat``
+    are stored into it.  (Segments let each one's lists be freed as soon as its children's
+    lists are built, :func:`_child_segments`.)  Returns (kind, first seed, first failing
+    vertex) of the m children."""
+    kind = np.empty(m, dtype=np.int8)
+    first = np.empty(m, dtype=np.int32)  # point indices (n < 2**31)
+    ffail = np.empty(m, dtype=np.int8)
+    for sg in segs:
+        p0, p1, so, sl, _ = sg
+        lat = sg[4] = np.empty((p1 - p0, 27), dtype=np.int32)
+
+        def _classify(a, b):
+            q0, q1 = p0 + a, p0 + b
+            _bk.classify_children(parents[q0:q1], so[a:b + 1], sl, pts, origin, size, *RV,
+                                  md, int(max_moves), kind[8 * q0:8 * q1],
+                                  first[8 * q0:8 * q1], lat[a:b], ffail[8 * q0:8 * q1])
+
+        run_chunks(_classify, p1 - p0, 1 << 11)
+    return kind, first, ffail
+
+
+def _multi_level(segs, fail, parents, first, ffail, pts, origin, size, RV, max_moves,
+                 max_seeds, last, cols):
+    """:func:`._build_kernels.multi_children` for the failed children ``fail`` (sorted),
+    segment by segment: (kind, seeds (F, cols), seed counts)."""
+    fkind = np.empty(fail.size, dtype=np.int8)
+    fseeds = np.empty((fail.size, cols), dtype=np.int32)
+    fn = np.empty(fail.size, dtype=np.int32)
+    for p0, p1, so, sl, lat in segs:
+        f0, f1 = np.searchsorted(fail, (8 * p0, 8 * p1)).tolist()
+        ids = fail[f0:f1] - 8 * p0
+        pl, fs, ff = parents[p0:p1], first[8 * p0:8 * p1], ffail[8 * p0:8 * p1]
+
+        def _multi(a, b):
+            _bk.multi_children(ids[a:b], pl, so, sl, lat, pts, origin, size, fs, ff, *RV,
+                               int(max_moves), int(max_seeds), last, fkind[f0 + a:f0 + b],
+                               fseeds[f0 + a:f0 + b], fn[f0 + a:f0 + b])
+
+        if f1 > f0:
+            run_chunks(_multi, f1 - f0, 1 << 10)
+    return fkind, fseeds, fn
+
+
+def _child_segments(segs, ref, parents, pts, origin, size):
+    """The candidate lists of the refined children ``ref`` (sorted child numbers), as the
+    next level's segments; each segment of ``segs`` is freed (the list emptied) once its
+    children's lists are built."""
+    new = []
+    for i in range(len(segs)):
+        p0, p1, so, sl, lat = segs[i]
+        segs[i] = None
+        r0, r1 = np.searchsorted(ref, (8 * p0, 8 * p1)).tolist()
+        ids = ref[r0:r1] - 8 * p0
+        pl = parents[p0:p1]
+        if r1 > r0:
+            counts, cl = _chunked(lambda a, b: _bk.child_lists(ids[a:b], pl, so, sl, lat, pts,
+                                                               origin, size), r1 - r0, 1 << 11)
+            new.append([r0, r1, _offsets(counts), cl, None])
+        del so, sl, lat  # this segment's lists, before the next segment's children
+    return new
 
 
 def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
@@ -240,7 +313,7 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
     lists: list[np.ndarray] = []
     n_list = 0
     depth = 0
-    parents = off = lst = None  # refined cells of the level above and their candidate lists
+    parents = segs = None  # refined cells of the level above, their candidate lists
     m = n_top
     for level in range(max_level + 1):
         if m == 0:
@@ -252,17 +325,8 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
             kind, first, samples, nn_i, nn_d = _top_level(cells, origin, size, dims, bins, pts,
                                                           RV, md, max_moves)
         else:
-            kind = np.empty(m, dtype=np.int8)
-            first = np.empty(m, dtype=np.int32)  # point indices (n < 2**31)
-            lat = np.empty((parents.shape[0], 27), dtype=np.int32)
-            ffail = np.empty(m, dtype=np.int8)
-
-            def _classify(a, b):
-                _bk.classify_children(parents[a:b], off[a:b + 1], lst, pts, origin, size, *RV,
-                                      md, int(max_moves), kind[8 * a:8 * b],
-                                      first[8 * a:8 * b], lat[a:b], ffail[8 * a:8 * b])
-
-            run_chunks(_classify, parents.shape[0], 1 << 11)
+            kind, first, ffail = _classify_level(segs, parents, m, pts, origin, size, RV, md,
+                                                 max_moves)
             logger.debug("DVG level %d: %d cells classified", level, m)
         # the node codes go straight into the level's int32 block (FAR already), each kind's
         # range checked before it is written
@@ -288,18 +352,11 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
                                                samples, nn_i, nn_d, first, md, max_moves,
                                                max_seeds, last, workers)
             else:
-                fkind = np.empty(fail.size, dtype=np.int8)
                 # above the last level a cell stops as soon as it has more than max_seeds
                 # seeds, so max_seeds + 1 columns hold them (16 on the last level)
-                fseeds = np.empty((fail.size, 16 if last else max_seeds + 1), dtype=np.int32)
-                fn = np.empty(fail.size, dtype=np.int32)
-
-                def _multi(a, b):
-                    _bk.multi_children(fail[a:b], parents, off, lst, lat, pts, origin, size,
-                                       first, ffail, *RV, int(max_moves), int(max_seeds), last,
-                                       fkind[a:b], fseeds[a:b], fn[a:b])
-
-                run_chunks(_multi, fail.size, 1 << 10)
+                fkind, fseeds, fn = _multi_level(segs, fail, parents, first, ffail, pts,
+                                                 origin, size, RV, max_moves, max_seeds, last,
+                                                 16 if last else max_seeds + 1)
             logger.debug("DVG level %d: multi-seed pass over %d failed cells", level, fail.size)
             kind[fail] = fkind
             ok = fkind == 1
@@ -326,22 +383,16 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         ffail = None
         if ref.size:
             if level == 0:
-                parents, off, lst = _top_candidates(ref, cells, samples, nn_i, nn_d, pts,
-                                                    origin, cell, dims, bins)
+                parents, segs = _top_candidates(ref, cells, samples, nn_i, nn_d, pts, origin,
+                                                cell, dims, bins, SEGMENTS)
                 del cells, samples, nn_i, nn_d, bins
             else:
-                pp, oc = ref // 8, ref % 8
-                nxt = 2 * parents[pp] + _CORNER[oc]
-
-                def _lists(a, b):
-                    return _bk.child_lists(ref[a:b], parents, off, lst, lat, pts, origin,
-                                           size)
-
-                counts, lst = _chunked(_lists, ref.size, 1 << 11)
-                parents, off = nxt, _offsets(counts)
-                del pp, oc, counts, lat
+                nxt = 2 * parents[ref // 8] + _CORNER[ref % 8]
+                segs = _child_segments(segs, ref, parents, pts, origin, size)
+                parents = nxt
+                del nxt
             logger.debug("DVG level %d: candidate lists of the refined cells: %.1f points "
-                         "each", level, lst.size / max(1, ref.size))
+                         "each", level, sum(sg[3].size for sg in segs) / max(1, ref.size))
             blocks.append(np.full(8 * ref.size, _kernels.FAR, dtype=np.int32))
             n_nodes += 8 * ref.size
             m = 8 * ref.size
