@@ -89,14 +89,16 @@ def _top_level(cells, origin, size, dims, bins, pts, RV, max_distance, max_moves
     m = cells.shape[0]
     r = 0.5 * np.sqrt(3.0) * size
     vdims = dims + 1
-    key = np.empty((m, 8), dtype=np.int64)
+    # the vertices of the whole grid (every one belongs to a cell of the full top grid),
+    # numbered in raster order: a cell's samples are its vertices' numbers
+    samples = np.empty((m, 8), dtype=np.int64)
     for o in range(8):
-        key[:, o] = (((cells[:, 0] + _CORNER[o, 0]) * vdims[1] + cells[:, 1] + _CORNER[o, 1])
-                     * vdims[2] + cells[:, 2] + _CORNER[o, 2])
-    ukey, inv = np.unique(key.ravel(), return_inverse=True)
-    del key
+        samples[:, o] = (((cells[:, 0] + _CORNER[o, 0]) * vdims[1] + cells[:, 1]
+                          + _CORNER[o, 1]) * vdims[2] + cells[:, 2] + _CORNER[o, 2])
+    ukey = np.arange(int(np.prod(vdims)), dtype=np.int64)
     uvx = np.stack([ukey // (vdims[1] * vdims[2]), (ukey // vdims[2]) % vdims[1],
                     ukey % vdims[2]], axis=1)
+    del ukey
     # a cell that is not FAR has all its vertices within max_distance + 3 r
     nn_i = np.empty(uvx.shape[0], dtype=np.int64)
     nn_d = np.empty(uvx.shape[0])
@@ -108,7 +110,6 @@ def _top_level(cells, origin, size, dims, bins, pts, RV, max_distance, max_moves
 
     run_chunks(_search, uvx.shape[0], 1 << 12)
     del uvx
-    samples = np.ascontiguousarray(inv.reshape(m, 8), dtype=np.int64)
     kind = np.empty(m, dtype=np.int8)
     first = np.empty(m, dtype=np.int64)
 
