@@ -15,9 +15,11 @@ list is its parent's list, pruned:
   largest value over the box is ``|c - a|^2 - |c - p|^2 + size * sum_k |p_k - a_k|`` (c: the
   centre); p is dropped when that is negative (with a relative margin of 1e-9 against rounding).
 
-Both tests only drop points that are nearest nowhere in the cell, so the nearest point of any
-point of a cell is in its list, and a brute-force search over the list is exact.  The top
-grid's lists are collected from the model points binned on the top grid.  Ties (two model
+Both tests are made for 8 candidates at once (:func:`._intrinsics.kept8`, read from
+coordinate arrays: the top grid's points in bin order, a parent's list gathered once for all
+its children).  They only drop points that are nearest nowhere in the cell, so the nearest
+point of any point of a cell is in its list, and a brute-force search over the list is exact.
+The top grid's lists are collected from the model points binned on the top grid.  Ties (two model
 points at exactly the same distance) go to the lower index, as in a linear scan.
 
 Every cell is handled on its own, so the kernels run on contiguous chunks of cells in several

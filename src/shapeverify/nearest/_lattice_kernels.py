@@ -9,6 +9,9 @@ points, 8 for the 7 samples).  The squared distances are formed in the order a s
 forms them (``(e0 e0 + e1 e1) + e2 e2``, the coordinates ``q = origin + size * integer``), so
 the distances, and the nearest points (lowest index on ties, in any candidate order), are bit
 for bit those of one search per point.
+
+The top grid's vertices, which have no candidate list yet, search the model points binned on
+the top grid instead (:func:`grid_nearest`, in place of a kd-tree).
 """
 
 from __future__ import annotations

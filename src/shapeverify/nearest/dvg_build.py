@@ -4,11 +4,16 @@ Levels are built one after the other, breadth first: the top grid (level 0), the
 children of every cell refined on the level above.  Each cell is classified (FAR, single-seed
 leaf, multi-seed leaf or refined, see :mod:`.dvg`) from the exact nearest model point of its
 vertices (and, for the cells that failed, of 7 more samples).  On the top grid those nearest
-points come from a search of the points binned on it; every refined cell then carries a candidate list (the model
-points that can be nearest anywhere in it, :mod:`._build_kernels`) that its children search by
-brute force and prune for their own children.  The tree is the one the kd-tree at every
-vertex gave (same arrays), at a fraction of the cost: each level's cells search a few dozen
-candidates instead of a kd-tree, and share them between their 27 lattice points.
+points come from a search of the model points binned on it
+(:func:`._lattice_kernels.grid_nearest`); every refined cell then carries a candidate list (the
+model points that can be nearest anywhere in it, :mod:`._build_kernels`) that its children
+search by brute force and prune for their own children.  The tree is the one a kd-tree at
+every vertex gave (same arrays), at a fraction of the cost: each level's cells search a few
+dozen candidates instead of a kd-tree, and share them between their 27 lattice points.
+
+The refined cells of a level are kept in ``SEGMENTS`` segments, each with its own candidate
+lists: a segment's lists are freed as soon as its children's lists are built, so that two
+levels' lists are never all held together.
 
 Cells are independent, so every level is classified on all threads (``run_chunks``), with
 results identical for any number of threads.
@@ -264,7 +269,8 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         h / 2).
     max_distance : float > 0
         Queries within this distance of the model are answered by the tree.
-    kd : cKDTree over the points, optional (built when not given)
+    kd : cKDTree over the points, optional (spares a copy of the points; built when not
+        given and needed: only when the top grid is the last level)
     max_moves : int
         Greedy walk budget a leaf may need at its vertices (larger: fewer, bigger leaves and
         slower queries).
@@ -294,7 +300,6 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         pts = kd.data  # the kd-tree's points (cKDTree keeps the caller's array): no copy
     else:
         pts = np.ascontiguousarray(points)
-    kd = cKDTree(pts) if kd is None else kd
     pad = 1e-9 * (1.0 + float(np.abs(pts).max()))
     lo = pts.min(axis=0) - max_distance - pad
     hi = pts.max(axis=0) + max_distance + pad
@@ -349,6 +354,7 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
                            "max_distance or a coarser spacing", level, max_level, fail.size)
         if fail.size and (size <= multi_size or last):
             if level == 0:
+                kd = cKDTree(pts) if kd is None else kd  # (only here)
                 fkind, fseeds, fn = _top_multi(fail, cells, origin, size, dims, kd, n, RV,
                                                samples, nn_i, nn_d, first, md, max_moves,
                                                max_seeds, last, workers)
