@@ -87,8 +87,9 @@ def _offsets(counts):
 
 def _top_level(cells, origin, size, dims, bins, pts, RV, max_distance, max_moves):
     """Level 0: exact nearest points of the top grid's vertices (a search of the points
-    binned on the top grid, :func:`._lattice_kernels.grid_nearest`: what the kd-tree gave),
-    classification.
+    binned on the top grid, :func:`._lattice_kernels.grid_nearest`: what a kd-tree bounded at
+    max_distance + 3.03 r gave for every vertex of a cell that is not FAR; inf for the
+    others beyond max_distance + 1.01 r), classification.
 
     Returns (kind, first, samples, nn_i, nn_d)."""
     m = cells.shape[0]
@@ -104,17 +105,29 @@ def _top_level(cells, origin, size, dims, bins, pts, RV, max_distance, max_moves
     uvx = np.stack([ukey // (vdims[1] * vdims[2]), (ukey // vdims[2]) % vdims[1],
                     ukey % vdims[2]], axis=1)
     del ukey
-    # a cell that is not FAR has all its vertices within max_distance + 3 r
     nn_i = np.empty(uvx.shape[0], dtype=np.int64)
     nn_d = np.empty(uvx.shape[0])
-    bound = max_distance + 3.03 * r
 
-    def _search(a, b):
-        _lk.grid_nearest(uvx[a:b], pts, bins[0], bins[1], dims, origin, size, bound,
-                         nn_i[a:b], nn_d[a:b])
+    def _search(vx, bound, out_i, out_d):
+        def one(a, b):
+            _lk.grid_nearest(vx[a:b], pts, bins[0], bins[1], dims, origin, size, bound,
+                             out_i[a:b], out_d[a:b])
+        run_chunks(one, vx.shape[0], 1 << 12)
 
-    run_chunks(_search, uvx.shape[0], 1 << 12)
-    del uvx
+    # first up to the FAR test's distance (max_distance + r): exact for every vertex that
+    # makes a cell not FAR, so the FAR cells are known; then, up to max_distance + 3 r (a
+    # cell that is not FAR has all its vertices within it), the other vertices of the cells
+    # that are not FAR.  (The other vertices only take part in FAR tests.)
+    _search(uvx, max_distance + 1.01 * r, nn_i, nn_d)
+    near = samples[nn_d[samples].min(axis=1) <= max_distance + r]
+    redo = np.unique(near[~np.isfinite(nn_d[near])])
+    del near
+    if redo.size:
+        ri, rd = np.empty(redo.size, dtype=np.int64), np.empty(redo.size)
+        _search(np.ascontiguousarray(uvx[redo]), max_distance + 3.03 * r, ri, rd)
+        nn_i[redo] = ri
+        nn_d[redo] = rd
+    del uvx, redo
     kind = np.empty(m, dtype=np.int8)
     first = np.empty(m, dtype=np.int64)
 
