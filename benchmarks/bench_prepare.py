@@ -69,25 +69,32 @@ def load(name: str):
 class Clock:
     """CPU and wall seconds of named stages."""
 
-    def __init__(self):
+    def __init__(self, stage_peaks=False):
         self.rows: list[tuple[str, float, float, float]] = []
+        self.stage_peaks = stage_peaks  # each stage's own peak RSS (VmHWM reset before it)
+        self.peak = 0.0  # the largest of them, MiB
 
     def run(self, name, fn, *a, **kw):
         tracing = tracemalloc.is_tracing()
         if tracing:
             tracemalloc.reset_peak()
+        if self.stage_peaks:
+            self.peak = max(self.peak, _rss_kb("VmHWM") / 1024)
+            _reset_peak_rss()
         c, w = time.process_time(), time.perf_counter()
         out = fn(*a, **kw)
         peak = tracemalloc.get_traced_memory()[1] / 2**20 if tracing else float("nan")
         self.rows.append((name, time.process_time() - c, time.perf_counter() - w, peak,
                           _rss_kb("VmRSS") / 1024, _rss_kb("VmHWM") / 1024))
+        self.peak = max(self.peak, self.rows[-1][5])
         return out
 
     def table(self) -> str:
         tc = sum(r[1] for r in self.rows)
         tw = sum(r[2] for r in self.rows)
         lines = ["| stage | CPU s | share | wall s | peak MiB (tracemalloc) | RSS after, MiB "
-                 "| peak RSS so far |", "|---|---:|---:|---:|---:|---:|---:|"]
+                 f"| peak RSS {'in the stage' if self.stage_peaks else 'so far'} |",
+                 "|---|---:|---:|---:|---:|---:|---:|"]
         for name, c, w, p, rss, hwm in self.rows:
             lines.append(f"| {name} | {c:.2f} | {100 * c / max(tc, 1e-9):.0f} % | {w:.2f} | "
                          f"{p:.0f} | {rss:.0f} | {hwm:.0f} |")
@@ -170,6 +177,16 @@ def _log_tree_steps():
     lg.propagate = False
 
 
+def _reset_peak_rss():
+    """Reset the process' peak RSS (VmHWM) to its RSS now (Linux: /proc/self/clear_refs).
+    ``/usr/bin/time -v``'s maximum then misses what came before the last reset."""
+    try:
+        with open("/proc/self/clear_refs", "w") as f:
+            f.write("5")
+    except OSError:
+        pass
+
+
 def _rss_kb(field):
     """A field of /proc/self/status in kB (VmRSS: now, VmHWM: peak); nan elsewhere."""
     try:
@@ -199,6 +216,9 @@ def main():
     ap.add_argument("--queries", type=int, default=200_000)
     ap.add_argument("--save-answers", type=Path, default=None)
     ap.add_argument("--compare", type=Path, default=None)
+    ap.add_argument("--stage-peaks", action="store_true",
+                    help="each stage's own peak RSS (VmHWM reset before each stage; the peak "
+                         "printed is the largest; /usr/bin/time -v's maximum is then wrong)")
     ap.add_argument("--levels", action="store_true",
                     help="print the tree's steps (per level: classification, multi-seed pass, "
                          "seed-list packing, candidate lists) with their CPU seconds and RSS")
@@ -213,7 +233,7 @@ def main():
         staged_prepare(model, 8 * h, args.reach, Clock())
     if args.peak:
         tracemalloc.start()
-    clock = Clock()
+    clock = Clock(args.stage_peaks)
     load_avg = os.getloadavg()[0]
     rss0 = _rss_kb("VmRSS")
     fast, maxd = staged_prepare(model, h, args.reach, clock, args.finest, args.mmap_threshold)
@@ -225,7 +245,7 @@ def main():
           f"load average {load_avg:.1f} on {os.cpu_count()} cores, workers {args.workers}")
     print(repr(fast.tree))
     print(clock.table())
-    hwm = _rss_kb("VmHWM")
+    hwm = max(_rss_kb("VmHWM"), 1024 * clock.peak)
     print(f"RSS before preparing (Python, imports, model{', kernels' if args.warm else ''}) "
           f"{rss0 / 1024:.0f} MiB, peak RSS "
           f"{hwm / 1024:.0f} MiB: {(hwm - rss0) / 1024:.0f} MiB above = "

@@ -54,7 +54,8 @@ def _top_level_of_two_sheets(md):
     cell, dims = dvg_build._top_grid(origin, pts.max(axis=0) + md + pad, H, 1 << 22)
     ii, jj, kk = np.meshgrid(*(np.arange(d) for d in dims), indexing="ij")
     cells = np.stack([ii.ravel(), jj.ravel(), kk.ravel()], axis=1).astype(np.int64)
-    top = dvg_build._top_level(cells, origin, cell, dims, kd, pts.shape[0], rv, md, 2, 1)
+    bins = dvg_build._bin_points(pts, origin, cell, dims)
+    top = dvg_build._top_level(cells, origin, cell, dims, bins, pts, rv, md, 2)
     return pts, kd, rv, origin, cell, dims, cells, top
 
 
@@ -65,8 +66,9 @@ def test_candidate_lists_hold_the_nearest_point_of_every_point_of_the_cell(md):
     ref = np.flatnonzero(kind == 2)
     assert ref.size > 20
     rng = np.random.default_rng(1)
-    parents, off, lst = dvg_build._top_candidates(ref, cells, samples, nn_i, nn_d, pts,
-                                                  origin, cell, dims)
+    parents, [(_, _, off, lst, _)] = dvg_build._top_candidates(
+        ref, cells, samples, nn_i, nn_d, pts, origin, cell, dims,
+        dvg_build._bin_points(pts, origin, cell, dims))
     mean_top = _check_lists(parents, off, lst, origin, cell, pts, kd, rng)
     # the lists are short: witnesses prune far more than the distance bound alone
     assert mean_top < 0.25 * pts.shape[0]
@@ -175,8 +177,9 @@ def test_children_classification_and_multi_seed_pass_equal_the_kd_tree_kernels(l
     n = pts.shape[0]
     kind, first, samples, nn_i, nn_d = top
     ref = np.flatnonzero(kind == 2)
-    parents, off, lst = dvg_build._top_candidates(ref, cells, samples, nn_i, nn_d, pts,
-                                                  origin, cell, dims)
+    parents, [(_, _, off, lst, _)] = dvg_build._top_candidates(
+        ref, cells, samples, nn_i, nn_d, pts, origin, cell, dims,
+        dvg_build._bin_points(pts, origin, cell, dims))
     size = 0.5 * cell
     m = 8 * parents.shape[0]
     kind1, first1 = np.empty(m, np.int8), np.empty(m, np.int64)
@@ -362,3 +365,98 @@ def test_walks_advanced_together_equal_single_walks():
                         od, om, live)
             for i in range(8):
                 assert (ob[i], od[i], om[i]) == K.walk(*q[g + i], int(starts[g]), *rv, budget)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_eight_candidate_test_equals_the_scalar_one(seed):
+    """``_intrinsics.kept8`` (8 candidates against a cell's box bound and witnesses at once,
+    lanes beyond the count dropped) keeps exactly the points ``_build_kernels._keep`` keeps,
+    on coarse integer grids (many exact ties: zero margins, points on the box bound,
+    witnesses that are the point itself)."""
+    from numba import njit
+
+    from shapeverify.nearest._intrinsics import kept8
+
+    @njit
+    def both(pts, ids, nv, wit, c, half, U):
+        wv = np.empty(40)
+        nw = bk._witnesses(wit, pts, c[0], c[1], c[2], wv)
+        xs = np.zeros(16)
+        ys = np.zeros(16)
+        zs = np.zeros(16)
+        gi = np.zeros(16, dtype=np.int32)
+        for k in range(nv):
+            xs[k], ys[k], zs[k], gi[k] = pts[ids[k], 0], pts[ids[k], 1], pts[ids[k], 2], ids[k]
+        m = kept8(xs, ys, zs, gi, 0, nv, wv, nw, c[0], c[1], c[2], half, U * U, 2.0 * half)
+        want = 0
+        for k in range(nv):
+            if bk._keep(ids[k], c[0], c[1], c[2], half, pts, wv, U):
+                want |= 1 << k
+        return m, want
+
+    rng = np.random.default_rng(seed)
+    pts = np.ascontiguousarray(rng.integers(-4, 5, (60, 3)) * 0.25)
+    pts[30:] += rng.normal(0, 1e-3, (30, 3)) * (rng.random((30, 1)) < 0.5)
+    seen = set()
+    for _ in range(400):
+        wit = rng.integers(0, 60, 8).astype(np.int64)
+        wit[rng.integers(0, 2, 8) == 0] = wit[0]  # repeated witnesses
+        ids = rng.integers(0, 60, 8).astype(np.int32)
+        ids[:2] = wit[:2]
+        c = rng.integers(-2, 3, 3) * 0.125
+        half = float(rng.choice([0.125, 0.25]))
+        U = float(rng.choice([0.25, 0.5, 0.75, 1.0]))
+        nv = int(rng.integers(1, 9))
+        m, want = both(pts, ids, nv, wit, c, half, U)
+        assert m == want
+        seen.add(bin(m).count("1"))
+    assert len(seen) > 4
+
+
+@pytest.mark.parametrize("coarse", [False, True])
+def test_grid_search_of_the_top_vertices_equals_a_bounded_scan(coarse):
+    """``_lattice_kernels.grid_nearest`` (shells of bins) gives each grid vertex the nearest
+    point of a linear scan (lowest index on ties, distance formed as the kd-tree forms it), or
+    (0, inf) beyond the bound; on integer coordinates (ties everywhere) too."""
+    from shapeverify.nearest._lattice_kernels import grid_nearest
+
+    rng = np.random.default_rng(4)
+    if coarse:
+        pts = rng.integers(0, 12, (400, 3)) * 0.5 + 0.25
+    else:
+        pts = _two_sheets(30)
+    pts = np.ascontiguousarray(pts, dtype=np.float64)
+    origin = pts.min(axis=0) - 1.5
+    cell, dims = 1.0, np.ceil((pts.max(axis=0) + 1.5 - origin) / 1.0).astype(np.int64)
+    order, start = dvg_build._bin_points(pts, origin, cell, dims)
+    vx = np.stack(np.meshgrid(*(np.arange(d + 1) for d in dims), indexing="ij"),
+                  axis=-1).reshape(-1, 3).astype(np.int64)
+    for bound in (0.6, 1.3, 50.0):
+        oi, od = np.empty(vx.shape[0], np.int64), np.empty(vx.shape[0])
+        grid_nearest(vx, pts, order, start, dims, origin, cell, bound, oi, od)
+        q = origin + cell * vx
+        e = pts[None, :, :] - q[:, None, :]
+        d2 = (e[..., 0] * e[..., 0] + e[..., 1] * e[..., 1]) + e[..., 2] * e[..., 2]
+        i = d2.argmin(axis=1)  # the first (lowest index) of the smallest
+        d = np.sqrt(d2[np.arange(q.shape[0]), i])
+        inside = d < bound
+        assert 0 < inside.sum() <= q.shape[0]
+        assert np.array_equal(oi, np.where(inside, i, 0))
+        assert np.array_equal(od, np.where(inside, d, np.inf))
+    if coarse:
+        assert (d2 == d2.min(axis=1, keepdims=True)).sum(axis=1).max() > 1  # ties seen
+
+
+def test_tree_is_the_same_for_any_number_of_segments(monkeypatch):
+    """The refined cells of a level handled in segments (each one's lists freed once its
+    children's are built) give the tree of one segment, node for node."""
+    pts = _two_sheets()
+    rec = dvg.make_records(pts, dvg.neighbor_graph(pts))
+    trees = []
+    for k in (1, 3, 8):
+        monkeypatch.setattr(dvg_build, "SEGMENTS", k)
+        trees.append(dvg_build.build_tree(rec, H, 1.0))
+    assert trees[0].depth >= 2
+    for t in trees[1:]:
+        assert np.array_equal(t.nodes, trees[0].nodes)
+        assert np.array_equal(t.lists, trees[0].lists)

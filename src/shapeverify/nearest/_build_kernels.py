@@ -15,9 +15,11 @@ list is its parent's list, pruned:
   largest value over the box is ``|c - a|^2 - |c - p|^2 + size * sum_k |p_k - a_k|`` (c: the
   centre); p is dropped when that is negative (with a relative margin of 1e-9 against rounding).
 
-Both tests only drop points that are nearest nowhere in the cell, so the nearest point of any
-point of a cell is in its list, and a brute-force search over the list is exact.  The top
-grid's lists are collected from the model points binned on the top grid.  Ties (two model
+Both tests are made for 8 candidates at once (:func:`._intrinsics.kept8`, read from
+coordinate arrays: the top grid's points in bin order, a parent's list gathered once for all
+its children).  They only drop points that are nearest nowhere in the cell, so the nearest
+point of any point of a cell is in its list, and a brute-force search over the list is exact.
+The top grid's lists are collected from the model points binned on the top grid.  Ties (two model
 points at exactly the same distance) go to the lower index, as in a linear scan.
 
 Every cell is handled on its own, so the kernels run on contiguous chunks of cells in several
@@ -30,7 +32,7 @@ import numpy as np
 from numba import njit
 
 from ._classify_kernels import EXTRA
-from ._intrinsics import beaten8
+from ._intrinsics import beaten8, kept8
 from ._kernels import walk_inline as walk
 from ._kernels import _d2, step, walk_many
 from ._lattice_kernels import SCRATCH, nn_extra, nn_lattice
@@ -105,7 +107,8 @@ def _witnesses(wit, pts, c0, c1, c2, out):
 def _keep(p, c0, c1, c2, half, pts, wit, U):
     """Whether model point p can be the nearest one somewhere in the cube (centre c, half
     side ``half``) whose vertices' nearest points (the witnesses ``wit``, :func:`_witnesses`)
-    are all within U of every point of it (see the module docstring)."""
+    are all within U of every point of it (see the module docstring).  The lists test 8
+    points at once (:func:`_append_kept8`); this is their reference (tests)."""
     x0 = pts[p, 0]
     x1 = pts[p, 1]
     x2 = pts[p, 2]
@@ -151,17 +154,18 @@ def _grow(buf, need):
 
 
 @njit(cache=True, nogil=True, inline="always")
-def _append_kept(src, a, b, buf, pos, c0, c1, c2, half, pts, wit, U):
-    """Append to ``buf`` (grown as needed) the points ``src[a:b]`` that :func:`_keep` keeps
-    for the cube centred at c; returns (buf, new end)."""
-    if pos + (b - a) > buf.shape[0]:
-        buf = _grow(buf, pos + (b - a))
-    for s in range(a, b):
-        p = src[s]
-        if _keep(p, c0, c1, c2, half, pts, wit, U):
-            buf[pos] = p
-            pos += 1
-    return buf, pos
+def _append_kept8(xs, ys, zs, ids, a, b, buf, pos, c0, c1, c2, half, wv, nw, uu):
+    """Append to ``buf`` the candidates that :func:`_keep` keeps for the cube centred at c,
+    given by their coordinates and indices ``xs[a:b]``, ``ys``, ``zs``, ``ids`` (the arrays
+    readable 8 beyond ``b``), tested 8 at a time (:func:`._intrinsics.kept8`, bit for bit
+    ``_keep``; ``uu``: U * U); ``buf`` must have room for ``b - a + 8`` more.  Returns the
+    new end."""
+    for s in range(a, b, 8):
+        m = kept8(xs, ys, zs, ids, s, b - s, wv, nw, c0, c1, c2, half, uu, 2.0 * half)
+        for k in range(8):  # branch free: every lane written, the kept ones kept
+            buf[pos] = ids[s + k]
+            pos += (m >> k) & 1
+    return pos
 
 
 @njit(cache=True, nogil=True, inline="always")
@@ -191,12 +195,13 @@ def _bin_beaten(ix, iy, iz, origin, size, c0, c1, c2, wit, nw):
 
 
 @njit(cache=True, nogil=True)
-def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
+def top_lists(cells, vnn_i, vnn_d, pts, sx, sy, sz, sid, start, dims, origin, size):
     """Candidate lists of refined top cells from the model points binned on the top grid.
 
     cells : (R, 3) int64 top cell coordinates; vnn_i, vnn_d : (R, 8) exact nearest point and
-    distance of each vertex; order, start : the points sorted by top cell and the start of
-    each cell's run (``start`` has dims.prod() + 1 entries).  Returns (counts (R,) int64,
+    distance of each vertex; sx, sy, sz, sid : the points' coordinates and indices (int32)
+    sorted by top cell, 8 more entries of padding; start : the start of each cell's run
+    (dims.prod() + 1 entries).  Returns (counts (R,) int64,
     concatenated lists int32: the front of a larger buffer, to be copied out).
     """
     R = cells.shape[0]
@@ -241,8 +246,10 @@ def top_lists(cells, vnn_i, vnn_d, pts, order, start, dims, origin, size):
                         continue
                     if _bin_beaten(ix, iy, iz, origin, size, c0, c1, c2, wv, nw):
                         continue
-                    buf, pos = _append_kept(order, a0, a1, buf, pos, c0, c1, c2, half, pts,
-                                            wv, U)
+                    if pos + (a1 - a0) + 8 > buf.shape[0]:
+                        buf = _grow(buf, pos + (a1 - a0) + 8)
+                    pos = _append_kept8(sx, sy, sz, sid, a0, a1, buf, pos, c0, c1, c2, half,
+                                        wv, nw, U * U)
         counts[m] = pos - n0
     return counts, buf[:pos]  # a view: _chunked copies it out (no second copy here)
 
@@ -486,25 +493,44 @@ def child_lists(ids, parents, off, lst, lat, pts, origin, size):
     for f in range(n):  # never written are never resident)
         p = ids[f] // 8
         cap += off[p + 1] - off[p]
-    buf = np.empty(max(1024, cap), dtype=np.int32)
+    longest = 0
+    for f in range(n):
+        p = ids[f] // 8
+        longest = max(longest, off[p + 1] - off[p])
+    buf = np.empty(max(1024, cap + 8), dtype=np.int32)
     pos = 0
     half = 0.5 * size
     vi = np.empty(8, dtype=np.int64)
     vd = np.empty(8)
     wv = np.empty(40)
     c = np.empty(3, dtype=np.int64)
+    # the parent's list gathered (coordinates and indices, 8 of padding), once for its children
+    gx = np.zeros(longest + 8)
+    gy = np.zeros(longest + 8)
+    gz = np.zeros(longest + 8)
+    gi = np.zeros(longest + 8, dtype=np.int32)
+    gp = -1
     for f in range(n):
         m = ids[f]
         p = _child_cell(m, parents, lat, origin, size, pts, c, vi, vd)
         a = off[p]
         b = off[p + 1]
+        if p != gp:
+            for s in range(a, b):
+                j = lst[s]
+                gx[s - a] = pts[j, 0]
+                gy[s - a] = pts[j, 1]
+                gz[s - a] = pts[j, 2]
+                gi[s - a] = j
+            gp = p
         c0 = origin[0] + size * (c[0] + 0.5)
         c1 = origin[1] + size * (c[1] + 0.5)
         c2 = origin[2] + size * (c[2] + 0.5)
         U = _bound(vd, vi, pts, c0, c1, c2, half) * (1.0 + 1e-9)
-        _witnesses(vi, pts, c0, c1, c2, wv)
+        nw = _witnesses(vi, pts, c0, c1, c2, wv)
         n0 = pos
-        buf, pos = _append_kept(lst, a, b, buf, pos, c0, c1, c2, half, pts, wv, U)
+        pos = _append_kept8(gx, gy, gz, gi, 0, b - a, buf, pos, c0, c1, c2, half, wv, nw,
+                            U * U)
         counts[f] = pos - n0
     return counts, buf[:pos]  # a view: _chunked copies it out (no second copy here)
 

@@ -195,3 +195,81 @@ def beaten8(typingctx, w, x0, x1, x2, dp, h2, p):
         return builder.icmp_unsigned("!=", bits, ir.Constant(ir.IntType(RING), 0))
 
     return sig, codegen
+
+
+@intrinsic
+def kept8(typingctx, xs, ys, zs, ids, s, nv, w, nw, c0, c1, c2, half, uu, h2):
+    """Which of 8 candidate points survive a cell's box and witness tests, at once: the bit
+    mask (int64) of the lanes l < ``nv`` whose point p (coordinates ``xs[s + l]``, ``ys``,
+    ``zs``, index ``ids[s + l]``) is kept, for 8 points what ``_build_kernels._keep`` decides
+    for one, bit for bit: p is dropped when ``(g0 g0 + g1 g1) + g2 g2 > uu`` (``g_k =
+    max(|x_k - c_k| - half, 0)``), or when one of the first ``nw`` witnesses of ``w``
+    (:func:`beaten8`'s layout) that is not p itself has ``(da - dp) + h2 ((|x0 - y0| +
+    |x1 - y1|) + |x2 - y2|) < -1e-9 (da + dp)``, ``dp = ((x0 - c0)^2 + (x1 - c1)^2) +
+    (x2 - c2)^2``.  ``xs``, ``ys``, ``zs`` float64 and ``ids`` int32 are read 8 elements
+    from ``s`` on: they must hold them (padding beyond the candidates)."""
+    if not (isinstance(w, types.Array) and w.dtype == types.float64
+            and isinstance(ids, types.Array) and ids.dtype == types.int32):
+        return None
+    sig = types.int64(xs, ys, zs, ids, s, nv, w, nw, c0, c1, c2, half, uu, h2)
+
+    def codegen(context, builder, signature, args):
+        f64, i32, i64 = ir.DoubleType(), ir.IntType(32), ir.IntType(64)
+        vd = ir.VectorType(f64, RING)
+        vi = ir.VectorType(i32, RING)
+        args = list(args)
+        for k in range(4, 14):
+            if k != 6:
+                to = types.int64 if k in (4, 5, 7) else types.float64
+                args[k] = context.cast(builder, args[k], signature.args[k], to)
+
+        def splat(v, vt=vd):
+            e = builder.insert_element(ir.Constant(vt, ir.Undefined), v, ir.Constant(i32, 0))
+            return builder.shuffle_vector(e, ir.Constant(vt, ir.Undefined),
+                                          ir.Constant(ir.VectorType(i32, RING), [0] * RING))
+
+        def lanes(k, vt):
+            ary = context.make_array(signature.args[k])(context, builder, args[k])
+            ptr = builder.gep(ary.data, [args[4]])
+            return builder.load(builder.bitcast(ptr, vt.as_pointer()), align=4)
+
+        x = [lanes(k, vd) for k in range(3)]
+        pid = builder.sitofp(lanes(3, vi), vd)
+        wary = context.make_array(signature.args[6])(context, builder, args[6])
+        fabs = cgutils.get_or_insert_function(builder.module, ir.FunctionType(vd, [vd]),
+                                              f"llvm.fabs.v{RING}f64")
+        zero = ir.Constant(vd, [0.0] * RING)
+        gg = dp = None
+        for k in range(3):
+            e = builder.fsub(x[k], splat(args[8 + k]))
+            a = builder.fsub(builder.call(fabs, [e]), splat(args[11]))
+            g = builder.select(builder.fcmp_ordered(">", a, zero), a, zero)
+            g2 = builder.fmul(g, g)
+            e2 = builder.fmul(e, e)
+            gg = g2 if gg is None else builder.fadd(gg, g2)
+            dp = e2 if dp is None else builder.fadd(dp, e2)
+        # dropped lanes: beyond nv, outside the box bound, then beaten by a witness
+        lane_no = ir.Constant(vi, list(range(RING)))
+        nvv = splat(builder.trunc(args[5], i32), vi)
+        drop = builder.or_(builder.icmp_signed(">=", lane_no, nvv),
+                           builder.fcmp_ordered(">", gg, splat(args[12])))
+        acc = cgutils.alloca_once_value(builder, drop)
+        h2v = splat(args[13])
+        with cgutils.for_range(builder, args[7]) as loop:
+            def wit(k):
+                idx = builder.add(ir.Constant(i64, k * RING), loop.index)
+                return splat(builder.load(builder.gep(wary.data, [idx])))
+            s = None
+            for k in range(3):
+                a = builder.call(fabs, [builder.fsub(x[k], wit(k))])
+                s = a if s is None else builder.fadd(s, a)
+            da = wit(3)
+            worst = builder.fadd(builder.fsub(da, dp), builder.fmul(h2v, s))
+            thr = builder.fmul(ir.Constant(vd, [-1e-9] * RING), builder.fadd(da, dp))
+            beat = builder.and_(builder.fcmp_ordered("<", worst, thr),
+                                builder.fcmp_unordered("!=", pid, wit(4)))
+            builder.store(builder.or_(builder.load(acc), beat), acc)
+        keep = builder.not_(builder.load(acc))
+        return builder.zext(builder.bitcast(keep, ir.IntType(RING)), i64)
+
+    return sig, codegen

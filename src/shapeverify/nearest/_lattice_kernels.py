@@ -9,6 +9,9 @@ points, 8 for the 7 samples).  The squared distances are formed in the order a s
 forms them (``(e0 e0 + e1 e1) + e2 e2``, the coordinates ``q = origin + size * integer``), so
 the distances, and the nearest points (lowest index on ties, in any candidate order), are bit
 for bit those of one search per point.
+
+The top grid's vertices, which have no candidate list yet, search the model points binned on
+the top grid instead (:func:`grid_nearest`, in place of a kd-tree).
 """
 
 from __future__ import annotations
@@ -81,3 +84,76 @@ def nn_one(q0, q1, q2, pts, lst, a, b):
             bd = d
             best = j
     return best, np.sqrt(bd)
+
+
+@njit(cache=True, nogil=True)
+def grid_nearest(vx, pts, order, start, dims, origin, size, bound, out_i, out_d):
+    """Exact nearest model point of grid vertices by a search of the points binned on the
+    grid: what a kd-tree query bounded by ``bound`` gives (``cKDTree.query``), without it.
+
+    vx : (V, 3) int64 vertex coordinates (vertex v at ``origin + size * vx[v]``, the corner
+    of bins vx - 1 and vx); order, start : the points sorted by bin (bins of side ``size``,
+    ``dims`` of them) and the start of each bin's run.  Into ``out_i`` (V,) int64 and
+    ``out_d`` (V,) the nearest point (lowest index on ties, as a linear scan) and its distance
+    (``sqrt((e0 e0 + e1 e1) + e2 e2)``, as the kd-tree forms it), or (0, inf) when no point is
+    closer than ``bound``.  The bins are searched in shells of growing Chebyshev distance: a
+    point outside the first k shells is at least k * size (less a rounding margin) away.
+    """
+    # a bin g bins away (per axis, integers) is at least |g| size (less a margin) away
+    s2 = (size * (1.0 - 1e-9)) ** 2
+    for v in range(vx.shape[0]):
+        c0 = vx[v, 0]
+        c1 = vx[v, 1]
+        c2 = vx[v, 2]
+        q0 = origin[0] + size * np.float64(c0)
+        q1 = origin[1] + size * np.float64(c1)
+        q2 = origin[2] + size * np.float64(c2)
+        bd = np.inf
+        bi = -1
+        k = 0
+        while True:
+            lim = k * size * (1.0 - 1e-9) - 1e-9 * size
+            if k > 0 and (lim > bound or lim * lim > bd):
+                break  # every point not searched is farther than the bound, or the best
+            x_lo = c0 - 1 - k
+            x_hi = c0 + k
+            y_lo = c1 - 1 - k
+            y_hi = c1 + k
+            z_lo = c2 - 1 - k
+            z_hi = c2 + k
+            if x_lo < 0 and y_lo < 0 and z_lo < 0 and x_hi >= dims[0] and y_hi >= dims[1] \
+                    and z_hi >= dims[2]:
+                break  # the shell is beyond the grid on every side: all searched
+            for ax in range(max(x_lo, 0), min(x_hi, dims[0] - 1) + 1):
+                xe = ax == x_lo or ax == x_hi
+                gx = max(ax - c0, c0 - 1 - ax, 0)
+                for ay in range(max(y_lo, 0), min(y_hi, dims[1] - 1) + 1):
+                    gy = max(ay - c1, c1 - 1 - ay, 0)
+                    gxy = gx * gx + gy * gy
+                    if gxy * s2 > bd:
+                        continue  # the column of bins is farther than the best
+                    base = (ax * dims[1] + ay) * dims[2]
+                    step = 1 if (xe or ay == y_lo or ay == y_hi) else z_hi - z_lo
+                    for az in range(z_lo, z_hi + 1, step):
+                        if az < 0 or az >= dims[2]:
+                            continue
+                        gz = max(az - c2, c2 - 1 - az, 0)
+                        if (gxy + gz * gz) * s2 > bd:
+                            continue  # the bin is farther than the best
+                        for s in range(start[base + az], start[base + az + 1]):
+                            j = order[s]
+                            e0 = pts[j, 0] - q0
+                            e1 = pts[j, 1] - q1
+                            e2 = pts[j, 2] - q2
+                            d = e0 * e0 + e1 * e1 + e2 * e2
+                            if d < bd or (d == bd and j < bi):
+                                bd = d
+                                bi = j
+            k += 1
+        dist = np.sqrt(bd)
+        if dist < bound:
+            out_i[v] = bi
+            out_d[v] = dist
+        else:
+            out_i[v] = 0
+            out_d[v] = np.inf

@@ -3,12 +3,17 @@
 Levels are built one after the other, breadth first: the top grid (level 0), then the 8
 children of every cell refined on the level above.  Each cell is classified (FAR, single-seed
 leaf, multi-seed leaf or refined, see :mod:`.dvg`) from the exact nearest model point of its
-vertices (and, for the cells that failed, of 7 more samples).  Those nearest points come from
-a kd-tree on the top grid only; every refined cell then carries a candidate list (the model
-points that can be nearest anywhere in it, :mod:`._build_kernels`) that its children search by
-brute force and prune for their own children.  The tree is the one the kd-tree at every
-vertex gave (same arrays), at a fraction of the cost: each level's cells search a few dozen
-candidates instead of a kd-tree, and share them between their 27 lattice points.
+vertices (and, for the cells that failed, of 7 more samples).  On the top grid those nearest
+points come from a search of the model points binned on it
+(:func:`._lattice_kernels.grid_nearest`); every refined cell then carries a candidate list (the
+model points that can be nearest anywhere in it, :mod:`._build_kernels`) that its children
+search by brute force and prune for their own children.  The tree is the one a kd-tree at
+every vertex gave (same arrays), at a fraction of the cost: each level's cells search a few
+dozen candidates instead of a kd-tree, and share them between their 27 lattice points.
+
+The refined cells of a level are kept in ``SEGMENTS`` segments, each with its own candidate
+lists: a segment's lists are freed as soon as its children's lists are built, so that two
+levels' lists are never all held together.
 
 Cells are independent, so every level is classified on all threads (``run_chunks``), with
 results identical for any number of threads.
@@ -23,6 +28,7 @@ from scipy.spatial import cKDTree
 
 from . import _build_kernels as _bk
 from . import _classify_kernels, _kernels
+from . import _lattice_kernels as _lk
 from . import _seedlist_kernels as _sk
 from ._threads import run_chunks
 
@@ -30,6 +36,7 @@ logger = logging.getLogger(__name__)
 
 __all__ = ["build_tree"]
 
+SEGMENTS = 8  # the refined cells of a level are handled in this many segments
 _CORNER = np.array([[o & 1, (o >> 1) & 1, (o >> 2) & 1] for o in range(8)], dtype=np.int64)
 
 
@@ -78,26 +85,49 @@ def _offsets(counts):
     return off
 
 
-def _top_level(cells, origin, size, dims, kd, n, RV, max_distance, max_moves, workers):
-    """Level 0: exact nearest points of the top grid's vertices (kd-tree), classification.
+def _top_level(cells, origin, size, dims, bins, pts, RV, max_distance, max_moves):
+    """Level 0: exact nearest points of the top grid's vertices (a search of the points
+    binned on the top grid, :func:`._lattice_kernels.grid_nearest`: what a kd-tree bounded at
+    max_distance + 3.03 r gave for every vertex of a cell that is not FAR; inf for the
+    others beyond max_distance + 1.01 r), classification.
 
     Returns (kind, first, samples, nn_i, nn_d)."""
     m = cells.shape[0]
     r = 0.5 * np.sqrt(3.0) * size
     vdims = dims + 1
-    key = np.empty((m, 8), dtype=np.int64)
+    # the vertices of the whole grid (every one belongs to a cell of the full top grid),
+    # numbered in raster order: a cell's samples are its vertices' numbers
+    samples = np.empty((m, 8), dtype=np.int64)
     for o in range(8):
-        key[:, o] = (((cells[:, 0] + _CORNER[o, 0]) * vdims[1] + cells[:, 1] + _CORNER[o, 1])
-                     * vdims[2] + cells[:, 2] + _CORNER[o, 2])
-    ukey, inv = np.unique(key.ravel(), return_inverse=True)
-    del key
+        samples[:, o] = (((cells[:, 0] + _CORNER[o, 0]) * vdims[1] + cells[:, 1]
+                          + _CORNER[o, 1]) * vdims[2] + cells[:, 2] + _CORNER[o, 2])
+    ukey = np.arange(int(np.prod(vdims)), dtype=np.int64)
     uvx = np.stack([ukey // (vdims[1] * vdims[2]), (ukey // vdims[2]) % vdims[1],
                     ukey % vdims[2]], axis=1)
-    # a cell that is not FAR has all its vertices within max_distance + 3 r
-    nn_d, nn_i = kd.query(origin + size * uvx, distance_upper_bound=max_distance + 3.03 * r,
-                          workers=workers)
-    nn_i = np.where(nn_i >= n, 0, nn_i).astype(np.int64)
-    samples = np.ascontiguousarray(inv.reshape(m, 8), dtype=np.int64)
+    del ukey
+    nn_i = np.empty(uvx.shape[0], dtype=np.int64)
+    nn_d = np.empty(uvx.shape[0])
+
+    def _search(vx, bound, out_i, out_d):
+        def one(a, b):
+            _lk.grid_nearest(vx[a:b], pts, bins[0], bins[1], dims, origin, size, bound,
+                             out_i[a:b], out_d[a:b])
+        run_chunks(one, vx.shape[0], 1 << 12)
+
+    # first up to the FAR test's distance (max_distance + r): exact for every vertex that
+    # makes a cell not FAR, so the FAR cells are known; then, up to max_distance + 3 r (a
+    # cell that is not FAR has all its vertices within it), the other vertices of the cells
+    # that are not FAR.  (The other vertices only take part in FAR tests.)
+    _search(uvx, max_distance + 1.01 * r, nn_i, nn_d)
+    near = samples[nn_d[samples].min(axis=1) <= max_distance + r]
+    redo = np.unique(near[~np.isfinite(nn_d[near])])
+    del near
+    if redo.size:
+        ri, rd = np.empty(redo.size, dtype=np.int64), np.empty(redo.size)
+        _search(np.ascontiguousarray(uvx[redo]), max_distance + 3.03 * r, ri, rd)
+        nn_i[redo] = ri
+        nn_d[redo] = rd
+    del uvx, redo
     kind = np.empty(m, dtype=np.int8)
     first = np.empty(m, dtype=np.int64)
 
@@ -135,8 +165,9 @@ def _top_multi(fail, cells, origin, size, dims, kd, n, RV, samples, nn_i, nn_d, 
     return fkind, fseeds, fn
 
 
-def _top_candidates(ref, cells, samples, nn_i, nn_d, pts, origin, cell, dims):
-    """Candidate lists of the refined top cells (points binned on the top grid)."""
+def _bin_points(pts, origin, cell, dims):
+    """The points binned on the top grid: (their order by bin, the start of each bin's run
+    (dims.prod() + 1,))."""
     g = np.floor((pts - origin) / cell).astype(np.int64)
     np.clip(g, 0, dims - 1, out=g)
     bid = (g[:, 0] * dims[1] + g[:, 1]) * dims[2] + g[:, 2]
@@ -144,14 +175,95 @@ def _top_candidates(ref, cells, samples, nn_i, nn_d, pts, origin, cell, dims):
     order = np.argsort(bid, kind="stable")
     start = np.zeros(int(np.prod(dims)) + 1, dtype=np.int64)
     np.cumsum(np.bincount(bid, minlength=int(np.prod(dims))), out=start[1:])
-    del bid
+    return order, start
+
+
+def _top_candidates(ref, cells, samples, nn_i, nn_d, pts, origin, cell, dims, bins,
+                    segments=1):
+    """Candidate lists of the refined top cells (``bins``: :func:`_bin_points`), in
+    ``segments`` segments (:func:`_classify_level`): (their coordinates, segments)."""
+    order, start = bins
+    # the points' coordinates and indices in bin order (8 entries of padding): read 8 at a
+    # time by the tests
+    sx, sy, sz = (np.concatenate([pts[order, k], np.zeros(8)]) for k in range(3))
+    sid = np.concatenate([order.astype(np.int32), np.zeros(8, dtype=np.int32)])
     rc = np.ascontiguousarray(cells[ref])
     vi = np.ascontiguousarray(nn_i[samples[ref]])
     vd = np.ascontiguousarray(nn_d[samples[ref]])
-    counts, lst = _chunked(lambda a, b: _bk.top_lists(rc[a:b], vi[a:b], vd[a:b], pts, order,
-                                                      start, dims, origin, cell),
-                           ref.size, 1 << 10)
-    return rc, _offsets(counts), lst
+    segs = []
+    cuts = np.linspace(0, ref.size, segments + 1).astype(np.int64)
+    for s0, s1 in zip(cuts[:-1].tolist(), cuts[1:].tolist()):
+        if s1 > s0:
+            counts, lst = _chunked(lambda a, b: _bk.top_lists(
+                rc[s0 + a:s0 + b], vi[s0 + a:s0 + b], vd[s0 + a:s0 + b], pts, sx, sy, sz, sid,
+                start, dims, origin, cell), s1 - s0, 1 << 10)
+            segs.append([s0, s1, _offsets(counts), lst, None])
+    return rc, segs
+
+
+def _classify_level(segs, parents, m, pts, origin, size, RV, md, max_moves):
+    """:func:`._build_kernels.classify_children` for the children of every segment of the
+    refined cells of the level above.  A segment ``[p0, p1, off, lst, lat]`` holds the
+    candidate lists of parents p0..p1 (``off`` local); the lattice nearest points ``lat``
+    are stored into it.  (Segments let each one's lists be freed as soon as its children's
+    lists are built, :func:`_child_segments`.)  Returns (kind, first seed, first failing
+    vertex) of the m children."""
+    kind = np.empty(m, dtype=np.int8)
+    first = np.empty(m, dtype=np.int32)  # point indices (n < 2**31)
+    ffail = np.empty(m, dtype=np.int8)
+    for sg in segs:
+        p0, p1, so, sl, _ = sg
+        lat = sg[4] = np.empty((p1 - p0, 27), dtype=np.int32)
+
+        def _classify(a, b):
+            q0, q1 = p0 + a, p0 + b
+            _bk.classify_children(parents[q0:q1], so[a:b + 1], sl, pts, origin, size, *RV,
+                                  md, int(max_moves), kind[8 * q0:8 * q1],
+                                  first[8 * q0:8 * q1], lat[a:b], ffail[8 * q0:8 * q1])
+
+        run_chunks(_classify, p1 - p0, 1 << 11)
+    return kind, first, ffail
+
+
+def _multi_level(segs, fail, parents, first, ffail, pts, origin, size, RV, max_moves,
+                 max_seeds, last, cols):
+    """:func:`._build_kernels.multi_children` for the failed children ``fail`` (sorted),
+    segment by segment: (kind, seeds (F, cols), seed counts)."""
+    fkind = np.empty(fail.size, dtype=np.int8)
+    fseeds = np.empty((fail.size, cols), dtype=np.int32)
+    fn = np.empty(fail.size, dtype=np.int32)
+    for p0, p1, so, sl, lat in segs:
+        f0, f1 = np.searchsorted(fail, (8 * p0, 8 * p1)).tolist()
+        ids = fail[f0:f1] - 8 * p0
+        pl, fs, ff = parents[p0:p1], first[8 * p0:8 * p1], ffail[8 * p0:8 * p1]
+
+        def _multi(a, b):
+            _bk.multi_children(ids[a:b], pl, so, sl, lat, pts, origin, size, fs, ff, *RV,
+                               int(max_moves), int(max_seeds), last, fkind[f0 + a:f0 + b],
+                               fseeds[f0 + a:f0 + b], fn[f0 + a:f0 + b])
+
+        if f1 > f0:
+            run_chunks(_multi, f1 - f0, 1 << 10)
+    return fkind, fseeds, fn
+
+
+def _child_segments(segs, ref, parents, pts, origin, size):
+    """The candidate lists of the refined children ``ref`` (sorted child numbers), as the
+    next level's segments; each segment of ``segs`` is freed (the list emptied) once its
+    children's lists are built."""
+    new = []
+    for i in range(len(segs)):
+        p0, p1, so, sl, lat = segs[i]
+        segs[i] = None
+        r0, r1 = np.searchsorted(ref, (8 * p0, 8 * p1)).tolist()
+        ids = ref[r0:r1] - 8 * p0
+        pl = parents[p0:p1]
+        if r1 > r0:
+            counts, cl = _chunked(lambda a, b: _bk.child_lists(ids[a:b], pl, so, sl, lat, pts,
+                                                               origin, size), r1 - r0, 1 << 11)
+            new.append([r0, r1, _offsets(counts), cl, None])
+        del so, sl, lat  # this segment's lists, before the next segment's children
+    return new
 
 
 def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
@@ -170,7 +282,8 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         h / 2).
     max_distance : float > 0
         Queries within this distance of the model are answered by the tree.
-    kd : cKDTree over the points, optional (built when not given)
+    kd : cKDTree over the points, optional (spares a copy of the points; built when not
+        given and needed: only when the top grid is the last level)
     max_moves : int
         Greedy walk budget a leaf may need at its vertices (larger: fewer, bigger leaves and
         slower queries).
@@ -183,7 +296,8 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         would exceed it, they become multi-seed leaves instead (as on the last level; the
         answers stay verified at their samples, the queries get a little slower).
     workers : int
-        Threads for the kd-tree queries at the top grid's vertices.
+        Threads for the kd-tree queries at the top grid's extra samples (only when the top
+        grid is the last level).
 
     Returns
     -------
@@ -199,7 +313,6 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         pts = kd.data  # the kd-tree's points (cKDTree keeps the caller's array): no copy
     else:
         pts = np.ascontiguousarray(points)
-    kd = cKDTree(pts) if kd is None else kd
     pad = 1e-9 * (1.0 + float(np.abs(pts).max()))
     lo = pts.min(axis=0) - max_distance - pad
     hi = pts.max(axis=0) + max_distance + pad
@@ -219,7 +332,7 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
     lists: list[np.ndarray] = []
     n_list = 0
     depth = 0
-    parents = off = lst = None  # refined cells of the level above and their candidate lists
+    parents = segs = None  # refined cells of the level above, their candidate lists
     m = n_top
     for level in range(max_level + 1):
         if m == 0:
@@ -227,20 +340,12 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         depth = level
         size = cell / 2.0 ** level
         if level == 0:
-            kind, first, samples, nn_i, nn_d = _top_level(cells, origin, size, dims, kd, n,
-                                                          RV, md, max_moves, workers)
+            bins = _bin_points(pts, origin, cell, dims)
+            kind, first, samples, nn_i, nn_d = _top_level(cells, origin, size, dims, bins, pts,
+                                                          RV, md, max_moves)
         else:
-            kind = np.empty(m, dtype=np.int8)
-            first = np.empty(m, dtype=np.int32)  # point indices (n < 2**31)
-            lat = np.empty((parents.shape[0], 27), dtype=np.int32)
-            ffail = np.empty(m, dtype=np.int8)
-
-            def _classify(a, b):
-                _bk.classify_children(parents[a:b], off[a:b + 1], lst, pts, origin, size, *RV,
-                                      md, int(max_moves), kind[8 * a:8 * b],
-                                      first[8 * a:8 * b], lat[a:b], ffail[8 * a:8 * b])
-
-            run_chunks(_classify, parents.shape[0], 1 << 11)
+            kind, first, ffail = _classify_level(segs, parents, m, pts, origin, size, RV, md,
+                                                 max_moves)
             logger.debug("DVG level %d: %d cells classified", level, m)
         # the node codes go straight into the level's int32 block (FAR already), each kind's
         # range checked before it is written
@@ -262,22 +367,16 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
                            "max_distance or a coarser spacing", level, max_level, fail.size)
         if fail.size and (size <= multi_size or last):
             if level == 0:
+                kd = cKDTree(pts) if kd is None else kd  # (only here)
                 fkind, fseeds, fn = _top_multi(fail, cells, origin, size, dims, kd, n, RV,
                                                samples, nn_i, nn_d, first, md, max_moves,
                                                max_seeds, last, workers)
             else:
-                fkind = np.empty(fail.size, dtype=np.int8)
                 # above the last level a cell stops as soon as it has more than max_seeds
                 # seeds, so max_seeds + 1 columns hold them (16 on the last level)
-                fseeds = np.empty((fail.size, 16 if last else max_seeds + 1), dtype=np.int32)
-                fn = np.empty(fail.size, dtype=np.int32)
-
-                def _multi(a, b):
-                    _bk.multi_children(fail[a:b], parents, off, lst, lat, pts, origin, size,
-                                       first, ffail, *RV, int(max_moves), int(max_seeds), last,
-                                       fkind[a:b], fseeds[a:b], fn[a:b])
-
-                run_chunks(_multi, fail.size, 1 << 10)
+                fkind, fseeds, fn = _multi_level(segs, fail, parents, first, ffail, pts,
+                                                 origin, size, RV, max_moves, max_seeds, last,
+                                                 16 if last else max_seeds + 1)
             logger.debug("DVG level %d: multi-seed pass over %d failed cells", level, fail.size)
             kind[fail] = fkind
             ok = fkind == 1
@@ -304,22 +403,16 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         ffail = None
         if ref.size:
             if level == 0:
-                parents, off, lst = _top_candidates(ref, cells, samples, nn_i, nn_d, pts,
-                                                    origin, cell, dims)
-                del cells, samples, nn_i, nn_d
+                parents, segs = _top_candidates(ref, cells, samples, nn_i, nn_d, pts, origin,
+                                                cell, dims, bins, SEGMENTS)
+                del cells, samples, nn_i, nn_d, bins
             else:
-                pp, oc = ref // 8, ref % 8
-                nxt = 2 * parents[pp] + _CORNER[oc]
-
-                def _lists(a, b):
-                    return _bk.child_lists(ref[a:b], parents, off, lst, lat, pts, origin,
-                                           size)
-
-                counts, lst = _chunked(_lists, ref.size, 1 << 11)
-                parents, off = nxt, _offsets(counts)
-                del pp, oc, counts, lat
+                nxt = 2 * parents[ref // 8] + _CORNER[ref % 8]
+                segs = _child_segments(segs, ref, parents, pts, origin, size)
+                parents = nxt
+                del nxt
             logger.debug("DVG level %d: candidate lists of the refined cells: %.1f points "
-                         "each", level, lst.size / max(1, ref.size))
+                         "each", level, sum(sg[3].size for sg in segs) / max(1, ref.size))
             blocks.append(np.full(8 * ref.size, _kernels.FAR, dtype=np.int32))
             n_nodes += 8 * ref.size
             m = 8 * ref.size
