@@ -75,15 +75,21 @@ def nn_one(q0, q1, q2, pts, lst, a, b):
     best = -1
     bd = np.inf
     for s in range(a, b):
-        j = lst[s]
-        e0 = pts[j, 0] - q0
-        e1 = pts[j, 1] - q1
-        e2 = pts[j, 2] - q2
-        d = e0 * e0 + e1 * e1 + e2 * e2
-        if d < bd or (d == bd and j < best):
-            bd = d
-            best = j
+        bd, best = _closer(q0, q1, q2, pts, lst[s], bd, best)
     return best, np.sqrt(bd)
+
+
+@njit(cache=True, nogil=True, inline="always")
+def _closer(q0, q1, q2, pts, j, bd, bi):
+    """(squared distance, index) of the closer of point j and the best (bd, bi) so far: j
+    when strictly closer, or as close with a lower index (a linear scan's tie rule)."""
+    e0 = pts[j, 0] - q0
+    e1 = pts[j, 1] - q1
+    e2 = pts[j, 2] - q2
+    d = e0 * e0 + e1 * e1 + e2 * e2
+    if d < bd or (d == bd and j < bi):
+        return d, j
+    return bd, bi
 
 
 @njit(cache=True, nogil=True)
@@ -141,14 +147,7 @@ def grid_nearest(vx, pts, order, start, dims, origin, size, bound, out_i, out_d)
                         if (gxy + gz * gz) * s2 > bd:
                             continue  # the bin is farther than the best
                         for s in range(start[base + az], start[base + az + 1]):
-                            j = order[s]
-                            e0 = pts[j, 0] - q0
-                            e1 = pts[j, 1] - q1
-                            e2 = pts[j, 2] - q2
-                            d = e0 * e0 + e1 * e1 + e2 * e2
-                            if d < bd or (d == bd and j < bi):
-                                bd = d
-                                bi = j
+                            bd, bi = _closer(q0, q1, q2, pts, order[s], bd, bi)
             k += 1
         dist = np.sqrt(bd)
         if dist < bound:
