@@ -12,6 +12,7 @@ import numpy as np
 from .. import _arrays
 from ..errors import EmptyModelError, RegistrationError, ScanError
 from ..units import MIXUPS, fitting_factor, unit_hint
+from .ambiguity import resolve
 from .coverage import MIN_COVERAGE, compute_coverage
 from .deviations import _deviations
 from .material import beside_surface, find_material, floating_surfaces
@@ -275,6 +276,8 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
                 reg.rms, reg.iterations, reg.converged, 100 * reg.inlier_fraction)
 
     result = _evaluate(prep, scan, reg, opts, progress, timings)
+    if plan_obj is None and str(result.verdict) == "fail" and getattr(reg, "alternatives", ()):
+        result = _at_alternatives(prep, scan, result, reg.alternatives, kwargs, opts, timings)
     if plan_obj is not None:
         from ..characteristics import evaluate_plan
         t0 = time.perf_counter()
@@ -288,6 +291,28 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
     logger.info("inspection: %s (%d regions, %d outliers) in %.3f s", result.verdict,
                 len(result.regions), result.outliers.n, timings["total"])
     return result
+
+
+def _at_alternatives(prep, scan, result, poses, kwargs, opts, timings):
+    """A failed part inspected again from each of the registration's alternative poses (near-
+    symmetric copies that fit nearly as well): the first that fits alike and passes it is the
+    result (:mod:`.ambiguity`); else ``result``."""
+    from ..registration import register
+
+    t0 = time.perf_counter()
+    out = result
+    for T in poses:
+        try:
+            with warnings.catch_warnings():    # the first registration said what there is
+                warnings.simplefilter("ignore")
+                reg2 = register(scan, prep, **{**kwargs, "init": T})
+        except RegistrationError:
+            continue
+        out = resolve(result, _evaluate(prep, scan, reg2, opts, None, {}), scan)
+        if out is not result:
+            break
+    timings["alternatives"] = time.perf_counter() - t0
+    return out
 
 
 def inspect_registered(prep, scan, registration, tolerance=0.2,

@@ -62,6 +62,16 @@ def _free_spin(D, undet, tol, radius) -> bool:
     return False
 
 
+def close_runner_up(ga, T, undet, tau, radius) -> bool:
+    """The global search's runner-up fits nearly as well as its best (at least
+    :data:`WARN_RUNNER_UP` of its fit) and is not a free spin of the final pose T (None: not
+    checked): the pose may be a symmetric copy of the true one."""
+    return (ga is not None and ga.runner_up is not None
+            and ga.runner_up[0] >= WARN_RUNNER_UP * ga.fit
+            and not (T is not None and ga.runner_up_pose is not None and _free_spin(
+                ga.runner_up_pose @ np.linalg.inv(T), undet, tau, radius)))
+
+
 def pose_warnings(ev, w, ga, tau, radius, T=None, undet=(), noise=float("nan")):
     """Signs that the final pose is not the right minimum (see ``Registration.warnings``);
     with the final pose T and its undetermined directions, a global runner-up that is only
@@ -92,9 +102,7 @@ def pose_warnings(ev, w, ga, tau, radius, T=None, undet=(), noise=float("nan")):
             yield (f"the weighted mean residual is {mean:+.3g} mm ({mean / ev.sigma:+.2g} "
                    "sigma): the scan lies systematically on one side of the model (wrong "
                    "minimum, wrong scale or units, or a part that differs everywhere)")
-    if ga is not None and ga.runner_up is not None and ga.runner_up[0] >= WARN_RUNNER_UP * ga.fit \
-            and not (T is not None and ga.runner_up_pose is not None and _free_spin(
-                ga.runner_up_pose @ np.linalg.inv(T), undet, tau, radius)):
+    if close_runner_up(ga, T, undet, tau, radius):
         f, ang, dn = ga.runner_up
         yield (f"another start fits nearly as well (fit {f:.3f} vs {ga.fit:.3f}, {ang:.1f} deg "
                f"away, moving the scan {dn:.3g} mm RMS along the normals): the pose may be a "

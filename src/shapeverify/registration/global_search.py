@@ -80,7 +80,8 @@ class GlobalAlignment:
     'fpfh-ransac'); n_hypotheses : poses scored;
     runner_up : (fit, rotation deg, normal displacement mm) of the best refined hypothesis that
     moves the scan differently (None if none); seconds : wall time; runner_up_pose : that
-    hypothesis' pose (4, 4) or None.
+    hypothesis' pose (4, 4) or None; others : (fit, pose) of every refined hypothesis that
+    moves the scan differently from the best, best fit first (the runner-up the first).
     """
 
     T_model_scan: np.ndarray
@@ -90,6 +91,7 @@ class GlobalAlignment:
     runner_up: tuple | None
     seconds: float
     runner_up_pose: np.ndarray | None = None
+    others: tuple = ()
 
     def __repr__(self) -> str:
         return (f"GlobalAlignment(fit={self.fit:.3f}, source={self.source!r}, "
@@ -403,12 +405,14 @@ def global_alignment(scan, prep, rng=0, extra=()) -> GlobalAlignment:
     refined.sort(key=lambda r: -r[0])
     best_fit, best_src, best_T = refined[0]
     runner = runner_T = None
+    others = []
     for f, _, T in refined[1:]:
         ang, dn = _distinct(best_T, T, S, side, full=True)
         if dn > tau:
-            runner, runner_T = (f, ang, dn), T
-            break
+            others.append((f, T))
+            if runner is None:
+                runner, runner_T = (f, ang, dn), T
     out = GlobalAlignment(best_T, best_fit, best_src, len(hyps), runner,
-                          time.perf_counter() - t0, runner_T)
+                          time.perf_counter() - t0, runner_T, tuple(others))
     logger.info("global alignment: %r", out)
     return out

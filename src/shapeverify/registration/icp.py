@@ -51,7 +51,8 @@ from .._arrays import check_points
 
 from . import _basin, _irls, _restart
 from ._noise import scan_noise
-from ._pose_warnings import pose_warnings
+from ._pose_warnings import (WARN_REJECTED_INFO, WARN_RUNNER_UP, _rejected_information,
+                             close_runner_up, pose_warnings)
 from ._irls import IterationRecord
 from .losses import get_loss
 from .options import InitMode, InitName, LossName, Method, MethodName, StageSettings
@@ -135,6 +136,12 @@ class Registration:
         How the start was found: ``"given"`` (a 4x4 init), ``"identity"``,
         ``"principal-axes"``, or ``"global: <hypothesis>"`` (see
         :func:`shapeverify.registration.global_search.global_alignment`).
+    alternatives : tuple of (4, 4) float64
+        Other poses that fit nearly as well: the global search's refined hypotheses within the
+        runner-up rule of its best when the warning "another start fits nearly as well" is
+        given (symmetric copies, or the true pose when this one is a copy), else ().  Where
+        this pose fails the part, :func:`shapeverify.inspect` registers from each and passes
+        the part at one that fits alike and puts every point within tolerance.
     """
 
     T_model_scan: np.ndarray
@@ -153,6 +160,7 @@ class Registration:
     undetermined_directions: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))
     warnings: tuple = ()
     init: str = "given"
+    alternatives: tuple = ()
 
     @property
     def R(self) -> np.ndarray:
@@ -440,6 +448,21 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
     from .global_search import fit_distance
     tau = fit_distance(prep)
     st, ev, converged, why = settle(st, *final(st))
+    # the coarse stage's subset can drift along a direction that few points fix (a flat face
+    # seen from above: the outline fixes the slide and spin; 0.2 deg from the true pose) and
+    # the final stage then rejects the points that would bring it back: the final stage from
+    # the start itself, kept if it fits better
+    start = T0 if mode not in (InitMode.AUTO, InitMode.GLOBAL) else (
+        ga.T_model_scan if ga is not None else None)
+    if start is not None and _rejected_information(ev, ev.w, radius) > WARN_REJECTED_INFO:
+        st2 = _irls.State(start[:3, :3].copy(), start[:3, 3].copy(), st.iterations,
+                          list(st.history))
+        st2, ev2, conv2, why2 = settle(st2, *final(st2))
+        s0 = min(ev.sigma, ev2.sigma)
+        if _irls._mean_rho(ev2, s0) < _irls._mean_rho(ev, s0):
+            logger.info("registration: the final stage from the start fits better than from "
+                        "the coarse stage's end: taken")
+            st, ev, converged, why = st2, ev2, conv2, why2
     # a pose flagged as a wrong minimum on a near-axisymmetric part: spin restarts (_restart)
     # ... or found by the global search on such a part: its hypotheses hold few spins, and a
     # wrong spin can fit its subset well enough to pass every check (an impeller seen at an
@@ -496,7 +519,16 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
                         converged=converged, weights=w, inlier_fraction=float(ev.inliers.mean()),
                         covariance=cov, history=tuple(st.history), scale=ev.sigma, message=msg,
                         undetermined=desc, method=method.value, loss=lossobj.name,
-                        undetermined_directions=undet, warnings=tuple(notes), init=how)
+                        undetermined_directions=undet, warnings=tuple(notes), init=how,
+                        alternatives=_alternatives(ga, T, undet, tau, radius))
+
+
+def _alternatives(ga, T, undet, tau, radius) -> tuple:
+    """The global search's other poses that fit nearly as well as its best (at least
+    WARN_RUNNER_UP of its fit), when the runner-up is one that is not a free spin of T."""
+    if not close_runner_up(ga, T, undet, tau, radius):
+        return ()
+    return tuple(np.array(P) for f, P in ga.others if f >= WARN_RUNNER_UP * ga.fit)
 
 
 def _determined(ev, prep, radius) -> bool:
