@@ -14,7 +14,7 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ORDER = ["nurbs", "cad_import", "closest", "closest_notes", "prepare", "register", "global",
-         "independent", "impeller_starts", "turned", "inspection", "coldstart", "rays", "measure", "phase",
+         "independent", "symmetric", "impeller_starts", "turned", "inspection", "coldstart", "rays", "measure", "phase",
          "fitting", "service"]
 
 

@@ -15,22 +15,11 @@ from shapeverify.inspection import ambiguity
 
 @pytest.fixture(scope="module")
 def plate(tmp_path_factory):
-    from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut
-    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakePolygon
-    from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox, BRepPrimAPI_MakePrism
-    from OCP.gp import gp_Pnt, gp_Vec
-
-    from shapeverify.cad.examples import _write_step
+    from shapeverify.cad.examples import chamfered_plate_step
     from shapeverify.cad.load import load_model
     from shapeverify.nearest import prepare
 
-    box = BRepPrimAPI_MakeBox(gp_Pnt(0, 0, 0), gp_Pnt(100, 60, 5)).Shape()
-    corner = BRepBuilderAPI_MakePolygon(gp_Pnt(94, -1, -1), gp_Pnt(101, -1, -1),
-                                        gp_Pnt(101, 7, -1), True)
-    cut = BRepPrimAPI_MakePrism(BRepBuilderAPI_MakeFace(corner.Wire()).Face(),
-                                gp_Vec(0, 0, 7)).Shape()
-    path = _write_step(BRepAlgoAPI_Cut(box, cut).Shape(),
-                       tmp_path_factory.mktemp("plate") / "plate.step", "chamfered plate")
+    path = chamfered_plate_step(tmp_path_factory.mktemp("plate") / "plate.step")
     return prepare(load_model(path))
 
 

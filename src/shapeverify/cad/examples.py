@@ -25,7 +25,7 @@ from pathlib import Path
 import numpy as np
 
 __all__ = ["panel_height", "panel_shape", "example_part_step", "wavy_panel", "PANEL_SIZE", "PANEL_HOLE",
-           "turned_part_shape", "turned_part_step", "TURNED_PROFILE"]
+           "turned_part_shape", "turned_part_step", "TURNED_PROFILE", "chamfered_plate_step"]
 
 #: (length along x, width along y) of the panel in mm
 PANEL_SIZE = (300.0, 200.0)
@@ -178,6 +178,33 @@ def turned_part_step(path, keyway: bool = False) -> Path:
     (15, 127.4)
     """
     return _write_step(turned_part_shape(keyway), path, "shapeverify turned part")
+
+
+def chamfered_plate_step(path, size=(100.0, 60.0, 5.0), chamfer: float = 6.0) -> Path:
+    """Write a near-symmetric prismatic part to STEP: a plate ``size`` (mm) with one vertical
+    corner edge chamfered ``chamfer`` mm (7 faces).  Only the chamfer tells the plate's ends
+    apart: its copy turned 180 deg about the plate's normal fits every other point.
+
+    >>> import tempfile, pathlib
+    >>> from shapeverify.cad.load import load_model
+    >>> with tempfile.TemporaryDirectory() as d:
+    ...     m = load_model(chamfered_plate_step(pathlib.Path(d) / "plate.step"))
+    >>> len(m.faces), round(m.size, 1)
+    (7, 116.7)
+    """
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakePolygon
+    from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox, BRepPrimAPI_MakePrism
+    from OCP.gp import gp_Pnt, gp_Vec
+
+    a, b, h = (float(x) for x in size)
+    c = float(chamfer)
+    box = BRepPrimAPI_MakeBox(gp_Pnt(0, 0, 0), gp_Pnt(a, b, h)).Shape()
+    corner = BRepBuilderAPI_MakePolygon(gp_Pnt(a - c, -1, -1), gp_Pnt(a + 1, -1, -1),
+                                        gp_Pnt(a + 1, c + 1, -1), True)
+    cut = BRepPrimAPI_MakePrism(BRepBuilderAPI_MakeFace(corner.Wire()).Face(),
+                                gp_Vec(0, 0, h + 2)).Shape()
+    return _write_step(BRepAlgoAPI_Cut(box, cut).Shape(), path, "shapeverify chamfered plate")
 
 
 def _write_step(shape, path, name) -> Path:
