@@ -185,12 +185,11 @@ def chamfered_plate_step(path, size=(100.0, 60.0, 5.0), chamfer: float = 6.0) ->
     corner edge chamfered ``chamfer`` mm (7 faces).  Only the chamfer tells the plate's ends
     apart: its copy turned 180 deg about the plate's normal fits every other point.
 
-    >>> import tempfile, pathlib
+    >>> import pathlib, tempfile
     >>> from shapeverify.cad.load import load_model
-    >>> with tempfile.TemporaryDirectory() as d:
-    ...     m = load_model(chamfered_plate_step(pathlib.Path(d) / "plate.step"))
-    >>> len(m.faces), round(m.size, 1)
-    (7, 116.7)
+    >>> m = load_model(chamfered_plate_step(pathlib.Path(tempfile.mkdtemp()) / "plate.step"))
+    >>> len(m.faces), (m.bounds[1] - m.bounds[0]).round(1).tolist()
+    (7, [100.0, 60.0, 5.0])
     """
     from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut
     from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeFace, BRepBuilderAPI_MakePolygon
