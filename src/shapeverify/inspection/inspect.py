@@ -301,7 +301,16 @@ def _at_alternatives(prep, scan, result, poses, kwargs, opts, timings):
 
     t0 = time.perf_counter()
     out = result
+    # the scan points of the regions that fail the part: an alternative can pass it only where
+    # most of them come within tolerance (a dent does at no pose: no registration for it)
+    bad = np.unique(np.concatenate([r.indices for r in result.regions])) \
+        if result.regions else np.zeros(0, np.int64)
+    lim = 2.0 * max(abs(opts.tol.lower), opts.tol.upper)
     for T in poses:
+        if bad.size:
+            X = scan[bad] @ np.asarray(T)[:3, :3].T + np.asarray(T)[:3, 3]
+            if np.mean(np.abs(prep.closest(X).distances) <= lim) < 0.5:
+                continue
         try:
             with warnings.catch_warnings():    # the first registration said what there is
                 warnings.simplefilter("ignore")
