@@ -22,6 +22,9 @@ import dataclasses
 
 import numpy as np
 
+from ..registration._features import truncated_fit
+from ..registration.rigid import rotation_vector
+
 __all__ = ["resolve", "SHARE"]
 
 #: the two poses fit alike when the worse fit is at least this share of the better one (the
@@ -31,14 +34,14 @@ SHARE = 0.97
 
 def _fit(result, tau: float) -> float:
     dev = result.deviations
-    d = np.where(dev.evaluated, dev.values, np.inf)
-    return float(np.mean(np.maximum(0.0, 1.0 - (d / tau) ** 2)))
+    return float(truncated_fit(np.asarray(dev.values, np.float64),
+                               np.asarray(dev.evaluated, np.bool_), tau))
 
 
 def _angle_shift(T1: np.ndarray, T2: np.ndarray, scan: np.ndarray) -> tuple[float, float]:
     """(rotation deg, RMS displacement mm of the scan points) between the two poses."""
     D = T2 @ np.linalg.inv(T1)
-    ang = float(np.degrees(np.arccos(np.clip((np.trace(D[:3, :3]) - 1.0) / 2.0, -1.0, 1.0))))
+    ang = float(np.degrees(np.linalg.norm(rotation_vector(D[:3, :3]))))
     X = scan @ T1[:3, :3].T + T1[:3, 3]
     return ang, float(np.sqrt(np.mean(np.sum((X @ D[:3, :3].T + D[:3, 3] - X) ** 2, axis=1))))
 

@@ -73,15 +73,6 @@ def _pair_poses(X, Nrm, F, side, a, am):
     return np.concatenate(out)
 
 
-def _screen(side, S, T, tau) -> np.ndarray:
-    """Fits (k,) of the points S moved by each pose T (k, 4, 4) (the global search's quick fit,
-    all poses in one kd-tree query)."""
-    Y = np.einsum("kij,nj->kni", T[:, :3, :3], S) + T[:, None, :3, 3]
-    d, _ = side.tree.query(Y.reshape(-1, 3), distance_upper_bound=tau)
-    d = np.where(np.isfinite(d), d, tau).reshape(T.shape[0], S.shape[0])
-    return np.mean(np.maximum(0.0, 1.0 - (d / tau) ** 2), axis=1)
-
-
 def hypotheses(P: np.ndarray, side, S: np.ndarray, radius: float, features) -> list[np.ndarray]:
     """Up to :data:`KEEP` poses (4, 4), best first (module docstring); [] when the model has no
     near-symmetry axis or is a solid of revolution (:mod:`._revolution` poses it).
@@ -89,24 +80,21 @@ def hypotheses(P: np.ndarray, side, S: np.ndarray, radius: float, features) -> l
     P (n, 3) the scan, S the global search's scored subset of it, radius the scan's RMS
     radius, features (X, normals towards the sensor, FPFH) of its voxel subsample."""
     from . import _restart, _revolution
-    from .global_search import _normals, _sharp_fits, refine
+    from .global_search import _quick_fits, _sharp_fits, refine
 
     ax = _restart.symmetry_axis(side)
     X, Nrm, F = features
     if ax is None or X.shape[0] < 10 or _revolution.model_axis(side) is not None:
         return []
     am = ax[0]
-    D = P[_revolution._dense_voxels(P, side.size / _revolution.VOXELS)]
-    if D.shape[0] < _revolution.NEIGHBOURS:
+    dense = _revolution.scan_normals(P, side)
+    if dense is None:
         return []
-    from scipy.spatial import cKDTree
-
-    Nd = _normals(D, cKDTree(D), _revolution.NEIGHBOURS)
-    dirs = _revolution.axis_directions(D, Nd, _revolution.NEAR * side.size)
+    dirs = _revolution.axis_directions(*dense, _revolution.NEAR * side.size)
     T = np.concatenate([_pair_poses(X, Nrm, F, side, a, am) for a in dirs])
     if T.shape[0] == 0:
         return []
-    fit = _screen(side, S[:SCREEN], T, 2.0 * side.voxel)
+    fit = _quick_fits(side.tree, S[:SCREEN], T, 2.0 * side.voxel)
     best = np.argsort(-fit, kind="stable")[:REFINED]
     poses = [refine(S, side, T[k], radius, 8) for k in best]
     fits, _ = _sharp_fits(side, S, poses)

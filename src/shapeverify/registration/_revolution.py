@@ -210,16 +210,17 @@ def model_axis(side):
 def hypotheses(P: np.ndarray, side) -> list[np.ndarray]:
     """Up to :data:`KEEP` poses (4, 4) with the scan's axis on the model's (module docstring),
     best fit first; [] when the model is not a solid of revolution or the scan shows no axis."""
-    from .global_search import _normals, _quick_fit
+    from .global_search import _quick_fit
 
     ax = model_axis(side)
     if ax is None:
         return []
     am, cm, (lo, hi) = ax
-    X = P[_dense_voxels(P, side.size / VOXELS)]
-    if X.shape[0] < NEIGHBOURS:
+    dense = scan_normals(P, side)
+    if dense is None:
         return []
-    a, c, d = axis_of_normals(X, _normals(X, cKDTree(X), NEIGHBOURS), NEAR * side.size)
+    X = dense[0]
+    a, c, d = axis_of_normals(*dense, NEAR * side.size)
     if _agree(d) < SCAN_SHARE:
         return []
     hs = (X - c) @ a
@@ -257,6 +258,18 @@ def hypotheses(P: np.ndarray, side) -> list[np.ndarray]:
         out += [(f, spun(a)) for f, a in zip(fits, spins)]
     out.sort(key=lambda ft: -ft[0])
     return [T for _, T in out[:KEEP]]
+
+
+def scan_normals(P: np.ndarray, side):
+    """(X, unit normals) of the scan's dense voxels (:func:`_dense_voxels`, voxels of the
+    model's size / :data:`VOXELS`), normals by PCA of :data:`NEIGHBOURS` neighbours; None
+    with fewer points than that."""
+    from .global_search import _normals
+
+    X = P[_dense_voxels(P, side.size / VOXELS)]
+    if X.shape[0] < NEIGHBOURS:
+        return None
+    return X, _normals(X, cKDTree(X), NEIGHBOURS)
 
 
 def _spin_fit(side, F: np.ndarray, T: np.ndarray) -> float:

@@ -234,10 +234,18 @@ def _sharp_fits(side, S, poses):
     return [float(_features.truncated_fit(d, v, tau)) for d, v in dists], tau
 
 
+def _quick_fits(tree: cKDTree, S, poses, tau) -> np.ndarray:
+    """Fits (k,) of the points S moved by each of the k poses (4, 4): the mean of
+    ``max(0, 1 - (d / tau)^2)``, d the distance to the nearest point of ``tree`` (tau
+    beyond it); all poses in one kd-tree query."""
+    Y = np.concatenate([S @ T[:3, :3].T + T[:3, 3] for T in poses])
+    d, _ = tree.query(Y, distance_upper_bound=tau)
+    d = np.where(np.isfinite(d), d, tau).reshape(len(poses), S.shape[0])
+    return np.mean(np.maximum(0.0, 1.0 - (d / tau) ** 2), axis=1)
+
+
 def _quick_fit(tree: cKDTree, S, T, tau) -> float:
-    d, _ = tree.query(S @ T[:3, :3].T + T[:3, 3], distance_upper_bound=tau)
-    d = np.where(np.isfinite(d), d, tau)
-    return float(np.mean(np.maximum(0.0, 1.0 - (d / tau) ** 2)))
+    return float(_quick_fits(tree, S, [T], tau)[0])
 
 
 def refine(S, side: "_ModelSide", T, radius, max_it: int = 20) -> np.ndarray:
@@ -382,7 +390,7 @@ def global_alignment(scan, prep, rng=0, extra=()) -> GlobalAlignment:
     hyps += [("fpfh-ransac", T) for T in feature_hypotheses(features, side, seed)]
     tq = 2.0 * side.voxel    # screening: kd-tree on the voxel subsample of the model
     Sq = S[:SCREEN_POINTS]
-    quick = np.array([_quick_fit(side.tree, Sq, T, tq) for _, T in hyps])
+    quick = _quick_fits(side.tree, Sq, [T for _, T in hyps], tq)
     order = np.argsort(-quick, kind="stable")
     chosen = []
     for i in order:
