@@ -194,7 +194,9 @@ def suffix_hint(data: bytes, suffix: str | None) -> str:
     """``"; the content looks like a PLY file: give it the suffix .ply"`` when the content's
     format (:func:`sniff_format`) is not the one its suffix names, else ``""``."""
     seems = sniff_format(data)
-    if seems is None or _FAMILY.get(str(suffix or "").lower()) == seems:
+    key = str(suffix or "").strip().lower()
+    key = key if key.startswith(".") or not key else "." + key   # "ply" as format= gives it
+    if seems is None or _FAMILY.get(key) == seems:
         return ""
     article = "an" if seems in ("STL", "IGES", "OBJ") else "a"
     return f"; the content looks like {article} {seems} file: give it the suffix {_SUFFIX[seems]}"

@@ -236,10 +236,24 @@ class _PlyElement:
     name: str
     count: int
     props: list  # (name, dtype_code) or (name, count_code, item_code)
+    names: set = field(default_factory=set)  # the property names, for the duplicate check
+
+
+#: Most elements and properties per element a PLY header may declare (real files have a few
+#: elements and tens of properties; a header beyond these is damaged or hostile).
+MAX_PLY_ELEMENTS = 64
+MAX_PLY_PROPERTIES = 1024
 
 
 def _ply_header(name: str, data: bytes):
-    """Parse the PLY header; return (format, elements, body offset)."""
+    """Parse the PLY header in time linear in its length; return (format, elements, body offset).
+
+    Raises
+    ------
+    ScanError
+        A malformed header, or one with more than :data:`MAX_PLY_ELEMENTS` elements or
+        :data:`MAX_PLY_PROPERTIES` properties in an element.
+    """
     if not data.startswith(b"ply"):
         raise ScanError(f"{name}: not a PLY file (does not start with 'ply')")
     m = re.search(rb"end_header[ \t]*\r?\n", data[:1 << 20])
@@ -247,38 +261,53 @@ def _ply_header(name: str, data: bytes):
         # a header without body is still a header if the file ends right after end_header
         m = re.search(rb"end_header[ \t]*\r?\n?$", data[:1 << 20])
         if m is None:
-            raise ScanError(f"{name}: malformed PLY header: no 'end_header' line")
+            raise ScanError(f"{name}: malformed PLY header: no 'end_header' line (in the "
+                            "first MiB)")
     text = data[: m.start()].decode("ascii", errors="replace")
     fmt = None
     elements: list[_PlyElement] = []
+    element_names: set = set()
     for lineno, raw in enumerate(text.splitlines()[1:], start=2):
         tok = raw.split()
         if not tok or tok[0] in ("comment", "obj_info"):
             continue
-        bad = f"{name}: malformed PLY header at line {lineno} ({raw.strip()!r})"
+        bad = f"{name}: malformed PLY header at line {lineno} ({raw.strip()[:80]!r})"
         if tok[0] == "format":
             if len(tok) < 2 or tok[1] not in _PLY_FORMATS:
                 raise ScanError(f"{bad}: unknown format; expected ascii, "
                                 "binary_little_endian or binary_big_endian")
             fmt = tok[1]
         elif tok[0] == "element":
-            if len(tok) != 3 or not tok[2].isdigit():
+            if len(tok) != 3 or not (tok[2].isascii() and tok[2].isdigit()):
                 raise ScanError(f"{bad}: expected 'element NAME COUNT'")
-            if any(e.name == tok[1] for e in elements):
+            if tok[1] in element_names:
                 raise ScanError(f"{bad}: element {tok[1]!r} declared twice")
+            if len(elements) >= MAX_PLY_ELEMENTS:
+                raise ScanError(f"{name}: the PLY header declares more than {MAX_PLY_ELEMENTS} "
+                                f"elements (line {lineno}): the file is damaged, or not a scan "
+                                "this reader supports")
+            if len(tok[2]) > 19:  # beyond any file size in bytes (and int64)
+                raise ScanError(f"{bad}: element count {tok[2][:30]} is absurd")
+            element_names.add(tok[1])
             elements.append(_PlyElement(tok[1], int(tok[2]), []))
         elif tok[0] == "property":
             if not elements:
                 raise ScanError(f"{bad}: property before any element")
-            if any(p[0] == tok[-1] for p in elements[-1].props):
+            el = elements[-1]
+            if tok[-1] in el.names:
                 raise ScanError(f"{bad}: property {tok[-1]!r} declared twice")
+            if len(el.props) >= MAX_PLY_PROPERTIES:
+                raise ScanError(f"{name}: element {el.name!r} of the PLY header declares more "
+                                f"than {MAX_PLY_PROPERTIES} properties (line {lineno}): the file "
+                                "is damaged, or not a scan this reader supports")
             if len(tok) == 3 and tok[1] in _PLY_TYPES:
-                elements[-1].props.append((tok[2], _PLY_TYPES[tok[1]]))
+                el.props.append((tok[2], _PLY_TYPES[tok[1]]))
             elif (len(tok) == 5 and tok[1] == "list" and tok[2] in _PLY_TYPES
                   and tok[3] in _PLY_TYPES and _PLY_TYPES[tok[2]][0] in "iu"):
-                elements[-1].props.append((tok[4], _PLY_TYPES[tok[2]], _PLY_TYPES[tok[3]]))
+                el.props.append((tok[4], _PLY_TYPES[tok[2]], _PLY_TYPES[tok[3]]))
             else:
                 raise ScanError(f"{bad}: unknown property type")
+            el.names.add(tok[-1])
         else:
             raise ScanError(f"{bad}: unknown keyword {tok[0]!r}")
     if fmt is None:
@@ -324,6 +353,10 @@ def parse_ply(data: bytes, name: str, want_faces: bool) -> PlyData:
                             f"({counts}), the file has {len(lines)}: the element counts in the "
                             "header are too small (or data was appended); correct the "
                             "'element' lines")
+        if len(lines) < declared:   # an element after the ones read is short
+            counts = ", ".join(f"{e.name} {e.count}" for e in elements)
+            raise ScanError(f"{name}: truncated PLY: the header declares {declared} lines of "
+                            f"data ({counts}), the file has {len(lines)}")
     else:
         endian = _PLY_FORMATS[fmt]
         for el in elements[: last + 1]:
@@ -350,26 +383,24 @@ def parse_ply(data: bytes, name: str, want_faces: bool) -> PlyData:
 
 
 def _check_binary_end(name, elements, last: int, data: bytes, offset: int, endian: str) -> None:
-    """Refuse a binary PLY with at least one more record after its declared elements (their
-    counts in the header are too small: part of the data would be ignored silently).  The
-    elements after ``last`` (not parsed) are stepped over when they have no list properties."""
-    rest = elements[last + 1:]
-    if any(len(p) == 3 for el in rest for p in el.props):
-        return  # variable-size records: stepping over them costs a walk; trust the header
-    for el in rest:
-        try:
-            _, offset = _ply_binary_element(name, el, data, offset, endian, parse=False)
-        except ScanError:
-            return  # a truncated element nobody reads
-    tail = len(data) - offset
+    """Refuse a binary PLY whose data does not end where its header says: more data after the
+    declared elements (their counts are too small, or bytes were inserted: part of the data
+    would be ignored or read shifted), or elements after ``last`` (not parsed) that are
+    truncated.  Whitespace shorter than a record after the data (a stray newline) is allowed."""
+    for el in elements[last + 1:]:
+        _, offset = _ply_binary_element(name, el, data, offset, endian, parse=False)
+    tail = data[offset:]
+    if not tail:
+        return
     unit = min((sum(np.dtype(p[1]).itemsize for p in el.props)
                 for el in elements if el.props and not any(len(p) == 3 for p in el.props)),
                default=0)
-    if unit and tail >= unit:
-        counts = ", ".join(f"{e.name} {e.count}" for e in elements)
-        raise ScanError(f"{name}: {tail} bytes follow the data the PLY header declares "
-                        f"({counts}): the element counts in the header are too small (or data "
-                        "was appended); correct the 'element' lines")
+    if len(tail) < max(unit, 4) and not tail.strip(b" \t\r\n"):
+        return
+    counts = ", ".join(f"{e.name} {e.count}" for e in elements)
+    raise ScanError(f"{name}: {len(tail)} bytes follow the data the PLY header declares "
+                    f"({counts}): the element counts in the header are too small, or data was "
+                    "inserted or appended; correct the 'element' lines")
 
 
 def _ply_ascii_element(name, el: _PlyElement, lines: list) -> dict:
