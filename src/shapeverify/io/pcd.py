@@ -12,15 +12,19 @@ from shapeverify.errors import ScanError, UnsupportedFormatError
 
 __all__ = ["read_pcd"]
 
+_MAX_HEADER = 1 << 20   # a PCD header is a dozen short lines
+_CODES = {"F": "f", "I": "i", "U": "u"}
+
 
 def read_pcd(data: bytes, name: str) -> np.ndarray:
     """The fields ``x y z`` of a PCD file's bytes, (N, 3) float64 as stored."""
     hdr: dict[str, list[str]] = {}
     pos = 0
     while True:
-        nl = data.find(b"\n", pos)
+        nl = data.find(b"\n", pos, _MAX_HEADER)
         if nl < 0:
-            raise ScanError(f"{name}: malformed PCD header: no DATA line")
+            raise ScanError(f"{name}: malformed PCD header: no DATA line"
+                            + (" in the first MiB" if len(data) > _MAX_HEADER else ""))
         line = data[pos:nl].decode("ascii", "replace").strip()
         pos = nl + 1
         if not line or line.startswith("#"):
@@ -42,16 +46,23 @@ def read_pcd(data: bytes, name: str) -> np.ndarray:
         sizes = [int(s) for s in hdr.get("SIZE", [])]
         types = [t.upper() for t in hdr.get("TYPE", [])]
         counts = [int(c) for c in hdr.get("COUNT", ["1"] * nf)]
-        if "POINTS" in hdr:
-            npts = int(hdr["POINTS"][0])
-        else:
-            npts = int(hdr["WIDTH"][0]) * int(hdr.get("HEIGHT", ["1"])[0])
-    except (KeyError, ValueError, IndexError) as exc:
-        raise ScanError(f"{name}: malformed PCD header ({exc!r} missing or not a number)") from None
+        grid = None
+        if "WIDTH" in hdr:
+            grid = (int(hdr["WIDTH"][0]), int(hdr.get("HEIGHT", ["1"])[0]))
+        npts = int(hdr["POINTS"][0]) if "POINTS" in hdr else grid[0] * grid[1]
+    except (KeyError, ValueError, IndexError, TypeError) as exc:
+        what = str(exc)[:60] if isinstance(exc, ValueError) else repr(exc)
+        raise ScanError(f"{name}: malformed PCD header ({what} missing or not a number)") from None
+    if grid is not None and grid[0] * grid[1] != npts:
+        raise ScanError(f"{name}: malformed PCD header: WIDTH x HEIGHT = {grid[0]} x {grid[1]} = "
+                        f"{grid[0] * grid[1]} disagrees with POINTS {npts}; correct one of them")
     if not (len(sizes) == len(types) == len(counts) == nf):
         raise ScanError(f"{name}: malformed PCD header: FIELDS, SIZE, TYPE and COUNT have "
                         f"different lengths ({nf}, {len(sizes)}, {len(types)}, {len(counts)})")
     for c in "xyz":
+        if fields.count(c) > 1:
+            raise ScanError(f"{name}: PCD field '{c}' appears {fields.count(c)} times in FIELDS "
+                            f"({' '.join(fields)[:80]})")
         if c not in fields:
             raise ScanError(f"{name}: PCD has no field '{c}' (fields: {' '.join(fields)})")
     if npts == 0:
@@ -68,9 +79,11 @@ def read_pcd(data: bytes, name: str) -> np.ndarray:
                         f"is larger than the whole file")
     codes = []
     for f, s, t in zip(fields, sizes, types):
-        if t not in "FIU" or s not in (1, 2, 4, 8) or (t == "F" and s not in (4, 8)):
-            raise ScanError(f"{name}: PCD field {f!r} has unsupported TYPE {t} SIZE {s}")
-        codes.append({"F": "f", "I": "i", "U": "u"}[t] + str(s))
+        if t not in _CODES or s not in (1, 2, 4, 8) or (t == "F" and s not in (4, 8)):
+            raise ScanError(f"{name}: PCD field {f[:40]!r} has unsupported TYPE {t[:20]} SIZE "
+                            f"{s}: TYPE is one letter, F (float, SIZE 4 or 8), I or U (integer, "
+                            "SIZE 1, 2, 4 or 8)")
+        codes.append(_CODES[t] + str(s))
     if kind == "binary":
         dt = np.dtype([(f"f{j}", "<" + code, (cnt,)) if cnt > 1 else (f"f{j}", "<" + code)
                        for j, (code, cnt) in enumerate(zip(codes, counts))])
@@ -78,6 +91,13 @@ def read_pcd(data: bytes, name: str) -> np.ndarray:
         if len(data) - pos < need:
             raise ScanError(f"{name}: truncated PCD: {npts} points need {need} bytes, "
                             f"{len(data) - pos} present")
+        tail = data[pos + need:]
+        if tail and (len(tail) >= max(dt.itemsize, 4) or tail.strip(b" \t\r\n")):
+            found = (len(data) - pos) / dt.itemsize
+            raise ScanError(f"{name}: the PCD header declares {npts} points ({need} bytes), the "
+                            f"data holds {len(data) - pos} bytes ({found:.6g} points): POINTS "
+                            "is too small, or data was inserted or appended; correct POINTS "
+                            "(and WIDTH, HEIGHT)")
         rec = np.frombuffer(data, dtype=dt, count=npts, offset=pos)
         with np.errstate(invalid="ignore", over="ignore"):   # NaN/inf: dropped and reported later
             return np.column_stack([rec[f"f{fields.index(c)}"].astype(np.float64) for c in "xyz"])
