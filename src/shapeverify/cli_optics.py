@@ -46,7 +46,9 @@ def read_pose(path: Path) -> np.ndarray:
             data = data.get("T_left_model", data.get("T"))
         T = np.asarray(data, dtype=np.float64)
     elif path.suffix.lower() == ".npy":
-        T = np.load(path)
+        from shapeverify.io.npy import load_npy
+
+        T = load_npy(path, error=ValueError)   # no pickle, header checked against the file
     else:
         T = np.loadtxt(path)
     if T.shape != (4, 4) or not np.all(np.isfinite(T)):

@@ -43,16 +43,15 @@ def _read_raw(path):
         raise ValueError(f"no such file: {p}")
     suffix = p.suffix.lower()
     if suffix == ".npy":
-        try:
-            return np.load(p, allow_pickle=False)
-        except (ValueError, OSError, EOFError, SyntaxError) as exc:  # numpy parses the header
-            with open(p, "rb") as f:
-                magic = f.read(6) == b"\x93NUMPY"
-            why = (f"{type(exc).__name__}: {exc}" if "pickle" not in str(exc)
-                   else "it holds Python objects (pickled data)" if magic
-                   else "no .npy header: the file is something else")
-            raise ValueError(f"{p.name} is not a readable .npy array ({why}); save the phase "
-                             "map with numpy.save as a 2-D float array") from None
+        from shapeverify.io.npy import load_npy
+
+        data = p.read_bytes()
+        if not data.startswith(b"\x93NUMPY"):
+            raise ValueError(f"{p.name} is not a readable .npy array (no .npy header: the file "
+                             "is something else); save the phase map with numpy.save as a 2-D "
+                             "float array")
+        # the header is checked against the file size before anything is allocated
+        return load_npy(data, p.name, error=ValueError)
     if suffix not in _IMAGE_SUFFIXES:
         raise ValueError(f"unsupported phase file type {suffix!r} ({p.name}); use .npy, .png or .tif")
     from PIL import Image  # Pillow comes with matplotlib

@@ -200,7 +200,9 @@ def read_init(path) -> np.ndarray:
                              "of numbers") from None
     elif suf == ".npy":
         try:
-            T = np.load(p, allow_pickle=False)
+            from shapeverify.io.npy import load_npy
+
+            T = load_npy(p, error=ValueError)   # header checked against the file size
         except (ValueError, OSError) as exc:
             raise ValueError(f"init file {str(p)!r} is not a readable .npy array: {exc}") from None
         T = np.asarray(T, dtype=np.float64)
