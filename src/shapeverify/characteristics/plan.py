@@ -38,7 +38,6 @@ import os
 from pathlib import Path
 from typing import Annotated, Literal, Optional, Union
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from ..errors import ShapeVerifyError
@@ -267,33 +266,7 @@ class Plan(_Strict):
 
 
 # ------------------------------------------------------------------------------ YAML with lines
-def _construct(node, path: tuple, lines: dict):
-    """Plain Python data from a YAML node, recording the line of every key path."""
-    lines.setdefault(path, node.start_mark.line + 1)
-    if isinstance(node, yaml.MappingNode):
-        out = {}
-        for k, v in node.value:
-            key = yaml.safe_load(yaml.serialize(k)) if not isinstance(k, yaml.ScalarNode) \
-                else _scalar(k)
-            lines[path + (key,)] = k.start_mark.line + 1
-            out[key] = _construct(v, path + (key,), lines)
-        return out
-    if isinstance(node, yaml.SequenceNode):
-        return [_construct(v, path + (i,), lines) for i, v in enumerate(node.value)]
-    return _scalar(node)
-
-
-_RESOLVER = yaml.SafeLoader
-
-
-def _scalar(node):
-    loader = yaml.SafeLoader("")
-    try:
-        return loader.construct_object(node, deep=True)
-    finally:
-        loader.dispose()
-
-
+# (read by shapeverify.io.yaml_safe.load_yaml: bounded aliases, every key's line)
 def _where(loc: tuple, data, lines: dict) -> tuple[tuple, int | None]:
     """The data path of a pydantic error location (union tags dropped) and its line."""
     path, cur = [], data
@@ -352,18 +325,15 @@ def parse_plan(text: str, source: str = "<plan>") -> Plan:
     >>> p.alignment.type
     'best_fit'
     """
-    try:
-        node = yaml.compose(text, Loader=yaml.SafeLoader)
-    except yaml.YAMLError as exc:
-        mark = getattr(exc, "problem_mark", None)
-        line = None if mark is None else mark.line + 1
-        raise PlanError(f"{source}, line {line}: not valid YAML: "
-                        f"{getattr(exc, 'problem', None) or exc}", line=line) from None
-    if node is None:
+    from ..io.yaml_safe import YamlInputError, load_yaml
+
+    try:   # aliases expanded within a budget, nesting bounded, repeated keys refused
+        data, lines = load_yaml(text, source, with_lines=True)
+    except YamlInputError as exc:
+        raise PlanError(str(exc), line=exc.line) from None
+    if data is None:
         raise PlanError(f"{source}: the plan is empty; it needs at least 'units: mm' and "
                         "'characteristics: [...]'", line=1)
-    lines: dict = {}
-    data = _construct(node, (), lines)
     return _validate(data, lines, source)
 
 
