@@ -18,13 +18,23 @@ import typer
 __all__ = ["register_commands", "read_image", "read_pose"]
 
 
-def read_image(path: Path) -> np.ndarray:
-    """A single-channel image (uint8 or uint16 as stored) from PNG/TIFF/... via ``cv2.imread``."""
+def read_image(path: Path, expected_size=None, what: str = "image") -> np.ndarray:
+    """A single-channel image (uint8 or uint16 as stored) from PNG/TIFF/... via ``cv2.imread``.
+
+    The size its header declares is checked first (``expected_size``, a camera's
+    ``(width, height)``, and :data:`shapeverify.io.image_header.MAX_IMAGE_PIXELS`): a small file
+    that decodes to gigabytes is refused before it is decoded.
+    """
     import cv2
     import numpy as np
 
+    from shapeverify.io.image_header import check_image_size
+
     if not Path(path).exists():
         raise FileNotFoundError(2, "no such file", str(path))
+    if Path(path).is_dir():
+        raise IsADirectoryError(21, "Is a directory", str(path))
+    check_image_size(path, expected_size, what=what)
     img = cv2.imread(str(path), cv2.IMREAD_UNCHANGED)
     if img is None:
         raise ValueError(f"{path}: not an image OpenCV can read (PNG or TIFF, 8 or 16 bit)")
@@ -94,8 +104,8 @@ def register_commands(app: typer.Typer) -> None:
         _cli._require_files(rig, left, right, *([model] if model else []), *([pose] if pose else []))
         with _cli._stage("reading rig and images"):
             r = _cli._guard(load_rig, rig)
-            L = _cli._guard(read_image, left)
-            R = _cli._guard(read_image, right)
+            L = _cli._guard(read_image, left, r.left.size, "left image")
+            R = _cli._guard(read_image, right, r.right.size, "right image")
         dr = None
         if depth_range:
             try:

@@ -256,21 +256,49 @@ class Rig:
 
 
 def load_rig(path) -> Rig:
-    """Read a rig from ``.json`` or ``.yaml``/``.yml`` (see the module docstring for the keys)."""
+    """Read a rig from ``.json`` or ``.yaml``/``.yml`` (see the module docstring for the keys).
+
+    Raises
+    ------
+    FileNotFoundError
+        The file does not exist.
+    RigFormatError
+        Not UTF-8 text, not valid JSON/YAML (hostile YAML too: aliases beyond a small budget,
+        deep nesting), a number Python cannot read, or keys and values that do not describe a
+        rig; the message names the file.
+    """
+    from shapeverify.io.yaml_safe import YamlInputError, load_yaml
+
     path = Path(path)
-    text = path.read_text()
+    is_yaml = path.suffix.lower() in (".yaml", ".yml")
+    if path.is_dir():
+        raise RigFormatError(f"{path}: is a directory; give the rig file (rig.json or rig.yaml)")
+    raw = path.read_bytes()
     try:
-        if path.suffix.lower() in (".yaml", ".yml"):
-            import yaml
-            data = yaml.safe_load(text)
-        else:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        line = raw[:exc.start].count(b"\n") + 1
+        raise RigFormatError(f"{path}, line {line}: not UTF-8 text (byte 0x{raw[exc.start]:02x}); a "
+                             "rig file is JSON or YAML text: save it as UTF-8") from None
+    if is_yaml:
+        try:
+            data = load_yaml(text, str(path))
+        except YamlInputError as e:
+            raise RigFormatError(str(e)) from None
+    else:
+        try:
             data = json.loads(text)
-    except Exception as e:  # noqa: BLE001 - parser errors of either format
-        raise RigFormatError(f"{path}: not valid {'YAML' if path.suffix.lower() in ('.yaml', '.yml') else 'JSON'}: {e}") from None
+        except json.JSONDecodeError as e:
+            raise RigFormatError(f"{path}, line {e.lineno}: not valid JSON: {e.msg}") from None
+        except (ValueError, RecursionError) as e:  # a 5,000-digit number; nesting too deep
+            why = "nested too deeply" if isinstance(e, RecursionError) else str(e)[:120]
+            raise RigFormatError(f"{path}: not valid JSON: {why}") from None
     try:
         return Rig.from_dict(data)
     except RigFormatError as e:
         raise RigFormatError(f"{path}: {e}") from None
+    except (TypeError, ValueError, OverflowError) as e:   # numbers numpy/Python cannot take
+        raise RigFormatError(f"{path}: not a rig: {str(e)[:160]}") from None
 
 
 def save_rig(rig: Rig, path) -> Path:
