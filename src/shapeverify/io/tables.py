@@ -51,7 +51,7 @@ def read_table(data: bytes, name: str) -> np.ndarray:
         if nxt is None:
             raise ScanError(f"{name}: contains a header line but no points")
         delim = _split_pattern(lines[nxt])
-    rows = lines[skip:]
+    rows = [ln if ln.strip() else "" for ln in lines[skip:]]  # blank lines (numpy skips "")
     if delim == ";" and any("," in ln for ln in rows[:50]):
         rows = [ln.replace(",", ".") for ln in rows]  # "1,5;2,5;3,5": decimal commas
     if delim is not None and rows and rows[0].rstrip().endswith(delim):
