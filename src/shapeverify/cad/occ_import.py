@@ -103,6 +103,9 @@ def _check_path(path) -> tuple[Path, str]:
         raise CADImportError(f"{p}: the file is empty (0 bytes)")
     if fmt == "iges":
         _check_iges_terminated(p)
+    from .number_check import check_numbers
+
+    check_numbers(p, fmt)  # a NaN or 1e400 makes OpenCASCADE loop for ever (issue 33 row 4)
     return p, fmt
 
 
@@ -334,7 +337,8 @@ def read_cad(path, *, chord_tol: float = 0.002, gap_tol: float = 0.02, isolated:
         :class:`CADImportError` instead of killing this process.  ``False`` imports in this
         process (faster by the start of the child on a first import; for debugging).
     timeout : float, optional
-        With ``isolated``: seconds after which the import is stopped (default: no limit).
+        With ``isolated``: seconds after which the import is stopped (default:
+        :func:`shapeverify.cad.occ_worker.default_time_limit`, 120 s + 30 s per MB).
 
     Returns
     -------
@@ -351,7 +355,8 @@ def read_cad(path, *, chord_tol: float = 0.002, gap_tol: float = 0.02, isolated:
     UnsupportedFormatError
         If the extension is not .step/.stp/.igs/.iges.
     CADImportError
-        If the file is empty, corrupt, truncated, none of its faces can be converted, OpenCASCADE
+        If the file is empty, corrupt, truncated, holds a number that is not a finite double
+        (:mod:`shapeverify.cad.number_check`), the import exceeds its time limit, none of its faces can be converted, OpenCASCADE
         raises, or the importer crashes (the message names the file and the signal).
     EmptyModelError
         If the file holds no shapes, or shapes without faces (only wires or points).
