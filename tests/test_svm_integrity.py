@@ -64,6 +64,16 @@ def _write(path, meta: dict, arrays: dict, checksum: str) -> Path:
     return Path(path)
 
 
+def _cyclic(nodes: np.ndarray, dims) -> np.ndarray:
+    """Every entry of every child block pointed at its own block: a descent into any
+    internal top-grid cell then loops for ever (each block its own only child)."""
+    n_top = int(np.prod(dims))
+    out = nodes.copy()
+    j = np.arange(n_top, nodes.size)
+    out[j] = n_top + 8 * ((j - n_top) // 8)
+    return out
+
+
 def _inner_entries(nodes: np.ndarray, dims) -> np.ndarray:
     """Positions in ``nodes`` of internal cells (code >= 0) that lie inside a child block."""
     n_top = int(np.prod(dims))
@@ -160,13 +170,8 @@ def test_row5_tree_child_index_out_of_range_is_an_error_not_sigsegv(original, wo
 @pytest.mark.parametrize("checksum", ["keep", "drop", "fix"])
 def test_row5_tree_cycle_is_an_error_not_a_hang(original, worker, tmp_path, checksum):
     meta, a = _arrays(original[0])
-    nodes = a["tree_nodes"].copy()
-    n_top = int(np.prod(a["tree_dims"]))
-    inner = _inner_entries(nodes, a["tree_dims"])
-    assert inner.size, "the test model needs a tree of depth >= 2"
-    j = int(inner[0])
-    nodes[j] = n_top + 8 * ((j - n_top) // 8)  # a cell whose children are its own block
-    a["tree_nodes"] = nodes
+    assert _inner_entries(a["tree_nodes"], a["tree_dims"]).size, "needs a tree of depth >= 2"
+    a["tree_nodes"] = _cyclic(a["tree_nodes"], a["tree_dims"])
     path = _write(tmp_path / "cycle.svm", meta, a, checksum)
     t0 = time.perf_counter()
     with pytest.raises(ModelFileError) as err:
@@ -189,10 +194,7 @@ def test_row5_the_checks_are_what_prevents_the_crash_and_the_hang(original, tmp_
     bad = nodes.copy()
     bad[np.flatnonzero(nodes[:n_top] >= 0)] = 2**31 - 100
     cases["oob"] = _write(tmp_path / "oob.svm", meta, dict(a, tree_nodes=bad), "drop")
-    bad = nodes.copy()
-    j = _inner_entries(nodes, a["tree_dims"])
-    # every internal child-block cell points back at its own block: any descent loops
-    bad[j] = n_top + 8 * ((j - n_top) // 8)
+    bad = _cyclic(nodes, a["tree_dims"])
     cases["cycle"] = _write(tmp_path / "cyc.svm", meta, dict(a, tree_nodes=bad), "drop")
     code = ("import sys, numpy as np\n"
             "from shapeverify.nearest import _svm_checks, prepared\n"

@@ -390,10 +390,29 @@ def read_cad(path, *, chord_tol: float = 0.002, gap_tol: float = 0.02, isolated:
                              f"({type(exc).__name__}: {exc})") from exc
 
 
-def _read_cad_here(path: Path, fmt: str, chord_tol: float, gap_tol: float) -> Model:
-    """The import itself, in this process."""
+def _missing_faces(path: Path, fmt: str, n_read: int, skipped: list) -> int:
+    """The faces the file declares (:func:`~shapeverify.cad.face_count.declared_faces`, at
+    least the ``n_read`` OpenCASCADE found); appends to ``skipped`` a line per declared face
+    OpenCASCADE did not turn into a face."""
     from .face_count import declared_faces
 
+    try:
+        declared, notes = declared_faces(path, fmt)
+    except (OSError, ValueError) as exc:  # the count is advice; the import stands without it
+        logger.debug("%s: could not count the faces the file declares: %s", path, exc)
+        declared, notes = n_read, []
+    n_in_file = max(declared, n_read)
+    if n_in_file > n_read:
+        untransferred = n_in_file - n_read
+        skipped.extend(notes[:untransferred])
+        if untransferred > len(notes):
+            skipped.append(f"{untransferred - len(notes)} face(s) declared in the file that "
+                           "OpenCASCADE could not turn into faces (broken or missing entities)")
+    return n_in_file
+
+
+def _read_cad_here(path: Path, fmt: str, chord_tol: float, gap_tol: float) -> Model:
+    """The import itself, in this process."""
     t_start = time.perf_counter()
     _init_ocp()
     from OCP.TopAbs import TopAbs_REVERSED
@@ -438,18 +457,7 @@ def _read_cad_here(path: Path, fmt: str, chord_tol: float, gap_tol: float) -> Mo
         raise CADImportError(f"{path}: none of the {len(faces)} faces could be converted "
                              f"({'; '.join(skipped[:3])}{' ...' if len(skipped) > 3 else ''})")
 
-    try:
-        declared, notes = declared_faces(path, fmt)
-    except (OSError, ValueError) as exc:  # the count is advice; the import stands without it
-        logger.debug("%s: could not count the faces the file declares: %s", path, exc)
-        declared, notes = len(faces), []
-    n_in_file = max(declared, len(faces))
-    if n_in_file > len(faces):
-        untransferred = n_in_file - len(faces)
-        skipped.extend(notes[:untransferred])
-        if untransferred > len(notes):
-            skipped.append(f"{untransferred - len(notes)} face(s) declared in the file that "
-                           "OpenCASCADE could not turn into faces (broken or missing entities)")
+    n_in_file = _missing_faces(path, fmt, len(faces), skipped)
     if skipped:
         logger.warning("%s: %d of the %d faces in the file were not loaded: %s", path,
                        n_in_file - len(surfaces), n_in_file, "; ".join(skipped))

@@ -384,7 +384,7 @@ def _near_other_face(points, face, cell):
 
 
 def prepare(model, spacing: float | None = None, reach: float | None = None, *,
-            max_distance: float | None = None) -> Prepared:
+            max_distance: float | None = None, allow_incomplete: bool = False) -> Prepared:
     """Prepare a model for fast closest-point queries (Paper I).
 
     Parameters
@@ -404,6 +404,10 @@ def prepare(model, spacing: float | None = None, reach: float | None = None, *,
         (Not the inspection's evaluation distance, which decides which scan points count.)
     max_distance : float, optional
         Old name of ``reach``.
+    allow_incomplete : bool, optional
+        Prepare a CAD model that lacks faces its file declares
+        (:func:`shapeverify.cad.completeness.is_incomplete`); every inspection against it then
+        names the missing faces in its reasons.  Default False: such a model is refused.
 
     Returns
     -------
@@ -414,6 +418,8 @@ def prepare(model, spacing: float | None = None, reach: float | None = None, *,
     ValueError
         If ``spacing`` or ``reach`` is not a finite number > 0, or the model yields no
         model points.
+    IncompleteModelError
+        The CAD model lacks faces its file declares and ``allow_incomplete`` is False.
 
     Examples
     --------
@@ -426,6 +432,9 @@ def prepare(model, spacing: float | None = None, reach: float | None = None, *,
     >>> round(float(near.distances[0]), 9)
     2.0
     """
+    if not allow_incomplete:
+        from shapeverify.cad.completeness import require_complete
+        require_complete(model)
     if max_distance is not None:
         if reach is not None:
             raise ValueError("give reach only (max_distance is its old name)")
