@@ -41,6 +41,12 @@ def test_scale_points_and_mesh_model():
     assert cm.scale_to_mm == 10.0 and cm.unit == "cm"
 
 
-def test_cad_model_refuses_a_model_unit():
-    with pytest.raises(ValueError, match="declares its own unit"):
-        scale_model(Model((), source="part.step"), "cm")
+def test_cad_model_unit_overrides_the_declared_unit():
+    # issue 30 item 6 (was: refused); more in tests/test_cad_model_unit.py
+    from shapeverify.cad.model import Face
+    from shapeverify.cad.nurbs import sphere
+
+    f = Face(sphere(2.0), (np.array([[0, 0], [1, 0], [1, 1], [0, 1.0]]),), (np.zeros(4, bool),))
+    cm = scale_model(Model((f,), source="part.step"), "cm")
+    assert cm.unit == "cm" and cm.scale_to_mm == 10.0
+    np.testing.assert_allclose(cm.faces[0].surface.control, 10 * f.surface.control)

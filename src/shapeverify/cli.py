@@ -240,7 +240,7 @@ def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges
             from shapeverify.units import scale_model
             summary = m = _guard(scale_model, m, model_unit)
         else:
-            summary = _guard(in_unit, summary, model_unit)
+            summary = _guard(in_unit, summary, model_unit, str(model))
     out.print(model_summary_table(summary, title=clean(model)))
     note = size_note(summary.kind, summary.unit, summary.size)
     if note:
@@ -264,7 +264,8 @@ def model_summary_table(m, title: str) -> Table:
     lo, hi = np.round(s.lo, 2) + 0.0, np.round(s.hi, 2) + 0.0   # + 0.0: no "-0." shown
     t = Table(title=title, show_header=False)
     t.add_row("kind", s.kind)
-    t.add_row("faces", str(s.faces))
+    t.add_row("faces", str(s.faces) if not s.missing else  # issue 33 row 2
+              f"{s.faces} of {s.faces_in_file} in the file; missing: {'; '.join(s.missing)}")
     if s.kind == "cad":
         t.add_row("rational faces", str(s.rational_faces))
         t.add_row("faces with holes", str(s.faces_with_holes))
@@ -275,6 +276,12 @@ def model_summary_table(m, title: str) -> Table:
                                    f"{np.array2string(hi, precision=2, suppress_small=True)}")
     t.add_row("size (diagonal) [mm]", f"{s.size:.3f}")
     return t
+
+
+_ALLOW_INCOMPLETE = typer.Option(
+    False, "--allow-incomplete-model",
+    help="Prepare a CAD model that lacks faces its file declares (dangling or unconvertible "
+         "faces; refused otherwise); every inspection then names the missing faces")
 
 
 @app.command()
@@ -288,6 +295,7 @@ def prepare(
                                                "more slowly (default: 3 % of the model size)"),
     model_unit: Optional[str] = typer.Option(None, "--model-unit", help="Unit of an STL/PLY/OBJ/point-cloud model (default mm; CAD files declare theirs)"),
     fixture: Optional[Path] = typer.Option(None, "--fixture", help="Fixture pose T_model_scan (T.json or T.npy) saved with the model: inspections start there when no --init is given"),
+    allow_incomplete_model: bool = _ALLOW_INCOMPLETE,
 ):
     """Import a model and pre-compute its closest-point structure (once per model)."""
     _prestart_importer(model)
@@ -296,7 +304,7 @@ def prepare(
     _require_files(model, *([fixture] if fixture is not None else []))
     T_fixture = _guard(_read_init, fixture) if fixture is not None else None
     prep = _guard(load_reference, model, spacing=spacing, reach=reach, stage=_stage,
-                  model_unit=model_unit)
+                  model_unit=model_unit, allow_incomplete=allow_incomplete_model)
     if T_fixture is not None:
         prep.fixture = T_fixture
     with _stage(f"Writing {output.name}"):
@@ -326,6 +334,7 @@ def inspect(
     colored: Optional[Path] = typer.Option(None, "--colored", help="Write a PLY coloured by deviation"),
     db: Optional[Path] = typer.Option(None, "--db", help="Append the result to this SQLite history"),
     part: Optional[str] = typer.Option(None, "--part", help="Part id stored in the history"),
+    allow_incomplete_model: bool = _ALLOW_INCOMPLETE,
 ):
     """Register a scan to the model, compute deviations and decide the verdict.
 
@@ -351,7 +360,8 @@ def inspect(
         lower=lower, upper=upper, faces=faces, min_coverage=min_coverage, init=T0,
         scan_unit=scan_unit, model_unit=model_unit, plan=plan, pdf_path=pdf,
         json_path=json_path, report_path=report, png_path=png,
-        colored_path=colored, db_path=db, part=part, stage=_stage, _scan_unit=scan_unit)
+        colored_path=colored, db_path=db, part=part, stage=_stage, _scan_unit=scan_unit,
+        allow_incomplete=allow_incomplete_model)
     _print_result(result)
     for label, path in (("JSON", outputs.json), ("report", outputs.report), ("PDF", outputs.pdf),
                         ("PNG", outputs.png), ("coloured PLY", outputs.colored)):

@@ -39,6 +39,11 @@ class CADImportError(ShapeVerifyError, ValueError):
     """A CAD file could not be read: corrupt, empty, truncated, or not what its extension says."""
 
 
+class IncompleteModelError(CADImportError):
+    """A CAD model lacks faces its file declares (a dangling face reference, a face OpenCASCADE
+    could not convert); refused by ``prepare`` unless ``allow_incomplete=True``."""
+
+
 class ModelFileError(CADImportError):
     """A saved model (``.svmodel``) or prepared model (``.svm``) is damaged, truncated or foreign.
 

@@ -43,7 +43,7 @@ def file_hash(path: str | Path) -> str:
 
 def load_reference(path: str | Path, spacing: float | None = None,
                    reach: float | None = None, stage: Stage | None = None, *,
-                   model_unit: str | None = None):
+                   model_unit: str | None = None, allow_incomplete: bool = False):
     """Load a prepared model (``.svm``) or import and prepare a CAD/mesh/point-cloud model.
 
     Parameters
@@ -56,6 +56,9 @@ def load_reference(path: str | Path, spacing: float | None = None,
     model_unit : str, optional
         The unit of a mesh or point-cloud reference (STL/PLY/OBJ carry none; default mm), see
         :mod:`shapeverify.units`.
+    allow_incomplete : bool
+        Prepare a CAD model that lacks faces its file declares (see
+        :func:`shapeverify.prepare`); default False: an ``IncompleteModelError``.
 
     Returns
     -------
@@ -78,7 +81,7 @@ def load_reference(path: str | Path, spacing: float | None = None,
             from shapeverify.units import scale_model
             model = scale_model(model, model_unit)
     with stage(f"Preparing closest-point structure ({len(model.faces)} faces)"):
-        return prepare(model, spacing=spacing, reach=reach)
+        return prepare(model, spacing=spacing, reach=reach, allow_incomplete=allow_incomplete)
 
 
 @dataclass(frozen=True, eq=False)
@@ -202,7 +205,7 @@ def run_inspection(model_path: str | Path, scan_path: str | Path, tolerance: flo
                    colored_path=None, db_path=None, part: str | None = None,
                    stage: Stage | None = None, *, faces=None, min_coverage: float | None = None,
                    init=None, scan_unit: str | None = None, model_unit: str | None = None,
-                   plan=None, pdf_path=None):
+                   plan=None, pdf_path=None, allow_incomplete: bool = False):
     """Inspect one scan file against one model file and write the requested outputs
     (``shapeverify inspect``): :func:`load_reference`, :func:`inspect_scan`, :func:`write_outputs`.
 
@@ -220,7 +223,8 @@ def run_inspection(model_path: str | Path, scan_path: str | Path, tolerance: flo
     stage = stage or _no_stage
     out = InspectionOutputs()
     t0 = time.perf_counter()
-    prep = load_reference(model_path, stage=stage, model_unit=model_unit)
+    prep = load_reference(model_path, stage=stage, model_unit=model_unit,
+                          allow_incomplete=allow_incomplete)
     out.timings["load_model_s"] = time.perf_counter() - t0
 
     done = inspect_scan(prep, scan_path, tolerance=tolerance,

@@ -62,20 +62,21 @@ def scale_points(points, unit: str) -> np.ndarray:
 
 
 def scale_model(model, unit: str):
-    """A mesh or point-cloud model read as millimetres but really in ``unit``, in millimetres.
+    """A mesh or point-cloud model read as millimetres but really in ``unit``, in millimetres;
+    a CAD model as if its file had declared ``unit`` instead of its own (a warning names both
+    units and the resulting size: :func:`shapeverify.cad.rescale.with_declared_unit`).
 
     Raises
     ------
     ValueError
-        For a CAD model: STEP and IGES files declare their unit, which import already applied.
+        An unknown unit; a CAD file whose declared unit has no known size.
     """
     f = unit_factor(unit)
+    if getattr(model, "kind", "cad") == "cad":
+        from shapeverify.cad.rescale import with_declared_unit
+        return with_declared_unit(model, unit)
     if f == 1.0:
         return model
-    if getattr(model, "kind", "cad") == "cad":
-        raise ValueError(f"{getattr(model, 'source', 'the model')}: a CAD file declares its own unit "
-                         f"({getattr(model, 'unit', '?')}), already converted to mm at import; "
-                         "--model-unit is for STL, PLY, OBJ and point-cloud references")
     changes = {"scale_to_mm": float(model.scale_to_mm) * f, "unit": str(unit)}
     if model.vertices is not None:
         changes["vertices"] = np.asarray(model.vertices, dtype=np.float64) * f

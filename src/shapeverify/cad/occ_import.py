@@ -103,6 +103,9 @@ def _check_path(path) -> tuple[Path, str]:
         raise CADImportError(f"{p}: the file is empty (0 bytes)")
     if fmt == "iges":
         _check_iges_terminated(p)
+    from .number_check import check_numbers
+
+    check_numbers(p, fmt)  # a NaN or 1e400 makes OpenCASCADE loop for ever (issue 33 row 4)
     return p, fmt
 
 
@@ -334,7 +337,8 @@ def read_cad(path, *, chord_tol: float = 0.002, gap_tol: float = 0.02, isolated:
         :class:`CADImportError` instead of killing this process.  ``False`` imports in this
         process (faster by the start of the child on a first import; for debugging).
     timeout : float, optional
-        With ``isolated``: seconds after which the import is stopped (default: no limit).
+        With ``isolated``: seconds after which the import is stopped (default:
+        :func:`shapeverify.cad.occ_worker.default_time_limit`, 120 s + 30 s per MB).
 
     Returns
     -------
@@ -351,7 +355,8 @@ def read_cad(path, *, chord_tol: float = 0.002, gap_tol: float = 0.02, isolated:
     UnsupportedFormatError
         If the extension is not .step/.stp/.igs/.iges.
     CADImportError
-        If the file is empty, corrupt, truncated, none of its faces can be converted, OpenCASCADE
+        If the file is empty, corrupt, truncated, holds a number that is not a finite double
+        (:mod:`shapeverify.cad.number_check`), the import exceeds its time limit, none of its faces can be converted, OpenCASCADE
         raises, or the importer crashes (the message names the file and the signal).
     EmptyModelError
         If the file holds no shapes, or shapes without faces (only wires or points).
@@ -385,10 +390,29 @@ def read_cad(path, *, chord_tol: float = 0.002, gap_tol: float = 0.02, isolated:
                              f"({type(exc).__name__}: {exc})") from exc
 
 
-def _read_cad_here(path: Path, fmt: str, chord_tol: float, gap_tol: float) -> Model:
-    """The import itself, in this process."""
+def _missing_faces(path: Path, fmt: str, n_read: int, skipped: list) -> int:
+    """The faces the file declares (:func:`~shapeverify.cad.face_count.declared_faces`, at
+    least the ``n_read`` OpenCASCADE found); appends to ``skipped`` a line per declared face
+    OpenCASCADE did not turn into a face."""
     from .face_count import declared_faces
 
+    try:
+        declared, notes = declared_faces(path, fmt)
+    except (OSError, ValueError) as exc:  # the count is advice; the import stands without it
+        logger.debug("%s: could not count the faces the file declares: %s", path, exc)
+        declared, notes = n_read, []
+    n_in_file = max(declared, n_read)
+    if n_in_file > n_read:
+        untransferred = n_in_file - n_read
+        skipped.extend(notes[:untransferred])
+        if untransferred > len(notes):
+            skipped.append(f"{untransferred - len(notes)} face(s) declared in the file that "
+                           "OpenCASCADE could not turn into faces (broken or missing entities)")
+    return n_in_file
+
+
+def _read_cad_here(path: Path, fmt: str, chord_tol: float, gap_tol: float) -> Model:
+    """The import itself, in this process."""
     t_start = time.perf_counter()
     _init_ocp()
     from OCP.TopAbs import TopAbs_REVERSED
@@ -433,18 +457,7 @@ def _read_cad_here(path: Path, fmt: str, chord_tol: float, gap_tol: float) -> Mo
         raise CADImportError(f"{path}: none of the {len(faces)} faces could be converted "
                              f"({'; '.join(skipped[:3])}{' ...' if len(skipped) > 3 else ''})")
 
-    try:
-        declared, notes = declared_faces(path, fmt)
-    except (OSError, ValueError) as exc:  # the count is advice; the import stands without it
-        logger.debug("%s: could not count the faces the file declares: %s", path, exc)
-        declared, notes = len(faces), []
-    n_in_file = max(declared, len(faces))
-    if n_in_file > len(faces):
-        untransferred = n_in_file - len(faces)
-        skipped.extend(notes[:untransferred])
-        if untransferred > len(notes):
-            skipped.append(f"{untransferred - len(notes)} face(s) declared in the file that "
-                           "OpenCASCADE could not turn into faces (broken or missing entities)")
+    n_in_file = _missing_faces(path, fmt, len(faces), skipped)
     if skipped:
         logger.warning("%s: %d of the %d faces in the file were not loaded: %s", path,
                        n_in_file - len(surfaces), n_in_file, "; ".join(skipped))

@@ -97,7 +97,7 @@ def _summary_here(path: Path, fmt: str) -> ModelSummary:
     shape, unit, scale, _ = oi._read_shape_named(path, fmt)
     t_read = time.perf_counter()
     faces = oi._shape_faces(path, fmt, shape)
-    kept, rational, holed, skipped = [], 0, 0, 0
+    kept, rational, holed, skipped, why = [], 0, 0, 0, []
     for i, face in enumerate(faces):
         try:
             work, surface, conv = oi._face_surface(face, i, path)
@@ -108,12 +108,19 @@ def _summary_here(path: Path, fmt: str) -> ModelSummary:
         except Exception as exc:  # noqa: BLE001 - skipped as the import skips it
             logger.debug("%s: face %d left out as the import leaves it out: %s", path, i, exc)
             skipped += 1
+            why.append(f"face {i}: " + (str(exc).replace(f"{path}: ", "")
+                                        if isinstance(exc, ShapeVerifyError)
+                                        else f"{type(exc).__name__}: {exc}"))
             continue
         kept.append(face)
         rational += surface.rational
         holed += loops > 1
     if not kept:
         raise CADImportError(f"{path}: none of the {len(faces)} faces could be converted")
+    n_in_file = oi._missing_faces(path, fmt, len(faces), why)  # issue 33 row 2: info says so
+    if why:
+        logger.warning("%s: %d of the %d faces in the file were not loaded: %s", path,
+                       n_in_file - len(kept), n_in_file, "; ".join(why))
     t_faces = time.perf_counter()
     lo, hi = _bounds(kept)
     size = float(np.linalg.norm(hi - lo))
@@ -123,7 +130,8 @@ def _summary_here(path: Path, fmt: str) -> ModelSummary:
     return ModelSummary(kind="cad", faces=len(kept), rational_faces=int(rational),
                         faces_with_holes=int(holed), vertices=None, unit=unit,
                         scale_to_mm=float(scale), lo=tuple(float(x) for x in lo),
-                        hi=tuple(float(x) for x in hi), size=size)
+                        hi=tuple(float(x) for x in hi), size=size, faces_in_file=n_in_file,
+                        missing=tuple(why))
 
 
 # -------------------------------------------------------------------------------------- bounds

@@ -16,7 +16,11 @@ does not import numba and the kernels ahead, so a new file's ``info`` pays neith
 * A crash of the importer (a signal, or an exit without an answer) raises
   :class:`~shapeverify.errors.CADImportError` ("the CAD importer crashed on FILE (signal 11,
   SIGSEGV) ...").
-* A time limit (``timeout``) kills an importer that hangs, with the same error.
+* A time limit kills an importer that hangs, with the same error: ``timeout`` when the caller
+  gives one, else :func:`default_time_limit` (120 s + 30 s per MB of the file, or the seconds
+  in ``$SHAPEVERIFY_IMPORT_TIMEOUT``; 0 there: no limit).  Before this limit existed a file with
+  a ``NaN`` coordinate kept ``info`` and ``prepare`` busy for ever (issue 33 row 4; such numbers
+  are now refused before the import: :mod:`shapeverify.cad.number_check`).
 * The importer's log records are re-emitted in the caller under their own logger names, so
   warnings about skipped faces appear as if the import had run in-process.
 * Errors raised in the importer come back as the same class with the same message
@@ -57,8 +61,15 @@ __all__ = ["read_cad_isolated", "summary_isolated", "prestart", "shutdown"]
 
 _LEN = struct.Struct("<Q")
 _MAX_USES = 64  # imports per importer process before it is replaced
-#: time limit (s) of an import when the caller gives none (None: no limit); the fuzz tests set it
+#: time limit (s) of an import when the caller gives none (None: :func:`default_time_limit`,
+#: which grows with the file's size); the fuzz tests set it
 DEFAULT_TIMEOUT_S: float | None = None
+#: the default time limit of an import: this many seconds ...
+TIME_LIMIT_BASE_S = 120.0
+#: ... plus this many per MB of the file (an undamaged 4 MB IGES file imports in about 10 s)
+TIME_LIMIT_PER_MB_S = 30.0
+#: environment variable that sets the time limit in seconds (0: none)
+TIME_LIMIT_ENV = "SHAPEVERIFY_IMPORT_TIMEOUT"
 _ERRORS = {c.__name__: c for c in (CADImportError, EmptyModelError, UnsupportedFormatError)}
 
 
@@ -200,7 +211,7 @@ def read_cad_isolated(path, *, chord_tol: float, gap_tol: float, timeout: float 
         As for ``read_cad`` (mm).
     timeout : float, optional
         Seconds after which a still-running import is killed (default:
-        :data:`DEFAULT_TIMEOUT_S`, no limit).
+        :func:`default_time_limit`: 120 s + 30 s per MB of the file).
 
     Returns
     -------
@@ -245,8 +256,48 @@ def summary_isolated(path, *, timeout: float | None = None):
     CADImportError, EmptyModelError, UnsupportedFormatError, FileNotFoundError
         As :func:`read_cad_isolated`.
     """
+    from .number_check import check_numbers
+    from .occ_import import CAD_SUFFIXES
+
     path = Path(path)
+    check_numbers(path, CAD_SUFFIXES.get(path.suffix.lower(), "step"))
     return _call(path, ("summary", os.getcwd(), os.fspath(path), _level()), timeout)
+
+
+def default_time_limit(path) -> tuple[float | None, str]:
+    """The time limit (s) of an import of ``path`` when the caller gives none, and how it was
+    set (for the message when it is hit).
+
+    :data:`DEFAULT_TIMEOUT_S` if set; else ``$SHAPEVERIFY_IMPORT_TIMEOUT`` (seconds, 0 or
+    ``none``: no limit); else :data:`TIME_LIMIT_BASE_S` + :data:`TIME_LIMIT_PER_MB_S` per MB.
+
+    Raises
+    ------
+    ValueError
+        The environment variable is not a number of seconds.
+    """
+    if DEFAULT_TIMEOUT_S is not None:
+        return float(DEFAULT_TIMEOUT_S), "the time limit"
+    env = os.environ.get(TIME_LIMIT_ENV, "").strip()
+    if env:
+        if env.lower() in ("0", "none", "inf"):
+            return None, ""
+        try:
+            val = float(env)
+        except ValueError:
+            val = float("nan")
+        if not (val > 0 and val < float("inf")):
+            raise ValueError(f"${TIME_LIMIT_ENV}={env!r} is not a number of seconds (0: no "
+                             "time limit on CAD imports)")
+        return val, f"${TIME_LIMIT_ENV}"
+    try:
+        mb = Path(path).stat().st_size / 1e6
+    except OSError:
+        mb = 0.0
+    limit = TIME_LIMIT_BASE_S + TIME_LIMIT_PER_MB_S * mb
+    return limit, (f"the default time limit for this {mb:.3g} MB file ({TIME_LIMIT_BASE_S:g} s + "
+                   f"{TIME_LIMIT_PER_MB_S:g} s per MB; set ${TIME_LIMIT_ENV}=SECONDS to change "
+                   "it, 0 for none)")
 
 
 def _level() -> int:
@@ -261,8 +312,9 @@ def _call(path: Path, req, timeout: float | None):
     """Send one request to the importer (started if needed); return its answer's payload or
     raise what the importer raised (or :class:`CADImportError` for a crash or time-out)."""
     global _CURRENT
+    how = "the time limit given"
     if timeout is None:
-        timeout = DEFAULT_TIMEOUT_S
+        timeout, how = default_time_limit(path)
     deadline = None if timeout is None else time.monotonic() + float(timeout)
     with _LOCK:
         if _CURRENT is not None and (not _CURRENT.alive() or _CURRENT.uses >= _MAX_USES):
@@ -278,8 +330,9 @@ def _call(path: Path, req, timeout: float | None):
             _CURRENT = None
             worker.close(kill=True)
             raise CADImportError(f"{path}: the CAD importer did not finish within {timeout:g} s "
-                                 "and was stopped; the file may be damaged (re-export it) or "
-                                 "too large for the time limit") from None
+                                 f"({how}) and was stopped; the file may be damaged (export it "
+                                 "again from the CAD system) or too large for the time limit") \
+                from None
         except BaseException:  # interrupted (Ctrl-C): the answer would be stale, start afresh
             _CURRENT = None
             worker.close(kill=True)

@@ -33,6 +33,7 @@ from __future__ import annotations
 import json
 import os
 import struct
+import tokenize
 import zipfile
 import zlib
 from pathlib import Path
@@ -47,10 +48,11 @@ __all__ = ["save_model", "load_saved_model", "model_to_arrays", "model_from_arra
 #: what numpy, zipfile and the array checks raise on a damaged, truncated or foreign archive
 #: (bit flips fail zipfile's CRC check: ``BadZipFile``; truncation: ``BadZipFile``/``EOFError``;
 #: a flipped flag bit: ``NotImplementedError``/``RuntimeError`` ("encrypted"); wrong shapes or
-#: dtypes: ``ValueError``/``IndexError``/``TypeError``)
+#: dtypes: ``ValueError``/``IndexError``/``TypeError``; a damaged ``.npy`` header that numpy
+#: parses with ``tokenize``/``ast``: ``TokenError``/``SyntaxError``, found by the .svm fuzz)
 DAMAGED_FILE_ERRORS = (ValueError, LookupError, TypeError, AttributeError, RuntimeError, OSError,
                        EOFError, zipfile.BadZipFile, zlib.error, struct.error, OverflowError,
-                       MemoryError)
+                       MemoryError, tokenize.TokenError, SyntaxError)
 
 
 

@@ -29,7 +29,7 @@ __all__ = ["ModelSummary", "summarize", "read_summary", "cached_summary", "cache
 
 logger = logging.getLogger(__name__)
 
-_FORMAT = 1  # bump when ModelSummary's fields change
+_FORMAT = 2  # bump when ModelSummary's fields change
 _MAX_ENTRIES = 256  # the oldest entries beyond this are removed when one is written
 
 
@@ -54,6 +54,11 @@ class ModelSummary:
         Axis-aligned bounding box [mm] (:attr:`shapeverify.cad.model.Model.bounds`).
     size : float
         Its diagonal [mm].
+    faces_in_file : int or None
+        The faces the CAD file declares (None: not known, or not CAD); more than ``faces``
+        when some are missing (issue 33 row 2).
+    missing : tuple of str
+        One line per face of the file that is not in the model, saying which and why.
     """
 
     kind: str
@@ -66,6 +71,8 @@ class ModelSummary:
     lo: tuple
     hi: tuple
     size: float
+    faces_in_file: int | None = None
+    missing: tuple = ()
 
 
 def summarize(model) -> ModelSummary:
@@ -78,7 +85,9 @@ def summarize(model) -> ModelSummary:
         faces_with_holes=sum(1 for f in model.faces if len(f.loops) > 1) if cad else 0,
         vertices=None if model.vertices is None else int(len(model.vertices)),
         unit=model.unit, scale_to_mm=float(model.scale_to_mm),
-        lo=tuple(float(x) for x in lo), hi=tuple(float(x) for x in hi), size=float(model.size))
+        lo=tuple(float(x) for x in lo), hi=tuple(float(x) for x in hi), size=float(model.size),
+        faces_in_file=model.n_faces_in_file if cad else None,
+        missing=tuple(model.skipped_faces) if cad else ())
 
 
 def read_summary(path) -> ModelSummary:
@@ -106,15 +115,16 @@ def read_summary(path) -> ModelSummary:
     return summarize(load_model(path))
 
 
-def in_unit(summary: ModelSummary, unit: str | None) -> ModelSummary:
+def in_unit(summary: ModelSummary, unit: str | None, source: str = "the CAD file") -> ModelSummary:
     """``summary`` of a mesh or point cloud whose coordinates are really in ``unit`` (the
     ``--model-unit`` of ``info``, as :func:`shapeverify.units.scale_model` applies it when
-    preparing); ``None`` or "mm": unchanged.
+    preparing), or of a CAD file as if it declared ``unit`` instead of its own (with a warning:
+    :func:`shapeverify.cad.rescale.summary_with_declared_unit`); ``None``: unchanged.
 
     Raises
     ------
     ValueError
-        For a CAD model (STEP and IGES declare their unit) or an unknown unit.
+        An unknown unit; a CAD file whose declared unit has no known size.
     """
     from dataclasses import replace
 
@@ -123,12 +133,11 @@ def in_unit(summary: ModelSummary, unit: str | None) -> ModelSummary:
     if unit is None:
         return summary
     f = unit_factor(unit)
+    if summary.kind == "cad":
+        from .rescale import summary_with_declared_unit
+        return summary_with_declared_unit(summary, unit, source)
     if f == 1.0:
         return summary
-    if summary.kind == "cad":
-        raise ValueError(f"a CAD file declares its own unit ({summary.unit}), already converted "
-                         "to mm at import; --model-unit is for STL, PLY, OBJ and point-cloud "
-                         "models")
     return replace(summary, unit=str(unit), scale_to_mm=summary.scale_to_mm * f,
                    lo=tuple(x * f for x in summary.lo), hi=tuple(x * f for x in summary.hi),
                    size=summary.size * f)
@@ -170,6 +179,7 @@ def _read_entry(entry: Path, stamp: str) -> ModelSummary | None:
         if data.pop("stamp") != stamp:
             return None
         data["lo"], data["hi"] = tuple(map(float, data["lo"])), tuple(map(float, data["hi"]))
+        data["missing"] = tuple(str(x) for x in data.get("missing", ()))
         s = ModelSummary(**data)
         if not (len(s.lo) == len(s.hi) == 3 and isinstance(s.faces, int)):
             raise ValueError("malformed entry")
@@ -227,6 +237,9 @@ def cached_summary(path, load) -> tuple[ModelSummary, bool]:
     hit = _read_entry(entry, stamp)
     if hit is not None:
         logger.info("%s: summary from the cache (%s)", path, entry)
+        if hit.missing:
+            logger.warning("%s: %d of the %s faces in the file are not in the model: %s", path,
+                           len(hit.missing), hit.faces_in_file, "; ".join(hit.missing))
         return hit, True
     got = load(path)
     summary = got if isinstance(got, ModelSummary) else summarize(got)

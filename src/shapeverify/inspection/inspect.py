@@ -508,6 +508,9 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
     verdict, reasons, rule = decide(reg, dev, regions, coverage,
                                     min_inlier_fraction=opts.min_inlier_fraction)
     notes = []
+    from shapeverify.cad.completeness import missing_faces_note  # issue 33 row 2
+    if missing_faces_note(prep.model):
+        notes.append(missing_faces_note(prep.model))
     hint = unit_hint(_bbox_diagonal(scan), model_size) if model_size else None
     if hint and verdict != "pass":
         notes.append(hint)

@@ -22,7 +22,12 @@ neighbours with quantised offsets, the tangent patch), a 16-byte row (face, (u, 
 (typically 10-50 bytes).
 
 The ``.svm`` file is one uncompressed ``.npz`` archive (read without pickle): these arrays
-plus the model (:func:`shapeverify.cad.persist.model_to_arrays`).
+plus the model (:func:`shapeverify.cad.persist.model_to_arrays`).  Its header (``meta``) holds
+the SHA-256 of all other arrays (``sha256``, :func:`._svm_checks.payload_digest`); loading
+compares it (files written before it existed load without), then checks the arrays' sizes,
+index ranges and that the tree is a tree (:func:`._svm_checks.check_structure`), so a damaged or
+crafted file is a :class:`~shapeverify.errors.ModelFileError`, never a crash or an endless
+query.
 
 References
 ----------
@@ -46,6 +51,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from . import dvg as _dvg
+from ._svm_checks import check_structure, payload_digest
 from ._malloc import PREPARE_MMAP_THRESHOLD, lean_malloc, release_memory  # noqa: F401
 from .exact import for_model
 
@@ -262,6 +268,8 @@ class Prepared:
                   "rec": self._fast.rec, "rows": self._rows, "boundary": self._boundary}
         arrays.update({f"tree_{k}": np.asarray(v) for k, v in self._fast.tree.arrays().items()})
         arrays.update({f"model_{k}": v for k, v in model_to_arrays(self.model).items()})
+        meta["sha256"] = payload_digest(arrays)
+        arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
         path = Path(os.fspath(path))
         with open(path, "wb") as fh:
             np.savez(fh, **arrays)
@@ -376,7 +384,7 @@ def _near_other_face(points, face, cell):
 
 
 def prepare(model, spacing: float | None = None, reach: float | None = None, *,
-            max_distance: float | None = None) -> Prepared:
+            max_distance: float | None = None, allow_incomplete: bool = False) -> Prepared:
     """Prepare a model for fast closest-point queries (Paper I).
 
     Parameters
@@ -396,6 +404,10 @@ def prepare(model, spacing: float | None = None, reach: float | None = None, *,
         (Not the inspection's evaluation distance, which decides which scan points count.)
     max_distance : float, optional
         Old name of ``reach``.
+    allow_incomplete : bool, optional
+        Prepare a CAD model that lacks faces its file declares
+        (:func:`shapeverify.cad.completeness.is_incomplete`); every inspection against it then
+        names the missing faces in its reasons.  Default False: such a model is refused.
 
     Returns
     -------
@@ -406,6 +418,8 @@ def prepare(model, spacing: float | None = None, reach: float | None = None, *,
     ValueError
         If ``spacing`` or ``reach`` is not a finite number > 0, or the model yields no
         model points.
+    IncompleteModelError
+        The CAD model lacks faces its file declares and ``allow_incomplete`` is False.
 
     Examples
     --------
@@ -418,6 +432,9 @@ def prepare(model, spacing: float | None = None, reach: float | None = None, *,
     >>> round(float(near.distances[0]), 9)
     2.0
     """
+    if not allow_incomplete:
+        from shapeverify.cad.completeness import require_complete
+        require_complete(model)
     if max_distance is not None:
         if reach is not None:
             raise ValueError("give reach only (max_distance is its old name)")
@@ -551,29 +568,52 @@ def _load_prepared(src, path, n_bytes: int) -> Prepared:
         if meta.get("version") != FORMAT_VERSION:
             raise ModelFileError(f"{path}: .svm version {meta.get('version')!r} is not supported "
                                  f"(this shapeverify reads {FORMAT_VERSION})")
-        need = {"rec", "rows", "boundary"}
+        need = {"rec", "rows", "boundary", "tree_origin", "tree_cell", "tree_dims",
+                "tree_nodes", "tree_lists", "tree_n_points", "tree_max_distance", "tree_depth"}
         if not need <= files:
             raise ModelFileError(f"{path}: .svm file is missing {sorted(need - files)}")
-        rec0 = z["rec"]
-        rec = _dvg.aligned_empty(rec0.shape, np.float64)
-        rec[...] = rec0
-        tree = _dvg.DVGTree.from_arrays({k[5:]: z[k] for k in files if k.startswith("tree_")})
-        rows = np.ascontiguousarray(z["rows"], dtype=np.int32)
-        boundary = np.ascontiguousarray(z["boundary"], dtype=np.bool_)
-        model = model_from_arrays({k[6:]: z[k] for k in files if k.startswith("model_")},
-                                  where=str(path))
-    n = int(meta["n_points"])
-    if not (rec.shape == (n + 1, 16) and rows.shape == (n, 4) and boundary.shape == (n,)
-            and tree.n_points == n):
+        arrays = {k: z[k] for k in files if k != "meta"}
+    digest = meta.get("sha256")
+    if digest is not None and digest != payload_digest(arrays):
+        raise ModelFileError(f"{path}: .svm file is damaged: its content does not match the "
+                             "checksum (SHA-256) written with it; the file was changed or "
+                             "damaged after it was written")
+    try:
+        n = int(meta["n_points"])
+        spacing, reach = float(meta["spacing"]), float(meta["max_distance"])
+    except (KeyError, TypeError, ValueError):
+        raise ModelFileError(f"{path}: .svm file header lacks a valid n_points, spacing or "
+                             "max_distance") from None
+    if not (n >= 1 and np.isfinite(spacing) and spacing > 0 and np.isfinite(reach)
+            and reach > 0):
+        raise ModelFileError(f"{path}: .svm file header is damaged (n_points {n}, spacing "
+                             f"{spacing!r}, max_distance {reach!r})")
+    rec0 = arrays.pop("rec")
+    if rec0.shape != (n + 1, 16) or rec0.dtype != np.float64:
+        raise ModelFileError(f"{path}: .svm file is inconsistent (the records are "
+                             f"{rec0.dtype}{rec0.shape}, the header says {n} model points)")
+    rec = _dvg.aligned_empty(rec0.shape, np.float64)
+    rec[...] = rec0
+    del rec0
+    for k in ("tree_nodes", "tree_lists"):
+        if arrays[k].dtype.kind not in "iu":
+            raise ModelFileError(f"{path}: .svm file holds a damaged tree ({k} is "
+                                 f"{arrays[k].dtype}, not integers)")
+    tree = _dvg.DVGTree.from_arrays({k[5:]: arrays[k] for k in arrays if k.startswith("tree_")})
+    rows = np.ascontiguousarray(arrays["rows"], dtype=np.int32)
+    boundary = np.ascontiguousarray(arrays["boundary"], dtype=np.bool_)
+    model = model_from_arrays({k[6:]: arrays[k] for k in arrays if k.startswith("model_")},
+                              where=str(path))
+    del arrays
+    if not (rows.shape == (n, 4) and boundary.shape == (n,) and tree.n_points == n):
         raise ModelFileError(f"{path}: .svm file is inconsistent (arrays do not all hold {n} "
                              "model points)")
-    # indices that the numeric kernels follow without bounds checks must be in range
-    lists, other = tree.lists, rows[:, 3]
-    if ((lists.size and (lists.min() < 0 or lists.max() > n))
-            or (n and (other.min() < -1 or other.max() >= n))):
-        raise ModelFileError(f"{path}: .svm file is inconsistent (point indices out of range)")
-    prep = Prepared(model, _dvg.DVG(rec, tree), rows, boundary, float(meta["spacing"]),
-                    float(meta["max_distance"]))
+    # indices that the numeric kernels follow without bounds checks must be in range, and the
+    # tree must be a tree (issue 33 row 5: an index out of range crashed, a cycle hung)
+    problem = check_structure(tree, rec, rows, model)
+    if problem is not None:
+        raise ModelFileError(f"{path}: .svm file is damaged: {problem}")
+    prep = Prepared(model, _dvg.DVG(rec, tree), rows, boundary, spacing, reach)
     fixture = meta.get("fixture")
     if fixture is not None:
         try:
