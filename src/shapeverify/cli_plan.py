@@ -19,20 +19,28 @@ __all__ = ["print_features", "default_tolerance", "print_characteristic_history"
 
 def print_features(m, title: str, json_out: Optional[Path] = None) -> None:
     """``shapeverify info --features``: the CAD features an inspection plan can name."""
-    from shapeverify.characteristics.features import features_table
+    from shapeverify.characteristics.features import feature_notes, features_table
     from shapeverify.cli import _guard, _stage, out
 
     with _stage("Finding features"):
         rows = _guard(features_table, m)
+        notes = _guard(feature_notes, m)
     t = Table(title=f"{title} features (mm)")
     for col in ("id", "kind", "name", "centre", "axis / normal", "diameter"):
         t.add_column(col)
     for r in rows:
         c = "(" + ", ".join(f"{x:.3f}" for x in r["center"]) + ")"
         a = "-" if r["axis"] is None else "(" + ", ".join(f"{x:.3f}" for x in r["axis"]) + ")"
-        t.add_row(r["id"], r["kind"], r["name"] or "", c, a,
-                  "-" if r["diameter"] is None else f"{r['diameter']:.4f}")
+        if r["diameter"] is not None:
+            d = f"{r['diameter']:.4f}"
+        elif r.get("length") is not None:   # a slot/pocket/other opening: its extents
+            d = f"{r['length']:.3f}" + ("" if r.get("width") is None else f" x {r['width']:.3f}")
+        else:
+            d = "-"
+        t.add_row(r["id"], r["kind"], r["name"] or "", c, a, d)
     out.print(t)
+    for n in notes:
+        out.print(f"[yellow]not a feature:[/yellow] {n}")
     if json_out is not None:
         json_out.write_text(json.dumps(rows, indent=1))
         out.print(f"JSON: {json_out}")

@@ -1,4 +1,4 @@
-"""CAD features from the topology of a model: holes, planar and cylindrical faces.
+"""CAD features from the topology of a model: holes, openings, planar and cylindrical faces.
 
 * **faces** ``face:i`` (i = index in ``model.faces``): each classified ``plane``, ``cylinder``
   or ``freeform`` by fitting a plane / a cylinder (:mod:`shapeverify.fitting`) to a grid of
@@ -8,7 +8,19 @@
   circle or, for a hole cut through a curved sheet, on a right circular cylinder.  The axis is
   the circle's normal (or the cylinder's axis), the diameter that of the circle/cylinder, and the
   centre the point where the axis pierces the face's (untrimmed) surface.  Numbered in the order
-  (face index, loop index), so the ids are stable for a given model.
+  (face index, loop index), so the ids are stable for a given model.  Then the holes that no
+  such loop gives (a side-wall hole breaking through an edge, a hole meeting another hole):
+  **concave cylindrical faces** (outward normal towards the axis: material outside, a hole and
+  not a boss), the faces of one axis line and diameter taken together (a bore made of two
+  half-cylinder faces is one hole), kept when together they cover more than 200 degrees about
+  the axis (less is a fillet or a slot's end: listed in :func:`feature_notes`); centre the axis
+  point at the end of the wall farther from the model's centre, axis pointing out there.  A
+  loop hole lists its cylindrical wall faces in ``walls``.
+* **openings** ``slot:k`` / ``pocket:k`` / ``other:k``: an inner loop that is not one circle
+  (a slot: planar, convex, at least 1.5 times as long as wide; a pocket: another planar
+  outline; other: not planar), with its outline (the loop's 3-D points), length and width.  A
+  loop whose outline cannot be read is left out with the reason in :func:`feature_notes`; no
+  loop raises.
 
 Face names come from ``model.face_names`` when the model carries them (a tuple of str or None
 per face); otherwise ``name`` is None.
@@ -29,7 +41,7 @@ import numpy as np
 from ..fitting import fit_circle, fit_cylinder, fit_plane
 
 __all__ = ["Feature", "model_features", "find_feature", "faces_named", "features_table",
-           "hole_center_on_face"]
+           "feature_notes", "hole_center_on_face"]
 
 logger = logging.getLogger(__name__)
 
@@ -43,7 +55,8 @@ class Feature:
     Attributes
     ----------
     id : str            ``'hole:3'``, ``'face:12'``
-    kind : str          ``'hole'``, ``'plane'``, ``'cylinder'`` or ``'freeform'``
+    kind : str          ``'hole'``, ``'plane'``, ``'cylinder'``, ``'freeform'``, or for an
+                        inner loop that is not a circle ``'slot'``, ``'pocket'``, ``'other'``
     face : int          face index (for a hole: the face whose inner loop it is)
     center : (3,)       hole: centre (axis through the face); plane: centroid of the grid
                         points; cylinder: axis point closest to them; freeform: centroid
@@ -53,6 +66,9 @@ class Feature:
     loop : int or None  index of the hole's loop in ``model.faces[face].loops``
     name : str or None  face name from the CAD file, when known
     form_error : float  largest distance of the face/loop points from the fitted element (mm)
+    walls : tuple of int   hole: its concave cylindrical wall faces (when the model has them)
+    outline : (k, 3) or None   slot/pocket/other: the loop's points
+    length, width : float or None   slot/pocket/other: extents along / across its long axis
     """
 
     id: str
@@ -64,14 +80,25 @@ class Feature:
     loop: int | None = None
     name: str | None = None
     form_error: float = 0.0
+    walls: tuple = ()
+    outline: np.ndarray | None = field(default=None, repr=False)
+    length: float | None = None
+    width: float | None = None
 
     def to_dict(self) -> dict:
-        """JSON-ready dict: id, kind, face, name, center, axis, diameter, form_error."""
+        """JSON-ready dict: id, kind, face, name, center, axis, diameter, loop, form_error,
+        walls (a hole's cylindrical wall faces), and for a slot/pocket/other opening its
+        length, width and outline (the loop's 3-D points)."""
         return {"id": self.id, "kind": self.kind, "face": self.face, "name": self.name,
                 "center": [float(x) for x in self.center],
                 "axis": None if self.axis is None else [float(x) for x in self.axis],
                 "diameter": None if self.diameter is None else float(self.diameter),
-                "loop": self.loop, "form_error": float(self.form_error)}
+                "loop": self.loop, "form_error": float(self.form_error),
+                "walls": [int(w) for w in self.walls],
+                "length": None if self.length is None else float(self.length),
+                "width": None if self.width is None else float(self.width),
+                "outline": None if self.outline is None else np.round(
+                    np.asarray(self.outline, float), 6).tolist()}
 
 
 def _face_grid(face, n: int = _GRID) -> tuple[np.ndarray, np.ndarray]:
@@ -137,7 +164,10 @@ def _hole(face, loop: np.ndarray, size: float):
     X = face.evaluate(uv)
     if X.shape[0] < 6:
         return None
-    circ = fit_circle(X)
+    try:
+        circ = fit_circle(X)
+    except ValueError:  # points on a line: not a circle
+        return None
     err = float(np.max(np.abs(circ.residuals)))
     tol = 1e-4 * circ.radius + 1e-7 * size
     axis, radius, centre = circ.normal, circ.radius, circ.center
@@ -168,6 +198,136 @@ def _hole(face, loop: np.ndarray, size: float):
         axis = -axis
     centre = hole_center_on_face(face, centre, axis)
     return centre, axis, 2.0 * float(radius), err
+
+
+def _opening(face, loop: np.ndarray, size: float):
+    """An inner loop that is not one circle: ``(kind, centre, axis, length, width, outline,
+    form_error)`` with kind ``'slot'`` (a planar, convex outline at least 1.5 times as long as
+    wide), ``'pocket'`` (another planar outline) or ``'other'`` (a loop that is not planar)."""
+    X = face.evaluate(loop)
+    if X.shape[0] < 3:
+        raise ValueError(f"the loop has {X.shape[0]} vertices")
+    nrm = face.normal(loop).mean(axis=0)
+    nrm = nrm / max(np.linalg.norm(nrm), 1e-300)
+    try:
+        pl = fit_plane(X)
+        perr = float(np.max(np.abs(pl.residuals)))
+    except ValueError:
+        pl, perr = None, np.inf
+    if pl is None or not perr <= 1e-6 * size + 1e-9:
+        c = X.mean(axis=0)
+        span = float(np.ptp(X @ np.linalg.svd(X - c, full_matrices=False)[2][0]))
+        return "other", c, nrm, span, None, X, 0.0 if pl is None else perr
+    axis = pl.normal if pl.normal @ nrm >= 0 else -pl.normal
+    from .holes import plane_basis
+
+    e1, e2 = plane_basis(axis)
+    q = X - pl.point
+    xy = np.column_stack([q @ e1, q @ e2])
+    c2 = xy.mean(axis=0)
+    _, _, vt = np.linalg.svd(xy - c2, full_matrices=False)
+    uv = (xy - c2) @ vt.T
+    lo, hi = uv.min(axis=0), uv.max(axis=0)
+    length, width = float(hi[0] - lo[0]), float(hi[1] - lo[1])
+    mid = c2 + 0.5 * (lo + hi) @ vt
+    centre = pl.point + mid[0] * e1 + mid[1] * e2
+    x, y = xy[:, 0], xy[:, 1]
+    area = 0.5 * abs(float(np.dot(x, np.roll(y, -1)) - np.dot(y, np.roll(x, -1))))
+    try:
+        from scipy.spatial import ConvexHull
+
+        hull = float(ConvexHull(xy).volume)
+    except Exception:  # noqa: BLE001 - qhull's errors on degenerate input: not convex-checked
+        hull = np.inf
+    kind = "slot" if (length >= 1.5 * width and area >= 0.99 * hull) else "pocket"
+    return kind, centre, axis, length, width, X, perr
+
+
+def _concave_cylinder(face, point, axis) -> bool:
+    """True for a cylindrical face whose outward normal points to its axis (material outside
+    the surface: a hole's wall, not a boss)."""
+    X, N = _face_grid(face)
+    rel = X - point
+    rad = rel - np.outer(rel @ axis, axis)
+    rn = np.linalg.norm(rad, axis=1)
+    ok = rn > 0
+    if not np.any(ok):
+        return False
+    return bool(np.median(np.einsum("ij,ij->i", N[ok], rad[ok] / rn[ok, None])) < -0.9)
+
+
+def _coverage(angles: np.ndarray) -> float:
+    """The angle (rad) a set of directions about an axis covers: 2 pi minus the widest gap."""
+    a = np.sort(np.asarray(angles))
+    if a.size < 2:
+        return 0.0
+    gaps = np.diff(np.r_[a, a[0] + 2 * np.pi])
+    return float(2 * np.pi - gaps.max())
+
+
+def _same_axis(p1, a1, p2, a2, tol: float) -> bool:
+    """Two axis lines coincide: parallel to 1e-6 rad and ``p2`` within ``tol`` of line 1."""
+    if np.linalg.norm(np.cross(a1, a2)) > 1e-6:
+        return False
+    d = np.asarray(p2) - np.asarray(p1)
+    return bool(np.linalg.norm(d - (d @ a1) * a1) <= tol)
+
+
+def _cylinder_holes(model, cyls: list, loop_holes: list, size: float):
+    """Holes bounded by concave cylindrical faces (several faces of one axis and diameter -- two
+    half-cylinders -- are one hole) that no circular inner loop already gives; also the wall
+    faces of every loop hole.  ``cyls``: (face index, axis point, unit axis, radius); ``loop_holes``:
+    [centre, axis, diameter, ...] lists, whose walls are appended in place.  Returns
+    ``[(face, centre, axis, diameter, walls)]`` and the notes on faces left out."""
+    groups: list[list] = []
+    for item in cyls:
+        i, p1, a1, r1 = item
+        tol = 1e-5 * r1 + 1e-7 * size
+        for g in groups:
+            _, p2, a2, r2 = g[0]
+            if abs(r2 - r1) <= tol and _same_axis(p2, a2, p1, a1, tol):
+                g.append(item)
+                break
+        else:
+            groups.append([item])
+    out, notes = [], []
+    centre_of_model = model.bounds.mean(axis=0)
+    for g in groups:
+        i0, p, a, r = g[0]
+        faces = tuple(sorted(it[0] for it in g))
+        tol = 1e-5 * r + 1e-7 * size
+        # every face's angles and axial range in the first face's frame
+        e1 = np.cross(a, np.eye(3)[int(np.argmin(np.abs(a)))])
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(a, e1)
+        angs, ts = [], []
+        for i, _, _, _ in g:
+            X = np.concatenate([_face_grid(model.faces[i])[0]] + [
+                model.faces[i].evaluate(_dense_loop(lp, 4)) for lp in model.faces[i].loops]) - p
+            angs.append(np.arctan2(X @ e2, X @ e1))
+            ts.append(X @ a)
+        ang, t = np.concatenate(angs), np.concatenate(ts)
+        dia = 2.0 * float(r)
+        owner = [h for h in loop_holes if abs(h[2] - dia) <= 2 * tol
+                 and _same_axis(p, a, h[0], h[1], tol)]
+        for h in owner:
+            h[4] = tuple(sorted(set(h[4]) | set(faces)))
+        if owner:
+            continue
+        cov = _coverage(ang)
+        if cov < np.deg2rad(200.0):
+            notes.append(f"face{'s' if len(faces) > 1 else ''} "
+                         f"{', '.join(f'face:{i}' for i in faces)}: a concave cylinder of "
+                         f"diameter {dia:.4g} mm covering {np.rad2deg(cov):.0f} degrees about its "
+                         "axis (a fillet or a slot's end, not a hole: a hole covers more than 200)")
+            continue
+        t0, t1 = float(t.min()), float(t.max())
+        ends = [p + t0 * a, p + t1 * a]
+        far = int(np.argmax([np.linalg.norm(e - centre_of_model) for e in ends]))
+        centre = ends[far]
+        axis = a if far == 1 else -a
+        out.append((i0, centre, axis, dia, faces))
+    return out, notes
 
 
 def _classify(face, size: float):
@@ -214,24 +374,61 @@ def model_features(model) -> list:
         return list(cached)
     size = model.size
     names = getattr(model, "face_names", None)
-    out, holes = [], []
+    out, holes, openings, cyls, notes = [], [], [], [], []
     for i, f in enumerate(model.faces):
         name = None if names is None else names[i]
         kind, c, ax, dia, err = _classify(f, size)
         out.append(Feature(f"face:{i}", kind, i, np.asarray(c), None if ax is None else
                            np.asarray(ax), dia, None, name, err))
+        if kind == "cylinder":
+            p, a = np.asarray(c, float), np.asarray(ax, float) / np.linalg.norm(ax)
+            if _concave_cylinder(f, p, a):
+                cyls.append((i, p, a, 0.5 * float(dia)))
         for j, lp in enumerate(f.loops[1:], start=1):
-            h = _hole(f, lp, size)
+            try:
+                h = _hole(f, lp, size)
+            except ValueError as exc:
+                notes.append(f"face:{i} loop {j}: left out ({exc})")
+                continue
             if h is not None:
-                holes.append((i, j, name, h))
-    for k, (i, j, name, (c, ax, dia, err)) in enumerate(holes):
-        out.append(Feature(f"hole:{k}", "hole", i, c, ax, dia, j, name, err))
+                holes.append([h[0], h[1], h[2], (i, j, name, h[3]), ()])
+                continue
+            try:
+                openings.append((i, j, name, _opening(f, lp, size)))
+            except ValueError as exc:
+                notes.append(f"face:{i} loop {j}: not a circle, and its outline could not be "
+                             f"read ({exc}); left out")
+    extra, cnotes = _cylinder_holes(model, cyls, holes, size)
+    notes.extend(cnotes)
+    k = 0
+    for c, ax, dia, (i, j, name, err), walls in holes:
+        out.append(Feature(f"hole:{k}", "hole", i, c, ax, dia, j, name, err, walls))
+        k += 1
+    for i, c, ax, dia, walls in extra:
+        name = None if names is None else names[i]
+        out.append(Feature(f"hole:{k}", "hole", i, c, ax, dia, None, name, 0.0, walls))
+        k += 1
+    for n, (i, j, name, (kind, c, ax, length, width, X, err)) in enumerate(openings):
+        out.append(Feature(f"{kind}:{n}", kind, i, np.asarray(c), np.asarray(ax), None, j, name,
+                           err, (), X, length, width))
     try:
         object.__setattr__(model, "_sv_features", tuple(out))
+        object.__setattr__(model, "_sv_feature_notes", tuple(notes))
     except (AttributeError, TypeError):  # pragma: no cover - a model without a __dict__
         pass
-    logger.debug("model features: %d faces, %d holes", len(model.faces), len(holes))
+    logger.debug("model features: %d faces, %d holes (%d from cylindrical faces only), "
+                 "%d other openings, %d notes", len(model.faces), k, len(extra), len(openings),
+                 len(notes))
     return out
+
+
+def feature_notes(model) -> list:
+    """Why some loops or faces of ``model`` are not features (one str each): an inner loop whose
+    outline could not be read, a concave cylindrical face that covers too little of its axis to
+    be a hole.  Computed with :func:`model_features`."""
+    model = getattr(model, "model", model)
+    model_features(model)
+    return list(getattr(model, "_sv_feature_notes", ()))
 
 
 _KINDS_FOR = {"hole": ("hole",), "cylinder": ("cylinder",), "flatness": ("plane",),

@@ -63,6 +63,10 @@ class HoleMeasurement:
     edge_points : (n_edge, 3)
     area_diameter : float  count-based diameter (a cross-check, noisier)
     anisotropy : float  of the local point lattice (1 = square)
+    method : str   ``'wall cylinder'``, ``'wall circle'`` or ``'edge points'``: what gave the
+                   diameter and the in-plane centre
+    n_wall : int   wall points fitted (0 for the edge method)
+    n_virtual : int  virtual holes that measured the edge points' offset (0: lattice model)
     """
 
     center: np.ndarray = field(repr=False)
@@ -77,6 +81,9 @@ class HoleMeasurement:
     edge_points: np.ndarray = field(repr=False)
     area_diameter: float = float("nan")
     anisotropy: float = 1.0
+    method: str = "edge points"
+    n_wall: int = 0
+    n_virtual: int = 0
 
 
 def plane_basis(axis) -> tuple[np.ndarray, np.ndarray]:
@@ -177,6 +184,138 @@ def _largest_empty_circle(xy: np.ndarray, c0: np.ndarray, r: float, h: float) ->
     return c if np.linalg.norm(c - c0) < h else c0
 
 
+_MIN_WALL = 30            # wall points needed for a wall fit
+_WALL_COVER = 240.0       # degrees of the axis the wall points must surround
+
+
+def _cover_deg(xy: np.ndarray) -> float:
+    ang = np.sort(np.arctan2(xy[:, 1], xy[:, 0]))
+    if ang.size < 2:
+        return 0.0
+    return float(np.rad2deg(2 * np.pi - np.diff(np.r_[ang, ang[0] + 2 * np.pi]).max()))
+
+
+def _wall_candidates(P, c0, a, r0, deviations, normals):
+    """Indices of the points whose closest CAD point lies on a cylinder of the hole's axis and
+    radius with its normal towards the axis (the hole's wall faces), or None without the CAD's
+    closest points."""
+    if deviations is None or normals is None:
+        return None
+    d = np.asarray(deviations, np.float64)
+    n = np.asarray(normals, np.float64)
+    q = P - d[:, None] * n                       # the closest CAD points
+    rel = q - c0
+    t = rel @ a
+    rad = rel - np.outer(t, a)
+    rq = np.linalg.norm(rad, axis=1)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        inward = np.einsum("ij,ij->i", n, rad) / rq
+    m = (np.abs(rq - r0) <= 1e-4 * r0 + 1e-4) & (np.abs(n @ a) <= 0.02) & (inward <= -0.98)
+    m &= np.isfinite(d) & (np.abs(d) <= max(0.5, 0.05 * r0))
+    return np.flatnonzero(m)
+
+
+def _contiguous_from_top(idx, t, gap):
+    """The points of ``idx`` down the axis from the face (t <= a little) up to the first gap
+    wider than ``gap`` along the axis (another hole on the same axis stays out)."""
+    idx = idx[t[idx] <= gap]
+    if idx.size == 0:
+        return idx
+    o = np.argsort(-t[idx])
+    ts = t[idx][o]
+    cut = np.flatnonzero(np.diff(ts) < -gap)
+    return idx[o[: cut[0] + 1]] if cut.size else idx
+
+
+def _fit_wall(W: np.ndarray, c0, a, r0):
+    """Cylinder (or, for a short wall, circle across the axis) fit to the wall points W (n, 3),
+    trimmed once at 4 robust sigmas.  Returns (centre at the face (3,), radius, rms, n, how,
+    u_centre, u_radius) or None."""
+    from ..fitting import fit_cylinder
+
+    e1, e2 = plane_basis(a)
+    keep = np.ones(len(W), bool)
+    out = None
+    for it in range(2):
+        X = W[keep]
+        if X.shape[0] < _MIN_WALL:
+            return out
+        out = None
+        t = (X - c0) @ a
+        n = X.shape[0]
+        if float(np.ptp(t)) >= max(0.3 * r0, 1.0):
+            try:
+                cyl = fit_cylinder(X, axis=a)
+            except ValueError:
+                cyl = None
+            if cyl is not None and abs(float(cyl.axis @ a)) >= np.cos(np.deg2rad(2.0)) and \
+                    abs(cyl.radius - r0) < 0.2 * r0:
+                ax = cyl.axis if cyl.axis @ a > 0 else -cyl.axis
+                centre = cyl.point + float((c0 - cyl.point) @ a) / float(ax @ a) * ax
+                res = np.asarray(cyl.residuals)
+                tc = (X - centre) @ ax
+                sig = float(np.sqrt(np.mean(res ** 2)))
+                # a full-round wall: var(r) = s^2/n, var(centre) = 2 s^2/n per in-plane axis at
+                # the points' mean height, growing with the lever arm to the face (tilt term)
+                lever = 1.0 + float(np.mean(tc)) ** 2 / max(float(np.var(tc)), 1e-12)
+                out = (centre, float(cyl.radius), sig, n, "wall cylinder",
+                       sig * np.sqrt(2.0 * lever / n), sig / np.sqrt(n), res)
+        if out is None:
+            q = X - c0
+            try:
+                circ = fit_circle(np.column_stack([q @ e1, q @ e2]))
+            except ValueError:
+                return None
+            if abs(circ.radius - r0) >= 0.2 * r0:
+                return None
+            res = np.asarray(circ.residuals)
+            sig = float(np.sqrt(np.mean(res ** 2)))
+            centre = c0 + circ.center[0] * e1 + circ.center[1] * e2
+            out = (centre, float(circ.radius), sig, n, "wall circle", sig * np.sqrt(2.0 / n),
+                   sig / np.sqrt(n), res)
+        if it == 1:
+            break
+        res = out[7]
+        s_rob = 1.4826 * float(np.median(np.abs(res - np.median(res))))
+        new = np.abs(res) <= 4.0 * s_rob + 1e-9
+        if new.all():
+            break
+        keep[np.flatnonzero(keep)[~new]] = False
+    return out
+
+
+def _virtual_edges(xy, cen, r_edge: float, w: float, h: float, reach: float, window: float):
+    """The edge points' offset measured on the scan itself: for virtual holes -- circles of
+    radius R from ``r_edge + 2h`` outwards about the same centre, in the sheet's own points --
+    the innermost point of each angular bin (arc width ``w``, as for the hole) lies on average
+    ``b`` outside R (bins with no point within ``window`` of R left out, as for the hole).
+    Returns (b, its standard uncertainty, number of virtual circles)."""
+    rel = xy - cen
+    rr = np.hypot(rel[:, 0], rel[:, 1])
+    th = np.arctan2(rel[:, 1], rel[:, 0])
+    means, allo = [], []
+    for R in r_edge + 2.0 * h + w * np.arange(0.0, 7.0, 1.0):
+        if R + window > reach:
+            break
+        nb = max(12, int(round(2 * np.pi * R / w)))
+        m = (rr >= R) & (rr < R + window)
+        if np.count_nonzero(m) < nb:
+            continue
+        b = np.floor((th[m] + np.pi) / (2 * np.pi) * nb).astype(np.int64) % nb
+        first = np.full(nb, np.inf)
+        np.minimum.at(first, b, rr[m] - R)
+        off = first[np.isfinite(first)]
+        if off.size < 0.8 * nb:
+            continue
+        means.append(float(off.mean()))
+        allo.append(off)
+    if not means:
+        return np.nan, np.nan, 0
+    allo = np.concatenate(allo)
+    u = max(float(np.std(means)) / np.sqrt(len(means)), float(np.std(allo)) / np.sqrt(allo.size))
+    return float(np.mean(means)), u, len(means)
+
+
 def measure_hole(points, center, axis, diameter: float, spacing: float | None = None,
                  face=None, deviations=None, normals=None):
     """Measure one hole from scan points already in the model frame.
@@ -216,13 +355,74 @@ def measure_hole(points, center, axis, diameter: float, spacing: float | None = 
     xy = np.column_stack([q @ e1, q @ e2])
     hgt = q @ a
     rho = np.hypot(xy[:, 0], xy[:, 1])
-    reach0 = 2.0 * r0 + 12.0 * (spacing or max(0.05 * r0, 0.5))
-    near = (rho < reach0) & (np.abs(hgt) < max(r0, 5.0))
+    h0 = spacing or max(0.05 * r0, 0.5)
+    # the wall: points whose closest CAD point is on the hole's cylindrical wall
+    cand = _wall_candidates(P, c0, a, r0, deviations, normals)
+    wall_fit, walls = None, np.zeros(0, np.int64)
+    if cand is not None and cand.size >= _MIN_WALL:
+        walls = _contiguous_from_top(cand, hgt, max(3.0 * h0, 1.0))
+        if walls.size >= _MIN_WALL and _cover_deg(xy[walls]) >= _WALL_COVER:
+            wall_fit = _fit_wall(P[walls], c0, a, r0)
+    reach0 = 2.0 * r0 + 12.0 * h0
+    slab = np.abs(hgt) < max(r0, 5.0)
+    if cand is not None and cand.size:
+        slab[cand] = False                    # wall points are not the sheet's edge points
+    near = slab & (rho < reach0)
     ring = near & (rho > 0.5 * r0)
-    if np.count_nonzero(ring) < 30:
-        raise ValueError(f"only {int(np.count_nonzero(ring))} scan points around the hole at "
-                         f"{np.round(c0, 3).tolist()} (diameter {diameter:.4g} mm); it is not "
-                         "scanned, shadowed, or the alignment is off")
+    try:
+        if np.count_nonzero(ring) < 30:
+            raise ValueError(f"only {int(np.count_nonzero(ring))} scan points around the hole at "
+                             f"{np.round(c0, 3).tolist()} (diameter {diameter:.4g} mm); it is "
+                             "not scanned, shadowed, or the alignment is off")
+        edge_res = _edge_measure(xy, hgt, rho, slab, near, ring, c0, r0, spacing)
+    except ValueError:
+        if wall_fit is None:
+            raise
+        edge_res = None
+    if edge_res is not None:
+        (cen2, r_edge, s_edge, edge, bias, u_bias, h, aniso, r_area, coef, sheet, rr,
+         n_virtual) = edge_res
+        u_r = float(np.hypot(s_edge / np.sqrt(edge.size), u_bias))
+        u_c = s_edge * np.sqrt(2.0 / edge.size)
+        method = "edge points"
+    else:
+        h = float(spacing) if spacing else float(np.median(cKDTree(P[walls]).query(
+            P[walls], k=2)[0][:, 1]))
+        r_edge = bias = r_area = aniso = np.nan
+        edge, sheet, n_virtual = np.zeros(0, np.int64), np.zeros(0, np.int64), 0
+    if wall_fit is not None:
+        wc, r_hole, _, n_wall, method, u_c, u_r, _ = wall_fit
+        w2 = wc - c0
+        cen2 = np.array([w2 @ e1, w2 @ e2])
+    else:
+        r_hole, n_wall = r_edge - bias, 0
+    line = c0 + cen2[0] * e1 + cen2[1] * e2
+    if edge_res is None:
+        c3, u_h = line, float(u_c)
+    elif face is not None and deviations is not None and normals is not None:
+        from .features import hole_center_on_face
+
+        ring = sheet[(rr > r_edge) & (rr < r_edge + 6.0 * h)]
+        dv = np.asarray(deviations, np.float64)[ring]
+        na = np.asarray(normals, np.float64)[ring] @ a
+        shift = float(np.mean(dv / np.where(np.abs(na) > 0.2, na, 1.0)))
+        c3 = hole_center_on_face(face, line, a) + shift * a
+        u_h = float(np.std(dv) / np.sqrt(max(ring.size, 1)))
+    else:
+        res_h = hgt[sheet] - _quad_design(xy[sheet]) @ coef
+        hc = float(_quad_design(cen2[None])[0] @ coef)
+        c3 = line + hc * a
+        u_h = float(np.std(res_h) / np.sqrt(max(sheet.size, 1)) * np.sqrt(6.0))
+    return HoleMeasurement(center=c3, diameter=2.0 * r_hole, edge_diameter=2.0 * r_edge,
+                           bias=bias, spacing=h, n_edge=int(edge.size),
+                           area_diameter=2.0 * r_area, anisotropy=aniso,
+                           u_center=float(u_c), u_diameter=2.0 * float(u_r), u_height=u_h,
+                           edge_points=P[edge], method=method, n_wall=int(n_wall),
+                           n_virtual=int(n_virtual))
+
+
+def _edge_measure(xy, hgt, rho, slab, near, ring, c0, r0, spacing):
+    """The edge-point measurement (steps 1-3 of the module docstring)."""
     coef, ok_ring, thr = _robust_height(xy[ring], hgt[ring])
     idx = np.flatnonzero(near)
     sheet = idx[np.abs(hgt[idx] - _quad_design(xy[idx]) @ coef) <= thr]
@@ -233,17 +433,26 @@ def measure_hole(points, center, axis, diameter: float, spacing: float | None = 
         d, _ = cKDTree(xy[ann]).query(xy[ann], k=2)
         spacing = float(np.median(d[:, 1]))
     h = float(spacing)
-    reach = 2.0 * r0 + 10.0 * h
-    sheet = sheet[rho[sheet] < reach]
+    # the point density from counts (right for any sampling; the nearest-neighbour spacing of
+    # random points is about half the mean spacing 1 / sqrt(density))
+    ann = sheet[(rho[sheet] > r0 + h) & (rho[sheet] < 2.0 * r0 + 10.0 * h)]
+    dens_c = ann.size / (np.pi * ((2.0 * r0 + 10.0 * h) ** 2 - (r0 + h) ** 2))
+    h_eff = max(h, 1.0 / np.sqrt(max(dens_c, 1e-12)))
+    # an edge point lies up to a few 1 / (density x bin width) outside the edge (random
+    # sampling: exponentially distributed): bins with no point that near are not seen
+    window = max(4.0 * h, 6.0 * h_eff)
+    reach = max(2.0 * r0 + 10.0 * h, r0 + 4.0 * h_eff + 2.0 * window + 4.0 * h_eff)
+    far = np.flatnonzero(slab & (rho < reach))
+    sheet = far[np.abs(hgt[far] - _quad_design(xy[far]) @ coef) <= thr]
     # edge points: innermost point of each angular bin (bins ~ one spacing of arc)
-    nb = max(12, int(round(2 * np.pi * r0 / h)))
+    nb = max(12, int(round(2 * np.pi * r0 / h_eff)))
     th = np.arctan2(xy[sheet, 1], xy[sheet, 0])
     b = np.floor((th + np.pi) / (2 * np.pi) * nb).astype(np.int64) % nb
     order = np.lexsort((rho[sheet], b))
     first = np.ones(order.size, bool)
     first[1:] = b[order][1:] != b[order][:-1]
     edge = sheet[order[first]]
-    edge = edge[rho[edge] < r0 + 4.0 * h]
+    edge = edge[rho[edge] < r0 + window]
     if edge.size < 8:
         raise ValueError(f"only {edge.size} edge points found around the hole at "
                          f"{np.round(c0, 3).tolist()}; the hole is not scanned all round")
@@ -254,33 +463,23 @@ def measure_hole(points, center, axis, diameter: float, spacing: float | None = 
     cen2 = 0.5 * (circ.center + _largest_empty_circle(xy[sheet], circ.center, r_edge, h))
     rel = xy[sheet] - cen2
     rr = np.hypot(rel[:, 0], rel[:, 1])
-    # the bias of the edge points, from the local point lattice (see the module docstring)
     ring = sheet[(rr > r_edge) & (rr < r_edge + 6.0 * h)]
     dens, aniso = _lattice(xy[ring] if ring.size >= 12 else xy[sheet])
     w = 2.0 * np.pi * r_edge / nb
-    gap = 1.0 / (dens * w)
-    bias = _bias_factor(aniso) * gap
-    r_hole = r_edge - bias
-    u_r = float(np.hypot(s_edge / np.sqrt(edge.size), 0.03 * gap))
+    # the edge points' offset, measured on virtual holes in the scan's own points (any
+    # sampling); the lattice model where the sheet around the hole is too small for them
+    # the bins are angular: their arc at the true edge is 2 pi (r_edge - bias) / nb, narrower
+    # than at r_edge (the offset grows as the arc narrows): iterate
+    bias = 0.0
+    for _ in range(3):
+        w = 2.0 * np.pi * max(r_edge - bias, 0.5 * r_edge) / nb
+        bias, u_bias, n_virtual = _virtual_edges(xy[sheet], cen2, r_edge, w, h,
+                                                 reach - float(np.linalg.norm(cen2)), window)
+        if n_virtual < 2:
+            break
+    if n_virtual < 2:
+        gap = 1.0 / (dens * w)
+        bias, u_bias = _bias_factor(aniso) * gap, 0.03 * gap
     r_area = _area_radius(rr, r_edge, h, reach - np.linalg.norm(cen2))
-    res_h = hgt[sheet] - _quad_design(xy[sheet]) @ coef
-    line = c0 + cen2[0] * e1 + cen2[1] * e2
-    if face is not None and deviations is not None and normals is not None:
-        from .features import hole_center_on_face
-
-        ring = sheet[(rr > r_edge) & (rr < r_edge + 6.0 * h)]
-        dv = np.asarray(deviations, np.float64)[ring]
-        na = np.asarray(normals, np.float64)[ring] @ a
-        shift = float(np.mean(dv / np.where(np.abs(na) > 0.2, na, 1.0)))
-        c3 = hole_center_on_face(face, line, a) + shift * a
-        u_h = float(np.std(dv) / np.sqrt(max(ring.size, 1)))
-    else:
-        hc = float(_quad_design(cen2[None])[0] @ coef)
-        c3 = line + hc * a
-        u_h = float(np.std(res_h) / np.sqrt(max(sheet.size, 1)) * np.sqrt(6.0))
-    u_c = s_edge * np.sqrt(2.0 / edge.size)
-    return HoleMeasurement(center=c3, diameter=2.0 * r_hole, edge_diameter=2.0 * r_edge,
-                           bias=bias, spacing=h, n_edge=int(edge.size),
-                           area_diameter=2.0 * r_area, anisotropy=aniso,
-                           u_center=float(u_c), u_diameter=2.0 * u_r, u_height=u_h,
-                           edge_points=P[edge])
+    return (cen2, r_edge, s_edge, edge, float(bias), float(u_bias), h, aniso, r_area, coef,
+            sheet, rr, n_virtual)
