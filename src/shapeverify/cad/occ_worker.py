@@ -53,7 +53,7 @@ from ..errors import CADImportError, EmptyModelError, ShapeVerifyError, Unsuppor
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["read_cad_isolated", "summary_isolated", "prestart", "shutdown"]
+__all__ = ["read_cad_isolated", "summary_isolated", "pmi_isolated", "prestart", "shutdown"]
 
 _LEN = struct.Struct("<Q")
 _MAX_USES = 64  # imports per importer process before it is replaced
@@ -249,6 +249,13 @@ def summary_isolated(path, *, timeout: float | None = None):
     return _call(path, ("summary", os.getcwd(), os.fspath(path), _level()), timeout)
 
 
+def pmi_isolated(path, *, timeout: float | None = None) -> dict:
+    """:func:`shapeverify.cad.pmi.read_pmi_here` (the semantic PMI of a STEP file) run in the
+    importer child process; raises as :func:`read_cad_isolated`."""
+    path = Path(path)
+    return _call(path, ("pmi", os.getcwd(), os.fspath(path), _level()), timeout)
+
+
 def _level() -> int:
     """The most verbose level any shapeverify logger of this process wants (the child logs
     at it)."""
@@ -330,6 +337,10 @@ def _answer(req, handler: _Collect):
             from .occ_summary import read_summary
 
             reply = ("ok", read_summary(path))
+        elif kind == "pmi":
+            from .pmi import read_pmi_here
+
+            reply = ("ok", read_pmi_here(path))
         else:
             from .persist import model_to_arrays
 
