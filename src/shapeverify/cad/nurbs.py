@@ -80,7 +80,13 @@ def _check_weights(weights, shape: tuple, name: str = "weights"):
 
 
 def _params(t, lo: float, hi: float, name: str) -> np.ndarray:
-    """Scalar or 1-D parameters -> (N,) float64 inside [lo, hi] (a few ulps outside are clamped)."""
+    """Scalar or 1-D parameters -> (N,) float64 inside [lo, hi].
+
+    Values a hair outside the domain are clamped onto it: up to ``1e-9 * (hi - lo)`` (plus a few
+    ulps of the bounds' magnitude) -- a trim loop's vertices evaluated from a STEP file's pcurves
+    land 1e-15 .. 3e-11 outside ``[0, pi]`` by rounding (NIST CTC/FTC parts).  Farther out is an
+    error.
+    """
     a = np.asarray(t, dtype=np.float64)
     if a.ndim > 1:
         raise ValueError(f"{name} must be a scalar or 1-D array, got shape {a.shape}")
@@ -92,7 +98,7 @@ def _params(t, lo: float, hi: float, name: str) -> np.ndarray:
         bad = ~np.isfinite(a)
         raise ValueError(f"{name} has {int(bad.sum())} non-finite value(s) "
                          f"(first at index {int(np.flatnonzero(bad)[0])})")
-    tol = 4 * np.finfo(np.float64).eps * max(abs(lo), abs(hi), hi - lo)
+    tol = 1e-9 * (hi - lo) + 4 * np.finfo(np.float64).eps * max(abs(lo), abs(hi), hi - lo)
     if amin < lo - tol or amax > hi + tol:
         raise ValueError(f"{name} must lie in the domain [{lo!r}, {hi!r}]; "
                          f"got values in [{amin!r}, {amax!r}]")

@@ -205,6 +205,16 @@ def _vertices(face) -> list:
     return pts
 
 
+def _unique_drf(drf: list) -> list:
+    """The datum reference frame in order, one entry per (letter, order): a datum set up from
+    several datum targets (A1, A2, A3) comes as one label per target."""
+    out: dict = {}
+    for d in sorted(drf, key=lambda x: x["order"]):
+        e = out.setdefault((d["name"], d["order"]), {**d, "modifiers": []})
+        e["modifiers"].extend(m for m in d["modifiers"] if m not in e["modifiers"])
+    return list(out.values())
+
+
 # ------------------------------------------------------------------------------ the read
 def _open(path: Path):
     """(document, shape) of a STEP file read with GD&T (and names) on."""
@@ -296,7 +306,7 @@ def read_pmi_here(path) -> dict:
             drf.append({"name": do.GetName().ToCString() if do.GetName() is not None else "",
                         "order": int(do.GetPosition()),
                         "modifiers": [_enum_name(m) for m in _seq(do.GetModifiers())]})
-        drf.sort(key=lambda x: x["order"])
+        drf = _unique_drf(drf)
         mat = _enum_name(o.GetMaterialRequirementModifier())
         tolerances.append({
             "id": f"GT{k}", "kind": "geometric_tolerance",
