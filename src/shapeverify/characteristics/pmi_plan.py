@@ -388,7 +388,7 @@ def _row(item, ctx, entries, reason) -> dict:
                             + item["modifiers"]]
     elif item["kind"] == "dimension":
         row["value"] = item["nominal"]
-        row["limits"] = None if item["lower"] is None else [item["lower"], item["upper"]]
+        row["limits"] = None if item["lower"] is None else [_mm(item["lower"]), _mm(item["upper"])]
     else:
         row["name"] = item["name"]
         row["targets"] = [f"{t['type']} {t['number']}" for t in item["targets"]]
