@@ -203,6 +203,7 @@ def _main(ctx: typer.Context,
 def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges), mesh, point cloud or .svm/.svmodel"),
          features: bool = typer.Option(False, "--features", help="Also list the CAD features an inspection plan can name (hole:N, face:N)"),
          json_out: Optional[Path] = typer.Option(None, "--json", help="With --features: write them as JSON"),
+         pmi: bool = typer.Option(False, "--pmi", help="Also list the semantic PMI of a STEP AP242 file and what `shapeverify plan` makes of it"),
          model_unit: Optional[str] = typer.Option(None, "--model-unit", help="Unit of an STL/PLY/OBJ/point-cloud model (default mm; CAD files declare theirs)")):
     """Print a summary of a model: faces, units, size (and with --features its holes and faces)."""
     from shapeverify.cad.summary import in_unit
@@ -218,7 +219,7 @@ def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges
             prep = _guard(load_prepared, model)
         m = prep.model
         summary = m
-    elif features:
+    elif features or pmi:
         _prestart_importer(model)
         from shapeverify.cad.load import load_model
         with _stage(f"Importing {model.name}", watch=False):  # numba runs only in the importer
@@ -236,7 +237,7 @@ def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges
         with _stage(f"Importing {model.name}", watch=False):  # numba runs only in the importer
             summary, _ = _guard(cached_summary, model, load)
     if model_unit is not None and prep is None:
-        if features:
+        if features or pmi:
             from shapeverify.units import scale_model
             summary = m = _guard(scale_model, m, model_unit)
         else:
@@ -251,6 +252,19 @@ def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges
     if features:
         from shapeverify.cli_plan import print_features
         print_features(m, str(model), json_out)
+    if pmi:
+        from shapeverify.cli_plan import print_pmi
+        print_pmi(model, m)
+
+
+@app.command()
+def plan(model: Path = typer.Argument(..., help="STEP AP242 file with semantic PMI"),
+         output: Optional[Path] = typer.Option(None, "-o", "--output", help="Plan file to write (default: print it)")):
+    """Write an inspection plan (plan.yaml) from the STEP file's semantic PMI (datums, GD&T, dimensions)."""
+    _require_files(model)
+    _prestart_importer(model)
+    from shapeverify.cli_plan import write_pmi_plan
+    write_pmi_plan(model, output)
 
 
 def model_summary_table(m, title: str) -> Table:

@@ -5,6 +5,9 @@ plan can name (holes, planar and cylindrical faces) with their ids.  Plans are r
 pipeline, ``shapeverify inspect MODEL SCAN --plan PLAN.yaml [--pdf OUT.pdf]``.
 ``shapeverify history --db DB --characteristic NAME [--plot PNG] [--csv OUT]``
 (:func:`print_characteristic_history`): the characteristic's history with Cp/Cpk and a run chart.
+``shapeverify plan PART.stp -o plan.yaml`` (:func:`write_pmi_plan`): a plan from the STEP
+AP242 file's semantic PMI; ``shapeverify info PART.stp --pmi`` (:func:`print_pmi`) the same as a
+table.
 """
 from __future__ import annotations
 
@@ -14,7 +17,8 @@ from typing import Optional
 
 from rich.table import Table
 
-__all__ = ["print_features", "default_tolerance", "print_characteristic_history"]
+__all__ = ["print_features", "default_tolerance", "print_characteristic_history",
+           "write_pmi_plan", "print_pmi"]
 
 
 def print_features(m, title: str, json_out: Optional[Path] = None) -> None:
@@ -92,3 +96,60 @@ def print_characteristic_history(db: Path, characteristic: str, part: Optional[s
     if csv_out is not None:
         export_csv(rows, csv_out)
         out.print(f"CSV: {csv_out}")
+
+
+def _pmi_plan(model_path: Path, m=None):
+    from shapeverify.characteristics.pmi_plan import pmi_plan
+    from shapeverify.cli import _guard, _stage
+
+    with _stage(f"Reading the PMI of {model_path.name}", watch=False):
+        return _guard(pmi_plan, model_path, model=m)
+
+
+def write_pmi_plan(model_path: Path, output: Optional[Path]) -> None:
+    """``shapeverify plan PART.stp -o plan.yaml``: the inspection plan of the file's semantic
+    PMI (YAML on stdout without ``-o``)."""
+    from shapeverify.characteristics.pmi_plan import plan_yaml
+    from shapeverify.cli import _guard, console, out
+
+    res = _pmi_plan(model_path)
+    text = plan_yaml(res)
+    if output is None:
+        out.print(text, markup=False, highlight=False, soft_wrap=True)
+    else:
+        _guard(output.write_text, text, encoding="utf-8")
+    n_gt = sum(1 for r in res.rows if r["kind"] == "geometric_tolerance")
+    n_gt_un = sum(1 for u in res.plan.unsupported if u.pmi.kind == "geometric_tolerance")
+    console.print(f"{model_path.name}: {len(res.plan.characteristics)} characteristics, "
+                  f"alignment {res.plan.alignment.type}; {len(res.plan.unsupported)} PMI items "
+                  f"not checked ({n_gt_un} of {n_gt} geometric tolerances), each listed under "
+                  "'unsupported' with the reason" + (f"; plan: {output}" if output else ""),
+                  markup=False, highlight=False, soft_wrap=True)
+
+
+def print_pmi(model_path: Path, m=None) -> None:
+    """``shapeverify info PART.stp --pmi``: the semantic PMI and what the plan makes of it."""
+    from rich.markup import escape
+
+    from shapeverify.cli import out
+
+    res = _pmi_plan(model_path, m)
+    al = res.plan.alignment
+    t = Table(title=f"{model_path.name} PMI (alignment: {al.type}"
+                    + (f" {al.primary}|{al.secondary}" + (f"|{al.tertiary}" if al.tertiary else "")
+                       if al.type == "datums" else "") + ")")
+    for col in ("id", "kind", "type", "value (mm)", "limits (mm)", "datums / targets",
+                "modifiers", "faces", "plan"):
+        t.add_column(col)
+    for r in res.rows:
+        faces = ", ".join(r["faces"][:6]) + (f" (+{len(r['faces']) - 6})"
+                                            if len(r["faces"]) > 6 else "")
+        lim = r.get("limits")
+        plan = ", ".join(r["entries"]) if r["entries"] else "[yellow]unsupported:[/yellow] " \
+            + escape(r["reason"])
+        t.add_row(r["id"], r["kind"].replace("geometric_tolerance", "tolerance"), r["type"],
+                  "-" if r.get("value") is None else f"{r['value']:g}",
+                  "-" if not lim else f"{lim[0]:+g} / {lim[1]:+g}",
+                  escape(r.get("datums") or ", ".join(r.get("targets", [])) or "-"),
+                  escape(", ".join(r.get("modifiers", [])) or "-"), escape(faces or "-"), plan)
+    out.print(t)

@@ -57,7 +57,7 @@ from ..errors import CADImportError, EmptyModelError, ShapeVerifyError, Unsuppor
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["read_cad_isolated", "summary_isolated", "prestart", "shutdown"]
+__all__ = ["read_cad_isolated", "summary_isolated", "pmi_isolated", "prestart", "shutdown"]
 
 _LEN = struct.Struct("<Q")
 _MAX_USES = 64  # imports per importer process before it is replaced
@@ -300,6 +300,13 @@ def default_time_limit(path) -> tuple[float | None, str]:
                    "it, 0 for none)")
 
 
+def pmi_isolated(path, *, timeout: float | None = None) -> dict:
+    """:func:`shapeverify.cad.pmi.read_pmi_here` (the semantic PMI of a STEP file) run in the
+    importer child process; raises as :func:`read_cad_isolated`."""
+    path = Path(path)
+    return _call(path, ("pmi", os.getcwd(), os.fspath(path), _level()), timeout)
+
+
 def _level() -> int:
     """The most verbose level any shapeverify logger of this process wants (the child logs
     at it)."""
@@ -383,6 +390,10 @@ def _answer(req, handler: _Collect):
             from .occ_summary import read_summary
 
             reply = ("ok", read_summary(path))
+        elif kind == "pmi":
+            from .pmi import read_pmi_here
+
+            reply = ("ok", read_pmi_here(path))
         else:
             from .persist import model_to_arrays
 

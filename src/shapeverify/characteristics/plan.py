@@ -19,7 +19,10 @@ Further characteristic types: ``flatness`` (``feature: face:3`` or ``near``, ``t
 ``lower``/``upper``, ``radius``).  Wherever a plan names a face (``faces: [...]``,
 ``feature``, the datums) it may use the face's name from the STEP file instead of its id
 (``faces: [datum_A]``; see ``shapeverify info --features``); in ``faces`` a name stands for
-every face that carries it.  ``section`` (optional): a cross-section plane
+every face that carries it.  A plan written by ``shapeverify plan`` from the CAD file's semantic PMI marks each entry
+with its source (``pmi: {kind: geometric_tolerance | dimension | datum, type: Position}``) and
+lists the PMI it does not check in ``unsupported: [{pmi: {...}, reason: "..."}]``.
+``section`` (optional): a cross-section plane
 ``{point: [x, y, z], normal: [nx, ny, nz], width: 1.0}`` for the PDF report.
 
 Tolerance conventions (ISO 1101)
@@ -42,7 +45,8 @@ from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_valida
 
 from ..errors import ShapeVerifyError
 
-__all__ = ["Plan", "PlanError", "load_plan", "parse_plan", "Tol", "DOF_NAMES"]
+__all__ = ["Plan", "PlanError", "load_plan", "parse_plan", "Tol", "DOF_NAMES", "PmiSource",
+           "Unsupported"]
 
 #: the six rigid degrees of freedom, in the order of the alignment's parameter vector
 DOF_NAMES = ("rx", "ry", "rz", "tx", "ty", "tz")
@@ -94,6 +98,25 @@ class Tol(_Strict):
         if self.tol is not None:
             return -self.tol, self.tol
         return float(self.lower), float(self.upper)
+
+
+class PmiSource(BaseModel):
+    """Where a plan entry came from: a semantic PMI item of the CAD file (``shapeverify plan``).
+
+    ``kind``: ``geometric_tolerance``, ``dimension`` or ``datum``; ``type``: OpenCASCADE's type
+    name (``Position``, ``ProfileOfSurface``, ``Size_Diameter``, ``Datum`` ...); further keys
+    (``id``, ``value``, ``datums`` ...) describe the item and are kept as they are."""
+
+    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
+    kind: Literal["geometric_tolerance", "dimension", "datum"]
+    type: str = Field(min_length=1)
+
+
+class Unsupported(_Strict):
+    """A PMI item of the CAD file that the plan does not check, and why."""
+
+    pmi: PmiSource
+    reason: str = Field(min_length=1)
 
 
 # ------------------------------------------------------------------------------ alignments
@@ -162,6 +185,7 @@ class Datums(_Strict):
     primary: FeatureRef
     secondary: FeatureRef
     tertiary: Optional[FeatureRef] = None
+    pmi: Optional[list[PmiSource]] = None
 
 
 Alignment = Annotated[Union[BestFit, Constrained, Rps, Datums], Field(discriminator="type")]
@@ -170,6 +194,7 @@ Alignment = Annotated[Union[BestFit, Constrained, Rps, Datums], Field(discrimina
 # ------------------------------------------------------------------------------ characteristics
 class _Char(_Strict):
     name: str = Field(min_length=1)
+    pmi: Optional[PmiSource] = None
 
 
 class _Located(_Char):
@@ -248,6 +273,7 @@ class Plan(_Strict):
     section: Optional[Section] = None
     max_distance: Optional[float] = Field(default=None, gt=0)
     coverage_factor: float = Field(default=2.0, gt=0)
+    unsupported: list[Unsupported] = Field(default_factory=list)
 
     @model_validator(mode="after")
     def _unique_names(self):

@@ -1,0 +1,360 @@
+"""Semantic PMI of a STEP AP242 file (datums, geometric tolerances, dimensions), read through
+OpenCASCADE's XCAF document.
+
+:func:`read_pmi` reads the file with ``STEPCAFControl_Reader`` in GD&T mode (``SetGDTMode``),
+walks the document's ``XCAFDoc_DimTolTool`` (``GetDatumLabels``, ``GetGeomToleranceLabels``,
+``GetDimensionLabels``) and turns each ``XCAFDimTolObjects_*Object`` into plain Python data:
+
+* a **geometric tolerance**: its type (OpenCASCADE's name without the enum prefix:
+  ``Position``, ``ProfileOfSurface``, ``Perpendicularity`` ...), zone value (mm), type of
+  value (``Diameter`` for a cylindrical zone), zone modifier (``Projected``, ``Runout``,
+  ``NonUniform``) and its value, material modifier (``M``/``L``), other modifiers, and the
+  datum reference frame (each datum's letter, its order -- 1 primary, 2 secondary, 3 tertiary
+  -- and its modifiers; ``GetDatumOfTolerLabels``);
+* a **dimension**: type (``Size_Diameter``, ``Location_LinearDistance`` ...), nominal, the
+  limits of deviation ``lower``/``upper`` (mm; OpenCASCADE gives the lower deviation as its
+  magnitude, so ``lower = -GetLowerTolValue()``), qualifier, modifiers, or a range;
+* a **datum** (one entry per letter; OpenCASCADE writes one datum label per use in a datum
+  reference frame): letter, the faces of its datum feature, its datum targets.
+
+Every item is tied to the faces it controls by **shape identity**: the faces of
+``GetRefShapeLabel`` (a solid or shell stands for its faces) are looked up with ``IsSame``
+(then ``IsPartner`` for a part placed by an assembly) among the faces of the document's shape
+in ``TopExp_Explorer`` order -- the enumeration of :mod:`shapeverify.cad.occ_import`
+(``_shape_faces``), from which the model's face numbers come.  Each referenced face also gets
+its vertices (mm), so that the caller can check the numbering against the imported model.
+
+The read runs in the project's importer child process (:mod:`shapeverify.cad.occ_worker`), so
+that a crash of OpenCASCADE on a damaged file raises :class:`~shapeverify.errors.CADImportError`
+instead of killing the caller.  Lengths in mm (the session unit is pinned to mm, and the
+reader converts the PMI values with the geometry).
+"""
+from __future__ import annotations
+
+import logging
+import os
+from pathlib import Path
+
+from ..errors import CADImportError, UnsupportedFormatError
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["read_pmi", "read_pmi_here"]
+
+_GT_PREFIX = "XCAFDimTolObjects_GeomToleranceType_"
+_DIM_PREFIX = "XCAFDimTolObjects_DimensionType_"
+
+
+def read_pmi(path, *, timeout: float | None = 600.0, isolated: bool = True) -> dict:
+    """The semantic PMI of a STEP file (see the module docstring for the fields).
+
+    Parameters
+    ----------
+    path : str or Path
+        A STEP file (.stp/.step), AP242 with semantic PMI for a non-empty answer.
+    timeout : float, optional
+        Seconds after which the importer process is stopped (default 600).
+    isolated : bool, optional
+        Read in the importer child process (default); False reads in this process.
+
+    Returns
+    -------
+    dict
+        ``source``, ``n_faces`` (faces of the shape, ``TopExp_Explorer`` order),
+        ``datums``, ``tolerances``, ``dimensions`` (lists of dicts, each with ``id``,
+        ``kind``, ``type`` and ``faces``: face indices in that order) and ``face_vertices``
+        ({face index: list of vertex points (mm)} for every face an item names).
+
+    Raises
+    ------
+    FileNotFoundError
+        The file does not exist.
+    UnsupportedFormatError
+        Not a STEP file (IGES carries no semantic PMI).
+    CADImportError
+        OpenCASCADE cannot read the file, crashes or takes longer than ``timeout``.
+    """
+    p = Path(path)
+    if p.suffix.lower() not in (".stp", ".step"):
+        raise UnsupportedFormatError(f"{p}: semantic PMI is read from STEP AP242 files "
+                                     f"(.stp/.step), not {p.suffix or 'a file without suffix'!r}")
+    if not p.exists():
+        raise FileNotFoundError(2, "STEP file not found", str(p))
+    if not p.is_file() or p.stat().st_size == 0:
+        raise CADImportError(f"{p}: not a regular, non-empty file")
+    if isolated:
+        from .occ_worker import pmi_isolated
+
+        return pmi_isolated(p, timeout=timeout)
+    return read_pmi_here(p)
+
+
+# ------------------------------------------------------------------------------ OCP helpers
+def _attr(label, cls):
+    """The attribute of class ``cls`` on ``label`` (OCP's ``FindAttribute`` does not hand the
+    found handle back to Python, so the label's attributes are iterated)."""
+    from OCP.TDF import TDF_AttributeIterator
+
+    it = TDF_AttributeIterator(label)
+    while it.More():
+        v = it.Value()
+        if isinstance(v, cls):
+            return v
+        it.Next()
+    return None
+
+
+def _labels(fn, *args) -> list:
+    from OCP.collections import Sequence_TDF_Label
+
+    seq = Sequence_TDF_Label()
+    fn(*args, seq)
+    return [seq.Value(i) for i in range(1, seq.Length() + 1)]
+
+
+def _ref_labels(label) -> tuple[list, list]:
+    from OCP.collections import Sequence_TDF_Label
+    from OCP.XCAFDoc import XCAFDoc_DimTolTool
+
+    first, second = Sequence_TDF_Label(), Sequence_TDF_Label()
+    XCAFDoc_DimTolTool.GetRefShapeLabel_s(label, first, second)
+    return ([first.Value(i) for i in range(1, first.Length() + 1)],
+            [second.Value(i) for i in range(1, second.Length() + 1)])
+
+
+def _enum_name(v, prefix: str = "") -> str:
+    name = getattr(v, "name", str(v))
+    if prefix and name.startswith(prefix):
+        return name[len(prefix):]
+    return name.rsplit("_", 1)[-1] if "_" in name else name
+
+
+def _seq(values) -> list:
+    try:
+        return list(values)
+    except TypeError:
+        return []
+
+
+class _FaceIndex:
+    """Face index of a shape by identity (``IsSame``; ``IsPartner`` for assembly instances)."""
+
+    def __init__(self, faces):
+        from OCP.TopLoc import TopLoc_Location
+        from OCP.collections import IndexedMap_TopoDS_Shape_TopTools_ShapeMapHasher as ShapeMap
+
+        self.faces = faces
+        self.bare = TopLoc_Location()
+        self.exact, self.partner = ShapeMap(), ShapeMap()
+        self.at_exact, self.at_partner = {}, {}
+        for i, f in enumerate(faces):
+            self.at_exact.setdefault(self.exact.Add(f), []).append(i)
+            self.at_partner.setdefault(self.partner.Add(f.Located(self.bare)), []).append(i)
+
+    def of(self, shape) -> tuple[list, list]:
+        """(face indices, kinds of the non-face shapes) of a referenced shape."""
+        from OCP.TopAbs import TopAbs_EDGE, TopAbs_FACE, TopAbs_VERTEX
+        from OCP.TopExp import TopExp_Explorer
+
+        if shape is None or shape.IsNull():
+            return [], []
+        t = shape.ShapeType()
+        if t in (TopAbs_EDGE, TopAbs_VERTEX):
+            return [], [_enum_name(t).lower()]
+        subs = [shape] if t == TopAbs_FACE else []
+        if t != TopAbs_FACE:
+            exp = TopExp_Explorer(shape, TopAbs_FACE)
+            while exp.More():
+                subs.append(exp.Current())
+                exp.Next()
+        out = []
+        for s in subs:
+            k = self.exact.FindIndex(s)
+            if k > 0:
+                out.extend(self.at_exact[k])
+                continue
+            k = self.partner.FindIndex(s.Located(self.bare))
+            if k > 0:
+                out.extend(self.at_partner[k])
+        return out, []
+
+
+def _faces_of(labels, index: _FaceIndex) -> tuple[list, list]:
+    from OCP.XCAFDoc import XCAFDoc_ShapeTool
+
+    faces, other = [], []
+    for lab in labels:
+        f, o = index.of(XCAFDoc_ShapeTool.GetShape_s(lab))
+        faces.extend(x for x in f if x not in faces)
+        other.extend(o)
+    return faces, other
+
+
+def _vertices(face) -> list:
+    from OCP.BRep import BRep_Tool
+    from OCP.TopAbs import TopAbs_VERTEX
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    pts = []
+    exp = TopExp_Explorer(face, TopAbs_VERTEX)
+    while exp.More():
+        p = BRep_Tool.Pnt_s(TopoDS.Vertex(exp.Current()))
+        pts.append([p.X(), p.Y(), p.Z()])
+        exp.Next()
+    return pts
+
+
+def _unique_drf(drf: list) -> list:
+    """The datum reference frame in order, one entry per (letter, order): a datum set up from
+    several datum targets (A1, A2, A3) comes as one label per target."""
+    out: dict = {}
+    for d in sorted(drf, key=lambda x: x["order"]):
+        e = out.setdefault((d["name"], d["order"]), {**d, "modifiers": []})
+        e["modifiers"].extend(m for m in d["modifiers"] if m not in e["modifiers"])
+    return list(out.values())
+
+
+# ------------------------------------------------------------------------------ the read
+def _open(path: Path):
+    """(document, shape) of a STEP file read with GD&T (and names) on."""
+    from OCP.IFSelect import IFSelect_RetDone
+    from OCP.STEPCAFControl import STEPCAFControl_Controller, STEPCAFControl_Reader
+    from OCP.TCollection import TCollection_ExtendedString
+    from OCP.TDocStd import TDocStd_Document
+
+    STEPCAFControl_Controller.Init_s()
+    caf = STEPCAFControl_Reader()
+    caf.SetGDTMode(True)
+    caf.SetNameMode(True)
+    status = caf.ReadFile(os.fspath(path))
+    if status != IFSelect_RetDone:
+        raise CADImportError(f"{path}: not a readable STEP file (OpenCASCADE reader status "
+                             f"{status.name.replace('IFSelect_Ret', '')})")
+    doc = TDocStd_Document(TCollection_ExtendedString("XmlXCAF"))
+    if not caf.Transfer(doc):
+        raise CADImportError(f"{path}: OpenCASCADE could not transfer the STEP file into an "
+                             "XCAF document (shapes and PMI)")
+    shape = caf.Reader().OneShape()
+    if shape is None or shape.IsNull():
+        raise CADImportError(f"{path}: the STEP file holds no shape to attach PMI to")
+    return doc, shape
+
+
+def read_pmi_here(path) -> dict:
+    """:func:`read_pmi` in this process (what the importer child runs)."""
+    from OCP.XCAFDoc import (XCAFDoc_Datum, XCAFDoc_Dimension, XCAFDoc_DimTolTool,
+                             XCAFDoc_DocumentTool, XCAFDoc_GeomTolerance)
+
+    from .occ_import import _init_ocp, _shape_faces
+
+    path = Path(path)
+    _init_ocp()
+    doc, shape = _open(path)
+    faces = _shape_faces(path, "step", shape)
+    index = _FaceIndex(faces)
+    tool = XCAFDoc_DocumentTool.DimTolTool_s(doc.Main())
+
+    # datums: one entry per letter (OpenCASCADE writes a datum label per use)
+    datums: dict = {}
+    for lab in _labels(tool.GetDatumLabels):
+        a = _attr(lab, XCAFDoc_Datum)
+        if a is None:
+            continue
+        o = a.GetObject()
+        name = o.GetName().ToCString() if o.GetName() is not None else ""
+        first, _ = _ref_labels(lab)
+        fs, other = _faces_of(first, index)
+        d = datums.setdefault(name, {"kind": "datum", "type": "Datum", "name": name,
+                                     "faces": [], "other": [], "targets": [], "labels": 0})
+        d["labels"] += 1
+        if o.IsDatumTarget():
+            d["targets"].append({"type": _enum_name(o.GetDatumTargetType()),
+                                 "number": int(o.GetDatumTargetNumber()), "faces": fs,
+                                 "other": other})
+        else:
+            d["faces"].extend(f for f in fs if f not in d["faces"])
+            d["other"].extend(other)
+    datum_list = []
+    for k, (name, d) in enumerate(sorted(datums.items())):
+        seen, targets = set(), []
+        for t in d["targets"]:
+            key = (t["type"], t["number"], tuple(t["faces"]))
+            if key not in seen:
+                seen.add(key)
+                targets.append(t)
+        d["targets"] = targets
+        if targets and not d["faces"]:
+            d["type"] = "DatumTarget"
+        d["id"] = f"DATUM_{name or k}"
+        datum_list.append(d)
+
+    tolerances = []
+    for k, lab in enumerate(_labels(tool.GetGeomToleranceLabels), start=1):
+        a = _attr(lab, XCAFDoc_GeomTolerance)
+        if a is None:
+            continue
+        o = a.GetObject()
+        first, _ = _ref_labels(lab)
+        fs, other = _faces_of(first, index)
+        drf = []
+        for dl in _labels(XCAFDoc_DimTolTool.GetDatumOfTolerLabels_s, lab):
+            da = _attr(dl, XCAFDoc_Datum)
+            if da is None:
+                continue
+            do = da.GetObject()
+            drf.append({"name": do.GetName().ToCString() if do.GetName() is not None else "",
+                        "order": int(do.GetPosition()),
+                        "modifiers": [_enum_name(m) for m in _seq(do.GetModifiers())]})
+        drf = _unique_drf(drf)
+        mat = _enum_name(o.GetMaterialRequirementModifier())
+        tolerances.append({
+            "id": f"GT{k}", "kind": "geometric_tolerance",
+            "type": _enum_name(o.GetType(), _GT_PREFIX),
+            "value": float(o.GetValue()),
+            "value_type": _enum_name(o.GetTypeOfValue()),
+            "zone_modifier": _enum_name(o.GetZoneModifier()),
+            "zone_modifier_value": float(o.GetValueOfZoneModifier()),
+            "material": None if mat == "None" else mat,
+            "modifiers": [_enum_name(m, "XCAFDimTolObjects_GeomToleranceModif_")
+                          for m in _seq(o.GetModifiers())],
+            "datums": drf, "faces": fs, "other": other})
+
+    dimensions = []
+    for k, lab in enumerate(_labels(tool.GetDimensionLabels), start=1):
+        a = _attr(lab, XCAFDoc_Dimension)
+        if a is None:
+            continue
+        o = a.GetObject()
+        first, second = _ref_labels(lab)
+        fs, other = _faces_of(first, index)
+        fs2, other2 = _faces_of(second, index)
+        item = {"id": f"DIM{k}", "kind": "dimension",
+                "type": _enum_name(o.GetType(), _DIM_PREFIX),
+                "nominal": float(o.GetValue()), "lower": None, "upper": None,
+                "qualifier": _enum_name(o.GetQualifier()),
+                "modifiers": [_enum_name(m, "XCAFDimTolObjects_DimensionModif_")
+                              for m in _seq(o.GetModifiers())],
+                "faces": fs, "faces2": fs2, "other": other + other2}
+        if o.IsDimWithPlusMinusTolerance():
+            item["lower"], item["upper"] = -float(o.GetLowerTolValue()), \
+                float(o.GetUpperTolValue())
+        elif o.IsDimWithRange():
+            item["lower"] = float(o.GetLowerBound()) - item["nominal"]
+            item["upper"] = float(o.GetUpperBound()) - item["nominal"]
+        elif o.IsDimWithClassOfTolerance():
+            item["class_of_tolerance"] = True
+        dimensions.append(item)
+
+    used = set()
+    for it in datum_list + tolerances + dimensions:
+        used.update(it["faces"])
+        used.update(it.get("faces2", ()))
+        for t in it.get("targets", ()):
+            used.update(t["faces"])
+    logger.info("%s: PMI %d datums, %d geometric tolerances, %d dimensions on %d of %d faces",
+                path.name, len(datum_list), len(tolerances), len(dimensions), len(used),
+                len(faces))
+    return {"source": str(path), "n_faces": len(faces), "datums": datum_list,
+            "tolerances": tolerances, "dimensions": dimensions,
+            "face_vertices": {i: _vertices(faces[i]) for i in sorted(used)}}

@@ -1,0 +1,520 @@
+"""An inspection plan from the semantic PMI of a STEP AP242 file (``shapeverify plan``).
+
+:func:`plan_from_pmi` reads the PMI (:func:`shapeverify.cad.pmi.read_pmi`: datums, geometric
+tolerances, dimensions, each with the faces it controls) and the model
+(:func:`shapeverify.cad.load.load_model`), checks that both number the faces alike (the
+vertices of every face the PMI names lie on the model's face of the same number), and maps
+what the plan format can express:
+
+=========================================  ===============================================
+PMI                                        plan entry
+=========================================  ===============================================
+datum reference frame (plane, hole axis)   ``alignment: {type: datums, ...}`` (the DRF most
+                                           tolerances use that the plan can build)
+Flatness of one planar face                ``flatness`` (``feature: face:N``)
+ProfileOfSurface without datums            ``surface_profile`` with ``datum: false``
+ProfileOfSurface in the plan's DRF         ``surface_profile`` (``datum: true``)
+Position (cylindrical zone, no material    ``hole`` ``position: {tol}``, one per hole of the
+modifier) of holes, in the plan's DRF      tolerance (a pattern gives one entry per hole)
+Size_Diameter with ± limits                ``hole`` ``diameter`` (a hole) or ``cylinder``
+                                           ``diameter`` (a boss)
+=========================================  ===============================================
+
+A hole is named as ``shapeverify info --features`` names it (``hole:k``: the inner trim loop
+on the cylinder's axis, with its diameter).  Every entry carries ``pmi: {kind, type, id, ...}``;
+a PMI item that makes several entries (a pattern of holes) gives each the same ``id``.  Every
+item the plan does not check is listed in ``unsupported`` with the reason, so each geometric
+tolerance of the file appears exactly once: in ``characteristics`` or in ``unsupported``.
+
+Example (needs the NIST test model)::
+
+    >>> plan = plan_from_pmi("nist_ctc_01_asme1_ap242-e1.stp")      # doctest: +SKIP
+    >>> [c.pmi.type for c in plan.characteristics]                   # doctest: +SKIP
+    ['Flatness', 'Size_Diameter', ...]
+"""
+from __future__ import annotations
+
+import logging
+import re
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+import yaml
+
+from ..errors import CADImportError
+from .features import _face_grid, model_features
+from .plan import Plan, load_plan
+
+logger = logging.getLogger(__name__)
+
+__all__ = ["plan_from_pmi", "pmi_plan", "plan_yaml", "PmiPlan"]
+
+_HOLE_SIDE = "hole"
+_BOSS_SIDE = "boss"
+
+
+class PmiPlan:
+    """A plan made from PMI and the rows of ``shapeverify info --pmi``.
+
+    Attributes
+    ----------
+    plan : Plan          the validated plan
+    data : dict          the plan as written (YAML-ready)
+    rows : list of dict  one per PMI item: id, kind, type, value, limits, datums, faces,
+                         features, entries (plan entry names) or reason (why unsupported)
+    pmi : dict           what :func:`shapeverify.cad.pmi.read_pmi` read
+    """
+
+    def __init__(self, plan, data, rows, pmi):
+        self.plan, self.data, self.rows, self.pmi = plan, data, rows, pmi
+
+    def __repr__(self) -> str:
+        return (f"PmiPlan({len(self.plan.characteristics)} characteristics, "
+                f"{len(self.plan.unsupported)} unsupported, alignment "
+                f"{self.plan.alignment.type!r})")
+
+
+# ------------------------------------------------------------------------------ faces
+def _face_map(pmi: dict, model) -> dict:
+    """PMI face number (``TopExp_Explorer`` order) -> model face number, checked by geometry.
+
+    The model leaves out faces it could not convert (``model.skipped_faces``: ``face i: ...``);
+    the others keep their order.  Every vertex of every face the PMI names must lie within
+    ``max(0.01 mm, 1e-5 x size)`` of that model face's boundary."""
+    n = int(pmi["n_faces"])
+    skipped = set()
+    for s in getattr(model, "skipped_faces", ()) or ():
+        m = re.match(r"face (\d+):", s)
+        if m:
+            skipped.add(int(m.group(1)))
+    kept = [i for i in range(n) if i not in skipped]
+    if len(kept) != len(model.faces):
+        raise CADImportError(
+            f"{pmi['source']}: the PMI reader found {n} faces ({len(skipped)} skipped by the "
+            f"import) but the model has {len(model.faces)}; the PMI cannot be tied to the "
+            "model's face numbers")
+    fmap = {e: k for k, e in enumerate(kept)}
+    tol = max(0.01, 1e-5 * float(model.size))
+    for e, verts in pmi["face_vertices"].items():
+        e = int(e)
+        if e not in fmap or not verts:
+            continue
+        face = model.faces[fmap[e]]
+        (u0, u1), (v0, v1) = face.surface.domain
+        rim = np.concatenate([face.evaluate(np.column_stack([np.clip(lp[:, 0], u0, u1),
+                                                             np.clip(lp[:, 1], v0, v1)]))
+                              for lp in face.loops])
+        V = np.asarray(verts, np.float64)
+        d = np.sqrt(((V[:, None, :] - rim[None, :, :]) ** 2).sum(-1)).min(axis=1)
+        if d.max() > tol:
+            raise CADImportError(
+                f"{pmi['source']}: PMI face {e} does not match model face {fmap[e]} (a vertex "
+                f"{d.max():.3g} mm off its boundary); the face numbering of the PMI reader and "
+                "of the import differ")
+    return fmap
+
+
+def _side(model, i: int, c, a) -> str:
+    """'hole' when face i's outward normal points at its cylinder's axis, else 'boss'."""
+    X, N = _face_grid(model.faces[i])
+    q = X - c
+    radial = q - np.outer(q @ a, a)
+    return _HOLE_SIDE if float(np.sum(N * radial)) < 0 else _BOSS_SIDE
+
+
+def _cylinders(feats, model, faces) -> tuple[list, list]:
+    """Coaxial groups of cylindrical faces: ([(faces, centre, axis, diameter, side)], the
+    faces that are not cylinders)."""
+    groups, other = [], []
+    size = float(model.size)
+    for i in faces:
+        f = feats[i]
+        if f.kind != "cylinder":
+            other.append(i)
+            continue
+        for g in groups:
+            q = f.center - g[1]
+            off = np.linalg.norm(q - (q @ g[2]) * g[2])
+            if (abs(f.diameter - g[3]) <= 1e-4 * g[3] + 1e-6
+                    and np.linalg.norm(np.cross(f.axis, g[2])) < 1e-4
+                    and off <= 1e-4 * g[3] + 1e-7 * size):
+                g[0].append(i)
+                break
+        else:
+            groups.append([[i], f.center, f.axis, float(f.diameter), None])
+    for g in groups:
+        g[4] = _side(model, g[0][0], g[1], g[2])
+    return groups, other
+
+
+def _hole_of(feats, group, size: float):
+    """The ``hole:k`` feature on a cylinder group's axis with its diameter (lowest k), or None."""
+    _, c, a, dia, _ = group
+    for f in feats:
+        if f.kind != "hole":
+            continue
+        q = f.center - c
+        off = np.linalg.norm(q - (q @ a) * a)
+        if (abs(f.diameter - dia) <= 1e-3 * dia + 1e-6
+                and np.linalg.norm(np.cross(f.axis, a)) < 1e-3
+                and off <= 1e-3 * dia + 1e-7 * size):
+            return f
+    return None
+
+
+# ------------------------------------------------------------------------------ the mapping
+def _mm(x: float) -> float:
+    """A limit as the drawing writes it: rounded to 1e-9 mm (the reader's unit conversion
+    leaves 0.20000000000000284), no negative zero."""
+    return float(round(float(x), 9)) + 0.0
+
+def _src(item: dict) -> dict:
+    out = {"kind": item["kind"], "type": item["type"], "id": item["id"]}
+    if item["kind"] == "geometric_tolerance":
+        out["value"] = item["value"]
+        if item["value_type"] != "None":
+            out["zone"] = item["value_type"]
+        if item["datums"]:
+            out["datums"] = "|".join(d["name"] for d in item["datums"])
+        if item["material"]:
+            out["material"] = item["material"]
+        if item["modifiers"]:
+            out["modifiers"] = list(item["modifiers"])
+        if item["zone_modifier"] != "None":
+            out["zone_modifier"] = item["zone_modifier"]
+    elif item["kind"] == "dimension":
+        out["nominal"] = item["nominal"]
+        if item["lower"] is not None:
+            out["lower"], out["upper"] = _mm(item["lower"]), _mm(item["upper"])
+    else:
+        out["name"] = item["name"]
+    return out
+
+
+def _drf_key(item) -> tuple:
+    return tuple(d["name"] for d in item["datums"])
+
+
+def _datum_ref(d: dict, ctx) -> tuple[str | None, str]:
+    """(plan feature ref, '') of a datum, or (None, why not)."""
+    if d["type"] == "DatumTarget" or d["targets"]:
+        return None, (f"datum {d['name']} is set up from datum targets "
+                      f"({', '.join(t['type'] for t in d['targets'])}); the plan's datum "
+                      "alignment takes whole datum features")
+    if not d["faces"]:
+        if d["other"]:
+            return None, f"datum {d['name']} is attached to {d['other'][0]}s, not faces"
+        return None, (f"datum {d['name']} is not attached to any face in the file (as "
+                      "OpenCASCADE's XCAF reader reads it)")
+    faces = [ctx.fmap.get(f) for f in d["faces"]]
+    if any(f is None for f in faces):
+        return None, f"a face of datum {d['name']} could not be imported"
+    groups, other = _cylinders(ctx.feats, ctx.model, faces)
+    if not groups and len(other) == 1 and ctx.feats[other[0]].kind == "plane":
+        return f"face:{other[0]}", ""
+    if len(groups) == 1 and not other and groups[0][4] == _HOLE_SIDE:
+        h = _hole_of(ctx.feats, groups[0], ctx.size)
+        if h is not None:
+            return h.id, ""
+        return None, f"datum {d['name']}: no hole of `info --features` on its axis"
+    kinds = sorted({ctx.feats[f].kind for f in faces})
+    return None, (f"datum {d['name']} is a feature of {len(faces)} faces ({', '.join(kinds)}); "
+                  "the plan's datums are one plane face or one hole")
+
+
+def _features(model) -> list:
+    """:func:`.features.model_features`; where one of its hole loops raises (a straight loop:
+    no circle fits), the features again with that loop left out, numbered alike (a hole
+    that is not found: what the features module does with such a loop once it no longer
+    raises)."""
+    try:
+        return model_features(model)
+    except ValueError as exc:
+        logger.warning("listing the model's features failed (%s); listing them again with the "
+                       "loops that raise left out", exc)
+    from .features import Feature, _classify, _hole
+
+    size, names = model.size, getattr(model, "face_names", None)
+    out, holes = [], []
+    for i, f in enumerate(model.faces):
+        name = None if names is None else names[i]
+        kind, c, ax, dia, err = _classify(f, size)
+        out.append(Feature(f"face:{i}", kind, i, np.asarray(c), None if ax is None else
+                           np.asarray(ax), dia, None, name, err))
+        for j, lp in enumerate(f.loops[1:], start=1):
+            try:
+                h = _hole(f, lp, size)
+            except ValueError:
+                h = None
+            if h is not None:
+                holes.append((i, j, name, h))
+    for k, (i, j, name, (c, ax, dia, err)) in enumerate(holes):
+        out.append(Feature(f"hole:{k}", "hole", i, c, ax, dia, j, name, err))
+    return out
+
+
+class _Ctx:
+    def __init__(self, pmi, model, fmap):
+        self.pmi, self.model, self.fmap = pmi, model, fmap
+        self.feats = _features(model)
+        self.size = float(model.size)
+        self.names: Counter = Counter()
+
+    def name(self, base: str) -> str:
+        self.names[base] += 1
+        return base if self.names[base] == 1 else f"{base}_{self.names[base]}"
+
+
+def _alignment(ctx, datums: dict):
+    """(alignment dict, DRF key or None, {datum name: why it is not usable})."""
+    why = {}
+    refs = {}
+    for name, d in datums.items():
+        ref, reason = _datum_ref(d, ctx)
+        if ref is None:
+            why[name] = reason
+        else:
+            refs[name] = ref
+    use = Counter(_drf_key(t) for t in ctx.pmi["tolerances"] if t["datums"])
+    for key, _ in sorted(use.items(), key=lambda kv: (-kv[1], kv[0])):
+        if len(key) < 2 or len(set(key)) != len(key) or any(k not in refs for k in key):
+            continue
+        if not refs[key[0]].startswith("face:"):
+            continue
+        al = {"type": "datums", "primary": refs[key[0]], "secondary": refs[key[1]]}
+        if len(key) > 2:
+            al["tertiary"] = refs[key[2]]
+        if len(key) > 3:
+            continue
+        al["pmi"] = [_src(datums[k]) for k in key]
+        return al, key, why
+    return {"type": "best_fit", "faces": "all"}, None, why
+
+
+def _faces_ok(item, ctx, key="faces"):
+    faces = [ctx.fmap.get(f) for f in item[key]]
+    if any(f is None for f in faces):
+        return None, "a face it names could not be imported (see the import's warnings)"
+    if not faces:
+        what = f"{item['other'][0]}s" if item.get("other") else "no shape"
+        return None, f"it is attached to {what}, not to faces"
+    return faces, ""
+
+
+def _drf_reason(item, drf, why) -> str:
+    key = _drf_key(item)
+    if not key:
+        return ""
+    if key == drf:
+        return ""
+    missing = [why[k] for k in key if k in why]
+    base = (f"its datum reference frame {'|'.join(key)} is not the plan's alignment "
+            f"({'|'.join(drf) if drf else 'best fit: no datum reference frame of the file can be built'})")
+    return base + (f"; {missing[0]}" if missing else "")
+
+
+def _tolerance(item, ctx, drf, why) -> tuple[list, str]:
+    """(plan characteristics, '') or ([], reason)."""
+    t = item["type"]
+    faces, reason = _faces_ok(item, ctx)
+    if faces is None:
+        return [], reason
+    src = _src(item)
+    if t == "Flatness":
+        if len(faces) != 1 or ctx.feats[faces[0]].kind != "plane":
+            return [], (f"flatness of {len(faces)} faces ({ctx.feats[faces[0]].kind}); the plan's "
+                        "flatness is of one planar face")
+        return [{"name": ctx.name(f"{item['id']}_flatness"), "type": "flatness",
+                 "feature": f"face:{faces[0]}", "tol": item["value"], "pmi": src}], ""
+    if t == "ProfileOfSurface":
+        if item["zone_modifier"] != "None":
+            return [], f"a {item['zone_modifier']} zone modifier (uniform zones only)"
+        if item["datums"]:
+            r = _drf_reason(item, drf, why)
+            if r:
+                return [], r
+        return [{"name": ctx.name(f"{item['id']}_profile"), "type": "surface_profile",
+                 "faces": [f"face:{f}" for f in faces], "tol": item["value"],
+                 "datum": bool(item["datums"]), "pmi": src}], ""
+    if t == "Position":
+        if item["material"]:
+            return [], (f"material modifier {item['material']}: the bonus tolerance from the "
+                        "measured size is not computed yet")
+        if item["value_type"] != "Diameter":
+            zone = {"None": "two parallel planes", "SphericalDiameter": "a sphere"}.get(
+                item["value_type"], item["value_type"])
+            return [], (f"the zone is {zone} (no \u2300); the plan's position is a cylindrical "
+                        "zone of a hole's axis")
+        if item["zone_modifier"] != "None":
+            return [], f"a {item['zone_modifier']} zone modifier"
+        r = _drf_reason(item, drf, why)
+        if r:
+            return [], r
+        groups, other = _cylinders(ctx.feats, ctx.model, faces)
+        if other or not groups:
+            return [], "it controls faces that are not cylinders (the plan's position is of holes)"
+        out = []
+        for g in groups:
+            if g[4] != _HOLE_SIDE:
+                return [], "position of a boss (the plan's position is of holes)"
+            h = _hole_of(ctx.feats, g, ctx.size)
+            if h is None:
+                return [], (f"no hole of `info --features` on the axis of face:{g[0][0]} (a "
+                            "hole whose rim is not an inner loop of one face)")
+            out.append({"name": ctx.name(f"{item['id']}_position_{h.id.replace(':', '')}"),
+                        "type": "hole", "feature": h.id, "position": {"tol": item["value"]},
+                        "pmi": src})
+        return out, ""
+    return [], f"no plan characteristic for {t} yet (issue 28 item 3)"
+
+
+def _dimension(item, ctx) -> tuple[list, str]:
+    t = item["type"]
+    if t != "Size_Diameter":
+        if t in ("DimensionPresentation", "CommonLabel"):
+            return [], f"{t}: a presentation without a semantic value"
+        return [], f"no plan characteristic for the dimension {t} yet (issue 28 item 3)"
+    if item["lower"] is None or not item["lower"] < item["upper"]:
+        return [], "a diameter without \u00b1 limits (a basic or reference dimension)"
+    if item["modifiers"]:
+        return [], f"size modifiers {', '.join(item['modifiers'])}"
+    faces, reason = _faces_ok(item, ctx)
+    if faces is None:
+        return [], reason
+    groups, other = _cylinders(ctx.feats, ctx.model, faces)
+    if other or not groups:
+        return [], "it controls faces that are not cylinders"
+    out = []
+    for g in groups:
+        if abs(g[3] - item["nominal"]) > 1e-3 * item["nominal"] + 1e-6:
+            return [], (f"the nominal \u2300{item['nominal']:g} differs from the CAD cylinder's "
+                        f"\u2300{g[3]:.4f}")
+        tol = {"lower": _mm(item["lower"]), "upper": _mm(item["upper"])}
+        if g[4] == _HOLE_SIDE:
+            h = _hole_of(ctx.feats, g, ctx.size)
+            if h is None:
+                return [], f"no hole of `info --features` on the axis of face:{g[0][0]}"
+            out.append({"name": ctx.name(f"{item['id']}_diameter_{h.id.replace(':', '')}"),
+                        "type": "hole", "feature": h.id, "diameter": tol, "pmi": _src(item)})
+        else:
+            if len(g[0]) > 1:
+                return [], (f"a boss of {len(g[0])} faces; the plan's cylinder is one face")
+            out.append({"name": ctx.name(f"{item['id']}_diameter_face{g[0][0]}"),
+                        "type": "cylinder", "feature": f"face:{g[0][0]}", "diameter": tol,
+                        "pmi": _src(item)})
+    return out, ""
+
+
+def _row(item, ctx, entries, reason) -> dict:
+    faces = [ctx.fmap.get(f) for f in item.get("faces", [])]
+    row = {"id": item["id"], "kind": item["kind"], "type": item["type"],
+           "faces": ["face:%d" % f if f is not None else "?" for f in faces],
+           "entries": [e["name"] for e in entries] if entries else [], "reason": reason}
+    if item["kind"] == "geometric_tolerance":
+        row["value"] = item["value"]
+        row["datums"] = "|".join(d["name"] for d in item["datums"])
+        row["modifiers"] = [m for m in ([item["material"]] if item["material"] else [])
+                            + ([item["value_type"]] if item["value_type"] != "None" else [])
+                            + item["modifiers"]]
+    elif item["kind"] == "dimension":
+        row["value"] = item["nominal"]
+        row["limits"] = None if item["lower"] is None else [_mm(item["lower"]), _mm(item["upper"])]
+    else:
+        row["name"] = item["name"]
+        row["targets"] = [f"{t['type']} {t['number']}" for t in item["targets"]]
+    return row
+
+
+def pmi_plan(path, *, model=None, pmi=None, timeout: float | None = 600.0) -> PmiPlan:
+    """The plan (and the rows of ``info --pmi``) from a STEP file's semantic PMI.
+
+    Parameters
+    ----------
+    path : str or Path
+        STEP AP242 file with semantic PMI.
+    model : Model, optional
+        The file's model, when already loaded (else :func:`shapeverify.cad.load.load_model`).
+    pmi : dict, optional
+        What :func:`shapeverify.cad.pmi.read_pmi` returned for the file (else it is read).
+    timeout : float, optional
+        Seconds for the OpenCASCADE read of the PMI.
+
+    Returns
+    -------
+    PmiPlan
+
+    Raises
+    ------
+    CADImportError
+        The file cannot be read, or its PMI faces cannot be tied to the model's.
+    """
+    from ..cad.pmi import read_pmi
+
+    path = Path(path)
+    if pmi is None:
+        pmi = read_pmi(path, timeout=timeout)
+    if model is None:
+        from ..cad.load import load_model
+
+        model = load_model(path)
+    model = getattr(model, "model", model)
+    ctx = _Ctx(pmi, model, _face_map(pmi, model))
+    datums = {d["name"]: d for d in pmi["datums"]}
+    alignment, drf, why = _alignment(ctx, datums)
+    chars, unsupported, rows = [], [], []
+    used = set(drf or ())
+    for item in pmi["tolerances"]:
+        entries, reason = _tolerance(item, ctx, drf, why)
+        chars.extend(entries)
+        if not entries:
+            unsupported.append({"pmi": _src(item), "reason": reason})
+        rows.append(_row(item, ctx, entries, reason))
+    for item in pmi["dimensions"]:
+        entries, reason = _dimension(item, ctx)
+        chars.extend(entries)
+        if not entries:
+            unsupported.append({"pmi": _src(item), "reason": reason})
+        rows.append(_row(item, ctx, entries, reason))
+    for name, d in datums.items():
+        if name in used:
+            rows.append(_row(d, ctx, [{"name": "alignment"}], ""))
+            continue
+        reason = why.get(name) or (f"datum {name} is not in the plan's alignment (the plan "
+                                   f"aligns on one datum reference frame: "
+                                   f"{'|'.join(drf) if drf else 'best fit'})")
+        unsupported.append({"pmi": _src(d), "reason": reason})
+        rows.append(_row(d, ctx, [], reason))
+    data = {"units": "mm", "part": path.name, "alignment": alignment,
+            "characteristics": chars, "unsupported": unsupported}
+    plan = load_plan(data)
+    logger.info("%s: plan from PMI: %d characteristics, %d PMI items unsupported, alignment %s",
+                path.name, len(chars), len(unsupported), alignment["type"])
+    return PmiPlan(plan, data, rows, pmi)
+
+
+def plan_from_pmi(path, *, model=None, timeout: float | None = 600.0) -> Plan:
+    """The inspection plan of a STEP AP242 file's semantic PMI (see the module docstring).
+
+    Parameters
+    ----------
+    path : str or Path
+        STEP AP242 file with semantic PMI.
+    model : Model, optional
+        The file's model, when already loaded.
+    timeout : float, optional
+        Seconds for the OpenCASCADE read of the PMI.
+
+    Returns
+    -------
+    Plan
+        Validated; ``plan.unsupported`` lists what it does not check and why.
+    """
+    return pmi_plan(path, model=model, timeout=timeout).plan
+
+
+def plan_yaml(result: PmiPlan) -> str:
+    """The plan as YAML text (what ``shapeverify plan -o plan.yaml`` writes)."""
+    head = (f"# inspection plan from the semantic PMI of {result.data['part']} "
+            "(shapeverify plan)\n")
+    return head + yaml.safe_dump(result.data, sort_keys=False, allow_unicode=True, width=100)

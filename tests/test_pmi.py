@@ -1,0 +1,195 @@
+"""Plans from the semantic PMI of STEP AP242 files (``shapeverify plan``, ``plan_from_pmi``).
+
+On the NIST MBE PMI test models (``../shared/data/cad/nist/*_ap242-e1.stp``) the plan is checked
+against an independent reading of the file's PMI with OpenCASCADE's XCAF (a different walk of
+the document: the children of the GD&T tool's base label, ``IsGeomTolerance``/``IsDatum``/
+``IsDimension``), run in a child process.
+"""
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+from collections import Counter
+from pathlib import Path
+
+import pytest
+import yaml
+
+from shapeverify.characteristics import load_plan
+from shapeverify.characteristics.plan import PlanError
+
+NIST = ["nist_ctc_01_asme1_ap242-e1.stp", "nist_ctc_02_asme1_ap242-e1.stp",
+        "nist_ftc_06_asme1_ap242-e1.stp", "nist_ftc_08_asme1_ap242-e1.stp"]
+
+SRC = str(Path(__file__).resolve().parents[1] / "src")
+
+# the independent reader: XCAF document, GD&T on; every child label of the DimTol tool's base
+# label that the tool calls a tolerance / datum / dimension; the type from the attribute's object
+_READER = r"""
+import json, sys
+from OCP.Interface import Interface_Static
+from OCP.STEPCAFControl import STEPCAFControl_Controller, STEPCAFControl_Reader
+from OCP.TCollection import TCollection_ExtendedString
+from OCP.TDF import TDF_AttributeIterator, TDF_ChildIterator
+from OCP.TDocStd import TDocStd_Document
+from OCP.XCAFDoc import XCAFDoc_Datum, XCAFDoc_DocumentTool, XCAFDoc_GeomTolerance
+STEPCAFControl_Controller.Init_s()
+Interface_Static.SetCVal_s("xstep.cascade.unit", "MM")
+r = STEPCAFControl_Reader()
+r.SetGDTMode(True)
+assert r.ReadFile(sys.argv[1]).name == "IFSelect_RetDone"
+doc = TDocStd_Document(TCollection_ExtendedString("XmlXCAF"))
+assert r.Transfer(doc)
+tool = XCAFDoc_DocumentTool.DimTolTool_s(doc.Main())
+tols, datums, dims = [], set(), 0
+it = TDF_ChildIterator(tool.BaseLabel(), False)
+while it.More():
+    lab = it.Value(); it.Next()
+    ai = TDF_AttributeIterator(lab)
+    while ai.More():
+        a = ai.Value(); ai.Next()
+        if isinstance(a, XCAFDoc_GeomTolerance) and tool.IsGeomTolerance(lab):
+            tols.append(a.GetObject().GetType().name.split("GeomToleranceType_")[1])
+        elif isinstance(a, XCAFDoc_Datum) and tool.IsDatum(lab):
+            datums.add(a.GetObject().GetName().ToCString())
+    if tool.IsDimension(lab):
+        dims += 1
+print(json.dumps({"tolerances": tols, "datums": sorted(datums), "dimensions": dims}))
+"""
+
+
+def _env():
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([SRC] + [p for p in env.get("PYTHONPATH", "").split(
+        os.pathsep) if p])
+    return env
+
+
+def _independent(path: Path) -> dict:
+    res = subprocess.run([sys.executable, "-c", _READER, str(path)], capture_output=True,
+                         text=True, timeout=600)
+    assert res.returncode == 0, res.stderr[-2000:]
+    return json.loads(res.stdout.strip().splitlines()[-1])
+
+
+@pytest.fixture(scope="module")
+def nist_plans(shared_data, tmp_path_factory):
+    """{file name: (exit status, stderr, plan text or None)} of `shapeverify plan` per file."""
+    d = shared_data / "cad" / "nist"
+    out = {}
+    tmp = tmp_path_factory.mktemp("pmi")
+    for name in NIST:
+        if not (d / name).exists():
+            continue
+        target = tmp / (name + ".yaml")
+        res = subprocess.run([sys.executable, "-m", "shapeverify", "plan", str(d / name), "-o",
+                              str(target)], capture_output=True, text=True, env=_env(),
+                             timeout=1500)
+        out[name] = (res.returncode, res.stderr,
+                     target.read_text() if target.exists() else None, target)
+    return out
+
+
+def _file(shared_data, name) -> Path:
+    p = shared_data / "cad" / "nist" / name
+    if not p.exists():
+        pytest.skip(f"{p} not present (NIST MBE PMI test model)")
+    return p
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("name", NIST)
+def test_plan_from_nist_pmi_holds_every_tolerance_and_datum_of_the_file(shared_data, nist_plans,
+                                                                        name):
+    path = _file(shared_data, name)
+    status, err, text, target = nist_plans[name]
+    assert status == 0, err[-2000:]
+    plan = load_plan(target)                       # the project's own loader takes it
+    data = yaml.safe_load(text)
+    truth = _independent(path)
+
+    in_chars = {}
+    for c in plan.characteristics:
+        assert c.pmi is not None, f"{c.name} does not say where it came from"
+        in_chars.setdefault(c.pmi.id, c.pmi.type)
+    unsupported = Counter(u.pmi.id for u in plan.unsupported)
+    assert all(n == 1 for n in unsupported.values()), unsupported
+    assert all(u.reason.strip() for u in plan.unsupported)
+    assert not set(in_chars) & set(unsupported), "an item both checked and unsupported"
+
+    # every geometric tolerance exactly once, by type as the file holds them
+    kinds = {**{u.pmi.id: (u.pmi.kind, u.pmi.type) for u in plan.unsupported},
+             **{c.pmi.id: (c.pmi.kind, c.pmi.type) for c in plan.characteristics}}
+    gt = Counter(t for k, t in kinds.values() if k == "geometric_tolerance")
+    assert gt == Counter(truth["tolerances"])
+    assert sum(1 for k, _ in kinds.values() if k == "dimension") == truth["dimensions"]
+    # the datums: in the alignment or unsupported, one entry per letter
+    names = [u.pmi.model_extra["name"] for u in plan.unsupported if u.pmi.kind == "datum"]
+    if plan.alignment.type == "datums":
+        names += [p.model_extra["name"] for p in plan.alignment.pmi]
+    assert sorted(names) == truth["datums"]
+    assert data["unsupported"] == [u.model_dump(exclude_none=True) for u in plan.unsupported]
+
+
+@pytest.mark.slow
+def test_plan_from_pmi_ties_ctc01_diameters_to_the_holes_of_that_diameter(shared_data,
+                                                                          nist_plans):
+    """CTC 01's toleranced diameters become hole characteristics of `info --features` holes
+    whose CAD diameter is the dimension's nominal, and the flatness is of a planar face."""
+    from shapeverify.cad.load import load_model
+    from shapeverify.characteristics.features import find_feature, model_features
+
+    path = _file(shared_data, NIST[0])
+    plan = load_plan(nist_plans[NIST[0]][3])
+    feats = model_features(load_model(path))
+    holes = [c for c in plan.characteristics if c.type == "hole" and c.diameter is not None]
+    assert len(holes) >= 4
+    for c in holes:
+        f = find_feature(feats, c.feature, kind="hole")
+        assert f.kind == "hole"
+        assert f.diameter == pytest.approx(c.pmi.model_extra["nominal"], abs=1e-3)
+    flat = [c for c in plan.characteristics if c.type == "flatness"]
+    assert flat and all(find_feature(feats, c.feature, kind="flatness").kind == "plane"
+                        for c in flat)
+
+
+def test_plan_schema_takes_pmi_sources_and_unsupported_items():
+    text = """
+units: mm
+alignment: {type: datums, primary: face:1, secondary: hole:0,
+            pmi: [{kind: datum, type: Datum, name: A}, {kind: datum, type: Datum, name: B}]}
+characteristics:
+  - {name: F, type: flatness, feature: face:1, tol: 0.1,
+     pmi: {kind: geometric_tolerance, type: Flatness, id: GT1, value: 0.1}}
+unsupported:
+  - {pmi: {kind: geometric_tolerance, type: Perpendicularity, id: GT2}, reason: not yet}
+"""
+    plan = load_plan(text)
+    assert plan.characteristics[0].pmi.type == "Flatness"
+    assert plan.characteristics[0].pmi.model_extra["id"] == "GT1"
+    assert plan.unsupported[0].reason == "not yet"
+    with pytest.raises(PlanError, match="kind"):
+        load_plan(text.replace("kind: geometric_tolerance, type: Perpendicularity",
+                               "kind: tolerance, type: Perpendicularity"))
+    with pytest.raises(PlanError, match="reason"):
+        load_plan(text.replace(", reason: not yet", ""))
+
+
+def test_read_pmi_rejects_an_iges_file_by_name(tmp_path):
+    from shapeverify.cad.pmi import read_pmi
+    from shapeverify.errors import UnsupportedFormatError
+
+    p = tmp_path / "part.igs"
+    p.write_text("x")
+    with pytest.raises(UnsupportedFormatError, match="part.igs"):
+        read_pmi(p)
+
+
+def test_plan_from_a_step_file_without_pmi_is_an_empty_best_fit_plan(example_step):
+    from shapeverify.characteristics import plan_from_pmi
+
+    plan = plan_from_pmi(example_step)
+    assert plan.alignment.type == "best_fit"
+    assert plan.characteristics == [] and plan.unsupported == []
