@@ -308,7 +308,7 @@ def prepare(
 @app.command()
 def inspect(
     model: Path = typer.Argument(..., help="Prepared model (.svm, fastest) or CAD/mesh file"),
-    scan: Path = typer.Argument(..., help="Scan: .ply .xyz .txt .csv .npy .pcd (mm)"),
+    scan: Path = typer.Argument(..., help="Scan: .ply .xyz .txt .csv .npy .pcd .e57 .las .laz (mm; .e57 files are metres, converted)"),
     tolerance: Optional[float] = typer.Option(None, help="Symmetric tolerance ±MM"),
     lower: Optional[float] = typer.Option(None, help="Lower limit [mm] (negative: into the material)"),
     upper: Optional[float] = typer.Option(None, help="Upper limit [mm]"),
