@@ -402,6 +402,13 @@ def _scan_file_bytes(ext: str, pts: np.ndarray) -> bytes:
         buf = io.BytesIO()
         las.write(buf, do_compress=ext == ".laz")
         return buf.getvalue()
+    if ext == ".stl":   # binary STL written from the format's definition: 19 triangles
+        rec = np.zeros(len(pts) // 3, np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)),
+                                                ("attr", "<u2")]))
+        rec["v"] = pts[: 3 * len(rec)].reshape(-1, 3, 3)
+        return b"\0" * 80 + np.uint32(len(rec)).tobytes() + rec.tobytes()
+    if ext == ".obj":   # every point a vertex, one face
+        return ("".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in pts.tolist()) + "f 1 2 3\n").encode()
     raise AssertionError(f"no test file for the registered format {ext}: add one here")
 
 

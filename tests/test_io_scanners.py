@@ -182,3 +182,54 @@ def test_service_sniffs_e57_and_las_bodies(tmp_path):
     assert sniff_suffix(path.read_bytes()) == ".e57"
     assert sniff_suffix(_las12(np.eye(3))) == ".las"
     assert sniff_suffix(b"", "application/x-e57") == ".e57"
+
+
+# ------------------------------------------------------------------------------ mesh scans
+def _grid_mesh(n=20, h=1.0):
+    """A z = 0.01 (x^2 + y^2) patch as an even triangle mesh (n x n vertices, spacing h)."""
+    x, y = np.meshgrid(np.arange(n) * h, np.arange(n) * h, indexing="ij")
+    v = np.column_stack([x.ravel(), y.ravel(), 0.01 * (x.ravel() ** 2 + y.ravel() ** 2)])
+    k = np.arange(n * n).reshape(n, n)
+    a, b, c, d = k[:-1, :-1].ravel(), k[1:, :-1].ravel(), k[:-1, 1:].ravel(), k[1:, 1:].ravel()
+    return v, np.concatenate([np.column_stack([a, b, c]), np.column_stack([b, d, c])])
+
+
+def _binary_stl(v, t) -> bytes:
+    rec = np.zeros(len(t), np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)), ("attr", "<u2")]))
+    rec["v"] = v[t]
+    return b"\0" * 80 + np.uint32(len(t)).tobytes() + rec.tobytes()
+
+
+def test_mesh_scan_of_an_even_mesh_is_exactly_its_vertices():
+    v, t = _grid_mesh()
+    got = read_points(_binary_stl(v, t), "stl", name="even.stl")
+    want = np.unique(v.astype(np.float32).astype(np.float64), axis=0)
+    np.testing.assert_array_equal(np.unique(got, axis=0), want)
+    assert len(got) == len(v)   # the STL soup's six copies of each vertex are one point
+
+
+def test_mesh_scan_of_a_decimated_mesh_fills_large_flat_triangles_to_the_mesh_resolution():
+    """Half a plate as a fine mesh, the other half as two large triangles (a scanner's
+    decimation of a flat area): the points per area of both halves agree within 30 %."""
+    v, t = _grid_mesh(n=21, h=0.5)            # 10 x 10 mm fine half, 0.5 mm spacing
+    v[:, 2] = 0.0
+    big = np.array([[10, 0, 0], [20, 0, 0], [10, 10, 0], [20, 10, 0.]])
+    verts = np.vstack([v, big])
+    n0 = len(v)
+    tris = np.vstack([t, [[n0, n0 + 1, n0 + 2], [n0 + 1, n0 + 3, n0 + 2]]])
+    obj = ("".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in verts.tolist())
+           + "".join(f"f {a + 1} {b + 1} {c + 1}\n" for a, b, c in tris.tolist())).encode()
+    got = read_points(obj, "obj", name="decimated.obj")
+    assert np.all(got[:, 2] == 0.0)
+    fine = np.count_nonzero(got[:, 0] < 10 - 1e-9)
+    coarse = np.count_nonzero(got[:, 0] > 10 + 1e-9)
+    assert abs(coarse / fine - 1.0) < 0.3, (fine, coarse)
+
+
+def test_mesh_scan_damaged_file_is_a_scan_error_naming_it():
+    v, t = _grid_mesh(n=5)
+    data = _binary_stl(v, t)[:-30]          # cut inside the last triangle
+    with pytest.raises(ScanError, match=r"cut\.stl"):
+        read_points(data, "stl", name="cut.stl")
+    with pytest.raises(ScanError, match=r"bad\.obj.*face index out of range"):
+        read_points(b"v 0 0 0\nv 1 0 0\nf 1 2 9\n", "obj", name="bad.obj")

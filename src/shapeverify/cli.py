@@ -308,7 +308,7 @@ def prepare(
 @app.command()
 def inspect(
     model: Path = typer.Argument(..., help="Prepared model (.svm, fastest) or CAD/mesh file"),
-    scan: Path = typer.Argument(..., help="Scan: .ply .xyz .txt .csv .npy .pcd .e57 .las .laz (mm; .e57 files are metres, converted)"),
+    scan: Path = typer.Argument(..., help="Scan: .ply .xyz .txt .csv .npy .pcd .e57 .las .laz .stl .obj (mm; .e57 files are metres, converted)"),
     tolerance: Optional[float] = typer.Option(None, help="Symmetric tolerance ±MM"),
     lower: Optional[float] = typer.Option(None, help="Lower limit [mm] (negative: into the material)"),
     upper: Optional[float] = typer.Option(None, help="Upper limit [mm]"),
@@ -372,10 +372,6 @@ def _check_scan_suffix(model: Path, scan: Path) -> None:
     suffix = scan.suffix.lower()
     if suffix in SCAN_SUFFIXES:
         return
-    if suffix in (".stl", ".obj"):
-        _fail(f"{scan}: a mesh file is read as a reference model, not as a scan; a scanner's "
-              "mesh can be given as PLY (its vertices are the scan points); scan formats: "
-              f"{', '.join(SCAN_SUFFIXES)}")
     if suffix == PREPARED_SUFFIX or suffix in MODEL_EXTENSIONS:
         swapped = (" (the arguments seem swapped)" if model.suffix.lower() in SCAN_SUFFIXES
                    else "")

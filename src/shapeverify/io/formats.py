@@ -15,7 +15,7 @@ Example
 -------
 >>> from shapeverify.io.formats import SCAN_SUFFIXES, scan_reader
 >>> SCAN_SUFFIXES
-('.ply', '.xyz', '.txt', '.csv', '.npy', '.pcd', '.e57', '.las', '.laz')
+('.ply', '.xyz', '.txt', '.csv', '.npy', '.pcd', '.e57', '.las', '.laz', '.stl', '.obj')
 >>> scan_reader("XYZ").__name__
 'read_table'
 """
@@ -32,6 +32,7 @@ import numpy as np
 from shapeverify.errors import ScanError, UnsupportedFormatError
 from shapeverify.io.e57 import read_e57
 from shapeverify.io.las import read_las
+from shapeverify.io.mesh_scan import read_obj_scan, read_stl_scan
 from shapeverify.io.npy import read_npy
 from shapeverify.io.pcd import read_pcd
 from shapeverify.io.ply import read_ply_points
@@ -51,6 +52,8 @@ SCAN_READERS: dict[str, Callable[[bytes, str], np.ndarray]] = {
     ".e57": read_e57,   # all scans of the file, in its common frame, mm (the scanners extra)
     ".las": read_las,   # as stored (the scanners extra)
     ".laz": read_las,
+    ".stl": read_stl_scan,   # a scanner's mesh: its vertices (+ points on large triangles)
+    ".obj": read_obj_scan,
 }
 #: The suffixes of the scan files shapeverify reads (the one list).
 SCAN_SUFFIXES = tuple(SCAN_READERS)
