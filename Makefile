@@ -13,7 +13,7 @@ venv: $(STAMP)
 $(STAMP): pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
 	$(BIN)/python -m pip install --quiet --upgrade pip
-	$(BIN)/python -m pip install --quiet -e ".[dev,service,batch]"
+	$(BIN)/python -m pip install --quiet -e ".[dev,service,batch,scanners]"
 	@# numba compiles the numeric kernels on first use; do it once here (and say so), so the
 	@# first inspection answers in seconds (python -m shapeverify.warmup; see the README)
 	$(BIN)/python -m shapeverify.warmup || echo "warm-up failed (see above): the kernels will compile on first use"
@@ -28,7 +28,7 @@ test: $(STAMP)
 
 # benchmarks against named peers (installs the bench extra: Open3D, splipy, geomdl, pykdtree)
 bench: $(STAMP)
-	$(BIN)/python -m pip install --quiet -e ".[dev,service,batch,bench]"
+	$(BIN)/python -m pip install --quiet -e ".[dev,service,batch,scanners,bench]"
 	for b in benchmarks/bench_*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done
 	$(BIN)/python benchmarks/collect_results.py
 

@@ -271,12 +271,12 @@ def test_missing_file(tmp_path):
 
 
 def test_unsupported_extension(tmp_path):
-    p = tmp_path / "scan.las"
-    p.write_bytes(b"LASF")
+    p = tmp_path / "scan.rcp"          # a format shapeverify does not read (Autodesk ReCap)
+    p.write_bytes(b"RCP!")
     with pytest.raises(UnsupportedFormatError) as e:
         read_points(p)
     msg = str(e.value)
-    assert "scan.las" in msg and all(x in msg for x in POINT_EXTENSIONS)
+    assert "scan.rcp" in msg and all(x in msg for x in POINT_EXTENSIONS)
 
 
 _GOOD_HEAD = "ply\nformat ascii 1.0\nelement vertex 2\nproperty float x\nproperty float y\n"
@@ -380,6 +380,35 @@ def _scan_file_bytes(ext: str, pts: np.ndarray) -> bytes:
     if ext == ".pcd":
         table = np.column_stack([pts, np.arange(len(pts))]).astype("<f4")
         return _pcd_header(len(pts), "binary").encode() + table.tobytes()
+    if ext == ".e57":
+        pye57 = pytest.importorskip("pye57", reason="the scanners extra (pye57) is not installed")
+        import tempfile
+
+        with tempfile.TemporaryDirectory() as tmp:   # metres in the file: read back as mm
+            f = pye57.E57(f"{tmp}/s.e57", mode="w")
+            m = pts.astype(np.float32).astype(np.float64) / 1024
+            f.write_scan_raw({"cartesianX": m[:, 0], "cartesianY": m[:, 1], "cartesianZ": m[:, 2]})
+            f.close()
+            with open(f"{tmp}/s.e57", "rb") as fh:
+                return fh.read()
+    if ext in (".las", ".laz"):
+        laspy = pytest.importorskip("laspy", reason="the scanners extra (laspy) is not installed")
+        if ext == ".laz" and not laspy.LazBackend.detect_available():
+            pytest.skip("no LAZ backend installed (pip install 'laspy[lazrs]')")
+        las = laspy.create(point_format=0, file_version="1.2")
+        las.header.scales = [1e-4] * 3
+        las.header.offsets = [0.0] * 3
+        las.x, las.y, las.z = pts[:, 0], pts[:, 1], pts[:, 2]
+        buf = io.BytesIO()
+        las.write(buf, do_compress=ext == ".laz")
+        return buf.getvalue()
+    if ext == ".stl":   # binary STL written from the format's definition: 19 triangles
+        rec = np.zeros(len(pts) // 3, np.dtype([("n", "<f4", 3), ("v", "<f4", (3, 3)),
+                                                ("attr", "<u2")]))
+        rec["v"] = pts[: 3 * len(rec)].reshape(-1, 3, 3)
+        return b"\0" * 80 + np.uint32(len(rec)).tobytes() + rec.tobytes()
+    if ext == ".obj":   # every point a vertex, one face
+        return ("".join(f"v {x!r} {y!r} {z!r}\n" for x, y, z in pts.tolist()) + "f 1 2 3\n").encode()
     raise AssertionError(f"no test file for the registered format {ext}: add one here")
 
 
@@ -419,8 +448,8 @@ def test_bytes_need_a_format_and_text_mode_files_are_refused(tmp_path, pts):
     data = _scan_file_bytes(".xyz", pts)
     with pytest.raises(ValueError, match="give the format"):
         read_points(data)
-    with pytest.raises(UnsupportedFormatError, match=r"'\.las'.*\.ply, \.xyz"):
-        read_points(data, ".las")
+    with pytest.raises(UnsupportedFormatError, match=r"'\.rcp'.*\.ply, \.xyz"):
+        read_points(data, ".rcp")
     with pytest.raises(ScanError, match="empty"):
         read_points(b"", ".ply")
     with pytest.raises(TypeError, match="binary mode"):

@@ -226,9 +226,10 @@ def test_model_and_scan_swapped_is_said_before_any_preparing(small):
                                                   "--tolerance", "0.2"]).output
 
 
-def test_a_mesh_given_as_the_scan_says_how_to_give_it(small, tmp_path):
+def test_an_empty_mesh_given_as_the_scan_is_named(small, tmp_path):
+    # a scanner's mesh is a scan (its vertices, issue 30); one with no triangles says so
     p = tmp_path / "scan.stl"
     p.write_text("solid s\nendsolid s\n")
     line = _error_line(runner.invoke(app, ["inspect", str(small / "panel.svm"), str(p),
                                            "--tolerance", "0.2"]))
-    assert "can be given as PLY (its vertices are the scan points)" in line
+    assert "scan.stl: ascii STL without any 'vertex' line" in line

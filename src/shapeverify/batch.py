@@ -320,7 +320,7 @@ def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, 
     svm_path : path
         Prepared model (``shapeverify prepare``).
     scans_dir : path
-        Folder of scans (``.ply .xyz .txt .csv .npy .pcd``; not recursive).
+        Folder of scans (``.ply .xyz .txt .csv .npy .pcd .e57 .las .laz``; not recursive).
     out_dir : path
         Output folder: ``<scan stem>.json`` per scan (``.html`` with ``reports``), ``summary.csv``.
     tolerance, evaluation_distance : float

@@ -330,7 +330,7 @@ def prepare(
 @app.command()
 def inspect(
     model: Path = typer.Argument(..., help="Prepared model (.svm, fastest) or CAD/mesh file"),
-    scan: Path = typer.Argument(..., help="Scan: .ply .xyz .txt .csv .npy .pcd (mm)"),
+    scans: List[Path] = typer.Argument(..., metavar="SCAN...", help="Scan: .ply .xyz .txt .csv .npy .pcd .e57 .las .laz .stl .obj (mm; .e57 files are metres, converted). Several scans (or an E57 file with several) are views of one part: each is placed, the union inspected"),
     tolerance: Optional[float] = typer.Option(None, help="Symmetric tolerance ±MM"),
     lower: Optional[float] = typer.Option(None, help="Lower limit [mm] (negative: into the material)"),
     upper: Optional[float] = typer.Option(None, help="Upper limit [mm]"),
@@ -338,6 +338,7 @@ def inspect(
     faces: Optional[str] = typer.Option(None, "--faces", help="Inspect only these CAD faces, e.g. '0,3,7' (default: all)"),
     min_coverage: Optional[float] = typer.Option(None, "--min-coverage", help="Least share of the inspected CAD area that must be seen (0..1, default 0.2 = shapeverify.inspection.MIN_COVERAGE); below it the verdict is 'incomplete'"),
     init: Optional[str] = typer.Option(None, "--init", help="Start pose T_model_scan: a 4x4 in T.json or T.npy, or a strategy: auto (default: the identity when the scan overlaps the model, else a global search), identity, principal-axes, global"),
+    poses: Optional[Path] = typer.Option(None, "--poses", help="With several views: their start poses, a JSON list of 4x4 T_model_scan (null: found by the global search), one per view"),
     scan_unit: Optional[str] = typer.Option(None, "--scan-unit", help="Unit of the scan file (mm, cm, m, in, um; default mm)"),
     model_unit: Optional[str] = typer.Option(None, "--model-unit", help="Unit of an STL/PLY/OBJ/point-cloud model (default mm; CAD files declare theirs)"),
     plan: Optional[Path] = typer.Option(None, "--plan", help="Inspection plan (plan.yaml): alignment, characteristics with uncertainty; without --tolerance the colour map uses half its first surface profile's zone"),
@@ -360,17 +361,22 @@ def inspect(
     from shapeverify.registration.icp import INIT_MODES
 
     init_file = Path(init) if init is not None and init not in INIT_MODES else None
-    _require_files(model, scan, *([init_file] if init_file is not None else []),
-                   *([plan] if plan is not None else []))
-    _check_scan_suffix(model, scan)
+    _require_files(model, *scans, *([init_file] if init_file is not None else []),
+                   *([plan] if plan is not None else []), *([poses] if poses else []))
+    for scan in scans:
+        _check_scan_suffix(model, scan)
+    if poses is not None and init is not None:
+        _fail("give either --init (one scan) or --poses (several views), not both")
     if tolerance is None and lower is None and upper is None:
         if plan is None:
             _fail("give --tolerance MM (or --lower/--upper limits in mm, or a --plan)")
         from shapeverify.cli_plan import default_tolerance
         tolerance = _guard(default_tolerance, plan)
     T0 = _guard(_read_init, init_file) if init_file is not None else init
+    if poses is not None:
+        T0 = _guard(_read_poses, poses, len(scans))
     result, outputs = _guard(
-        run_inspection, model, scan, tolerance=tolerance, evaluation_distance=evaluation_distance,
+        run_inspection, model, scans[0] if len(scans) == 1 else list(scans), tolerance=tolerance, evaluation_distance=evaluation_distance,
         lower=lower, upper=upper, faces=faces, min_coverage=min_coverage, init=T0,
         scan_unit=scan_unit, model_unit=model_unit, plan=plan, pdf_path=pdf,
         json_path=json_path, report_path=report, png_path=png,
@@ -396,10 +402,6 @@ def _check_scan_suffix(model: Path, scan: Path) -> None:
     suffix = scan.suffix.lower()
     if suffix in SCAN_SUFFIXES:
         return
-    if suffix in (".stl", ".obj"):
-        _fail(f"{scan}: a mesh file is read as a reference model, not as a scan; a scanner's "
-              "mesh can be given as PLY (its vertices are the scan points); scan formats: "
-              f"{', '.join(SCAN_SUFFIXES)}")
     if suffix == PREPARED_SUFFIX or suffix in MODEL_EXTENSIONS:
         swapped = (" (the arguments seem swapped)" if model.suffix.lower() in SCAN_SUFFIXES
                    else "")
@@ -407,6 +409,24 @@ def _check_scan_suffix(model: Path, scan: Path) -> None:
               "`shapeverify inspect MODEL SCAN`")
     _fail(f"{scan}: unsupported scan extension {scan.suffix or '(none)'!r}; supported: "
           f"{', '.join(SCAN_SUFFIXES)}")
+
+
+def _read_poses(path: Path, n_scans: int) -> list:
+    """``--poses``: a JSON list of 4x4 start poses (or null), one per view."""
+    import json
+
+    import numpy as np
+
+    try:
+        data = json.loads(path.read_text(encoding="utf-8"))
+    except (ValueError, UnicodeDecodeError) as exc:
+        raise ValueError(f"{path}: not a JSON file ({exc})") from None
+    if not isinstance(data, list) or not all(p is None or np.shape(p) == (4, 4) for p in data):
+        raise ValueError(f"{path}: --poses must be a JSON list of 4x4 matrices (or null), one "
+                         "per view")
+    if n_scans > 1 and len(data) != n_scans:
+        raise ValueError(f"{path}: {len(data)} poses for {n_scans} scans: give one per view")
+    return [None if p is None else np.asarray(p, dtype=np.float64) for p in data]
 
 
 def _read_init(path: Path):
@@ -444,6 +464,25 @@ def _print_result(result) -> None:
     if any(ex.values()):
         out.print("not in the statistics: " + ", ".join(f"{v:,} {k.replace('_', ' ')}"
                                                          for k, v in ex.items() if v))
+    views = d.get("views") or []
+    if views:
+        vt = Table(title="Views (mm)")
+        for col in ("view", "points", "used", "rms (mm)", "inliers", "coverage alone",
+                    "verdict alone", "rotation (deg)", "translation (mm)"):
+            vt.add_column(col)
+        for v in views:
+            T = v.get("T_model_scan")
+            rot = tr = "-"
+            if T is not None:
+                import numpy as np
+                R = np.asarray(T)[:3, :3]
+                rot = f"{np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1))):.2f}"
+                tr = f"{float(np.linalg.norm(np.asarray(T)[:3, 3])):.2f}"
+            vt.add_row(v["name"], f"{v['n_points']:,}", "yes" if v["used"] else "NO",
+                       f"{v['rms']:.4f}" if v.get("rms") is not None else "-",
+                       f"{100 * v['inlier_fraction']:.1f} %" if v.get("inlier_fraction") is not None else "-",
+                       f"{100 * (v.get('coverage') or 0):.1f} %", v.get("verdict") or "-", rot, tr)
+        out.print(vt)
     chars = d.get("characteristics") or []
     if chars:
         from shapeverify.characteristics.evaluate import format_value as _fmt_value

@@ -117,9 +117,11 @@ def inspect_scan(prepared, scan_source, *, tolerance: float | None,
     Parameters
     ----------
     prepared : shapeverify.nearest.Prepared
-    scan_source : path, bytes, binary file object, or (N, 3) array_like
+    scan_source : path, bytes, binary file object, or (N, 3) array_like, or a list of them
         The scan file (any format of :func:`shapeverify.io.points.read_points`), its content,
-        or points already read (mm).
+        or points already read (mm). A list is several views of one part, and so is an E57
+        file with several scans (:func:`shapeverify.inspection.inspect_views`; ``init`` then a
+        list of start poses, one per view).
     tolerance, evaluation_distance, lower, upper, faces, min_coverage, init, plan
         As for :func:`shapeverify.inspect` (None: its defaults; lengths in mm).
     scan_format : str, optional
@@ -160,6 +162,17 @@ def inspect_scan(prepared, scan_source, *, tolerance: float | None,
     from shapeverify.io.points import read_points
 
     stage = stage or _no_stage
+    if isinstance(scan_source, (str, Path)) and (scan_format or Path(scan_source).suffix).lower() \
+            .lstrip(".") == "e57":
+        scan_source = [scan_source]          # an E57 file with several scans is several views
+    if isinstance(scan_source, (list, tuple)) and not isinstance(scan_source[0], (float, int)):
+        views, names, shared = _read_views(scan_source, scan_format, scan_unit, stage)
+        if len(views) > 1:
+            return _inspect_views(prepared, views, names, shared, stage, progress,
+                                  tolerance=tolerance, evaluation_distance=evaluation_distance,
+                                  lower=lower, upper=upper, faces=faces,
+                                  min_coverage=min_coverage, init=init, plan=plan)
+        scan_source, scan_unit = views[0], None
     timings = {}
     t0 = time.perf_counter()
     if isinstance(scan_source, np.ndarray):
@@ -184,6 +197,66 @@ def inspect_scan(prepared, scan_source, *, tolerance: float | None,
                          faces=faces, init=init, plan=plan, progress=progress, **opts)
     timings["inspect_s"] = time.perf_counter() - t0
     return ScanInspection(result, scan, timings)
+
+
+def _read_views(sources, scan_format, scan_unit, stage):
+    """The views of several scan sources (an E57 file with several scans gives each of them):
+    (views, names, shared_frame)."""
+    from shapeverify.io.points import read_points
+
+    views, names = [], []
+    e57_multi = False
+    for src in sources:
+        label = Path(src).name if isinstance(src, (str, Path)) else getattr(src, "name", "scan")
+        if isinstance(src, np.ndarray):
+            pts = [np.asarray(src, np.float64)]
+            labels = [f"view {len(views) + 1}"]
+        elif (scan_format or Path(str(label)).suffix).lower().lstrip(".") == "e57":
+            from shapeverify.io.e57 import read_e57_views
+            with stage(f"Reading scan {label}"):
+                ev = read_e57_views(src) if isinstance(src, (str, Path)) else \
+                    read_e57_views(src.read() if hasattr(src, "read") else src, label)
+            pts = [v.points for v in ev]
+            labels = [f"{label}:{v.name}" if len(ev) > 1 else label for v in ev]
+            e57_multi |= len(ev) > 1
+        else:
+            with stage(f"Reading scan {label}"):
+                pts = [read_points(src, scan_format)]
+            labels = [label]
+        if scan_unit is not None and not str(label).lower().endswith(".e57"):
+            from shapeverify.units import scale_points
+            pts = [scale_points(p, scan_unit) for p in pts]
+        views += pts
+        names += labels
+    return views, names, e57_multi and len(sources) == 1
+
+
+def _inspect_views(prepared, views, names, shared, stage, progress, *, init, plan, **opts):
+    """Several views of one part (:func:`shapeverify.inspection.inspect_views`)."""
+    from shapeverify.inspection import inspect_views
+
+    if plan is not None:
+        raise ValueError("an inspection plan with several views is not supported yet: inspect "
+                         "the views one by one, or merge them into one scan first")
+    poses = None
+    if init is not None:
+        arr = np.asarray(init, dtype=object) if not isinstance(init, str) else None
+        if arr is None or arr.shape == (4, 4):
+            raise ValueError("with several views give one start pose per view (--poses "
+                             "poses.json: a list of 4x4 T_model_scan, null for none), not one "
+                             "--init")
+        poses = list(init)
+    t0 = time.perf_counter()
+    clean = {k: v for k, v in opts.items() if v is not None or k == "tolerance"}
+    with stage(f"Registering and inspecting {len(views)} views "
+               f"({sum(len(v) for v in views):,} points)"):
+        result = inspect_views(prepared, views, names=names, poses=poses, shared_frame=shared,
+                               **clean)
+    if progress is not None:
+        progress("done", 1.0)
+    union = np.concatenate([views[i] @ v.T_model_scan[:3, :3].T + v.T_model_scan[:3, 3]
+                            for i, v in enumerate(result.views) if v.used])
+    return ScanInspection(result, union, {"inspect_s": time.perf_counter() - t0})
 
 
 @dataclass
@@ -235,8 +308,10 @@ def run_inspection(model_path: str | Path, scan_path: str | Path, tolerance: flo
     # the model file's hash ties the written outputs to it; no need to read the file again without
     outputs = (json_path, report_path, png_path, pdf_path, colored_path, db_path)
     model_hash = file_hash(model_path) if any(outputs) else None
+    scan_names = ([Path(p).name for p in scan_path] if isinstance(scan_path, (list, tuple))
+                  else [Path(scan_path).name])
     result = dataclasses.replace(done.result, inputs={
-        "part": part, "scan": Path(scan_path).name, "model": Path(model_path).name,
+        "part": part, "scan": ", ".join(scan_names), "model": Path(model_path).name,
         "model_sha256": model_hash})
     write_outputs(result, prep, done.scan, out, json_path=json_path, report_path=report_path,
                   png_path=png_path, pdf_path=pdf_path, colored_path=colored_path,

@@ -15,8 +15,9 @@ from .material import find_material
 from .regions import DefectRegion, Outliers, find_regions
 from .result import InspectionResult
 from .verdict import Statistics, Tolerance, Verdict, decide, per_face_statistics, statistics
+from .views import ViewSummary, inspect_views
 
-__all__ = [
+__all__ = ["inspect_views", "ViewSummary", 
     "deviations", "Deviations", "EVALUATED", "TOO_FAR", "ON_BOUNDARY", "OUTSIDE_FACES",
     "inspect", "inspect_registered", "check_scan", "default_evaluation_distance", "InspectionResult",
     "Coverage", "compute_coverage", "MIN_COVERAGE", "find_material",

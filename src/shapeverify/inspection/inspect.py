@@ -154,8 +154,11 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
     ----------
     prep : shapeverify.nearest.Prepared
         Prepared model.
-    scan : (N, 3) array_like
-        Scan points (mm) in the scanner's frame.
+    scan : (N, 3) array_like, or a list of them
+        Scan points (mm) in the scanner's frame; a list of (N_i, 3) arrays (or
+        :class:`~shapeverify.io.e57.ScanView`) is several views of one part, inspected together
+        by :func:`shapeverify.inspection.views.inspect_views` (``init``: then a list of start
+        poses, one per view, None for a view to be placed by the global search).
     tolerance : float or Tolerance, optional
         Symmetric tolerance ±mm (default 0.2), or a :class:`Tolerance`.
     evaluation_distance : float, optional
@@ -230,7 +233,18 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
     ('fail', 'regions')
     """
     from ..registration import register
+    from .views import inspect_views, is_view_list
 
+    if is_view_list(scan):   # several views of one part (inspection.views)
+        if plan is not None:
+            raise ValueError("an inspection plan with several views is not supported yet: "
+                             "merge the views first or inspect them one by one")
+        return inspect_views(prep, scan, tolerance, poses=None if init is None else init,
+                             rng=rng, register_kwargs=register_kwargs,
+                             evaluation_distance=evaluation_distance, lower=lower, upper=upper,
+                             faces=faces, per_face=per_face, min_coverage=min_coverage,
+                             min_region_points=min_region_points,
+                             min_inlier_fraction=min_inlier_fraction, max_distance=max_distance)
     t_start = time.perf_counter()
     timings = {}
     opts = _options(prep, tolerance, lower, upper, per_face, evaluation_distance, max_distance,

@@ -73,6 +73,9 @@ class InspectionResult:
         verdict (:mod:`shapeverify.characteristics`).
     plan : PlanResult or None
         With a plan: the whole plan evaluation (alignment, section, ...).
+    views : tuple of ViewSummary
+        With several views (:mod:`shapeverify.inspection.views`): each view's pose, fit,
+        coverage alone and agreement with the others; () for one scan.
     """
 
     verdict: Verdict
@@ -93,6 +96,7 @@ class InspectionResult:
     inputs: dict = field(default_factory=dict)
     characteristics: tuple = ()
     plan: object = None
+    views: tuple = ()
 
     def __post_init__(self):
         try:  # the one place a verdict string becomes a Verdict
@@ -166,6 +170,8 @@ class InspectionResult:
             plan = self.plan.to_dict()
             d["characteristics"] = plan["characteristics"]
             d["alignment"] = plan["alignment"]
+        if self.views:
+            d["views"] = [v.to_dict() for v in self.views]
         if per_face:
             d["per_face"] = {str(f): {k: _num(v) for k, v in s.to_dict().items()}
                              for f, s in self.per_face.items()}

@@ -15,7 +15,7 @@ Example
 -------
 >>> from shapeverify.io.formats import SCAN_SUFFIXES, scan_reader
 >>> SCAN_SUFFIXES
-('.ply', '.xyz', '.txt', '.csv', '.npy', '.pcd')
+('.ply', '.xyz', '.txt', '.csv', '.npy', '.pcd', '.e57', '.las', '.laz', '.stl', '.obj')
 >>> scan_reader("XYZ").__name__
 'read_table'
 """
@@ -30,6 +30,9 @@ from typing import Callable
 import numpy as np
 
 from shapeverify.errors import ScanError, UnsupportedFormatError
+from shapeverify.io.e57 import read_e57
+from shapeverify.io.las import read_las
+from shapeverify.io.mesh_scan import read_obj_scan, read_stl_scan
 from shapeverify.io.npy import read_npy
 from shapeverify.io.pcd import read_pcd
 from shapeverify.io.ply import read_ply_points
@@ -46,6 +49,11 @@ SCAN_READERS: dict[str, Callable[[bytes, str], np.ndarray]] = {
     ".csv": read_table,
     ".npy": read_npy,
     ".pcd": read_pcd,
+    ".e57": read_e57,   # all scans of the file, in its common frame, mm (the scanners extra)
+    ".las": read_las,   # as stored (the scanners extra)
+    ".laz": read_las,
+    ".stl": read_stl_scan,   # a scanner's mesh: its vertices (+ points on large triangles)
+    ".obj": read_obj_scan,
 }
 #: The suffixes of the scan files shapeverify reads (the one list).
 SCAN_SUFFIXES = tuple(SCAN_READERS)
@@ -153,14 +161,14 @@ def source_bytes(source, name: str | None = None) -> tuple[bytes, str]:
 # the file families a content sniff can tell apart: suffix -> family
 _FAMILY = {".ply": "PLY", ".npy": "NumPy .npy", ".pcd": "PCD", ".step": "STEP", ".stp": "STEP",
            ".igs": "IGES", ".iges": "IGES", ".stl": "STL", ".obj": "OBJ", ".xyz": "text",
-           ".txt": "text", ".csv": "text"}
+           ".txt": "text", ".csv": "text", ".e57": "E57", ".las": "LAS", ".laz": "LAS"}
 _SUFFIX = {"PLY": ".ply", "NumPy .npy": ".npy", "PCD": ".pcd", "STEP": ".step", "IGES": ".igs",
-           "STL": ".stl", "OBJ": ".obj"}
+           "STL": ".stl", "OBJ": ".obj", "E57": ".e57", "LAS": ".las"}
 
 
 def sniff_format(data: bytes) -> str | None:
     """What a file's first bytes say it is: ``"PLY"``, ``"NumPy .npy"``, ``"PCD"``, ``"STEP"``,
-    ``"IGES"``, ``"STL"``, ``"OBJ"``, or None (plain text tables and unknown content).
+    ``"IGES"``, ``"STL"``, ``"OBJ"``, ``"E57"``, ``"LAS"``, or None (plain text tables and unknown content).
 
     Only for messages: the readers never guess a format from the content.
 
@@ -172,6 +180,10 @@ def sniff_format(data: bytes) -> str | None:
         return "PLY"
     if head.startswith(b"\x93NUMPY"):
         return "NumPy .npy"
+    if head.startswith(b"ASTM-E57"):
+        return "E57"
+    if head.startswith(b"LASF"):
+        return "LAS"
     text = head.lstrip()
     if text.startswith(b"ISO-10303-21"):
         return "STEP"

@@ -17,6 +17,13 @@ registry :mod:`shapeverify.io.formats`; the parsers live in :mod:`.ply`, :mod:`.
 ``.pcd``
     Point Cloud Library files with ``DATA ascii`` or ``DATA binary`` and fields ``x y z``.
     ``binary_compressed`` is not supported (UnsupportedFormatError names it).
+``.e57``
+    ASTM E57 (:mod:`.e57`): every scan of the file with its pose applied, in the file's common
+    frame, converted from the standard's metres to mm (:func:`shapeverify.io.e57.read_e57_views`
+    gives the scans one by one).  Needs the ``scanners`` extra (pye57).
+``.las`` ``.laz``
+    ASPRS LAS/LAZ (:mod:`.las`): scale and offset applied, in the file's unit.  Needs the
+    ``scanners`` extra (laspy; LAZ also a backend: ``laspy[lazrs]``).
 
 Rows with a NaN or infinite coordinate, or one beyond +-1e12 (:data:`MAX_COORDINATE`: no length
 unit makes that a measurement; it is what garbage bytes decode to), are dropped; the number

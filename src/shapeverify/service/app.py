@@ -53,13 +53,14 @@ from shapeverify.service.work import Work
 log = logging.getLogger(__name__)
 
 _SCAN_TYPES = ["application/octet-stream", "application/x-npy", "application/ply", "model/ply",
-               "application/x-pcd", "text/plain", "text/csv", "text/x-xyz"]
+               "application/x-pcd", "application/x-e57", "application/vnd.las",
+               "application/vnd.laszip", "text/plain", "text/csv", "text/x-xyz"]
 _ERRORS = {
     401: "missing or wrong token (only when the service runs with --token)",
     404: "unknown model or record",
     408: "the upload did not arrive within the time limit",
     413: "body larger than the limit (--max-body-mb)",
-    415: "not a supported scan format (PLY, NPY, PCD, XYZ/CSV text)",
+    415: "not a supported scan format (PLY, NPY, PCD, E57, LAS/LAZ, XYZ/CSV text)",
     422: "malformed, empty or NaN-only scan; bad query parameters; a scan that cannot be inspected",
     504: "the inspection did not finish within the time limit (--time-limit); nothing was stored",
     507: "the server's disk is full: nothing was stored and no temporary file is left; free "

@@ -20,8 +20,11 @@ _CONTENT_TYPES = {
     "text/x-xyz": ".xyz",
     "text/csv": ".csv",
     "application/x-pcd": ".pcd",
+    "application/x-e57": ".e57",
+    "application/vnd.las": ".las",
+    "application/vnd.laszip": ".laz",
 }
-SUPPORTED = "PLY (ascii or binary), NPY, PCD, or XYZ/CSV text"
+SUPPORTED = "PLY (ascii or binary), NPY, PCD, E57, LAS/LAZ, or XYZ/CSV text"
 # content types that say nothing about the format: the first bytes decide
 # (curl --data-binary sends application/x-www-form-urlencoded unless told otherwise)
 _SNIFFED_TYPES = ("text/plain", "application/octet-stream", "application/x-www-form-urlencoded")
@@ -50,9 +53,13 @@ def sniff_suffix(body: bytes, content_type: str | None = None) -> str:
         return ".npy"
     if head.lstrip().startswith((b"# .PCD", b"VERSION", b"FIELDS")):
         return ".pcd"
+    if head.startswith(b"ASTM-E57"):
+        return ".e57"
+    if head.startswith(b"LASF"):   # LAS or LAZ: laspy tells them apart from the header
+        return ".las"
     if any(b < 32 and b not in b"\t\n\r\f\v" for b in head) or b"\x7f" in head:
         raise UnsupportedFormatError(
-            f"the request body is binary but not PLY, NPY or PCD (first bytes {head[:8]!r}); send {SUPPORTED}")
+            f"the request body is binary but not PLY, NPY, PCD, E57 or LAS (first bytes {head[:8]!r}); send {SUPPORTED}")
     text = head.decode("latin-1")
     if ctype.startswith("multipart/"):
         raise UnsupportedFormatError(
