@@ -206,8 +206,10 @@ def test_fuzz_ascii_scan_line_mutations_are_refused_or_read_exactly(seed, fmt, o
     elif op == "drop_line":
         del lines[i]
     elif op == "number":   # a value changed to another number: read as written
-        tok = lines[i].replace(",", " ").replace(";", " ").replace("\t", " ").split()
-        lines[i] = lines[i].replace(tok[rng.randrange(3)], repr(rng.uniform(-9, 9)), 1)
+        sep = next((c for c in ",;\t" if c in lines[i]), " ")
+        tok = lines[i].split(sep)
+        tok[rng.randrange(3)] = repr(rng.uniform(-9, 9))
+        lines[i] = sep.join(tok)
     elif op == "junk":
         lines[i] = lines[i] + " " + rng.choice(["x", "1.2.3", "--", "nan nan"])
     elif op == "blank":
