@@ -426,3 +426,25 @@ def test_row8_pcd_binary_compressed_back_references_and_damage():
         lzf_decompress(bytes([10]) + b"abc", 11, "x")                  # literal run cut off
     with pytest.raises(ScanError, match="cannot decode to"):
         lzf_decompress(b"\0a", 10**12, "x")                            # refused before allocating
+
+
+def _binary_stl(tris: np.ndarray) -> bytes:
+    rec = np.zeros(len(tris), np.dtype([("n", "<f4", (3,)), ("v", "<f4", (3, 3)), ("a", "<u2")]))
+    rec["v"] = tris
+    return b"\0" * 80 + struct.pack("<I", len(tris)) + rec.tobytes()
+
+
+def test_row8_binary_stl_with_bytes_inserted_is_refused(tmp_path):
+    from shapeverify.errors import CADImportError
+    from shapeverify.io.mesh import read_mesh
+
+    tris = np.random.default_rng(5).uniform(-10, 10, (6, 3, 3)).astype(np.float32)
+    data = _binary_stl(tris)
+    p = tmp_path / "m.stl"
+    p.write_bytes(data + b"\0\0")          # zero padding after the body: still read
+    v, t = read_mesh(p)
+    np.testing.assert_array_equal(v[t], tris.astype(np.float64))
+    p.write_bytes(data[:200] + b"\x01" * 8 + data[200:])   # 8 bytes inserted: was read shifted
+    with pytest.raises(CADImportError, match=r"m\.stl: the binary STL header declares 6 triangles "
+                                             r"\(384 bytes\), the file has 392 bytes"):
+        read_mesh(p)
