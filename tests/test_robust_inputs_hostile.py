@@ -448,3 +448,15 @@ def test_row8_binary_stl_with_bytes_inserted_is_refused(tmp_path):
     with pytest.raises(CADImportError, match=r"m\.stl: the binary STL header declares 6 triangles "
                                              r"\(384 bytes\), the file has 392 bytes"):
         read_mesh(p)
+
+
+def test_row11_rig_camera_of_30000_by_30000_pixels_is_refused_when_read(tmp_path):
+    # the measure chain allocates per-pixel arrays of the rig's camera size
+    rig, _ = look_at_rig([0.0, 0.0, 0.0], 400.0, width=64, height=48)
+    d = rig.to_dict()
+    d["cameras"]["right"]["size"] = [30000, 30000]
+    p = tmp_path / "rig.json"
+    p.write_text(json.dumps(d))
+    with pytest.raises(RigFormatError, match=r"rig\.json: cameras\.right\.size \[30000, 30000\] "
+                                             r"is 900,000,000 pixels; the limit is 200,000,000"):
+        load_rig(p)
