@@ -460,3 +460,13 @@ def test_row11_rig_camera_of_30000_by_30000_pixels_is_refused_when_read(tmp_path
     with pytest.raises(RigFormatError, match=r"rig\.json: cameras\.right\.size \[30000, 30000\] "
                                              r"is 900,000,000 pixels; the limit is 200,000,000"):
         load_rig(p)
+
+
+def test_row11_phase_map_png_declaring_30000_by_30000_is_refused_before_pillow_decodes(tmp_path):
+    from shapeverify.io.image_header import ImageInputError
+    from shapeverify.phase.files import read_phase
+
+    p = tmp_path / "psi.png"
+    p.write_bytes(_png_header(30000, 30000))
+    with pytest.raises(ImageInputError, match=r"psi\.png: the phase map declares 30000 x 30000"):
+        read_phase(p)
