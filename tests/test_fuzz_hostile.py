@@ -206,8 +206,10 @@ def test_fuzz_ascii_scan_line_mutations_are_refused_or_read_exactly(seed, fmt, o
     elif op == "drop_line":
         del lines[i]
     elif op == "number":   # a value changed to another number: read as written
-        tok = lines[i].replace(",", " ").replace(";", " ").replace("\t", " ").split()
-        lines[i] = lines[i].replace(tok[rng.randrange(3)], repr(rng.uniform(-9, 9)), 1)
+        sep = next((c for c in ",;\t" if c in lines[i]), " ")
+        tok = lines[i].split(sep)
+        tok[rng.randrange(3)] = repr(rng.uniform(-9, 9))
+        lines[i] = sep.join(tok)
     elif op == "junk":
         lines[i] = lines[i] + " " + rng.choice(["x", "1.2.3", "--", "nan nan"])
     elif op == "blank":
@@ -247,10 +249,19 @@ def _declared_rows(data: bytes, ext: str):
 
 def _valid_scan(seed: int):
     rng = random.Random(seed)
-    kind = rng.choice(["ply_b", "ply_a", "pcd_b", "pcd_a", "npy"])
+    kind = rng.choice(["ply_b", "ply_a", "pcd_b", "pcd_a", "pcd_c", "npy"])
     pts = np.array([[rng.uniform(-500, 500) for _ in range(3)] for _ in range(rng.randint(1, 30))])
     if kind.startswith("ply"):
         return ply_bytes(pts, binary=kind == "ply_b"), ".ply"
+    if kind == "pcd_c":   # binary_compressed, as LZF literal runs (valid by the format)
+        f = pts.astype("<f4")
+        raw = f[:, 0].tobytes() + f[:, 1].tobytes() + f[:, 2].tobytes()
+        comp = b"".join(bytes([len(raw[i:i + 32]) - 1]) + raw[i:i + 32]
+                        for i in range(0, len(raw), 32))
+        n = len(pts)
+        head = ("# .PCD v0.7\nVERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n"
+                f"WIDTH {n}\nHEIGHT 1\nPOINTS {n}\nDATA binary_compressed\n").encode()
+        return head + struct.pack("<II", len(comp), len(raw)) + comp, ".pcd"
     if kind.startswith("pcd"):
         make = _binary_pcd if kind == "pcd_b" else None
         if make:

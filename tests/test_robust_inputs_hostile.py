@@ -386,3 +386,87 @@ def test_yaml_safe_budget_scales_with_the_file_not_a_constant():
     # a long plan without aliases is never refused by the budget
     text = "items:\n" + "".join(f"  - {{a: {i}, b: [1, 2, 3]}}\n" for i in range(20_000))
     assert len(load_yaml(text, "big.yaml")["items"]) == 20_000
+
+
+# --------------------------------------------------- row 8: PCD binary_compressed (LZF)
+def _lzf_literals(raw: bytes) -> bytes:
+    """An LZF stream of literal runs only (liblzf's format: a control byte c < 32, then c + 1
+    bytes) -- valid by the format's definition, independent of the decoder under test."""
+    return b"".join(bytes([len(raw[i:i + 32]) - 1]) + raw[i:i + 32] for i in range(0, len(raw), 32))
+
+
+def _compressed_pcd(pts: np.ndarray, n_declared: int | None = None, stream=None) -> bytes:
+    n = len(pts) if n_declared is None else n_declared
+    f = pts.astype("<f4")
+    rgb = np.arange(len(pts), dtype="<u4")
+    raw = f[:, 0].tobytes() + f[:, 1].tobytes() + f[:, 2].tobytes() + rgb.tobytes()  # field by field
+    comp = _lzf_literals(raw) if stream is None else stream
+    head = ("# .PCD v0.7\nVERSION 0.7\nFIELDS x y z rgb\nSIZE 4 4 4 4\nTYPE F F F U\n"
+            f"COUNT 1 1 1 1\nWIDTH {n}\nHEIGHT 1\nVIEWPOINT 0 0 0 1 0 0 0\nPOINTS {n}\n"
+            "DATA binary_compressed\n").encode()
+    return head + struct.pack("<II", len(comp), len(raw)) + comp
+
+
+def test_row8_pcd_binary_compressed_reads_exactly_and_refuses_a_wrong_count(pts40):
+    np.testing.assert_array_equal(read_points(_compressed_pcd(pts40), ".pcd"), pts40)
+    with pytest.raises(ScanError, match=r"declares 20 points \(320 bytes of fields\), the "
+                                        r"compressed block holds 640 bytes \(40 points\)"):
+        read_points(_compressed_pcd(pts40, 20), ".pcd", name="scan.pcd")
+
+
+def test_row8_pcd_binary_compressed_back_references_and_damage():
+    from shapeverify.io.lzf import lzf_decompress
+
+    # "abc" as literals, then a reference 3 back copying 6 bytes (overlapping: "abcabc")
+    stream = bytes([2]) + b"abc" + bytes([(4 << 5) | 0, 2])
+    assert lzf_decompress(stream, 9, "x") == b"abcabcabc"
+    with pytest.raises(ScanError, match="damaged"):
+        lzf_decompress(bytes([(4 << 5) | 0, 9]) + b"abc", 9, "x")     # reference before start
+    with pytest.raises(ScanError, match="damaged"):
+        lzf_decompress(bytes([10]) + b"abc", 11, "x")                  # literal run cut off
+    with pytest.raises(ScanError, match="cannot decode to"):
+        lzf_decompress(b"\0a", 10**12, "x")                            # refused before allocating
+
+
+def _binary_stl(tris: np.ndarray) -> bytes:
+    rec = np.zeros(len(tris), np.dtype([("n", "<f4", (3,)), ("v", "<f4", (3, 3)), ("a", "<u2")]))
+    rec["v"] = tris
+    return b"\0" * 80 + struct.pack("<I", len(tris)) + rec.tobytes()
+
+
+def test_row8_binary_stl_with_bytes_inserted_is_refused(tmp_path):
+    from shapeverify.errors import CADImportError
+    from shapeverify.io.mesh import read_mesh
+
+    tris = np.random.default_rng(5).uniform(-10, 10, (6, 3, 3)).astype(np.float32)
+    data = _binary_stl(tris)
+    p = tmp_path / "m.stl"
+    p.write_bytes(data + b"\0\0")          # zero padding after the body: still read
+    v, t = read_mesh(p)
+    np.testing.assert_array_equal(v[t], tris.astype(np.float64))
+    p.write_bytes(data[:200] + b"\x01" * 8 + data[200:])   # 8 bytes inserted: was read shifted
+    with pytest.raises(CADImportError, match=r"m\.stl: the binary STL header declares 6 triangles "
+                                             r"\(384 bytes\), the file has 392 bytes"):
+        read_mesh(p)
+
+
+def test_row11_rig_camera_of_30000_by_30000_pixels_is_refused_when_read(tmp_path):
+    # the measure chain allocates per-pixel arrays of the rig's camera size
+    rig, _ = look_at_rig([0.0, 0.0, 0.0], 400.0, width=64, height=48)
+    d = rig.to_dict()
+    d["cameras"]["right"]["size"] = [30000, 30000]
+    p = tmp_path / "rig.json"
+    p.write_text(json.dumps(d))
+    with pytest.raises(RigFormatError, match=r"rig\.json: cameras\.right\.size \[30000, 30000\] "
+                                             r"is 900,000,000 pixels; the limit is 200,000,000"):
+        load_rig(p)
+
+
+def test_row11_phase_map_png_declaring_30000_by_30000_is_refused_before_pillow_decodes(tmp_path):
+    from shapeverify.io.image_header import ImageInputError
+    from shapeverify.phase.files import read_phase
+
+    p = tmp_path / "psi.png"
+    p.write_bytes(_png_header(30000, 30000))
+    with pytest.raises(ImageInputError, match=r"psi\.png: the phase map declares 30000 x 30000"):
+        read_phase(p)

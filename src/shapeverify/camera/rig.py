@@ -117,6 +117,11 @@ class Device:
         size = tuple(int(s) for s in np.asarray(self.size).ravel()) if np.size(self.size) == 2 else None
         if size is None or min(size) < 1 or not np.allclose(np.asarray(self.size, dtype=float), size):
             raise RigFormatError(f"size must be [width, height] in whole pixels, got {self.size!r}")
+        from shapeverify.io.image_header import MAX_IMAGE_PIXELS
+
+        if size[0] * size[1] > MAX_IMAGE_PIXELS:   # measuring allocates per-pixel arrays
+            raise RigFormatError(f"size {list(size)} is {size[0] * size[1]:,} pixels; the limit is "
+                                 f"{MAX_IMAGE_PIXELS:,} (is a digit too many?)")
         object.__setattr__(self, "size", size)
 
     @property

@@ -178,6 +178,8 @@ def _pnm(b: bytes):
             j = i
             while j < len(b) and not b[j:j + 1].isspace() and j - i < 12:
                 j += 1
+            if not b[i:j].isdigit():
+                return None
             tokens.append(int(b[i:j]))
             i = j
     if len(tokens) < 2:

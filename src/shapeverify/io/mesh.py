@@ -126,8 +126,14 @@ def _read_stl(path: Path):
     n_bin = int(np.frombuffer(data, "<u4", 1, 80)[0]) if len(data) >= 84 else -1
     is_binary = n_bin >= 0 and len(data) == 84 + 50 * n_bin
     if not is_binary and data.lstrip()[:5].lower() != b"solid":
-        if n_bin >= 0 and len(data) > 84 + 50 * n_bin:
-            is_binary = True  # trailing bytes after a valid binary body: tolerated
+        tail = data[84 + 50 * n_bin:] if n_bin >= 0 else b""
+        if n_bin > 0 and tail and len(tail) < 50 and not tail.strip(b"\0 \t\r\n"):
+            is_binary = True  # padding (zeros, a newline) after a valid binary body
+        elif n_bin > 0 and len(data) > 84 + 50 * n_bin:
+            raise CADImportError(
+                f"{path}: the binary STL header declares {n_bin} triangles "
+                f"({84 + 50 * n_bin} bytes), the file has {len(data)} bytes: data was inserted "
+                "or appended, or the count is wrong; export the mesh again")
         else:
             raise CADImportError(f"{path}: not an STL file (neither 'solid ...' text nor a binary "
                             f"STL of consistent size: header says {max(n_bin, 0)} triangles, "

@@ -1,14 +1,19 @@
-"""Point Cloud Library ``.pcd`` files with ``DATA ascii`` or ``DATA binary`` and fields ``x y z``.
+"""Point Cloud Library ``.pcd`` files with ``DATA ascii``, ``binary`` or ``binary_compressed``
+and fields ``x y z``.
 
-``binary_compressed`` is not supported (:class:`~shapeverify.errors.UnsupportedFormatError`
-names it and how to convert the file).
+The header's point count (``POINTS``, ``WIDTH x HEIGHT``) must match the data: more or less data
+than declared is an error that gives both numbers.  ``binary_compressed`` (PCL's LZF-compressed
+fields, one after the other) is decompressed by :mod:`shapeverify.io.lzf` after its two sizes
+are checked against the header and the file.
 """
 
 from __future__ import annotations
 
+import struct
+
 import numpy as np
 
-from shapeverify.errors import ScanError, UnsupportedFormatError
+from shapeverify.errors import ScanError
 
 __all__ = ["read_pcd"]
 
@@ -30,15 +35,17 @@ def read_pcd(data: bytes, name: str) -> np.ndarray:
         if not line or line.startswith("#"):
             continue
         tok = line.split()
-        hdr[tok[0].upper()] = tok[1:]
+        key = tok[0].upper()
+        if key in hdr:   # two POINTS (or FIELDS...) lines: which one holds is anybody's guess
+            raise ScanError(f"{name}: malformed PCD header: {tok[0][:20]!r} appears twice")
+        if not key[:1].isalpha():
+            raise ScanError(f"{name}: malformed PCD header: line {line[:40]!r} is not "
+                            "'KEYWORD values' (is a header line broken in two?)")
+        hdr[key] = tok[1:]
         if tok[0].upper() == "DATA":
             break
     kind = (hdr["DATA"] or ["?"])[0].lower()
-    if kind == "binary_compressed":
-        raise UnsupportedFormatError(
-            f"{name}: PCD 'DATA binary_compressed' is not supported; convert it to binary or "
-            "ascii (e.g. pcl_convert_pcd_ascii_binary in.pcd out.pcd 1)")
-    if kind not in ("ascii", "binary"):
+    if kind not in ("ascii", "binary", "binary_compressed"):
         raise ScanError(f"{name}: malformed PCD header: unknown DATA {kind!r}")
     try:
         fields = hdr["FIELDS"]
@@ -84,6 +91,8 @@ def read_pcd(data: bytes, name: str) -> np.ndarray:
                             f"{s}: TYPE is one letter, F (float, SIZE 4 or 8), I or U (integer, "
                             "SIZE 1, 2, 4 or 8)")
         codes.append(_CODES[t] + str(s))
+    if kind == "binary_compressed":
+        return _compressed(data, pos, name, fields, codes, counts, npts)
     if kind == "binary":
         dt = np.dtype([(f"f{j}", "<" + code, (cnt,)) if cnt > 1 else (f"f{j}", "<" + code)
                        for j, (code, cnt) in enumerate(zip(codes, counts))])
@@ -113,3 +122,34 @@ def read_pcd(data: bytes, name: str) -> np.ndarray:
         raise ScanError(f"{name}: PCD header declares {npts} points, file has {table.shape[0]}")
     starts = np.concatenate([[0], np.cumsum(counts)[:-1]])
     return table[:, [starts[fields.index(c)] for c in "xyz"]]
+
+
+def _compressed(data: bytes, pos: int, name: str, fields, codes, counts, npts: int) -> np.ndarray:
+    """x y z of ``DATA binary_compressed``: two uint32 (compressed and uncompressed size), then
+    LZF data that decodes to each field's values for all points, field after field."""
+    if len(data) - pos < 8:
+        raise ScanError(f"{name}: truncated PCD: binary_compressed data without its sizes")
+    csize, usize = struct.unpack_from("<II", data, pos)
+    rest = len(data) - pos - 8
+    if csize > rest:
+        raise ScanError(f"{name}: truncated PCD: the compressed block declares {csize} bytes, "
+                        f"{rest} present")
+    tail = data[pos + 8 + csize:]
+    if tail and (len(tail) >= 4 or tail.strip(b" \t\r\n")):
+        raise ScanError(f"{name}: the PCD compressed block declares {csize} bytes, the file holds "
+                        f"{rest}: data was inserted or appended")
+    sizes = [int(c[1:]) * cnt for c, cnt in zip(codes, counts)]
+    need = npts * sum(sizes)
+    if usize != need:
+        raise ScanError(f"{name}: the PCD header declares {npts} points ({need} bytes of fields), "
+                        f"the compressed block holds {usize} bytes "
+                        f"({usize / max(sum(sizes), 1):.6g} points); correct POINTS (and WIDTH, "
+                        "HEIGHT)")
+    from shapeverify.io.lzf import lzf_decompress
+
+    raw = lzf_decompress(data[pos + 8: pos + 8 + csize], usize, name)
+    starts = np.concatenate([[0], np.cumsum([npts * s for s in sizes])[:-1]]).astype(int)
+    with np.errstate(invalid="ignore", over="ignore"):
+        return np.column_stack([
+            np.frombuffer(raw, "<" + codes[fields.index(c)], npts, int(starts[fields.index(c)]))
+            .astype(np.float64) for c in "xyz"])

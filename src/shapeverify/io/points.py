@@ -15,8 +15,8 @@ registry :mod:`shapeverify.io.formats`; the parsers live in :mod:`.ply`, :mod:`.
     an ``(N, 3)`` or ``(N, >=3)`` numeric array (first three columns), or a structured array
     with fields ``x y z``.  Loaded without pickle.
 ``.pcd``
-    Point Cloud Library files with ``DATA ascii`` or ``DATA binary`` and fields ``x y z``.
-    ``binary_compressed`` is not supported (UnsupportedFormatError names it).
+    Point Cloud Library files with ``DATA ascii``, ``binary`` or ``binary_compressed`` (LZF)
+    and fields ``x y z``.
 ``.e57``
     ASTM E57 (:mod:`.e57`): every scan of the file with its pose applied, in the file's common
     frame, converted from the standard's metres to mm (:func:`shapeverify.io.e57.read_e57_views`
@@ -24,6 +24,10 @@ registry :mod:`shapeverify.io.formats`; the parsers live in :mod:`.ply`, :mod:`.
 ``.las`` ``.laz``
     ASPRS LAS/LAZ (:mod:`.las`): scale and offset applied, in the file's unit.  Needs the
     ``scanners`` extra (laspy; LAZ also a backend: ``laspy[lazrs]``).
+
+Every reader checks the counts its header declares against the data: more or less data than
+declared (rows appended, bytes inserted, a truncated file) is a ScanError that gives both
+numbers, never a silently truncated or shifted cloud.
 
 Rows with a NaN or infinite coordinate, or one beyond +-1e12 (:data:`MAX_COORDINATE`: no length
 unit makes that a measurement; it is what garbage bytes decode to), are dropped; the number
@@ -82,7 +86,7 @@ def read_points(source, format: str | None = None, *, name: str | None = None) -
     Raises
     ------
     UnsupportedFormatError
-        Unknown extension, or a PCD file with ``DATA binary_compressed``.
+        Unknown extension.
     FileNotFoundError
         The file does not exist.
     ScanError

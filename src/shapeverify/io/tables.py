@@ -116,8 +116,6 @@ def _is_numeric_row(line: str, delim) -> bool:
     if delim == ";":
         line = line.replace(",", ".")
     tok = [t for t in (line.split(delim) if delim else line.split()) if t.strip()]
-    try:
-        [float(t) for t in tok[:3]]
-    except ValueError:
-        return False
-    return bool(tok)
+    # a header line starts with a name ("x y z", "X,Y,Z,I"); a line that starts with a number
+    # and holds a word further on is a damaged data row (an error), not a header to skip
+    return bool(tok) and _is_float(tok[0].split()[0])

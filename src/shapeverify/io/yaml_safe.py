@@ -35,6 +35,7 @@ __all__ = ["YamlInputError", "load_yaml", "MAX_DEPTH"]
 #: Deepest nesting of mappings and sequences accepted.
 MAX_DEPTH = 100
 _MERGE = "tag:yaml.org,2002:merge"
+_COLLECTION_TAGS = ("tag:yaml.org,2002:map", "tag:yaml.org,2002:seq")
 #: libyaml's composer when PyYAML has it: linear on nested flow collections (PyYAML's own
 #: scanner takes seconds on ``[[[[...`` a few thousand deep) and with a nesting limit of its own
 _LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
@@ -122,6 +123,9 @@ class _Builder:
         if id(node) in self.open:
             self.fail(node, "a recursive alias (an anchor used inside itself); write the "
                             "values out")
+        if node.tag not in _COLLECTION_TAGS:   # !!binary {...}, !!python/..., !!set: refused
+            self.fail(node, f"unsupported tag {node.tag!r} on a "
+                            f"{'list' if isinstance(node, yaml.SequenceNode) else 'mapping'}")
         self.open.add(id(node))
         try:
             if isinstance(node, yaml.SequenceNode):

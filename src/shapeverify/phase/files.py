@@ -56,6 +56,10 @@ def _read_raw(path):
         raise ValueError(f"unsupported phase file type {suffix!r} ({p.name}); use .npy, .png or .tif")
     from PIL import Image  # Pillow comes with matplotlib
 
+    from shapeverify.io.image_header import check_image_size
+
+    check_image_size(p, what="phase map")   # the size its header declares, before decoding
+
     try:
         im = Image.open(p)
     except Exception as exc:  # Pillow raises various types for undecodable files
