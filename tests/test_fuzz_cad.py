@@ -25,7 +25,8 @@ import pytest
 
 import shapeverify as sv
 from shapeverify.cad import occ_worker
-from shapeverify.errors import CADImportError, ShapeVerifyError
+from shapeverify.cad.summary import read_summary
+from shapeverify.errors import CADImportError, IncompleteModelError, ShapeVerifyError
 
 pytest.importorskip("OCP")
 
@@ -158,6 +159,11 @@ def _fuzz(sources, names, per_kind: int, tmp_path, monkeypatch, caplog):
                 if model.n_missing_faces:
                     assert len(model.skipped_faces) >= 1
                     assert any("were not loaded" in r.getMessage() for r in caplog.records)
+                    # issue 33 row 2: `info` says so too, and prepare refuses the model
+                    s = read_summary(path)
+                    assert s.faces_in_file - s.faces >= 1 and s.missing, path.name
+                    with pytest.raises(IncompleteModelError, match=re.escape(path.name)):
+                        sv.prepare(model, spacing=model.size / 20)
                     outcomes["loaded, faces missing (warned)"] += 1
                 else:
                     outcomes["loaded"] += 1

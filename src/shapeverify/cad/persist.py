@@ -95,6 +95,8 @@ def model_to_arrays(model) -> dict:
             "n_faces_in_file": model.n_faces_in_file, "skipped_faces": list(model.skipped_faces)}
     if model.face_names is not None:
         meta["face_names"] = list(model.face_names)
+    if model.open_seams:
+        meta["open_seams"] = list(model.open_seams)
     a = {
         "meta": np.frombuffer(json.dumps(meta).encode("utf-8"), dtype=np.uint8),
         "scale_to_mm": np.array([model.scale_to_mm], dtype=np.float64),
@@ -200,6 +202,7 @@ def model_from_arrays(a, where: str = "<arrays>"):
                       source=meta["source"], kind=meta["kind"],
                       n_faces_in_file=meta.get("n_faces_in_file"),
                       skipped_faces=tuple(meta.get("skipped_faces") or ()),
+                      open_seams=tuple(meta.get("open_seams") or ()),
                       face_names=_face_names(meta.get("face_names"), n, where), **opt)
         if "bounds" in a and np.shape(a["bounds"]) == (2, 3):
             b = np.array(a["bounds"], dtype=np.float64)
