@@ -2,7 +2,7 @@
 
 Each mutant is one seeded damage of an undamaged file -- an entity line removed, a line
 duplicated, a few bytes flipped, the file truncated, a reference pointed at an entity that does
-not exist, a shell's face reference left dangling -- read with ``shapeverify.load_model``.  What
+not exist, a shell's face reference left dangling, a number replaced by NaN/INF/1.E+400/'*' -- read with ``shapeverify.load_model``.  What
 may happen: the model loads (then it is finite, and a face the file declares but that could not
 be read is counted in ``n_faces_in_file`` and named in a warning), or a
 :class:`~shapeverify.errors.ShapeVerifyError` is raised (``CADImportError`` when OpenCASCADE
@@ -25,7 +25,8 @@ import pytest
 
 import shapeverify as sv
 from shapeverify.cad import occ_worker
-from shapeverify.errors import CADImportError, ShapeVerifyError
+from shapeverify.cad.summary import read_summary
+from shapeverify.errors import CADImportError, IncompleteModelError, ShapeVerifyError
 
 pytest.importorskip("OCP")
 
@@ -98,8 +99,32 @@ def dangling_face(data: bytes, fmt: str, rng) -> bytes:
     return b"".join(lines[:i] + lines[i + 2:])
 
 
+def bad_number(data: bytes, fmt: str, rng) -> bytes:
+    """A real number of the geometry replaced by one outside the float range (issue 33 row 4:
+    NaN and '*' made OpenCASCADE loop for ever; 9.99D+99 was read as 9.99)."""
+    tokens = [b"NaN", b"1.E+400", b"-INF"] + ([b"*", b"9.99D+99"] if fmt == "step"
+                                              else [b"1.0D+999"])
+    tok = tokens[int(rng.integers(len(tokens)))]
+    if fmt == "step":
+        start = data.find(b"DATA;")
+        # '*' only among the coordinates of a list (a point): elsewhere it is STEP's "omitted"
+        after = rb"(?=,-?\d)" if tok == b"*" else rb"(?=[,)])"
+        ms = [m for m in re.finditer(rb"(?<=[(,])-?\d+\.\d*(?:E[+-]?\d+)?" + after, data)
+              if m.start() > start]
+        m = ms[int(rng.integers(len(ms)))]
+        return data[:m.start()] + tok + data[m.end():]
+    lines = data.splitlines(keepends=True)
+    cand = [(i, m) for i, ln in enumerate(lines) if ln[72:73] == b"P"
+            for m in re.finditer(rb"(?<=[,;])-?\d*\.\d*(?:[ED][+-]?\d+)?(?=[,;])", ln[:64])
+            if m.end() - m.start() >= len(tok)]
+    i, m = cand[int(rng.integers(len(cand)))]
+    ln = lines[i]
+    lines[i] = ln[:m.start()] + tok.rjust(m.end() - m.start()) + ln[m.end():]
+    return b"".join(lines)
+
+
 DAMAGE = [remove_entity_line, duplicate_line, flip_bytes, truncate, dangling_reference,
-          dangling_face]
+          dangling_face, bad_number]
 
 
 # ------------------------------------------------------------------------------- the files
@@ -144,6 +169,8 @@ def _fuzz(sources, names, per_kind: int, tmp_path, monkeypatch, caplog):
                         model = sv.load_model(path)
                     except CADImportError as exc:
                         assert path.name in str(exc)
+                        if damage is bad_number:
+                            assert "not a finite number" in str(exc), str(exc)
                         outcomes["CADImportError (importer crashed)" if "crashed" in str(exc)
                                  else "CADImportError"] += 1
                         continue
@@ -153,11 +180,17 @@ def _fuzz(sources, names, per_kind: int, tmp_path, monkeypatch, caplog):
                         continue
                 assert model.kind == "cad" and len(model.faces) >= 1
                 assert np.isfinite(model.bounds).all(), path.name
+                assert damage is not bad_number, (path.name, "a bad number was read")
                 if damage is dangling_face:  # the face is gone: it must not go unnoticed
                     assert model.n_missing_faces >= 1, path.name
                 if model.n_missing_faces:
                     assert len(model.skipped_faces) >= 1
                     assert any("were not loaded" in r.getMessage() for r in caplog.records)
+                    # issue 33 row 2: `info` says so too, and prepare refuses the model
+                    s = read_summary(path)
+                    assert s.faces_in_file - s.faces >= 1 and s.missing, path.name
+                    with pytest.raises(IncompleteModelError, match=re.escape(path.name)):
+                        sv.prepare(model, spacing=model.size / 20)
                     outcomes["loaded, faces missing (warned)"] += 1
                 else:
                     outcomes["loaded"] += 1

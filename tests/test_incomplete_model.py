@@ -134,3 +134,23 @@ def test_row2_wavy_cube_with_a_dangling_face(shared_data, tmp_path):
     assert len(prep.model.faces) == n - 1
     # the undamaged file prepares as before
     assert len(sv.prepare(sv.load_model(src)).model.faces) == n
+
+
+def test_row2_open_seams_of_a_solid_are_reported(plate, tmp_path):
+    """The faces next to the deleted one now have boundary segments that meet no other face:
+    in a file of closed shells (a solid) that is an open seam, named with the missing face; the
+    complete solid has none; a surface model (OPEN_SHELL) may have free edges."""
+    full, broken, ref, n = plate
+    model = sv.load_model(broken)
+    assert len(model.open_seams) >= 2, model.open_seams
+    assert all("meet no other face" in s for s in model.open_seams)
+    with pytest.raises(IncompleteModelError, match="open seams"):
+        sv.prepare(model, spacing=2.0)
+    assert sv.load_model(full).open_seams == ()
+    surf = tmp_path / "surface-model.step"
+    surf.write_bytes(broken.read_bytes().replace(b"CLOSED_SHELL", b"OPEN_SHELL"))
+    m = sv.load_model(surf)
+    assert m.open_seams == () and m.n_missing_faces == 1  # the dangling face is still named
+    # the seams travel with the model through .svmodel and .svm files
+    model.save(tmp_path / "m.svmodel")
+    assert sv.load_model(tmp_path / "m.svmodel").open_seams == model.open_seams

@@ -360,3 +360,30 @@ def test_load_prepared_reads_bytes_and_file_objects_like_a_path(tmp_path):
     with open(path, "r", encoding="latin-1") as text:
         with pytest.raises(TypeError, match="binary mode"):
             load_prepared(text)
+
+
+def test_row5_svmodel_checksum_catches_a_consistent_change(tmp_path):
+    """Issue 33 row 5 for .svmodel: a change the structure checks cannot see (a control
+    point moved, the archive rewritten with a valid CRC) is caught by the header's SHA-256; a
+    file without a checksum (written before it existed) still loads."""
+    import json
+
+    from shapeverify.errors import ModelFileError
+
+    path = save_model(built_model(), tmp_path / "m.svmodel")
+    with np.load(path) as z:
+        a = {k: z[k] for k in z.files}
+    meta = json.loads(bytes(a["meta"]).decode())
+    assert len(meta["sha256"]) == 64
+    a["control"] = a["control"].copy()
+    a["control"][0, 0] += 1.0
+    with open(tmp_path / "moved.svmodel", "wb") as fh:
+        np.savez(fh, **a)
+    with pytest.raises(ModelFileError, match="moved.svmodel.*checksum"):
+        load_saved_model(tmp_path / "moved.svmodel")
+    meta.pop("sha256")
+    a["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
+    with open(tmp_path / "old.svmodel", "wb") as fh:
+        np.savez(fh, **a)
+    old = load_saved_model(tmp_path / "old.svmodel")
+    assert old.faces[0].surface.control.reshape(-1, 3)[0, 0] == a["control"][0, 0]

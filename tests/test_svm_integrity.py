@@ -18,7 +18,6 @@ exception.
 from __future__ import annotations
 
 import collections
-import io
 import json
 import os
 import select

@@ -294,8 +294,8 @@ def model_summary_table(m, title: str) -> Table:
 
 _ALLOW_INCOMPLETE = typer.Option(
     False, "--allow-incomplete-model",
-    help="Prepare a CAD model that lacks faces its file declares (dangling or unconvertible "
-         "faces; refused otherwise); every inspection then names the missing faces")
+    help="Accept a CAD model that lacks faces its file declares (dangling or unconvertible "
+         "faces, open seams of a solid; refused otherwise); every inspection then names them")
 
 
 @app.command()

@@ -22,6 +22,7 @@ from pathlib import Path
 __all__ = [
     "ShapeVerifyError",
     "CADImportError",
+    "IncompleteModelError",
     "ModelFileError",
     "UnsupportedFormatError",
     "EmptyModelError",
@@ -41,7 +42,8 @@ class CADImportError(ShapeVerifyError, ValueError):
 
 class IncompleteModelError(CADImportError):
     """A CAD model lacks faces its file declares (a dangling face reference, a face OpenCASCADE
-    could not convert); refused by ``prepare`` unless ``allow_incomplete=True``."""
+    could not convert) or a solid's faces do not close (open seams); refused by ``prepare``
+    unless ``allow_incomplete=True`` (``--allow-incomplete-model``)."""
 
 
 class ModelFileError(CADImportError):

@@ -2,7 +2,8 @@
 
 A STEP file whose shell lists a face that is not in the file, or a face OpenCASCADE cannot
 convert, imports with fewer faces than the part has (:attr:`Model.n_missing_faces`,
-:attr:`Model.skipped_faces`).  An inspection against such a model cannot see a defect on the
+:attr:`Model.skipped_faces`); a solid whose faces do not close (``Model.open_seams``: boundary
+segments of a closed shell that meet no other face) is incomplete too.  An inspection against such a model cannot see a defect on the
 missing surface: the audit's scan with a 0.49 mm dent on the missing face *passed* (its points
 were called "a reflection or a foreign object?").  So :func:`shapeverify.prepare` refuses an
 incomplete model (:func:`require_complete`) unless the user asks for it
@@ -20,18 +21,29 @@ __all__ = ["is_incomplete", "missing_faces_text", "missing_faces_note", "require
 def is_incomplete(model) -> bool:
     """True when the CAD file declares faces the model does not hold."""
     return getattr(model, "kind", "cad") == "cad" and (
-        getattr(model, "n_missing_faces", 0) > 0 or bool(getattr(model, "skipped_faces", ())))
+        getattr(model, "n_missing_faces", 0) > 0 or bool(getattr(model, "skipped_faces", ()))
+        or bool(getattr(model, "open_seams", ())))
 
 
 def missing_faces_text(model, limit: int = 8) -> str:
-    """"N of M faces of FILE are missing: why, why, ..." (at most ``limit`` reasons)."""
+    """"N of M faces of FILE are missing: why, why, ..." (at most ``limit`` reasons), and the
+    open seams of a solid."""
+    seams = ""
+    if model.open_seams:
+        seams = (f"{model.source} declares a closed solid but has open seams (a face missing or "
+                 f"not joined): {'; '.join(model.open_seams[:limit])}"
+                 + (f" (and {len(model.open_seams) - limit} more)"
+                    if len(model.open_seams) > limit else ""))
+        if not (model.n_missing_faces or model.skipped_faces):
+            return seams
+        seams = "; " + seams
     n_file = model.n_faces_in_file if model.n_faces_in_file is not None else len(model.faces)
     n_missing = max(model.n_missing_faces, len(model.skipped_faces))
     why = list(model.skipped_faces[:limit])
     more = len(model.skipped_faces) - len(why)
     return (f"{n_missing} of the {max(n_file, len(model.faces) + n_missing)} faces of "
             f"{model.source} are missing from the model: {'; '.join(why)}"
-            + (f" (and {more} more)" if more > 0 else ""))
+            + (f" (and {more} more)" if more > 0 else "") + seams)
 
 
 def missing_faces_note(model) -> str | None:

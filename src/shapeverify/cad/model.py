@@ -224,6 +224,12 @@ class Model:
         One line per face of the file that is not in ``faces``, saying which and why
         (e.g. ``"face 3: no usable trimming loop"`` or ``"#17: referenced by CLOSED_SHELL #16
         but not in the file"``); empty when every face was read.
+    open_seams : tuple of str
+        Where a model whose file declares only closed shells (solids) has boundary segments
+        that meet no other face (an open seam: a missing or unsewn neighbour), one line per
+        face (e.g. ``"face 3: 12 boundary segments meet no other face"``); empty otherwise.
+        Such a model is incomplete like one with missing faces
+        (:mod:`shapeverify.cad.completeness`).
     face_names : tuple of (str or None), or None
         The name of each face in ``faces`` as the CAD file gives it (STEP face entity names,
         e.g. ``"datum_A"``), None for an unnamed face; None when no face has a name (the
@@ -246,6 +252,7 @@ class Model:
     n_faces_in_file: int | None = None
     skipped_faces: tuple = ()
     face_names: tuple | None = None
+    open_seams: tuple = ()
 
     def __post_init__(self):
         if self.kind not in _KINDS:
@@ -265,6 +272,7 @@ class Model:
                 raise ValueError(f"n_faces_in_file ({n}) is less than the {len(faces)} faces held")
             object.__setattr__(self, "n_faces_in_file", n)
         object.__setattr__(self, "skipped_faces", tuple(str(s) for s in self.skipped_faces))
+        object.__setattr__(self, "open_seams", tuple(str(s) for s in self.open_seams))
         if self.face_names is not None:
             names = tuple(None if n is None else str(n) for n in self.face_names)
             if len(names) != len(faces):

@@ -103,10 +103,15 @@ def _check_path(path) -> tuple[Path, str]:
         raise CADImportError(f"{p}: the file is empty (0 bytes)")
     if fmt == "iges":
         _check_iges_terminated(p)
-    from .number_check import check_numbers
+    if not _NUMBERS_CHECKED_BY_CALLER:
+        from .number_check import check_numbers
 
-    check_numbers(p, fmt)  # a NaN or 1e400 makes OpenCASCADE loop for ever (issue 33 row 4)
+        check_numbers(p, fmt)  # a NaN or 1e400 makes OpenCASCADE loop for ever (issue 33 row 4)
     return p, fmt
+
+
+#: True in the importer child process: its caller checked the numbers before sending the path
+_NUMBERS_CHECKED_BY_CALLER = False
 
 
 def _check_iges_terminated(p: Path) -> None:
@@ -390,6 +395,23 @@ def read_cad(path, *, chord_tol: float = 0.002, gap_tol: float = 0.02, isolated:
                              f"({type(exc).__name__}: {exc})") from exc
 
 
+def _open_seams(path: Path, fmt: str, all_free) -> list:
+    """One line per face with boundary segments that meet no other face, when the STEP file
+    declares closed shells and no open ones (a solid has no free edges: measured, none in the
+    shared NIST parts and the wavy cube); [] otherwise (IGES, surface models)."""
+    if fmt != "step" or not any(any(f.any() for f in fr) for fr in all_free):
+        return []
+    try:
+        data = path.read_bytes()
+    except OSError:
+        return []
+    if b"CLOSED_SHELL" not in data or b"OPEN_SHELL" in data:
+        return []
+    return [f"face {i}: {n} boundary segment{'s' if n > 1 else ''} meet no other face"
+            for i, fr in enumerate(all_free) for n in (int(sum(int(f.sum()) for f in fr)),)
+            if n]
+
+
 def _missing_faces(path: Path, fmt: str, n_read: int, skipped: list) -> int:
     """The faces the file declares (:func:`~shapeverify.cad.face_count.declared_faces`, at
     least the ``n_read`` OpenCASCADE found); appends to ``skipped`` a line per declared face
@@ -464,12 +486,16 @@ def _read_cad_here(path: Path, fmt: str, chord_tol: float, gap_tol: float) -> Mo
 
     if gap_tol > 0:
         _clear_touching(all_xyz, all_free, all_edge, all_tol, gap_tol)
+    seams = _open_seams(path, fmt, all_free)
+    if seams:
+        logger.warning("%s: the file declares closed shells (solids) but the model has open "
+                       "seams: %s", path, "; ".join(seams))
     model = Model(faces=tuple(Face(s, tuple(uv), tuple(fr), r)
                               for s, uv, fr, r in zip(surfaces, all_uv, all_free, rev)),
                   unit=unit, scale_to_mm=scale, source=str(path), kind="cad",
                   n_faces_in_file=n_in_file, skipped_faces=tuple(skipped),
                   face_names=tuple(kept_names) if any(n is not None for n in kept_names)
-                  else None)
+                  else None, open_seams=tuple(seams))
     t_end = time.perf_counter()
     n_seg = sum(lp.shape[0] for uv in all_uv for lp in uv)
     n_free = sum(int(f.sum()) for fr in all_free for f in fr)

@@ -413,6 +413,9 @@ def _answer(req, handler: _Collect):
 
 def _serve() -> None:
     """The importer's loop: one request in, one answer out, until stdin closes."""
+    from . import occ_import
+
+    occ_import._NUMBERS_CHECKED_BY_CALLER = True  # read_cad/summary_isolated did, before sending
     out = os.fdopen(os.dup(1), "wb")
     os.dup2(2, 1)  # console output of the native library goes where stderr goes (discarded)
     inp = sys.stdin.buffer

@@ -1,6 +1,7 @@
 """Save a model to one ``.svmodel`` file and load it back (so the CAD import happens once).
 
-The file is a plain ``.npz`` archive (``numpy.savez``, uncompressed, loaded without pickle):
+The file is a plain ``.npz`` archive (``numpy.savez``, uncompressed, loaded without pickle;
+its ``meta`` holds the SHA-256 of the other arrays, :func:`payload_digest`, compared on loading):
 every face's arrays are concatenated into a few flat arrays with offsets, so loading costs a
 handful of reads and one object construction per face.  Arrays round-trip bit for bit.
 
@@ -30,6 +31,7 @@ files (e.g. a prepared closest-point structure) can embed a model.
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 import struct
@@ -43,7 +45,7 @@ import numpy as np
 from shapeverify.errors import EmptyModelError, ModelFileError
 
 __all__ = ["save_model", "load_saved_model", "model_to_arrays", "model_from_arrays",
-           "FORMAT_TAG", "FORMAT_VERSION", "DAMAGED_FILE_ERRORS"]
+           "payload_digest", "FORMAT_TAG", "FORMAT_VERSION", "DAMAGED_FILE_ERRORS"]
 
 #: what numpy, zipfile and the array checks raise on a damaged, truncated or foreign archive
 #: (bit flips fail zipfile's CRC check: ``BadZipFile``; truncation: ``BadZipFile``/``EOFError``;
@@ -76,6 +78,19 @@ FORMAT_TAG = "shapeverify-model"
 FORMAT_VERSION = 1
 
 
+def payload_digest(arrays) -> str:
+    """SHA-256 (hex) of every array but ``meta``: name, dtype, shape and bytes, in name order.
+
+    The checksum a ``.svmodel`` and a ``.svm`` file keep in their header (``meta["sha256"]``)
+    and compare on loading (issue 33 row 5); ``arrays``: a mapping of name -> array."""
+    h = hashlib.sha256()
+    for name in sorted(k for k in arrays.keys() if k != "meta"):
+        a = np.ascontiguousarray(np.asarray(arrays[name]))
+        h.update(f"{name}\0{a.dtype.str}\0{a.shape}\0".encode())
+        h.update(a.reshape(-1).view(np.uint8) if a.size else b"")
+    return h.hexdigest()
+
+
 def model_to_arrays(model) -> dict:
     """Flatten a :class:`~shapeverify.cad.model.Model` into a dict of numpy arrays (no objects).
 
@@ -95,6 +110,8 @@ def model_to_arrays(model) -> dict:
             "n_faces_in_file": model.n_faces_in_file, "skipped_faces": list(model.skipped_faces)}
     if model.face_names is not None:
         meta["face_names"] = list(model.face_names)
+    if model.open_seams:
+        meta["open_seams"] = list(model.open_seams)
     a = {
         "meta": np.frombuffer(json.dumps(meta).encode("utf-8"), dtype=np.uint8),
         "scale_to_mm": np.array([model.scale_to_mm], dtype=np.float64),
@@ -200,6 +217,7 @@ def model_from_arrays(a, where: str = "<arrays>"):
                       source=meta["source"], kind=meta["kind"],
                       n_faces_in_file=meta.get("n_faces_in_file"),
                       skipped_faces=tuple(meta.get("skipped_faces") or ()),
+                      open_seams=tuple(meta.get("open_seams") or ()),
                       face_names=_face_names(meta.get("face_names"), n, where), **opt)
         if "bounds" in a and np.shape(a["bounds"]) == (2, 3):
             b = np.array(a["bounds"], dtype=np.float64)
@@ -228,6 +246,9 @@ def save_model(model, path) -> Path:
     """
     path = Path(path)
     arrays = model_to_arrays(model)
+    meta = json.loads(bytes(arrays["meta"]).decode("utf-8"))
+    meta["sha256"] = payload_digest(arrays)
+    arrays["meta"] = np.frombuffer(json.dumps(meta).encode("utf-8"), dtype=np.uint8)
     tmp = path.with_name(path.name + ".tmp")
     try:
         with open(tmp, "wb") as fh:
@@ -270,6 +291,7 @@ def load_saved_model(path):
     try:
         with np.load(path, allow_pickle=False) as z:
             arrays = {k: z[k] for k in z.files}
+        _check_digest(arrays, path)
         return model_from_arrays(arrays, str(path))
     except ModelFileError as exc:
         raise ModelFileError(f"{exc}; {_REDO}") from None
@@ -278,6 +300,18 @@ def load_saved_model(path):
     except DAMAGED_FILE_ERRORS as exc:
         raise ModelFileError(f"{path}: not a readable shapeverify model file, damaged or "
                              f"truncated ({damage_text(exc)}); {_REDO}") from None
+
+
+def _check_digest(arrays, path) -> None:
+    """Compare a ``.svmodel``'s checksum (files written before it existed have none)."""
+    try:
+        digest = json.loads(bytes(np.asarray(arrays["meta"], np.uint8)).decode("utf-8")).get(
+            "sha256")
+    except (KeyError, ValueError, UnicodeDecodeError, AttributeError):
+        return  # model_from_arrays says what is wrong with the header
+    if digest is not None and digest != payload_digest(arrays):
+        raise ModelFileError(f"{path}: model file is damaged: its content does not match the "
+                             "checksum (SHA-256) written with it")
 
 
 def _face_names(names, n: int, where: str):

@@ -20,25 +20,13 @@ arrays' sizes:
 
 from __future__ import annotations
 
-import hashlib
-
 import numpy as np
+
+from shapeverify.cad.persist import payload_digest  # noqa: F401 - the .svm's checksum
 
 from . import _kernels
 
 __all__ = ["payload_digest", "check_structure"]
-
-
-def payload_digest(arrays) -> str:
-    """SHA-256 (hex) of every array but ``meta``: name, dtype, shape and bytes, in name order.
-
-    ``arrays``: a mapping of name -> array (a dict, or an open ``NpzFile``)."""
-    h = hashlib.sha256()
-    for name in sorted(k for k in arrays.keys() if k != "meta"):
-        a = np.ascontiguousarray(np.asarray(arrays[name]))
-        h.update(f"{name}\0{a.dtype.str}\0{a.shape}\0".encode())
-        h.update(a.reshape(-1).view(np.uint8) if a.size else b"")
-    return h.hexdigest()
 
 
 def check_structure(tree, rec: np.ndarray, rows: np.ndarray, model) -> str | None:
