@@ -186,6 +186,7 @@ def _largest_empty_circle(xy: np.ndarray, c0: np.ndarray, r: float, h: float) ->
 
 _MIN_WALL = 30            # wall points needed for a wall fit
 _WALL_COVER = 240.0       # degrees of the axis the wall points must surround
+_WALL_TERM = 0.1          # wall selection and sampling term, in units of the points' scatter
 
 
 def _cover_deg(xy: np.ndarray) -> float:
@@ -391,7 +392,10 @@ def measure_hole(points, center, axis, diameter: float, spacing: float | None = 
         r_edge = bias = r_area = aniso = np.nan
         edge, sheet, n_virtual = np.zeros(0, np.int64), np.zeros(0, np.int64), 0
     if wall_fit is not None:
-        wc, r_hole, _, n_wall, method, u_c, u_r, _ = wall_fit
+        wc, r_hole, sig, n_wall, method, u_c, u_r, _ = wall_fit
+        # which points count as the wall's (their closest CAD face, decided under noise at the
+        # rim) and the wall's sampling: a term of a tenth of the points' scatter
+        u_c, u_r = float(np.hypot(u_c, _WALL_TERM * sig)), float(np.hypot(u_r, _WALL_TERM * sig))
         w2 = wc - c0
         cen2 = np.array([w2 @ e1, w2 @ e2])
     else:
