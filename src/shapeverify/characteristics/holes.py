@@ -290,7 +290,8 @@ def _virtual_edges(xy, cen, r_edge: float, w: float, h: float, reach: float, win
     radius R from ``r_edge + 2h`` outwards about the same centre, in the sheet's own points --
     the innermost point of each angular bin (arc width ``w``, as for the hole) lies on average
     ``b`` outside R (bins with no point within ``window`` of R left out, as for the hole).
-    Returns (b, its standard uncertainty, number of virtual circles)."""
+    Returns (b, its standard uncertainty, number of virtual circles, the offsets' standard
+    deviation)."""
     rel = xy - cen
     rr = np.hypot(rel[:, 0], rel[:, 1])
     th = np.arctan2(rel[:, 1], rel[:, 0])
@@ -311,10 +312,12 @@ def _virtual_edges(xy, cen, r_edge: float, w: float, h: float, reach: float, win
         means.append(float(off.mean()))
         allo.append(off)
     if not means:
-        return np.nan, np.nan, 0
+        return np.nan, np.nan, 0, np.nan
     allo = np.concatenate(allo)
-    u = max(float(np.std(means)) / np.sqrt(len(means)), float(np.std(allo)) / np.sqrt(allo.size))
-    return float(np.mean(means)), u, len(means)
+    # neighbouring circles share many innermost points: count half of them as independent
+    u = max(float(np.std(means)) / np.sqrt(len(means)),
+            float(np.std(allo)) / np.sqrt(0.5 * allo.size))
+    return float(np.mean(means)), u, len(means), float(np.std(allo))
 
 
 def measure_hole(points, center, axis, diameter: float, spacing: float | None = None,
@@ -477,10 +480,15 @@ def _edge_measure(xy, hgt, rho, slab, near, ring, c0, r0, spacing):
     bias = 0.0
     for _ in range(3):
         w = 2.0 * np.pi * max(r_edge - bias, 0.5 * r_edge) / nb
-        bias, u_bias, n_virtual = _virtual_edges(xy[sheet], cen2, r_edge, w, h,
-                                                 reach - float(np.linalg.norm(cen2)), window)
+        bias, u_bias, n_virtual, s_off = _virtual_edges(xy[sheet], cen2, r_edge, w, h,
+                                                        reach - float(np.linalg.norm(cen2)),
+                                                        window)
         if n_virtual < 2:
             break
+    if n_virtual >= 2:
+        # the scatter of the hole's own edge points about their circle is reduced by the
+        # circle's 3 fitted parameters and the window: take the virtual holes' when larger
+        s_edge = max(s_edge, s_off)
     if n_virtual < 2:
         gap = 1.0 / (dens * w)
         bias, u_bias = _bias_factor(aniso) * gap, 0.03 * gap
