@@ -86,7 +86,7 @@ def occ_holes(path):
                 fit = _circle3(np.array(pts))
                 if fit is not None:
                     c0, a0, r0, form = fit
-                    if form <= 1e-4 * r0:
+                    if form <= 1e-4 * r0 and r0 < 1e3:   # (a 96 m "circle" is straight)
                         loops.append((c0, a0, 2 * r0, ad.GetType() == GeomAbs_Plane,
                                       max(TOL, 4 * form)))
     groups = []
