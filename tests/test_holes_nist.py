@@ -1,0 +1,214 @@
+"""Holes of the NIST CTC 01 part measured on scans made independently of the project's sampler
+(issue 27 items 3 and 6): OpenCASCADE's tessellation (BRepMesh_IncrementalMesh) sampled here
+with numpy -- uniformly by triangle area (the hole's wall is seen) or on a raster of rays along
+the hole's axis (only the rim is seen: the edge-point method) -- with 0.02 mm Gaussian noise
+along the normal, in random order.  The hole is measured as the plan's hole characteristic
+measures it (:func:`measure_hole` with the scan's closest CAD points, at the true pose).
+"""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+FILE = "nist_ctc_01_asme1_rd.stp"
+NOISE = 0.02
+HOLES = ("hole:11", "hole:3", "hole:7")       # CTC 01: side-wall D20, top D25, top D35
+
+
+def tessellation(path, deflection: float = 0.002, angle: float = 0.02):
+    """OpenCASCADE's triangles of a STEP file: vertices (n, 3), triangles (m, 3) wound with
+    the face's outward normal."""
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepMesh import BRepMesh_IncrementalMesh
+    from OCP.IFSelect import IFSelect_RetDone
+    from OCP.STEPControl import STEPControl_Reader
+    from OCP.TopAbs import TopAbs_FACE, TopAbs_REVERSED
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopLoc import TopLoc_Location
+    from OCP.TopoDS import TopoDS
+
+    r = STEPControl_Reader()
+    assert r.ReadFile(str(path)) == IFSelect_RetDone
+    r.TransferRoots()
+    shape = r.OneShape()
+    BRepMesh_IncrementalMesh(shape, deflection, False, angle, True)
+    V, T, off = [], [], 0
+    exp = TopExp_Explorer(shape, TopAbs_FACE)
+    while exp.More():
+        face = TopoDS.Face(exp.Current())
+        exp.Next()
+        loc = TopLoc_Location()
+        tri = BRep_Tool.Triangulation_s(face, loc)
+        if tri is None:
+            continue
+        trsf = loc.Transformation()
+        v = np.array([[p.X(), p.Y(), p.Z()] for p in
+                      (tri.Node(i).Transformed(trsf) for i in range(1, tri.NbNodes() + 1))])
+        t = np.array([tri.Triangle(i).Get() for i in range(1, tri.NbTriangles() + 1)]) - 1
+        if face.Orientation() == TopAbs_REVERSED:
+            t = t[:, ::-1]
+        V.append(v)
+        T.append(t + off)
+        off += len(v)
+    return np.concatenate(V), np.concatenate(T)
+
+
+def _region(V, T, centre, radius):
+    c = V[T].mean(axis=1)
+    return T[np.linalg.norm(c - centre, axis=1) <= radius]
+
+
+def area_scan(V, T, spacing, rng):
+    """Points uniform by area (one per spacing^2 on average), noise along the normal."""
+    A, B, C = V[T[:, 0]], V[T[:, 1]], V[T[:, 2]]
+    n = np.cross(B - A, C - A)
+    area = 0.5 * np.linalg.norm(n, axis=1)
+    nn = n / np.maximum(2 * area, 1e-300)[:, None]
+    k = rng.poisson(area.sum() / spacing ** 2)
+    i = rng.choice(len(T), size=k, p=area / area.sum())
+    u, v = rng.random(k), rng.random(k)
+    flip = u + v > 1
+    u[flip], v[flip] = 1 - u[flip], 1 - v[flip]
+    X = A[i] + u[:, None] * (B[i] - A[i]) + v[:, None] * (C[i] - A[i])
+    X += rng.normal(0, NOISE, k)[:, None] * nn[i]
+    return X[rng.permutation(k)]
+
+
+def grid_scan(V, T, spacing, axis, centre, half, rng):
+    """A raster of rays along -axis (random rotation and phase): the first triangle each ray
+    hits (Moller-Trumbore in numpy), noise along that triangle's normal."""
+    from shapeverify.characteristics.holes import plane_basis
+
+    a = np.asarray(axis, float)
+    e1, e2 = plane_basis(a)
+    th = rng.uniform(0, np.pi)
+    g1, g2 = np.cos(th) * e1 + np.sin(th) * e2, -np.sin(th) * e1 + np.cos(th) * e2
+    s = np.arange(-half, half, spacing) + rng.uniform(0, spacing)
+    gu, gv = np.meshgrid(s, s)
+    O = centre + 50.0 * a + gu.reshape(-1, 1) * g1 + gv.reshape(-1, 1) * g2
+    D = -a
+    A, B, C = V[T[:, 0]], V[T[:, 1]], V[T[:, 2]]
+    e_1, e_2 = B - A, C - A
+    nrm = np.cross(e_1, e_2)
+    nrm /= np.linalg.norm(nrm, axis=1)[:, None]
+    front = nrm @ a > 1e-6                      # faces turned to the scanner
+    A, e_1, e_2, nrm = A[front], e_1[front], e_2[front], nrm[front]
+    pvec = np.cross(D, e_2)
+    det = np.einsum("ij,ij->i", e_1, pvec)
+    hits = np.full(len(O), np.inf)
+    which = np.zeros(len(O), np.int64)
+    for lo in range(0, len(O), 2000):
+        o = O[lo:lo + 2000]
+        tv = o[:, None, :] - A[None]
+        u = np.einsum("kij,ij->ki", tv, pvec) / det
+        q = np.cross(tv, e_1[None])
+        v = (q @ D) / det
+        t = np.einsum("kij,ij->ki", q, e_2) / det
+        ok = (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
+        t = np.where(ok, t, np.inf)
+        j = np.argmin(t, axis=1)
+        hits[lo:lo + 2000] = t[np.arange(len(o)), j]
+        which[lo:lo + 2000] = j
+    m = np.isfinite(hits)
+    X = O[m] + hits[m, None] * D + rng.normal(0, NOISE, m.sum())[:, None] * nrm[which[m]]
+    return X[rng.permutation(len(X))]
+
+
+def measure(prep, feat, X):
+    """The plan's hole measurement (evaluate._hole's call) at the true pose."""
+    from shapeverify.characteristics.holes import measure_hole
+
+    cl = prep.closest(X, exact=True)
+    return measure_hole(X, feat.center, feat.axis, feat.diameter,
+                        face=prep.model.faces[feat.face], deviations=cl.distances,
+                        normals=cl.normals)
+
+
+def errors(prep, feat, hm):
+    d = hm.center - feat.center
+    pos = float(np.linalg.norm(d - (d @ feat.axis) * feat.axis))
+    return hm.diameter - feat.diameter, pos
+
+
+@pytest.fixture(scope="module")
+def ctc01(shared_data):
+    import shapeverify as sv
+    from shapeverify.cad.occ_import import read_cad
+    from shapeverify.characteristics.features import model_features
+
+    path = shared_data / "cad" / "nist" / FILE
+    model = read_cad(path, isolated=False)
+    feats = {f.id: f for f in model_features(model)}
+    prep = sv.prepare(model)
+    V, T = tessellation(path)
+    regions = {h: _region(V, T, feats[h].center, feats[h].diameter + 25.0) for h in HOLES}
+    return prep, feats, V, regions
+
+
+def _raster_order(X, h):
+    """The points sorted row by row (a scanner's grid order)."""
+    k = np.floor(X / h).astype(np.int64)
+    return X[np.lexsort((k[:, 0], k[:, 1], k[:, 2]))]
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("spacing", [0.5, 1.0, 1.5])
+@pytest.mark.parametrize("order", ["random", "grid"])
+def test_ctc01_holes_from_area_scans_are_unbiased_and_within_their_U(ctc01, spacing, order):
+    """Pins issue 27: at 1 mm exact random sampling the D20 side-wall holes read -0.46/-0.68 mm
+    (-2.27 at 1.5 mm) and U (k = 2) was 0.003-0.04 mm.  The wall is now fitted."""
+    prep, feats, V, regions = ctc01
+    rng = np.random.default_rng(int(spacing * 10) + (order == "grid"))
+    for h in HOLES:
+        f = feats[h]
+        X = area_scan(V, regions[h], spacing, rng)
+        if order == "grid":
+            X = _raster_order(X, spacing)
+        hm = measure(prep, f, X)
+        dd, pos = errors(prep, f, hm)
+        assert hm.method == "wall cylinder", (h, hm.method)
+        assert abs(dd) <= 0.05 and pos <= 0.05, (h, dd, pos)
+        # U as evaluate states it: diameter k u_D; position (2 |offset|) 2 k u_c
+        assert abs(dd) <= 2 * hm.u_diameter, (h, dd, hm.u_diameter)
+        assert 2 * pos <= 2 * 2 * hm.u_center, (h, pos, hm.u_center)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("spacing", [0.5, 1.0, 1.5])
+def test_ctc01_holes_seen_only_from_above_use_the_edge_points_within_their_U(ctc01, spacing):
+    """A raster of rays along the hole's axis sees no wall: the edge points' offset, measured on
+    virtual holes in the scan's own points, is removed; the error is within U (k = 2), and at
+    0.5 mm spacing within 0.05 mm."""
+    prep, feats, V, regions = ctc01
+    rng = np.random.default_rng(int(spacing * 10))
+    for h in HOLES:
+        f = feats[h]
+        X = grid_scan(V, regions[h], spacing, f.axis, f.center, 0.5 * f.diameter + 20.0, rng)
+        hm = measure(prep, f, X)
+        dd, pos = errors(prep, f, hm)
+        # (near the part's corner, hole:7, the sheet is too small for virtual holes all round:
+        # the lattice model then gives the offset)
+        assert hm.method == "edge points", (h, hm.method)
+        assert hm.n_virtual >= 2 or h == "hole:7", (h, hm.n_virtual)
+        assert abs(dd) <= 2 * hm.u_diameter and pos <= 2 * hm.u_center, (h, dd, pos, hm)
+        if spacing == 0.5:
+            assert abs(dd) <= 0.05 and pos <= 0.05, (h, dd, pos)
+
+
+@pytest.mark.slow
+def test_ctc01_hole_uncertainty_covers_the_error_in_90_percent_of_runs(ctc01):
+    """Monte-Carlo: 20 area scans at 1 mm and 20 ray-grid scans at 1 mm of the D20 side-wall
+    hole; U (k = 2) covers the diameter and the position error in >= 90 % of the runs each."""
+    prep, feats, V, regions = ctc01
+    f = feats["hole:11"]
+    for kind in ("area", "grid"):
+        cover_d, cover_p = [], []
+        for run in range(20):
+            rng = np.random.default_rng(1000 + run)
+            X = (area_scan(V, regions["hole:11"], 1.0, rng) if kind == "area" else
+                 grid_scan(V, regions["hole:11"], 1.0, f.axis, f.center, 30.0, rng))
+            hm = measure(prep, f, X)
+            dd, pos = errors(prep, f, hm)
+            cover_d.append(abs(dd) <= 2 * hm.u_diameter)
+            cover_p.append(pos <= 2 * hm.u_center)
+        assert np.mean(cover_d) >= 0.9 and np.mean(cover_p) >= 0.9, (kind, cover_d, cover_p)
