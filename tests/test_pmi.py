@@ -193,3 +193,16 @@ def test_plan_from_a_step_file_without_pmi_is_an_empty_best_fit_plan(example_ste
     plan = plan_from_pmi(example_step)
     assert plan.alignment.type == "best_fit"
     assert plan.characteristics == [] and plan.unsupported == []
+
+
+@pytest.mark.slow
+def test_info_pmi_lists_every_tolerance_of_ctc01_with_mm_headers(shared_data):
+    path = _file(shared_data, NIST[0])
+    res = subprocess.run([sys.executable, "-m", "shapeverify", "info", str(path), "--pmi"],
+                         capture_output=True, text=True, env={**_env(), "COLUMNS": "250"},
+                         timeout=1500)
+    assert res.returncode == 0, res.stderr[-2000:]
+    truth = _independent(path)
+    assert "value (mm)" in res.stdout and "limits (mm)" in res.stdout
+    rows = [ln for ln in res.stdout.splitlines() if ln.startswith("│ GT")]
+    assert Counter(r.split("│")[3].strip() for r in rows) == Counter(truth["tolerances"])
