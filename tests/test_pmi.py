@@ -206,3 +206,19 @@ def test_info_pmi_lists_every_tolerance_of_ctc01_with_mm_headers(shared_data):
     assert "value (mm)" in res.stdout and "limits (mm)" in res.stdout
     rows = [ln for ln in res.stdout.splitlines() if ln.startswith("│ GT")]
     assert Counter(r.split("│")[3].strip() for r in rows) == Counter(truth["tolerances"])
+
+
+def test_pmi_face_whose_vertices_are_not_on_the_model_face_is_an_error(example_step):
+    """The face numbers of the PMI are checked against the model, not trusted."""
+    from shapeverify.cad.pmi import read_pmi
+    from shapeverify.characteristics.pmi_plan import pmi_plan
+    from shapeverify.errors import CADImportError
+
+    pmi = read_pmi(example_step)
+    assert pmi["n_faces"] == 1 and pmi["tolerances"] == []
+    pmi["face_vertices"] = {0: [[1e4, 1e4, 1e4]]}
+    with pytest.raises(CADImportError, match="does not match model face 0"):
+        pmi_plan(example_step, pmi=pmi)
+    pmi["n_faces"] = 2
+    with pytest.raises(CADImportError, match="2 faces"):
+        pmi_plan(example_step, pmi=pmi)
