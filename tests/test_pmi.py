@@ -193,3 +193,32 @@ def test_plan_from_a_step_file_without_pmi_is_an_empty_best_fit_plan(example_ste
     plan = plan_from_pmi(example_step)
     assert plan.alignment.type == "best_fit"
     assert plan.characteristics == [] and plan.unsupported == []
+
+
+@pytest.mark.slow
+def test_info_pmi_lists_every_tolerance_of_ctc01_with_mm_headers(shared_data):
+    path = _file(shared_data, NIST[0])
+    res = subprocess.run([sys.executable, "-m", "shapeverify", "info", str(path), "--pmi"],
+                         capture_output=True, text=True, env={**_env(), "COLUMNS": "250"},
+                         timeout=1500)
+    assert res.returncode == 0, res.stderr[-2000:]
+    truth = _independent(path)
+    assert "value (mm)" in res.stdout and "limits (mm)" in res.stdout
+    rows = [ln for ln in res.stdout.splitlines() if ln.startswith("│ GT")]
+    assert Counter(r.split("│")[3].strip() for r in rows) == Counter(truth["tolerances"])
+
+
+def test_pmi_face_whose_vertices_are_not_on_the_model_face_is_an_error(example_step):
+    """The face numbers of the PMI are checked against the model, not trusted."""
+    from shapeverify.cad.pmi import read_pmi
+    from shapeverify.characteristics.pmi_plan import pmi_plan
+    from shapeverify.errors import CADImportError
+
+    pmi = read_pmi(example_step)
+    assert pmi["n_faces"] == 1 and pmi["tolerances"] == []
+    pmi["face_vertices"] = {0: [[1e4, 1e4, 1e4]]}
+    with pytest.raises(CADImportError, match="does not match model face 0"):
+        pmi_plan(example_step, pmi=pmi)
+    pmi["n_faces"] = 2
+    with pytest.raises(CADImportError, match="2 faces"):
+        pmi_plan(example_step, pmi=pmi)

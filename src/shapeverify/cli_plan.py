@@ -147,9 +147,10 @@ def print_pmi(model_path: Path, m=None) -> None:
         lim = r.get("limits")
         plan = ", ".join(r["entries"]) if r["entries"] else "[yellow]unsupported:[/yellow] " \
             + escape(r["reason"])
+        deg = "\u00b0" if "Angular" in r["type"] else ""  # an angle: degrees, not mm
         t.add_row(r["id"], r["kind"].replace("geometric_tolerance", "tolerance"), r["type"],
-                  "-" if r.get("value") is None else f"{r['value']:g}",
-                  "-" if not lim else f"{lim[0]:+g} / {lim[1]:+g}",
+                  "-" if r.get("value") is None else f"{r['value']:g}{deg}",
+                  "-" if not lim else f"{lim[0]:+g}{deg} / {lim[1]:+g}{deg}",
                   escape(r.get("datums") or ", ".join(r.get("targets", [])) or "-"),
                   escape(", ".join(r.get("modifiers", [])) or "-"), escape(faces or "-"), plan)
     out.print(t)

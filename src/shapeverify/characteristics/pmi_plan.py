@@ -302,10 +302,25 @@ def _faces_ok(item, ctx, key="faces"):
     return faces, ""
 
 
+#: tolerance modifiers that do not change what a characteristic measures, per type
+_HARMLESS = {"ProfileOfSurface": {"All_Around", "All_Over"}, "Flatness": set(),
+             "Position": set()}
+
+
+def _modifier_reason(item) -> str:
+    if item["type"] not in _HARMLESS:
+        return ""
+    extra = [m for m in item["modifiers"] if m not in _HARMLESS[item["type"]]]
+    return f"modifier {', '.join(extra)} is not applied by the plan" if extra else ""
+
+
 def _drf_reason(item, drf, why) -> str:
     key = _drf_key(item)
     if not key:
         return ""
+    mods = [f"{d['name']} {', '.join(d['modifiers'])}" for d in item["datums"] if d["modifiers"]]
+    if key == drf and mods:
+        return f"datum modifiers ({'; '.join(mods)}) are not applied by the plan's alignment"
     if key == drf:
         return ""
     missing = [why[k] for k in key if k in why]
@@ -321,6 +336,9 @@ def _tolerance(item, ctx, drf, why) -> tuple[list, str]:
     if faces is None:
         return [], reason
     src = _src(item)
+    reason = _modifier_reason(item)
+    if reason:
+        return [], reason
     if t == "Flatness":
         if len(faces) != 1 or ctx.feats[faces[0]].kind != "plane":
             return [], (f"flatness of {len(faces)} faces ({ctx.feats[faces[0]].kind}); the plan's "
