@@ -10,7 +10,7 @@ import struct
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings, strategies as st
+from hypothesis import given, settings, strategies as st
 from scipy.spatial.transform import Rotation
 
 pye57 = pytest.importorskip("pye57", reason="the scanners extra (pye57) is not installed")
@@ -99,12 +99,12 @@ def test_e57_header_declaring_billions_of_points_is_refused_before_allocating(tm
         read_points(bad)
 
 
-def test_e57_damaged_bytes_named_never_crash(tmp_path):
-    path, *_ = _two_scans(tmp_path)
-    good = path.read_bytes()
+def _fuzz_bytes(good: bytes, fmt: str, examples: int, accept) -> None:
+    """Mutated copies of ``good`` read as ``fmt``: a ScanError naming the input, or points that
+    ``accept(points)`` takes; never another exception or a crash."""
+    name = f"mutant.{fmt}"
 
-    @settings(max_examples=40, deadline=None, derandomize=True,
-              suppress_health_check=[HealthCheck.function_scoped_fixture])
+    @settings(max_examples=examples, deadline=None, derandomize=True)
     @given(st.lists(st.tuples(st.integers(0, len(good) - 1), st.integers(0, 255)),
                     min_size=1, max_size=8))
     def check(edits):
@@ -112,13 +112,21 @@ def test_e57_damaged_bytes_named_never_crash(tmp_path):
         for pos, val in edits:
             data[pos] = val
         try:
-            got = read_points(bytes(data), "e57", name="mutant.e57")
+            got = read_points(bytes(data), fmt, name=name)
         except ScanError as exc:
-            assert "mutant.e57" in str(exc)
-        else:   # a byte that changed nothing the reader uses: the same points
-            assert np.array_equal(got, read_points(good, "e57"))
+            assert name in str(exc)
+        else:
+            assert accept(got)
 
     check()
+
+
+def test_e57_damaged_bytes_named_never_crash(tmp_path):
+    path, *_ = _two_scans(tmp_path)
+    good = path.read_bytes()
+    want = read_points(good, "e57")
+    # every page carries a CRC: a change the reader uses is refused, any other reads the same
+    _fuzz_bytes(good, "e57", 40, lambda got: np.array_equal(got, want))
 
 
 def _las12(points_m, scale=0.001, offset=(0.0, 0.0, 0.0), declared=None) -> bytes:
@@ -156,22 +164,9 @@ def test_las_declaring_more_points_than_it_holds_is_refused():
 def test_las_damaged_bytes_named_never_crash():
     rng = np.random.default_rng(5)
     good = _las12(rng.integers(0, 1000, size=(40, 3)) * 0.001)
-
-    @settings(max_examples=150, deadline=None, derandomize=True)
-    @given(st.lists(st.tuples(st.integers(0, len(good) - 1), st.integers(0, 255)),
-                    min_size=1, max_size=6))
-    def check(edits):
-        data = bytearray(good)
-        for pos, val in edits:
-            data[pos] = val
-        try:
-            got = read_points(bytes(data), "las", name="mutant.las")
-        except ScanError as exc:
-            assert "mutant.las" in str(exc)
-        else:
-            assert got.shape[1] == 3 and len(got) <= 40
-
-    check()
+    # LAS has no checksum: a changed coordinate byte is a changed coordinate, but never more
+    # points than declared, and never a crash
+    _fuzz_bytes(good, "las", 150, lambda got: got.shape[1] == 3 and len(got) <= 40)
 
 
 def test_service_sniffs_e57_and_las_bodies(tmp_path):
