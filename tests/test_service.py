@@ -632,6 +632,15 @@ def test_report_redraws_the_stored_verdict_and_reasons_of_every_kind(report_app,
     finally:
         con.close()
     assert rows == {k: k for k in stored}
+    # the history by model: the panel's records, none of an unknown model
+    hist = client.get("/history", params={"model": "panel", "limit": 100}).json()
+    assert {r["part"] for r in hist} >= set(stored)
+    assert {r["verdict"] for r in hist if r["part"] == "fail"} == {"fail"}
+    fail_row = [r for r in hist if r["part"] == "fail"][0]
+    assert fail_row["min"] == pytest.approx(stored["fail"]["deviation"]["min"])
+    assert fail_row["lower"] == -0.2 and fail_row["upper"] == 0.2
+    r = client.get("/history", params={"model": "beef"})
+    assert r.status_code == 404 and "no records of model" in r.json()["detail"]
 
 
 def test_report_of_a_record_stored_before_the_arrays_keeps_its_decision(report_app, panel):

@@ -5,7 +5,7 @@ Endpoints (JSON unless noted; lengths in mm):
 - ``POST /inspect?model=NAME&tolerance=0.2&evaluation_distance=1.0&part=ID``, body: the scan (PLY, NPY,
   PCD or XYZ/CSV text; the content type or a sniff of the first bytes decides) -> the
   ``shapeverify inspect --json`` result plus ``record_id``, ``model`` and ``part``.
-- ``GET /health``, ``GET /models``, ``GET /history?part=&limit=``, ``GET /report/{id}`` (HTML,
+- ``GET /health``, ``GET /models``, ``GET /history?part=&limit=&model=``, ``GET /report/{id}`` (HTML,
   drawn on demand from the stored result: its verdict, reasons and per-point deviations, never
   inspected again; :mod:`.stored`).
 
@@ -249,10 +249,12 @@ def _history_routes(app: FastAPI, runner: Runner, work: Work, auth: list) -> Non
     @app.get("/history", dependencies=auth, responses=_responses(401, 422))
     async def history(part: str | None = Query(None, description="only this part id"),
                       limit_: int = Query(50, alias="limit", ge=1, le=10_000,
-                                          description="the most recent N records (returned oldest first)")) -> list:
+                                          description="the most recent N records (returned oldest first)"),
+                      model: str | None = Query(None, max_length=200, description="only this model: "
+                                                "a loaded model's name, or a SHA-256 (prefix)")) -> list:
         """Stored inspections: id, part, time, model_hash, verdict, statistics (mm; null where
-        not available), n_regions."""
-        rows = await runner.run(runner.deadline(), work.query, part, limit_)
+        not available), n_regions, max_abs, region_min, region_max, lower, upper."""
+        rows = await runner.run(runner.deadline(), work.query, part, limit_, model)
         return [{k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in r.items()}
                 for r in rows]
 

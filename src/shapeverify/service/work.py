@@ -137,9 +137,22 @@ class Work:
         payload["record_id"] = record_id
         return payload
 
-    def query(self, job: Job, part: str | None, limit: int) -> list:
+    def query(self, job: Job, part: str | None, limit: int, model: str | None = None) -> list:
+        """Stored rows; ``model``: a loaded model's name (no records yet: none) or a SHA-256
+        prefix of a stored one (404 when it names none or several)."""
         job.start()
-        return self.history_db().query(part=part, limit=limit)
+        db = self.history_db()
+        if model is not None:
+            if model in self.config.models:
+                digest = self.model_hash(model)
+                if digest not in {m["model_hash"] for m in db.models()}:
+                    return []
+                model = digest
+            try:
+                model = db.resolve_model(model)
+            except ValueError as exc:
+                raise HTTPException(404, str(exc).split(": ", 1)[-1]) from None
+        return db.query(part=part, limit=limit, model=model)
 
     def render_report(self, job: Job, record_id: int) -> bytes:
         """The HTML report of a stored inspection, drawn from what was stored (404s: see the
