@@ -21,6 +21,7 @@ from numba import njit
 
 _QUADRIC_MIN = 10
 _COS_SAME_SIDE = 0.7071
+_SHARP = 2.0
 
 
 @njit(cache=True, nogil=True)
@@ -113,7 +114,7 @@ def surface_distance(q, near, nbr, V, VN, n0, ref_rk, k_ref, foot, normal, dist,
             vv[m] = (ex * t2x + ey * t2y + ez * t2z) / h
             hh[m] = (ex * nx + ey * ny + ez * nz) / h
             r = dk[j] / h
-            ww[m] = math.exp(-2.0 * r * r)
+            ww[m] = math.exp(-_SHARP * r * r)
             sw += ww[m]
             m += 1
         fit = 0
