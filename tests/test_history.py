@@ -244,3 +244,26 @@ def test_a_database_of_the_previous_schema_opens_and_is_migrated(tmp_path, versi
     con.close()
     with HistoryDB(path) as db:                   # opening again changes nothing
         assert len(db) == 4
+
+
+def test_two_processes_opening_an_old_database_at_once_migrate_it_once(tmp_path):
+    """Service workers open the history together: the check and the migration are one write
+    transaction (without it the second ALTER TABLE failed: duplicate column)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    path = tmp_path / "old.sqlite"
+    con = sqlite3.connect(path)
+    con.executescript(_V2_SCHEMA)
+    con.execute("PRAGMA user_version = 2")
+    d = _dented().to_dict()
+    con.execute("INSERT INTO inspections (time, verdict, transform, result_json) VALUES "
+                "('t', 'fail', '[]', ?)", (json.dumps(d),))
+    con.commit()
+    con.close()
+
+    def open_and_count(_):
+        with HistoryDB(path) as db:
+            return db.query()[0]["max_abs"]
+
+    with ThreadPoolExecutor(4) as pool:
+        assert list(pool.map(open_and_count, range(8))) == [0.5] * 8

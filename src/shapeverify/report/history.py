@@ -147,24 +147,39 @@ class HistoryDB:
         if str(mode).lower() != "wal":  # pragma: no cover - e.g. a network file system
             logger.warning("%s: SQLite WAL mode unavailable (journal_mode=%s)", self.path, mode)
         self._con.execute("PRAGMA synchronous=NORMAL")
-        version = self._con.execute("PRAGMA user_version").fetchone()[0]
-        if version > SCHEMA_VERSION or version < 0:
-            raise ValueError(f"{self.path}: history schema version {version} is newer than this "
-                             f"shapeverify understands ({SCHEMA_VERSION})")
-        with self._con:
+        # the version check and any migration in one write transaction: two processes opening
+        # an old file at once (service workers) migrate it once
+        self._con.execute("BEGIN IMMEDIATE")
+        try:
+            version = self._con.execute("PRAGMA user_version").fetchone()[0]
+            if version > SCHEMA_VERSION or version < 0:
+                raise ValueError(f"{self.path}: history schema version {version} is newer than "
+                                 f"this shapeverify understands ({SCHEMA_VERSION})")
             if version == 1:
                 self._migrate_v1()
             else:
                 self._add_columns(version)
-            self._con.executescript(_SCHEMA)
+            self._create()
             self._con.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
+            self._con.commit()
+        except BaseException:
+            self._con.rollback()
+            self._con.close()
+            raise
+
+    def _create(self) -> None:
+        """The table and indexes if missing (statement by statement: ``executescript`` would
+        commit the open transaction)."""
+        for stmt in _SCHEMA.split(";"):
+            if stmt.strip():
+                self._con.execute(stmt)
 
     def _migrate_v1(self) -> None:
         """Version 1 refused the verdict 'incomplete' (a CHECK constraint): copy the rows into
         a table of the current schema (SQLite cannot alter a constraint in place)."""
         self._con.execute("ALTER TABLE inspections RENAME TO inspections_v1")
         self._con.execute("DROP INDEX IF EXISTS inspections_part")
-        self._con.executescript(_SCHEMA)
+        self._create()
         cols = ", ".join(_V2_COLUMNS)
         self._con.execute(f"INSERT INTO inspections ({cols}) SELECT {cols} FROM inspections_v1")
         self._con.execute("DROP TABLE inspections_v1")
