@@ -472,14 +472,18 @@ def history(
     for col in ("id", "time", "part", "model", "verdict", "min [mm]", "max [mm]", "max |d| [mm]",
                 "limits [mm]", "regions"):
         t.add_column(col)
-    f = (lambda v: "-" if v is None or v != v else f"{v:+.4f}")
+    def f(v, beyond=False):
+        text = "-" if v is None or v != v else f"{v:+.4f}"
+        return f"[red]{text}[/red]" if beyond else text
+
     for r in rows:
-        lim = (f"{r['lower']:+.3g} / {r['upper']:+.3g}" if r.get("lower") == r.get("lower")
-               and r.get("lower") is not None else "-")
+        lo, hi = r.get("lower"), r.get("upper")
+        known = lo is not None and hi is not None and lo == lo and hi == hi
+        lim = f"{lo:+.3g} / {hi:+.3g}" if known else "-"
         t.add_row(str(r["id"]), str(r["time"]), str(r.get("part") or ""),
-                  str(r.get("model_hash") or "-")[:12], r["verdict"], f(r.get("min")),
-                  f(r.get("max")), f(r.get("max_abs")).lstrip("+"), lim,
-                  str(r.get("n_regions") or 0))
+                  str(r.get("model_hash") or "-")[:12], r["verdict"],
+                  f(r.get("min"), known and r["min"] < lo), f(r.get("max"), known and r["max"] > hi),
+                  f(r.get("max_abs")).lstrip("+"), lim, str(r.get("n_regions") or 0))
     out.print(t)
     shown = sorted({str(r.get("model_hash")) for r in rows})
     if len(shown) > 1:
