@@ -94,7 +94,8 @@ def main():
           f"{np.percentile(e_old, 95):.4f} mm; speed {len(scan) / dt_old:,.0f} points/s")
     err = np.abs(side * near.distances - truth)
     print(f"golden {len(golden)} points (1 mm), rescan {len(scan)} points (0.7 mm, noise {noise})")
-    print(f"after (quadric): exact distance error: median {np.median(err):.4f}  p95 {np.percentile(err, 95):.4f}  "
+    print(f"after (quadric): exact distance error: median {np.median(err):.4f}  p95 "
+          f"{np.percentile(err, 95):.4f}  "
           f"max {err.max():.4f} mm;  |d| p95 {np.percentile(np.abs(near.distances), 95):.4f} mm")
     print(f"after: speed {len(scan) / dt:,.0f} points/s ({dt:.3f} s)")
     tol = 2 * noise
@@ -105,7 +106,9 @@ def main():
         dscan, _ = sheet_points(0.7, rng, noise=noise, margin=2.0, dent=(0.3, 60.0, 45.0, 4.0),
                                 stratified=strat)
         res = sv.inspect(prep, dscan, tolerance=tol)
-        print(f"{'stratified' if strat else 'random'} dented rescan (0.3 mm) at ±{tol}: {res.verdict.value}, regions {len(res.regions)}: "
+        how = "stratified" if strat else "random"
+        print(f"{how} dented rescan (0.3 mm) at ±{tol}: {res.verdict.value}, "
+              f"regions {len(res.regions)}: "
               f"{res.reasons[0][:100]}; "
               + "; ".join(f"{r.kind} {r.extreme:+.3f} at {np.round(r.centroid, 1).tolist()}"
                           for r in res.regions[:5]))

@@ -83,8 +83,9 @@ def crop_model(model, box=None, keep=None):
     else:
         mask = np.asarray(keep, dtype=bool).reshape(-1)
         if mask.shape[0] != items.shape[0]:
-            raise ValueError(f"keep must have one entry per {'point' if kind == 'points' else 'triangle'} "
-                             f"({items.shape[0]}), got {mask.shape[0]}")
+            what = "point" if kind == "points" else "triangle"
+            raise ValueError(f"keep must have one entry per {what} ({items.shape[0]}), got "
+                             f"{mask.shape[0]}")
         what = "a chosen region"
     n = int(mask.sum())
     unit = "points" if kind == "points" else "triangles"
@@ -111,8 +112,8 @@ def _mesh_area(model) -> float:
 def _describe(full, part, how: str) -> str:
     if _kind(full) == "mesh":
         a, b = _mesh_area(part), _mesh_area(full)
-        size = (f"{len(part.triangles)} of {len(full.triangles)} triangles, {a:.0f} of {b:.0f} mm² "
-                f"({100 * a / b:.0f} %)")
+        size = (f"{len(part.triangles)} of {len(full.triangles)} triangles, {a:.0f} of "
+                f"{b:.0f} mm² ({100 * a / b:.0f} %)")
     else:
         size = f"{len(part.vertices)} of {len(full.vertices)} reference points"
     return (f"reference limited to {how} ({size}): coverage and verdict are of that region only; "

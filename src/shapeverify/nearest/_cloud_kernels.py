@@ -2,8 +2,8 @@
 
 For each query: a weighted least-squares quadric ``h = a0 + a1 u + a2 v + a3 u^2 + a4 uv +
 a5 v^2`` through the k nearest reference points of its nearest reference point (lists made once
-per reference; one k = 1 kd-tree query per query instead of a k-neighbour one), in the frame ``(t1, t2, n0)`` of the nearest
-model point's normal ``n0`` (the tilt of the true tangent plane is absorbed by ``a1, a2``);
+per reference; one k = 1 kd-tree query per query instead of a k-neighbour one), in the frame
+``(t1, t2, n0)`` of the nearest model point's normal ``n0`` (the tilt of the true tangent plane is absorbed by ``a1, a2``);
 Gaussian weights ``exp(-2 (r / r_k)^2)`` of the distance r to the query (``r_k``: the largest
 such distance); neighbours whose own normal is more than 45 degrees from ``n0`` are left
 out (the other side of a sharp edge).  With fewer than 10 neighbours left or an ill-conditioned

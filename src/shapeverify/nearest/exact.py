@@ -387,9 +387,9 @@ class ExactCloud:
     """A point-cloud reference measured to its local surface, not to its nearest point.
 
     Each query is measured to a **quadric** fitted by weighted least squares to the ``k``
-    (default 20) nearest reference points of its nearest reference point (a plane where fewer than 10 of them lie on the
-    query's side of a sharp edge or the system is ill-conditioned; the nearest reference point
-    itself where fewer than 3 do), in the frame of the nearest model point's normal, which also
+    (default 20) nearest reference points of its nearest reference point (a plane where fewer
+    than 10 of them lie on the query's side of a sharp edge or the system is ill-conditioned;
+    the nearest reference point itself where fewer than 3 do), in the frame of the nearest model point's normal, which also
     signs the distance (+ along that normal: the same side as the fast mode and the
     registration).  The foot is the closest point of the fitted surface and the normal is its
     normal there.  Kernel and weights: :mod:`shapeverify.nearest._cloud_kernels`.

@@ -461,9 +461,10 @@ def plot_trend(rows, path, baseline: int | None = None, *, dpi: int = 110) -> Pa
         raise ValueError("no inspection records to plot")
     hashes = sorted({str(r.get("model_hash")) for r in rows})
     if len(hashes) > 1:
-        raise ValueError(f"the records are of {len(hashes)} models ({', '.join(h[:12] for h in hashes)}):"
-                         " one chart shows one model; choose it (shapeverify history --model "
-                         "SHA256-PREFIX, or HistoryDB.query(model=...))")
+        short = ", ".join(h[:12] for h in hashes)
+        raise ValueError(f"the records are of {len(hashes)} models ({short}): one chart shows "
+                         "one model; choose it (shapeverify history --model SHA256-PREFIX, or "
+                         "HistoryDB.query(model=...))")
     if baseline is not None and int(baseline) < 2:
         raise ValueError(f"baseline must be >= 2 records, got {baseline}")
     x = np.arange(1, len(rows) + 1)
