@@ -120,3 +120,150 @@ def test_a_file_that_is_not_a_database_is_rejected(tmp_path):
     path.write_text("this is not a database, just some text that is long enough " * 20)
     with pytest.raises(ValueError, match="not an SQLite history database"):
         HistoryDB(path)
+
+
+# ------------------------------------------------ issue 29 item 4: history that shows failures
+def _dented(mn=-0.5, region=-0.47, mx=0.08):
+    r = FakeResult(verdict="fail", mean=-0.01, p95=0.05, mx=mx)
+    r.d["deviation"]["min"] = mn
+    r.d["regions"] = [{"kind": "deviation", "n": 40, "area": 30.0, "extreme": region,
+                       "extreme_raw": mn, "severity": 2.0, "centroid": [1.0, 2.0, 3.0],
+                       "faces": [0], "side": "below"}]
+    return r
+
+
+def test_records_store_signed_min_max_max_abs_region_extremes_and_limits(tmp_path):
+    with HistoryDB(tmp_path / "h.sqlite") as db:
+        for i in range(5):
+            db.add(_dented() if i in (1, 3) else FakeResult(mx=0.08), part=f"P{i}",
+                   model_hash="a" * 64)
+        rows = db.query()
+    bad = [r for r in rows if r["verdict"] == "fail"]
+    assert [r["part"] for r in bad] == ["P1", "P3"]
+    for r in bad:
+        assert (r["min"], r["max"], r["max_abs"]) == (-0.5, 0.08, 0.5)
+        assert r["region_min"] == -0.47 and np.isnan(r["region_max"])
+        assert (r["lower"], r["upper"]) == (-0.2, 0.2)
+        assert r["min"] < r["lower"]          # the chart's top panel marks it beyond the limit
+    good = rows[0]
+    assert good["max_abs"] == 0.1 and np.isnan(good["region_min"])   # |min| = 0.1 > max 0.08
+    plot_trend(rows, tmp_path / "trend.png")
+
+
+def test_models_are_kept_apart_and_one_chart_shows_one_model(tmp_path):
+    cube, hammer = "c0be" + "1" * 60, "c0ff" + "2" * 60
+    with HistoryDB(tmp_path / "h.sqlite") as db:
+        for i in range(6):
+            db.add(FakeResult(), part=f"{'cube' if i % 2 else 'hammer'}{i}",
+                   model_hash=cube if i % 2 else hammer)
+        assert [m["model_hash"] for m in db.models()] == [hammer, cube]
+        assert {r["part"] for r in db.query(model="c0be")} == {"cube1", "cube3", "cube5"}
+        assert {r["part"] for r in db.query(model=hammer)} == {"hammer0", "hammer2", "hammer4"}
+        with pytest.raises(ValueError, match="start of 2 model hashes"):
+            db.query(model="c0")
+        with pytest.raises(ValueError, match="no records of model 'beef'"):
+            db.query(model="beef")
+        rows = db.query()
+    with pytest.raises(ValueError, match="2 models.*--model"):
+        plot_trend(rows, tmp_path / "mixed.png")
+    plot_trend([r for r in rows if r["model_hash"] == cube], tmp_path / "cube.png")
+
+
+def test_history_command_chooses_a_model(tmp_path):
+    from typer.testing import CliRunner
+
+    from shapeverify.cli import app
+
+    model = tmp_path / "cube.stl"
+    model.write_bytes(b"solid cube\nendsolid cube\n")
+    from shapeverify.pipeline import file_hash
+
+    digest = file_hash(model)
+    db_path = tmp_path / "h.sqlite"
+    with HistoryDB(db_path) as db:
+        db.add(_dented(), part="C1", model_hash=digest)
+        db.add(FakeResult(), part="H1", model_hash="f" * 64)
+    runner = CliRunner()
+    res = runner.invoke(app, ["history", "--db", str(db_path), "--plot", str(tmp_path / "t.png")])
+    assert res.exit_code == 2 and "one chart shows one model" in res.output, res.output
+    for key in (str(model), digest[:10]):
+        res = runner.invoke(app, ["history", "--db", str(db_path), "--model", key,
+                                  "--plot", str(tmp_path / "t.png")], env={"COLUMNS": "200"})
+        assert res.exit_code == 0, res.output
+        assert "C1" in res.output and "H1" not in res.output
+        assert "-0.5000" in res.output and "+0.0800" in res.output     # min and max shown
+    assert (tmp_path / "t.png").stat().st_size > 10_000
+
+
+# the schema of the previous version (2), copied from its code
+_V2_SCHEMA = """
+CREATE TABLE IF NOT EXISTS inspections (
+    id INTEGER PRIMARY KEY AUTOINCREMENT,
+    part TEXT,
+    time TEXT NOT NULL,
+    model_hash TEXT,
+    verdict TEXT NOT NULL CHECK (verdict IN ('pass', 'fail', 'error', 'incomplete')),
+    n INTEGER, mean REAL, std REAL, rms REAL, min REAL, max REAL, p05 REAL, p95 REAL, in_tolerance_fraction REAL,
+    n_regions INTEGER,
+    transform TEXT NOT NULL,
+    result_json TEXT NOT NULL
+);
+CREATE INDEX IF NOT EXISTS inspections_part ON inspections (part, id);
+"""
+
+
+@pytest.mark.parametrize("version", [1, 2])
+def test_a_database_of_the_previous_schema_opens_and_is_migrated(tmp_path, version):
+    path = tmp_path / "old.sqlite"
+    schema = _V2_SCHEMA if version == 2 else _V2_SCHEMA.replace(", 'incomplete'", "")
+    con = sqlite3.connect(path)
+    con.executescript(schema)
+    con.execute(f"PRAGMA user_version = {version}")
+    for i, res in enumerate([FakeResult(), _dented(), FakeResult(verdict="error", n=0)]):
+        d = res.to_dict()
+        dev = d["deviation"]
+        con.execute("INSERT INTO inspections (part, time, model_hash, verdict, n, mean, std, rms, "
+                    "min, max, p05, p95, in_tolerance_fraction, n_regions, transform, result_json) "
+                    "VALUES (?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?, ?)",
+                    (f"P{i}", f"2026-01-0{i + 1}T00:00:00", "ab" * 32, d["verdict"], dev["n"],
+                     dev["mean"], dev["std"], dev["rms"], dev["min"], dev["max"], dev["p05"],
+                     dev["p95"], dev["in_tolerance_fraction"], len(d["regions"]),
+                     json.dumps(d["T_model_scan"]), json.dumps(d)))
+    con.commit()
+    con.close()
+    with HistoryDB(path) as db:
+        rows = db.query()
+        assert [r["part"] for r in rows] == ["P0", "P1", "P2"]
+        assert rows[1]["max_abs"] == 0.5 and rows[1]["region_min"] == -0.47
+        assert rows[0]["max_abs"] == 0.1 and rows[0]["upper"] == 0.2
+        assert db.get(rows[1]["id"])["result"]["regions"][0]["extreme"] == -0.47
+        rid = db.add(FakeResult(verdict="incomplete"), part="P3", model_hash="ab" * 32)
+        assert db.query(model="abab")[-1]["id"] == rid
+    con = sqlite3.connect(path)
+    assert con.execute("PRAGMA user_version").fetchone()[0] == 3
+    con.close()
+    with HistoryDB(path) as db:                   # opening again changes nothing
+        assert len(db) == 4
+
+
+def test_two_processes_opening_an_old_database_at_once_migrate_it_once(tmp_path):
+    """Service workers open the history together: the check and the migration are one write
+    transaction (without it the second ALTER TABLE failed: duplicate column)."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    path = tmp_path / "old.sqlite"
+    con = sqlite3.connect(path)
+    con.executescript(_V2_SCHEMA)
+    con.execute("PRAGMA user_version = 2")
+    d = _dented().to_dict()
+    con.execute("INSERT INTO inspections (time, verdict, transform, result_json) VALUES "
+                "('t', 'fail', '[]', ?)", (json.dumps(d),))
+    con.commit()
+    con.close()
+
+    def open_and_count(_):
+        with HistoryDB(path) as db:
+            return db.query()[0]["max_abs"]
+
+    with ThreadPoolExecutor(4) as pool:
+        assert list(pool.map(open_and_count, range(8))) == [0.5] * 8

@@ -225,19 +225,25 @@ def test_mesh_exact_against_brute_force():
     np.testing.assert_allclose(rebuilt, near.points, atol=1e-9)
 
 
-def test_point_cloud_exact_is_the_nearest_cloud_point():
+def test_point_cloud_exact_measures_to_the_surface_not_the_nearest_point():
+    """Issue 29 item 3: a cloud reference is measured to a quadric through its neighbours (the
+    nearest cloud point alone is off by up to half the cloud's spacing)."""
     rng = np.random.default_rng(5)
     P = rng.normal(size=(3000, 3))
-    P = 8.0 * P / np.linalg.norm(P, axis=1)[:, None]
-    model = Model(kind="points", vertices=P, cloud_normals=P / 8.0, source="cloud")
-    prep = prepare(model, spacing=0.6, reach=2.0)
-    q, _, r = _shell(rng, 1000, 0.0, 6.5, 9.5)
-    near = prep.closest(q, exact=True)
-    d, j = cKDTree(P).query(q)
-    np.testing.assert_allclose(near.points, P[j])
-    np.testing.assert_allclose(np.abs(near.distances), d, rtol=1e-12)
-    assert np.all(np.sign(near.distances) == np.sign(np.einsum("ij,ij->i", q - P[j], P[j])))
-    assert np.all(near.face == -1)
+    P = 8.0 * P / np.linalg.norm(P, axis=1)[:, None]       # spacing about 0.5 mm
+    for normals in (P / 8.0, None):                          # given, and PCA normals
+        model = Model(kind="points", vertices=P, cloud_normals=normals, source="cloud")
+        prep = prepare(model, spacing=0.6, reach=2.0)
+        q, _, r = _shell(rng, 1000, 0.0, 6.5, 9.5)
+        near = prep.closest(q, exact=True)
+        truth = r - 8.0                                     # signed distance to the sphere
+        np.testing.assert_allclose(near.distances, truth, atol=3e-3)
+        d_point = cKDTree(P).query(q)[0]
+        assert np.percentile(np.abs(d_point - np.abs(truth)), 95) > 0.05   # the old answer
+        np.testing.assert_allclose(np.linalg.norm(near.points, axis=1), 8.0, atol=3e-3)
+        radial = q / r[:, None]
+        assert np.einsum("ij,ij->i", near.normals, radial).min() > 0.999
+        assert np.all(near.face == -1) and not near.on_boundary.any()
 
 
 # ----------------------------------------------------------------- real CAD vs OCP

@@ -556,3 +556,111 @@ def test_a_bug_is_a_500_that_says_so_and_stores_nothing_but_bad_input_stays_422(
     assert _rows(db) == before
     r = plain.post("/inspect", params=params, content=b"1 2 3\n4 5\n")  # the project's own error
     assert r.status_code == 422 and "request body" in r.json()["detail"]
+
+
+# ------------------------------------------------------- reports redraw what was decided
+@pytest.fixture(scope="module")
+def report_app(panel, tmp_path_factory):
+    """The service app in this process with a history of its own."""
+    from fastapi.testclient import TestClient
+
+    from shapeverify.service import ServiceConfig, create_app, load_models
+
+    d, _ = panel
+    models, hashes = load_models([d / "panel.svm"])
+    db = tmp_path_factory.mktemp("reports") / "h.sqlite"
+    app = create_app(ServiceConfig(models=models, model_hashes=hashes, db_path=db, threads=1))
+    with TestClient(app) as client:
+        yield client, db, db.with_name(db.stem + "-scans")
+
+
+def _banner(page: str) -> tuple[str, list]:
+    """(verdict, reasons) as the report's banner shows them."""
+    import html
+    import re
+
+    m = re.search(r'<div class="banner" id="verdict"[^>]*>\s*<h1>(.*?)</h1>(.*?)</div>\s*'
+                  r'<div class="grid">', page, re.S)
+    assert m, "no verdict banner in the report"
+    reasons = [html.unescape(r) for r in re.findall(r"<li>(.*?)</li>", m.group(2), re.S)]
+    return html.unescape(m.group(1)).lower(), reasons
+
+
+def test_report_redraws_the_stored_verdict_and_reasons_of_every_kind(report_app, panel,
+                                                                     monkeypatch):
+    """Issue 29 item 5: ``/report/{id}`` draws the stored result; it never inspects again (a
+    stored 'error: the scan fits at no pose' was redrawn as 'incomplete' from a rebuilt
+    registration without its robust scale)."""
+    import shapeverify.inspection as insp
+
+    client, db, scan_dir = report_app
+    _, scans = panel
+    small = np.load(io.BytesIO(scans["small"]))
+    rng = np.random.default_rng(0)
+    bodies = {
+        "pass": scans["small"],
+        "fail": scans["dented"],
+        "incomplete": _npy(small[small[:, 0] < np.percentile(small[:, 0], 10)]),
+        "error": _npy(rng.uniform(small.min(axis=0), small.max(axis=0), (3000, 3))),
+    }
+    stored = {}
+    for kind, body in bodies.items():
+        r = client.post("/inspect", params={"model": "panel", "tolerance": 0.2, "part": kind},
+                        content=body)
+        assert r.status_code == 200, r.text
+        j = r.json()
+        assert j["verdict"] == kind, (kind, j["reasons"])
+        stored[kind] = j
+    assert stored["error"]["decision"]["rule"] == "registration"
+    assert "fit" in stored["error"]["reasons"][0] and "scale" in stored["error"]["registration"]
+
+    def no_inspection(*a, **k):
+        raise AssertionError("the report inspected the scan again")
+
+    monkeypatch.setattr(insp, "inspect_registered", no_inspection)
+    monkeypatch.setattr(insp, "inspect", no_inspection)
+    for kind, j in stored.items():
+        page = client.get(f"/report/{j['record_id']}")
+        assert page.status_code == 200, page.text
+        verdict, reasons = _banner(page.text)
+        assert verdict == kind and reasons == j["reasons"], (kind, verdict, reasons, j["reasons"])
+        # the figures are the stored ones too
+        assert f"{j['deviation']['n']:,}" in page.text
+    con = sqlite3.connect(db)
+    try:
+        rows = dict(con.execute("select part, verdict from inspections").fetchall())
+    finally:
+        con.close()
+    assert rows == {k: k for k in stored}
+    # the history by model: the panel's records, none of an unknown model
+    hist = client.get("/history", params={"model": "panel", "limit": 100}).json()
+    assert {r["part"] for r in hist} >= set(stored)
+    assert {r["verdict"] for r in hist if r["part"] == "fail"} == {"fail"}
+    fail_row = [r for r in hist if r["part"] == "fail"][0]
+    assert fail_row["min"] == pytest.approx(stored["fail"]["deviation"]["min"])
+    assert fail_row["lower"] == -0.2 and fail_row["upper"] == 0.2
+    r = client.get("/history", params={"model": "beef"})
+    assert r.status_code == 404 and "no records of model" in r.json()["detail"]
+
+
+def test_report_of_a_record_stored_before_the_arrays_keeps_its_decision(report_app, panel):
+    """A scan archive of the previous version (points and weights only): the figures are
+    recomputed at the stored pose, the verdict and reasons stay the stored ones."""
+    client, db, scan_dir = report_app
+    _, scans = panel
+    small = np.load(io.BytesIO(scans["small"]))
+    rng = np.random.default_rng(0)
+    body = _npy(rng.uniform(small.min(axis=0), small.max(axis=0), (3000, 3)))
+    r = client.post("/inspect", params={"model": "panel", "tolerance": 0.2}, content=body)
+    assert r.status_code == 200, r.text
+    j = r.json()
+    assert j["verdict"] == "error"
+    path = scan_dir / j["scan_file"]
+    with np.load(path) as z:
+        points, weights = z["points"], z["weights"]
+    with open(path, "wb") as fh:
+        np.savez(fh, points=points, weights=weights)
+    page = client.get(f"/report/{j['record_id']}")
+    assert page.status_code == 200, page.text
+    assert _banner(page.text) == ("error", j["reasons"])
+    assert "figures recomputed at the stored pose" in page.text

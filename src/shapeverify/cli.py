@@ -517,6 +517,7 @@ def history(
     plot: Optional[Path] = typer.Option(None, "--plot", help="Write trend charts (PNG)"),
     characteristic: Optional[str] = typer.Option(None, "--characteristic", help="A plan characteristic: its run chart with control limits and Cp/Cpk (a hole's name gives both series)"),
     csv_out: Optional[Path] = typer.Option(None, "--csv", help="With --characteristic: export its history as CSV"),
+    model: Optional[str] = typer.Option(None, "--model", help="Only this model: its SHA-256 (a unique prefix is enough) or the model file itself"),
 ):
     """List past inspections and draw trend charts for process control (SPC)."""
     from shapeverify.report.history import plot_trend
@@ -529,25 +530,42 @@ def history(
 
     if not db.exists():
         _fail(f"{db}: no such history file (create one with `shapeverify inspect ... --db {db}`)")
-    rows = _guard(_history_rows, db, part, limit)
+    rows, models = _guard(_history_rows, db, part, limit, model)
     t = Table(title=f"{db} ({len(rows)} records)")
-    for col in ("id", "time", "part", "verdict", "mean [mm]", "p95 [mm]", "max [mm]"):
+    for col in ("id", "time", "part", "model", "verdict", "min [mm]", "max [mm]", "max |d| [mm]",
+                "limits [mm]", "regions"):
         t.add_column(col)
+    def f(v, beyond=False):
+        text = "-" if v is None or v != v else f"{v:+.4f}"
+        return f"[red]{text}[/red]" if beyond else text
+
     for r in rows:
-        t.add_row(str(r["id"]), str(r["time"]), str(r.get("part") or ""), r["verdict"],
-                  f"{r.get('mean', float('nan')):.4f}", f"{r.get('p95', float('nan')):.4f}",
-                  f"{r.get('max', float('nan')):.4f}")
+        lo, hi = r.get("lower"), r.get("upper")
+        known = lo is not None and hi is not None and lo == lo and hi == hi
+        lim = f"{lo:+.3g} / {hi:+.3g}" if known else "-"
+        t.add_row(str(r["id"]), str(r["time"]), str(r.get("part") or ""),
+                  str(r.get("model_hash") or "-")[:12], r["verdict"],
+                  f(r.get("min"), known and r["min"] < lo), f(r.get("max"), known and r["max"] > hi),
+                  f(r.get("max_abs")).lstrip("+"), lim, str(r.get("n_regions") or 0))
     out.print(t)
+    shown = sorted({str(r.get("model_hash")) for r in rows})
+    if len(shown) > 1:
+        out.print(f"{len(shown)} models in these records; one chart per model: add --model "
+                  "(" + ", ".join(f"{m['model_hash'][:12]} {m['name'] or ''}".strip()
+                                  for m in models if m["model_hash"]) + ")")
     if plot:
         _guard(plot_trend, rows, plot)
         out.print(f"trend chart: {plot}")
 
 
-def _history_rows(db: Path, part, limit: int) -> list:
+def _history_rows(db: Path, part, limit: int, model=None) -> tuple:
     from shapeverify.report.history import HistoryDB
 
+    if model is not None and Path(model).is_file():
+        from shapeverify.pipeline import file_hash
+        model = file_hash(model)
     with HistoryDB(db) as h:
-        return h.query(part=part, limit=limit)
+        return h.query(part=part, limit=limit, model=model), h.models()
 
 
 @app.command()

@@ -77,18 +77,69 @@ def _neighbour_cov(X, nb, out):
 
 
 def _pca_normals(X, k=12):
-    """Unit normals by PCA of the k nearest points, oriented away from the centroid."""
+    """Unit normals by PCA of the k nearest points, oriented consistently over the cloud.
+
+    Each connected part of the k-neighbour graph is oriented from one seed -- its point whose
+    normal points most clearly away from the cloud's centroid (``|cos|`` of the normal and the
+    direction from the centroid largest), taken outward -- along the graph's maximum-agreement
+    spanning tree (Hoppe et al. 1992): a normal is flipped to agree with its parent's.  (The
+    centroid rule for every point alone flipped normals wherever a sheet or a concavity crosses
+    the centroid's level, which turned signed distances inside out patch by patch.)
+    """
     k = min(k, len(X))
     if k < 3:
         raise ValueError(f"need at least 3 points to estimate normals, got {len(X)}")
     _, nb = cKDTree(X).query(X, k=k, workers=2)
+    nb = np.ascontiguousarray(nb, dtype=np.int64)
     cov = np.empty((len(X), 3, 3))
-    _neighbour_cov(X, np.ascontiguousarray(nb, dtype=np.int64), cov)
+    _neighbour_cov(X, nb, cov)
     _, vec = np.linalg.eigh(cov)
     N = np.ascontiguousarray(vec[:, :, 0])
-    flip = np.einsum("ij,ij->i", N, X - X.mean(axis=0)) < 0
-    N[flip] *= -1
-    return N
+    return _orient(X, N, nb)
+
+
+def _orient(X, N, nb):
+    """Normals N flipped to agree along the k-neighbour graph ``nb`` (see :func:`_pca_normals`)."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import breadth_first_order, connected_components, \
+        minimum_spanning_tree
+
+    n, k = nb.shape
+    rows = np.repeat(np.arange(n), k)
+    cols = nb.ravel()
+    keep = rows != cols
+    rows, cols = rows[keep], cols[keep]
+    # weight 1 - |cos| (+ a floor: a zero weight would drop the edge from the sparse graph)
+    w = 1.0 - np.abs(np.einsum("ij,ij->i", N[rows], N[cols])) + 1e-6
+    g = coo_matrix((w, (rows, cols)), shape=(n, n)).tocsr()
+    g = g.maximum(g.T)
+    tree = minimum_spanning_tree(g)
+    tree = tree + tree.T
+    radial = X - X.mean(axis=0)
+    rl = np.linalg.norm(radial, axis=1)
+    conf = np.einsum("ij,ij->i", N, radial) / np.where(rl > 0, rl, 1.0)
+    n_comp, label = connected_components(tree, directed=False)
+    out = N.copy()
+    for c in range(n_comp):
+        members = np.flatnonzero(label == c)
+        seed = int(members[np.argmax(np.abs(conf[members]))])
+        if conf[seed] < 0:
+            out[seed] *= -1.0
+        order, pred = breadth_first_order(tree, seed, directed=False)
+        _propagate(out, order.astype(np.int64), pred.astype(np.int64))
+    return out
+
+
+@njit(cache=True)
+def _propagate(N, order, pred):
+    """Flip N[i] to agree with N[pred[i]], parents first (BFS ``order``)."""
+    for t in range(1, order.shape[0]):
+        i = order[t]
+        p = pred[i]
+        if N[i, 0] * N[p, 0] + N[i, 1] * N[p, 1] + N[i, 2] * N[p, 2] < 0.0:
+            N[i, 0] = -N[i, 0]
+            N[i, 1] = -N[i, 1]
+            N[i, 2] = -N[i, 2]
 
 
 def _any_tangent(N):

@@ -39,9 +39,9 @@ consistently oriented.
 
 *Point-cloud models.*  The cloud is thinned (random order, without normals, disk radius
 ``0.425 * spacing``); normals come from ``model.cloud_normals`` when given, otherwise from a PCA
-of the 12 nearest thinned points, oriented away from the cloud's centroid (a heuristic that is
-right for closed, roughly star-shaped objects and for single scanner views of convex parts; it
-can flip normals in concavities).  Then the thinning at ``0.85 * spacing`` with normals (random
+of the 12 nearest thinned points, oriented consistently along the neighbour graph from the
+point that faces most clearly away from the cloud's centroid (outward for closed parts and
+single scanner views of convex parts; one consistent side for a sheet).  Then the thinning at ``0.85 * spacing`` with normals (random
 order).  The model points are cloud points; ``face = -1``, ``uv = 0``, ``boundary = False`` (a
 cloud has no known edges).
 

@@ -14,9 +14,10 @@
   first use), which is several times faster per evaluation than the knot-span recursion.
 * Mesh models (:class:`ExactMesh`): exact point-triangle projection over every triangle that
   can be the closest one (centroid within the nearest model point's distance plus the largest
-  triangle radius), signed with the angle weighted pseudonormal.
-* Point-cloud models (:class:`ExactCloud`): the nearest cloud point itself (kd-tree over all
-  cloud points).
+  triangle radius), signed with the angle weighted pseudonormal; a foot on an edge that only
+  one triangle uses (an open mesh's outline) is ``on_boundary``.
+* Point-cloud models (:class:`ExactCloud`): the closest point of a quadric fitted to the
+  query's nearest cloud points (kd-tree over all cloud points), see the class.
 
 Each ``refine(queries, index, fast, face, uv, aux)`` (``index``: nearest model points, ``fast``:
 the :class:`~shapeverify.nearest.dvg.DVG`, then per model point its face, (u, v) and
@@ -325,6 +326,27 @@ class ExactMesh:
         centroid = V[T].mean(axis=1)
         self.radius = float(np.linalg.norm(V[T] - centroid[:, None, :], axis=2).max())
         self.kd = cKDTree(centroid)
+        # edges used by one triangle only (the mesh's outline), as sorted keys lo * nV + hi
+        e = np.sort(np.concatenate([T[:, [0, 1]], T[:, [1, 2]], T[:, [2, 0]]]), axis=1)
+        keys, count = np.unique(e[:, 0] * V.shape[0] + e[:, 1], return_counts=True)
+        self.free_keys = keys[count == 1]
+
+    def _on_free_edge(self, face, uv) -> np.ndarray:
+        """Feet on a free edge of the mesh (barycentric coordinate 0 on an edge used by one
+        triangle): the query lies past the mesh's outline there, as a CAD foot on a free edge."""
+        n = face.shape[0]
+        if self.free_keys.size == 0 or n == 0:
+            return np.zeros(n, dtype=np.bool_)
+        tri = self.tri[face]
+        u, v = uv[:, 0], uv[:, 1]
+        eps = 1e-9
+        nv = self.verts.shape[0]
+        out = np.zeros(n, dtype=np.bool_)
+        for flag, a, b in ((v <= eps, 0, 1), (u <= eps, 0, 2), (u + v >= 1.0 - eps, 1, 2)):
+            lo = np.minimum(tri[:, a], tri[:, b])
+            hi = np.maximum(tri[:, a], tri[:, b])
+            out |= flag & np.isin(lo * nv + hi, self.free_keys)
+        return out
 
     def refine(self, q, idx, fast, pt_face, pt_uv, aux):
         n = q.shape[0]
@@ -358,31 +380,89 @@ class ExactMesh:
                                        foot[a:b], normal[a:b], dist[a:b], face[a:b], uv[a:b])
 
         run_chunks(chunk, n, 4096)
-        return foot, normal, dist, face, uv, np.zeros(n, dtype=np.bool_)
+        return foot, normal, dist, face, uv, self._on_free_edge(face, uv)
 
 
 class ExactCloud:
-    """All points of a point-cloud model in a kd-tree (the exact answer is the nearest one)."""
+    """A point-cloud reference measured to its local surface, not to its nearest point.
+
+    Each query is measured to a **quadric** fitted by weighted least squares to the ``k``
+    (default 20) nearest reference points of its nearest reference point (a plane where fewer
+    than 10 of them lie on the query's side of a sharp edge or the system is ill-conditioned;
+    the nearest reference point itself where fewer than 3 do), in the frame of the nearest model point's normal, which also
+    signs the distance (+ along that normal: the same side as the fast mode and the
+    registration).  The foot is the closest point of the fitted surface and the normal is its
+    normal there.  Kernel and weights: :mod:`shapeverify.nearest._cloud_kernels`.
+
+    A foot with no reference point within 2.5 local spacings (from the reference's own
+    12-neighbour radius at the nearest reference point, which is larger at an edge) lies past
+    the reference's edge: ``on_boundary``, as a foot on a free CAD edge (the inspection does not
+    evaluate it).  On a random 1 mm cloud: none up to 1 mm past the edge (measured on the
+    surface extrapolated from the edge, to 2 um), all from 4 mm past it.
+
+    The nearest reference point alone is off by up to half the reference's spacing (a clean
+    rescan against a 1 mm cloud read ±0.4 mm); the quadric's error is that of the fit: the
+    reference's noise averaged over the neighbours, plus the shape's departure from a quadric
+    over them (about 2.5 reference spacings).  Measured (``benchmarks/check_cloud_reference.py``,
+    ``tests/test_partial_reference.py``): a gently curved sheet sampled at random 1 mm, p95
+    0.15 um noise-free and 10 um with 10 um reference noise; a 2 mm bump of sigma 3 mm sampled at
+    random 1 mm, up to 0.09 mm at its top (0.011 mm at 0.5 mm): the reference must resolve the
+    shape to the tolerance, as a mesh's triangles must.
+    """
+
+    #: neighbours of each query in the fit
+    k = 20
+    #: neighbours that define a reference point's local spacing (itself included)
+    k_ref = 12
 
     def __init__(self, model):
+        from shapeverify.cad._sample_cloud import _neighbour_cov
+
         self.verts = np.ascontiguousarray(model.vertices, dtype=np.float64)
-        self.normals = (None if model.cloud_normals is None
-                        else np.ascontiguousarray(model.cloud_normals, dtype=np.float64))
+        m = self.verts.shape[0]
         self.kd = cKDTree(self.verts)
+        k = min(max(self.k, self.k_ref), m)
+        dk, nb = self.kd.query(self.verts, k=k)
+        dk, nb = dk.reshape(m, k), nb.reshape(m, k)
+        kr = min(self.k_ref, k)
+        self.ref_rk = np.ascontiguousarray(dk[:, kr - 1])
+        #: the k nearest reference points of every reference point (itself first)
+        self.nbr = np.ascontiguousarray(nb[:, :min(self.k, k)], dtype=np.int32)
+        if model.cloud_normals is not None:
+            vn = np.asarray(model.cloud_normals, dtype=np.float64)
+        else:   # PCA normals (orientation unused: the side test takes |cos|)
+            cov = np.empty((m, 3, 3))
+            _neighbour_cov(self.verts, np.ascontiguousarray(nb[:, :kr], dtype=np.int64), cov)
+            vn = np.linalg.eigh(cov)[1][:, :, 0]
+        ln = np.linalg.norm(vn, axis=1, keepdims=True)
+        self.normals = np.ascontiguousarray(np.divide(vn, ln, out=np.zeros_like(vn),
+                                                      where=ln > 0))
+
+    @property
+    def nbytes(self) -> int:
+        return int(self.verts.nbytes + self.normals.nbytes + self.ref_rk.nbytes
+                   + self.nbr.nbytes)
 
     def refine(self, q, idx, fast, pt_face, pt_uv, aux):
-        d, j = self.kd.query(q)
-        foot = self.verts[j]
-        if self.normals is not None:
-            normal = self.normals[j]
-        else:  # the nearest model point's normal (clouds without normals get PCA normals)
-            normal = fast.normals(idx)
-        nl = np.linalg.norm(normal, axis=1, keepdims=True)
-        normal = np.divide(normal, nl, out=np.zeros_like(normal), where=nl > 0)
-        sign = np.where(np.einsum("ij,ij->i", q - foot, normal) < 0.0, -1.0, 1.0)
+        from . import _cloud_kernels
+
         n = q.shape[0]
-        return (foot, normal, sign * d, np.full(n, -1, dtype=np.int32), np.zeros((n, 2)),
-                np.zeros(n, dtype=np.bool_))
+        foot = np.empty((n, 3))
+        normal = np.empty((n, 3))
+        dist = np.empty(n)
+        onb = np.zeros(n, dtype=np.bool_)
+        self.last_fit = np.zeros(n, dtype=np.int8)   # 2 quadric, 1 plane, 0 nearest point
+        n0 = fast.normals(idx)
+
+        def chunk(a, b):
+            _, near = self.kd.query(q[a:b])
+            _cloud_kernels.surface_distance(
+                q[a:b], np.ascontiguousarray(near, dtype=np.int64), self.nbr, self.verts,
+                self.normals, n0[a:b], self.ref_rk, self.k_ref, foot[a:b], normal[a:b],
+                dist[a:b], onb[a:b], self.last_fit[a:b])
+
+        run_chunks(chunk, n, 4096)
+        return (foot, normal, dist, np.full(n, -1, dtype=np.int32), np.zeros((n, 2)), onb)
 
 
 def for_model(model, spacing: float):

@@ -221,7 +221,7 @@ class Prepared:
         exact : bool
             False: projection onto the tangent patch of the nearest model point (fast,
             error of order spacing^2 x curvature).  True: refined on the model (NURBS point
-            inversion with trims, triangles, or the nearest cloud point).
+            inversion with trims, triangles, or a quadric through the nearest cloud points).
 
         Returns
         -------

@@ -5,8 +5,9 @@ Endpoints (JSON unless noted; lengths in mm):
 - ``POST /inspect?model=NAME&tolerance=0.2&evaluation_distance=1.0&part=ID``, body: the scan (PLY, NPY,
   PCD or XYZ/CSV text; the content type or a sniff of the first bytes decides) -> the
   ``shapeverify inspect --json`` result plus ``record_id``, ``model`` and ``part``.
-- ``GET /health``, ``GET /models``, ``GET /history?part=&limit=``, ``GET /report/{id}`` (HTML,
-  drawn on demand from the stored scan and registration).
+- ``GET /health``, ``GET /models``, ``GET /history?part=&limit=&model=``, ``GET /report/{id}`` (HTML,
+  drawn on demand from the stored result: its verdict, reasons and per-point deviations, never
+  inspected again; :mod:`.stored`).
 
 Bad input gets a 4xx whose ``detail`` says what was wrong: 401 missing or wrong token, 404 unknown
 model or record, 408 the upload took longer than the time limit, 413 body too large, 415
@@ -25,8 +26,8 @@ Records: the result is committed to the SQLite history (WAL) *before* the respon
 transaction, so a response that reached the client always has its row, and a request that failed
 or timed out (504) leaves none: the worker thread checks a cancel flag between stages and commits
 only if the request is still wanted (a 504 is only answered while no commit has begun). The scan
-(and the registration weights) is written first, under a unique name the row refers to, so
-``/report/{id}`` can redraw any stored inspection; a crash between the two leaves at worst an
+(with the registration weights and the report's per-point arrays) is written first, under a
+unique name the row refers to, so ``/report/{id}`` can redraw any stored inspection; a crash between the two leaves at worst an
 unreferenced scan file, never a row without its scan.
 """
 
@@ -249,17 +250,19 @@ def _history_routes(app: FastAPI, runner: Runner, work: Work, auth: list) -> Non
     @app.get("/history", dependencies=auth, responses=_responses(401, 422))
     async def history(part: str | None = Query(None, description="only this part id"),
                       limit_: int = Query(50, alias="limit", ge=1, le=10_000,
-                                          description="the most recent N records (returned oldest first)")) -> list:
+                                          description="the most recent N records (returned oldest first)"),
+                      model: str | None = Query(None, max_length=200, description="only this model: "
+                                                "a loaded model's name, or a SHA-256 (prefix)")) -> list:
         """Stored inspections: id, part, time, model_hash, verdict, statistics (mm; null where
-        not available), n_regions."""
-        rows = await runner.run(runner.deadline(), work.query, part, limit_)
+        not available), n_regions, max_abs, region_min, region_max, lower, upper."""
+        rows = await runner.run(runner.deadline(), work.query, part, limit_, model)
         return [{k: (None if isinstance(v, float) and not np.isfinite(v) else v) for k, v in r.items()}
                 for r in rows]
 
     @app.get("/report/{record_id}", response_class=HTMLResponse, dependencies=auth,
              responses=_responses(401, 404, 504))
     async def report(record_id: str) -> HTMLResponse:
-        """The HTML report of a stored inspection, drawn on demand from the stored scan (404 for
+        """The HTML report of a stored inspection, drawn on demand from the stored result (404 for
         an id that is not a stored record's: negative, non-numeric or too large ones too)."""
         if not _RECORD_ID.fullmatch(record_id):
             raise HTTPException(404, f"no stored inspection with id {record_id[:40]!r}: record ids "

@@ -4,6 +4,12 @@ Every inspection goes through :func:`shapeverify.pipeline.inspect_scan` (the one
 and batch call), reading the upload's bytes in memory.  Storing follows the rule of
 :mod:`shapeverify.service.app`: the scan file first (complete or absent), then the history row
 in one transaction, and only while the request still wants it (:meth:`Job.begin_commit`).
+
+The scan file also holds the per-point arrays the report draws, and the row the whole result
+(verdict, reasons, the registration summary with warnings and robust scale): ``/report/{id}``
+redraws that (:class:`~shapeverify.service.stored.StoredResult`), it never inspects again.
+Records stored before the arrays were kept are inspected again at their stored pose, and drawn
+with their stored verdict, rule and reasons.
 """
 
 from __future__ import annotations
@@ -20,13 +26,16 @@ from fastapi import HTTPException
 from shapeverify.service.jobs import Job
 
 
-def write_scan(path: Path, points: np.ndarray, weights) -> None:
-    """Store a scan (and its registration weights) as ``path``, complete or not at all: written
-    to a temporary name and renamed; on any failure (a full disk) the temporary file is removed."""
+def write_scan(path: Path, points: np.ndarray, weights, arrays: dict | None = None) -> None:
+    """Store a scan (its registration weights, and the report's ``arrays``:
+    :func:`~shapeverify.service.stored.report_arrays`) as ``path``, complete or not at all:
+    written to a temporary name and renamed; on any failure (a full disk) the temporary file is
+    removed."""
     tmp = path.with_suffix(".tmp")
     try:
         with open(tmp, "wb") as fh:
-            np.savez(fh, points=points, weights=np.asarray(weights if weights is not None else []))
+            np.savez(fh, points=points, weights=np.asarray(weights if weights is not None else []),
+                     **(arrays or {}))
         os.replace(tmp, path)
     except BaseException:
         tmp.unlink(missing_ok=True)
@@ -101,13 +110,19 @@ class Work:
                             scan_name="request body", tolerance=tolerance,
                             evaluation_distance=evaluation_distance, init=init,
                             progress=job.check)
+        from shapeverify.service.stored import report_arrays
+
         payload = done.result.to_dict()
         payload["timings"]["parse_s"] = done.timings["read_scan_s"]
+        scale = getattr(done.result.registration, "scale", None)
+        if scale is not None and np.isfinite(scale):   # the rest of its summary is in to_dict
+            payload["registration"]["scale"] = float(scale)
         payload.update(model=name, part=part)
         scan_file = None
         if self.config.keep_scans:
             scan_file = self.scan_dir / f"{uuid.uuid4().hex}.npz"
-            write_scan(scan_file, done.scan, getattr(done.result.registration, "weights", None))
+            write_scan(scan_file, done.scan, getattr(done.result.registration, "weights", None),
+                       report_arrays(done.result))
             payload["scan_file"] = scan_file.name
         if not job.begin_commit():  # timed out meanwhile: the client got 504, store nothing
             if scan_file is not None:
@@ -122,15 +137,28 @@ class Work:
         payload["record_id"] = record_id
         return payload
 
-    def query(self, job: Job, part: str | None, limit: int) -> list:
+    def query(self, job: Job, part: str | None, limit: int, model: str | None = None) -> list:
+        """Stored rows; ``model``: a loaded model's name (no records yet: none) or a SHA-256
+        prefix of a stored one (404 when it names none or several)."""
         job.start()
-        return self.history_db().query(part=part, limit=limit)
+        db = self.history_db()
+        if model is not None:
+            if model in self.config.models:
+                digest = self.model_hash(model)
+                if digest not in {m["model_hash"] for m in db.models()}:
+                    return []
+                model = digest
+            try:
+                model = db.resolve_model(model)
+            except ValueError as exc:
+                raise HTTPException(404, str(exc).split(": ", 1)[-1]) from None
+        return db.query(part=part, limit=limit, model=model)
 
     def render_report(self, job: Job, record_id: int) -> bytes:
-        """The HTML report of a stored inspection, redrawn from its stored scan (404s: see the
+        """The HTML report of a stored inspection, drawn from what was stored (404s: see the
         messages)."""
-        from shapeverify.inspection import Tolerance, inspect_registered
         from shapeverify.report.html import html_report
+        from shapeverify.service.stored import ARRAY_KEYS, StoredResult
 
         if not job.start():
             return b""
@@ -147,14 +175,32 @@ class Work:
             raise HTTPException(404, f"the scan of inspection {record_id} is not stored "
                                      "(the service ran with --no-keep-scans, or it was deleted)")
         with np.load(self.scan_dir / res["scan_file"]) as z:
-            points, weights = z["points"], z["weights"]
+            stored = {k: z[k] for k in z.files}
+        points, weights = stored["points"], stored["weights"]
+        prep = self.config.models[name]
+        title = f"Inspection {record_id} (part {rec['part'] or '-'}, {rec['time']})"
+        if all(k in stored for k in ARRAY_KEYS):
+            result = StoredResult.from_stored(res, points, stored)
+        else:
+            result = self._inspect_again(rec, points, weights)
+            title += ": figures recomputed at the stored pose (stored before reports were kept)"
+        job.check()
+        return html_report(result, prep, points, title=title)
+
+    def _inspect_again(self, rec: dict, points, weights):
+        """A record stored without its report arrays: inspected again at its stored pose, with
+        the stored verdict, rule and reasons (what was decided then)."""
+        import dataclasses
+
+        from shapeverify.inspection import Tolerance, inspect_registered
+
+        res = rec["result"]
         registration = StoredRegistration.from_record(rec, weights if weights.size else None)
         tol = res.get("tolerance", {})
-        prep = self.config.models[name]
-        result = inspect_registered(prep, points, registration,
+        result = inspect_registered(self.config.models[res["model"]], points, registration,
                                     tolerance=Tolerance(tol["lower"], tol["upper"]),
                                     evaluation_distance=res.get("evaluation_distance",
                                                                 res.get("max_distance")))
-        job.check()
-        return html_report(result, prep, points,
-                           title=f"Inspection {record_id} (part {rec['part'] or '-'}, {rec['time']})")
+        return dataclasses.replace(result, verdict=res["verdict"],
+                                   reasons=tuple(res.get("reasons") or ()),
+                                   rule=str((res.get("decision") or {}).get("rule") or ""))
