@@ -17,7 +17,7 @@ from .coverage import MIN_COVERAGE, compute_coverage
 from .deviations import _deviations
 from .material import beside_surface, find_material, floating_surfaces
 from .plan_link import PlanPose, with_characteristics
-from .regions import MIN_POINTS, find_regions, median_spacing
+from .regions import MIN_POINTS, find_regions, surface_spacing
 from .result import InspectionResult
 from .verdict import (MIN_INLIER_FRACTION, Tolerance, decide, per_face_statistics,
                       statistics)
@@ -472,7 +472,7 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
     ev_feet = dev.foot_points[ev]
     # the spacing and the coverage are grid searches; the regions build their k-d tree of the
     # evaluated foot points only when there are out-of-tolerance points to look at
-    spacing = median_spacing(None, ev_feet) if ev_feet.shape[0] >= 2 else float("nan")
+    spacing = surface_spacing(ev_feet) if ev_feet.shape[0] >= 2 else float("nan")
     within = tol.within(dev.values, dev.face)
     weights = getattr(reg, "weights", None)
     if weights is not None and np.shape(weights) != (scan.shape[0],):
