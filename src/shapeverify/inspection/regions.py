@@ -323,11 +323,13 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
                 ok = np.isfinite(d)
                 owner[os_[ok]] = labels[ks[j[ok]]]
             for comp in keep:
+                idx = out_idx[owner == comp]
+                if idx.size == 0:
+                    continue
                 sel = labels == comp
-                idx = np.union1d(core[sel], out_idx[owner == comp])
                 member[idx] = True
-                regions.append(_describe(idx, core[sel], core_med[sel], a[sel], points, values,
-                                         face, normals, tree, ev_idx, spacing, lo_lim, hi_lim))
+                regions.append(_describe(idx, core[sel], core_med[sel], points, values, face,
+                                         normals, tree, ev_idx, spacing, lo_lim, hi_lim))
     small = ~member[out_idx]
     outliers = Outliers(out_idx[small], _low_weight(weights, out_idx[small]))
     regions.sort(key=lambda r: (-r.severity, -abs(r.extreme)))
@@ -407,27 +409,34 @@ def _low_weight(weights, idx):
     return np.asarray(weights)[idx] < LOW_WEIGHT
 
 
-def _describe(idx, core, med, a, points, values, face, normals, tree, ev_idx, spacing,
+def _describe(idx, core, med, points, values, face, normals, tree, ev_idx, spacing,
               lo_lim, hi_lim) -> DefectRegion:
-    """Size, area, severity, extreme and position of one region: scan indices ``idx``, its core
-    points ``core`` with their neighbourhood medians ``med`` and areas per point ``a``."""
+    """Size, area, severity, extreme and position of one region: its out-of-tolerance points
+    (scan indices ``idx``) and its core points ``core`` with their neighbourhood medians
+    ``med``."""
     above = bool(med[0] > 0)
     v = values[idx]
+    a = area_per_point(tree, points[idx], AREA_RADIUS * spacing)
+    a = np.where(a <= SPARSE_AREA * spacing ** 2, a, 0.0)     # stray points stand for no area
     area = float(np.sum(a))
+    severity = float(np.sum(a * np.maximum(np.abs(v) - np.abs(hi_lim[idx] if above else lo_lim[idx]),
+                                            0.0)))
+    extreme_raw = float(v[int(np.argmax(np.abs(v)))])
     limit = hi_lim[core] if above else lo_lim[core]
-    severity = float(np.sum(a * np.maximum(np.abs(med) - np.abs(limit), 0.0)))
-    same = v[(v > 0) == above]
-    extreme_raw = float(same[int(np.argmax(np.abs(same)))]) if same.size else float(med[0])
+    # the quadratic's reach: 4 spacings, less on a small region (a dent a few spacings wide is
+    # no paraboloid over 4 spacings), never under 2.5 (at least about 12 points)
+    reach = float(np.clip(0.6 * np.sqrt(area / np.pi), 2.5 * spacing, NEIGHBOURHOOD * spacing))
 
     # The worst core point by its neighbourhood median, refined by a local quadratic.
     k = int(np.argmax(np.abs(med)))
     fallback = float(med[k])
     extreme, at = _quadratic_peak(points[core[k]], normals[core[k]], tree, ev_idx, points, values,
-                                  NEIGHBOURHOOD * spacing, fallback)
+                                  reach, fallback)
     beyond = extreme > limit[k] if above else extreme < limit[k]
     if not beyond or abs(extreme) > abs(extreme_raw):
         extreme, at = fallback, points[core[k]].copy()
-    centroid = (a[:, None] * points[core]).sum(axis=0) / a.sum()
+    w = a if a.sum() > 0 else np.ones_like(a)
+    centroid = (w[:, None] * points[idx]).sum(axis=0) / w.sum()
     return DefectRegion(
         n=int(idx.size), area=area, extreme=float(extreme), extreme_raw=extreme_raw,
         centroid=centroid, extreme_point=at,
