@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 import warnings
@@ -496,6 +497,16 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
     v, f, w = dev.values[inl], dev.face[inl], within[inl]
     above = v > 0
     stats = statistics(v, w, above)
+    n_ev = int(np.count_nonzero(ev))
+    if n_ev:
+        # the values describe the part (outliers left out); the share in tolerance counts every
+        # evaluated point, the outliers' share beside it (19 % outliers read "100 %" before)
+        out_ev = ev & ~within
+        n_hi = int(np.count_nonzero(out_ev & (dev.values > 0)))
+        stats = dataclasses.replace(
+            stats, in_tolerance_fraction=1.0 - np.count_nonzero(out_ev) / n_ev, n_above=n_hi,
+            n_below=int(np.count_nonzero(out_ev)) - n_hi, outlier_fraction=outliers.n / n_ev)
+    noise = _noise(dev, ev)
     if v.size and f.min() == f.max():           # one face: its statistics are the overall ones
         per_face_stats = {int(f[0]): stats}
     else:
@@ -506,7 +517,8 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
                 "outliers": outliers.n}
 
     verdict, reasons, rule = decide(reg, dev, regions, coverage,
-                                    min_inlier_fraction=opts.min_inlier_fraction)
+                                    min_inlier_fraction=opts.min_inlier_fraction, noise=noise,
+                                    tolerance=tol, n_outliers=outliers.n)
     notes = []
     hint = unit_hint(_bbox_diagonal(scan), model_size) if model_size else None
     if hint and verdict != "pass":
@@ -529,4 +541,16 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
         verdict=verdict, reasons=tuple(reasons) + tuple(notes), registration=reg, deviations=dev,
         statistics=stats, per_face=per_face_stats, regions=tuple(regions), outliers=outliers,
         tolerance=tol, timings=timings, spacing=spacing, coverage=coverage, rule=rule,
-        excluded=excluded)
+        excluded=excluded, noise=noise)
+
+
+#: Most evaluated scan points the noise is measured on.
+NOISE_POINTS = 50_000
+
+
+def _noise(dev, ev) -> float:
+    """The scan's own noise sigma (mm) from its evaluated points (NaN when too few)."""
+    from ..registration._noise import scan_noise
+
+    P = dev.points_model[ev]
+    return float(scan_noise(P[::max(1, P.shape[0] // NOISE_POINTS)]))

@@ -56,7 +56,8 @@ class InspectionResult:
     tolerance : Tolerance
     timings : dict {stage: seconds}
     spacing : float
-        Median scan point spacing used for the regions (mm; NaN if not needed).
+        The scan's spacing as area per point on the part (mm,
+        :func:`shapeverify.inspection.regions.surface_spacing`; NaN if not needed).
     units : str
     coverage : Coverage or None
         How much of the inspected CAD area was seen (:mod:`shapeverify.inspection.coverage`).
@@ -73,6 +74,10 @@ class InspectionResult:
         verdict (:mod:`shapeverify.characteristics`).
     plan : PlanResult or None
         With a plan: the whole plan evaluation (alignment, section, ...).
+    noise : float
+        The scan's own noise sigma (mm) about local quadrics of its evaluated points; a noise
+        large against the tolerance makes a part that would pass ``incomplete`` (rule
+        ``undecided``, ISO 14253-1).  NaN when unknown.
     """
 
     verdict: Verdict
@@ -93,6 +98,7 @@ class InspectionResult:
     inputs: dict = field(default_factory=dict)
     characteristics: tuple = ()
     plan: object = None
+    noise: float = float("nan")
 
     def __post_init__(self):
         try:  # the one place a verdict string becomes a Verdict
@@ -160,6 +166,7 @@ class InspectionResult:
                          for k, v in r.to_dict().items()} for r in self.regions],
             "outliers": self.outliers.to_dict(),
             "spacing": _num(self.spacing),
+            "noise": _num(self.noise),
             "timings": {k: _num(v) for k, v in self.timings.items()},
         }
         if self.plan is not None:
