@@ -63,6 +63,44 @@ def tessellate(shape, deflection: float):
     return np.vstack(V), np.vstack(T), np.concatenate(F)
 
 
+def on_surface(shape, P, N, tri_face, t):
+    """``(P, N)`` moved onto the exact CAD faces: each point (drawn on triangle ``t`` of face
+    ``tri_face[t]``) projected on its face's surface (``GeomAPI_ProjectPointOnSurf``), with the
+    surface's normal there oriented like the triangle's (the tessellation's chord error can be
+    larger than a tolerance on a large part)."""
+    from OCP.BRep import BRep_Tool
+    from OCP.GeomAPI import GeomAPI_ProjectPointOnSurf
+    from OCP.GeomLProp import GeomLProp_SLProps
+    from OCP.gp import gp_Pnt
+    from OCP.TopAbs import TopAbs_FACE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    faces = []
+    exp = TopExp_Explorer(shape, TopAbs_FACE)
+    while exp.More():
+        faces.append(BRep_Tool.Surface_s(TopoDS.Face(exp.Current())))
+        exp.Next()
+    P2, N2 = P.copy(), N.copy()
+    fid = tri_face[t]
+    for f in np.unique(fid):
+        surf = faces[f]
+        proj = GeomAPI_ProjectPointOnSurf()
+        for i in np.flatnonzero(fid == f):
+            proj.Init(gp_Pnt(*P[i]), surf)
+            if proj.NbPoints() == 0:
+                continue
+            q = proj.NearestPoint()
+            u, v = proj.LowerDistanceParameters()
+            props = GeomLProp_SLProps(surf, u, v, 1, 1e-9)
+            if props.IsNormalDefined():
+                n = props.Normal()
+                n = np.array([n.X(), n.Y(), n.Z()])
+                N2[i] = n if n @ N[i] >= 0 else -n
+            P2[i] = (q.X(), q.Y(), q.Z())
+    return P2, N2
+
+
 def _tri_geometry(V, T):
     a, b, c = V[T[:, 0]], V[T[:, 1]], V[T[:, 2]]
     n = np.cross(b - a, c - a)
@@ -70,8 +108,9 @@ def _tri_geometry(V, T):
     return a, b, c, n / np.maximum(area2, 1e-300)[:, None], 0.5 * area2
 
 
-def random_points(V, T, spacing, rng, tris=None):
-    """Uniform by area, ``1 / spacing^2`` points per unit area: ``(points, normals)``."""
+def random_points(V, T, spacing, rng, tris=None, with_triangles=False):
+    """Uniform by area, ``1 / spacing^2`` points per unit area: ``(points, normals)`` (and
+    their triangles' indices with ``with_triangles``)."""
     a, b, c, n, area = _tri_geometry(V, T)
     if tris is not None:
         a, b, c, n, area = a[tris], b[tris], c[tris], n[tris], area[tris]
@@ -80,15 +119,18 @@ def random_points(V, T, spacing, rng, tris=None):
     r1, r2 = rng.random(m), rng.random(m)
     s = np.sqrt(r1)
     P = (1 - s)[:, None] * a[t] + (s * (1 - r2))[:, None] * b[t] + (s * r2)[:, None] * c[t]
+    if with_triangles:
+        return P, n[t], (t if tris is None else np.asarray(tris)[t])
     return P, n[t]
 
 
 def lattice_points(V, T, spacing, rng, aniso: float = 1.0, order: str = "random"):
     """A lattice of ``spacing`` (rows ``aniso x spacing`` apart) in the coordinate plane across
-    each triangle's dominant normal axis, lifted onto the triangle: ``(points, normals)``."""
+    each triangle's dominant normal axis, lifted onto the triangle: ``(points, normals,
+    triangles)``."""
     a, b, c, n, _ = _tri_geometry(V, T)
     shift = rng.random(2)
-    out, nrm, key = [], [], []
+    out, nrm, key, tri = [], [], [], []
     for ax in range(3):
         sel = np.flatnonzero(np.argmax(np.abs(n), axis=1) == ax)
         if sel.size == 0:
@@ -118,14 +160,15 @@ def lattice_points(V, T, spacing, rng, aniso: float = 1.0, order: str = "random"
             P = A + l1[:, None] * (B - A) + l2[:, None] * (C - A)
             out.append(P)
             nrm.append(np.repeat(n[t][None], len(P), axis=0))
+            tri.append(np.full(len(P), t))
             key.append(np.column_stack([np.full(len(P), ax), np.round(Y[inside] / h[1]),
                                         X[inside]]))
-    P, N, K = np.vstack(out), np.vstack(nrm), np.vstack(key)
+    P, N, K, t = np.vstack(out), np.vstack(nrm), np.vstack(key), np.concatenate(tri)
     if order == "scanner":
         o = np.lexsort((K[:, 2], K[:, 1], K[:, 0]))
     else:
         o = rng.permutation(len(P))
-    return P[o], N[o]
+    return P[o], N[o], t[o]
 
 
 def bump(P, center, depth, radius):
@@ -164,14 +207,17 @@ def dent_site(V, T, F, radius):
     return cand[i]
 
 
-def scan(V, T, sampler, spacing, rng, noise=0.0, dents=(), aniso=1.0):
+def scan(V, T, sampler, spacing, rng, noise=0.0, dents=(), aniso=1.0, exact=None):
     """Scan points: ``sampler`` in {'random', 'grid', 'scanner', 'aniso'}; ``dents``
-    ``[(center, depth, radius)]`` (depth < 0: into the part)."""
+    ``[(center, depth, radius)]`` (depth < 0: into the part); ``exact``: ``(shape, face of each
+    triangle)`` to put the points on the exact CAD surface (:func:`on_surface`) first."""
     if sampler == "random":
-        P, N = random_points(V, T, spacing, rng)
+        P, N, t = random_points(V, T, spacing, rng, with_triangles=True)
     else:
-        P, N = lattice_points(V, T, spacing, rng, aniso=aniso if sampler == "aniso" else 1.0,
-                              order="scanner" if sampler == "scanner" else "random")
+        P, N, t = lattice_points(V, T, spacing, rng, aniso=aniso if sampler == "aniso" else 1.0,
+                                 order="scanner" if sampler == "scanner" else "random")
+    if exact is not None:
+        P, N = on_surface(exact[0], P, N, exact[1], t)
     h = rng.normal(0.0, noise, len(P)) if noise else np.zeros(len(P))
     for c, depth, radius in dents:
         h = h + bump(P, c, depth, radius)
