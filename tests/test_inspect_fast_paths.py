@@ -149,6 +149,7 @@ def test_an_inspection_gives_what_the_plain_tree_computations_give():
     import shapeverify as sv
     from shapeverify.cad.examples import wavy_panel
     from shapeverify.inspection import find_regions
+    from shapeverify.inspection.regions import median_spacing, surface_spacing
     from shapeverify.simulate import virtual_scan
 
     prep = sv.prepare(wavy_panel(), spacing=2.0)
@@ -160,7 +161,11 @@ def test_an_inspection_gives_what_the_plain_tree_computations_give():
     tree = cKDTree(feet)
     d, _ = tree.query(feet[:: max(1, feet.shape[0] // 1500)], k=2)
     d = d[:, 1]
-    assert res.spacing == float(np.median(d[np.isfinite(d) & (d > 0)]))
+    # the grid search's nearest distances are the tree's; the inspection's spacing is the area
+    # per point (surface_spacing), within a few % of the nearest distance on this pixel grid
+    assert median_spacing(None, feet) == float(np.median(d[np.isfinite(d) & (d > 0)]))
+    assert res.spacing == surface_spacing(feet)
+    assert abs(res.spacing / float(np.median(d)) - 1) < 0.15
     cov = res.coverage
     near, _ = tree.query(cov.points, k=1, distance_upper_bound=cov.radius)
     np.testing.assert_array_equal(cov.covered, np.isfinite(near))

@@ -215,7 +215,8 @@ def test_small_clusters_are_outliers_and_opposite_sides_are_not_merged():
     regions, outliers, spacing = find_regions(
         pts, v, np.ones(x.size, bool), within, np.zeros(x.size, np.int32),
         np.tile([0, 0, 1.0], (x.size, 1)), weights=None, min_points=5)
-    assert spacing == pytest.approx(0.5)
+    # the spacing is the area per point (surface_spacing), a few % off on a 20 mm patch's edges
+    assert spacing == pytest.approx(0.5, rel=0.05)
     assert sorted(outliers.indices.tolist()) == sorted(three)
     assert len(regions) == 2
     assert {r.side for r in regions} == {"above", "below"}

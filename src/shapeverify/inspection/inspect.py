@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 import time
 import warnings
@@ -17,7 +18,7 @@ from .coverage import MIN_COVERAGE, compute_coverage
 from .deviations import _deviations
 from .material import beside_surface, find_material, floating_surfaces
 from .plan_link import PlanPose, with_characteristics
-from .regions import MIN_POINTS, find_regions, median_spacing
+from .regions import MIN_POINTS, find_regions, surface_spacing
 from .result import InspectionResult
 from .verdict import (MIN_INLIER_FRACTION, Tolerance, decide, per_face_statistics,
                       statistics)
@@ -486,7 +487,7 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
     ev_feet = dev.foot_points[ev]
     # the spacing and the coverage are grid searches; the regions build their k-d tree of the
     # evaluated foot points only when there are out-of-tolerance points to look at
-    spacing = median_spacing(None, ev_feet) if ev_feet.shape[0] >= 2 else float("nan")
+    spacing = surface_spacing(ev_feet) if ev_feet.shape[0] >= 2 else float("nan")
     within = tol.within(dev.values, dev.face)
     weights = getattr(reg, "weights", None)
     if weights is not None and np.shape(weights) != (scan.shape[0],):
@@ -510,6 +511,16 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
     v, f, w = dev.values[inl], dev.face[inl], within[inl]
     above = v > 0
     stats = statistics(v, w, above)
+    n_ev = int(np.count_nonzero(ev))
+    if n_ev:
+        # the values describe the part (outliers left out); the share in tolerance counts every
+        # evaluated point, the outliers' share beside it (19 % outliers read "100 %" before)
+        out_ev = ev & ~within
+        n_hi = int(np.count_nonzero(out_ev & (dev.values > 0)))
+        stats = dataclasses.replace(
+            stats, in_tolerance_fraction=1.0 - np.count_nonzero(out_ev) / n_ev, n_above=n_hi,
+            n_below=int(np.count_nonzero(out_ev)) - n_hi, outlier_fraction=outliers.n / n_ev)
+    noise = _noise(dev, ev)
     if v.size and f.min() == f.max():           # one face: its statistics are the overall ones
         per_face_stats = {int(f[0]): stats}
     else:
@@ -520,7 +531,8 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
                 "outliers": outliers.n}
 
     verdict, reasons, rule = decide(reg, dev, regions, coverage,
-                                    min_inlier_fraction=opts.min_inlier_fraction)
+                                    min_inlier_fraction=opts.min_inlier_fraction, noise=noise,
+                                    tolerance=tol, n_outliers=outliers.n)
     notes = []
     from shapeverify.cad.completeness import missing_faces_note  # issue 33 row 2
     if missing_faces_note(prep.model):
@@ -546,4 +558,16 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
         verdict=verdict, reasons=tuple(reasons) + tuple(notes), registration=reg, deviations=dev,
         statistics=stats, per_face=per_face_stats, regions=tuple(regions), outliers=outliers,
         tolerance=tol, timings=timings, spacing=spacing, coverage=coverage, rule=rule,
-        excluded=excluded)
+        excluded=excluded, noise=noise)
+
+
+#: Most evaluated scan points the noise is measured on.
+NOISE_POINTS = 50_000
+
+
+def _noise(dev, ev) -> float:
+    """The scan's own noise sigma (mm) from its evaluated points (NaN when too few)."""
+    from ..registration._noise import scan_noise
+
+    P = dev.points_model[ev]
+    return float(scan_noise(P[::max(1, P.shape[0] // NOISE_POINTS)]))

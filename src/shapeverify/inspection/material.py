@@ -6,7 +6,8 @@ surface attached to the measured part**, the part has material the model does no
 was never pierced, an extra flange, an edge left untrimmed.  Such a cluster is a region of
 ``kind="material"`` and fails the part.
 
-The rule (all distances in mm, ``s`` = the scan's median point spacing on the part):
+The rule (all distances in mm, ``s`` = the scan's spacing on the part as area per point,
+:func:`.regions.surface_spacing`):
 
 1. candidates: points *too far* (farther than the evaluation distance from the CAD) that lie
    **beside** the CAD rather than above it: their offset from the closest CAD point runs along
@@ -18,7 +19,9 @@ The rule (all distances in mm, ``s`` = the scan's median point spacing on the pa
    clusters are reported by :func:`floating_surfaces` as notes, and their points stay excluded;
 2. candidates closer than ``LINK_FACTOR x s`` (in space) are linked; a connected component is a
    material region when it holds at least ``MIN_MATERIAL_POINTS`` too-far points, is **dense**
-   (at least 80 % of its points have 2 linked neighbours: a surface, not scattered outliers), and
+   (at least 80 % of its points have 2 linked neighbours, and its median area per point, from a
+   smooth kernel within ``DENSE_RADIUS x s``, is at most ``SPARSE_AREA x s^2``: a surface sampled
+   like the part, not scattered outliers), and
    **joins the part without a step**: its points within ``LINK_FACTOR x s`` of an evaluated scan
    point continue that point's surface (median slope ``|offset along the CAD normal| / |offset
    along the surface|`` at most ``MAX_JOIN_SLOPE``, about 30 degrees).  Material that was never
@@ -40,12 +43,14 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from .deviations import ON_BOUNDARY, TOO_FAR
-from .regions import LINK_FACTOR, DefectRegion, linked_components
+from .regions import LINK_FACTOR, SPARSE_AREA, DefectRegion, area_per_point, linked_components
 
 __all__ = ["find_material", "floating_surfaces", "MIN_MATERIAL_POINTS"]
 
 #: Fewest too-far points of a material region.
 MIN_MATERIAL_POINTS = 10
+#: Radius (in spacings) of the disc that measures a material cluster's density.
+DENSE_RADIUS = 3.0
 #: Largest median slope (normal / tangential offset) where material joins the part.
 MAX_JOIN_SLOPE = 0.6
 #: Largest share of a candidate's offset from the CAD that may lie along the CAD normal.
@@ -102,6 +107,9 @@ def find_material(dev, spacing: float, upper_limit: float,
         sel = np.flatnonzero(labels == c)
         if np.mean(degree[sel] >= 2) < 0.8:
             continue                                       # scattered: outliers, not a surface
+        if np.median(area_per_point(tree, p[sel], DENSE_RADIUS * spacing)) > \
+                SPARSE_AREA * spacing ** 2:
+            continue                 # sparser than the scanned part: stray points, not a surface
         if not _joins_part(p[sel], ev_tree, ev_idx, dev, link, spacing):
             continue                                       # detached, or a step: not material
         far = sel[is_far[sel]]

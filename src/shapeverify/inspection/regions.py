@@ -45,13 +45,23 @@ from ._grid_kernels import kernel_array, mark_within, nearest_other
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["DefectRegion", "Outliers", "find_regions", "median_spacing", "MIN_POINTS",
+__all__ = ["DefectRegion", "Outliers", "find_regions", "median_spacing", "surface_spacing", "MIN_POINTS",
            "LINK_FACTOR"]
 
 #: Default smallest number of points of a defect region.
 MIN_POINTS = 5
-#: Link radius of the cluster graph in units of the median point spacing.
+#: Link radius of the cluster graph in units of the spacing.
 LINK_FACTOR = 2.5
+#: Radius of a point's neighbourhood median (at most 9 neighbours), in spacings.
+MEDIAN_RADIUS = 3.0
+#: Radius of the disc that gives a core point its area, in spacings.
+AREA_RADIUS = 5.0
+#: Core points standing for more than this area (in spacings^2) lie where the scan is sparse.
+SPARSE_AREA = 3.0
+#: The neighbour whose distance measures the density (:func:`surface_spacing`).
+K_DENSITY = 8
+#: Most points the density is estimated from.
+DENSITY_SUBSET = 20000
 #: Registration weight below which a point counts as rejected by the robust registration.
 LOW_WEIGHT = 1e-3
 #: Widest neighbourhood of an out-of-tolerance point looked at, in spacings (the quadratic peak).
@@ -170,6 +180,38 @@ def nearest_distances(points: np.ndarray, idx: np.ndarray) -> np.ndarray:
         h *= 4.0
 
 
+def surface_spacing(points: np.ndarray, seed: int = 0) -> float:
+    """Spacing (mm) of ``points`` as surface area per point: ``sqrt(area / points)``.
+
+    Unlike the median nearest-neighbour distance (:func:`median_spacing`), this is the same
+    number for a grid, random sampling or scanner rows of the same density, and a scan holding
+    two exposures of one surface 0.02 mm apart has half the area per point (not 0.02 mm).
+    Estimated in a random subset of at most ``DENSITY_SUBSET`` points (a random thinning makes
+    any sampling pattern look Poisson to the estimator): a first guess from the distance to the
+    ``K_DENSITY``-th nearest neighbour (density ``(k - 1/3) / (pi * median r_k^2)``), refined by
+    the median number of points within four such spacings, scaled back to all points.  NaN for fewer than ``K_DENSITY + 1`` points or all coincident.
+    """
+    n = points.shape[0]
+    k = K_DENSITY
+    if n <= 2 * k:
+        return median_spacing(None, points) if n >= 2 else float("nan")
+    m = min(DENSITY_SUBSET, max(k + 1, n // 2))
+    rng = np.random.default_rng(seed)
+    sub = points[np.sort(rng.choice(n, m, replace=False))] if m < n else points
+    q = sub[np.linspace(0, m - 1, min(m, 2000)).astype(np.int64)]
+    tree = cKDTree(sub)
+    d, _ = tree.query(q, k=k + 1)
+    r2 = np.median(d[:, k] ** 2)
+    if not r2 > 0:
+        return float("nan")
+    # refined by counting the points within 4 such spacings (about 50): pairs of points (two
+    # exposures, repeated rows) bias the k-th neighbour's distance, not the count
+    radius = 4.0 * np.sqrt(np.pi * r2 / (k - 1.0 / 3.0))
+    c = tree.query_ball_point(q, radius, return_length=True)
+    area_per_sub = np.pi * radius ** 2 / max(float(np.median(c)) - 1.0, 1.0)
+    return float(np.sqrt(area_per_sub * m / n))
+
+
 def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
                  within: np.ndarray, face: np.ndarray, normals: np.ndarray,
                  weights: np.ndarray | None = None, min_points: int = MIN_POINTS,
@@ -191,18 +233,19 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
     weights : (N,) float64, optional
         Registration weights; points with weight < 1e-3 are flagged in :class:`Outliers`.
     min_points : int
-        Smallest cluster that counts as a defect region.
+        Smallest region, as a surface area of ``min_points`` points at the scan's spacing
+        (``min_points x spacing^2``): a doubled exposure needs the same area, not twice the points.
     spacing : float, optional
-        Median point spacing (mm); estimated from the evaluated points if None.
+        The scan's spacing as area per point (mm, :func:`surface_spacing`); estimated from the
+        evaluated points if None.
     limits : ((N,) float64, (N,) float64), optional
         Per-point lower and upper limits (mm), e.g. from :meth:`Tolerance.limits`; they decide
         which points are core points and the severity. None: just inside the smallest
         out-of-tolerance deviation on each side.
     tree : scipy.spatial.cKDTree, optional
         A tree of ``points[evaluated]`` the caller already built.  Otherwise one is built here
-        of only the evaluated points within 4 spacings of an out-of-tolerance point: every
-        neighbourhood looked at (the median's 3, the area's 2, the quadratic peak's 4
-        spacings) lies there, so the answers are those of the whole tree.
+        of only the evaluated points near an out-of-tolerance point: every neighbourhood looked
+        at lies there, so the answers are those of the whole tree.
 
     Returns
     -------
@@ -219,13 +262,16 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
     ev_idx = np.flatnonzero(evaluated)
     ev_pts = points[ev_idx]
     if spacing is None:
-        spacing = median_spacing(tree, ev_pts)
+        spacing = surface_spacing(ev_pts)
     if not np.isfinite(spacing) or spacing <= 0:
         # A single evaluated point (or all coincident): nothing can be connected.
         low = _low_weight(weights, out_idx)
         return [], Outliers(out_idx, low), float(spacing)
+    link = LINK_FACTOR * spacing
+    r_area = AREA_RADIUS * spacing
     if tree is None:
-        ev_idx, tree = _neighbourhood_tree(points, out_idx, ev_idx, ev_pts, NEIGHBOURHOOD * spacing)
+        ev_idx, tree = _neighbourhood_tree(points, out_idx, ev_idx, ev_pts,
+                                           max(NEIGHBOURHOOD, MEDIAN_RADIUS + AREA_RADIUS) * spacing)
     if limits is None:           # the tightest limits consistent with ``within``
         v_out = values[out_idx]
         hi = v_out[v_out > 0].min(initial=np.inf)
@@ -233,32 +279,80 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
         limits = (np.full(values.shape, np.nextafter(lo, 0.0)), np.full(values.shape, np.nextafter(hi, 0.0)))
     lo_lim, hi_lim = limits
 
+    # The candidates: evaluated points within the median's radius of an out-of-tolerance point
+    # (a point farther off has no out-of-tolerance neighbour: its median cannot be beyond).
     p_out = points[out_idx]
-    above = values[out_idx] > 0
-    med = _neighbourhood_median(tree, ev_idx, values, p_out, 3.0 * spacing)
+    d1, _ = cKDTree(p_out).query(tree.data, k=1, distance_upper_bound=MEDIAN_RADIUS * spacing)
+    near = np.isfinite(d1)
+    cand = np.sort(ev_idx[near])
+    med = _neighbourhood_median(tree, ev_idx, values, points[cand], MEDIAN_RADIUS * spacing)
     with np.errstate(invalid="ignore"):
-        core = np.where(above, med > hi_lim[out_idx], med < lo_lim[out_idx])
-
-    pairs = cKDTree(p_out).query_pairs(LINK_FACTOR * spacing, output_type="ndarray")
-    if pairs.size:
-        pairs = pairs[above[pairs[:, 0]] == above[pairs[:, 1]]]
-    m = out_idx.size
-    n_comp, labels = linked_components(m, pairs)
-    n_core = np.bincount(labels, weights=core.astype(np.float64), minlength=n_comp)
-
-    small = n_core[labels] < min_points
-    outliers = Outliers(out_idx[small], _low_weight(weights, out_idx[small]))
+        up = med > hi_lim[cand]
+        down = med < lo_lim[cand]
+    core = cand[up | down]
+    core_med = med[up | down]
+    core_up = up[up | down]
 
     regions = []
-    r_area = 2.0 * spacing
-    for comp in np.flatnonzero(n_core >= min_points):
-        sel = labels == comp
-        regions.append(_describe(out_idx[sel], med[sel], core[sel], points, values, face, normals,
-                                 tree, ev_idx, spacing, r_area, lo_lim, hi_lim))
+    member = np.zeros(values.shape[0], bool)
+    if core.size:
+        pc = points[core]
+        pairs = cKDTree(pc).query_pairs(link, output_type="ndarray")
+        if pairs.size:
+            pairs = pairs[core_up[pairs[:, 0]] == core_up[pairs[:, 1]]]
+        n_comp, labels = linked_components(core.size, pairs)
+        a = area_per_point(tree, pc, r_area)
+        # a defect is measured surface: core points where the scan is sparse (stray points
+        # beside the part, in a shadow) support nothing
+        dense = a <= SPARSE_AREA * spacing ** 2
+        comp_area = np.bincount(labels, weights=np.where(dense, a, 0.0), minlength=n_comp)
+        comp_n = np.bincount(labels, weights=dense.astype(np.float64), minlength=n_comp)
+        keep = np.flatnonzero((comp_area >= min_points * spacing ** 2) & (comp_n >= min_points))
+        if keep.size:
+            # out-of-tolerance points on the same side within the link of a kept core point
+            # belong to its region; the others are measurement outliers
+            kept = np.isin(labels, keep)
+            side_out = values[out_idx] > 0
+            owner = np.full(out_idx.size, -1, np.int64)
+            for up_side in (True, False):
+                ks = np.flatnonzero(kept & (core_up == up_side))
+                os_ = np.flatnonzero(side_out == up_side)
+                if ks.size == 0 or os_.size == 0:
+                    continue
+                d, j = cKDTree(pc[ks]).query(p_out[os_], k=1, distance_upper_bound=link)
+                ok = np.isfinite(d)
+                owner[os_[ok]] = labels[ks[j[ok]]]
+            for comp in keep:
+                idx = out_idx[owner == comp]
+                if idx.size == 0:
+                    continue
+                sel = labels == comp
+                member[idx] = True
+                regions.append(_describe(idx, core[sel], core_med[sel], points, values, face,
+                                         normals, tree, ev_idx, spacing, lo_lim, hi_lim))
+    small = ~member[out_idx]
+    outliers = Outliers(out_idx[small], _low_weight(weights, out_idx[small]))
     regions.sort(key=lambda r: (-r.severity, -abs(r.extreme)))
     logger.debug("regions: %d out-of-tolerance points -> %d regions, %d outliers (spacing %.3g mm)",
                  out_idx.size, len(regions), outliers.n, spacing)
     return regions, outliers, float(spacing)
+
+
+def area_per_point(tree: cKDTree, p: np.ndarray, radius: float) -> np.ndarray:
+    """Surface area (mm^2) each of the points ``p`` stands for among the points of ``tree``.
+
+    The density is a smooth kernel sum, ``w(d) = (1 - d^2/R^2)^2`` over the points within ``R``
+    (whose integral over the disc is ``pi R^2 / 3``): a hard count in a disc of a few spacings
+    jumps by a ring of lattice points as ``R`` or the lattice shifts (the area of one dent read
+    300-390 mm^2 on the same scan written once, twice, or twice 0.02 mm apart).  The point
+    itself counts half (a lattice point has itself in its disc, a random sample one more).
+    """
+    m = cKDTree(p).sparse_distance_matrix(tree, radius, output_type="ndarray")
+    m = m[np.lexsort((m["v"], m["i"]))]     # summed in an order that does not depend on the tree
+    w = (1.0 - (m["v"] / radius) ** 2) ** 2
+    s = np.bincount(m["i"], weights=w, minlength=p.shape[0])
+    s -= 0.5
+    return (np.pi * radius ** 2 / 3.0) / np.maximum(s, 0.5)
 
 
 def _neighbourhood_tree(points, out_idx, ev_idx, ev_pts, reach):
@@ -315,31 +409,37 @@ def _low_weight(weights, idx):
     return np.asarray(weights)[idx] < LOW_WEIGHT
 
 
-def _describe(idx, med, core, points, values, face, normals, tree, ev_idx, spacing, r_area,
+def _describe(idx, core, med, points, values, face, normals, tree, ev_idx, spacing,
               lo_lim, hi_lim) -> DefectRegion:
-    """Size, area, severity, extreme and position of one region (scan indices ``idx``)."""
-    p = points[idx]
+    """Size, area, severity, extreme and position of one region: its out-of-tolerance points
+    (scan indices ``idx``) and its core points ``core`` with their neighbourhood medians
+    ``med``."""
+    above = bool(med[0] > 0)
     v = values[idx]
-    counts = tree.query_ball_point(p, r_area, return_length=True)
-    a = np.pi * r_area ** 2 / np.maximum(counts, 1)
+    a = area_per_point(tree, points[idx], AREA_RADIUS * spacing)
+    a = np.where(a <= SPARSE_AREA * spacing ** 2, a, 0.0)     # stray points stand for no area
     area = float(np.sum(a))
-    above = bool(v[0] > 0)
-    limit = hi_lim[idx] if above else lo_lim[idx]
-    severity = float(np.sum(a * np.maximum(np.abs(v) - np.abs(limit), 0.0)))
+    severity = float(np.sum(a * np.maximum(np.abs(v) - np.abs(hi_lim[idx] if above else lo_lim[idx]),
+                                            0.0)))
     extreme_raw = float(v[int(np.argmax(np.abs(v)))])
+    limit = hi_lim[core] if above else lo_lim[core]
+    # the quadratic's reach: 4 spacings, less on a small region (a dent a few spacings wide is
+    # no paraboloid over 4 spacings), never under 2.5 (at least about 12 points)
+    reach = float(np.clip(0.6 * np.sqrt(area / np.pi), 2.5 * spacing, NEIGHBOURHOOD * spacing))
 
     # The worst core point by its neighbourhood median, refined by a local quadratic.
-    ci = np.flatnonzero(core)
-    k = int(ci[np.argmax(np.abs(med[ci]))])
+    k = int(np.argmax(np.abs(med)))
     fallback = float(med[k])
-    extreme, at = _quadratic_peak(points[idx[k]], normals[idx[k]], tree, ev_idx, points, values,
-                                  NEIGHBOURHOOD * spacing, fallback)
+    extreme, at = _quadratic_peak(points[core[k]], normals[core[k]], tree, ev_idx, points, values,
+                                  reach, fallback)
     beyond = extreme > limit[k] if above else extreme < limit[k]
     if not beyond or abs(extreme) > abs(extreme_raw):
-        extreme, at = fallback, points[idx[k]].copy()
+        extreme, at = fallback, points[core[k]].copy()
+    w = a if a.sum() > 0 else np.ones_like(a)
+    centroid = (w[:, None] * points[idx]).sum(axis=0) / w.sum()
     return DefectRegion(
         n=int(idx.size), area=area, extreme=float(extreme), extreme_raw=extreme_raw,
-        centroid=p.mean(axis=0), extreme_point=at,
+        centroid=centroid, extreme_point=at,
         faces=tuple(int(f) for f in np.unique(face[idx])),
         side="above" if above else "below", indices=idx, severity=severity)
 

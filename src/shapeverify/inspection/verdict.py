@@ -19,7 +19,15 @@ the result's ``rule``:
 5. ``fail`` (rule ``regions``): at least one region fails the part: a connected out-of-tolerance
    surface area (``kind="deviation"``, :mod:`.regions`) or measured material where the CAD has
    none (``kind="material"``, :mod:`.material`);
-6. ``pass`` (rule ``within_tolerance``) otherwise. Isolated out-of-tolerance points (measurement
+6. ``incomplete`` (rule ``undecided``): no region fails the part, but the measurement cannot
+   decide that it conforms (ISO 14253-1: conformance is proven only inside the tolerance zone
+   reduced by the measurement uncertainty): the scan's own noise (sigma about local quadrics,
+   :func:`shapeverify.registration._noise.scan_noise`) exceeds ``MAX_NOISE_SHARE`` (a third)
+   of the tolerance zone's half width -- its expanded uncertainty ``U = 2 sigma`` takes two
+   thirds of the zone -- or more than ``MAX_OUTLIER_SHARE`` (10 %) of the evaluated points are
+   out of tolerance as isolated outliers (a scan with 0.15 mm noise at +-0.2 mm: 19 % of its
+   points, which passed as "isolated outliers");
+7. ``pass`` (rule ``within_tolerance``) otherwise. Isolated out-of-tolerance points (measurement
    outliers) are counted and reported but do not fail the part.
 
 Exit codes of ``shapeverify inspect``: 0 pass, 1 fail, 2 error, 3 incomplete.
@@ -40,7 +48,7 @@ from typing import Mapping
 import numpy as np
 
 __all__ = ["Tolerance", "Statistics", "statistics", "per_face_statistics", "decide",
-           "Verdict", "VERDICTS", "MIN_INLIER_FRACTION"]
+           "Verdict", "VERDICTS", "MIN_INLIER_FRACTION", "MAX_NOISE_SHARE", "MAX_OUTLIER_SHARE"]
 
 
 class Verdict(enum.StrEnum):
@@ -56,6 +64,10 @@ class Verdict(enum.StrEnum):
 VERDICTS = tuple(v.value for v in Verdict)
 #: Default least inlier fraction of the registration.
 MIN_INLIER_FRACTION = 0.25
+#: Largest scan noise sigma, as a share of the tolerance zone's half width, that can pass a part.
+MAX_NOISE_SHARE = 1.0 / 3.0
+#: Largest share of the evaluated points that may be isolated out-of-tolerance outliers in a pass.
+MAX_OUTLIER_SHARE = 0.10
 
 
 def _limit(x, name: str) -> float:
@@ -224,6 +236,9 @@ class Statistics:
     in_tolerance_fraction: float
     n_above: int = 0   # points above the upper limit
     n_below: int = 0   # points below the lower limit
+    #: share of the evaluated points that are isolated out-of-tolerance outliers (an
+    #: inspection's statistics; their in_tolerance_fraction counts every evaluated point)
+    outlier_fraction: float = 0.0
 
     def to_dict(self) -> dict:
         return {k: (None if isinstance(v, float) and math.isnan(v) else v)
@@ -232,7 +247,9 @@ class Statistics:
     def __repr__(self) -> str:
         return (f"Statistics(n={self.n}, mean={self.mean:+.4f}, std={self.std:.4f}, "
                 f"min={self.min:+.4f}, max={self.max:+.4f}, p05={self.p05:+.4f}, p95={self.p95:+.4f}, "
-                f"in_tolerance={100 * self.in_tolerance_fraction:.2f}%)")
+                f"in_tolerance={100 * self.in_tolerance_fraction:.2f}%"
+                + (f", outliers={100 * self.outlier_fraction:.2f}%" if self.outlier_fraction else "")
+                + ")")
 
 
 def statistics(values: np.ndarray, within: np.ndarray | None = None,
@@ -284,7 +301,8 @@ def per_face_statistics(values: np.ndarray, face: np.ndarray, within: np.ndarray
 
 
 def decide(registration, deviations, regions, coverage=None, *,
-           min_inlier_fraction: float = MIN_INLIER_FRACTION) -> tuple[Verdict, tuple[str, ...], str]:
+           min_inlier_fraction: float = MIN_INLIER_FRACTION, noise: float | None = None,
+           tolerance=None, n_outliers: int = 0) -> tuple[Verdict, tuple[str, ...], str]:
     """The verdict, its reasons and the rule that decided (see the module docstring).
 
     Parameters
@@ -296,13 +314,19 @@ def decide(registration, deviations, regions, coverage=None, *,
         Deviation and material regions, most severe first.
     coverage : Coverage, optional
         None: the coverage rule is not applied.
+    noise : float, optional
+        The scan's own noise sigma (mm); with ``tolerance``, rule 6 (``undecided``).
+    tolerance : Tolerance, optional
+        The tolerance zone (its narrowest per-face zone is the yardstick of the noise).
+    n_outliers : int
+        Isolated out-of-tolerance points (measurement outliers) among the evaluated points.
 
     Returns
     -------
     verdict : Verdict
     reasons : tuple of str
         Why; the first says which rule decided.
-    rule : {'registration', 'no_data', 'coverage', 'regions', 'within_tolerance'}
+    rule : {'registration', 'no_data', 'coverage', 'regions', 'undecided', 'within_tolerance'}
     """
     errors = []
     if registration is not None:
@@ -352,6 +376,30 @@ def decide(registration, deviations, regions, coverage=None, *,
                 ([f"{n_mat} region{'s' if n_mat != 1 else ''} of material the CAD does not have"]
                  if n_mat else [])
         return Verdict.FAIL, tuple([f"fail: {' and '.join(parts)} (most severe first)"] + listed), "regions"
+    why = _undecided(noise, tolerance, n_outliers, n_eval)
+    if why:
+        return Verdict.INCOMPLETE, tuple(why), "undecided"
     seen = f"; {100 * coverage.fraction:.1f} % of the inspected area seen" if coverage is not None else ""
     return Verdict.PASS, (f"pass: all {n_eval} evaluated points are within tolerance except isolated "
                     f"measurement outliers{seen}",), "within_tolerance"
+
+
+def _undecided(noise, tolerance, n_outliers: int, n_eval: int) -> list[str]:
+    """Why the measurement cannot decide that the part conforms (rule 6), or []."""
+    why = []
+    if tolerance is not None and noise is not None and np.isfinite(noise):
+        zones = [(tolerance.lower, tolerance.upper)] + [(lo, hi) for _, lo, hi in tolerance.per_face]
+        half = min((hi - lo) / 2.0 for lo, hi in zones)
+        if noise > MAX_NOISE_SHARE * half:
+            why.append(f"the scan's own noise (sigma {noise:.3g} mm, expanded uncertainty "
+                       f"U = 2 sigma = {2 * noise:.3g} mm) is {noise / half:.2f} of the tolerance "
+                       f"zone's half width {half:.3g} mm (more than {MAX_NOISE_SHARE:.2f})")
+    share = n_outliers / n_eval if n_eval else 0.0
+    if share > MAX_OUTLIER_SHARE:
+        why.append(f"{100 * share:.1f} % of the {n_eval} evaluated points are out of tolerance "
+                   f"as isolated outliers (more than {100 * MAX_OUTLIER_SHARE:.0f} %)")
+    if why:
+        why.insert(0, "undecided (ISO 14253-1): no region fails the part, but the measurement "
+                      "uncertainty does not allow a decision that it conforms")
+        why.append("measure with less noise (or a wider tolerance) to decide")
+    return why
