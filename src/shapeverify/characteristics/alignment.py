@@ -180,6 +180,10 @@ def m_estimator_sandwich(J, psi, dpsi) -> np.ndarray:
     return C * (n / (n - k) if n > k else 1.0)
 
 
+#: a step that moves no scan point by more than this many noise sigmas ends the iterations
+MOVE_SIGMA = 0.05
+
+
 def _gauss_newton(scan, prep, T0, free, center, faces, loss, max_iterations, tol, reach,
                   degenerate_ok=False):
     P = np.asarray(scan, np.float64)
@@ -190,10 +194,19 @@ def _gauss_newton(scan, prep, T0, free, center, faces, loss, max_iterations, tol
     free = list(free)
     size = float(getattr(prep.model, "size", 1.0))
     floor = 1e-6 * max(size, 1.0)
+    Q = X0 - c
+    # the columns of Q (no (N, 3) @ (3, 3) products: BLAS threads for a 3-wide product cost
+    # more than the product)
+    qx, qy, qz = (np.ascontiguousarray(Q[:, i]) for i in range(3))
+
+    def rows(M, a, b, _=None):
+        """The three columns of ``Q @ M.T + b`` (plus ``a`` per column)."""
+        return [qx * M[i, 0] + qy * M[i, 1] + qz * M[i, 2] + (a[i] + b[i]) for i in range(3)]
+
     def linearise(p, check):
         """Closest points at pose ``p``: residuals, valid points, scale, weights, Jacobian."""
         R, dR = _drot(p)
-        X = (X0 - c) @ R.T + c + p[3:]
+        X = np.column_stack(rows(R, c, p[3:], None))
         cl = prep.closest(X, exact=True)
         r = cl.distances
         valid = ~cl.on_boundary & (np.abs(r) <= reach)
@@ -205,21 +218,30 @@ def _gauss_newton(scan, prep, T0, free, center, faces, loss, max_iterations, tol
         sigma = max(MAD_TO_SIGMA * float(np.median(np.abs(r[valid]))), floor)
         w = np.where(valid, lossobj.weight(r, sigma), 0.0)
         J = np.empty((P.shape[0], len(free)))
+        nx, ny, nz = (cl.normals[:, i] for i in range(3))
+        zero = np.zeros(3)
         for k, j in enumerate(free):
-            d = (X0 - c) @ dR[j].T if j < 3 else np.broadcast_to(np.eye(3)[j - 3], X0.shape)
-            J[:, k] = np.einsum("ij,ij->i", cl.normals, d)
+            if j < 3:
+                dx, dy, dz = rows(dR[j], zero, zero, None)
+                J[:, k] = nx * dx + ny * dy + nz * dz
+            else:
+                J[:, k] = cl.normals[:, j - 3]
         return r, valid, sigma, w, J
 
     it, converged = 0, False
+    mscale = np.array([size if j < 3 else 1.0 for j in free])
+    rot = np.array([j < 3 for j in free])
+    arm = float(np.sqrt(np.max(np.sum((X0 - c) ** 2, axis=1))))   # farthest point from c
+    state = None
     for it in range(1, max_iterations + 1):
-        r, valid, sigma, w, J = linearise(p, True)
+        state = linearise(p, True)
+        r, valid, sigma, w, J = state
         Jw = J * w[:, None]
         H = Jw.T @ J
         g = Jw.T @ r
         # geometric scaling (rotation columns are lengths times the model size): a direction
         # the faces do not determine keeps a tiny eigenvalue (diagonal scaling would hide it)
-        scale = np.array([size if j < 3 else 1.0 for j in free]) * np.sqrt(
-            max(float(w.sum()), 1.0))
+        scale = mscale * np.sqrt(max(float(w.sum()), 1.0))
         Hs = H / np.outer(scale, scale)
         lam, V = np.linalg.eigh(Hs)
         det = lam > 1e-8 * lam[-1]
@@ -229,13 +251,21 @@ def _gauss_newton(scan, prep, T0, free, center, faces, loss, max_iterations, tol
                              f"{names} (flat or cylindrical geometry); lock some or add faces")
         inv = np.where(det, 1.0 / np.where(det, lam, 1.0), 0.0)   # no step where undetermined
         step = -(V * inv) @ (V.T @ (g / scale)) / scale
-        p[free] += step
-        move = np.abs(step) * np.array([size if j < 3 else 1.0 for j in free])
-        if np.max(move) < tol * max(size, 1.0):
+        # converged when the step still to take is small against the pose's own uncertainty
+        # (sigma^2 H^-1: its length in standard deviations) or moves no scan point by more
+        # than a small share of the noise -- the registration's rule (register's Notes); the
+        # pose stays where the residuals were taken (the step is below the noise)
+        n_std = float(np.sqrt(max(step @ H @ step, 0.0))) / sigma
+        moved = float(np.linalg.norm(step[rot]) * arm + np.linalg.norm(step[~rot]))
+        if n_std < tol or moved < MOVE_SIGMA * sigma:
             converged = True
             break
-    # final state at the converged p (same weights), sandwich covariance in p
-    r, valid, sigma, w, J = linearise(p, False)
+        p[free] += step
+        state = None
+    if state is None:              # stopped after a step: the state at the final p
+        state = linearise(p, False)
+    r, valid, sigma, w, J = state
+    # sandwich covariance in p at the final state
     # M-estimator sandwich (Huber 1981, §7.6), the estimator of
     # registration.rigid.pose_covariance in the free parameters: psi' in the bread (with the
     # IRLS weights there a redescending loss is reported ~1.46x too precise)
@@ -261,7 +291,7 @@ def _reach(prep, reach):
 
 
 def best_fit(scan, prep, faces=None, init=None, loss: str = "tukey", max_iterations: int = 50,
-             tolerance: float = 1e-9, reach: float | None = None, rng=None,
+             tolerance: float = 0.1, reach: float | None = None, rng=None,
              degenerate_ok: bool = False) -> AlignmentResult:
     """Free 6-DOF robust best fit, on all faces or on the faces named.
 
@@ -278,6 +308,12 @@ def best_fit(scan, prep, faces=None, init=None, loss: str = "tukey", max_iterati
         Robust loss of :mod:`shapeverify.registration.losses`.
     reach : float, optional
         Points farther than this from the CAD are ignored (default: ``prep.max_distance``).
+    tolerance : float
+        Convergence, judged against the scan's noise as :func:`shapeverify.register` judges
+        it: the Gauss-Newton step still to take is shorter than ``tolerance`` standard
+        deviations of the pose (``sqrt(s^T H s) / sigma``, ``H`` the weighted normal matrix,
+        ``sigma`` the robust residual scale), or moves no scan point by more than
+        :data:`MOVE_SIGMA` sigma.  The pose is the one where the residuals were taken.
     degenerate_ok : bool
         False: faces that leave a pose direction undetermined (one plane, one cylinder) are an
         error.  True: no step in those directions (they keep ``init``'s value).
@@ -307,7 +343,7 @@ def best_fit(scan, prep, faces=None, init=None, loss: str = "tukey", max_iterati
 
 
 def constrained_fit(scan, prep, free, init=None, center=(0.0, 0.0, 0.0), faces=None,
-                    loss: str = "tukey", max_iterations: int = 50, tolerance: float = 1e-9,
+                    loss: str = "tukey", max_iterations: int = 50, tolerance: float = 0.1,
                     reach: float | None = None) -> AlignmentResult:
     """Best fit in the free degrees of freedom only; the locked ones stay at ``init``.
 
