@@ -32,7 +32,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..registration.losses import MAD_TO_SIGMA, get_loss
-from ..registration.rigid import apply_transform, compose_step, make_transform
+from ..registration.rigid import apply_transform, compose_step, make_transform, rotation_vector
 from .features import faces_named, find_feature, model_features
 from .holes import measure_hole
 from .plan import DOF_NAMES
@@ -303,7 +303,8 @@ def best_fit(scan, prep, faces=None, init=None, loss: str = "tukey", max_iterati
     faces : None, 'all' or sequence of face ids ('face:3', 3, a face name)
         Only points whose exact closest CAD point lies on these faces count.
     init : (4, 4) or None
-        Start pose; None: the free registration :func:`shapeverify.register` (all faces).
+        Start pose; None: the placement the whole scan fits best of the global search's
+        (:mod:`.placement`, the search :func:`shapeverify.register` makes with no start).
     loss : str
         Robust loss of :mod:`shapeverify.registration.losses`.
     reach : float, optional
@@ -327,11 +328,9 @@ def best_fit(scan, prep, faces=None, init=None, loss: str = "tukey", max_iterati
     ValueError
         Too few points on the faces, or undetermined directions (unless ``degenerate_ok``).
     """
-    from ..registration import register
-
     fidx = face_indices(prep.model, faces)
     if init is None:
-        T0 = register(scan, prep, loss=loss, rng=rng).T_model_scan
+        T0 = _best_start(scan, prep, None, 0 if rng is None else rng)[0]
     else:
         T0 = _check_T(init)
     T, cov, res, rms, p, it, ok, n, sigma = _gauss_newton(
@@ -395,7 +394,7 @@ def _check_T(T) -> np.ndarray:
 
 # ------------------------------------------------------------------------------ RPS
 def rps_alignment(scan, prep, points, init=None, radius: float = 4.0, max_iterations: int = 20,
-                  tolerance: float = 1e-10) -> AlignmentResult:
+                  tolerance: float = 1e-10, rng=0) -> AlignmentResult:
     """RPS (reference point system) alignment; 3-2-1 is six single locks.
 
     Parameters
@@ -405,7 +404,9 @@ def rps_alignment(scan, prep, points, init=None, radius: float = 4.0, max_iterat
         ``feature``, ``radius``, ``name``)
         ``lock``: the model axes ('x', 'y', 'z') whose coordinate the point fixes.
     init : (4, 4) or None
-        Start pose (None: the free best fit, only to find the points' neighbourhoods).
+        A start pose.  The start is the placement the whole scan fits best of ``init`` and the
+        global search's (:mod:`.placement`; only to find the points' neighbourhoods); another
+        that fits alike gives a warning in ``details['warnings']``.
     radius : float
         Default neighbourhood radius of a surface point (mm).
 
@@ -422,12 +423,13 @@ def rps_alignment(scan, prep, points, init=None, radius: float = 4.0, max_iterat
         lock along a surface (a surface point can only lock an axis across it), or points not
         scanned.
     """
-    from ..registration import register
 
     pts = [p if isinstance(p, dict) else p.model_dump() for p in points]
     feats = model_features(prep.model) if prep.model.kind == "cad" else []
-    T = register(scan, prep).T_model_scan if init is None else _check_T(init)
     P = np.asarray(scan, np.float64)
+    # the start: of the caller's start and the global search's placements, the one the whole
+    # scan fits best (an upside-down copy puts the RPS points on the wrong face)
+    T, where, warns = _best_start(P, prep, None if init is None else _check_T(init), rng)
     spec = []
     for k, p in enumerate(pts):
         at = np.asarray(p["at"], np.float64)
@@ -510,24 +512,66 @@ def rps_alignment(scan, prep, points, init=None, radius: float = 4.0, max_iterat
     locks = [{"point": nm, "axis": ax, "kind": kd, "residual": float(v), "uncertainty": float(u)}
              for (nm, ax, kd), v, u in zip(info, r, unc)]
     return AlignmentResult(T, 0.5 * (cov + cov.T), r, float(np.sqrt(np.mean(r * r))), DOF_NAMES,
-                           (), "rps", {"iterations": it, "locks": locks})
+                           (), "rps", {"iterations": it, "locks": locks, "warnings": warns,
+                                       "placement": where})
 
 
-def align(scan, prep, alignment, init=None, rng=None) -> AlignmentResult:
-    """Run a plan's alignment (a plan alignment model or a dict with ``type``)."""
+def _best_start(scan, prep, init, rng):
+    """Of ``init`` (if any) and the global search's placements (:mod:`.placement`), the pose
+    the whole scan fits best: ``(T, name, warnings)``."""
+    from .placement import ALIKE, placements, scan_noise_of, whole_fit
+
+    P = np.asarray(scan, np.float64)
+    noise = scan_noise_of(P)
+    cands = [(nm, T0, whole_fit(P, prep, T0, noise)) for nm, T0 in placements(P, prep, init, rng)]
+    cands.sort(key=lambda c: -c[2])
+    best = cands[0][2]
+    alike = [c for c in cands if c[2] >= ALIKE * best]
+    # the caller's start, when it fits alike, is the caller's choice among symmetric copies
+    chosen = next((c for c in alike if c[0] == "start"), alike[0])
+    nm, T, f0 = chosen
+    if nm == "start":
+        return T, nm, []
+    warns = [f"another placement of the scan ({n2}) fits it alike (whole fit {f:.3f} vs "
+             f"{f0:.3f}): the pose may be a symmetric copy; give init= to choose"
+             for n2, T2, f in alike if n2 != nm
+             and np.degrees(np.linalg.norm(rotation_vector(T2[:3, :3] @ T[:3, :3].T))) > 1.0]
+    if init is not None:
+        warns.append(f"the given start fits the scan worse than the global search's placement "
+                     f"(whole fit {[c[2] for c in cands if c[0] == 'start'][0]:.3f} vs {f0:.3f}):"
+                     " started from the latter")
+    return T, nm, warns
+
+
+def align(scan, prep, alignment, init=None, rng=None, registration=None) -> AlignmentResult:
+    """Run a plan's alignment (a plan alignment model or a dict with ``type``).
+
+    ``registration``: the free registration ``init`` comes from (:func:`shapeverify.register`).
+    A best fit starts from it unless it carries warnings of a wrong minimum
+    (``Registration.warnings``); otherwise (no registration, or one with warnings) from the
+    placement the whole scan fits best of ``init`` and the global search's (:mod:`.placement`;
+    ``init`` when it fits alike).  Datums and RPS always look at the placements.
+    """
     a = alignment if isinstance(alignment, dict) else alignment.model_dump()
     kind = a["type"]
     if kind == "best_fit":
-        return best_fit(scan, prep, faces=a.get("faces"), init=init, loss=a.get("loss", "tukey"),
-                        rng=rng)
+        warns, start = [], init
+        if registration is None or getattr(registration, "warnings", ()):
+            start, where, warns = _best_start(scan, prep, None if init is None else _check_T(init),
+                                              0 if rng is None else rng)
+        res = best_fit(scan, prep, faces=a.get("faces"), init=start, loss=a.get("loss", "tukey"),
+                       rng=rng)
+        if warns:
+            res.details["warnings"] = warns
+        return res
     if kind == "constrained":
         return constrained_fit(scan, prep, a["free"], init=init, center=a.get("center", (0, 0, 0)),
                                faces=a.get("faces"), loss=a.get("loss", "tukey"))
     if kind == "rps":
-        return rps_alignment(scan, prep, a["points"], init=init)
+        return rps_alignment(scan, prep, a["points"], init=init, rng=0 if rng is None else rng)
     if kind == "datums":
         from .datums import datum_alignment
 
         return datum_alignment(scan, prep, a["primary"], a["secondary"], a.get("tertiary"),
-                               init=init)
+                               init=init, rng=0 if rng is None else rng)
     raise ValueError(f"unknown alignment type {kind!r}")

@@ -71,7 +71,8 @@ def _modes_plane(Xp, n, rms):
 def _near_datum(f, X, prep, reach):
     """Indices of the scan points (model frame X) whose exact closest CAD point lies on the
     datum face ``f`` within ``reach``: a cheap geometric preselection (a slab about a plane, a
-    shell about a cylinder), then the exact closest points of those only."""
+    shell about a cylinder; an even subset of about 2 x :data:`MAX_DATUM_POINTS` of it), then
+    the exact closest points of those only."""
     q = X - f.center
     if f.kind == "plane":
         pre = np.flatnonzero(np.abs(q @ f.axis) <= reach)
@@ -80,6 +81,7 @@ def _near_datum(f, X, prep, reach):
         pre = np.flatnonzero(np.abs(np.linalg.norm(radial, axis=1) - 0.5 * f.diameter) <= reach)
     if pre.size == 0:
         return pre
+    pre = pre[::max(1, pre.size // (2 * MAX_DATUM_POINTS))]      # an even subset of a big face
     cl = prep.closest(X[pre], exact=True)
     m = (np.asarray(cl.face) == f.face) & ~np.asarray(cl.on_boundary, bool) & \
         (np.abs(cl.distances) <= reach)
@@ -139,6 +141,9 @@ def _pierce(kind, p, a, zp, z):
 
 #: fewest scan points on a datum plane or cylinder
 MIN_DATUM_POINTS = 30
+#: a datum plane or cylinder is fitted to an even subset of about this many of its points at
+#: most (their fit's uncertainty, in the covariance, is that of the points used)
+MAX_DATUM_POINTS = 20_000
 #: a datum plane or cylinder whose fit RMS exceeds this many noise sigmas fits badly
 BAD_FIT = 5.0
 #: a datum hole or cylinder whose measured diameter is off by more than this share of its
@@ -290,8 +295,14 @@ def datum_alignment(scan, prep, primary, secondary, tertiary=None, init=None,
     alike.sort(key=lambda t: (t["bad"] is not None, t["datum_rms"], t["diameter_misfit"],
                               -t["fit"]))
     ch = alike[0]
+    # the caller's start, when it fits alike on both counts, is the caller's choice
+    st = next((t for t in alike if t["placement"] == "start" and t["bad"] is None
+               and t["datum_rms"] <= 1.2 * ch["datum_rms"] + 0.2), None)
+    ch = st or ch
     warns = []
-    for t in alike[1:]:
+    for t in ([] if st is not None else alike):
+        if t is ch:
+            continue
         ang = np.degrees(np.linalg.norm(pose_error(t["T"], ch["T"])[:3]))
         if ang > 1.0 or np.linalg.norm(pose_error(t["T"], ch["T"])[3:]) > 0.01 * model.size:
             if t["datum_rms"] <= 1.2 * ch["datum_rms"] + 0.2:

@@ -242,6 +242,12 @@ class _Scan:
 
             self.X = np.asarray(dev.points_model, np.float64)
             self.d = np.asarray(dev.values, np.float64)
+            # the signed distance where the inspection did not evaluate (NaN there): from the
+            # foot point, signed by the normal (the same definition as prep.closest's)
+            gap = self.X - np.asarray(dev.foot_points, np.float64)
+            raw = np.sign(np.einsum("ij,ij->i", gap, np.asarray(dev.normals, np.float64))) * \
+                np.linalg.norm(gap, axis=1)
+            self.d = np.where(np.isfinite(self.d), self.d, raw)
             self.face = np.asarray(dev.face)
             self.normals = np.asarray(dev.normals, np.float64)
             self.feet = np.asarray(dev.foot_points, np.float64)

@@ -270,7 +270,8 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
         T_start = init if init is not None and not isinstance(init, str) else None
         if T_start is None and reg is not None and plan_obj.alignment.type != "constrained":
             T_start = reg.T_model_scan       # a constrained fit keeps the fixture's pose
-        reg = PlanPose(align(scan, prep, plan_obj.alignment, init=T_start, rng=rng), reg)
+        reg = PlanPose(align(scan, prep, plan_obj.alignment, init=T_start, rng=rng,
+                             registration=reg), reg)
     timings["register"] = time.perf_counter() - t0
     logger.info("registration: rms %.4g mm, %d iterations, converged %s, inliers %.1f %%",
                 reg.rms, reg.iterations, reg.converged, 100 * reg.inlier_fraction)
