@@ -23,6 +23,15 @@ the start pose (``dof_locked``).
   (hole/cylinder axis or plane) fitted on the scan (robust fits of :mod:`shapeverify.fitting`,
   Tukey loss) define a frame; the pose maps the measured frame onto the CAD's.  A fixes 3 DOFs
   (its normal and offset), B 2, C 1.
+
+Starts and convergence (issue 27).  A fixture-like alignment needs the right *placement* of the
+scan on the part first (an upside-down plate fits its datum plane and holes as well as the right
+one): RPS and datums, and a best fit without a trusted free registration, start from the
+placement the whole scan fits best among the caller's start and the global search's
+(:mod:`.placement`, the search :func:`shapeverify.register` makes with no start); two that fit
+alike give a warning (``details['warnings']``).  The Gauss-Newton fits stop when the step still
+to take is small against the pose's own standard deviation or the noise (:func:`best_fit`'s
+``tolerance``), as the registration does: a clean scan converges.
 """
 from __future__ import annotations
 
@@ -354,6 +363,8 @@ def constrained_fit(scan, prep, free, init=None, center=(0.0, 0.0, 0.0), faces=N
         The fixture's pose (None: identity, the scan is already in the model frame).
     center : (3,)
         Centre of the rotations (model frame, mm).
+    tolerance : float
+        Convergence against the pose's standard deviation and the noise, as :func:`best_fit`.
 
     Returns
     -------
