@@ -183,9 +183,10 @@ def test_profile_without_datum_floats_while_the_datum_profile_sees_the_offset(pr
                       rng=12)
     plan = ("alignment: {type: constrained, free: [rz]}\ncharacteristics:\n"
             "  - {name: A, type: surface_profile, faces: [face:0], tol: 0.2}\n"
-            "  - {name: B, type: surface_profile, faces: [face:0], tol: 0.2, datum: false}\n")
+            "  - {name: B, type: surface_profile, faces: [face:0], tol: 0.4, datum: false}\n")
     res = evaluate_plan(prep, vs.scan, plan, init=np.eye(4))
     assert res["A"].measured > 0.55 and res["A"].verdict == "fail"
+    # (B's tol 0.4: the noise part of an extreme of ~10^4 points is about 2 x 4.8 x 0.02 mm)
     assert res["B"].measured < 0.15 and res["B"].verdict == "pass"
 
 

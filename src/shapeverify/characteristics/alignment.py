@@ -23,6 +23,15 @@ the start pose (``dof_locked``).
   (hole/cylinder axis or plane) fitted on the scan (robust fits of :mod:`shapeverify.fitting`,
   Tukey loss) define a frame; the pose maps the measured frame onto the CAD's.  A fixes 3 DOFs
   (its normal and offset), B 2, C 1.
+
+Starts and convergence (issue 27).  A fixture-like alignment needs the right *placement* of the
+scan on the part first (an upside-down plate fits its datum plane and holes as well as the right
+one): RPS and datums, and a best fit without a trusted free registration, start from the
+placement the whole scan fits best among the caller's start and the global search's
+(:mod:`.placement`, the search :func:`shapeverify.register` makes with no start); two that fit
+alike give a warning (``details['warnings']``).  The Gauss-Newton fits stop when the step still
+to take is small against the pose's own standard deviation or the noise (:func:`best_fit`'s
+``tolerance``), as the registration does: a clean scan converges.
 """
 from __future__ import annotations
 
@@ -32,7 +41,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..registration.losses import MAD_TO_SIGMA, get_loss
-from ..registration.rigid import apply_transform, compose_step, make_transform
+from ..registration.rigid import apply_transform, compose_step, make_transform, rotation_vector
 from .features import faces_named, find_feature, model_features
 from .holes import measure_hole
 from .plan import DOF_NAMES
@@ -180,6 +189,10 @@ def m_estimator_sandwich(J, psi, dpsi) -> np.ndarray:
     return C * (n / (n - k) if n > k else 1.0)
 
 
+#: a step that moves no scan point by more than this many noise sigmas ends the iterations
+MOVE_SIGMA = 0.05
+
+
 def _gauss_newton(scan, prep, T0, free, center, faces, loss, max_iterations, tol, reach,
                   degenerate_ok=False):
     P = np.asarray(scan, np.float64)
@@ -190,10 +203,19 @@ def _gauss_newton(scan, prep, T0, free, center, faces, loss, max_iterations, tol
     free = list(free)
     size = float(getattr(prep.model, "size", 1.0))
     floor = 1e-6 * max(size, 1.0)
+    Q = X0 - c
+    # the columns of Q (no (N, 3) @ (3, 3) products: BLAS threads for a 3-wide product cost
+    # more than the product)
+    qx, qy, qz = (np.ascontiguousarray(Q[:, i]) for i in range(3))
+
+    def rows(M, a, b, _=None):
+        """The three columns of ``Q @ M.T + b`` (plus ``a`` per column)."""
+        return [qx * M[i, 0] + qy * M[i, 1] + qz * M[i, 2] + (a[i] + b[i]) for i in range(3)]
+
     def linearise(p, check):
         """Closest points at pose ``p``: residuals, valid points, scale, weights, Jacobian."""
         R, dR = _drot(p)
-        X = (X0 - c) @ R.T + c + p[3:]
+        X = np.column_stack(rows(R, c, p[3:], None))
         cl = prep.closest(X, exact=True)
         r = cl.distances
         valid = ~cl.on_boundary & (np.abs(r) <= reach)
@@ -205,21 +227,30 @@ def _gauss_newton(scan, prep, T0, free, center, faces, loss, max_iterations, tol
         sigma = max(MAD_TO_SIGMA * float(np.median(np.abs(r[valid]))), floor)
         w = np.where(valid, lossobj.weight(r, sigma), 0.0)
         J = np.empty((P.shape[0], len(free)))
+        nx, ny, nz = (cl.normals[:, i] for i in range(3))
+        zero = np.zeros(3)
         for k, j in enumerate(free):
-            d = (X0 - c) @ dR[j].T if j < 3 else np.broadcast_to(np.eye(3)[j - 3], X0.shape)
-            J[:, k] = np.einsum("ij,ij->i", cl.normals, d)
+            if j < 3:
+                dx, dy, dz = rows(dR[j], zero, zero, None)
+                J[:, k] = nx * dx + ny * dy + nz * dz
+            else:
+                J[:, k] = cl.normals[:, j - 3]
         return r, valid, sigma, w, J
 
     it, converged = 0, False
+    mscale = np.array([size if j < 3 else 1.0 for j in free])
+    rot = np.array([j < 3 for j in free])
+    arm = float(np.sqrt(np.max(np.sum((X0 - c) ** 2, axis=1))))   # farthest point from c
+    state = None
     for it in range(1, max_iterations + 1):
-        r, valid, sigma, w, J = linearise(p, True)
+        state = linearise(p, True)
+        r, valid, sigma, w, J = state
         Jw = J * w[:, None]
         H = Jw.T @ J
         g = Jw.T @ r
         # geometric scaling (rotation columns are lengths times the model size): a direction
         # the faces do not determine keeps a tiny eigenvalue (diagonal scaling would hide it)
-        scale = np.array([size if j < 3 else 1.0 for j in free]) * np.sqrt(
-            max(float(w.sum()), 1.0))
+        scale = mscale * np.sqrt(max(float(w.sum()), 1.0))
         Hs = H / np.outer(scale, scale)
         lam, V = np.linalg.eigh(Hs)
         det = lam > 1e-8 * lam[-1]
@@ -229,13 +260,21 @@ def _gauss_newton(scan, prep, T0, free, center, faces, loss, max_iterations, tol
                              f"{names} (flat or cylindrical geometry); lock some or add faces")
         inv = np.where(det, 1.0 / np.where(det, lam, 1.0), 0.0)   # no step where undetermined
         step = -(V * inv) @ (V.T @ (g / scale)) / scale
-        p[free] += step
-        move = np.abs(step) * np.array([size if j < 3 else 1.0 for j in free])
-        if np.max(move) < tol * max(size, 1.0):
+        # converged when the step still to take is small against the pose's own uncertainty
+        # (sigma^2 H^-1: its length in standard deviations) or moves no scan point by more
+        # than a small share of the noise -- the registration's rule (register's Notes); the
+        # pose stays where the residuals were taken (the step is below the noise)
+        n_std = float(np.sqrt(max(step @ H @ step, 0.0))) / sigma
+        moved = float(np.linalg.norm(step[rot]) * arm + np.linalg.norm(step[~rot]))
+        if n_std < tol or moved < MOVE_SIGMA * sigma:
             converged = True
             break
-    # final state at the converged p (same weights), sandwich covariance in p
-    r, valid, sigma, w, J = linearise(p, False)
+        p[free] += step
+        state = None
+    if state is None:              # stopped after a step: the state at the final p
+        state = linearise(p, False)
+    r, valid, sigma, w, J = state
+    # sandwich covariance in p at the final state
     # M-estimator sandwich (Huber 1981, §7.6), the estimator of
     # registration.rigid.pose_covariance in the free parameters: psi' in the bread (with the
     # IRLS weights there a redescending loss is reported ~1.46x too precise)
@@ -261,7 +300,7 @@ def _reach(prep, reach):
 
 
 def best_fit(scan, prep, faces=None, init=None, loss: str = "tukey", max_iterations: int = 50,
-             tolerance: float = 1e-9, reach: float | None = None, rng=None,
+             tolerance: float = 0.1, reach: float | None = None, rng=None,
              degenerate_ok: bool = False) -> AlignmentResult:
     """Free 6-DOF robust best fit, on all faces or on the faces named.
 
@@ -273,11 +312,18 @@ def best_fit(scan, prep, faces=None, init=None, loss: str = "tukey", max_iterati
     faces : None, 'all' or sequence of face ids ('face:3', 3, a face name)
         Only points whose exact closest CAD point lies on these faces count.
     init : (4, 4) or None
-        Start pose; None: the free registration :func:`shapeverify.register` (all faces).
+        Start pose; None: the placement the whole scan fits best of the global search's
+        (:mod:`.placement`, the search :func:`shapeverify.register` makes with no start).
     loss : str
         Robust loss of :mod:`shapeverify.registration.losses`.
     reach : float, optional
         Points farther than this from the CAD are ignored (default: ``prep.max_distance``).
+    tolerance : float
+        Convergence, judged against the scan's noise as :func:`shapeverify.register` judges
+        it: the Gauss-Newton step still to take is shorter than ``tolerance`` standard
+        deviations of the pose (``sqrt(s^T H s) / sigma``, ``H`` the weighted normal matrix,
+        ``sigma`` the robust residual scale), or moves no scan point by more than
+        :data:`MOVE_SIGMA` sigma.  The pose is the one where the residuals were taken.
     degenerate_ok : bool
         False: faces that leave a pose direction undetermined (one plane, one cylinder) are an
         error.  True: no step in those directions (they keep ``init``'s value).
@@ -291,11 +337,9 @@ def best_fit(scan, prep, faces=None, init=None, loss: str = "tukey", max_iterati
     ValueError
         Too few points on the faces, or undetermined directions (unless ``degenerate_ok``).
     """
-    from ..registration import register
-
     fidx = face_indices(prep.model, faces)
     if init is None:
-        T0 = register(scan, prep, loss=loss, rng=rng).T_model_scan
+        T0 = _best_start(scan, prep, None, 0 if rng is None else rng)[0]
     else:
         T0 = _check_T(init)
     T, cov, res, rms, p, it, ok, n, sigma = _gauss_newton(
@@ -307,7 +351,7 @@ def best_fit(scan, prep, faces=None, init=None, loss: str = "tukey", max_iterati
 
 
 def constrained_fit(scan, prep, free, init=None, center=(0.0, 0.0, 0.0), faces=None,
-                    loss: str = "tukey", max_iterations: int = 50, tolerance: float = 1e-9,
+                    loss: str = "tukey", max_iterations: int = 50, tolerance: float = 0.1,
                     reach: float | None = None) -> AlignmentResult:
     """Best fit in the free degrees of freedom only; the locked ones stay at ``init``.
 
@@ -319,6 +363,8 @@ def constrained_fit(scan, prep, free, init=None, center=(0.0, 0.0, 0.0), faces=N
         The fixture's pose (None: identity, the scan is already in the model frame).
     center : (3,)
         Centre of the rotations (model frame, mm).
+    tolerance : float
+        Convergence against the pose's standard deviation and the noise, as :func:`best_fit`.
 
     Returns
     -------
@@ -359,7 +405,7 @@ def _check_T(T) -> np.ndarray:
 
 # ------------------------------------------------------------------------------ RPS
 def rps_alignment(scan, prep, points, init=None, radius: float = 4.0, max_iterations: int = 20,
-                  tolerance: float = 1e-10) -> AlignmentResult:
+                  tolerance: float = 1e-10, rng=0) -> AlignmentResult:
     """RPS (reference point system) alignment; 3-2-1 is six single locks.
 
     Parameters
@@ -369,7 +415,9 @@ def rps_alignment(scan, prep, points, init=None, radius: float = 4.0, max_iterat
         ``feature``, ``radius``, ``name``)
         ``lock``: the model axes ('x', 'y', 'z') whose coordinate the point fixes.
     init : (4, 4) or None
-        Start pose (None: the free best fit, only to find the points' neighbourhoods).
+        A start pose.  The start is the placement the whole scan fits best of ``init`` and the
+        global search's (:mod:`.placement`; only to find the points' neighbourhoods); another
+        that fits alike gives a warning in ``details['warnings']``.
     radius : float
         Default neighbourhood radius of a surface point (mm).
 
@@ -386,12 +434,13 @@ def rps_alignment(scan, prep, points, init=None, radius: float = 4.0, max_iterat
         lock along a surface (a surface point can only lock an axis across it), or points not
         scanned.
     """
-    from ..registration import register
 
     pts = [p if isinstance(p, dict) else p.model_dump() for p in points]
     feats = model_features(prep.model) if prep.model.kind == "cad" else []
-    T = register(scan, prep).T_model_scan if init is None else _check_T(init)
     P = np.asarray(scan, np.float64)
+    # the start: of the caller's start and the global search's placements, the one the whole
+    # scan fits best (an upside-down copy puts the RPS points on the wrong face)
+    T, where, warns = _best_start(P, prep, None if init is None else _check_T(init), rng)
     spec = []
     for k, p in enumerate(pts):
         at = np.asarray(p["at"], np.float64)
@@ -474,24 +523,66 @@ def rps_alignment(scan, prep, points, init=None, radius: float = 4.0, max_iterat
     locks = [{"point": nm, "axis": ax, "kind": kd, "residual": float(v), "uncertainty": float(u)}
              for (nm, ax, kd), v, u in zip(info, r, unc)]
     return AlignmentResult(T, 0.5 * (cov + cov.T), r, float(np.sqrt(np.mean(r * r))), DOF_NAMES,
-                           (), "rps", {"iterations": it, "locks": locks})
+                           (), "rps", {"iterations": it, "locks": locks, "warnings": warns,
+                                       "placement": where})
 
 
-def align(scan, prep, alignment, init=None, rng=None) -> AlignmentResult:
-    """Run a plan's alignment (a plan alignment model or a dict with ``type``)."""
+def _best_start(scan, prep, init, rng):
+    """Of ``init`` (if any) and the global search's placements (:mod:`.placement`), the pose
+    the whole scan fits best: ``(T, name, warnings)``."""
+    from .placement import ALIKE, placements, scan_noise_of, whole_fit
+
+    P = np.asarray(scan, np.float64)
+    noise = scan_noise_of(P)
+    cands = [(nm, T0, whole_fit(P, prep, T0, noise)) for nm, T0 in placements(P, prep, init, rng)]
+    cands.sort(key=lambda c: -c[2])
+    best = cands[0][2]
+    alike = [c for c in cands if c[2] >= ALIKE * best]
+    # the caller's start, when it fits alike, is the caller's choice among symmetric copies
+    chosen = next((c for c in alike if c[0] == "start"), alike[0])
+    nm, T, f0 = chosen
+    if nm == "start":
+        return T, nm, []
+    warns = [f"another placement of the scan ({n2}) fits it alike (whole fit {f:.3f} vs "
+             f"{f0:.3f}): the pose may be a symmetric copy; give init= to choose"
+             for n2, T2, f in alike if n2 != nm
+             and np.degrees(np.linalg.norm(rotation_vector(T2[:3, :3] @ T[:3, :3].T))) > 1.0]
+    if init is not None:
+        warns.append(f"the given start fits the scan worse than the global search's placement "
+                     f"(whole fit {[c[2] for c in cands if c[0] == 'start'][0]:.3f} vs {f0:.3f}):"
+                     " started from the latter")
+    return T, nm, warns
+
+
+def align(scan, prep, alignment, init=None, rng=None, registration=None) -> AlignmentResult:
+    """Run a plan's alignment (a plan alignment model or a dict with ``type``).
+
+    ``registration``: the free registration ``init`` comes from (:func:`shapeverify.register`).
+    A best fit starts from it unless it carries warnings of a wrong minimum
+    (``Registration.warnings``); otherwise (no registration, or one with warnings) from the
+    placement the whole scan fits best of ``init`` and the global search's (:mod:`.placement`;
+    ``init`` when it fits alike).  Datums and RPS always look at the placements.
+    """
     a = alignment if isinstance(alignment, dict) else alignment.model_dump()
     kind = a["type"]
     if kind == "best_fit":
-        return best_fit(scan, prep, faces=a.get("faces"), init=init, loss=a.get("loss", "tukey"),
-                        rng=rng)
+        warns, start = [], init
+        if registration is None or getattr(registration, "warnings", ()):
+            start, where, warns = _best_start(scan, prep, None if init is None else _check_T(init),
+                                              0 if rng is None else rng)
+        res = best_fit(scan, prep, faces=a.get("faces"), init=start, loss=a.get("loss", "tukey"),
+                       rng=rng)
+        if warns:
+            res.details["warnings"] = warns
+        return res
     if kind == "constrained":
         return constrained_fit(scan, prep, a["free"], init=init, center=a.get("center", (0, 0, 0)),
                                faces=a.get("faces"), loss=a.get("loss", "tukey"))
     if kind == "rps":
-        return rps_alignment(scan, prep, a["points"], init=init)
+        return rps_alignment(scan, prep, a["points"], init=init, rng=0 if rng is None else rng)
     if kind == "datums":
         from .datums import datum_alignment
 
         return datum_alignment(scan, prep, a["primary"], a["secondary"], a.get("tertiary"),
-                               init=init)
+                               init=init, rng=0 if rng is None else rng)
     raise ValueError(f"unknown alignment type {kind!r}")

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..registration.losses import MAD_TO_SIGMA
 from ..registration.rigid import apply_transform, invert_transform, make_transform, pose_error
 from .alignment import AlignmentResult, _check_T
 from .features import find_feature, model_features
@@ -69,36 +68,67 @@ def _modes_plane(Xp, n, rms):
     return out
 
 
-def _measure_datum(f, X, cl, prep, feats, sigma):
-    """(kind, point, direction, rms or u, one-sigma error modes [(dpoint, ddirection), ...])."""
+def _near_datum(f, X, prep, reach):
+    """Indices of the scan points (model frame X) whose exact closest CAD point lies on the
+    datum face ``f`` within ``reach``: a cheap geometric preselection (a slab about a plane, a
+    shell about a cylinder; an even subset of about 2 x :data:`MAX_DATUM_POINTS` of it), then
+    the exact closest points of those only."""
+    q = X - f.center
+    if f.kind == "plane":
+        pre = np.flatnonzero(np.abs(q @ f.axis) <= reach)
+    else:
+        radial = q - np.outer(q @ f.axis, f.axis)
+        pre = np.flatnonzero(np.abs(np.linalg.norm(radial, axis=1) - 0.5 * f.diameter) <= reach)
+    if pre.size == 0:
+        return pre
+    pre = pre[::max(1, pre.size // (2 * MAX_DATUM_POINTS))]      # an even subset of a big face
+    cl = prep.closest(X[pre], exact=True)
+    m = (np.asarray(cl.face) == f.face) & ~np.asarray(cl.on_boundary, bool) & \
+        (np.abs(cl.distances) <= reach)
+    return pre[m]
+
+
+def _measure_datum(f, X, prep, reach):
+    """(kind, point, direction, rms or u, one-sigma error modes [(dpoint, ddirection), ...],
+    points used)."""
     from ..fitting import fit_cylinder, fit_plane
     from .holes import plane_basis
 
     if f.kind == "hole":
-        hm = measure_hole(X, f.center, f.axis, f.diameter)
+        try:
+            hm = measure_hole(X, f.center, f.axis, f.diameter)
+        except ValueError as exc:
+            raise ValueError(f"datum {f.id} (hole, diameter {f.diameter:g} mm) was not seen: "
+                             f"{exc}") from None
         e1, e2 = plane_basis(f.axis)
         z = np.zeros(3)
-        return "axis", hm.center, f.axis, hm.u_center, [(hm.u_center * e1, z),
-                                                         (hm.u_center * e2, z)]
-    m = (cl.face == f.face) & ~cl.on_boundary & (np.abs(cl.distances) <= max(1.0, 8 * sigma))
-    if np.count_nonzero(m) < 10:
-        raise ValueError(f"datum {f.id}: only {int(np.count_nonzero(m))} scan points on it")
+        # the diameter misfit beyond what the edge detection may be off (two spacings)
+        return ("axis", hm.center, f.axis, hm.u_center,
+                [(hm.u_center * e1, z), (hm.u_center * e2, z)], hm.n_edge,
+                max(abs(hm.diameter - f.diameter) - 2.0 * hm.spacing, 0.0))
+    if f.kind not in ("plane", "cylinder"):
+        raise ValueError(f"datum {f.id} is a {f.kind} face; datums are planes, holes or "
+                         "cylinders")
+    idx = _near_datum(f, X, prep, reach)
+    if idx.size < MIN_DATUM_POINTS:
+        raise ValueError(f"datum {f.id} ({f.kind}) was not seen: only {idx.size} scan points lie "
+                         f"on it (at least {MIN_DATUM_POINTS} are needed); scan that face or "
+                         "choose another datum")
+    Xm = X[idx]
     if f.kind == "plane":
-        pl = fit_plane(X[m], loss="tukey")
+        pl = fit_plane(Xm, loss="tukey")
         n = pl.normal if pl.normal @ f.axis > 0 else -pl.normal
         inl = pl.weights > 0
-        return "plane", pl.point, n, pl.rms, _modes_plane(X[m][inl], n, pl.rms)
-    if f.kind == "cylinder":
-        cy = fit_cylinder(X[m], loss="tukey", axis=f.axis)
-        a = cy.axis if cy.axis @ f.axis > 0 else -cy.axis
-        e1, e2 = plane_basis(a)
-        k = max(int(np.count_nonzero(cy.weights > 0)), 2)
-        s_ax = max(float(np.std((X[m] - cy.point) @ a)), 1e-9)
-        up = cy.rms * np.sqrt(2.0 / k)
-        modes = [(up * e1, np.zeros(3)), (up * e2, np.zeros(3)),
-                 (np.zeros(3), up / s_ax * e1), (np.zeros(3), up / s_ax * e2)]
-        return "axis", cy.point, a, cy.rms, modes
-    raise ValueError(f"datum {f.id} is a {f.kind} face; datums are planes, holes or cylinders")
+        return ("plane", pl.point, n, pl.rms, _modes_plane(Xm[inl], n, pl.rms), idx.size, 0.0)
+    cy = fit_cylinder(Xm, loss="tukey", axis=f.axis)
+    a = cy.axis if cy.axis @ f.axis > 0 else -cy.axis
+    e1, e2 = plane_basis(a)
+    k = max(int(np.count_nonzero(cy.weights > 0)), 2)
+    s_ax = max(float(np.std((Xm - cy.point) @ a)), 1e-9)
+    up = cy.rms * np.sqrt(2.0 / k)
+    modes = [(up * e1, np.zeros(3)), (up * e2, np.zeros(3)),
+             (np.zeros(3), up / s_ax * e1), (np.zeros(3), up / s_ax * e2)]
+    return "axis", cy.point, a, cy.rms, modes, idx.size, abs(2.0 * cy.radius - f.diameter)
 
 
 def _pierce(kind, p, a, zp, z):
@@ -109,20 +139,108 @@ def _pierce(kind, p, a, zp, z):
     return p + s * a
 
 
+#: fewest scan points on a datum plane or cylinder
+MIN_DATUM_POINTS = 30
+#: a datum plane or cylinder is fitted to an even subset of about this many of its points at
+#: most (their fit's uncertainty, in the covariance, is that of the points used)
+MAX_DATUM_POINTS = 20_000
+#: a datum plane or cylinder whose fit RMS exceeds this many noise sigmas fits badly
+BAD_FIT = 5.0
+#: a datum hole or cylinder whose measured diameter is off by more than this share of its
+#: nominal is not the datum (another hole, or not seen)
+BAD_DIAMETER = 0.05
+#: the frame iterations stop when the pose moves no point by more than this many noise sigmas
+MOVE_SIGMA = 0.01
+
+
+def _frame_cov(fits, Fn, T_prev, T):
+    """Covariance (6, 6) of the pose: each datum's one-sigma error modes propagated through
+    the frame construction."""
+    cov = np.zeros((6, 6))
+    for i, (k, p, a, u, modes, _, _) in enumerate(fits):
+        for dp, da in modes:
+            pert = list(fits)
+            pert[i] = (k, p + dp, a + da, u, modes, 0, 0.0)
+            e = pose_error(Fn @ invert_transform(_measured_frame(pert)) @ T_prev, T)
+            cov += np.outer(e, e)
+    return cov
+
+
+def _fit_frame(P, prep, F, Fn, T, noise, iterations):
+    """Datum fits and pose from the start T: ``(T, fits, cov, iterations, converged)``.
+
+    Converged when an iteration moves no point (``|omega| size + |tau|``) by more than
+    :data:`MOVE_SIGMA` noise sigmas or half the frame's own standard deviation (a hole's edge
+    points change with the pose: its centre moves within its uncertainty)."""
+    size = float(prep.model.size)
+    nz = noise if np.isfinite(noise) else 0.0
+    reach = max(1.0, 8.0 * nz)
+    fits, cov, it, ok = [], np.zeros((6, 6)), 0, False
+    for it in range(1, iterations + 1):
+        X = apply_transform(T, P)
+        fits = [_measure_datum(f, X, prep, reach) for f in F]
+        T_prev = T
+        T = Fn @ invert_transform(_measured_frame(fits)) @ T
+        cov = _frame_cov(fits, Fn, T_prev, T)
+        e = pose_error(T, T_prev)
+        sd = np.sqrt(max(np.trace(cov[:3, :3]), 0.0)) * size + np.sqrt(max(np.trace(cov[3:, 3:]),
+                                                                          0.0))
+        if np.linalg.norm(e[:3]) * size + np.linalg.norm(e[3:]) <= max(
+                MOVE_SIGMA * nz, 0.5 * sd, 1e-9 * size):
+            ok = True
+            break
+    return T, fits, cov, it, ok
+
+
+def _measured_frame(fits):
+    _, zp, z = fits[0][:3]
+    z = z / np.linalg.norm(z)
+    elems = [(k, _pierce(k, p, a / np.linalg.norm(a), zp, z), a / np.linalg.norm(a))
+             for k, p, a in (f[:3] for f in fits[1:])]
+    return _frame(z, zp, elems)
+
+
+def _badness(F, fits, noise) -> str | None:
+    """Why a datum fits badly (None: all fit)."""
+    for f, fit in zip(F, fits):
+        if f.kind != "hole" and np.isfinite(noise) and fit[3] > BAD_FIT * max(noise, 1e-9):
+            return (f"datum {f.id} ({f.kind}) fits badly: its points scatter {fit[3]:.3g} mm RMS "
+                    f"about the fitted {f.kind}, {fit[3] / noise:.1f} x the scan's noise "
+                    f"({noise:.3g} mm); is it the right face, deformed, or partly another face?")
+        if f.kind != "plane" and fit[6] > BAD_DIAMETER * f.diameter:
+            return (f"datum {f.id} ({f.kind}, diameter {f.diameter:g} mm) fits badly: the scan "
+                    f"there measures its diameter {fit[6]:.3g} mm off (beyond two point "
+                    "spacings); it was not seen whole, or another feature lies where it should be")
+    return None
+
+
 def datum_alignment(scan, prep, primary, secondary, tertiary=None, init=None,
-                    iterations: int = 3) -> AlignmentResult:
+                    iterations: int = 8, rng=0) -> AlignmentResult:
     """Datum-feature alignment: plane A, then axis or plane B, then axis or plane C.
 
     The datum frame: z = A's normal; the origin where B's axis meets A (B a plane: the corner of
     A, B and C, or A and B with C an axis); x towards C's axis (or along B's/C's normal).  The
     same frame is built from the CAD features and from the elements fitted on the scan (in the
-    model frame of the current pose); the pose maps the measured frame onto the nominal one.
-    Repeated ``iterations`` times (the point selection follows the pose).
+    model frame of the current pose); the pose maps the measured frame onto the nominal one,
+    repeated until it moves no point by more than :data:`MOVE_SIGMA` noise sigmas (at most
+    ``iterations`` times; the point selection follows the pose).
+
+    Where it starts (:mod:`.placement`): from every placement of the scan the global search
+    finds (its best pose and the poses that fit nearly as well, and ``init`` when given); the
+    result of each is judged by the whole scan's fit, and among those that fit alike by the
+    datums' own fit (RMS in noise sigmas, diameter misfit).  Two that fit alike on both counts
+    (a symmetric part whose datum features allow several placements) give a warning in
+    ``details['warnings']``.  A datum that was not seen or fits badly (:data:`BAD_FIT`,
+    :data:`BAD_DIAMETER`) at every placement leaves ``details['converged']`` False with the
+    reason in ``details['reason']`` (an inspection then says 'error', its characteristics
+    'undecided'): never a silent wrong frame.
 
     Parameters
     ----------
     primary, secondary, tertiary : str
         Feature ids ('face:0', 'hole:1', 'cylinder:3').
+    init : (4, 4), optional
+        A start pose (e.g. the free registration's); tried with the global search's placements.
 
     Returns
     -------
@@ -131,8 +249,10 @@ def datum_alignment(scan, prep, primary, secondary, tertiary=None, init=None,
         ``covariance``: the datums' fit uncertainties (a plane's offset and tilt from its
         residual RMS, point count and extent; a hole's centre; a cylinder's axis) propagated
         through the frame construction (one-sigma perturbations).
+        ``details``: ``placements`` (each tried: name, whole fit, datum RMS in sigmas, angle
+        from the chosen pose, or why it failed), ``converged``, ``reason``, ``warnings``.
     """
-    from ..registration import register
+    from .placement import ALIKE, placements, scan_noise_of, whole_fit
 
     model = prep.model
     feats = model_features(model)
@@ -140,8 +260,8 @@ def datum_alignment(scan, prep, primary, secondary, tertiary=None, init=None,
     F = [find_feature(feats, r, kind="face" if i else "plane") for i, r in enumerate(refs)]
     if F[0].kind != "plane":
         raise ValueError(f"the primary datum {F[0].id} must be a plane, it is a {F[0].kind}")
-    T = register(scan, prep).T_model_scan if init is None else _check_T(init)
     P = np.asarray(scan, np.float64)
+    T_init = None if init is None else _check_T(init)
     z_nom, zp_nom = F[0].axis, F[0].center
 
     def nominal(f):
@@ -150,33 +270,81 @@ def datum_alignment(scan, prep, primary, secondary, tertiary=None, init=None,
         return "axis", _pierce("axis", f.center, f.axis, zp_nom, z_nom), f.axis
 
     Fn = _frame(z_nom, zp_nom, [nominal(f) for f in F[1:]])
-    def measured_frame(fits):
-        _, zp, z, _, _ = fits[0]
-        z = z / np.linalg.norm(z)
-        elems = [(k, _pierce(k, p, a / np.linalg.norm(a), zp, z), a / np.linalg.norm(a))
-                 for k, p, a, _, _ in fits[1:]]
-        return _frame(z, zp, elems)
-
-    fits, T_prev = [], T
-    for _ in range(iterations):
-        X = apply_transform(T, P)
-        cl = prep.closest(X, exact=True)
-        sigma = MAD_TO_SIGMA * float(np.median(np.abs(cl.distances)))
-        fits = [_measure_datum(f, X, cl, prep, feats, sigma) for f in F]
-        T_prev = T
-        T = Fn @ invert_transform(measured_frame(fits)) @ T
-    # covariance: each datum's one-sigma error modes propagated through the frame construction
-    cov = np.zeros((6, 6))
-    for i, (k, p, a, u, modes) in enumerate(fits):
-        for dp, da in modes:
-            pert = list(fits)
-            pert[i] = (k, p + dp, a + da, u, modes)
-            Tk = Fn @ invert_transform(measured_frame(pert)) @ T_prev
-            e = pose_error(Tk, T)
-            cov += np.outer(e, e)
+    noise = scan_noise_of(P)
+    tried, failed = [], []
+    for name, T0 in placements(P, prep, T_init, rng):
+        try:
+            T, fits, cov, it, conv = _fit_frame(P, prep, F, Fn, T0, noise, iterations)
+        except ValueError as exc:
+            failed.append({"placement": name, "reason": str(exc), "T": T0})
+            continue
+        rms = [f[3] / max(noise, 1e-9) for f, d in zip(fits, F) if d.kind != "hole"]
+        tried.append({"placement": name, "T": T, "cov": cov, "fits": fits,
+                      "iterations": it, "converged": conv, "bad": _badness(F, fits, noise),
+                      "fit": whole_fit(P, prep, T, noise),
+                      "datum_rms": float(np.sqrt(np.mean(np.square(rms)))) if rms else 0.0,
+                      "diameter_misfit": float(sum(f[6] for f in fits))})
+    if not tried:
+        why = failed[0]["reason"] if failed else "no placement of the scan was found"
+        return _untrusted(P, F, failed[0]["T"] if failed else (T_init if T_init is not None
+                          else np.eye(4)), why, failed)
+    # the placement is the whole scan's (a wrong copy fits the datums as well); among those
+    # that fit alike, the datums' own fit decides (ones that fit badly last)
+    best_fit = max(t["fit"] for t in tried)
+    alike = [t for t in tried if t["fit"] >= ALIKE * best_fit]
+    alike.sort(key=lambda t: (t["bad"] is not None, t["datum_rms"], t["diameter_misfit"],
+                              -t["fit"]))
+    ch = alike[0]
+    # the caller's start, when it fits alike on both counts, is the caller's choice
+    st = next((t for t in alike if t["placement"] == "start" and t["bad"] is None
+               and t["datum_rms"] <= 1.2 * ch["datum_rms"] + 0.2), None)
+    ch = st or ch
+    warns = []
+    for t in ([] if st is not None else alike):
+        if t is ch:
+            continue
+        ang = np.degrees(np.linalg.norm(pose_error(t["T"], ch["T"])[:3]))
+        if ang > 1.0 or np.linalg.norm(pose_error(t["T"], ch["T"])[3:]) > 0.01 * model.size:
+            if t["datum_rms"] <= 1.2 * ch["datum_rms"] + 0.2:
+                warns.append(f"the datum features allow another placement of the scan that fits "
+                             f"alike (whole fit {t['fit']:.3f} vs {ch['fit']:.3f}, datum RMS "
+                             f"{t['datum_rms']:.2f} vs {ch['datum_rms']:.2f} noise sigmas, "
+                             f"{ang:.1f} deg away): the frame may be a symmetric copy; give "
+                             "init= to choose")
+    T, fits, cov = ch["T"], ch["fits"], ch["cov"]
     res = np.array([f[3] for f in fits])
     dof = ["A: tz rx ry", "B: " + ("tx ty" if F[1].kind != "plane" else "tx rz")]
     if len(F) > 2:
         dof.append("C: " + ("rz" if F[1].kind != "plane" else "ty"))
+    reason = ch["bad"] or (None if ch["converged"] else
+                           f"the datum frame still moved after {ch['iterations']} iterations")
+    details = {"datums": [f.id for f in F], "iterations": ch["iterations"],
+               "converged": reason is None, "noise": noise, "placement": ch["placement"],
+               "placements": _placement_rows(tried, failed, T), "warnings": warns,
+               "n_points": [int(f[5]) for f in fits]}
+    if reason:
+        details["reason"] = reason
     return AlignmentResult(T, cov, res, float(np.sqrt(np.mean(res ** 2))), tuple(dof),
-                           (), "datums", {"datums": [f.id for f in F]})
+                           (), "datums", details)
+
+
+def _placement_rows(tried, failed, T) -> list:
+    rows = []
+    for t in tried:
+        e = pose_error(t["T"], T)
+        rows.append({"placement": t["placement"], "whole_fit": float(t["fit"]),
+                     "datum_rms_sigma": float(t["datum_rms"]),
+                     "degrees_from_chosen": float(np.degrees(np.linalg.norm(e[:3]))),
+                     "mm_from_chosen": float(np.linalg.norm(e[3:])),
+                     **({"fits_badly": t["bad"]} if t["bad"] else {})})
+    rows += [{"placement": f["placement"], "failed": f["reason"]} for f in failed]
+    return rows
+
+
+def _untrusted(P, F, T, why, failed) -> AlignmentResult:
+    """No datum frame: the start pose, flagged (inspection 'error', characteristics
+    'undecided'), with the reason."""
+    return AlignmentResult(T, np.full((6, 6), np.inf), np.zeros(0), float("nan"), (), (),
+                           "datums", {"datums": [f.id for f in F], "converged": False,
+                                      "reason": why, "iterations": 0, "warnings": [],
+                                      "placements": _placement_rows([], failed, T)})

@@ -7,17 +7,23 @@ The *evaluated points* of a face group are the scan points whose exact closest C
 with ``|d| <= max_distance`` (``d`` the signed distance along the outward CAD normal;
 ``max_distance`` -- the evaluation distance -- from the caller, else the plan's, else the one
 default :func:`shapeverify.inspection.default_evaluation_distance` of the plan's largest
-tolerance), less the points the caller excludes (``shapeverify.inspect`` passes its isolated
-measurement outliers, so one stray point does not decide a profile).
+tolerance, five times it at least: never a cut-off at or inside a limit).  The *kept points*
+are the evaluated points less the measurement outliers of the inspection's own rule,
+neighbourhood support (:mod:`.support`: a deviation its neighbours do not support, departing
+from their median by more than the noise could make it), and less any points the caller
+excludes.  Every characteristic reports in ``details['excluded']`` how many points of its faces
+it left out and why (``beyond_evaluation_distance``, ``past_model_edge``,
+``unsupported_outliers``, ``excluded_by_caller``); the values below are taken on the kept points
+only, so one stray point does not decide a profile and no value is a cut-off.
 
 * **surface_profile** (ISO 1101 §18.6, profile of a surface): the zone is bounded by two surfaces
   offset ±t/2 from the true profile.  With a datum reference (``datum: true``, default) the
   profile is located by the plan's alignment; measured value ``2 max_i |d_i|`` over the
-  evaluated points (the width of the narrowest zone centred on the CAD that holds them all),
+  kept points (the width of the narrowest zone centred on the CAD that holds them all),
   nominal 0, limits ``[0, t]``.  Without a datum (``datum: false``) the zone may float: the
   group is first best-fitted on its own (robust 6-DOF, :func:`.alignment.best_fit`), then the
   same value is taken.
-* **flatness** (ISO 1101 §18.2): minimum-zone value of the evaluated points of the planar face
+* **flatness** (ISO 1101 §18.2): minimum-zone value of the kept points of the planar face
   (:func:`.zones.minimum_zone_flatness`, exact), limits ``[0, t]``.
 * **hole** diameter and position (ISO 1101 §18.12 position of an axis): the hole is measured by
   :func:`.holes.measure_hole` (edge-point circle for the centre, count-based bias correction for
@@ -39,7 +45,10 @@ about 95 %) from two sources combined in quadrature: the pose (the alignment's 6
 propagated through the characteristic's dependence on the pose: ``g^T C g`` with
 ``g = [q x n, n]`` for a displacement of point q along n) and the scan noise (the scatter of the
 points that make the value: ``s / sqrt(n)`` for means; the hole's edge scatter; a single point's
-noise ``s`` for extreme values).  Verdict: ``pass`` inside ``[lower + U, upper - U]``, ``fail``
+noise for extreme values: a zone width taken from the largest of ``n`` deviations carries the
+``k``-level quantile of the largest of ``n`` normal deviates, ``z_n sigma`` per side,
+:func:`.support.extreme_quantile`, about 5 sigma at 10^5 points).  Verdict: ``pass`` inside
+``[lower + U, upper - U]``, ``fail``
 outside ``[lower - U, upper + U]``, else ``undecided`` (:func:`.zones.decide`).  Zone widths
 (profile, flatness, position) have only the upper limit.
 """
@@ -57,6 +66,7 @@ from .alignment import AlignmentResult, align, best_fit, face_indices
 from .features import find_feature, model_features
 from .holes import measure_hole, plane_basis
 from .plan import Plan, load_plan
+from .support import extreme_quantile
 from .zones import decide, minimum_zone_flatness, worst_verdict
 
 __all__ = ["CharacteristicResult", "PlanResult", "evaluate_plan", "evaluate_characteristics"]
@@ -214,25 +224,80 @@ def _pose_var(cov, q, n) -> float:
 
 
 class _Scan:
-    """The aligned scan with its closest CAD points (computed once)."""
+    """The aligned scan with its closest CAD points (computed once), the evaluated points and
+    the points the characteristics keep (:mod:`.support`).
 
-    def __init__(self, prep, scan, T, max_distance, exclude=None):
+    ``deviations``: the inspection's :class:`~shapeverify.inspection.Deviations` at this very
+    pose and evaluation distance (its closest points are not computed again).
+    """
+
+    def __init__(self, prep, scan, T, max_distance, exclude=None, deviations=None):
+        from .support import neighbourhood_support
+
         self.prep = prep
         self.exclude = exclude
-        self.X = apply_transform(T, scan)
-        cl = prep.closest(self.X, exact=True)
-        self.cl = cl
-        self.d = cl.distances
-        self.face = cl.face
-        self.ok = ~cl.on_boundary & (np.abs(cl.distances) <= max_distance)
-        if exclude is not None:
-            self.ok &= ~exclude
+        dev = deviations
+        if dev is not None and _same_evaluation(dev, scan, T, max_distance):
+            from ..inspection.deviations import ON_BOUNDARY, TOO_FAR
+
+            self.X = np.asarray(dev.points_model, np.float64)
+            self.d = np.asarray(dev.values, np.float64)
+            # the signed distance where the inspection did not evaluate (NaN there): from the
+            # foot point, signed by the normal (the same definition as prep.closest's)
+            gap = self.X - np.asarray(dev.foot_points, np.float64)
+            raw = np.sign(np.einsum("ij,ij->i", gap, np.asarray(dev.normals, np.float64))) * \
+                np.linalg.norm(gap, axis=1)
+            self.d = np.where(np.isfinite(self.d), self.d, raw)
+            self.face = np.asarray(dev.face)
+            self.normals = np.asarray(dev.normals, np.float64)
+            self.feet = np.asarray(dev.foot_points, np.float64)
+            self.on_boundary = np.asarray(dev.reason) == ON_BOUNDARY
+            self.too_far = np.asarray(dev.reason) == TOO_FAR
+        else:
+            self.X = apply_transform(T, scan)
+            cl = prep.closest(self.X, exact=True)
+            self.d = np.asarray(cl.distances, np.float64)
+            self.face = np.asarray(cl.face)
+            self.normals = np.asarray(cl.normals, np.float64)
+            self.feet = np.asarray(cl.points, np.float64)
+            found = np.isfinite(self.d)
+            self.too_far = ~found | (np.abs(np.where(found, self.d, 0.0)) > max_distance)
+            self.on_boundary = np.asarray(cl.on_boundary, bool) & ~self.too_far
+        self.evaluated = ~self.too_far & ~self.on_boundary
+        self.by_caller = np.zeros(self.d.shape[0], bool) if exclude is None else \
+            np.asarray(exclude, bool) & self.evaluated
+        sup = neighbourhood_support(self.feet, self.d, self.evaluated & ~self.by_caller)
+        self.support = sup
+        self.unsupported = sup.unsupported
+        self.ok = self.evaluated & ~self.by_caller & ~self.unsupported
         dv = self.d[self.ok]
-        self.noise = float(MAD_TO_SIGMA * np.median(np.abs(dv - np.median(dv)))) if dv.size else \
+        mad = float(MAD_TO_SIGMA * np.median(np.abs(dv - np.median(dv)))) if dv.size else \
             float("nan")
+        # the scan's noise from neighbour differences (the part's form cancels); the spread
+        # of the deviations where that cannot be had
+        self.noise = sup.noise if np.isfinite(sup.noise) else mad
 
     def on(self, faces) -> np.ndarray:
         return self.ok if faces is None else self.ok & np.isin(self.face, faces)
+
+    def excluded(self, faces) -> dict:
+        """How many points whose closest CAD point lies on ``faces`` (None: all) the
+        characteristics leave out, by reason (module docstring)."""
+        on = np.ones(self.d.shape[0], bool) if faces is None else np.isin(self.face, faces)
+        return {"beyond_evaluation_distance": int(np.count_nonzero(on & self.too_far)),
+                "past_model_edge": int(np.count_nonzero(on & self.on_boundary)),
+                "excluded_by_caller": int(np.count_nonzero(on & self.by_caller)),
+                "unsupported_outliers": int(np.count_nonzero(on & self.unsupported))}
+
+
+def _same_evaluation(dev, scan, T, max_distance) -> bool:
+    """``dev`` holds this scan's deviations at the pose T, evaluation distance and all faces."""
+    if dev.n != scan.shape[0] or dev.n_outside_faces or not np.isclose(
+            float(dev.evaluation_distance), float(max_distance), rtol=1e-12, atol=0.0):
+        return False
+    k = np.linspace(0, scan.shape[0] - 1, min(scan.shape[0], 16)).astype(np.int64)
+    return bool(np.allclose(apply_transform(T, scan[k]), dev.points_model[k], rtol=0.0,
+                            atol=1e-9 * max(1.0, float(np.abs(dev.points_model[k]).max()))))
 
 
 def _k_eff(k: float, u_fixed2: float, u_sample2: float, dof: int) -> float:
@@ -256,16 +321,17 @@ def _not_measured(c, reason: str) -> CharacteristicResult:
 def _profile(c, S: _Scan, al: AlignmentResult, k: float, prep, scan, max_distance):
     fidx = face_indices(prep.model, c.faces)
     m = S.on(fidx)
-    d, X, nrm = S.d, S.X, S.cl.normals
+    d, X, nrm = S.d, S.X, S.normals
     cov = al.covariance
     details = {"datum": bool(c.datum)}
     noise = S.noise
+    Sx = S
     if not c.datum:
         bf = best_fit(scan, prep, faces=c.faces, init=al.T_model_scan, reach=max_distance,
                       degenerate_ok=True)
         S2 = _Scan(prep, scan, bf.T_model_scan, max_distance, S.exclude)
-        m, d, X, nrm, cov = S2.on(fidx), S2.d, S2.X, S2.cl.normals, bf.covariance
-        noise = S2.noise
+        m, d, X, nrm, cov = S2.on(fidx), S2.d, S2.X, S2.normals, bf.covariance
+        noise, Sx = S2.noise, S2
         details["T_model_scan"] = bf.T_model_scan.tolist()
     if np.count_nonzero(m) == 0:
         return _not_measured(c, "no scan points on the profile's faces")
@@ -273,14 +339,54 @@ def _profile(c, S: _Scan, al: AlignmentResult, k: float, prep, scan, max_distanc
     i = int(np.argmax(np.abs(dm)))
     value = 2.0 * float(abs(dm[i]))
     j = np.flatnonzero(m)[i]
-    u = np.sqrt(_pose_var(cov, X[j], nrm[j]) + noise ** 2)
-    U = 2.0 * k * u  # the value is twice the extreme deviation
+    # the value is twice the extreme deviation: its noise part is the k-level quantile of the
+    # largest of n noisy deviations (.support.extreme_quantile), its pose part k u_pose there
+    zq = extreme_quantile(dm.size, k)
+    U = 2.0 * float(np.sqrt((zq * noise) ** 2 + k * k * _pose_var(cov, X[j], nrm[j])))
     lo, hi = _zone_limits(c)
     details.update({"n": int(m.sum()), "min": float(dm.min()), "max": float(dm.max()),
-                    "max_abs": float(abs(dm[i])), "at": X[j].tolist(),
+                    "max_abs": float(abs(dm[i])), "at": X[j].tolist(), "noise": noise,
+                    "extreme_quantile": zq, "excluded": Sx.excluded(fidx),
                     "faces": "all" if fidx is None else fidx.tolist()})
+    details.update(_lower_bound(Sx, fidx))
     return CharacteristicResult(c.name, c.type, 0.0, value, value, lo, hi, U,
                                 decide(value, None, hi, U), details)
+
+
+def _untrusted(r: CharacteristicResult, al: AlignmentResult) -> CharacteristicResult:
+    """A characteristic measured in a frame the alignment does not vouch for (not converged, a
+    datum not seen or fitting badly) decides nothing: 'undecided' with the alignment's reason."""
+    if al.details.get("converged", True) or r.verdict == "undecided" and "reason" in r.details:
+        return r
+    import dataclasses
+
+    why = al.details.get("reason") or "the alignment did not converge"
+    return dataclasses.replace(r, verdict="undecided",
+                               details={**r.details, "measured_verdict": r.verdict,
+                                        "reason": f"the plan's alignment is not trusted: {why}"})
+
+
+def _lower_bound(S: _Scan, faces) -> dict:
+    """A zone width is only a lower bound when a surface of points lies beyond the evaluation
+    distance over its faces (points with at least 3 such neighbours within 3 spacings; scattered
+    gross outliers are no surface): said in the details."""
+    from scipy.spatial import cKDTree
+
+    far = S.too_far & np.isfinite(S.feet[:, 0])
+    if faces is not None:
+        far &= np.isin(S.face, faces)
+    sp = S.support.spacing
+    if np.count_nonzero(far) < 4 or not sp > 0:
+        return {}
+    F = S.feet[far]
+    cnt = cKDTree(F).query_ball_point(F, 3.0 * sp, return_length=True)
+    n = int(np.count_nonzero(cnt >= 4))
+    if n == 0:
+        return {}
+    return {"lower_bound": True,
+            "note": f"{n} points of these faces lie beyond the evaluation distance and are not "
+                    "evaluated: the value is a lower bound (raise the evaluation distance to "
+                    "measure them)"}
 
 
 def _zone_limits(c):
@@ -309,19 +415,23 @@ def _flatness(c, S: _Scan, feats, k):
         return _not_measured(c, f"fewer than 3 scan points on {f.id}")
     P = S.X[m]
     width, n = minimum_zone_flatness(P, f.axis)
-    u = S.noise
-    U = k * u
+    # the zone is set by the extreme points on both sides: the noise part is twice the
+    # k-level quantile of the largest of n noisy deviations (.support.extreme_quantile)
+    zq = extreme_quantile(P.shape[0], k)
+    U = 2.0 * zq * S.noise
+    details = {"feature": f.id, "n": int(m.sum()), "normal": n.tolist(),
+               "definition": "minimum zone", "noise": S.noise, "extreme_quantile": zq,
+               "excluded": S.excluded([f.face])}
+    details.update(_lower_bound(S, [f.face]))
     return CharacteristicResult(c.name, c.type, 0.0, width, width, 0.0, float(c.tol), U,
-                                decide(width, None, float(c.tol), U),
-                                {"feature": f.id, "n": int(m.sum()), "normal": n.tolist(),
-                                 "definition": "minimum zone"})
+                                decide(width, None, float(c.tol), U), details)
 
 
 def _hole(c, S: _Scan, feats, al, k):
     f = _face_feature(c, feats, S, "hole")
     try:
         hm = measure_hole(S.X, f.center, f.axis, f.diameter, face=S.prep.model.faces[f.face],
-                          deviations=S.d, normals=S.cl.normals)
+                          deviations=S.d, normals=S.normals)
     except ValueError as exc:
         return _not_measured(c, str(exc))
     e1, e2 = plane_basis(f.axis)
@@ -399,7 +509,7 @@ def _check_point(c, S: _Scan, al, k):
     at = np.asarray(c.at, np.float64)
     foot = S.prep.closest(at[None], exact=True)
     q, n, fc = foot.points[0], foot.normals[0], int(foot.face[0])
-    m = S.ok & (S.face == fc) & (np.linalg.norm(S.cl.points - q, axis=1) <= c.radius)
+    m = S.ok & (S.face == fc) & (np.linalg.norm(S.feet - q, axis=1) <= c.radius)
     nm = int(np.count_nonzero(m))
     if nm == 0:
         return _not_measured(c, f"no scan points within {c.radius:g} mm of the check point "
@@ -433,7 +543,7 @@ def _section(sec, S: _Scan):
     s = Q @ dirn
     o = np.argsort(s)
     return {"name": sec.name, "s": s[o], "deviation": S.d[m][o], "points": S.X[m][o],
-            "normals": S.cl.normals[m][o], "plane": [p0.tolist(), n.tolist()],
+            "normals": S.normals[m][o], "plane": [p0.tolist(), n.tolist()],
             "direction": dirn.tolist()}
 
 
@@ -457,7 +567,7 @@ def _largest_tolerance(plan) -> float:
 
 
 def evaluate_characteristics(prep, scan, plan, alignment: AlignmentResult, exclude=None,
-                             evaluation_distance: float | None = None):
+                             evaluation_distance: float | None = None, deviations=None):
     """Evaluate a plan's characteristics at a given alignment (see :func:`evaluate_plan`).
 
     Returns
@@ -469,7 +579,7 @@ def evaluate_characteristics(prep, scan, plan, alignment: AlignmentResult, exclu
 
     md = float(evaluation_distance or plan.max_distance
                or default_evaluation_distance(_largest_tolerance(plan), prep.model.size))
-    S = _Scan(prep, scan, alignment.T_model_scan, md, exclude)
+    S = _Scan(prep, scan, alignment.T_model_scan, md, exclude, deviations)
     feats = model_features(prep.model) if prep.model.kind == "cad" else []
     k = float(plan.coverage_factor)
     out = []
@@ -489,14 +599,14 @@ def evaluate_characteristics(prep, scan, plan, alignment: AlignmentResult, exclu
             if "feature" in str(exc) or "face" in str(exc):
                 raise ValueError(f"characteristic {c.name!r}: {exc}") from None
             r = _not_measured(c, str(exc))
-        out.append(r)
+        out.append(_untrusted(r, alignment))
     sec = None if plan.section is None else _section(plan.section, S)
     return tuple(out), S, sec
 
 
 def evaluate_plan(prep, scan, plan=None, registration=None, init=None, rng=None, *,
                   alignment: AlignmentResult | None = None, exclude=None,
-                  evaluation_distance: float | None = None) -> PlanResult:
+                  evaluation_distance: float | None = None, deviations=None) -> PlanResult:
     """Align a scan the plan's way and evaluate every characteristic of the plan.
 
     Parameters
@@ -520,10 +630,16 @@ def evaluate_plan(prep, scan, plan=None, registration=None, init=None, rng=None,
     alignment : AlignmentResult, optional
         The plan's alignment, when already computed (:func:`align`).
     exclude : (N,) bool, optional
-        Scan points to leave out of the characteristics (e.g. measurement outliers).
+        More scan points to leave out of the characteristics (counted as
+        ``excluded_by_caller``).  Measurement outliers need not be given: the characteristics
+        leave out the points their neighbourhood does not support (:mod:`.support`).
     evaluation_distance : float, optional
         Points farther than this from the CAD are not used (mm; default: the plan's
         ``max_distance``, else the default of :func:`shapeverify.inspect`).
+    deviations : Deviations, optional
+        The scan's deviations at the alignment's pose and this evaluation distance (from
+        :func:`shapeverify.deviations`, all faces): its closest points are used, not computed
+        again (ignored when they do not belong to this pose).
 
     Returns
     -------
@@ -572,7 +688,8 @@ def evaluate_plan(prep, scan, plan=None, registration=None, init=None, rng=None,
     else:
         al = align(P, prep, a, init=start, rng=rng)
     t1 = time.perf_counter()
-    chars, S, sec = evaluate_characteristics(prep, P, plan, al, exclude, evaluation_distance)
+    chars, S, sec = evaluate_characteristics(prep, P, plan, al, exclude, evaluation_distance,
+                                             deviations)
     t2 = time.perf_counter()
     dev = np.where(S.ok, S.d, np.nan)
     verdict = worst_verdict([c.verdict for c in chars])   # no characteristics: 'undecided'

@@ -285,7 +285,8 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
         T_start = init if init is not None and not isinstance(init, str) else None
         if T_start is None and reg is not None and plan_obj.alignment.type != "constrained":
             T_start = reg.T_model_scan       # a constrained fit keeps the fixture's pose
-        reg = PlanPose(align(scan, prep, plan_obj.alignment, init=T_start, rng=rng), reg)
+        reg = PlanPose(align(scan, prep, plan_obj.alignment, init=T_start, rng=rng,
+                             registration=reg), reg)
     timings["register"] = time.perf_counter() - t0
     logger.info("registration: rms %.4g mm, %d iterations, converged %s, inliers %.1f %%",
                 reg.rms, reg.iterations, reg.converged, 100 * reg.inlier_fraction)
@@ -296,10 +297,12 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
     if plan_obj is not None:
         from ..characteristics import evaluate_plan
         t0 = time.perf_counter()
-        outliers = np.zeros(scan.shape[0], bool)
-        outliers[result.outliers.indices] = True
-        plan_result = evaluate_plan(prep, scan, plan_obj, alignment=reg.alignment, exclude=outliers,
-                                    evaluation_distance=opts.evaluation_distance)
+        # the characteristics keep their own outlier rule (neighbourhood support), not this
+        # inspection's out-of-tolerance outliers (a cut-off at the limit), and reuse its
+        # deviations (the same pose and evaluation distance)
+        plan_result = evaluate_plan(prep, scan, plan_obj, alignment=reg.alignment,
+                                    evaluation_distance=opts.evaluation_distance,
+                                    deviations=result.deviations)
         timings["characteristics"] = time.perf_counter() - t0
         result = with_characteristics(result, plan_result)
     timings["total"] = time.perf_counter() - t_start

@@ -56,9 +56,17 @@ class PlanPose:
         return None
 
     @property
+    def warnings(self):
+        """The plan alignment's own warnings (e.g. datum features that allow two placements
+        that fit alike); the inspection lists them as notes."""
+        return tuple(self.alignment.details.get("warnings", ()))
+
+    @property
     def message(self):
         a = self.alignment
-        return (f"{a.kind} alignment of the plan: fitted {', '.join(a.dof_fitted) or 'none'}; "
+        why = a.details.get("reason")
+        return ((f"{why}; " if why else "")
+                + f"{a.kind} alignment of the plan: fitted {', '.join(a.dof_fitted) or 'none'}; "
                 f"locked {', '.join(a.dof_locked) or 'none'}; rms {a.rms:.4g} mm")
 
 
