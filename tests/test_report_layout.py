@@ -145,3 +145,29 @@ def test_png_histogram_axis_covers_every_evaluated_inlier():
     hist = next(a for a in fig.axes if a.get_ylabel() == "points")
     lo, hi = hist.get_xlim()
     assert lo <= res.statistics.min and hi >= res.statistics.max
+
+
+@pytest.mark.slow
+def test_html_report_of_a_40k_point_scan_is_under_3_mb_and_keeps_every_measurement(tmp_path):
+    """6-7 MB before (4.8 MB of it plotly.js, every point drawn and every value sent for the
+    histogram); what is measured is all still in the page's tables."""
+    from shapeverify.report import write_html_report
+
+    prep = ScaledPlane(300.0)
+    h = 1.16
+    x, y = np.meshgrid(np.arange(h, 300 - h, h), np.arange(h, 180 - h, h))
+    x, y = x.ravel(), y.ravel()
+    z = np.random.default_rng(1).normal(0, 0.02, x.size)
+    z -= 0.4 * np.exp(-((x - 90) ** 2 + (y - 60) ** 2) / 100.0)
+    scan = np.column_stack([x, y, z])
+    assert 39_000 < len(scan) < 41_000
+    reg = SimpleNamespace(T_model_scan=np.eye(4), rms=0.02, iterations=8, converged=True,
+                          inlier_fraction=0.97, weights=np.ones(len(scan)), message="")
+    res = inspect_registered(prep, scan, reg, tolerance=0.2)
+    page = write_html_report(res, prep, scan, tmp_path / "r.html").read_text(encoding="utf-8")
+    assert len(page.encode("utf-8")) < 3_000_000
+    dev = res.deviations
+    assert f"shows 20,000 of {dev.n_evaluated:,} evaluated points" in page
+    assert f"{dev.n_evaluated:,}" in page                              # the statistics: all
+    assert f"Histogram of {dev.n_evaluated:,} evaluated deviations" in page
+    assert f"{res.statistics.min:+.4f}" in page and f"{res.statistics.max:+.4f}" in page
