@@ -1,17 +1,21 @@
-# The README's two commands: `make demo` and `make test`. Each creates .venv if needed
+# The README's commands: `make demo`, `make test`, `make test-fast`.  Each creates .venv if needed
 # and installs the package into it, then fills numba's cache (python -m shapeverify.warmup);
-# re-running is cheap (the install is redone only when pyproject.toml changes).
+# re-running is cheap (the install is redone only when pyproject.toml changes).  Every step says
+# what it installs, and how big and long it is, before it starts.
 PYTHON ?= python3.11
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
 
-.PHONY: demo test bench clean venv
+.PHONY: demo test test-fast browser bench clean venv
 
 venv: $(STAMP)
 
 $(STAMP): pyproject.toml
-	@test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	@test -x $(BIN)/python || { echo "== creating $(VENV) with $(PYTHON)"; $(PYTHON) -m venv $(VENV); }
+	@echo "== installing shapeverify with its dev, service, batch and scanners extras into $(VENV) from PyPI"
+	@echo "   (numpy, scipy, numba, OpenCASCADE's cadquery-ocp-novtk, matplotlib, plotly, Dask,"
+	@echo "   FastAPI, pytest, ...: about 1 GB, 2-5 minutes; pip's own output is kept quiet)"
 	$(BIN)/python -m pip install --quiet --upgrade pip
 	$(BIN)/python -m pip install --quiet -e ".[dev,service,batch,scanners]"
 	@# numba compiles the numeric kernels on first use; do it once here (and say so), so the
@@ -23,11 +27,40 @@ $(STAMP): pyproject.toml
 demo: $(STAMP)
 	$(BIN)/python -m shapeverify.demo demo-output $(if $(OPTICS),--optics,)
 
-test: $(STAMP)
+# the whole suite (slow tests included), after `make browser` (Chromium for the HTML report's
+# browser test, or a note that it will be skipped)
+test: $(STAMP) browser
 	$(BIN)/python -m pytest -q
+
+# the quick tests only: no test marked slow, no browser, no real data (README: how long)
+test-fast: $(STAMP)
+	$(BIN)/python -m pytest -q -m "not slow and not shared"
+
+# The browser test of the HTML report (tests/test_report_browser.py) runs headless Chromium, and
+# only Chromium (Debian package `chromium`, without its recommended packages: 25 packages, about
+# 115 MB to download, 400 MB on disk, upgrades nothing).  Installed here, saying so first, when
+# it is missing and this is root with apt-get; SKIP_BROWSER=1 or no root/apt-get: nothing is
+# installed and the test is skipped with the reason (so it is when apt-get fails or is offline).
+browser:
+	@if command -v chromium >/dev/null 2>&1; then \
+	  echo "== Chromium for the browser test: $$(command -v chromium)"; \
+	elif [ -n "$(SKIP_BROWSER)" ]; then \
+	  echo "== SKIP_BROWSER set: Chromium is not installed; the browser test will be skipped"; \
+	elif [ "$$(id -u)" != 0 ] || ! command -v apt-get >/dev/null 2>&1; then \
+	  echo "== Chromium is missing (Debian package chromium) and installing it needs root and apt-get:"; \
+	  echo "   the browser test of the HTML report will be skipped (install chromium to run it)"; \
+	else \
+	  echo "== installing Chromium for the browser test of the HTML report (SKIP_BROWSER=1 skips):"; \
+	  echo "   apt-get install --no-install-recommends --no-upgrade chromium: 25 Debian packages,"; \
+	  echo "   about 115 MB to download, 400 MB on disk, about 1 minute; nothing else is upgraded"; \
+	  { DEBIAN_FRONTEND=noninteractive apt-get update -q >/dev/null && \
+	    DEBIAN_FRONTEND=noninteractive apt-get install -y -q --no-install-recommends --no-upgrade chromium; } \
+	  || echo "== installing Chromium failed (offline or refused): the browser test will be skipped"; \
+	fi
 
 # benchmarks against named peers (installs the bench extra: Open3D, splipy, geomdl, pykdtree)
 bench: $(STAMP)
+	@echo "== installing the bench extra (Open3D, splipy, geomdl, pykdtree, trimesh, ...: about 600 MB)"
 	$(BIN)/python -m pip install --quiet -e ".[dev,service,batch,scanners,bench]"
 	for b in benchmarks/bench_*.py; do echo "== $$b"; $(BIN)/python $$b || exit 1; done
 	$(BIN)/python benchmarks/collect_results.py

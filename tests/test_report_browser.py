@@ -1,9 +1,11 @@
 """The HTML report in a real browser: headless Chromium opens it offline, without console errors,
 the 3D view (WebGL canvas) and the histogram render, and a screenshot is not blank.
 
-Chromium comes from the Debian packages ``chromium`` and ``chromium-driver``: when the browser is
-missing and the tests run as root with apt-get available, they are installed once (after
-``apt-get update``); otherwise the tests are skipped with the reason.  Console errors are caught
+Chromium (the Debian package ``chromium``, nothing else: the test drives the browser itself, no
+chromium-driver) is never installed from inside pytest, where a silent install of a hundred
+packages hid for minutes behind the dots (issue 32).  ``make test`` runs ``make browser`` first,
+which says what it installs and installs it when it can; here, a missing Chromium skips the
+tests with the reason and the command that installs it.  Console errors are caught
 by a small script injected at the top of a copy of the report (it records ``console.error``
 calls, uncaught exceptions and unhandled promise rejections into an attribute of ``<html>``,
 which ``--dump-dom`` then shows); Chromium's own log is also scanned for ``Uncaught``.
@@ -51,30 +53,16 @@ window.__svErrors = [];
 </script>"""
 
 
-def _install_chromium() -> str | None:
-    if os.name != "posix" or os.geteuid() != 0 or shutil.which("apt-get") is None:
-        return None
-    env = {**os.environ, "DEBIAN_FRONTEND": "noninteractive"}
-    try:
-        subprocess.run(["apt-get", "update", "-q"], env=env, check=True, capture_output=True,
-                       timeout=900)
-        subprocess.run(["apt-get", "install", "-y", "-q", "chromium", "chromium-driver"], env=env,
-                       check=True, capture_output=True, timeout=1800)
-    except (subprocess.SubprocessError, OSError):
-        return None
-    return shutil.which("chromium")
+#: the command the skip reason gives (the Makefile's ``browser`` target runs it, saying so first)
+INSTALL = "apt-get install --no-install-recommends chromium"
 
 
 @pytest.fixture(scope="session")
 def chromium():
     exe = shutil.which("chromium")
     if exe is None:
-        exe = _install_chromium()          # once per session
-    if exe is None:
-        reason = ("Chromium is not installed (Debian packages 'chromium' and 'chromium-driver'); "
-                  + ("installing them with apt-get failed" if os.name == "posix" and os.geteuid() == 0
-                     else "run as root to let the test install them, or install them yourself"))
-        pytest.skip(reason)
+        pytest.skip(f"Chromium is not installed: `make browser` (as root) or `{INSTALL}` "
+                    "installs it (25 Debian packages, about 115 MB to download)")
     return exe
 
 

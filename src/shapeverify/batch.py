@@ -18,6 +18,7 @@ traceback, it is logged as an error and counted in :attr:`BatchSummary.internal_
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import hashlib
 import json
@@ -34,6 +35,9 @@ from typing import Callable
 from shapeverify.io.formats import SCAN_SUFFIXES
 
 log = logging.getLogger(__name__)
+
+#: the file in the output folder that receives Dask's own log lines
+DASK_LOG = "dask.log"
 
 _WORKER_MODELS: dict = {}  # sha256 -> Prepared, one per worker process
 _CSV_COLUMNS = ["scan", "verdict", "n_points", "mean_mm", "std_mm", "min_mm", "max_mm", "p95_mm",
@@ -236,6 +240,55 @@ class _Outputs:
             self.db.close()
 
 
+#: Dask's loggers, whose INFO lines (about 35 per run: scheduler, nannies, workers, clients)
+#: go to ``OUT/dask.log`` and not to the application's handlers (:func:`_dask_logs_to`)
+_DASK_LOGGERS = ("distributed", "dask")
+
+
+class _LogFile(logging.Handler):
+    """Appends formatted records to a file.  Not a :class:`logging.StreamHandler` (nor a
+    FileHandler, which is one): ``LocalCluster(silence_logs=...)`` turns every StreamHandler of
+    the ``distributed`` logger down to that level while the cluster runs."""
+
+    def __init__(self, path: Path):
+        super().__init__()
+        self._fh = open(path, "a", encoding="utf-8")
+
+    def emit(self, record: logging.LogRecord) -> None:
+        try:
+            self._fh.write(self.format(record) + "\n")
+            self._fh.flush()
+        except Exception:  # noqa: BLE001 - logging's own convention
+            self.handleError(record)
+
+    def close(self) -> None:
+        self._fh.close()
+        super().close()
+
+
+@contextlib.contextmanager
+def _dask_logs_to(path: Path):
+    """Send Dask's own log records to the file ``path`` while the batch runs; they also reach
+    the root logger's handlers (the terminal of ``shapeverify batch``) only when the root
+    logger is enabled for INFO (``shapeverify --verbose batch ...``)."""
+    handler = _LogFile(path)
+    handler.setFormatter(logging.Formatter("%(asctime)s %(name)s %(levelname)s %(message)s"))
+    verbose = logging.getLogger().isEnabledFor(logging.INFO)
+    saved = []
+    for name in _DASK_LOGGERS:
+        lg = logging.getLogger(name)
+        saved.append((lg, lg.propagate))
+        lg.addHandler(handler)
+        lg.propagate = verbose
+    try:
+        yield
+    finally:
+        for lg, propagate in saved:
+            lg.removeHandler(handler)
+            lg.propagate = propagate
+        handler.close()
+
+
 def _run_on_dask(todo: list[Path], svm: bytes, digest: str, task_args: tuple, record,
                  scheduler: str | None, workers: int, progress) -> None:
     """Inspect the scans ``todo`` on Dask (a LocalCluster of ``workers`` unless ``scheduler``),
@@ -322,7 +375,9 @@ def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, 
     scans_dir : path
         Folder of scans (``.ply .xyz .txt .csv .npy .pcd .e57 .las .laz``; not recursive).
     out_dir : path
-        Output folder: ``<scan stem>.json`` per scan (``.html`` with ``reports``), ``summary.csv``.
+        Output folder: ``<scan stem>.json`` per scan (``.html`` with ``reports``), ``summary.csv``,
+        and ``dask.log``: Dask's own log lines (they reach the root logger's handlers too only
+        when it is enabled for INFO).
     tolerance, evaluation_distance : float
         As for :func:`shapeverify.inspect` (mm; None: its default).
     scheduler : str, optional
@@ -371,8 +426,9 @@ def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, 
     try:
         todo = outputs.open_history(todo)
         if todo:
-            _run_on_dask(todo, svm, digest, (tolerance, evaluation_distance, reports),
-                         outputs.record, scheduler, workers, progress)
+            with _dask_logs_to(out_dir / DASK_LOG):
+                _run_on_dask(todo, svm, digest, (tolerance, evaluation_distance, reports),
+                             outputs.record, scheduler, workers, progress)
     finally:
         outputs.close()
     rows, summary_csv = _write_summary(scans, out_dir)

@@ -25,13 +25,13 @@ import typer
 from rich.console import Console
 from rich.logging import RichHandler
 from rich.markup import escape
-from rich.table import Table
 from typer.core import TyperGroup
 
 from shapeverify.cli_errors import clean, cli_hint, os_error_message, size_note
 from shapeverify.cli_start import CAD_SUFFIXES as _CAD_SUFFIXES
 from shapeverify.cli_start import early_importer as _early_importer
 from shapeverify.cli_start import is_prepared as _is_prepared
+from shapeverify.cli_text import Table, format_limits, readable_help, sig3
 
 # usage errors (a missing argument, an unknown option) and exits are not bugs.  typer >= 0.2x
 # vendors its own click (typer._click, and click is no longer installed with it), older typer
@@ -42,7 +42,16 @@ _NOT_A_BUG = (typer.Exit, typer.Abort) + tuple(
 
 class _GuardedGroup(TyperGroup):
     """Runs every command so that an unexpected exception (a bug) also ends with exit code 2 and
-    one line -- never exit code 1, which ``inspect`` reserves for "the part fails"."""
+    one line -- never exit code 1, which ``inspect`` reserves for "the part fails".
+    Help texts are shown as written (``[mm]`` is a unit, not Rich markup: cli_text)."""
+
+    def __init__(self, *args, **kwargs):
+        super().__init__(*args, **kwargs)
+        readable_help(self)
+
+    def add_command(self, cmd, *args, **kwargs):
+        readable_help(cmd)
+        return super().add_command(cmd, *args, **kwargs)
 
     def main(self, args=None, *rest, **kwargs):
         _early_importer(sys.argv[1:] if args is None else list(args))
@@ -441,7 +450,7 @@ def _print_result(result) -> None:
     colour = {"pass": "green", "fail": "red", "incomplete": "magenta"}.get(result.verdict, "yellow")
     out.print(f"[bold {colour}]verdict: {result.verdict.upper()}[/bold {colour}]")
     for reason in d.get("reasons", []) or []:
-        out.print(f"  {reason}")
+        out.print(f"  {escape(reason)}")
     reg = d.get("registration", {})
     dev = d.get("deviation", {})
     t = Table(title="Deviation from CAD [mm]")
@@ -458,7 +467,7 @@ def _print_result(result) -> None:
     cov = d.get("coverage")
     if cov:
         out.print(f"coverage: {100 * cov['fraction']:.1f} % of the inspected area "
-                  f"({cov['covered_area_mm2']:,.0f} of {cov['area_mm2']:,.0f} mm²; at least "
+                  f"({sig3(cov['covered_area_mm2'])} of {sig3(cov['area_mm2'])} mm²; at least "
                   f"{100 * cov['min_coverage']:.0f} % needed)")
     ex = d.get("excluded") or {}
     if any(ex.values()):
@@ -487,11 +496,12 @@ def _print_result(result) -> None:
     if chars:
         from shapeverify.characteristics.evaluate import format_value as _fmt_value
         ct = Table(title="Characteristics [mm]")
-        for col in ("name", "type", "measured", "deviation", "uncertainty U", "verdict"):
+        for col in ("name", "type", "measured", "deviation", "limits", "uncertainty U", "verdict"):
             ct.add_column(col)
         for c in chars:
             ct.add_row(str(c.get("name")), str(c.get("type")), _fmt_value(c.get("measured")),
                        _fmt_value(c.get("deviation"), signed=True),
+                       format_limits(c.get("lower"), c.get("upper")),
                        _fmt_value(c.get("uncertainty")), str(c.get("verdict")))
         out.print(ct)
     regions = d.get("regions") or []
@@ -501,7 +511,7 @@ def _print_result(result) -> None:
             rt.add_column(col)
         for i, r in enumerate(regions[:20]):
             c = r.get("centroid", [0, 0, 0])
-            rt.add_row(str(i + 1), r.get("kind", "deviation"), str(r.get("n")), f"{r.get('area', 0):.1f}",
+            rt.add_row(str(i + 1), r.get("kind", "deviation"), str(r.get("n")), sig3(r.get("area", 0)),
                        f"{r.get('extreme', 0):+.3f}", f"{r.get('severity', 0):.3g}",
                        f"({c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f})")
         out.print(rt)

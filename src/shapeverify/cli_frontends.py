@@ -56,7 +56,7 @@ def register_commands(app: typer.Typer) -> None:
     def batch(
         model: Path = typer.Argument(..., help="Prepared model (.svm)"),
         scans_dir: Path = typer.Argument(..., help="Folder of scans"),
-        out_dir: Path = typer.Option(..., "--out", help="Output folder (JSON per scan, summary.csv)"),
+        out_dir: Path = typer.Option(..., "--out", help="Output folder (JSON per scan, summary.csv, dask.log: Dask's own log lines, on the terminal too with shapeverify --verbose batch)"),
         tolerance: float = typer.Option(..., help="Symmetric tolerance ±MM"),
         evaluation_distance: Optional[float] = _cli._EVALUATION_DISTANCE,
         scheduler: Optional[str] = typer.Option(None, help="Existing Dask scheduler address (default: local cluster)"),
@@ -85,6 +85,6 @@ def register_commands(app: typer.Typer) -> None:
         s = summary
         _cli.out.print(f"{s.total} scans ({s.skipped} already done): {s.passed} pass, {s.failed} fail, "
                   f"{s.incomplete} incomplete, {s.errors} error; {s.scans_per_minute:.1f} scans/min; "
-                  f"summary: {s.summary_csv}")
+                  f"summary: {s.summary_csv}; Dask's log: {Path(out_dir) / 'dask.log'}")
         raise typer.Exit(_cli.EXIT_ERROR if s.errors else _cli.EXIT_FAIL if s.failed else
                          _cli.EXIT_INCOMPLETE if s.incomplete else _cli.EXIT_PASS)

@@ -15,7 +15,7 @@ import json
 from pathlib import Path
 from typing import Optional
 
-from rich.table import Table
+from shapeverify.cli_text import Table
 
 __all__ = ["print_features", "default_tolerance", "print_characteristic_history",
            "write_pmi_plan", "print_pmi"]
@@ -68,6 +68,8 @@ def print_characteristic_history(db: Path, characteristic: str, part: Optional[s
     CSV export of one characteristic's history."""
     from shapeverify.characteristics.spc import (capability, characteristic_rows, export_csv,
                                                  plot_run_chart)
+    from rich.text import Text
+
     from shapeverify.cli import _fail, out
 
     if not db.exists():
@@ -88,7 +90,7 @@ def print_characteristic_history(db: Path, characteristic: str, part: Optional[s
         cap = capability(vals, rs[-1]["lower"], rs[-1]["upper"])
         f = (lambda v: "-" if v is None else f"{v:.2f}")
         t.add_row(name, str(cap.n), f"{cap.mean:+.4f}", f(cap.cp), f(cap.cpk), f(cap.pp),
-                  f(cap.ppk), "[yellow]" + cap.message + "[/yellow]" if cap.too_few else "")
+                  f(cap.ppk), Text(cap.message, style="yellow") if cap.too_few else "")
     out.print(t)
     if plot is not None:
         plot_run_chart(rows, plot)

@@ -16,10 +16,11 @@ import numpy as np
 
 from .colours import CMAP, color_limit
 from .ply import check_scan_length
+from .quantities import area_text, length_text
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["png_summary", "write_png_summary"]
+__all__ = ["png_summary", "summary_figure", "write_png_summary"]
 
 _VERDICT_COLOURS = {"pass": "#1b7f3b", "fail": "#b3261e", "error": "#a15c00", "incomplete": "#6a3d9a"}
 
@@ -95,6 +96,17 @@ def png_summary(result, scan=None, *, max_points: int = 20_000, dpi: int = 110,
     ValueError
         If ``scan`` does not have as many points as the inspection.
     """
+    fig = summary_figure(result, scan, max_points=max_points, dpi=dpi, rng=rng)
+    buf = io.BytesIO()
+    fig.savefig(buf, format="png", dpi=dpi)
+    return buf.getvalue()
+
+
+def summary_figure(result, scan=None, *, max_points: int = 20_000, dpi: int = 110, rng=0):
+    """The matplotlib :class:`~matplotlib.figure.Figure` of :func:`png_summary` (parameters as
+    there), laid out so that no text leaves its place: every text of the banner and of the
+    right-hand column is measured once drawn and made smaller (down to 7 pt), then cut with
+    "…", until it fits."""
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.colors import Normalize
     from matplotlib.figure import Figure
@@ -131,20 +143,25 @@ def png_summary(result, scan=None, *, max_points: int = 20_000, dpi: int = 110,
     ax.add_patch(Rectangle((0, 0), 1, 1, transform=ax.transAxes, color=colour))
     tol_text = (f"±{tol.upper:.4g} mm" if tol.lower == -tol.upper
                 else f"[{tol.lower:+.4g}, {tol.upper:+.4g}] mm")
-    ax.text(0.015, 0.62, result.verdict.upper(), color="white", fontsize=26, weight="bold",
-            va="center", transform=ax.transAxes)
+    fits = []                      # (text, its box in axes fractions of `in_axes`, in_axes)
+    fits.append((ax.text(0.015, 0.62, result.verdict.upper(), color="white", fontsize=26,
+                         weight="bold", va="center", transform=ax.transAxes),
+                 (0.005, 0.0, 0.165, 1.0), ax))
     reason = result.reasons[0] if result.reasons else "all deviations within tolerance"
     inp = getattr(result, "inputs", None) or {}
     ids = "  ·  ".join(f"{k} {inp[k]}" for k in ("part", "scan", "model") if inp.get(k))
     cov_text = "" if cov is None else f"  ·  coverage {100 * cov.fraction:.1f} %"
-    ax.text(0.17, 0.84, f"tolerance {tol_text}  ·  {dev.n_evaluated:,} of {dev.n:,} points evaluated"
-            f"{cov_text}  ·  {len(result.regions)} region(s)  ·  rule: {getattr(result, 'rule', '') or '–'}",
-            color="white", fontsize=11, va="center", transform=ax.transAxes)
+    fits.append((ax.text(0.17, 0.84, f"tolerance {tol_text}  ·  {dev.n_evaluated:,} of {dev.n:,} "
+                         f"points evaluated{cov_text}  ·  {len(result.regions)} region(s)  ·  "
+                         f"rule: {getattr(result, 'rule', '') or '–'}",
+                         color="white", fontsize=11, va="center", transform=ax.transAxes),
+                 (0.17, 0.68, 0.995, 1.0), ax))
     if ids:
-        ax.text(0.17, 0.55, ids if len(ids) <= 140 else ids[:137] + "...", color="white",
-                fontsize=9, va="center", transform=ax.transAxes)
-    ax.text(0.17, 0.24, reason if len(reason) <= 150 else reason[:147] + "...", color="white",
-            fontsize=10, va="center", transform=ax.transAxes)
+        fits.append((ax.text(0.17, 0.55, ids, color="white", fontsize=9, va="center",
+                             transform=ax.transAxes), (0.17, 0.40, 0.995, 0.70), ax))
+    fits.append((ax.text(0.17, 0.24, reason, color="white", fontsize=10, va="center",
+                         transform=ax.transAxes), (0.17, 0.0, 0.995, 0.40), ax))
+
 
     norm = Normalize(-c_lim, c_lim)
     p_all = p if len(p) >= 3 else np.vstack([p, pn])
@@ -190,7 +207,9 @@ def png_summary(result, scan=None, *, max_points: int = 20_000, dpi: int = 110,
     ah = fig.add_subplot(gs[2, :2])
     vals = dev.values[dev.evaluated]
     if vals.size:
-        span = max(1.5 * c_lim, float(np.percentile(np.abs(vals), 99.5)) * 1.05)
+        # the axis covers every evaluated inlier (min and max of the statistics) and the limits
+        extreme = max(abs(s.min), abs(s.max)) if s.n else float(np.abs(vals).max())
+        span = max(1.5 * c_lim, 1.05 * float(extreme))
         _, edges, patches = ah.hist(vals, bins=120, range=(-span, span), color="#4c72b0")
         centres = 0.5 * (edges[:-1] + edges[1:])
         for c, patch in zip(centres, patches):
@@ -205,9 +224,11 @@ def png_summary(result, scan=None, *, max_points: int = 20_000, dpi: int = 110,
 
     lines = [("mean", s.mean), ("std", s.std), ("RMS", s.rms), ("min", s.min), ("max", s.max),
              ("p05", s.p05), ("p95", s.p95)]
+    # decimals that give the tolerance three significant digits (4 for 0.2 mm, 6 for 0.002 mm)
+    nd = _decimals(tol)
     text = "deviation statistics [mm]\n"
     if s.n:
-        text += "\n".join(f"{k:>4s} {val:+9.4f}" for k, val in lines)
+        text += "\n".join(f"{k:>4s} {val:+{nd + 5}.{nd}f}" for k, val in lines)
         text += (f"\nin tolerance {100 * s.in_tolerance_fraction:.2f} %\nof {s.n:,} evaluated inliers"
                  f"\n(outliers: {result.outliers.n:,})")
     else:
@@ -215,22 +236,84 @@ def png_summary(result, scan=None, *, max_points: int = 20_000, dpi: int = 110,
     n_ne = dev.n - dev.n_evaluated
     if n_ne:
         text += f"\nnot evaluated {n_ne:,} (grey)"
-    host.text(0.36, 0.95, text, family="monospace", fontsize=9, va="top", transform=host.transAxes)
+    x_stats = 0.36
+    if sc is not None:                # right of the colour bar with its tick labels and label
+        fig.canvas.draw()
+        right = cax.get_tightbbox(fig.canvas.get_renderer()).x1 + 0.01 * host.bbox.width
+        x_stats = max(x_stats, (right - host.bbox.x0) / host.bbox.width)
+    fits.append((host.text(x_stats, 0.95, text, family="monospace", fontsize=9, va="top",
+                           transform=host.transAxes), (x_stats, None, None, 0.95), fig))
 
     at = fig.add_subplot(gs[2, 2])
     at.set_axis_off()
     reg = result.registration
-    text = (f"registration: rms {float(reg.rms):.4f} mm\n  {int(reg.iterations)} iterations, "
+    text = (f"registration: rms {float(reg.rms):.{nd}f} mm\n  {int(reg.iterations)} iterations, "
             f"converged {bool(reg.converged)}\n  inliers {100 * float(reg.inlier_fraction):.1f} %")
     text += f"\n\nregions (most severe first): {len(result.regions)}"
     for i, g in enumerate(result.regions[:4]):
-        text += f"\n  R{i + 1} {g.kind[:3]}: {g.extreme:+.3f} mm, {g.area:.1f} mm², {g.n} pts"
-    text += f"\nmeasurement outliers: {result.outliers.n}"
-    at.text(0.0, 1.0, text, family="monospace", fontsize=9, va="top", transform=at.transAxes)
+        text += (f"\n  R{i + 1} {g.kind[:3]}: {length_text(g.extreme, signed=True)}, "
+                 f"{area_text(g.area)}, {g.n:,} pts")
+    text += f"\nmeasurement outliers: {result.outliers.n:,}"
+    fits.append((at.text(0.0, 1.0, text, family="monospace", fontsize=9, va="top",
+                         transform=at.transAxes), (0.0, None, None, 1.0), fig))
+    _fit_texts(fig, fits)
+    return fig
 
-    buf = io.BytesIO()
-    fig.savefig(buf, format="png", dpi=dpi)
-    return buf.getvalue()
+
+_MIN_FONT = 7.0
+_PAD = 0.006                 # of the figure's width: room kept free at its right-hand edge
+
+
+def _decimals(tol) -> int:
+    """Decimals of mm that show the tolerance's smaller limit with three significant digits
+    (at least 4)."""
+    lim = min((abs(x) for x in (tol.lower, tol.upper) if x), default=1.0)
+    return int(max(4, 2 - np.floor(np.log10(lim))))
+
+
+def _box_pixels(fig, text, box, owner):
+    """``box`` (x0, y0, x1, y1; None: the figure's edge) as display pixels: fractions of the
+    axes ``owner``, or of the text's own axes clipped to the figure when ``owner`` is the
+    figure."""
+    W, H = fig.bbox.width, fig.bbox.height
+    if owner is fig:
+        ab = text.axes.bbox
+        x0 = ab.x0 + box[0] * ab.width if box[0] is not None else 0.0
+        y1 = ab.y0 + box[3] * ab.height if box[3] is not None else H
+        return x0, 0.0, W * (1 - _PAD), min(y1 + 1.0, H)
+    ab = owner.bbox
+    return (ab.x0 + box[0] * ab.width, ab.y0 + box[1] * ab.height,
+            ab.x0 + box[2] * ab.width, ab.y0 + box[3] * ab.height)
+
+
+def _fit_texts(fig, fits) -> None:
+    """Shrink (to :data:`_MIN_FONT`) and then cut with "…" each text until its drawn extent
+    (``get_window_extent``) lies inside its box."""
+    renderer = fig.canvas.get_renderer()
+    for text, box, owner in fits:
+        x0, y0, x1, y1 = _box_pixels(fig, text, box, owner)
+
+        def fits_now():
+            bb = text.get_window_extent(renderer)
+            return (bb.x0 >= x0 - 0.5 and bb.x1 <= x1 + 0.5 and bb.y0 >= y0 - 0.5
+                    and bb.y1 <= y1 + 0.5)
+
+        while not fits_now() and text.get_fontsize() > _MIN_FONT:
+            text.set_fontsize(max(_MIN_FONT, text.get_fontsize() * 0.9))
+        while not fits_now():
+            lines = text.get_text().split("\n")
+            bb = text.get_window_extent(renderer)
+            if bb.y0 < y0 - 0.5 or bb.y1 > y1 + 0.5:
+                if len(lines) == 1:
+                    break
+                lines = lines[:-2] + ["…"]          # the last lines give way to "…"
+            else:
+                i = max(range(len(lines)), key=lambda k: len(lines[k]))
+                if len(lines[i]) <= 2:
+                    break
+                keep = int(len(lines[i]) * (x1 - max(x0, bb.x0)) / max(bb.width, 1.0)) - 1
+                lines[i] = lines[i][:max(1, min(keep, len(lines[i]) - 2))].rstrip() + "…"
+            text.set_text("\n".join(lines))
 
 
 def _label_regions(ax, regions, origin, R, most: int = 9) -> None:
