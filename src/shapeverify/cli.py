@@ -213,7 +213,7 @@ def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges
          features: bool = typer.Option(False, "--features", help="Also list the CAD features an inspection plan can name (hole:N, face:N)"),
          json_out: Optional[Path] = typer.Option(None, "--json", help="With --features: write them as JSON"),
          pmi: bool = typer.Option(False, "--pmi", help="Also list the semantic PMI of a STEP AP242 file and what `shapeverify plan` makes of it"),
-         model_unit: Optional[str] = typer.Option(None, "--model-unit", help="Unit of an STL/PLY/OBJ/point-cloud model (default mm; CAD files declare theirs)")):
+         model_unit: Optional[str] = typer.Option(None, "--model-unit", help="Unit of the model file (default mm for STL/PLY/OBJ/point clouds; overrides the unit a CAD file declares, with a warning naming both and the size)")):
     """Print a summary of a model: faces, units, size (and with --features its holes and faces)."""
     from shapeverify.cad.summary import in_unit
 
@@ -316,7 +316,7 @@ def prepare(
                                           help="Reach of the closest-point structure [mm]: queries "
                                                "within it are answered by the grid tree, farther ones "
                                                "more slowly (default: 3 % of the model size)"),
-    model_unit: Optional[str] = typer.Option(None, "--model-unit", help="Unit of an STL/PLY/OBJ/point-cloud model (default mm; CAD files declare theirs)"),
+    model_unit: Optional[str] = typer.Option(None, "--model-unit", help="Unit of the model file (default mm for STL/PLY/OBJ/point clouds; overrides the unit a CAD file declares, with a warning naming both and the size)"),
     fixture: Optional[Path] = typer.Option(None, "--fixture", help="Fixture pose T_model_scan (T.json or T.npy) saved with the model: inspections start there when no --init is given"),
     allow_incomplete_model: bool = _ALLOW_INCOMPLETE,
 ):
@@ -349,7 +349,7 @@ def inspect(
     init: Optional[str] = typer.Option(None, "--init", help="Start pose T_model_scan: a 4x4 in T.json or T.npy, or a strategy: auto (default: the identity when the scan overlaps the model, else a global search), identity, principal-axes, global"),
     poses: Optional[Path] = typer.Option(None, "--poses", help="With several views: their start poses, a JSON list of 4x4 T_model_scan (null: found by the global search), one per view"),
     scan_unit: Optional[str] = typer.Option(None, "--scan-unit", help="Unit of the scan file (mm, cm, m, in, um; default mm)"),
-    model_unit: Optional[str] = typer.Option(None, "--model-unit", help="Unit of an STL/PLY/OBJ/point-cloud model (default mm; CAD files declare theirs)"),
+    model_unit: Optional[str] = typer.Option(None, "--model-unit", help="Unit of the model file (default mm for STL/PLY/OBJ/point clouds; overrides the unit a CAD file declares, with a warning naming both and the size)"),
     plan: Optional[Path] = typer.Option(None, "--plan", help="Inspection plan (plan.yaml): alignment, characteristics with uncertainty; without --tolerance the colour map uses half its first surface profile's zone"),
     json_path: Optional[Path] = typer.Option(None, "--json", help="Write the result as JSON"),
     report: Optional[Path] = typer.Option(None, "--report", help="Write the HTML report"),
