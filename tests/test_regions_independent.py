@@ -127,3 +127,20 @@ def test_doubled_exposure_fails_a_dented_part_like_one_exposure(demo, depth):
         assert abs(res.statistics.std / ref.statistics.std - 1) < 0.05
         assert abs(res.statistics.in_tolerance_fraction - ref.statistics.in_tolerance_fraction) < 0.005
         assert abs(res.coverage.fraction - ref.coverage.fraction) < 0.01
+
+
+def test_fit_figures_are_those_of_the_evaluated_points(cube):
+    """Issue 29 item 6: a perfect hammer scan read "inliers 58.9 %, rms 0.060" (the
+    registration's robust weights) while the deviations' std was 0.028.  ``result.fit`` gives
+    the evaluated points' share and rms, with the rule that left the others out."""
+    prep, V, T, _, _ = cube
+    P = ind.scan(V, T, "random", SPACING, np.random.default_rng(4), noise=NOISE)
+    far = P[:200] + 0.5 * np.random.default_rng(5).normal(size=(200, 3))   # stray points
+    res = inspect_registered(prep, np.vstack([P, far]), _identity(), tolerance=TOL)
+    assert res.verdict == "pass", res.reasons
+    fit = res.fit
+    dev = res.deviations
+    assert fit["inlier_fraction"] == (dev.n_evaluated - res.outliers.n) / dev.n
+    assert fit["inlier_fraction"] > 0.99 * len(P) / (len(P) + 200)
+    assert fit["rms"] == pytest.approx(NOISE, rel=0.1)
+    assert "evaluation distance" in fit["rule"] and res.to_dict()["fit"] == fit

@@ -187,7 +187,8 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
         Least covered share of the inspected area (0..1, default 0.2) for a pass or fail verdict;
         below it the verdict is 'incomplete' (see :mod:`shapeverify.inspection.coverage`).
     min_region_points : int
-        Fewest core points of a defect region (default 5; see :mod:`shapeverify.inspection.regions`).
+        Fewest dense core points of a defect region, and its least area in squared spacings
+        (default 5; see :mod:`shapeverify.inspection.regions`).
     min_inlier_fraction : float
         Below this registration inlier fraction the verdict is 'error' (default 0.25).
     rng : int or numpy Generator

@@ -3,31 +3,44 @@
 All neighbourhoods here are taken between *foot points* (the scan points projected onto the CAD
 surface): a spike 1 mm off the surface still has its neighbours around it.
 
+**Spacing.**  Every length here is in units of the scan's spacing ``s`` taken as surface area
+per point (:func:`surface_spacing`): the same for a grid, random sampling, scanner rows or
+anisotropic rows of the same density, and not collapsed by a second exposure of the same surface
+(two passes 0.02 mm apart once gave a "spacing" of 0.017 mm, and every point of a dent looked
+isolated: the dented part passed).  Support is counted by surface area, not by points.
+
 **Defect or outlier.**  A defect is a place where the *surface* is out of tolerance, not a few
-points: an out-of-tolerance point is a **core** point when the median deviation of the evaluated
-points around it (its 9 nearest within ``3 x`` the scan's median spacing, itself included) is
-beyond the same limit.  Scattered bad points among good ones (uniform outliers, dust, spikes) are
-never core.  Out-of-tolerance points are linked when their foot points are closer than
-``LINK_FACTOR = 2.5 x`` the spacing and they deviate to the same side; a connected component with
-at least ``min_points`` core points (default 5) is a defect region, every other out-of-tolerance
-point is a measurement outlier (counted, excluded from the statistics, never failing the part).
+points.  Every evaluated point near an out-of-tolerance one gets the median deviation of its 9
+nearest evaluated points within ``MEDIAN_RADIUS = 3 s``; a **core** point is one whose median is
+beyond the limit (on that side).  Core points closer than ``LINK_FACTOR = 2.5 s`` on the same
+side are linked; a connected component is a defect region when its *dense* core points (each
+standing for at most ``SPARSE_AREA = 3 s^2``: stray points beside the part or in a shadow stand
+for no measured surface) number at least ``min_points`` and cover at least ``min_points x s^2``.
+The region's points are the out-of-tolerance points on its side within the link distance of
+its core points; every other out-of-tolerance point is a measurement outlier (counted, excluded
+from the statistics, never failing the part).  Scattered bad points among good ones (uniform
+outliers, dust, spikes, noise) are never core.
 
 For each region:
 
-* ``n``: number of points; ``area``: sum over its points of the local surface area per point,
-  ``pi r^2 / (number of evaluated scan points within r)`` with ``r = 2 x spacing`` (mm^2);
+* ``n``: number of its (out-of-tolerance) points; ``area``: the sum over them of the surface
+  area each stands for (:func:`area_per_point`: a smooth kernel density within
+  ``AREA_RADIUS = 5 s`` of all evaluated points, so that duplicates share their area), the
+  out-of-tolerance surface area (mm^2);
 * ``extreme``: the signed deviation at the region's worst point, taken from its neighbourhood so
   that one noisy point does not set it: the core point of largest neighbourhood-median
   |deviation| is located, a quadratic ``d(x, y)`` is fitted by least squares (3-sigma spike
-  rejection) to the deviations within ``4 x spacing`` in the tangent plane there, and its
-  extremum is taken when it lies beyond the region's limit, the neighbourhood median otherwise.
-  ``extreme`` therefore always lies outside the tolerance, on the region's side;
-  ``extreme_raw`` is the single largest measured value (same side, at least as large);
+  rejection) to the deviations within ``0.6 x`` the region's equivalent radius (2.5-4 spacings)
+  in the tangent plane there, and its extremum is taken when it lies beyond the region's limit,
+  the neighbourhood median otherwise.  ``extreme`` therefore always lies outside the tolerance,
+  on the region's side; ``extreme_raw`` is the single largest measured value (same side, at
+  least as large);
 * ``severity``: the out-of-tolerance volume ``sum_i a_i (|d_i| - |limit_i|)`` (mm^3) over the
   region's points (``a_i`` the area per point): large and far-out regions first.  Regions are
   returned most severe first, so a real dent comes before specks in a reflection;
-* ``centroid``: mean of its foot points (model coordinates, mm); ``extreme_point``: where the
-  extreme is, on the CAD surface's tangent plane; ``faces``: CAD faces it touches;
+* ``centroid``: area-weighted mean of its foot points (model coordinates, mm);
+  ``extreme_point``: where the extreme is, on the CAD surface's tangent plane; ``faces``: CAD
+  faces it touches;
 * ``kind``: ``"deviation"`` here; :mod:`.material` adds ``"material"`` regions.
 """
 
