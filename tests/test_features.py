@@ -382,3 +382,47 @@ def test_near_far_from_every_hole_is_an_error_not_the_nearest_hole(tmp_path):
     feats = model_features(load_model(example_part_step(tmp_path / "one.step")))
     with pytest.raises(ValueError, match=r"no hole near .*143\.\d mm away.*hole:0"):
         find_feature(feats, near=[80, 60, 10], kind="hole")
+
+
+# ------------------------------------------------------------------ issue 27: any CAD reads
+def _flat_sheet_with(inner):
+    """A flat 100 x 80 Bezier sheet (x = 100 u, y = 80 v, z = 0) with one inner loop given in
+    mm (k, 2), wound clockwise."""
+    xs, ys = np.linspace(0, 100, 4), np.linspace(0, 80, 4)
+    X, Y = np.meshgrid(xs, ys, indexing="ij")
+    surf = NurbsSurface(3, 3, [0] * 4 + [1] * 4, [0] * 4 + [1] * 4,
+                        np.stack([X, Y, np.zeros_like(X)], -1))
+    uv = np.asarray(inner, float) / [100.0, 80.0]
+    outer = np.array([[0, 0], [1, 0], [1, 1], [0, 1]], float)
+    return Model((Face(surf, (outer, uv), (np.ones(4, bool), np.ones(len(uv), bool))),))
+
+
+def test_parameters_rounded_a_hair_outside_the_domain_are_clamped_not_rejected():
+    """Pins issue 27: NIST STEP loops evaluated 1e-15..3e-11 outside [0, pi] raised
+    'u must lie in the domain' and `info --features` exited 2 on 23 files."""
+    _, surf = _curved_sheet()
+    np.testing.assert_array_equal(surf.evaluate(-3e-11, 0.5), surf.evaluate(0.0, 0.5))
+    np.testing.assert_array_equal(surf.evaluate(0.3, 1 + 1e-12), surf.evaluate(0.3, 1.0))
+    with pytest.raises(ValueError, match=r"u must lie in the domain \[0\.0, 1\.0\]"):
+        surf.evaluate(-1e-6, 0.5)
+
+
+def test_a_slot_shaped_inner_loop_is_a_slot_with_its_outline_not_an_exception():
+    """Pins issue 27: FTC 08's non-circular inner loop raised 'points lie on a line/plane'."""
+    t = np.linspace(-np.pi / 2, np.pi / 2, 41)           # (t = 0: the tips are vertices)
+    right = np.column_stack([60 + 5 * np.cos(t), 40 + 5 * np.sin(t)])
+    left = np.column_stack([30 - 5 * np.cos(t), 40 - 5 * np.sin(t)])
+    stadium = np.concatenate([right, left])[::-1]                 # clockwise: a hole
+    feats = model_features(_flat_sheet_with(stadium))
+    slots = [f for f in feats if f.kind == "slot"]
+    assert [f.kind for f in feats if f.kind not in ("plane",)] == ["slot"]
+    s = slots[0]
+    assert s.length == pytest.approx(40.0, abs=1e-6) and s.width == pytest.approx(10.0, abs=1e-3)
+    np.testing.assert_allclose(s.center, [45, 40, 0], atol=1e-6)
+    np.testing.assert_allclose(np.abs(s.axis), [0, 0, 1], atol=1e-9)
+    assert s.outline.shape == (82, 3)
+    row = [r for r in features_table(_flat_sheet_with(stadium)) if r["kind"] == "slot"][0]
+    assert json.loads(json.dumps(row))["outline"][0] == pytest.approx(list(s.outline[0]))
+    # an L-shaped opening is a pocket; a straight-line 'loop' is left out (no exception)
+    L = np.array([[20, 20], [20, 50], [30, 50], [30, 30], [50, 30], [50, 20]], float)
+    assert [f.kind for f in model_features(_flat_sheet_with(L))] == ["plane", "pocket"]
