@@ -22,8 +22,10 @@ DATUMS = {"type": "datums", "primary": "face:3", "secondary": "face:48", "tertia
 #: 3-2-1 on the top face (z), the x = -400 side (x) and the y = -225 side (y)
 RPS = {"type": "rps", "points": [
     {"at": [-300.0, 150.0, 0.0], "lock": ["z"]}, {"at": [300.0, 150.0, 0.0], "lock": ["z"]},
-    {"at": [0.0, -150.0, 0.0], "lock": ["z"]}, {"at": [-400.0, 18.0, -40.0], "lock": ["x"]},
+    {"at": [250.0, -150.0, 0.0], "lock": ["z"]}, {"at": [-400.0, 18.0, -40.0], "lock": ["x"]},
     {"at": [-400.0, -100.0, -40.0], "lock": ["x"]}, {"at": [-326.0, -225.0, -46.0], "lock": ["y"]}]}
+for _p in RPS["points"]:
+    _p["radius"] = 15.0                 # ~100 scan points per lock at this coarse scan
 
 
 def _occ_mesh(path):
@@ -128,7 +130,7 @@ def test_perfect_ctc01_fails_no_characteristic_under_0_1_mm(ctc01):
     plan = {"alignment": DATUMS, "characteristics": [
         {"name": "PROFILE", "type": "surface_profile", "faces": "all", "tol": 0.1},
         {"name": "FLAT_TOP", "type": "flatness", "feature": "face:3", "tol": 0.1},
-        {"name": "CP", "type": "check_point", "at": [0.0, -150.0, 0.0], "tol": 0.1}]}
+        {"name": "CP", "type": "check_point", "at": [250.0, -150.0, 0.0], "tol": 0.1}]}
     res = evaluate_plan(prep, scan, plan)
     for c in res.characteristics:
         assert c.verdict != "fail", c

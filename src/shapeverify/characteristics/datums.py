@@ -276,7 +276,8 @@ def datum_alignment(scan, prep, primary, secondary, tertiary=None, init=None,
         try:
             T, fits, cov, it, conv = _fit_frame(P, prep, F, Fn, T0, noise, iterations)
         except ValueError as exc:
-            failed.append({"placement": name, "reason": str(exc), "T": T0})
+            failed.append({"placement": name, "reason": str(exc), "T": T0,
+                           "fit": whole_fit(P, prep, T0, noise)})
             continue
         rms = [f[3] / max(noise, 1e-9) for f, d in zip(fits, F) if d.kind != "hole"]
         tried.append({"placement": name, "T": T, "cov": cov, "fits": fits,
@@ -284,13 +285,16 @@ def datum_alignment(scan, prep, primary, secondary, tertiary=None, init=None,
                       "fit": whole_fit(P, prep, T, noise),
                       "datum_rms": float(np.sqrt(np.mean(np.square(rms)))) if rms else 0.0,
                       "diameter_misfit": float(sum(f[6] for f in fits))})
-    if not tried:
+    failed.sort(key=lambda f: -f["fit"])
+    best_fit = max([t["fit"] for t in tried + failed] or [0.0])
+    if not tried or max(t["fit"] for t in tried) < ALIKE * best_fit:
+        # the placement the scan fits best has no datum frame (a datum not seen there): a
+        # worse-fitting copy that has one would be a silent wrong frame
         why = failed[0]["reason"] if failed else "no placement of the scan was found"
         return _untrusted(P, F, failed[0]["T"] if failed else (T_init if T_init is not None
                           else np.eye(4)), why, failed)
     # the placement is the whole scan's (a wrong copy fits the datums as well); among those
     # that fit alike, the datums' own fit decides (ones that fit badly last)
-    best_fit = max(t["fit"] for t in tried)
     alike = [t for t in tried if t["fit"] >= ALIKE * best_fit]
     alike.sort(key=lambda t: (t["bad"] is not None, t["datum_rms"], t["diameter_misfit"],
                               -t["fit"]))
@@ -337,7 +341,8 @@ def _placement_rows(tried, failed, T) -> list:
                      "degrees_from_chosen": float(np.degrees(np.linalg.norm(e[:3]))),
                      "mm_from_chosen": float(np.linalg.norm(e[3:])),
                      **({"fits_badly": t["bad"]} if t["bad"] else {})})
-    rows += [{"placement": f["placement"], "failed": f["reason"]} for f in failed]
+    rows += [{"placement": f["placement"], "whole_fit": float(f["fit"]), "failed": f["reason"]}
+             for f in failed]
     return rows
 
 

@@ -280,10 +280,12 @@ class _Scan:
     def on(self, faces) -> np.ndarray:
         return self.ok if faces is None else self.ok & np.isin(self.face, faces)
 
-    def excluded(self, faces) -> dict:
-        """How many points whose closest CAD point lies on ``faces`` (None: all) the
-        characteristics leave out, by reason (module docstring)."""
+    def excluded(self, faces, where=None) -> dict:
+        """How many points whose closest CAD point lies on ``faces`` (None: all; and within
+        the mask ``where``) the characteristics leave out, by reason (module docstring)."""
         on = np.ones(self.d.shape[0], bool) if faces is None else np.isin(self.face, faces)
+        if where is not None:
+            on &= where
         return {"beyond_evaluation_distance": int(np.count_nonzero(on & self.too_far)),
                 "past_model_edge": int(np.count_nonzero(on & self.on_boundary)),
                 "excluded_by_caller": int(np.count_nonzero(on & self.by_caller)),
@@ -502,14 +504,15 @@ def _cylinder(c, S: _Scan, feats, k):
     return CharacteristicResult(c.name, c.type, float(f.diameter), meas, dev, lo, hi, U,
                                 decide(dev, lo, hi, U),
                                 {"feature": f.id, "n": int(m.sum()), "axis": a.tolist(),
-                                 "rms": cy.rms})
+                                 "rms": cy.rms, "excluded": S.excluded([f.face])})
 
 
 def _check_point(c, S: _Scan, al, k):
     at = np.asarray(c.at, np.float64)
     foot = S.prep.closest(at[None], exact=True)
     q, n, fc = foot.points[0], foot.normals[0], int(foot.face[0])
-    m = S.ok & (S.face == fc) & (np.linalg.norm(S.feet - q, axis=1) <= c.radius)
+    near = np.linalg.norm(S.feet - q, axis=1) <= c.radius
+    m = S.ok & (S.face == fc) & near
     nm = int(np.count_nonzero(m))
     if nm == 0:
         return _not_measured(c, f"no scan points within {c.radius:g} mm of the check point "
@@ -525,7 +528,7 @@ def _check_point(c, S: _Scan, al, k):
     return CharacteristicResult(c.name, c.type, 0.0, value, value, lo, hi, U,
                                 decide(value, lo, hi, U),
                                 {"point": q.tolist(), "normal": n.tolist(), "face": fc, "n": nm,
-                                 "std": s})
+                                 "std": s, "excluded": S.excluded([fc], near)})
 
 
 def _section(sec, S: _Scan):
