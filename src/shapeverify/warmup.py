@@ -31,7 +31,8 @@ from pathlib import Path
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["COLD_SECONDS", "compile_notices", "install_compile_notices", "warm_up", "main"]
+__all__ = ["COLD_SECONDS", "compile_notices", "install_compile_notices", "input_variants",
+           "warm_up", "main"]
 
 #: measured CPU seconds (fastest, slowest) of compiling everything a command needs with an empty
 #: cache, on one core of the 2-core development machines (benchmarks/results_coldstart.md: 14-20 s
@@ -189,7 +190,27 @@ def warm_up(say=logger.info) -> float:
               "--colored", work / "r.ply", "--db", work / "h.sqlite", "--part", "warm-up"], work)
         say("closest points beyond the reach of the structure")
         _far_queries(work / "panel.svm")
+        say("scans as other programs hand them over (read-only, float32, Fortran order)")
+        input_variants(work / "panel.svm", work / "scan.ply")
     return time.perf_counter() - t0
+
+
+def input_variants(svm: Path, scan: Path) -> None:
+    """Inspect the scan ``scan`` against ``svm`` in this process as a read-only, a float32 and a
+    Fortran-ordered array: a read-only buffer (``np.frombuffer``, a memory map, a service's
+    request body) reaches the kernels as it is, and numba compiles a read-only array apart from
+    a writeable one (2 kernels, measured on the example panel; float32 and Fortran-ordered
+    scans are converted at the boundary, and are run here to keep it that way)."""
+    import numpy as np
+
+    import shapeverify as sv
+
+    prep = sv.load_prepared(svm)
+    points = sv.read_points(scan)
+    read_only = points.copy()
+    read_only.setflags(write=False)
+    for variant in (read_only, points.astype(np.float32), np.asfortranarray(points)):
+        sv.inspect(prep, variant, tolerance=0.2)
 
 
 def _far_queries(svm: Path) -> None:
