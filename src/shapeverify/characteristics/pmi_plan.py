@@ -26,6 +26,14 @@ a PMI item that makes several entries (a pattern of holes) gives each the same `
 item the plan does not check is listed in ``unsupported`` with the reason, so each geometric
 tolerance of the file appears exactly once: in ``characteristics`` or in ``unsupported``.
 
+Not expressed yet (each such item says why in ``unsupported``): orientation, runout, form
+other than flatness, profile of a line, location dimensions; positions with a material
+modifier (no bonus tolerance), a zone without a diameter symbol, or datum modifiers;
+tolerances in a datum reference frame other than the plan's one alignment; datums set up from
+datum targets, from edges, or from several faces (a width's centre plane, a pattern); datum
+features that OpenCASCADE's XCAF reader leaves without a shape (NIST CTC 01's B and C, which
+the file ties to their faces by ``ITEM_IDENTIFIED_REPRESENTATION_USAGE``).
+
 Example (needs the NIST test model)::
 
     >>> plan = plan_from_pmi("nist_ctc_01_asme1_ap242-e1.stp")      # doctest: +SKIP
