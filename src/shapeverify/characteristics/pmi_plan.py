@@ -231,41 +231,10 @@ def _datum_ref(d: dict, ctx) -> tuple[str | None, str]:
                   "the plan's datums are one plane face or one hole")
 
 
-def _features(model) -> list:
-    """:func:`.features.model_features`; where one of its hole loops raises (a straight loop:
-    no circle fits), the features again with that loop left out, numbered alike (a hole
-    that is not found: what the features module does with such a loop once it no longer
-    raises)."""
-    try:
-        return model_features(model)
-    except ValueError as exc:
-        logger.warning("listing the model's features failed (%s); listing them again with the "
-                       "loops that raise left out", exc)
-    from .features import Feature, _classify, _hole
-
-    size, names = model.size, getattr(model, "face_names", None)
-    out, holes = [], []
-    for i, f in enumerate(model.faces):
-        name = None if names is None else names[i]
-        kind, c, ax, dia, err = _classify(f, size)
-        out.append(Feature(f"face:{i}", kind, i, np.asarray(c), None if ax is None else
-                           np.asarray(ax), dia, None, name, err))
-        for j, lp in enumerate(f.loops[1:], start=1):
-            try:
-                h = _hole(f, lp, size)
-            except ValueError:
-                h = None
-            if h is not None:
-                holes.append((i, j, name, h))
-    for k, (i, j, name, (c, ax, dia, err)) in enumerate(holes):
-        out.append(Feature(f"hole:{k}", "hole", i, c, ax, dia, j, name, err))
-    return out
-
-
 class _Ctx:
     def __init__(self, pmi, model, fmap):
         self.pmi, self.model, self.fmap = pmi, model, fmap
-        self.feats = _features(model)
+        self.feats = model_features(model)
         self.size = float(model.size)
         self.names: Counter = Counter()
 
