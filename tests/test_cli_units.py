@@ -117,10 +117,14 @@ def test_inspect_tables_show_their_units_and_the_limits(captured):
 def test_history_columns_show_their_units(captured, tmp_path, monkeypatch):
     db = tmp_path / "h.sqlite"
     db.write_bytes(b"")
-    rows = [{"id": 1, "time": "2026-12-06", "part": "SN-1", "verdict": "pass", "mean": 0.01,
-             "p95": 0.05, "max": 0.1}]
-    monkeypatch.setattr(cli, "_history_rows", lambda *a: rows)
-    cli.history(db=db, part=None, limit=5, plot=None, characteristic=None, csv_out=None)
+    rows = [{"id": 1, "time": "2026-12-06", "part": "SN-1", "verdict": "fail", "min": -0.5,
+             "max": 0.1, "max_abs": 0.5, "lower": -0.2, "upper": 0.2, "n_regions": 1,
+             "model_hash": "ab" * 32}]
+    monkeypatch.setattr(cli, "_history_rows", lambda *a: (rows, [{"model_hash": "ab" * 32,
+                                                                   "name": "panel.step"}]))
+    cli.history(db=db, part=None, limit=5, plot=None, characteristic=None, csv_out=None,
+                model=None)
     text = captured.getvalue()
-    for unit in ("mean [mm]", "p95 [mm]", "max [mm]"):
+    for unit in ("min [mm]", "max [mm]", "max |d| [mm]", "limits [mm]"):
         assert unit in text, unit
+    assert "-0.5000" in text and "-0.2 / +0.2" in text

@@ -51,7 +51,8 @@ def test_a_prepared_model_holding_objects_never_advises_loading_it_unsafely(tmp_
     buf = io.BytesIO()
     np.savez(buf, meta=meta, rec=np.array([object()], dtype=object), rows=np.zeros(3),
              boundary=np.zeros(3))
-    with pytest.raises(ModelFileError, match="Python objects") as err:
+    # refused by the structural checks of the load (issue 33 row 5) or for its object array
+    with pytest.raises(ModelFileError, match="Python objects|is missing") as err:
         load_prepared(buf.getvalue())
     assert "allow_pickle" not in str(err.value) and "prepare" in str(err.value)
 

@@ -146,6 +146,9 @@ class InspectionResult:
         r = self.registration
         d = {"rms": _num(r.rms), "iterations": _num(r.iterations), "converged": bool(r.converged),
              "inlier_fraction": _num(r.inlier_fraction)}
+        scale = _num(getattr(r, "scale", None))
+        if scale is not None:      # the robust residual scale (mm): a stored record redraws it
+            d["scale"] = scale
         msg = getattr(r, "message", None)
         if msg:
             d["message"] = str(msg)
@@ -160,7 +163,7 @@ class InspectionResult:
 
         Keys: ``verdict``, ``decision`` (verdict, rule, reason), ``reasons``, ``inputs``
         (part, scan, model, model_sha256), ``units``, ``T_model_scan`` (4x4 nested list),
-        ``registration`` (rms, iterations, converged, inlier_fraction[, message, undetermined,
+        ``registration`` (rms, iterations, converged, inlier_fraction[, scale, message, undetermined,
         warnings]), ``fit`` (:attr:`fit`: inlier_fraction, rms, rule), ``deviation`` (statistics of the evaluated inliers: n, mean, std, rms, min,
         max, p05, p95, in_tolerance_fraction, n_above, n_below), ``tolerance`` (lower, upper,
         symmetric[, tolerance][, per_face]), ``coverage`` (fraction, area_mm2, per_face, gaps,

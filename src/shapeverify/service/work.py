@@ -114,9 +114,6 @@ class Work:
 
         payload = done.result.to_dict()
         payload["timings"]["parse_s"] = done.timings["read_scan_s"]
-        scale = getattr(done.result.registration, "scale", None)
-        if scale is not None and np.isfinite(scale):   # the rest of its summary is in to_dict
-            payload["registration"]["scale"] = float(scale)
         payload.update(model=name, part=part)
         scan_file = None
         if self.config.keep_scans:
