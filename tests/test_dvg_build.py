@@ -164,6 +164,7 @@ def test_lattice_searches_equal_one_search_per_point(seed):
             assert (xi[e], xd[e]) == lk.nn_one(qx[i], qy[j], qz[k], pts, lst, a, b)
 
 
+@pytest.mark.slow  # over 4 s of CPU: out of `make test-fast` (issue 32)
 @pytest.mark.parametrize("last", [False, True])
 def test_children_classification_and_multi_seed_pass_equal_the_kd_tree_kernels(last):
     """One level below the top grid of the two sheets: ``classify_children`` and

@@ -40,6 +40,7 @@ def test_curve_exact_recovery(method):
     np.testing.assert_allclose(fit.params, t, atol=1e-9)
 
 
+@pytest.mark.slow  # over 4 s of CPU: out of `make test-fast` (issue 32)
 def test_surface_exact_recovery_grid():
     s = _known_surface()
     ug, vg = np.meshgrid(np.linspace(0, 1, 25), np.linspace(0, 1, 20), indexing="ij")
@@ -352,6 +353,7 @@ def _spiral_truth_distance(curve):
     return float(np.sqrt(np.mean(kd.query(curve.evaluate(np.linspace(0, 1, 20001)))[0] ** 2)))
 
 
+@pytest.mark.slow  # over 4 s of CPU: out of `make test-fast` (issue 32)
 def test_slide_prior_converges_fast_and_stays_on_the_true_shape():
     """Plain ODR on noisy data creeps: control points slide together and the curve folds to
     follow the noise (lower RMS, farther from the truth).  The default prior converges in a few

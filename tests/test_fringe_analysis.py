@@ -17,6 +17,7 @@ def _pattern(H=192, W=224, period=7.5, noise=1.0, B=80.0, A=100.0, seed=0):
     return np.clip(np.round(img), 0, 255).astype(np.uint8), phi
 
 
+@pytest.mark.slow  # over 4 s of CPU: out of `make test-fast` (issue 32)
 def test_ftp_recovers_a_chirped_carrier_phase_up_to_the_image_border():
     img, phi = _pattern()
     r = ftp(img)

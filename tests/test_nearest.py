@@ -206,6 +206,7 @@ def _brute_triangles(q, V, T):
     return out
 
 
+@pytest.mark.slow  # over 4 s of CPU: out of `make test-fast` (issue 32)
 def test_mesh_exact_against_brute_force():
     V, T = _uv_sphere_mesh()
     model = Model(kind="mesh", vertices=V, triangles=T.astype(np.int32), source="uv sphere")

@@ -271,6 +271,7 @@ def test_curve_derivatives_vs_finite_differences(rational, degree):
 
 
 # ------------------------------------------------------------------ paths agree with each other
+@pytest.mark.slow  # over 4 s of CPU: out of `make test-fast` (issue 32)
 @pytest.mark.parametrize("degrees", [(3, 3), (2, 1), (4, 2)])
 def test_fast_path_matches_a23_packed_path(degrees):
     rng = np.random.default_rng(sum(degrees))
@@ -323,6 +324,7 @@ def _sum_points_from_njit(degrees, ko, kl, knots, co, shapes, ctrl, faces, u, v)
     return res
 
 
+@pytest.mark.slow  # over 4 s of CPU: out of `make test-fast` (issue 32)
 def test_packed_kernel_callable_from_njit():
     rng = np.random.default_rng(5)
     surfs = [cylinder(1.0, 2.0), random_surface(rng), sphere(3.0)]

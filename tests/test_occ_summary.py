@@ -110,6 +110,7 @@ def test_summary_of_a_made_file_is_the_models(made_files, name):
         assert full.hi[0] == pytest.approx(30.0 + ring, abs=1e-6)
 
 
+@pytest.mark.slow  # over 4 s of CPU: out of `make test-fast` (issue 32)
 @pytest.mark.parametrize("name", SHARED_NAMES)
 def test_summary_of_a_shared_file_is_the_models(shared_data, name):
     path = shared_data / "cad" / name

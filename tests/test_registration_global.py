@@ -108,6 +108,7 @@ def test_register_is_bit_identical_across_processes(tmp_path):
 
 
 # ------------------------------------------------------------------------------ no start
+@pytest.mark.slow  # over 4 s of CPU: out of `make test-fast` (issue 32)
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_scan_in_a_far_sensor_frame_is_found_with_no_start(panel, panel_prep, seed):
     vs = virtual_scan(panel, pixel=2.5, noise=0.03, outlier_fraction=0.05,

@@ -43,6 +43,7 @@ def scene():
     return model, imgs
 
 
+@pytest.mark.slow  # over 4 s of CPU: out of `make test-fast` (issue 32)
 def test_measured_points_lie_on_the_true_surface(scene):
     model, imgs = scene
     scan = measure(imgs.rig, imgs.left, imgs.right)
