@@ -47,3 +47,17 @@ def test_the_callers_start_chooses_among_copies_that_fit_alike(plate):
     e = pose_error(al.T_model_scan, T_true)
     assert np.degrees(np.linalg.norm(e[:3])) < 0.01 and np.linalg.norm(e[3:]) < 0.01
     assert al.details["placement"] == "start" and not al.details["warnings"]
+
+
+def test_a_datum_not_seen_makes_the_inspection_an_error_with_the_reason(plate):
+    prep, scan, T_true = plate
+    X = scan @ T_true[:3, :3].T + T_true[:3, 3]
+    cut = scan[X[:, 0] > 2.0]                      # the x = 0 side (datum B) not scanned
+    plan = {"alignment": {"type": "datums", "primary": "face:2", "secondary": "face:0",
+                          "tertiary": "face:1"},
+            "characteristics": [{"name": "TOP", "type": "flatness", "feature": "face:2",
+                                 "tol": 0.2}]}
+    res = sv.inspect(prep, cut, tolerance=0.1, plan=plan)
+    assert res.verdict == "error", res.reasons
+    assert any("face:0" in r and "not seen" in r for r in res.reasons), res.reasons
+    assert res.characteristics[0].verdict == "undecided"
