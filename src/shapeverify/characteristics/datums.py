@@ -316,6 +316,13 @@ def datum_alignment(scan, prep, primary, secondary, tertiary=None, init=None,
                              f"{ang:.1f} deg away): the frame may be a symmetric copy; give "
                              "init= to choose")
     T, fits, cov = ch["T"], ch["fits"], ch["cov"]
+    lost = [f for f in failed if f["fit"] >= ALIKE * ch["fit"]]
+    if lost:
+        # a placement the scan fits as well has no datum frame: the frame found may be a
+        # symmetric copy standing in for a datum that was not seen
+        ch = {**ch, "bad": f"{lost[0]['reason']} (at a placement of the scan that fits it as "
+                           f"well as the one with a datum frame, whole fit {lost[0]['fit']:.3f} "
+                           f"vs {ch['fit']:.3f}: that frame may be a symmetric copy)"}
     res = np.array([f[3] for f in fits])
     dof = ["A: tz rx ry", "B: " + ("tx ty" if F[1].kind != "plane" else "tx rz")]
     if len(F) > 2:
