@@ -184,8 +184,11 @@ def test_history_command_chooses_a_model(tmp_path):
         db.add(_dented(), part="C1", model_hash=digest)
         db.add(FakeResult(), part="H1", model_hash="f" * 64)
     runner = CliRunner()
-    res = runner.invoke(app, ["history", "--db", str(db_path), "--plot", str(tmp_path / "t.png")])
-    assert res.exit_code == 2 and "one chart shows one model" in res.output, res.output
+    # two models and no --model: the chart is the latest record's model's, and says so
+    res = runner.invoke(app, ["history", "--db", str(db_path), "--plot", str(tmp_path / "t.png")],
+                        env={"COLUMNS": "200"})
+    assert res.exit_code == 0, res.output
+    assert "the trend chart shows model ffffffffffff" in res.output and "--model" in res.output
     for key in (str(model), digest[:10]):
         res = runner.invoke(app, ["history", "--db", str(db_path), "--model", key,
                                   "--plot", str(tmp_path / "t.png")], env={"COLUMNS": "200"})

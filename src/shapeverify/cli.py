@@ -546,8 +546,9 @@ def history(
                 "limits [mm]", "regions"):
         t.add_column(col)
     def f(v, beyond=False):
+        from rich.text import Text
         text = "-" if v is None or v != v else f"{v:+.4f}"
-        return f"[red]{text}[/red]" if beyond else text
+        return Text(text, style="red" if beyond else "")
 
     for r in rows:
         lo, hi = r.get("lower"), r.get("upper")
@@ -556,7 +557,7 @@ def history(
         t.add_row(str(r["id"]), str(r["time"]), str(r.get("part") or ""),
                   str(r.get("model_hash") or "-")[:12], r["verdict"],
                   f(r.get("min"), known and r["min"] < lo), f(r.get("max"), known and r["max"] > hi),
-                  f(r.get("max_abs")).lstrip("+"), lim, str(r.get("n_regions") or 0))
+                  f(r.get("max_abs")).plain.lstrip("+"), lim, str(r.get("n_regions") or 0))
     out.print(t)
     shown = sorted({str(r.get("model_hash")) for r in rows})
     if len(shown) > 1:
@@ -564,7 +565,13 @@ def history(
                   "(" + ", ".join(f"{m['model_hash'][:12]} {m['name'] or ''}".strip()
                                   for m in models if m["model_hash"]) + ")")
     if plot:
-        _guard(plot_trend, rows, plot)
+        chart = rows
+        if len(shown) > 1:   # one chart shows one model: the latest record's, unless --model
+            latest = max(rows, key=lambda r: r["id"])["model_hash"]
+            chart = [r for r in rows if r.get("model_hash") == latest]
+            out.print(f"the trend chart shows model {str(latest)[:12]} (the latest record's, "
+                      f"{len(chart)} of {len(rows)} records); choose another with --model")
+        _guard(plot_trend, chart, plot)
         out.print(f"trend chart: {plot}")
 
 
