@@ -17,6 +17,7 @@ from .ambiguity import resolve
 from .coverage import MIN_COVERAGE, compute_coverage
 from .deviations import _deviations
 from .material import beside_surface, find_material, floating_surfaces
+from .missing import find_missing
 from .plan_link import PlanPose, with_characteristics
 from .regions import MIN_POINTS, find_regions, surface_spacing
 from .result import InspectionResult
@@ -500,7 +501,9 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
                                         spacing=spacing, limits=tol.limits(dev.face))
     beside = beside_surface(dev)                    # material and floating surfaces share it
     material = find_material(dev, spacing, tol.upper, beside=beside)
-    regions = sorted(regions + material, key=lambda r: -r.severity)
+    # CAD surface the scan sees through (issue 33 row 3): regions of kind "missing"
+    missing = find_missing(prep, dev, spacing, within, tol, faces=opts.faces)
+    regions = sorted(regions + material + missing, key=lambda r: -r.severity)
     timings["regions"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
