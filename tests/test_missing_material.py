@@ -99,3 +99,19 @@ def test_sparse_sampling_is_not_missing(prep, fine, spacing):
                      init=np.eye(4))
     assert not missing(res)
     assert res.verdict == "pass", res.reasons
+
+
+@pytest.mark.slow
+def test_reflection_over_the_surface_is_not_missing(prep, fine):
+    # a disc of points pushed 2 mm off the surface (a reflection) is too far to be evaluated:
+    # its patch is unseen, but the scanner saw something there, not through the surface
+    scan = panel_scan(fine, 1.0, seed=5)
+    r = np.hypot(scan[:, 0] - 30.0, scan[:, 1] - 60.0)
+    disc = r < 8.0
+    scan[disc, 2] += 2.0 * (1.0 - 0.5 * (r[disc] / 8.0) ** 2)
+    res = sv.inspect(prep, scan, tolerance=0.2, init=np.eye(4))
+    assert res.coverage.per_face[0] < 0.99          # the reflection's patch was not evaluated
+    assert not missing(res)
+    # the same scan with the disc's points removed: now the surface is seen through
+    res = sv.inspect(prep, scan[~disc], tolerance=0.2, init=np.eye(4))
+    assert [r.kind for r in res.regions] == ["missing"]

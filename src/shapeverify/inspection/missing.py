@@ -28,11 +28,17 @@ an unseen area is missing material only when all of these hold:
 4. **the surrounding surface is in tolerance**: at least ``MIN_IN_TOLERANCE`` of the evaluated
    points within ``SEEN_RADIUS + BAND`` spacings of the gap are within tolerance: a gap beside a
    raised defect is its shadow, and the defect fails the part already;
-5. **in the line of sight**: when the scan has a dominant view direction ``v`` (the mean CAD normal
-   at the evaluated foot points has a length of at least ``DOMINANT_VIEW``), at least
-   ``MIN_VISIBLE`` of the gap's points must face the view (``n . v > 0.1``) and not be hidden
-   behind other CAD surface along ``v`` (a shadow behind a rib or a wall is hidden).  Without a
-   dominant direction (views from all around) this test is skipped.
+5. **seen through, in the line of sight**: at least ``MIN_VISIBLE`` of the gap's points must be
+   seen through: no scan point that was not evaluated (too far, past an edge) lies within the
+   seen radius of their line of sight, on either side of the surface within 10 evaluation
+   distances (a reflection pushed off the surface, a foreign object: the scanner saw something
+   there, not through the surface); and, when the scan has a dominant view direction ``v`` (the
+   mean CAD normal at the evaluated foot points has a length of at least ``DOMINANT_VIEW``), they
+   must face the view (``n . v > 0.1``) and not be hidden behind other CAD surface along ``v`` (a
+   shadow behind a rib or a wall is hidden).  Without a dominant direction (views from all
+   around) the line of sight is each point's normal and the hiding test is skipped.  Points seen
+   *behind* the surface through the gap are not used as evidence for a hole (they block it, like
+   points in front, when they are that close: conservative).
 
 A region's ``area`` is the gap's CAD area, grown back by what the seen radius ate from its rim
 (``SEEN_RADIUS - RIM`` spacings: the last scan points lie a fraction of a spacing before the edge
@@ -134,6 +140,8 @@ def find_missing(prep, dev, spacing: float, within: np.ndarray, tolerance=None, 
     if not comps:
         return []
     normals = _sample_normals(prep, faces, pts.shape[0])
+    other = dev.points_model[~ev]                    # not evaluated: too far, past an edge, ...
+    other = kernel_array(other[np.all(np.isfinite(other), axis=1)])
     view = _view_direction(dev)
     lower = abs(float(getattr(tolerance, "lower", 1.0))) or 1.0
     out = []
@@ -143,7 +151,8 @@ def find_missing(prep, dev, spacing: float, within: np.ndarray, tolerance=None, 
             continue
         if _in_tolerance(dev, within, pts[g], r_seen + BAND * s) < MIN_IN_TOLERANCE:
             continue
-        if view is not None and _visible(pts, normals, g, view, h, prep) < MIN_VISIBLE:
+        if _visible(pts, normals, g, view, h, prep, other, r_seen,
+                    10.0 * float(dev.evaluation_distance)) < MIN_VISIBLE:
             continue
         area, centroid, grown = _area(pts, normals, g, feet, r_seen, r_seen - RIM * s, h, a_pt, s)
         out.append(DefectRegion(
@@ -156,14 +165,17 @@ def find_missing(prep, dev, spacing: float, within: np.ndarray, tolerance=None, 
 
 
 def _sample_normals(prep, faces, n: int) -> np.ndarray:
-    """The CAD normals of :func:`.coverage.model_samples` (the same subset of ``prep.points``)."""
+    """The CAD normals of :func:`.coverage.model_samples` (the same subset of ``prep.points``),
+    or None when the model points carry none."""
     mp = prep.points
+    if getattr(mp, "normals", None) is None:
+        return None
     nrm = np.asarray(mp.normals)
     if faces is not None:
         nrm = nrm[np.isin(np.asarray(mp.face), np.asarray(faces, dtype=np.int32))]
     step = max(1, int(np.ceil(nrm.shape[0] / MAX_SAMPLES)))
     nrm = nrm[::step]
-    return nrm if nrm.shape[0] == n else np.zeros((n, 3))
+    return nrm if nrm.shape[0] == n else None
 
 
 def _view_direction(dev):
@@ -204,18 +216,33 @@ def _in_tolerance(dev, within, gp, band) -> float:
     return float(np.mean(within[k])) if k.size else 0.0
 
 
-def _visible(pts, normals, g, view, h, prep, most: int = 64) -> float:
-    """Share of (up to ``most``) gap points that face ``view`` and see out along it past every
-    other model point (rule 5)."""
+def _visible(pts, normals, g, view, h, prep, other, r_seen, reach, most: int = 64) -> float:
+    """Share of (up to ``most``) gap points seen through (rule 5): facing ``view`` and not hidden
+    behind other model points along it (when there is a view direction), and with no scan
+    point that was not evaluated within ``r_seen`` of their line of sight, on either side of
+    the surface within ``reach`` (a reflection, a foreign object: the scanner saw something
+    there, not through the surface)."""
     gs = g[np.linspace(0, g.size - 1, min(most, g.size)).astype(np.int64)]
-    front = normals[gs] @ view > 0.1
-    size = float(getattr(getattr(prep, "model", None), "size", 0.0) or np.ptp(pts, axis=0).max())
-    t = np.arange(3.0 * h, size + h, h)
-    ray = (pts[gs][:, None, :] + t[None, :, None] * view[None, None, :]).reshape(-1, 3)
-    hit = np.empty(ray.shape[0], bool)
-    any_within(kernel_array(pts), kernel_array(ray), float(1.5 * h), hit)
-    hidden = hit.reshape(gs.size, t.size).any(axis=1)
-    return float(np.mean(front & ~hidden))
+    ok = np.ones(gs.size, bool)
+    if view is not None:
+        if normals is not None:
+            ok &= normals[gs] @ view > 0.1
+        size = float(getattr(getattr(prep, "model", None), "size", 0.0) or np.ptp(pts, axis=0).max())
+        t = np.arange(3.0 * h, size + h, h)
+        ray = (pts[gs][:, None, :] + t[None, :, None] * view[None, None, :]).reshape(-1, 3)
+        hit = np.empty(ray.shape[0], bool)
+        any_within(kernel_array(pts), kernel_array(ray), float(1.5 * h), hit)
+        ok &= ~hit.reshape(gs.size, t.size).any(axis=1)
+    if other.shape[0]:
+        d = np.broadcast_to(view, (gs.size, 3)) if view is not None else normals[gs] \
+            if normals is not None else None
+        if d is not None:
+            t = np.arange(-reach, reach + 0.5 * r_seen, 0.5 * r_seen)
+            ray = (pts[gs][:, None, :] + t[None, :, None] * d[:, None, :]).reshape(-1, 3)
+            hit = np.empty(ray.shape[0], bool)
+            any_within(other, kernel_array(ray), float(r_seen), hit)
+            ok &= ~hit.reshape(gs.size, t.size).any(axis=1)
+    return float(np.mean(ok))
 
 
 def _area(pts, normals, g, feet, r_seen, grow, h, a_pt, s):
@@ -230,9 +257,9 @@ def _area(pts, normals, g, feet, r_seen, grow, h, a_pt, s):
     gp = pts[g]
     lo, hi = gp.min(axis=0) - reach, gp.max(axis=0) + reach
     local = np.flatnonzero(np.all((pts >= lo) & (pts <= hi), axis=1))
-    k = int(np.clip(np.ceil(2.0 * h / s), 1, 6))
+    k = int(np.clip(np.ceil(2.0 * h / s), 1, 6)) if normals is not None else 1
     off = (np.arange(k) + 0.5) / k - 0.5
-    n = normals[local]
+    n = normals[local] if normals is not None else np.tile([0.0, 0.0, 1.0], (local.size, 1))
     a = np.where(np.abs(n[:, :1]) < 0.9, [[1.0, 0.0, 0.0]], [[0.0, 1.0, 0.0]])
     e1 = np.cross(n, a)
     e1 /= np.maximum(np.linalg.norm(e1, axis=1, keepdims=True), 1e-12)
