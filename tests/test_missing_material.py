@@ -115,3 +115,25 @@ def test_reflection_over_the_surface_is_not_missing(prep, fine):
     # the same scan with the disc's points removed: now the surface is seen through
     res = sv.inspect(prep, scan[~disc], tolerance=0.2, init=np.eye(4))
     assert [r.kind for r in res.regions] == ["missing"]
+
+
+@pytest.mark.slow
+def test_reports_show_a_missing_region(prep, fine, tmp_path):
+    # the kinds shown in the HTML and PNG reports, the CLI table and the history database
+    from shapeverify.cli import _print_result
+    from shapeverify.report.history import HistoryDB
+    from shapeverify.report.html import html_report
+    from shapeverify.report.png import png_summary
+
+    scan = panel_scan(fine, 1.0, hole=HOLE, seed=6)
+    res = sv.inspect(prep, scan, tolerance=0.2, init=np.eye(4))
+    assert [r.kind for r in res.regions] == ["missing"]
+    page = html_report(res, prep, scan).decode("utf-8")
+    assert ">missing<" in page and "R1 missing" in page
+    assert png_summary(res, scan)[:4] == b"\x89PNG"
+    _print_result(res)
+    db = HistoryDB(tmp_path / "h.sqlite")
+    db.add(res, part="P1")
+    (row,) = db.query()
+    assert row["verdict"] == "fail" and row["n_regions"] == 1
+    assert row["region_min"] is None or np.isnan(row["region_min"])    # no extreme: none stored
