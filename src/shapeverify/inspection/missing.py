@@ -194,13 +194,12 @@ def _enclosed(pts, seen, g, h, a_pt) -> float:
     rho = 2.5 * h
     lo, hi = pts[g].min(axis=0) - 2 * rho, pts[g].max(axis=0) + 2 * rho
     local = np.flatnonzero(np.all((pts >= lo) & (pts <= hi), axis=1))
-    tree = cKDTree(pts[local])
     full = np.pi * rho * rho / a_pt
     slack = 0.2 * full
-    nb = tree.query_ball_point(pts[g], rho)
-    n_all = np.fromiter((len(j) for j in nb), np.float64, len(nb))
-    seen_local = seen[local]
-    n_seen = np.fromiter((np.count_nonzero(seen_local[j]) for j in nb), np.float64, len(nb))
+    n_all = cKDTree(pts[local]).query_ball_point(pts[g], rho, return_length=True)
+    seen_local = local[seen[local]]
+    n_seen = (cKDTree(pts[seen_local]).query_ball_point(pts[g], rho, return_length=True)
+              if seen_local.size else np.zeros(g.size))
     w_seen = np.maximum(n_seen - slack, 0.0).sum()
     w_end = np.maximum(full - n_all - slack, 0.0).sum()
     return float(w_seen / (w_seen + w_end)) if w_seen + w_end > 0 else 0.0
