@@ -1,6 +1,12 @@
 """Missing material: CAD surface the scan sees through (a hole or cut-out the CAD does not have).
 
-The mirror of :mod:`.material`.  Where the CAD has surface and the scan has no point near it,
+The mirror of :mod:`.material`, **opt-in** (``inspect(..., missing=True)``): an enclosed
+unseen area is told from a scanner's dropout (a shiny or dark spot) by no more than the rules
+below, and a hole drilled through a solid already fails the part without it, through the
+deviations of its wall, which lies inside the CAD's material (tested).  Evidence seen *through*
+the gap (the wall or the fixture behind it) would make it decisive: not used yet.
+
+Where the CAD has surface and the scan has no point near it,
 either the part has no material there (a hole that should not be there, a missing flange) or
 the scanner did not look there (outside its view, shadowed, the edge of a partial scan).  The
 first fails the part (a region of ``kind="missing"``); the second is only a coverage gap

@@ -7,7 +7,7 @@ of the frontmost sample of its pixel).  Rays that meet the surface at a grazing 
 The measured points then get
 
 * depth noise along the ray (Gaussian, ``noise`` mm),
-* shadowed regions without data (discs centred on the edge of the scanned area),
+* shadowed regions without data (discs on the surface),
 * reflection blobs: discs whose points are pushed off the surface, towards the camera, by
   ``blob_height`` mm (times a smooth profile between 1/2 and 1),
 * scattered outliers: a fraction of the points moved along their ray by 0.5..``outlier_range`` mm,
@@ -258,12 +258,8 @@ def _cast_zbuffer(model, cam, pixel):
     return (p[good], n[good], d[good], mp.face[s][good].astype(np.int64), mp.uv[s][good])
 
 
-def _pick_centers(points, radii, rng, taken, edge: bool = False):
+def _pick_centers(points, radii, rng, taken):
     """Random disc centres on the scanned surface, well inside it, not overlapping.
-
-    ``edge``: centres on the outermost 3 % of the scanned area's extent along its main axes
-    instead (a shadow runs out to where the scanner stops seeing; a disc of no data inside seen
-    surface, with nothing in front of it, is a hole: :mod:`shapeverify.inspection.missing`).
 
     Candidates lie in the middle of the scan along its two main axes (principal axes): at most
     60 % of the half extent from the centroid, less the disc radius, so the disc stays on the
@@ -276,8 +272,7 @@ def _pick_centers(points, radii, rng, taken, edge: bool = False):
     out = []
     for r in radii:
         lim = np.maximum(0.6 * half - r, 0.3 * half)
-        cand = np.flatnonzero(np.all(np.abs(uv) <= lim, axis=1) if not edge else
-                              np.any(np.abs(uv) >= 0.97 * half, axis=1))
+        cand = np.flatnonzero(np.all(np.abs(uv) <= lim, axis=1))
         for _ in range(200):
             c = points[cand[rng.integers(cand.size)]]
             if all(np.linalg.norm(c - c1) > r + r1 for c1, r1 in taken):
@@ -383,7 +378,7 @@ def virtual_scan(model, *, camera=None, view=None, distance=None, pixel: float =
 
     taken = []
     keep = np.ones(P.shape[0], bool)
-    for c in _pick_centers(P, [shadow_radius] * int(shadows), rng, taken, edge=True):
+    for c in _pick_centers(P, [shadow_radius] * int(shadows), rng, taken):
         keep &= np.linalg.norm(P - c, axis=1) > shadow_radius
     P, Nrm, D, face, uv, cosang = P[keep], Nrm[keep], D[keep], face[keep], uv[keep], cosang[keep]
     n = P.shape[0]
