@@ -512,7 +512,7 @@ def _print_result(result) -> None:
         for i, r in enumerate(regions[:20]):
             c = r.get("centroid", [0, 0, 0])
             rt.add_row(str(i + 1), r.get("kind", "deviation"), str(r.get("n")), sig3(r.get("area", 0)),
-                       f"{r.get('extreme', 0):+.3f}", f"{r.get('severity', 0):.3g}",
+                       f"{r['extreme']:+.3f}" if r.get("extreme") is not None else "–", f"{r.get('severity', 0):.3g}",
                        f"({c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f})")
         out.print(rt)
         if len(regions) > 20:

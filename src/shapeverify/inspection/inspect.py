@@ -17,6 +17,7 @@ from .ambiguity import resolve
 from .coverage import MIN_COVERAGE, compute_coverage
 from .deviations import _deviations
 from .material import beside_surface, find_material, floating_surfaces
+from .missing import find_missing
 from .plan_link import PlanPose, with_characteristics
 from .regions import MIN_POINTS, find_regions, surface_spacing
 from .result import InspectionResult
@@ -148,7 +149,8 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
             faces=None, per_face=None, min_coverage: float = MIN_COVERAGE,
             min_region_points: int = MIN_POINTS,
             min_inlier_fraction: float = MIN_INLIER_FRACTION, rng=0,
-            max_distance: float | None = None, plan=None) -> InspectionResult:
+            max_distance: float | None = None, plan=None,
+            missing: bool = False) -> InspectionResult:
     """Register a scan to the model, compute its deviations and decide the verdict.
 
     Parameters
@@ -195,6 +197,12 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
         Seed of the registration's random choices (default 0: the same result every run).
     max_distance : float, optional
         Old name of ``evaluation_distance`` (deprecated).
+    missing : bool
+        Also fail the part where the scan sees through the CAD surface: an unseen area enclosed
+        by seen, in-tolerance surface becomes a region of kind ``"missing"``
+        (:mod:`shapeverify.inspection.missing`). Off by default: a scanner's dropout (a shiny
+        or dark spot) looks the same, and a hole in a solid already fails through the
+        deviations of its wall.
     plan : Plan, dict, str or path, optional
         An inspection plan (:mod:`shapeverify.characteristics`: ``plan.yaml``): the scan is
         aligned the plan's way (best fit on faces, constrained, RPS, datums; an array ``init``
@@ -246,11 +254,12 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
                              evaluation_distance=evaluation_distance, lower=lower, upper=upper,
                              faces=faces, per_face=per_face, min_coverage=min_coverage,
                              min_region_points=min_region_points,
-                             min_inlier_fraction=min_inlier_fraction, max_distance=max_distance)
+                             min_inlier_fraction=min_inlier_fraction, max_distance=max_distance,
+                             missing=missing)
     t_start = time.perf_counter()
     timings = {}
     opts = _options(prep, tolerance, lower, upper, per_face, evaluation_distance, max_distance,
-                    faces, min_coverage, min_region_points, min_inlier_fraction)
+                    faces, min_coverage, min_region_points, min_inlier_fraction, missing)
     scan = check_scan(scan, _model_size(prep))
     if init is None and getattr(prep, "fixture", None) is not None:
         init = np.asarray(prep.fixture, dtype=np.float64)
@@ -348,7 +357,7 @@ def inspect_registered(prep, scan, registration, tolerance=0.2,
                        faces=None, per_face=None, min_coverage: float = MIN_COVERAGE,
                        min_region_points: int = MIN_POINTS,
                        min_inlier_fraction: float = MIN_INLIER_FRACTION,
-                       max_distance: float | None = None) -> InspectionResult:
+                       max_distance: float | None = None, missing: bool = False) -> InspectionResult:
     """:func:`inspect` for a scan that is already registered (``registration.T_model_scan``).
 
     ``registration`` is any object with ``T_model_scan``, ``rms``, ``iterations``, ``converged``,
@@ -359,7 +368,7 @@ def inspect_registered(prep, scan, registration, tolerance=0.2,
     t_start = time.perf_counter()
     timings = {}
     opts = _options(prep, tolerance, lower, upper, per_face, evaluation_distance, max_distance,
-                    faces, min_coverage, min_region_points, min_inlier_fraction)
+                    faces, min_coverage, min_region_points, min_inlier_fraction, missing)
     scan = check_scan(scan, _model_size(prep))
     timings["validate"] = time.perf_counter() - t_start
     result = _evaluate(prep, scan, registration, opts, None, timings)
@@ -409,10 +418,11 @@ class _Options:
     min_coverage: float
     min_region_points: int
     min_inlier_fraction: float
+    missing: bool = False
 
 
 def _options(prep, tolerance, lower, upper, per_face, evaluation_distance, max_distance, faces,
-             min_coverage, min_region_points, min_inlier_fraction) -> _Options:
+             min_coverage, min_region_points, min_inlier_fraction, missing=False) -> _Options:
     tol = Tolerance.from_args(tolerance, lower, upper, per_face)
     if max_distance is not None:
         if evaluation_distance is not None:
@@ -431,7 +441,7 @@ def _options(prep, tolerance, lower, upper, per_face, evaluation_distance, max_d
     if not 0.0 <= float(min_coverage) <= 1.0:
         raise ValueError(f"min_coverage is a fraction of the inspected area, 0..1; got {min_coverage!r}")
     return _Options(tol, evaluation_distance, _check_faces(prep, faces), float(min_coverage),
-                    int(min_region_points), float(min_inlier_fraction))
+                    int(min_region_points), float(min_inlier_fraction), bool(missing))
 
 
 def _check_faces(prep, faces) -> tuple | None:
@@ -501,7 +511,10 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
                                         spacing=spacing, limits=tol.limits(dev.face))
     beside = beside_surface(dev)                    # material and floating surfaces share it
     material = find_material(dev, spacing, tol.upper, beside=beside)
-    regions = sorted(regions + material, key=lambda r: -r.severity)
+    # CAD surface the scan sees through (issue 33 row 3): regions of kind "missing"
+    missing = find_missing(prep, dev, spacing, within, tol, faces=opts.faces) \
+        if opts.missing else []
+    regions = sorted(regions + material + missing, key=lambda r: -r.severity)
     timings["regions"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()

@@ -41,7 +41,8 @@ For each region:
 * ``centroid``: area-weighted mean of its foot points (model coordinates, mm);
   ``extreme_point``: where the extreme is, on the CAD surface's tangent plane; ``faces``: CAD
   faces it touches;
-* ``kind``: ``"deviation"`` here; :mod:`.material` adds ``"material"`` regions.
+* ``kind``: ``"deviation"`` here; :mod:`.material` adds ``"material"`` regions, :mod:`.missing`
+  (opt-in) ``"missing"`` ones.
 """
 
 from __future__ import annotations
@@ -85,8 +86,10 @@ NEIGHBOURHOOD = 4.0
 class DefectRegion:
     """One connected region that fails the part (mm, model coordinates).
 
-    ``kind`` is ``"deviation"`` (out-of-tolerance surface, this module) or ``"material"``
-    (scan surface where the CAD has none, :mod:`shapeverify.inspection.material`).
+    ``kind`` is ``"deviation"`` (out-of-tolerance surface, this module), ``"material"``
+    (scan surface where the CAD has none, :mod:`shapeverify.inspection.material`) or
+    ``"missing"`` (CAD surface the scan sees through, :mod:`shapeverify.inspection.missing`;
+    ``n`` 0, ``indices`` empty, ``extreme`` NaN).
     """
 
     n: int
@@ -111,6 +114,11 @@ class DefectRegion:
     def describe(self) -> str:
         """One line for a reason or a label, e.g. 'dent: 120 points, 95.2 mm², -0.412 mm ...'."""
         c = self.centroid
+        if self.kind == "missing":
+            return (f"material missing where the CAD has surface (a hole or cut-out the CAD does "
+                    f"not have, or a dropout of the scanner): {self.area:.1f} mm² seen through, "
+                    f"enclosed by seen surface, around ({c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f}) mm"
+                    + (f" on face(s) {', '.join(str(f) for f in self.faces[:5])}" if self.faces else ""))
         what = ("material where the CAD has none" if self.kind == "material" else
                 "material added" if self.side == "above" else "material missing")
         at = f"({c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f})"

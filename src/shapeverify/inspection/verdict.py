@@ -18,7 +18,8 @@ the result's ``rule``:
    or its inlier fraction is below ``min_inlier_fraction`` (default 0.25);
 5. ``fail`` (rule ``regions``): at least one region fails the part: a connected out-of-tolerance
    surface area (``kind="deviation"``, :mod:`.regions`) or measured material where the CAD has
-   none (``kind="material"``, :mod:`.material`);
+   none (``kind="material"``, :mod:`.material`), or CAD surface the scan sees through, a hole
+   or cut-out the CAD does not have (``kind="missing"``, :mod:`.missing`);
 6. ``incomplete`` (rule ``undecided``): no region fails the part, but the measurement cannot
    decide that it conforms (ISO 14253-1: conformance is proven only inside the tolerance zone
    reduced by the measurement uncertainty): the scan's own noise (sigma about local quadrics,
@@ -375,10 +376,13 @@ def decide(registration, deviations, regions, coverage=None, *,
         return Verdict.ERROR, tuple(errors), "registration"
     if regions:
         n_mat = sum(1 for r in regions if getattr(r, "kind", "deviation") == "material")
-        n_dev = len(regions) - n_mat
+        n_mis = sum(1 for r in regions if getattr(r, "kind", "deviation") == "missing")
+        n_dev = len(regions) - n_mat - n_mis
         parts = ([f"{n_dev} out-of-tolerance region{'s' if n_dev != 1 else ''}"] if n_dev else []) + \
                 ([f"{n_mat} region{'s' if n_mat != 1 else ''} of material the CAD does not have"]
-                 if n_mat else [])
+                 if n_mat else []) + \
+                ([f"{n_mis} region{'s' if n_mis != 1 else ''} of CAD surface the scan sees "
+                  "through (material missing)"] if n_mis else [])
         return Verdict.FAIL, tuple([f"fail: {' and '.join(parts)} (most severe first)"] + listed), "regions"
     why = _undecided(noise, tolerance, n_outliers, n_eval)
     if why:

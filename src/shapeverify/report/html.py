@@ -141,7 +141,8 @@ def _figure_3d(result, model, idx, c_lim):
         traces.append(go.Scatter3d(
             x=c[:, 0], y=c[:, 1], z=c[:, 2], mode="markers+text", name="regions (R1 most severe)",
             marker=dict(size=5, color="black", symbol="diamond"),
-            text=[f"R{i + 1} {r.extreme:+.3f}" for i, r in enumerate(result.regions)],
+            text=[f"R{i + 1} {r.extreme:+.3f}" if np.isfinite(r.extreme) else f"R{i + 1} {r.kind}"
+                  for i, r in enumerate(result.regions)],
             textposition="top center", hoverinfo="text"))
     fig = go.Figure(traces)
     axis = lambda name: dict(title=dict(text=f"{name} [mm]"), backgroundcolor="white")  # noqa: E731
@@ -330,8 +331,8 @@ def render_html(result, model=None, *, max_points: int = MAX_POINTS, title: str 
             header=("region", "kind", "points", "area [mm²]", "extreme [mm]", "largest single [mm]",
                     "severity [mm³]", "centroid x, y, z [mm]", "faces", "side"), cls="regions")
     else:
-        reg_tab = ('<p class="note">No regions: no connected out-of-tolerance surface and no '
-                   'material where the CAD has none.</p>')
+        reg_tab = ('<p class="note">No regions: no connected out-of-tolerance surface, no '
+                   'material where the CAD has none and none missing where it has some.</p>')
     chars = d.get("characteristics") or []
     char_card = ""
     if chars:
@@ -399,7 +400,8 @@ Drag to rotate, scroll to zoom; click legend entries to show or hide layers.</p>
 out-of-tolerance surface; "extreme" is the deviation at its worst point taken from the point's
 neighbourhood (always beyond the limit), "largest single" the most extreme measured point.
 "material": measured surface where the CAD has none (e.g. a hole not pierced); "extreme" is its
-largest distance from the CAD. Severity: the out-of-tolerance volume (mm³), which orders the
+largest distance from the CAD. "missing": CAD surface the scan sees through, enclosed by seen surface
+(a hole the CAD does not have); its area is the CAD area seen through, it has no extreme. Severity: the out-of-tolerance volume (mm³), which orders the
 regions. Positions in model coordinates (mm).</p>{reg_tab}</div>
 <div class="card"><details><summary><b>Per-face statistics</b> ({len(pf)} faces, worst first)</summary>
 {pf_tab}</details></div>

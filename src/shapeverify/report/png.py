@@ -251,7 +251,8 @@ def summary_figure(result, scan=None, *, max_points: int = 20_000, dpi: int = 11
             f"converged {bool(reg.converged)}\n  inliers {100 * float(reg.inlier_fraction):.1f} %")
     text += f"\n\nregions (most severe first): {len(result.regions)}"
     for i, g in enumerate(result.regions[:4]):
-        text += (f"\n  R{i + 1} {g.kind[:3]}: {length_text(g.extreme, signed=True)}, "
+        ext = length_text(g.extreme, signed=True) if np.isfinite(g.extreme) else "seen through"
+        text += (f"\n  R{i + 1} {g.kind[:3]}: {ext}, "
                  f"{area_text(g.area)}, {g.n:,} pts")
     text += f"\nmeasurement outliers: {result.outliers.n:,}"
     fits.append((at.text(0.0, 1.0, text, family="monospace", fontsize=9, va="top",
