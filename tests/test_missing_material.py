@@ -143,47 +143,22 @@ def test_a_hole_in_a_solid_the_cad_does_not_have_fails_by_default(tmp_path):
     """Issue 33 row 3 on a solid (a 10 mm plate, CAD without the hole, scan of the drilled
     plate sampled by area from OpenCASCADE's tessellation): the hole's wall lies inside the
     CAD's material, so the part fails through deviation regions even with ``missing`` off."""
-    from OCP.BRep import BRep_Tool
     from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut
-    from OCP.BRepMesh import BRepMesh_IncrementalMesh
     from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox, BRepPrimAPI_MakeCylinder
     from OCP.gp import gp_Ax2, gp_Dir, gp_Pnt
     from OCP.STEPControl import STEPControl_AsIs, STEPControl_Writer
-    from OCP.TopAbs import TopAbs_FACE
-    from OCP.TopExp import TopExp_Explorer
-    from OCP.TopLoc import TopLoc_Location
-    from OCP.TopoDS import TopoDS
+
+    from independent_scans import random_points, tessellate
 
     box = BRepPrimAPI_MakeBox(120.0, 80.0, 10.0).Shape()
     cyl = BRepPrimAPI_MakeCylinder(gp_Ax2(gp_Pnt(60, 40, -1), gp_Dir(0, 0, 1)), 6.0, 12.0).Shape()
     w = STEPControl_Writer()
     w.Transfer(box, STEPControl_AsIs)
     w.Write(str(tmp_path / "plate.step"))
-    holed = BRepAlgoAPI_Cut(box, cyl).Shape()
-    BRepMesh_IncrementalMesh(holed, 0.005, False, 0.2, False)
-    V, T, base = [], [], 0
-    ex = TopExp_Explorer(holed, TopAbs_FACE)
-    while ex.More():
-        loc = TopLoc_Location()
-        tri = BRep_Tool.Triangulation_s(TopoDS.Face(ex.Current()), loc)
-        ex.Next()
-        tr = loc.Transformation()
-        V.append(np.array([[p.X(), p.Y(), p.Z()] for p in
-                           (tri.Node(i + 1).Transformed(tr) for i in range(tri.NbNodes()))]))
-        T.append(np.array([tri.Triangle(i + 1).Get() for i in range(tri.NbTriangles())]) - 1 + base)
-        base += len(V[-1])
-    V, T = np.concatenate(V), np.concatenate(T)
+    V, T, _ = tessellate(BRepAlgoAPI_Cut(box, cyl).Shape(), 0.005)
     rng = np.random.default_rng(0)
-    a, b, c = V[T[:, 0]], V[T[:, 1]], V[T[:, 2]]
-    cr = np.cross(b - a, c - a)
-    ar = np.linalg.norm(cr, axis=1)
-    n = int(ar.sum() / 2 / 0.8 ** 2)
-    k = rng.choice(len(T), n, p=ar / ar.sum())
-    u, v = rng.random(n), rng.random(n)
-    f = u + v > 1
-    u[f], v[f] = 1 - u[f], 1 - v[f]
-    P = a[k] + u[:, None] * (b[k] - a[k]) + v[:, None] * (c[k] - a[k])
-    P += cr[k] / ar[k, None] * rng.normal(0, 0.02, (n, 1))
+    P, N = random_points(V, T, 0.8, rng)
+    P = P + N * rng.normal(0, 0.02, (len(P), 1))
     prep = sv.prepare(sv.load_model(tmp_path / "plate.step"))
     res = sv.inspect(prep, P, tolerance=0.1, init=np.eye(4))
     assert str(res.verdict) == "fail" and res.rule == "regions"
