@@ -462,8 +462,13 @@ def _print_result(result) -> None:
             t.add_row(key, f"{v:,}" if isinstance(v, int) else f"{v:.4f}")
     out.print(t)
     if reg:
-        out.print(f"registration: rms {reg.get('rms', float('nan')):.4f} mm, {reg.get('iterations')} iterations, "
-                  f"converged {reg.get('converged')}, inliers {100 * reg.get('inlier_fraction', 0):.1f} %")
+        fit = d.get("fit") or {}
+        if fit.get("inlier_fraction") is not None and fit.get("rms") is not None:
+            out.print(f"fit: rms {fit['rms']:.4f} mm, inliers {100 * fit['inlier_fraction']:.1f} % "
+                      "(the evaluated points less the isolated outliers)")
+        out.print(f"registration: {reg.get('iterations')} iterations, converged "
+                  f"{reg.get('converged')} (robust rms {reg.get('rms', float('nan')):.4f} mm, "
+                  f"weights' inliers {100 * reg.get('inlier_fraction', 0):.1f} %)")
     cov = d.get("coverage")
     if cov:
         out.print(f"coverage: {100 * cov['fraction']:.1f} % of the inspected area "

@@ -312,11 +312,15 @@ def render_html(result, model=None, *, max_points: int = MAX_POINTS, title: str 
                                            "rejected by the registration)"),
         ("point spacing [mm]", _fmt(d["spacing"], 3)),
     ]
-    r = d["registration"]
+    r, fit = d["registration"], d.get("fit") or {}
+    fi = fit.get("inlier_fraction")
     reg_rows = [("converged", _fmt(r["converged"])), ("iterations", _fmt(r["iterations"])),
-                ("RMS [mm]", _fmt(r["rms"])),
-                ("inlier fraction", "–" if r["inlier_fraction"] is None
-                 else f"{100 * r['inlier_fraction']:.1f} %")]
+                ("RMS of the evaluated inliers [mm]", _fmt(fit.get("rms"))),
+                ("inlier fraction", "–" if fi is None else f"{100 * fi:.1f} %"),
+                ("inliers are", html.escape(fit.get("rule", ""))),
+                ("registration's robust RMS [mm] / weights' inliers",
+                 f"{_fmt(r['rms'])} / " + ("–" if r["inlier_fraction"] is None
+                                          else f"{100 * r['inlier_fraction']:.1f} %"))]
     if r.get("message"):
         reg_rows.append(("message", html.escape(r["message"])))
     T = np.asarray(d["T_model_scan"])

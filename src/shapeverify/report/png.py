@@ -246,9 +246,12 @@ def summary_figure(result, scan=None, *, max_points: int = 20_000, dpi: int = 11
 
     at = fig.add_subplot(gs[2, 2])
     at.set_axis_off()
-    reg = result.registration
-    text = (f"registration: rms {float(reg.rms):.{nd}f} mm\n  {int(reg.iterations)} iterations, "
-            f"converged {bool(reg.converged)}\n  inliers {100 * float(reg.inlier_fraction):.1f} %")
+    reg, fit = result.registration, result.fit
+    fi = fit["inlier_fraction"]
+    text = (f"fit: rms {float(fit['rms'] if fit['rms'] is not None else float('nan')):.{nd}f} mm"
+            f"\n  inliers {100 * fi:.1f} % (evaluated,\n  less outliers)" if fi is not None else
+            "fit: -")
+    text += f"\nregistration: {int(reg.iterations)} iterations,\n  converged {bool(reg.converged)}"
     text += f"\n\nregions (most severe first): {len(result.regions)}"
     for i, g in enumerate(result.regions[:4]):
         ext = length_text(g.extreme, signed=True) if np.isfinite(g.extreme) else "seen through"
