@@ -229,7 +229,8 @@ def summary_figure(result, scan=None, *, max_points: int = 20_000, dpi: int = 11
     text = "deviation statistics [mm]\n"
     if s.n:
         text += "\n".join(f"{k:>4s} {val:+{nd + 5}.{nd}f}" for k, val in lines)
-        text += (f"\nin tolerance {100 * s.in_tolerance_fraction:.2f} %\nof {s.n:,} evaluated inliers"
+        text += (f"\nin tolerance {100 * s.in_tolerance_fraction:.2f} %\nof "
+                 f"{int(result.deviations.n_evaluated):,} evaluated points"
                  f"\n(outliers: {result.outliers.n:,})")
     else:
         text += "no points evaluated"
