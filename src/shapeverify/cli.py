@@ -489,8 +489,9 @@ def _print_result(result) -> None:
             rot = tr = "-"
             if T is not None:
                 import numpy as np
-                R = np.asarray(T)[:3, :3]
-                rot = f"{np.degrees(np.arccos(np.clip((np.trace(R) - 1) / 2, -1, 1))):.2f}"
+
+                from shapeverify.registration.rigid import rotation_vector
+                rot = f"{np.degrees(np.linalg.norm(rotation_vector(np.asarray(T)[:3, :3]))):.2f}"
                 tr = f"{float(np.linalg.norm(np.asarray(T)[:3, 3])):.2f}"
             vt.add_row(v["name"], f"{v['n_points']:,}", "yes" if v["used"] else "NO",
                        f"{v['rms']:.4f}" if v.get("rms") is not None else "-",

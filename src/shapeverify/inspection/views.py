@@ -130,10 +130,11 @@ def _union_registration(regs, used):
         message="; ".join(r.message for r in ok if r.message))
 
 
-def _disagreement(prep, placed, labels, used, spacing):
-    """{(a, b): median |d_a - d_b|} over the points of view a within 2 spacings of view b."""
+def _disagreement(alone, placed, labels, used, spacing):
+    """{(a, b): median |d_a - d_b|} over the evaluated points of view a within 2 spacings of
+    an evaluated point of view b (the deviations each view's own inspection measured)."""
     out = {}
-    dev = {i: prep.closest(placed[i]).distances for i in used}
+    dev = {i: alone[i].deviations.values for i in used}
     trees = {i: cKDTree(placed[i]) for i in used}
     r = 2.0 * spacing
     for a in used:
@@ -142,6 +143,7 @@ def _disagreement(prep, placed, labels, used, spacing):
                 continue
             dist, j = trees[b].query(placed[a], distance_upper_bound=r)
             near = np.isfinite(dist)
+            near[near] &= np.isfinite(dev[a][near]) & np.isfinite(dev[b][j[near]])
             if np.count_nonzero(near) < 20:
                 continue
             out[(labels[a], labels[b])] = float(np.median(np.abs(dev[a][near] - dev[b][j[near]])))
@@ -229,7 +231,7 @@ def inspect_views(prep, views, tolerance=0.2, *, poses=None, names=None, rng=0,
     placed = {i: pts[i] @ regs[i].T_model_scan[:3, :3].T + regs[i].T_model_scan[:3, 3]
               for i in used}
     spacing = float(np.nanmedian([alone[i].spacing for i in used]))
-    pairs = _disagreement(prep, placed, labels, used, spacing) if len(used) > 1 else {}
+    pairs = _disagreement(alone, placed, labels, used, spacing) if len(used) > 1 else {}
     union = np.concatenate([placed[i] for i in used])
     result = inspect_registered(prep, union, _union_registration(regs, used), tolerance, **opts)
 

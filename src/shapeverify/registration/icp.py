@@ -57,7 +57,7 @@ from ._pose_warnings import (WARN_REJECTED_INFO, WARN_RUNNER_UP, _rejected_infor
 from ._irls import IterationRecord
 from .losses import get_loss
 from .options import InitMode, InitName, LossName, Method, MethodName, StageSettings
-from .rigid import pose_covariance, undetermined_directions
+from .rigid import pose_covariance, rotation_vector, undetermined_directions
 
 from ..errors import RegistrationError, ScanError
 
@@ -418,7 +418,7 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
             try:
                 st = coarse(T0, True)
                 T_id = _pose(st)
-                turn = np.degrees(np.arccos(np.clip((np.trace(T_id[:3, :3]) - 1) / 2, -1, 1)))
+                turn = np.degrees(np.linalg.norm(rotation_vector(T_id[:3, :3])))
                 if (turn > AUTO_MAX_TURN
                         or fit_score(prep, S_coarse, T_id, fit_distance(prep)) < AUTO_FIT):
                     extra, st = (("identity+icp", T_id),), None
