@@ -28,11 +28,12 @@ import sqlite3
 import tempfile
 import time
 import traceback
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Callable
 
 from shapeverify.io.formats import SCAN_SUFFIXES
+from shapeverify.verdict_table import verdict_counts
 
 log = logging.getLogger(__name__)
 
@@ -111,6 +112,14 @@ class BatchSummary:
     summary_csv: Path
     internal_errors: int = 0  # of ``errors``: scans that hit a bug (``"internal_error": true``)
     incomplete: int = 0       # not enough of the part seen to decide
+    #: scans per verdict, one entry per row of :data:`shapeverify.verdict_table.VERDICT_TABLE`
+    counts: dict = field(default_factory=dict)
+
+    def __post_init__(self):
+        if not self.counts:     # built from the four named counts
+            object.__setattr__(self, "counts", {"pass": self.passed, "fail": self.failed,
+                                                "error": self.errors,
+                                                "incomplete": self.incomplete})
 
     @property
     def scans_per_minute(self) -> float:
@@ -433,8 +442,9 @@ def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, 
         outputs.close()
     rows, summary_csv = _write_summary(scans, out_dir)
     verdicts = [r.get("verdict") for r in rows]
-    return BatchSummary(total=len(scans), skipped=len(scans) - len(todo), passed=verdicts.count("pass"),
-                        failed=verdicts.count("fail"), errors=verdicts.count("error"),
-                        incomplete=verdicts.count("incomplete"),
+    counts = verdict_counts(verdicts)
+    return BatchSummary(total=len(scans), skipped=len(scans) - len(todo), passed=counts["pass"],
+                        failed=counts["fail"], errors=counts["error"],
+                        incomplete=counts["incomplete"], counts=counts,
                         seconds=time.perf_counter() - t0, summary_csv=summary_csv,
                         internal_errors=sum(bool(r.get("internal_error")) for r in rows))

@@ -32,6 +32,7 @@ from shapeverify.cli_start import CAD_SUFFIXES as _CAD_SUFFIXES
 from shapeverify.cli_start import early_importer as _early_importer
 from shapeverify.cli_start import is_prepared as _is_prepared
 from shapeverify.cli_text import Table, format_limits, readable_help, sig3
+from shapeverify.verdict_table import VERDICT_TABLE, verdict_style  # a leaf: no numpy
 
 # usage errors (a missing argument, an unknown option) and exits are not bugs.  typer >= 0.2x
 # vendors its own click (typer._click, and click is no longer installed with it), older typer
@@ -75,14 +76,14 @@ app = typer.Typer(
 console = Console(stderr=True)
 out = Console()
 
-EXIT_PASS, EXIT_FAIL, EXIT_ERROR, EXIT_INCOMPLETE = 0, 1, 2, 3
+EXIT_PASS, EXIT_FAIL, EXIT_ERROR, EXIT_INCOMPLETE = (VERDICT_TABLE[v].exit_code for v in
+                                                     ("pass", "fail", "error", "incomplete"))
 # one option, one default (shapeverify.inspection.default_evaluation_distance), for inspect and batch
 _EVALUATION_DISTANCE = typer.Option(
     None, "--evaluation-distance", "--max-distance",
     help="Scan points farther than this from the CAD are not evaluated [mm] "
          "(default: max(5 x the tolerance, min(1 mm, 5 % of the model size)))")
-VERDICT_EXIT = {"pass": EXIT_PASS, "fail": EXIT_FAIL, "error": EXIT_ERROR,
-                "incomplete": EXIT_INCOMPLETE}
+VERDICT_EXIT = {str(v): row.exit_code for v, row in VERDICT_TABLE.items()}
 
 
 def _setup_logging(verbose: bool) -> None:
@@ -398,7 +399,7 @@ def inspect(
             out.print(f"{label}: {path}")
     if outputs.record_id is not None:
         out.print(f"history record {outputs.record_id} in {db}")
-    raise typer.Exit(VERDICT_EXIT.get(result.verdict, EXIT_ERROR))
+    raise typer.Exit(verdict_style(result.verdict).exit_code)
 
 
 def _check_scan_suffix(model: Path, scan: Path) -> None:
@@ -447,8 +448,9 @@ def _read_init(path: Path):
 
 def _print_result(result) -> None:
     d = result.to_dict()
-    colour = {"pass": "green", "fail": "red", "incomplete": "magenta"}.get(result.verdict, "yellow")
-    out.print(f"[bold {colour}]verdict: {result.verdict.upper()}[/bold {colour}]")
+    style = verdict_style(result.verdict)
+    colour = style.terminal
+    out.print(f"[bold {colour}]verdict: {style.word}[/bold {colour}]")
     for reason in d.get("reasons", []) or []:
         out.print(f"  {escape(reason)}")
     reg = d.get("registration", {})

@@ -10,6 +10,8 @@ from typing import List, Optional
 
 import typer
 
+from shapeverify.verdict_table import VERDICT_TABLE, most_severe
+
 
 def register_commands(app: typer.Typer) -> None:
     """Add ``serve`` and ``batch`` to ``app``."""
@@ -86,5 +88,5 @@ def register_commands(app: typer.Typer) -> None:
         _cli.out.print(f"{s.total} scans ({s.skipped} already done): {s.passed} pass, {s.failed} fail, "
                   f"{s.incomplete} incomplete, {s.errors} error; {s.scans_per_minute:.1f} scans/min; "
                   f"summary: {s.summary_csv}; Dask's log: {Path(out_dir) / 'dask.log'}")
-        raise typer.Exit(_cli.EXIT_ERROR if s.errors else _cli.EXIT_FAIL if s.failed else
-                         _cli.EXIT_INCOMPLETE if s.incomplete else _cli.EXIT_PASS)
+        worst = most_severe(v for v, n in s.counts.items() if n)
+        raise typer.Exit(_cli.EXIT_PASS if worst is None else VERDICT_TABLE[worst].exit_code)

@@ -19,14 +19,22 @@ from pathlib import Path
 
 import numpy as np
 
+from ..verdict_table import verdict_style
+
 __all__ = ["write_pdf_report", "band_edges", "BAND_COLOURS"]
 
 logger = logging.getLogger(__name__)
 
 #: band colours from most negative to most positive (7 bands)
 BAND_COLOURS = ("#5b2a86", "#2166ac", "#67c5e0", "#3a9e4f", "#f2d43d", "#f08a24", "#b3261e")
-_VERDICT = {"pass": "#1b7f3b", "fail": "#b3261e", "undecided": "#a15c00", "incomplete": "#a15c00",
-            "error": "#7a1010"}
+#: colour of a characteristic's own verdict that is not an inspection verdict (ISO 14253-1)
+_UNDECIDED = "#a15c00"
+
+
+def _colour(verdict) -> str:
+    """Colour of an inspection's or a characteristic's verdict (the inspection's from
+    :data:`shapeverify.verdict_table.VERDICT_TABLE`)."""
+    return _UNDECIDED if verdict == "undecided" else verdict_style(verdict).colour
 
 
 def band_edges(b: float) -> np.ndarray:
@@ -134,8 +142,8 @@ def write_pdf_report(result, path, prep=None, *, part: str | None = None,
         fig = Figure(figsize=(8.27, 11.69))
         v = result.verdict
         fig.text(0.06, 0.965, "Inspection report", fontsize=17, weight="bold", va="top")
-        fig.text(0.94, 0.965, v.upper(), fontsize=17, weight="bold", va="top", ha="right",
-                 color=_VERDICT.get(v, "black"))
+        fig.text(0.94, 0.965, verdict_style(v).word, fontsize=17, weight="bold", va="top", ha="right",
+                 color=_colour(v))
         al = result.alignment
         head = [("part", part), ("scan file", scan_file or "-"), ("model", model_file or "-"),
                 ("date", stamp), ("alignment", f"{al.kind} (rms {al.rms:.4f} mm; fitted "
@@ -166,7 +174,7 @@ def write_pdf_report(result, path, prep=None, *, part: str | None = None,
                 L = 0.08 * span * float(np.clip(c.measured / max(b, 1e-12), -3, 3))
                 end = q2[:2] + L * (n2[:2] / max(np.linalg.norm(n2[:2]), 1e-9)) \
                     if np.linalg.norm(n2[:2]) > 1e-3 else q2[:2] + [0, L]
-                col = _VERDICT.get(c.verdict, "black")
+                col = _colour(c.verdict)
                 ax.plot([q2[0], end[0]], [q2[1], end[1]], color=col, lw=2)
                 ax.plot(*q2[:2], "o", color=col, ms=3)
                 ax.annotate(f"{c.name} {c.measured:+.3f}", end, fontsize=7, color=col)
@@ -211,7 +219,7 @@ def write_pdf_report(result, path, prep=None, *, part: str | None = None,
         for c in result.characteristics:
             rows.append([c.name, c.type, _fmt(c.nominal), _fmt(c.measured), _fmt(c.deviation),
                          _fmt(c.lower), _fmt(c.upper), _fmt(c.uncertainty, 3), c.verdict])
-            colours.append(_VERDICT.get(c.verdict, "black"))
+            colours.append(_colour(c.verdict))
         tx = fig.add_axes([0.03, 0.05, 0.94, 0.84])
         tx.axis("off")
         if rows:

@@ -24,12 +24,13 @@ import numpy as np
 
 from ..registration._features import truncated_fit
 from ..registration.rigid import rotation_vector
+from .verdict import SYMMETRIC_COPY_SHARE, symmetric_copy_applies, symmetric_copy_fits_alike
 
 __all__ = ["resolve", "SHARE"]
 
 #: the two poses fit alike when the worse fit is at least this share of the better one (the
-#: registration's own rule for "another start fits nearly as well")
-SHARE = 0.97
+#: rule itself is :func:`shapeverify.inspection.verdict.symmetric_copy_fits_alike`)
+SHARE = SYMMETRIC_COPY_SHARE
 
 
 def _fit(result, tau: float) -> float:
@@ -49,15 +50,15 @@ def _angle_shift(T1: np.ndarray, T2: np.ndarray, scan: np.ndarray) -> tuple[floa
 def resolve(result, other, scan: np.ndarray):
     """The inspection at an alternative pose (``other``) when it fits the scan alike and passes
     the part that ``result`` (at the registration's pose) fails; else ``result`` (module
-    docstring)."""
-    if str(result.verdict) != "fail" or str(other.verdict) != "pass":
+    docstring); the rule (9) is :mod:`.verdict`'s, the fits are computed here."""
+    if not symmetric_copy_applies(result.verdict, other.verdict):
         return result
     s1, s2 = result.registration.scale, other.registration.scale
     if not (np.isfinite(s1) and np.isfinite(s2) and min(s1, s2) > 0):
         return result
     tau = 3.0 * min(s1, s2)
     f1, f2 = _fit(result, tau), _fit(other, tau)
-    if f2 < SHARE * f1:
+    if not symmetric_copy_fits_alike(f1, f2):
         return result                    # the first pose fits clearly better: it is the part's
     ang, shift = _angle_shift(np.asarray(result.registration.T_model_scan, float),
                               np.asarray(other.registration.T_model_scan, float), scan)

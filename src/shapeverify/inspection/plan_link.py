@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .result import InspectionResult
+from .verdict import with_characteristics_rule
 
 __all__ = ["PlanPose", "with_characteristics", "registration_alignment", "plan_result_of"]
 
@@ -71,31 +72,14 @@ class PlanPose:
 
 
 def with_characteristics(result: InspectionResult, plan_result) -> InspectionResult:
-    """The inspection's verdict combined with the plan's characteristics: a failing one fails a
-    passing part (rule ``characteristics``), an undecided one (ISO 14253-1) makes it
-    ``incomplete`` (rule ``undecided``); error and incomplete verdicts stand."""
+    """The inspection's verdict combined with the plan's characteristics (the rule is
+    :func:`shapeverify.inspection.verdict.with_characteristics_rule`, rule 8: a failing one
+    fails a passing part, an undecided one makes it ``incomplete``)."""
     chars = tuple(plan_result.characteristics)
     failed = [c.name for c in chars if c.verdict == "fail"]
     undecided = [c.name for c in chars if c.verdict == "undecided"]
-    verdict, rule, reasons = result.verdict, result.rule, list(result.reasons)
-    lines = []
-    if failed:
-        lines.append(f"characteristic{'s' if len(failed) > 1 else ''} out of tolerance: "
-                     f"{', '.join(failed)}")
-    if undecided:
-        lines.append(f"characteristic{'s' if len(undecided) > 1 else ''} that cannot be decided "
-                     f"within the measurement uncertainty (ISO 14253-1): {', '.join(undecided)}")
-    if verdict in ("pass", "fail") and failed:
-        if verdict == "pass":
-            verdict, rule = "fail", "characteristics"
-            reasons = [f"fail: {lines[0]}"] + lines[1:] + reasons[1:]
-        else:
-            reasons = reasons[:1] + lines + reasons[1:]
-    elif verdict == "pass" and undecided:
-        verdict, rule = "incomplete", "undecided"
-        reasons = [f"incomplete: {lines[0]}"] + reasons[1:]
-    else:
-        reasons = reasons[:1] + lines + reasons[1:]
+    verdict, rule, reasons = with_characteristics_rule(result.verdict, result.rule,
+                                                       result.reasons, failed, undecided)
     return dataclasses.replace(result, verdict=verdict, rule=rule, reasons=tuple(reasons),
                                characteristics=chars, plan=plan_result)
 

@@ -33,7 +33,21 @@ the result's ``rule``:
 7. ``pass`` (rule ``within_tolerance``) otherwise. Isolated out-of-tolerance points (measurement
    outliers) are counted and reported but do not fail the part.
 
-Exit codes of ``shapeverify inspect``: 0 pass, 1 fail, 2 error, 3 incomplete.
+Rules 1-7 are the functions of :data:`RULES`, in order (a new rule is one function put in its
+place there).  Two rules act on the result of rules 1-7:
+
+8. with an inspection plan (:mod:`shapeverify.characteristics`): a failing characteristic fails
+   a passing part (rule ``characteristics``), an undecided one makes it ``incomplete`` (rule
+   ``undecided``); error and incomplete stand (:func:`with_characteristics_rule`; applied by
+   :func:`shapeverify.inspection.plan_link.with_characteristics`);
+9. a near-symmetric copy: a part failed at the registration's pose passes when an alternative
+   pose fits the scan alike and passes it (:func:`symmetric_copy_applies`,
+   :func:`symmetric_copy_fits_alike`; the fits are computed in :mod:`.ambiguity`).
+
+Every verdict value has one row in :data:`VERDICT_TABLE` (exit code, report colour, word,
+terminal colour, severity): the CLI's exit codes, the HTML, PNG and PDF reports, the history's
+SQL CHECK and batch's counts read it.  Exit codes of ``shapeverify inspect``: 0 pass, 1 fail,
+2 error, 3 incomplete.
 
 References
 ----------
@@ -43,7 +57,6 @@ surfaces, here ``lower <= deviation <= upper`` along the CAD normal).
 
 from __future__ import annotations
 
-import enum
 import math
 from dataclasses import dataclass
 from typing import Mapping
@@ -51,20 +64,14 @@ from typing import Mapping
 import numpy as np
 
 __all__ = ["Tolerance", "Statistics", "statistics", "per_face_statistics", "decide",
-           "Verdict", "VERDICTS", "MIN_INLIER_FRACTION", "MAX_NOISE_SHARE", "MAX_OUTLIER_SHARE"]
+           "Verdict", "VERDICTS", "VERDICT_TABLE", "VerdictStyle", "verdict_style", "most_severe",
+           "RULES", "with_characteristics_rule", "symmetric_copy_applies",
+           "symmetric_copy_fits_alike", "SYMMETRIC_COPY_SHARE", "MIN_INLIER_FRACTION", "MAX_NOISE_SHARE", "MAX_OUTLIER_SHARE"]
 
 
-class Verdict(enum.StrEnum):
-    """The outcome of an inspection.  A ``str`` enum: ``Verdict.PASS == "pass"``, and it prints,
-    formats and serialises (JSON, SQLite) as its plain value."""
+from ..verdict_table import (VERDICT_TABLE, VERDICTS, Verdict, VerdictStyle, most_severe,
+                             verdict_style)
 
-    PASS = "pass"
-    FAIL = "fail"
-    ERROR = "error"
-    INCOMPLETE = "incomplete"
-
-
-VERDICTS = tuple(v.value for v in Verdict)
 #: Default least inlier fraction of the registration.
 MIN_INLIER_FRACTION = 0.25
 #: Largest scan noise sigma, as a share of the tolerance zone's half width, that can pass a part
@@ -305,10 +312,127 @@ def per_face_statistics(values: np.ndarray, face: np.ndarray, within: np.ndarray
     return out
 
 
+@dataclass(frozen=True)
+class _Facts:
+    """What the inspection rules of :func:`decide` read (one object: a rule is one function)."""
+
+    registration: object
+    deviations: object
+    regions: tuple
+    coverage: object
+    min_inlier_fraction: float
+    noise: float | None
+    tolerance: object
+    n_outliers: int
+    errors: tuple           # the registration's problems (rules 2 and 4), in words
+
+    @property
+    def listed(self) -> list[str]:
+        listed = [f"region {i + 1}: {r.describe()}" for i, r in enumerate(self.regions[:5])]
+        if len(self.regions) > 5:
+            listed.append(f"... and {len(self.regions) - 5} more regions")
+        return listed
+
+
+def _registration_errors(registration, min_inlier_fraction: float) -> tuple[str, ...]:
+    errors = []
+    if registration is not None:
+        if not bool(registration.converged):
+            msg = getattr(registration, "message", "") or ""
+            errors.append(f"registration did not converge after {registration.iterations} iterations"
+                          + (f" ({msg})" if msg else ""))
+        inl = float(registration.inlier_fraction)
+        if not inl >= min_inlier_fraction:
+            errors.append(f"registration inlier fraction {100 * inl:.1f} % is below the required "
+                          f"{100 * min_inlier_fraction:.0f} % (scan does not match the model)")
+    return tuple(errors)
+
+
+def _rule_no_data(f: _Facts):
+    dev = f.deviations
+    if dev.n_evaluated == 0:
+        return Verdict.ERROR, (f"no scan point lies within {dev.max_distance:g} mm (the evaluation "
+                               f"distance) of the inspected CAD faces ({dev.n_too_far} of {dev.n} too "
+                               f"far, {dev.n_on_boundary} past the CAD's edges); is this the right "
+                               "scan and model?",) + f.errors, "no_data"
+    return None
+
+
+def _rule_does_not_fit(f: _Facts):
+    reg, dev = f.registration, f.deviations
+    scale = float(getattr(reg, "scale", float("nan"))) if reg is not None else float("nan")
+    if f.errors and not bool(reg.converged) and scale > dev.max_distance:
+        # not a patch too small to fix the pose: the scan fits the model at no pose found
+        return Verdict.ERROR, (f"the scan does not fit the model: at the best pose found its "
+                               f"robust residual scale is {scale:.3g} mm, more than the "
+                               f"evaluation distance {dev.max_distance:g} mm (a wrong "
+                               "part, a wrong scan or wrong units?)",) + f.errors, \
+            "registration"
+    return None
+
+
+def _rule_coverage(f: _Facts):
+    coverage, regions = f.coverage, f.regions
+    if coverage is None or coverage.sufficient:
+        return None
+    why = (f"incomplete: only {100 * coverage.fraction:.1f} % of the inspected CAD area "
+           f"({coverage.covered_area:.0f} of {coverage.area:.0f} mm²) has evaluated scan points; "
+           f"at least {100 * coverage.min_coverage:.0f} % must be seen to pass or fail the part")
+    gap = coverage.describe_gap()
+    reasons = [why] + ([gap] if gap else []) + list(f.errors)
+    if regions:
+        reasons.append(f"{len(regions)} region{'s' if len(regions) > 1 else ''} out of tolerance "
+                       "in the part that was seen:")
+        reasons += f.listed
+    return Verdict.INCOMPLETE, tuple(reasons), "coverage"
+
+
+def _rule_registration(f: _Facts):
+    return (Verdict.ERROR, f.errors, "registration") if f.errors else None
+
+
+def _rule_regions(f: _Facts):
+    regions = f.regions
+    if not regions:
+        return None
+    n_mat = sum(1 for r in regions if getattr(r, "kind", "deviation") == "material")
+    n_mis = sum(1 for r in regions if getattr(r, "kind", "deviation") == "missing")
+    n_dev = len(regions) - n_mat - n_mis
+    parts = ([f"{n_dev} out-of-tolerance region{'s' if n_dev != 1 else ''}"] if n_dev else []) + \
+            ([f"{n_mat} region{'s' if n_mat != 1 else ''} of material the CAD does not have"]
+             if n_mat else []) + \
+            ([f"{n_mis} region{'s' if n_mis != 1 else ''} of CAD surface the scan sees "
+              "through (material missing)"] if n_mis else [])
+    return Verdict.FAIL, tuple([f"fail: {' and '.join(parts)} (most severe first)"] + f.listed), \
+        "regions"
+
+
+def _rule_undecided(f: _Facts):
+    why = _undecided(f.noise, f.tolerance, f.n_outliers, f.deviations.n_evaluated)
+    return (Verdict.INCOMPLETE, tuple(why), "undecided") if why else None
+
+
+def _rule_within_tolerance(f: _Facts):
+    coverage, n_eval = f.coverage, f.deviations.n_evaluated
+    seen = f"; {100 * coverage.fraction:.1f} % of the inspected area seen" if coverage is not None else ""
+    return Verdict.PASS, (f"pass: all {n_eval} evaluated points are within tolerance except isolated "
+                          f"measurement outliers{seen}",), "within_tolerance"
+
+
+#: The inspection's rules in order (module docstring, rules 1-7): each takes the facts and gives
+#: ``(verdict, reasons, rule)`` or None (does not apply); the first that applies decides.  A new
+#: rule is one function inserted here at its place (e.g. a rule of its own for missing material
+#: would go between ``_rule_registration`` and ``_rule_regions``).
+RULES = (_rule_no_data, _rule_does_not_fit, _rule_coverage, _rule_registration,
+         # slot: a rule for missing material (inspection/missing.py) goes here, before regions
+         _rule_regions, _rule_undecided, _rule_within_tolerance)
+
+
 def decide(registration, deviations, regions, coverage=None, *,
            min_inlier_fraction: float = MIN_INLIER_FRACTION, noise: float | None = None,
            tolerance=None, n_outliers: int = 0) -> tuple[Verdict, tuple[str, ...], str]:
-    """The verdict, its reasons and the rule that decided (see the module docstring).
+    """The verdict, its reasons and the rule that decided (see the module docstring; the rules
+    are :data:`RULES`, in order).
 
     Parameters
     ----------
@@ -333,63 +457,64 @@ def decide(registration, deviations, regions, coverage=None, *,
         Why; the first says which rule decided.
     rule : {'registration', 'no_data', 'coverage', 'regions', 'undecided', 'within_tolerance'}
     """
-    errors = []
-    if registration is not None:
-        if not bool(registration.converged):
-            msg = getattr(registration, "message", "") or ""
-            errors.append(f"registration did not converge after {registration.iterations} iterations"
-                          + (f" ({msg})" if msg else ""))
-        inl = float(registration.inlier_fraction)
-        if not inl >= min_inlier_fraction:
-            errors.append(f"registration inlier fraction {100 * inl:.1f} % is below the required "
-                          f"{100 * min_inlier_fraction:.0f} % (scan does not match the model)")
-    n, n_eval = deviations.n, deviations.n_evaluated
-    if n_eval == 0:
-        return Verdict.ERROR, (f"no scan point lies within {deviations.max_distance:g} mm (the evaluation "
-                         f"distance) of the inspected CAD faces ({deviations.n_too_far} of {n} too "
-                         f"far, {deviations.n_on_boundary} past the CAD's edges); is this the right "
-                         "scan and model?",) + tuple(errors), "no_data"
-    scale = float(getattr(registration, "scale", float("nan"))) if registration is not None \
-        else float("nan")
-    if errors and not bool(registration.converged) and scale > deviations.max_distance:
-        # not a patch too small to fix the pose: the scan fits the model at no pose found
-        return Verdict.ERROR, (f"the scan does not fit the model: at the best pose found its "
-                               f"robust residual scale is {scale:.3g} mm, more than the "
-                               f"evaluation distance {deviations.max_distance:g} mm (a wrong "
-                               "part, a wrong scan or wrong units?)",) + tuple(errors), \
-            "registration"
-    listed = [f"region {i + 1}: {r.describe()}" for i, r in enumerate(regions[:5])]
-    if len(regions) > 5:
-        listed.append(f"... and {len(regions) - 5} more regions")
-    if coverage is not None and not coverage.sufficient:
-        why = (f"incomplete: only {100 * coverage.fraction:.1f} % of the inspected CAD area "
-               f"({coverage.covered_area:.0f} of {coverage.area:.0f} mm²) has evaluated scan points; "
-               f"at least {100 * coverage.min_coverage:.0f} % must be seen to pass or fail the part")
-        gap = coverage.describe_gap()
-        reasons = [why] + ([gap] if gap else []) + errors
-        if regions:
-            reasons.append(f"{len(regions)} region{'s' if len(regions) > 1 else ''} out of tolerance "
-                           "in the part that was seen:")
-            reasons += listed
-        return Verdict.INCOMPLETE, tuple(reasons), "coverage"
-    if errors:
-        return Verdict.ERROR, tuple(errors), "registration"
-    if regions:
-        n_mat = sum(1 for r in regions if getattr(r, "kind", "deviation") == "material")
-        n_mis = sum(1 for r in regions if getattr(r, "kind", "deviation") == "missing")
-        n_dev = len(regions) - n_mat - n_mis
-        parts = ([f"{n_dev} out-of-tolerance region{'s' if n_dev != 1 else ''}"] if n_dev else []) + \
-                ([f"{n_mat} region{'s' if n_mat != 1 else ''} of material the CAD does not have"]
-                 if n_mat else []) + \
-                ([f"{n_mis} region{'s' if n_mis != 1 else ''} of CAD surface the scan sees "
-                  "through (material missing)"] if n_mis else [])
-        return Verdict.FAIL, tuple([f"fail: {' and '.join(parts)} (most severe first)"] + listed), "regions"
-    why = _undecided(noise, tolerance, n_outliers, n_eval)
-    if why:
-        return Verdict.INCOMPLETE, tuple(why), "undecided"
-    seen = f"; {100 * coverage.fraction:.1f} % of the inspected area seen" if coverage is not None else ""
-    return Verdict.PASS, (f"pass: all {n_eval} evaluated points are within tolerance except isolated "
-                    f"measurement outliers{seen}",), "within_tolerance"
+    facts = _Facts(registration, deviations, tuple(regions), coverage, min_inlier_fraction,
+                   noise, tolerance, n_outliers,
+                   _registration_errors(registration, min_inlier_fraction))
+    for rule in RULES:
+        decision = rule(facts)
+        if decision is not None:
+            return decision
+    raise AssertionError("the last rule (within_tolerance) always applies")   # pragma: no cover
+
+
+def with_characteristics_rule(verdict, rule: str, reasons, failed, undecided):
+    """Rule 8, the plan's: the inspection's verdict combined with its characteristics' (names of
+    the failed and the undecided ones).  A failing characteristic fails a passing part (rule
+    ``characteristics``), an undecided one (ISO 14253-1) makes it ``incomplete`` (rule
+    ``undecided``); error and incomplete verdicts stand.
+
+    Returns
+    -------
+    verdict, rule, reasons : Verdict, str, tuple of str
+    """
+    reasons = list(reasons)
+    lines = []
+    if failed:
+        lines.append(f"characteristic{'s' if len(failed) > 1 else ''} out of tolerance: "
+                     f"{', '.join(failed)}")
+    if undecided:
+        lines.append(f"characteristic{'s' if len(undecided) > 1 else ''} that cannot be decided "
+                     f"within the measurement uncertainty (ISO 14253-1): {', '.join(undecided)}")
+    if verdict in (Verdict.PASS, Verdict.FAIL) and failed:
+        if verdict == Verdict.PASS:
+            verdict, rule = Verdict.FAIL, "characteristics"
+            reasons = [f"fail: {lines[0]}"] + lines[1:] + reasons[1:]
+        else:
+            reasons = reasons[:1] + lines + reasons[1:]
+    elif verdict == Verdict.PASS and undecided:
+        verdict, rule = Verdict.INCOMPLETE, "undecided"
+        reasons = [f"incomplete: {lines[0]}"] + reasons[1:]
+    else:
+        reasons = reasons[:1] + lines + reasons[1:]
+    return verdict, rule, tuple(reasons)
+
+
+#: Rule 9: two poses fit the scan alike when the worse fit is at least this share of the better
+#: one (the registration's own rule for "another start fits nearly as well").
+SYMMETRIC_COPY_SHARE = 0.97
+
+
+def symmetric_copy_applies(first, other) -> bool:
+    """Rule 9, the symmetric copy's, first part: may an inspection at an alternative pose
+    (``other``, its verdict) replace the first (``first``)?  Only a failed part that the
+    alternative passes (then :func:`symmetric_copy_fits_alike` decides)."""
+    return str(first) == Verdict.FAIL and str(other) == Verdict.PASS
+
+
+def symmetric_copy_fits_alike(fit_first: float, fit_other: float) -> bool:
+    """Rule 9, second part: the alternative's fit of the scan (:mod:`.ambiguity` computes it) is
+    at least :data:`SYMMETRIC_COPY_SHARE` of the first pose's: its pass is the result."""
+    return not fit_other < SYMMETRIC_COPY_SHARE * fit_first
 
 
 def _undecided(noise, tolerance, n_outliers: int, n_eval: int) -> list[str]:

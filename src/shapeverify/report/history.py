@@ -38,6 +38,8 @@ from pathlib import Path
 
 import numpy as np
 
+from ..verdict_table import VERDICT_TABLE
+
 logger = logging.getLogger(__name__)
 
 __all__ = ["HistoryDB", "plot_trend", "control_limits", "STAT_COLUMNS"]
@@ -51,13 +53,17 @@ _V2_COLUMNS = ("id", "part", "time", "model_hash", "verdict") + STAT_COLUMNS + (
 _ROW_COLUMNS = ("id", "part", "time", "model_hash", "verdict") + STAT_COLUMNS + (
     "n_regions",) + EXTRA_COLUMNS
 
-_SCHEMA = f"""
+
+def _schema() -> str:
+    """The table's SQL; its CHECK lists the verdicts of :data:`~shapeverify.verdict_table.VERDICT_TABLE`."""
+    verdicts = ", ".join(f"'{v}'" for v in VERDICT_TABLE)
+    return f"""
 CREATE TABLE IF NOT EXISTS inspections (
     id INTEGER PRIMARY KEY AUTOINCREMENT,
     part TEXT,
     time TEXT NOT NULL,
     model_hash TEXT,
-    verdict TEXT NOT NULL CHECK (verdict IN ('pass', 'fail', 'error', 'incomplete')),
+    verdict TEXT NOT NULL CHECK (verdict IN ({verdicts})),
     {", ".join(f"{c} {'INTEGER' if c == 'n' else 'REAL'}" for c in STAT_COLUMNS)},
     n_regions INTEGER,
     transform TEXT NOT NULL,
@@ -170,7 +176,7 @@ class HistoryDB:
     def _create(self) -> None:
         """The table and indexes if missing (statement by statement: ``executescript`` would
         commit the open transaction)."""
-        for stmt in _SCHEMA.split(";"):
+        for stmt in _schema().split(";"):
             if stmt.strip():
                 self._con.execute(stmt)
 

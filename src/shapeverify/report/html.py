@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..verdict_table import verdict_style
 from .colours import CMAP, color_limit
 from .ply import check_scan_length
 
@@ -29,7 +30,6 @@ logger = logging.getLogger(__name__)
 
 __all__ = ["html_report", "write_html_report", "render_html", "cad_mesh"]
 
-_VERDICT_COLOURS = {"pass": "#1b7f3b", "fail": "#b3261e", "error": "#a15c00", "incomplete": "#6a3d9a"}
 _MAX_TRIANGLES = 120_000
 _MAX_NOT_EVALUATED = 10_000
 #: points drawn in the 3D view by default: keeps the report of a 40,000-point scan under 3 MB
@@ -276,7 +276,7 @@ def render_html(result, model=None, *, max_points: int = MAX_POINTS, title: str 
     verdict = result.verdict
     reasons = "".join(f"<li>{html.escape(r)}</li>" for r in result.reasons)
     source = html.escape(str(getattr(model, "source", "") or ""))
-    title = title or f"Shape inspection: {verdict.upper()}"
+    title = title or f"Shape inspection: {verdict_style(verdict).word}"
     s = d["deviation"]
     stats_rows = [
         ("evaluated points", _fmt(s["n"])), ("mean [mm]", _fmt(s["mean"], signed=True)),
@@ -383,8 +383,8 @@ def render_html(result, model=None, *, max_points: int = MAX_POINTS, title: str 
 <title>{html.escape(title)}</title><style>{_CSS}</style>
 {_plotly_loader()}</head>
 <body><main>
-<div class="banner" id="verdict" style="background:{_VERDICT_COLOURS.get(verdict, '#555')}">
-<h1>{html.escape(verdict.upper())}</h1>
+<div class="banner" id="verdict" style="background:{verdict_style(verdict).colour}">
+<h1>{html.escape(verdict_style(verdict).word)}</h1>
 <div>part {html.escape(str(inp.get('part') or '–'))} · scan {html.escape(str(inp.get('scan') or '–'))} ·
 tolerance {html.escape(tol_text)} · {_fmt(s['n'])} evaluated points · rule {html.escape(str(dec.get('rule') or '–'))} · all lengths in mm</div>
 {f'<ul>{reasons}</ul>' if reasons else ''}</div>

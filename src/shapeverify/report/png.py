@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..verdict_table import verdict_style
 from .colours import CMAP, color_limit
 from .ply import check_scan_length
 from .quantities import area_text, length_text
@@ -22,7 +23,6 @@ logger = logging.getLogger(__name__)
 
 __all__ = ["png_summary", "summary_figure", "write_png_summary"]
 
-_VERDICT_COLOURS = {"pass": "#1b7f3b", "fail": "#b3261e", "error": "#a15c00", "incomplete": "#6a3d9a"}
 
 
 _AXES = ("x", "y", "z")
@@ -137,14 +137,14 @@ def summary_figure(result, scan=None, *, max_points: int = 20_000, dpi: int = 11
     FigureCanvasAgg(fig)
     gs = fig.add_gridspec(3, 3, height_ratios=[0.5, 2.4, 1.5], width_ratios=[1, 1, 0.75],
                           hspace=0.3, wspace=0.18, left=0.06, right=0.98, top=0.97, bottom=0.07)
-    colour = _VERDICT_COLOURS.get(result.verdict, "#555555")
+    colour = verdict_style(result.verdict).colour
     ax = fig.add_subplot(gs[0, :])
     ax.set_axis_off()
     ax.add_patch(Rectangle((0, 0), 1, 1, transform=ax.transAxes, color=colour))
     tol_text = (f"±{tol.upper:.4g} mm" if tol.lower == -tol.upper
                 else f"[{tol.lower:+.4g}, {tol.upper:+.4g}] mm")
     fits = []                      # (text, its box in axes fractions of `in_axes`, in_axes)
-    fits.append((ax.text(0.015, 0.62, result.verdict.upper(), color="white", fontsize=26,
+    fits.append((ax.text(0.015, 0.62, verdict_style(result.verdict).word, color="white", fontsize=26,
                          weight="bold", va="center", transform=ax.transAxes),
                  (0.005, 0.0, 0.165, 1.0), ax))
     reason = result.reasons[0] if result.reasons else "all deviations within tolerance"
