@@ -32,6 +32,7 @@ from shapeverify.cli_start import CAD_SUFFIXES as _CAD_SUFFIXES
 from shapeverify.cli_start import early_importer as _early_importer
 from shapeverify.cli_start import is_prepared as _is_prepared
 from shapeverify.cli_text import Table, format_limits, readable_help, sig3
+from shapeverify.io.formats import scan_help  # the scan format registry (no numpy)
 from shapeverify.verdict_table import VERDICT_TABLE, verdict_style  # a leaf: no numpy
 
 # usage errors (a missing argument, an unknown option) and exits are not bugs.  typer >= 0.2x
@@ -340,7 +341,7 @@ def prepare(
 @app.command()
 def inspect(
     model: Path = typer.Argument(..., help="Prepared model (.svm, fastest) or CAD/mesh file"),
-    scans: List[Path] = typer.Argument(..., metavar="SCAN...", help="Scan: .ply .xyz .txt .csv .npy .pcd .e57 .las .laz .stl .obj (mm; .e57 files are metres, converted). Several scans (or an E57 file with several) are views of one part: each is placed, the union inspected"),
+    scans: List[Path] = typer.Argument(..., metavar="SCAN...", help=f"Scan: {scan_help()}. Several scans (or an E57 file with several) are views of one part: each is placed, the union inspected"),
     tolerance: Optional[float] = typer.Option(None, help="Symmetric tolerance ±MM"),
     lower: Optional[float] = typer.Option(None, help="Lower limit [mm] (negative: into the material)"),
     upper: Optional[float] = typer.Option(None, help="Upper limit [mm]"),

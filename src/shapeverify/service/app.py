@@ -48,20 +48,19 @@ from fastapi.responses import HTMLResponse, JSONResponse
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 
 from shapeverify.errors import ShapeVerifyError
+from shapeverify.service.body import SCAN_TYPES, SUPPORTED
 from shapeverify.service.jobs import Runner
 from shapeverify.service.work import Work
 
 log = logging.getLogger(__name__)
 
-_SCAN_TYPES = ["application/octet-stream", "application/x-npy", "application/ply", "model/ply",
-               "application/x-pcd", "application/x-e57", "application/vnd.las",
-               "application/vnd.laszip", "text/plain", "text/csv", "text/x-xyz"]
+_SCAN_TYPES = SCAN_TYPES     # the scan format registry's (shapeverify.io.formats)
 _ERRORS = {
     401: "missing or wrong token (only when the service runs with --token)",
     404: "unknown model or record",
     408: "the upload did not arrive within the time limit",
     413: "body larger than the limit (--max-body-mb)",
-    415: "not a supported scan format (PLY, NPY, PCD, E57, LAS/LAZ, XYZ/CSV text)",
+    415: f"not a supported scan format; send {SUPPORTED}",
     422: "malformed, empty or NaN-only scan; bad query parameters; a scan that cannot be inspected",
     504: "the inspection did not finish within the time limit (--time-limit); nothing was stored",
     507: "the server's disk is full: nothing was stored and no temporary file is left; free "
@@ -207,8 +206,8 @@ def _inspect_route(app: FastAPI, config: ServiceConfig, runner: Runner, work: Wo
 
     @app.post(
         "/inspect", dependencies=auth, responses=_responses(401, 404, 408, 413, 415, 422, 504, 507),
-        openapi_extra={"requestBody": {"required": True, "description": "The scan points (mm): PLY "
-                       "(ascii or binary), .npy, PCD or XYZ/CSV text. Without a content type (or "
+        openapi_extra={"requestBody": {"required": True, "description": f"The scan points (mm): {SUPPORTED}. "
+                       "Without a content type (or "
                        "with application/octet-stream or text/plain) the first bytes decide.",
                        "content": {t: {"schema": {"type": "string", "format": "binary"}} for t in _SCAN_TYPES}}})
     async def inspect_scan(

@@ -9,34 +9,29 @@ from __future__ import annotations
 import numpy as np
 
 from shapeverify.errors import ScanError, UnsupportedFormatError
+from shapeverify.io.formats import SCAN_CONTENT_TYPES, scan_families, sniff_scan
+from shapeverify.io.formats import scan_format as _by_suffix
 
-# content type -> file suffix understood by shapeverify.io.points.read_points
-_CONTENT_TYPES = {
-    "application/x-npy": ".npy",
-    "application/npy": ".npy",
-    "application/ply": ".ply",
-    "model/ply": ".ply",
-    "application/x-ply": ".ply",
-    "text/x-xyz": ".xyz",
-    "text/csv": ".csv",
-    "application/x-pcd": ".pcd",
-    "application/x-e57": ".e57",
-    "application/vnd.las": ".las",
-    "application/vnd.laszip": ".laz",
-}
-SUPPORTED = "PLY (ascii or binary), NPY, PCD, E57, LAS/LAZ, or XYZ/CSV text"
-# content types that say nothing about the format: the first bytes decide
-# (curl --data-binary sends application/x-www-form-urlencoded unless told otherwise)
+#: What the service accepts, in words (the 415 answers): every format of the registry.
+SUPPORTED = "a scan file: " + ", ".join(f"{family} ({' '.join(suffixes)})"
+                                         for family, suffixes in scan_families().items())
+#: content types that say nothing about the format: the first bytes decide
+#: (curl --data-binary sends application/x-www-form-urlencoded unless told otherwise)
 _SNIFFED_TYPES = ("text/plain", "application/octet-stream", "application/x-www-form-urlencoded")
+#: Every content type ``POST /inspect`` documents: the registry's and the sniffed ones.
+SCAN_TYPES = ["application/octet-stream", *SCAN_CONTENT_TYPES, "text/plain"]
 
 
 def sniff_suffix(body: bytes, content_type: str | None = None) -> str:
     """Return the file suffix for ``body``.
 
-    An explicit, known content type wins; ``application/octet-stream``, ``text/plain``,
-    ``application/x-www-form-urlencoded`` (curl's default) and a missing type fall back to
-    sniffing the first bytes. A text body with numbers (or NaN/inf) is an XYZ/CSV table, so that a
-    NaN-only table is reported as a bad scan (422), not as an unknown format.
+    An explicit content type of a registered format wins
+    (:data:`shapeverify.io.formats.SCAN_CONTENT_TYPES`); ``application/octet-stream``,
+    ``text/plain``, ``application/x-www-form-urlencoded`` (curl's default) and a missing type
+    fall back to the registry's sniffing of the first bytes
+    (:func:`shapeverify.io.formats.sniff_scan`). A text body with numbers (or NaN/inf) is an
+    XYZ/CSV table, so that a NaN-only table is reported as a bad scan (422), not as an unknown
+    format.
 
     Raises
     ------
@@ -44,22 +39,17 @@ def sniff_suffix(body: bytes, content_type: str | None = None) -> str:
         When the body is none of the supported formats.
     """
     ctype = (content_type or "").split(";")[0].strip().lower()
-    if ctype in _CONTENT_TYPES:
-        return _CONTENT_TYPES[ctype]
+    if ctype in SCAN_CONTENT_TYPES:
+        return SCAN_CONTENT_TYPES[ctype]
+    fmt = sniff_scan(body)
+    if fmt is not None:
+        return fmt.suffix
     head = body[:512]
-    if head.startswith(b"ply"):
-        return ".ply"
-    if head.startswith(b"\x93NUMPY"):
-        return ".npy"
-    if head.lstrip().startswith((b"# .PCD", b"VERSION", b"FIELDS")):
-        return ".pcd"
-    if head.startswith(b"ASTM-E57"):
-        return ".e57"
-    if head.startswith(b"LASF"):   # LAS or LAZ: laspy tells them apart from the header
-        return ".las"
     if any(b < 32 and b not in b"\t\n\r\f\v" for b in head) or b"\x7f" in head:
+        binary = [fam for fam, sfx in scan_families().items() if _by_suffix(sfx[0]).magic]
         raise UnsupportedFormatError(
-            f"the request body is binary but not PLY, NPY, PCD, E57 or LAS (first bytes {head[:8]!r}); send {SUPPORTED}")
+            f"the request body is binary but not {', '.join(binary)} (first bytes {head[:8]!r}); "
+            f"send {SUPPORTED}")
     text = head.decode("latin-1")
     if ctype.startswith("multipart/"):
         raise UnsupportedFormatError(
