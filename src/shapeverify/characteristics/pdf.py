@@ -19,14 +19,13 @@ from pathlib import Path
 
 import numpy as np
 
+from ..report.colours import BAND_COLOURS  # noqa: F401 (re-exported: the PDF's bands)
 from ..verdict_table import verdict_style
 
 __all__ = ["write_pdf_report", "band_edges", "BAND_COLOURS"]
 
 logger = logging.getLogger(__name__)
 
-#: band colours from most negative to most positive (7 bands)
-BAND_COLOURS = ("#5b2a86", "#2166ac", "#67c5e0", "#3a9e4f", "#f2d43d", "#f08a24", "#b3261e")
 #: colour of a characteristic's own verdict that is not an inspection verdict (ISO 14253-1)
 _UNDECIDED = "#a15c00"
 

@@ -138,9 +138,13 @@ class Prepared:
     max_distance : float          reach of the DVG tree (mm); also :attr:`reach`
     tree : DVGTree
     points : ModelPoints          the model points in the order ``Closest.index`` refers to
-                                  (Morton order, not that of ``model.sample``), rebuilt on each
-                                  access from the compact storage: normals to ~1e-7,
-                                  tangent_u to ~1e-4 rad, (u, v) in float32 precision
+                                  (Morton order, not that of ``model.sample``), assembled from
+                                  the compact storage on first access and kept (the same object
+                                  every time): normals to ~1e-7, tangent_u to ~1e-4 rad, (u, v)
+                                  in float32 precision
+
+    A :class:`~shapeverify.nearest.protocol.ClosestPoints` (what registration and inspection
+    read of it).
     """
 
     def __init__(self, model, fast: _dvg.DVG, rows: np.ndarray, boundary: np.ndarray,

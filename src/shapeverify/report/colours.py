@@ -3,7 +3,8 @@
 One scale for all of them: the diverging ColorBrewer ``RdBu_r`` map centred at 0 (blue: material
 missing, red: material added), clipped at ``2 x`` the largest tolerance limit
 (:func:`color_limit`); points without a deviation (too far from the model, past its outer
-boundary) are grey (:data:`NOT_EVALUATED_RGB`).  Change the colours here.
+boundary) are grey (:data:`NOT_EVALUATED_RGB`).  The PDF report draws 7 bands instead
+(:data:`BAND_COLOURS`).  Change the colours here.
 
 Example
 -------
@@ -16,12 +17,15 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["CMAP", "NOT_EVALUATED_RGB", "color_limit", "deviation_colors"]
+__all__ = ["CMAP", "NOT_EVALUATED_RGB", "BAND_COLOURS", "color_limit", "deviation_colors"]
 
 #: The matplotlib / plotly name of the diverging colour map.
 CMAP = "RdBu_r"
 #: Colour of points without a deviation (too far from the model, past its outer boundary).
 NOT_EVALUATED_RGB = (0.6, 0.6, 0.6)
+#: The PDF report's deviation bands (:mod:`shapeverify.characteristics.pdf`: 7 bands at
+#: ``b * [-2, -1, -0.5, 0.5, 1, 2]``), from most negative to most positive.
+BAND_COLOURS = ("#5b2a86", "#2166ac", "#67c5e0", "#3a9e4f", "#f2d43d", "#f08a24", "#b3261e")
 
 
 def color_limit(tolerance) -> float:
