@@ -131,3 +131,24 @@ def test_registration_contract(closest_points, prep):
     shift = np.sqrt(np.mean(np.sum((X @ T[:3, :3].T + T[:3, 3] - X @ Tt[:3, :3].T - Tt[:3, 3])
                                    ** 2, axis=1)))
     assert shift < 0.02, (name, shift)
+
+
+@pytest.mark.slow
+def test_inspection_contract(closest_points, prep):
+    """The whole inspection through each implementation: a 0.5 mm dent (radius 12 mm) in a
+    scan with 0.02 mm noise fails the part as one region about 0.5 mm deep, the panel fully
+    seen."""
+    import warnings
+
+    import shapeverify as sv
+    from shapeverify.simulate import virtual_scan
+
+    name, impl = closest_points
+    vs = virtual_scan(prep.model, pixel=1.0, noise=0.02, motion=(2.0, 1.5),
+                      dents=[(0.5, 12.0)], rng=4)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = sv.inspect(impl, vs.scan, tolerance=0.2, init=np.eye(4))
+    assert (str(res.verdict), res.rule, len(res.regions)) == ("fail", "regions", 1), name
+    assert abs(res.regions[0].extreme + 0.5) < 0.05, (name, res.regions[0].extreme)
+    assert res.coverage.fraction > 0.95, name

@@ -19,13 +19,11 @@ import math
 
 import numpy as np
 
+# the table itself is a leaf (cad.rescale reads it; this module reads cad.rescale)
+from .unit_table import UNITS, unit_factor
+
 __all__ = ["UNITS", "MIXUPS", "unit_factor", "scale_points", "scale_model", "unit_hint",
            "fitting_factor"]
-
-#: Millimetres per unit, by the names accepted.
-UNITS = {"mm": 1.0, "millimetre": 1.0, "millimeter": 1.0, "cm": 10.0, "centimetre": 10.0,
-         "centimeter": 10.0, "m": 1000.0, "metre": 1000.0, "meter": 1000.0, "in": 25.4,
-         "inch": 25.4, "inches": 25.4, "um": 1e-3, "micrometre": 1e-3, "micrometer": 1e-3}
 
 #: Unit mix-ups: (millimetres per unit, name, short name) of the unit a file is probably in.
 MIXUPS = ((1000.0, "metres", "m"), (25.4, "inches", "in"), (10.0, "centimetres", "cm"),
@@ -40,20 +38,6 @@ def fitting_factor(ratio: float, factors, lo: float, hi: float, target: float):
     fits = [(abs(math.log(ratio * f / target)), f, name, short) for f, name, short in factors
             if lo <= ratio * f <= hi]
     return min(fits) if fits else None
-
-
-def unit_factor(unit: str) -> float:
-    """Millimetres per ``unit`` (``"mm"``, ``"cm"``, ``"m"``, ``"in"``, ``"um"`` and long names).
-
-    Raises
-    ------
-    ValueError
-        For an unknown unit (the message lists the known ones).
-    """
-    key = str(unit).strip().lower()
-    if key not in UNITS:
-        raise ValueError(f"unknown length unit {unit!r}; use one of mm, cm, m, in, um")
-    return UNITS[key]
 
 
 def scale_points(points, unit: str) -> np.ndarray:

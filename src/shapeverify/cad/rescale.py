@@ -24,7 +24,7 @@ logger = logging.getLogger(__name__)
 
 def _factor(declared: str, scale_to_mm: float, unit: str, source: str) -> tuple[float, float]:
     """(mm per ``unit``, the factor to apply to coordinates already in mm)."""
-    from shapeverify.units import unit_factor
+    from shapeverify.unit_table import unit_factor
 
     f = unit_factor(unit)
     if not (math.isfinite(scale_to_mm) and scale_to_mm > 0):

@@ -128,7 +128,7 @@ def in_unit(summary: ModelSummary, unit: str | None, source: str = "the CAD file
     """
     from dataclasses import replace
 
-    from shapeverify.units import unit_factor
+    from shapeverify.unit_table import unit_factor
 
     if unit is None:
         return summary

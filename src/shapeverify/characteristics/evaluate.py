@@ -578,7 +578,7 @@ def evaluate_characteristics(prep, scan, plan, alignment: AlignmentResult, exclu
     (tuple of CharacteristicResult, _Scan, section dict or None)
     """
     plan = load_plan(plan)
-    from ..inspection.inspect import default_evaluation_distance
+    from ..inspection.checks import default_evaluation_distance
 
     md = float(evaluation_distance or plan.max_distance
                or default_evaluation_distance(_largest_tolerance(plan), prep.model.size))
@@ -672,7 +672,7 @@ def evaluate_plan(prep, scan, plan=None, registration=None, init=None, rng=None,
     >>> round(res["H1"].measured["diameter"], 1), res["H1"].verdict
     (12.0, 'pass')
     """
-    from ..inspection.inspect import check_scan
+    from ..inspection.checks import check_scan
 
     t0 = time.perf_counter()
     no_plan = plan is None
@@ -685,7 +685,7 @@ def evaluate_plan(prep, scan, plan=None, registration=None, init=None, rng=None,
     if alignment is not None:
         al = alignment
     elif no_plan and registration is not None and init is None:
-        from ..inspection.plan_link import registration_alignment
+        from .from_registration import registration_alignment
 
         al = registration_alignment(registration)     # the free best fit already made
     else:

@@ -86,29 +86,11 @@ def with_characteristics(result: InspectionResult, plan_result) -> InspectionRes
 
 def registration_alignment(registration):
     """The inspection's registration as an :class:`~shapeverify.characteristics.AlignmentResult`
-    (a free best fit of all faces: every degree of freedom fitted, none locked).
+    (:func:`shapeverify.characteristics.from_registration.registration_alignment`; a
+    :class:`PlanPose` gives back the plan's own alignment)."""
+    from ..characteristics.from_registration import registration_alignment as convert
 
-    A :class:`PlanPose` gives back the plan's own alignment.  Otherwise the pose, rms and
-    covariance are the registration's (``registration.covariance``; inf where undetermined)
-    and ``details`` say where they came from.
-    """
-    from ..characteristics.alignment import AlignmentResult
-    from ..characteristics.plan import DOF_NAMES
-
-    if isinstance(registration, PlanPose):
-        return registration.alignment
-    w = getattr(registration, "weights", None)
-    cov = getattr(registration, "covariance", None)
-    cov = np.full((6, 6), np.inf) if cov is None else np.asarray(cov, np.float64)
-    details = {"source": "registration", "iterations": int(registration.iterations),
-               "converged": bool(registration.converged),
-               "inlier_fraction": float(registration.inlier_fraction),
-               "loss": getattr(registration, "loss", None),
-               "scale": float(getattr(registration, "scale", float("nan"))),
-               "n_points": None if w is None else int(np.count_nonzero(np.asarray(w) > 0))}
-    return AlignmentResult(np.asarray(registration.T_model_scan, np.float64), cov,
-                           np.zeros(0), float(registration.rms), DOF_NAMES, (), "best_fit",
-                           details)
+    return convert(registration)
 
 
 def plan_result_of(result: InspectionResult):
