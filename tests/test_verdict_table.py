@@ -127,6 +127,29 @@ def test_history_check_accepts_exactly_the_verdicts_of_the_table(review, inspect
         assert sorted(r["verdict"] for r in db.query()) == sorted(map(str, vt.VERDICT_TABLE))
 
 
+def test_history_made_before_a_new_verdict_accepts_it_and_keeps_its_rows(inspected, tmp_path,
+                                                                        monkeypatch):
+    """An existing history file's CHECK lists the verdicts of when it was made: opened after a
+    row was added to the table, it takes the new value and keeps every row and index."""
+    from shapeverify.report.history import HistoryDB
+
+    _, _, res = inspected
+    path = tmp_path / "old.db"
+    with HistoryDB(path) as db:
+        first = db.add(res, part="A-1")
+        with pytest.raises(sqlite3.IntegrityError):
+            db.add(_with_verdict(res, _EXTRA.REVIEW), part="A-2")
+    monkeypatch.setitem(vt.VERDICT_TABLE, "review", NEW)
+    with HistoryDB(path) as db:
+        db.add(_with_verdict(res, _EXTRA.REVIEW), part="A-2")
+        rows = db.query()
+        assert [(r["id"], r["part"], r["verdict"]) for r in rows] == [
+            (first, "A-1", "pass"), (first + 1, "A-2", "review")]
+        idx = {r[0] for r in db._con.execute(
+            "SELECT name FROM sqlite_master WHERE type = 'index'").fetchall()}
+        assert {"inspections_part", "inspections_model"} <= idx
+
+
 def test_batch_counts_and_exit_code_follow_the_table(review):
     counts = vt.verdict_counts(["pass", "review", "fail", "review", None])
     assert counts == {"pass": 1, "fail": 1, "error": 0, "incomplete": 0, "review": 2}

@@ -166,6 +166,7 @@ class HistoryDB:
             else:
                 self._add_columns(version)
             self._create()
+            self._allow_table_verdicts()
             self._con.execute(f"PRAGMA user_version = {SCHEMA_VERSION}")
             self._con.commit()
         except BaseException:
@@ -191,6 +192,25 @@ class HistoryDB:
         self._con.execute("DROP TABLE inspections_v1")
         self._fill_extras()
         logger.info("%s: history upgraded from schema version 1 to %d", self.path, SCHEMA_VERSION)
+
+    def _allow_table_verdicts(self) -> None:
+        """A file made before a verdict value was added to
+        :data:`~shapeverify.verdict_table.VERDICT_TABLE` refuses it (its CHECK lists the values
+        of then): copy the rows into a table of the current schema (SQLite cannot alter a
+        constraint in place), as :meth:`_migrate_v1` does."""
+        row = self._con.execute("SELECT sql FROM sqlite_master WHERE type = 'table' AND "
+                                "name = 'inspections'").fetchone()
+        if row is None or all(f"'{v}'" in row[0] for v in VERDICT_TABLE):
+            return
+        self._con.execute("ALTER TABLE inspections RENAME TO inspections_old")
+        self._con.execute("DROP INDEX IF EXISTS inspections_part")
+        self._con.execute("DROP INDEX IF EXISTS inspections_model")
+        self._create()
+        cols = ", ".join(_V2_COLUMNS + EXTRA_COLUMNS)
+        self._con.execute(f"INSERT INTO inspections ({cols}) SELECT {cols} FROM inspections_old")
+        self._con.execute("DROP TABLE inspections_old")
+        logger.info("%s: history now accepts the verdicts %s", self.path,
+                    ", ".join(map(str, VERDICT_TABLE)))
 
     def _add_columns(self, version: int) -> None:
         """Versions 0 (an existing table without a version) and 2: add the columns of version 3
