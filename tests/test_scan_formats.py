@@ -43,9 +43,13 @@ def _grid_mesh():
 
 
 def _w_text(sep):
-    def write(path, rng):
+    def write(path, rng):          # a header, a comment and a NaN row (dropped by read_points)
         p = _points(rng)
-        np.savetxt(path, p, fmt="%.17g", delimiter=sep)
+        rows = np.vstack([p[:100], [np.nan, 1.0, 2.0], p[100:]])
+        np.savetxt(path, rows, fmt="%.17g", delimiter=sep, header=sep.join("xyz") + "\n a comment",
+                   comments="")
+        text = path.read_text().replace("\n a comment", "\n# a comment")
+        path.write_text(text)
         return p, False
     return write
 
@@ -126,7 +130,14 @@ def test_registered_reader_reads_back_what_a_second_library_wrote(fmt, tmp_path)
     got = read_points(path)                              # through the registry, by suffix
     assert got.dtype == np.float64 and got.shape == expected.shape
     data = path.read_bytes()
-    assert np.array_equal(fmt.read(data, str(path)), got)  # the row's reader is read_points'
+    raw = fmt.read(data, str(path))      # the row's reader is read_points' (which drops NaN rows)
+    assert np.array_equal(raw[np.isfinite(raw).all(axis=1)], got)
+    # the same points from the bytes, a bytearray, a file object (format given or from its name)
+    assert np.array_equal(read_points(data, fmt.suffix), got)
+    assert np.array_equal(read_points(bytearray(data), fmt.suffix.lstrip(".").upper()), got)
+    assert np.array_equal(read_points(io.BytesIO(data), fmt.suffix), got)
+    with open(path, "rb") as fh:
+        assert np.array_equal(read_points(fh), got)
     if how is True:                                      # a mesh: the same rows, any order
         assert np.array_equal(np.unique(got, axis=0), np.unique(expected, axis=0))
     elif how == "quantum":
