@@ -45,7 +45,7 @@ from shapeverify.errors import ScanError, UnsupportedFormatError
 
 __all__ = ["ScanFormat", "SCAN_FORMATS", "SCAN_READERS", "SCAN_SUFFIXES", "scan_format",
            "scan_reader", "source_bytes", "source_suffix", "check_file", "sniff_format",
-           "sniff_scan", "suffix_hint", "scan_help", "scan_families", "SCAN_CONTENT_TYPES"]
+           "sniff_scan", "suffix_hint", "scan_help", "scan_families", "load_readers", "SCAN_CONTENT_TYPES"]
 
 #: a file's first bytes -> does it look like this format?
 Magic = Union[tuple, Callable[[bytes], bool]]
@@ -90,11 +90,14 @@ class ScanFormat:
         return self.load()(data, name)
 
     def load(self) -> Callable:
-        """The reader function (imported on first use)."""
+        """The reader function (imported on first use, then kept)."""
         if callable(self.reader):
             return self.reader
-        module, _, attr = self.reader.partition(":")
-        return getattr(importlib.import_module(module), attr)
+        fn = _LOADED.get(self.reader)
+        if fn is None:
+            module, _, attr = self.reader.partition(":")
+            fn = _LOADED[self.reader] = getattr(importlib.import_module(module), attr)
+        return fn
 
     def matches(self, data: bytes) -> bool:
         """Do the first bytes of ``data`` identify this format?"""
@@ -103,6 +106,17 @@ class ScanFormat:
         head = bytes(data[:4096])
         return bool(self.magic) and (head.startswith(self.magic)
                                      or head.lstrip().startswith(self.magic))
+
+
+#: "module:function" -> the reader, once imported
+_LOADED: dict[str, Callable] = {}
+
+
+def load_readers() -> None:
+    """Import every registered reader now (:mod:`shapeverify.io.points` does, at its import:
+    a first read then allocates nothing for imports)."""
+    for f in SCAN_FORMATS:
+        f.load()
 
 
 def _pcd(data: bytes) -> bool:

@@ -50,6 +50,9 @@ from shapeverify.errors import ScanError
 from shapeverify.io.formats import (SCAN_SUFFIXES, check_file, scan_reader, source_bytes,
                                     source_suffix, suffix_hint)
 from shapeverify.io.ply import PlyData, ply_bytes, read_ply_full, write_ply
+from shapeverify.io.formats import load_readers
+
+load_readers()       # the registry's readers, imported with this module (as before it was lazy)
 
 __all__ = ["read_points", "read_ply_full", "write_ply", "ply_bytes", "PlyData", "POINT_EXTENSIONS",
            "drop_nonfinite", "valid_rows", "MAX_COORDINATE"]
