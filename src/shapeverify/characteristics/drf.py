@@ -14,6 +14,9 @@ Datum features and the fit each gets (the *association criteria*)
   before it fix its direction (a hole perpendicular to a primary plane) it is the centre of the
   largest inscribed / smallest circumscribed circle of the points projected along the nominal
   axis (:func:`.gdt_zones.circles_zone`).
+* **midplane** (two opposite parallel planar faces: a tab or a slot): the centre plane of
+  the width's mating planes (:func:`.gdt_zones.width_planes`: the closest parallel pair
+  enclosing a tab, the farthest pair inside a slot).
 * **point** (``at``, a datum target point): the surface point at ``at``: ``at`` moved along the
   CAD normal by the mean deviation of the scan points within 2 mm.
 
@@ -36,7 +39,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .gdt_zones import circles_zone, cylinders_zone, planes_zone, tangent_basis
+from .gdt_zones import circles_zone, cylinders_zone, planes_zone, tangent_basis, width_planes
 
 __all__ = ["DatumFeature", "DatumFit", "DRF", "fit_drf", "rigid_exp"]
 
@@ -59,6 +62,8 @@ class DatumFeature:
     points: np.ndarray = field(repr=False)
     hole: bool = True
     deviations: np.ndarray | None = field(default=None, repr=False)
+    #: 'midplane': the points of the opposite face (outward normal -direction)
+    points2: np.ndarray | None = field(default=None, repr=False)
 
 
 @dataclass(frozen=True)
@@ -202,7 +207,29 @@ def _fit(f: DatumFeature, X, N):
         fit = DatumFit(f.name, "point", "surface point (mean deviation within 2 mm)", pm, d0,
                        dv.size, float(np.ptp(dv)))
         return fit, np.array([np.r_[np.cross(pm, d0), d0]]), np.array([d0 @ (p0 - pm)])
-    raise ValueError(f"datum {f.name}: unknown kind {f.kind!r} (plane, axis or point)")
+    if f.kind == "midplane":
+        X2 = f.points2
+        if X.shape[0] < 3 or X2 is None or X2.shape[0] < 3:
+            raise ValueError(f"datum {f.name}: fewer than 3 scan points on a face of its width")
+        turn = _turns(d0, N)[:2]
+        size, n, (h1, h2), mid = width_planes(X, X2, d0, turn)
+        pm = p0 + (mid - n @ p0) * n
+        fit = DatumFit(f.name, "midplane", "centre plane of the width's mating planes (the "
+                       "closest pair enclosing a tab, the farthest pair inside a slot)", pm, n,
+                       X.shape[0] + X2.shape[0], size)
+        rows = [np.r_[np.cross(n, b), 0, 0, 0] for b in B]
+        rhs = [(d0 - n) @ b for b in B]
+        rows.append(np.r_[np.cross(pm, d0), d0])
+        rhs.append(d0 @ (p0 - pm))
+        return fit, np.array(rows), np.array(rhs)
+    raise ValueError(f"datum {f.name}: unknown kind {f.kind!r} (plane, midplane, axis or "
+                     "point)")
+
+
+def _with_points2(f, X2):
+    import dataclasses
+
+    return dataclasses.replace(f, points2=X2)
 
 
 def _describe(N, scale) -> list:
@@ -253,6 +280,8 @@ def fit_drf(features, size: float = 100.0, max_iterations: int = 8) -> DRF:
         fits = []
         for f in feats:
             X = f.points @ T[:3, :3].T + T[:3, 3] if len(f.points) else f.points
+            if f.points2 is not None:
+                f = _with_points2(f, f.points2 @ T[:3, :3].T + T[:3, 3])
             fit, G, r = _fit(f, X, Sc @ N)
             fits.append(fit)
             A = G @ Sc @ N

@@ -412,8 +412,16 @@ def _face_feature(c, feats, S: _Scan, kind):
 
 
 def _flatness(c, S: _Scan, feats, k):
-    f = _face_feature(c, feats, S, "flatness")
-    m = S.on([f.face])
+    if getattr(c, "faces", None) is not None:    # coplanar faces, one zone
+        fidx = face_indices(S.prep.model, c.faces)
+        f = feats[int(fidx[0])]
+        if any(feats[int(i)].kind != "plane" for i in fidx):
+            raise ValueError(f"{c.name}: flatness of faces {c.faces}: not all are planar faces")
+    else:
+        f = _face_feature(c, feats, S, "flatness")
+        fidx = np.array([f.face])
+    fl = fidx.tolist()
+    m = S.on(fl)
     if np.count_nonzero(m) < 3:
         return _not_measured(c, f"fewer than 3 scan points on {f.id}")
     P = S.X[m]
@@ -424,8 +432,10 @@ def _flatness(c, S: _Scan, feats, k):
     U = 2.0 * zq * S.noise
     details = {"feature": f.id, "n": int(m.sum()), "normal": n.tolist(),
                "definition": "minimum zone", "noise": S.noise, "extreme_quantile": zq,
-               "excluded": S.excluded([f.face])}
-    details.update(_lower_bound(S, [f.face]))
+               "excluded": S.excluded(fl)}
+    if len(fl) > 1:
+        details["faces"] = fl
+    details.update(_lower_bound(S, fl))
     return CharacteristicResult(c.name, c.type, 0.0, width, width, 0.0, float(c.tol), U,
                                 zone_decide(c.type, width, 0.0, float(c.tol), U), details)
 
@@ -589,11 +599,7 @@ class EvalContext:
 
 
 def eval_profile(c, ctx: EvalContext):
-    """surface_profile (registry evaluator); in its own DRF when it names ``datums``."""
-    if getattr(c, "datums", None):
-        from .gdt import eval_profile_drf
-
-        return eval_profile_drf(c, ctx)
+    """surface_profile located by the plan's alignment (its own DRF: :func:`.gdt.eval_surface_profile`)."""
     return _profile(c, ctx.S, ctx.al, ctx.k, ctx.prep, ctx.scan, ctx.md)
 
 

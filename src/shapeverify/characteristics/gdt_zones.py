@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import linprog
 
-__all__ = ["planes_zone", "circles_zone", "cylinders_zone", "tangent_basis", "runout"]
+__all__ = ["planes_zone", "width_planes", "circles_zone", "cylinders_zone", "tangent_basis", "runout"]
 
 _ROUNDS = 60
 _STOP = 1e-12
@@ -103,6 +103,54 @@ def planes_zone(points, normal, turn=(), outer: bool = False):
             break
     d = P @ n
     return float(d.max() - d.min()), n, (float(d.min()), float(d.max()))
+
+
+def width_planes(points1, points2, normal, turn=()):
+    """The mating planes of a width (ISO 5459 / ASME Y14.5 actual mating envelope of two
+    opposite planar faces), by LP.
+
+    ``points1`` lie on the face whose outward normal is ``normal``, ``points2`` on the opposite
+    face (outward normal ``-normal``).  Each plane has its face's points on the material side
+    (``n.x <= h1`` on face 1, ``-n.x <= h2`` on face 2), and ``h1 + h2`` is minimal: for a tab
+    the two closest planes enclosing it (its size ``h1 + h2``), for a slot the two farthest
+    apart with no point inside (its size ``-(h1 + h2)``).  The normal turns only in ``turn``.
+
+    Returns
+    -------
+    h1 + h2 : float, normal : (3,), (h1, h2), mid : float  (the centre plane ``n.x = mid``)
+    """
+    P1 = np.asarray(points1, np.float64)
+    P2 = np.asarray(points2, np.float64)
+    if P1.shape[0] < 1 or P2.shape[0] < 1:
+        raise ValueError("a width needs points on both faces")
+    n = np.asarray(normal, np.float64)
+    n = n / np.linalg.norm(n)
+    c0 = np.vstack([P1, P2]).mean(axis=0)
+    H1, H2 = _hull(P1 - c0), _hull(P2 - c0)
+    L = float(np.sqrt(np.mean(np.sum(np.vstack([H1, H2]) ** 2, axis=1)))) or 1.0
+    turn = [np.asarray(t, np.float64) for t in turn]
+    for _ in range(_ROUNDS if turn else 1):
+        E = [t - (t @ n) * n for t in turn]
+        E = [e / np.linalg.norm(e) for e in E if np.linalg.norm(e) > 1e-9]
+        if not E:
+            break
+        k = len(E)
+        X1 = np.column_stack([H1 @ e for e in E]) / L
+        X2 = np.column_stack([H2 @ e for e in E]) / L
+        m1, m2 = H1.shape[0], H2.shape[0]
+        # face 1: n.x - X a <= h1 ; face 2: -(n.x - X a) <= h2 ; vars (a, h1, h2)
+        A = np.block([[-X1, -np.ones((m1, 1)), np.zeros((m1, 1))],
+                      [X2, np.zeros((m2, 1)), -np.ones((m2, 1))]])
+        b = np.r_[-(H1 @ n), H2 @ n]
+        x = _lp(np.r_[np.zeros(k), 1.0, 1.0], A, b, "a width's mating planes")
+        a = x[:k] / L
+        n = n - sum(ai * e for ai, e in zip(a, E))
+        n /= np.linalg.norm(n)
+        if np.abs(a).max() < _STOP:
+            break
+    h1 = float((P1 @ n).max())
+    h2 = float((-(P2 @ n)).max())
+    return h1 + h2, n, (h1, h2), 0.5 * (h1 - h2)
 
 
 def _radial(xy, c):

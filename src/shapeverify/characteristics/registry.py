@@ -48,7 +48,7 @@ class CharacteristicType:
 
 TYPES: tuple[CharacteristicType, ...] = (
     CharacteristicType("hole", schema.Hole, "evaluate:eval_hole", False, "hole"),
-    CharacteristicType("surface_profile", schema.SurfaceProfile, "evaluate:eval_profile", True,
+    CharacteristicType("surface_profile", schema.SurfaceProfile, "gdt:eval_surface_profile", True,
                        "surface_profile"),
     CharacteristicType("flatness", schema.Flatness, "evaluate:eval_flatness", True, "flatness"),
     CharacteristicType("cylinder", schema.Cylinder, "evaluate:eval_cylinder", False,

@@ -124,9 +124,22 @@ class SurfaceProfile(_Char, Tol):
         return self
 
 
-class Flatness(_Located):
+class Flatness(_Char):
+    """Flatness of one planar face (``feature`` or ``near``) or of coplanar faces (``faces``,
+    one zone)."""
+
     type: Literal["flatness"]
     tol: float = Field(gt=0)
+    feature: Optional[FeatureRef] = None
+    near: Optional[Vec3] = None
+    faces: Optional[Annotated[list[Union[FeatureId, int, str]], Field(min_length=1)]] = None
+
+    @model_validator(mode="after")
+    def _where(self):
+        if sum(x is not None for x in (self.feature, self.near, self.faces)) != 1:
+            raise ValueError("give exactly one of feature (e.g. 'face:3'), near: [x, y, z] or "
+                             "faces: [...] (coplanar faces)")
+        return self
 
 
 class Cylinder(_Located):
@@ -151,13 +164,13 @@ class DatumSpec(_Strict):
     """A datum feature of the plan's ``datums`` table (see :mod:`.drf`).
 
     ``faces``: the faces of the datum feature (one plane, or the cylinder faces of a hole or
-    boss, or coplanar faces); ``at`` with ``kind: point``: a point datum (target) on the
+    boss, or coplanar faces, or with ``kind: midplane`` the two opposite faces of a width); ``at`` with ``kind: point``: a point datum (target) on the
     surface.  ``kind`` (default: from the faces' CAD geometry): ``plane``, ``axis``, ``point``.
     """
 
     faces: Optional[FaceList] = None
     at: Optional[Vec3] = None
-    kind: Optional[Literal["plane", "axis", "point"]] = None
+    kind: Optional[Literal["plane", "midplane", "axis", "point"]] = None
     pmi: Optional[PmiSource] = None
 
     @model_validator(mode="after")
@@ -198,6 +211,21 @@ class Cylindricity(_Form):
     type: Literal["cylindricity"]
 
 
+class SizeLimits(_Strict):
+    """Limits of a feature of size's deviation from nominal (mm): ``lower < upper``;
+    ``nominal``: the drawing's size (default: the CAD's diameter)."""
+
+    lower: float
+    upper: float
+    nominal: Optional[float] = Field(default=None, gt=0)
+
+    @model_validator(mode="after")
+    def _order(self):
+        if not self.lower < self.upper:
+            raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
+        return self
+
+
 class _Oriented(_Gdt):
     """Orientation/location of ``faces`` relative to the datum reference frame ``datums``.
     ``zone``: ``planes`` (two parallel planes: a plane, or an axis in one direction) or
@@ -205,6 +233,18 @@ class _Oriented(_Gdt):
 
     datums: DrfRef
     zone: Literal["planes", "diameter"] = "planes"
+    #: the zone holds the surface's tangent (contacting) plane, not every point (ASME (T))
+    tangent_plane: bool = False
+    #: an axis's bonus tolerance from its measured size (``size``: the diameter's limits)
+    material: Optional[Literal["M", "L"]] = None
+    size: Optional[SizeLimits] = None
+
+    @model_validator(mode="after")
+    def _bonus(self):
+        if self.material is not None and (self.size is None or self.zone != "diameter"):
+            raise ValueError(f"material {self.material} applies to an axis (zone: diameter) "
+                             "and needs size: {lower, upper}")
+        return self
 
 
 class Parallelism(_Oriented):
@@ -223,28 +263,16 @@ class Angularity(_Oriented):
     angle: Optional[float] = None
 
 
-class SizeLimits(_Strict):
-    """Limits of a feature of size's deviation from nominal (mm): ``lower < upper``."""
-
-    lower: float
-    upper: float
-
-    @model_validator(mode="after")
-    def _order(self):
-        if not self.lower < self.upper:
-            raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
-        return self
-
-
 class Position(_Char):
-    """Position of the axes of holes/bosses (``features``: ``hole:N`` or cylinder faces
-    ``face:N``; several: a pattern under one tolerance), in the datum reference frame
+    """Position of the axes of holes/bosses (``features``: each ``hole:N``, a cylinder face
+    ``face:N`` or a list of coaxial cylinder faces; several: a pattern under one tolerance), in the datum reference frame
     ``datums`` (none: the plan's alignment).  ``zone: diameter``: a cylindrical zone of
     diameter ``tol``.  ``material: M`` or ``L``: the bonus tolerance from the measured size
     (``size``: the diameter's limits of deviation)."""
 
     type: Literal["position"]
-    features: Annotated[list[FeatureRef], Field(min_length=1)]
+    features: Annotated[list[Union[FeatureRef, Annotated[list[FeatureRef], Field(min_length=1)]]],
+                        Field(min_length=1)]
     tol: float = Field(gt=0)
     zone: Literal["diameter"] = "diameter"
     datums: Optional[DrfRef] = None
