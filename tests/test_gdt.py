@@ -1,0 +1,279 @@
+"""GD&T characteristics (issue 28 items 2-3): minimum zones, datum reference frames, evaluators,
+the characteristic registry.
+
+Every zone is checked against an independent brute-force computation of its definition to
+1e-6 mm: enumeration of the candidate centres that the minimum-zone conditions allow (circles),
+a dense scan of the free angle refined by a bounded scalar minimiser (planes whose normal turns
+about one axis), or SLSQP on the exact (not linearised) distances (cylinders).
+"""
+from __future__ import annotations
+
+import itertools
+
+import numpy as np
+import pytest
+from scipy.optimize import minimize, minimize_scalar
+
+from shapeverify.characteristics import registry
+from shapeverify.characteristics.drf import DatumFeature, fit_drf, rigid_exp
+from shapeverify.characteristics.gdt_zones import (circles_zone, cylinders_zone, planes_zone,
+                                                   runout, width_planes)
+from shapeverify.characteristics.plan import PlanError, parse_plan
+
+TOL = 1e-6
+
+
+# ------------------------------------------------------------------------------ brute force
+def _brute_one_turn(width_of, lo=-0.05, hi=0.05):
+    """Minimum of width_of(angle) over [lo, hi]: a dense scan, then a bounded minimiser in the
+    best cell."""
+    ts = np.linspace(lo, hi, 40001)
+    w = np.array([width_of(t) for t in ts])
+    i = int(np.argmin(w))
+    a, b = ts[max(i - 1, 0)], ts[min(i + 1, len(ts) - 1)]
+    r = minimize_scalar(width_of, bounds=(a, b), method="bounded", options={"xatol": 1e-13})
+    return min(float(r.fun), float(w[i]))
+
+
+def _circumcentre(a, b, c):
+    A = np.array([b - a, c - a])
+    return np.linalg.solve(A, 0.5 * np.array([b @ b - a @ a, c @ c - a @ a]))
+
+
+def _candidate_centres(Q):
+    """Every centre the minimum-zone / inscribed / circumscribed conditions allow: circumcentres
+    of point triples, midpoints of pairs, intersections of two perpendicular bisectors."""
+    n = len(Q)
+    out = []
+    for i, j, k in itertools.combinations(range(n), 3):
+        try:
+            out.append(_circumcentre(Q[i], Q[j], Q[k]))
+        except np.linalg.LinAlgError:
+            pass
+    for i, j in itertools.combinations(range(n), 2):
+        out.append(0.5 * (Q[i] + Q[j]))
+    pairs = list(itertools.combinations(range(n), 2))
+    for (i, j), (k, l) in itertools.combinations(pairs, 2):
+        A = np.array([Q[j] - Q[i], Q[l] - Q[k]])
+        b = 0.5 * np.array([Q[j] @ Q[j] - Q[i] @ Q[i], Q[l] @ Q[l] - Q[k] @ Q[k]])
+        try:
+            out.append(np.linalg.solve(A, b))
+        except np.linalg.LinAlgError:
+            pass
+    return np.array(out)
+
+
+def _ring(rng, n, r=5.0, noise=0.03, centre=(0.3, -0.2)):
+    t = np.sort(rng.uniform(0, 2 * np.pi, n))
+    R = r + noise * rng.standard_normal(n)
+    return np.column_stack([R * np.cos(t) + centre[0], R * np.sin(t) + centre[1]])
+
+
+# ------------------------------------------------------------------------------ zones
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_circularity_minimum_zone_equals_enumeration_of_candidate_centres(seed):
+    Q = _ring(np.random.default_rng(seed), 11)
+    value, c, _ = circles_zone(Q, [0.0, 0.0])
+    C = _candidate_centres(Q)
+    r = np.linalg.norm(Q[None, :, :] - C[:, None, :], axis=2)
+    brute = float((r.max(axis=1) - r.min(axis=1)).min())
+    assert value == pytest.approx(brute, abs=TOL)
+
+
+@pytest.mark.parametrize("seed", [4, 5])
+def test_inscribed_and_circumscribed_circles_equal_enumeration(seed):
+    Q = _ring(np.random.default_rng(seed), 16, noise=0.05)
+    C = _candidate_centres(Q)
+    r = np.linalg.norm(Q[None, :, :] - C[:, None, :], axis=2)
+    inside = np.linalg.norm(C - Q.mean(0), axis=1) < 1.5     # centres well inside the ring
+    rin, _, _ = circles_zone(Q, [0.0, 0.0], "inscribed")
+    rout, _, _ = circles_zone(Q, [0.0, 0.0], "circumscribed")
+    assert rin == pytest.approx(float(r.min(axis=1)[inside].max()), abs=TOL)
+    assert rout == pytest.approx(float(r.max(axis=1).min()), abs=TOL)
+
+
+@pytest.mark.parametrize("seed", [6, 7])
+def test_planes_zone_turning_about_one_axis_equals_a_scan_of_the_angle(seed):
+    """Perpendicularity to a datum plane z: the zone's normal (1, 0, 0) may turn about z."""
+    rng = np.random.default_rng(seed)
+    P = np.column_stack([0.004 * rng.uniform(0, 40, 80), rng.uniform(0, 40, 80),
+                         rng.uniform(0, 30, 80)])
+    P[:, 0] += 0.02 * rng.standard_normal(80)
+    w, n, _ = planes_zone(P, [1.0, 0.0, 0.0], turn=[[0.0, 1.0, 0.0]])
+    brute = _brute_one_turn(lambda t: np.ptp(P @ np.array([np.cos(t), np.sin(t), 0.0])))
+    assert w == pytest.approx(brute, abs=TOL)
+    assert abs(n[2]) < 1e-12                     # it turned about z only
+    # no turn (parallelism): the range along the fixed normal
+    w0, _, _ = planes_zone(P, [1.0, 0.0, 0.0])
+    assert w0 == pytest.approx(np.ptp(P[:, 0]), abs=1e-12)
+
+
+def test_planes_zone_free_normal_equals_the_minimum_width_over_candidate_directions():
+    rng = np.random.default_rng(8)
+    P = np.column_stack([rng.uniform(0, 30, 9), rng.uniform(0, 20, 9),
+                         0.05 * rng.standard_normal(9)])
+    w, _, _ = planes_zone(P, [0, 0, 1], turn=[[1, 0, 0], [0, 1, 0]])
+    dirs = [np.cross(P[j] - P[i], P[k] - P[i]) for i, j, k in itertools.combinations(range(9), 3)]
+    D = [np.cross(P[j] - P[i], P[l] - P[k]) for (i, j), (k, l)
+         in itertools.combinations(list(itertools.combinations(range(9), 2)), 2)]
+    widths = [np.ptp(P @ (d / np.linalg.norm(d))) for d in dirs + D if np.linalg.norm(d) > 1e-9]
+    assert w == pytest.approx(min(widths), abs=TOL)
+
+
+def test_width_mating_planes_of_a_tab_equal_a_scan_of_the_angle():
+    rng = np.random.default_rng(9)
+    P1 = np.column_stack([10 + 0.03 * rng.standard_normal(40), rng.uniform(0, 30, 40),
+                          rng.uniform(0, 5, 40)])
+    P2 = np.column_stack([0.002 * P1[:, 1] + 0.03 * rng.standard_normal(40),
+                          rng.uniform(0, 30, 40), rng.uniform(0, 5, 40)])
+    size, n, (h1, h2), mid = width_planes(P1, P2, [1, 0, 0], turn=[[0, 1, 0]])
+
+    def sep(t):
+        v = np.array([np.cos(t), np.sin(t), 0.0])
+        return (P1 @ v).max() + (-(P2 @ v)).max()
+
+    assert size == pytest.approx(_brute_one_turn(sep), abs=TOL)
+    assert mid == pytest.approx(0.5 * (h1 - h2))
+
+
+def _cyl_points(rng, n=150, r=4.0, noise=0.01):
+    h = rng.uniform(-10, 10, n)
+    th = rng.uniform(0, 2 * np.pi, n)
+    rr = r + noise * rng.standard_normal(n)
+    X = np.column_stack([rr * np.cos(th), rr * np.sin(th), h])
+    R = rigid_exp([0.3, -0.2, 0.1, 1.0, 2.0, 3.0])
+    return X @ R[:3, :3].T + R[:3, 3], R
+
+
+def _slsqp_cylinder(X, p0, a0, kind):
+    """The definition on exact distances: axis (point p, direction a), radii by SLSQP."""
+    e = np.linalg.svd(np.eye(3) - np.outer(a0, a0))[0][:, :2]
+
+    def line(z):
+        p = p0 + e @ z[:2]
+        a = a0 + e @ z[2:4]
+        a = a / np.linalg.norm(a)
+        q = X - p
+        return np.linalg.norm(q - np.outer(q @ a, a), axis=1)
+
+    if kind == "zone":
+        f, x0 = (lambda z: z[5] - z[4]), np.r_[0, 0, 0, 0, 3.9, 4.1]
+        cons = [{"type": "ineq", "fun": lambda z: line(z) - z[4]},
+                {"type": "ineq", "fun": lambda z: z[5] - line(z)}]
+    else:
+        f, x0 = (lambda z: z[4]), np.r_[0, 0, 0, 0, 4.1]
+        cons = [{"type": "ineq", "fun": lambda z: z[4] - line(z)}]
+    r = minimize(f, x0, constraints=cons, method="SLSQP",
+                 options={"ftol": 1e-15, "maxiter": 2000})
+    return float(r.fun)
+
+
+@pytest.mark.parametrize("kind", ["zone", "circumscribed"])
+def test_cylindricity_and_circumscribed_cylinder_equal_slsqp_on_exact_distances(kind):
+    X, R = _cyl_points(np.random.default_rng(10), n=60)
+    a0 = R[:3, 2]
+    value, p, a, (lo, hi) = cylinders_zone(X, R[:3, 3] + [0.02, 0, 0], a0 + [0.003, 0, 0], kind)
+    brute = _slsqp_cylinder(X, R[:3, 3], a0, kind)
+    assert value == pytest.approx(brute, abs=TOL)
+
+
+def test_runout_equals_the_radial_range_per_section_and_overall():
+    rng = np.random.default_rng(11)
+    X, R = _cyl_points(rng, n=400, noise=0.02)
+    p, a = R[:3, 3], R[:3, 2]
+    circ, total = runout(X, p, a, section_width=2.0)
+    q = X - p
+    h = q @ a
+    r = np.linalg.norm(q - np.outer(h, a), axis=1)
+    assert total == pytest.approx(r.max() - r.min(), abs=1e-12)
+    bands = {}
+    for hi, ri in zip(np.floor((h - h.min()) / 2.0), r):
+        bands.setdefault(hi, []).append(ri)
+    assert circ == pytest.approx(max(max(v) - min(v) for v in bands.values() if len(v) > 1),
+                                 abs=1e-12)
+
+
+# ------------------------------------------------------------------------------ DRF
+def _block(rng):
+    """A: bottom z = 0 (outward -z); B: hole at (30, 20), d 10, axis z; C: side x = 0 (-x)."""
+    A = np.column_stack([rng.uniform(0, 60, 400), rng.uniform(0, 40, 400), np.zeros(400)])
+    A[:, 2] += 0.01 * rng.random(400)           # bumps into the material only
+    th = rng.uniform(0, 2 * np.pi, 300)
+    H = np.column_stack([30 + 5 * np.cos(th), 20 + 5 * np.sin(th), rng.uniform(0, 10, 300)])
+    C = np.column_stack([np.zeros(300), rng.uniform(0, 40, 300), rng.uniform(0, 10, 300)])
+    return A, H, C
+
+
+def test_drf_a_b_c_takes_out_a_known_rigid_motion_and_leaves_nothing_free():
+    A, H, C = _block(np.random.default_rng(0))
+    M = rigid_exp([0.002, -0.003, 0.004, 0.1, -0.2, 0.05])
+    tr = lambda X: X @ M[:3, :3].T + M[:3, 3]  # noqa: E731
+    fs = [DatumFeature("A", "plane", np.zeros(3), np.array([0, 0, -1.0]), tr(A)),
+          DatumFeature("B", "axis", np.array([30, 20, 0.0]), np.array([0, 0, 1.0]), tr(H)),
+          DatumFeature("C", "plane", np.zeros(3), np.array([-1.0, 0, 0]), tr(C))]
+    drf = fit_drf(fs, size=60)
+    assert drf.free == []
+    # the tangent plane of A rests on its lowest points (the bumps go into the material)
+    Ac = drf.apply(tr(A))
+    assert Ac[:, 2].min() == pytest.approx(0.0, abs=1e-9)
+    # B's axis and C fix the rest: the motion is undone except for A's flatness tilt
+    assert np.abs(drf.T @ M - np.eye(4)).max() < 1e-3
+    assert drf.datums[0].fit.startswith("tangent plane")
+
+
+def test_drf_reports_its_free_directions():
+    A, H, C = _block(np.random.default_rng(1))
+    a = DatumFeature("A", "plane", np.zeros(3), np.array([0, 0, -1.0]), A)
+    b = DatumFeature("B", "axis", np.array([30, 20, 0.0]), np.array([0, 0, 1.0]), H)
+    c = DatumFeature("C", "plane", np.zeros(3), np.array([-1.0, 0, 0]), C)
+    assert len(fit_drf([a], 60).free) == 3
+    free_ab = fit_drf([a, b], 60).free
+    assert len(free_ab) == 1 and free_ab[0].startswith("rotation about")
+    assert "(30.000, 20.000" in free_ab[0]
+    free_ac = fit_drf([a, c], 60).free
+    assert free_ac == ["translation along (+0.000, -1.000, +0.000)"] or \
+        free_ac == ["translation along (+0.000, +1.000, +0.000)"]
+
+
+def test_secondary_plane_of_a_drf_turns_only_about_the_primary_normal():
+    """The secondary plane is the tangent plane perpendicular to the primary: its fitted
+    normal has no component along the primary's normal, and its form is the minimum zone
+    with that one turn, checked against a scan of the angle."""
+    rng = np.random.default_rng(2)
+    A, H, C = _block(rng)
+    C = C.copy()
+    C[:, 0] += 0.002 * C[:, 2] + 0.01 * rng.random(300)    # leans in z: not perpendicular
+    a = DatumFeature("A", "plane", np.zeros(3), np.array([0, 0, -1.0]), A)
+    c = DatumFeature("C", "plane", np.zeros(3), np.array([-1.0, 0, 0]), C)
+    drf = fit_drf([a, c], 60)
+    fc = drf.datums[1]
+    assert abs(fc.direction[2]) < 1e-9
+    Cc = drf.apply(C)
+    brute = _brute_one_turn(lambda t: np.ptp(Cc @ np.array([np.cos(t), np.sin(t), 0.0])))
+    assert fc.form == pytest.approx(brute, abs=TOL)
+
+
+# ------------------------------------------------------------------------------ registry
+def test_registry_drives_the_plan_schema_dispatch_and_spc():
+    from shapeverify.characteristics import spc
+    from shapeverify.characteristics.plan import _TAGS
+
+    for t in registry.TYPES:
+        assert t.schema.model_fields["type"].annotation.__args__ == (t.name,)
+        assert callable(registry.evaluator(t.name))
+        assert t.name in _TAGS
+    assert set(registry.one_sided_types()) <= set(spc._ONE_SIDED)
+    for old in ("hole", "surface_profile", "flatness", "cylinder", "check_point"):
+        assert registry.label(old) == old          # the existing five print as before
+    with pytest.raises(KeyError, match="registered"):
+        registry.by_name("roundness")
+
+
+def test_plan_refuses_a_characteristic_whose_datum_is_not_in_the_datums_table():
+    text = ("datums: {A: {faces: [face:0]}}\ncharacteristics:\n"
+            "  - {name: P, type: perpendicularity, faces: [face:1], tol: 0.1, datums: [A, B]}\n")
+    with pytest.raises(PlanError, match="'B'"):
+        parse_plan(text)
+    with pytest.raises(PlanError, match="size"):
+        parse_plan("characteristics:\n  - {name: P, type: position, features: [face:3], "
+                   "tol: 0.1, material: M}\n")
