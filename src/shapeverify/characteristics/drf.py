@@ -39,7 +39,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .gdt_zones import circles_zone, cylinders_zone, planes_zone, tangent_basis, width_planes
+from .gdt_zones import (MIN_COVERAGE, angular_coverage, circles_zone, cylinders_zone,
+                        planes_zone, tangent_basis, width_planes)
 
 __all__ = ["DatumFeature", "DatumFit", "DRF", "fit_drf", "rigid_exp"]
 
@@ -181,7 +182,11 @@ def _fit(f: DatumFeature, X, N):
         what = ("largest inscribed" if f.hole else "smallest circumscribed")
         turn = _turns(d0, N)
         if X.shape[0] < 5:
-            raise ValueError(f"datum {f.name}: {X.shape[0]} scan points on its axis feature")
+            raise ValueError(f"datum {f.name}: {X.shape[0]} scan points on its axis (need 5)")
+        cover = angular_coverage(X, p0, d0)
+        if cover < MIN_COVERAGE:
+            raise ValueError(f"datum {f.name}: the scan covers {cover:.0f} degrees of its "
+                             f"circumference (its axis needs {MIN_COVERAGE:.0f})")
         if turn:
             _, c, a, (lo, hi) = cylinders_zone(X, p0, d0, kind)
             form, name = hi - lo, f"axis of the {what} cylinder"
@@ -210,7 +215,7 @@ def _fit(f: DatumFeature, X, N):
     if f.kind == "midplane":
         X2 = f.points2
         if X.shape[0] < 3 or X2 is None or X2.shape[0] < 3:
-            raise ValueError(f"datum {f.name}: fewer than 3 scan points on a face of its width")
+            raise ValueError(f"datum {f.name}: fewer than 3 scan points on a side of its width")
         turn = _turns(d0, N)[:2]
         size, n, (h1, h2), mid = width_planes(X, X2, d0, turn)
         pm = p0 + (mid - n @ p0) * n

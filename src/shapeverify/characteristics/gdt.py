@@ -3,8 +3,11 @@ frame (:mod:`.drf`) where it names ``datums``.
 
 Definitions (ISO 1101 / ASME Y14.5; zones by :mod:`.gdt_zones`; lengths in mm)
 -------------------------------------------------------------------------------
-The points of a characteristic are the kept points of its faces (:mod:`.evaluate`), moved into
-the characteristic's DRF (:meth:`.drf.DRF.apply`) when it names datums.
+Cylinder features lose their gross outliers first (:func:`_cylinder_points`: 5 robust sigmas
+from the robust least-squares cylinder).  The points of a characteristic are the kept points of its faces (:mod:`.evaluate`) whose
+closest CAD point is at least 2 scan spacings (0.5 mm) inside the face's edges (:func:`_on`),
+moved into the
+characteristic's DRF (:meth:`.drf.DRF.apply`) when it names datums.
 
 * **straightness** ``zone: lines``: the faces' points cut into 10 bands across ``direction``
   (default: the face's longest extent); each band's line element is enclosed by two parallel
@@ -40,9 +43,10 @@ the characteristic's DRF (:meth:`.drf.DRF.apply`) when it names datums.
 
 Uncertainty (k, ISO 14253-1) of a zone width taken from extreme points: ``2 z_n sigma`` per
 zone (:func:`.support.extreme_quantile`, sigma the scan noise), combined with the datum part:
-a datum plane fitted on its high points turns by about ``2 z_n sigma / L_datum``, moving the
-zone's ends by that times the feature's extent.  For position ``2 z_n sigma`` per axis end
-and the same datum part.  Free directions of the DRF stay at the plan's alignment.
+a datum plane fitted on its high points turns (:func:`_datum_part`) and shifts by the largest
+of its noisy deviations (:func:`_datum_offsets`); the shift enters location (position,
+profile in a DRF), the turn every zone over the feature's extent.  For position
+``2 z_n sigma`` per axis end (the mating cylinder rests on extreme points too).  Free directions of the DRF stay at the plan's alignment.
 """
 from __future__ import annotations
 
@@ -51,12 +55,45 @@ import numpy as np
 from .alignment import face_indices
 from .drf import DatumFeature, fit_drf
 from .evaluate import CharacteristicResult, EvalContext, _not_measured, _profile
-from .gdt_zones import circles_zone, cylinders_zone, planes_zone, runout, tangent_basis
+from .gdt_zones import (MIN_COVERAGE, angular_coverage, circles_zone, cylinders_zone,
+                        planes_zone, runout, tangent_basis)
 from .support import extreme_quantile
 from .zones import decide, zone_decide
 
 __all__ = ["eval_surface_profile", "eval_orientation", "eval_position", "eval_runout",
            "eval_straightness", "eval_circularity", "eval_cylindricity", "eval_width", "drf_of"]
+
+
+# ------------------------------------------------------------------------------ points
+def _on(ctx: EvalContext, faces) -> np.ndarray:
+    """The kept points of ``faces`` whose closest CAD point lies inside the face, at least
+    ``EDGE`` spacings (and 0.5 mm) from its edges: a point of a neighbouring surface beyond an
+    edge (the plate at the foot of a moved boss) is not the face's."""
+    S = ctx.S
+    m = S.on(faces)
+    sp = float(getattr(S.support, "spacing", 0.0) or 0.0)
+    e = max(EDGE * sp, 0.5)
+    out = m.copy()
+    for f in (np.unique(S.face[m]) if faces is None else faces):
+        key = ("edge", int(f))
+        if key not in ctx.cache:
+            from scipy.spatial import cKDTree
+
+            from .features import _dense_loop
+
+            face = ctx.prep.model.faces[int(f)]
+            rim = np.concatenate([face.evaluate(_dense_loop(lp, 8)) for lp in face.loops])
+            ctx.cache[key] = cKDTree(rim)
+        sel = m & (S.face == f)
+        if sel.any():
+            d, _ = ctx.cache[key].query(S.feet[sel])
+            out[np.flatnonzero(sel)[d < e]] = False
+    return out
+
+
+#: points whose closest CAD point is nearer than this many scan spacings to the face's edge
+#: are left out of the GD&T characteristics (:func:`_on`)
+EDGE = 2.0
 
 
 # ------------------------------------------------------------------------------ DRF
@@ -66,7 +103,7 @@ def _datum_feature(name, spec, ctx: EvalContext) -> DatumFeature:
         at = np.asarray(spec.at, float)
         foot = ctx.prep.closest(at[None], exact=True)
         q, n, fc = foot.points[0], foot.normals[0], int(foot.face[0])
-        m = S.ok & (S.face == fc) & (np.linalg.norm(S.feet - q, axis=1) <= 2.0)
+        m = _on(ctx, [fc]) & (np.linalg.norm(S.feet - q, axis=1) <= 2.0)
         return DatumFeature(name, "point", q, n, S.X[m], deviations=S.d[m])
     fidx = face_indices(ctx.prep.model, spec.faces).tolist()
     kinds = {feats[i].kind for i in fidx}
@@ -75,7 +112,7 @@ def _datum_feature(name, spec, ctx: EvalContext) -> DatumFeature:
     if kind is None:
         raise ValueError(f"datum {name}: faces {spec.faces} are {sorted(kinds)}; a datum "
                          "feature is planar faces (plane) or cylinder faces (axis); give kind")
-    m = S.on(fidx)
+    m = _on(ctx, fidx)
     f = feats[fidx[0]]
     if kind == "plane":
         return DatumFeature(name, "plane", f.center, f.axis, S.X[m])
@@ -88,12 +125,13 @@ def _datum_feature(name, spec, ctx: EvalContext) -> DatumFeature:
         g2 = feats[two[0]]
         mid = 0.5 * (f.center + g2.center)
         mid = f.center + ((mid - f.center) @ f.axis) * f.axis
-        return DatumFeature(name, "midplane", mid, f.axis, S.X[S.on(one)],
-                            points2=S.X[S.on(two)])
+        return DatumFeature(name, "midplane", mid, f.axis, S.X[_on(ctx, one)],
+                            points2=S.X[_on(ctx, two)])
     X = S.X[m]
     q = X - f.center
     radial = q - np.outer(q @ f.axis, f.axis)
     hole = float(np.sum(S.normals[m] * radial)) < 0 if len(X) else True
+    X, _ = _cylinder_points(X, f)
     return DatumFeature(name, "axis", f.center, f.axis, X, hole=hole)
 
 
@@ -108,7 +146,7 @@ def drf_of(names, ctx: EvalContext):
 
 def _frame_points(c, ctx, fidx):
     """(points of the faces in the characteristic's frame, mask, drf or None)."""
-    m = ctx.S.on(fidx)
+    m = _on(ctx, fidx)
     X = ctx.S.X[m]
     names = getattr(c, "datums", None)
     if not names:
@@ -118,19 +156,44 @@ def _frame_points(c, ctx, fidx):
 
 
 def _datum_part(drf, ctx, extent: float, zq: float) -> float:
-    """Half-width change of a zone of ``extent`` mm from the datum planes' own noise."""
+    """Expanded (k) change of a zone's half-width over ``extent`` mm from the datum planes'
+    own noise: a tangent plane rests on the extreme points near its ends, whose difference
+    has the standard deviation ``sqrt(2) (pi / sqrt(6)) sigma / sqrt(2 ln n)`` (the Gumbel
+    spread of the largest of n normal deviates); it tilts by that over the datum's length
+    ``L_d``, which moves the zone's ends by ``extent / L_d`` times it."""
     if drf is None:
         return 0.0
     out = 0.0
     for d in drf.datums:
-        if d.kind == "plane":
-            spec = ctx.plan.datums[d.name]
-            fidx = face_indices(ctx.prep.model, spec.faces) if spec.faces else None
-            P = ctx.S.X[ctx.S.on(fidx)] if fidx is not None else np.zeros((0, 3))
-            Ld = float(np.ptp(P @ tangent_basis(d.direction).T, axis=0).max()) if len(P) else 0
-            if Ld > 0:
-                out = max(out, 2.0 * zq * ctx.S.noise * extent / Ld)
+        if d.kind not in ("plane", "midplane"):
+            continue
+        spec = ctx.plan.datums[d.name]
+        fidx = face_indices(ctx.prep.model, spec.faces) if spec.faces else None
+        P = ctx.S.X[ctx.S.on(fidx)] if fidx is not None else np.zeros((0, 3))
+        Ld = float(np.ptp(P @ tangent_basis(d.direction).T, axis=0).max()) if len(P) > 2 else 0
+        if Ld > 0:
+            s = np.sqrt(2.0) * (np.pi / np.sqrt(6.0)) * ctx.S.noise / np.sqrt(
+                2.0 * np.log(max(len(P), 3)))
+            out = max(out, ctx.k * s * extent / Ld)
     return out
+
+
+def _datum_offsets(drf, ctx, axis=None) -> float:
+    """Expanded (k) shift of the frame from where the noise puts the datum planes: a tangent
+    plane rests on the largest of its n noisy deviations, ``z_n sigma``
+    (:func:`.support.extreme_quantile`); combined in quadrature over the plane datums (those
+    across ``axis`` only, when given: they move an axis sideways)."""
+    if drf is None:
+        return 0.0
+    tot = 0.0
+    for d in drf.datums:
+        if d.kind not in ("plane", "midplane"):
+            continue
+        if axis is not None and abs(float(d.direction @ axis)) > 0.5:
+            continue
+        n = max(d.n, 2)
+        tot += (extreme_quantile(n, ctx.k) * ctx.S.noise) ** 2
+    return float(np.sqrt(tot))
 
 
 def _result(c, ctx, value, U, details, drf=None, lower=0.0, upper=None, nominal=0.0):
@@ -164,7 +227,8 @@ def eval_surface_profile(c, ctx: EvalContext):
     value = 2.0 * float(abs(d[i]))
     zq = extreme_quantile(d.size, ctx.k)
     ext = float(np.ptp(X, axis=0).max())
-    U = float(np.hypot(2.0 * zq * ctx.S.noise, 2.0 * _datum_part(drf, ctx, ext, zq)))
+    U = float(np.sqrt((2.0 * zq * ctx.S.noise) ** 2 + (2.0 * _datum_part(drf, ctx, ext, zq)) ** 2
+                      + (2.0 * _datum_offsets(drf, ctx)) ** 2))
     lo, hi = (0.0, float(c.tol)) if c.tol is not None else (0.0, float(c.upper - c.lower))
     return _result(c, ctx, value, U, {"n": int(d.size), "min": float(d.min()),
                                       "max": float(d.max()), "noise": ctx.S.noise,
@@ -177,6 +241,7 @@ def eval_surface_profile(c, ctx: EvalContext):
 def _axis_ends(X, feat, hole: bool):
     """(end points (2, 3) of the mating cylinder's axis over the points' extent, mating
     diameter, largest radial extent about that axis x 2, axis)."""
+    _coverage_check(X, feat)
     kind = "inscribed" if hole else "circumscribed"
     _, p, a, (lo, hi) = cylinders_zone(X, feat.center, feat.axis, kind)
     a = a if a @ feat.axis > 0 else -a
@@ -184,6 +249,33 @@ def _axis_ends(X, feat, hole: bool):
     ends = np.stack([p + h.min() * a, p + h.max() * a])
     mating, least = (2 * lo, 2 * hi) if hole else (2 * hi, 2 * lo)
     return ends, mating, least, a
+
+
+def _cylinder_points(X, feat, N=None):
+    """The points of a cylinder feature less the gross outliers of a robust fit: a residual
+    from the Tukey least-squares cylinder (:func:`shapeverify.fitting.fit_cylinder`) more than
+    5 robust sigmas (1.4826 MAD) from the median.  The extreme fits (mating cylinders, minimum
+    zones) rest on single points; one stray point must not set them.  Returns (X, keep mask)."""
+    from ..fitting import fit_cylinder
+
+    if X.shape[0] < 8:
+        return X, np.ones(X.shape[0], bool)
+    cy = fit_cylinder(X, loss="tukey", axis=feat.axis)
+    r = np.asarray(cy.residuals, float)
+    med = float(np.median(r))
+    s = 1.4826 * float(np.median(np.abs(r - med)))
+    keep = np.abs(r - med) <= 5.0 * max(s, 1e-9)
+    return X[keep], keep
+
+
+def _coverage_check(X, feat):
+    """A mating cylinder is defined by points all around: refuse (ValueError; the
+    characteristic is then not measured) below :data:`.gdt_zones.MIN_COVERAGE` degrees."""
+    cover = angular_coverage(X, feat.center, feat.axis)
+    if cover < MIN_COVERAGE:
+        raise ValueError(f"the scan covers {cover:.0f} degrees of the circumference of the "
+                         f"cylinder (a mating cylinder needs {MIN_COVERAGE:.0f}: scan it from "
+                         "more sides)")
 
 
 def _least_material(X, feat, hole: bool) -> float:
@@ -250,6 +342,7 @@ def eval_orientation(c, ctx: EvalContext):
         if X.shape[0] < 5:
             return _not_measured(c, f"fewer than 5 scan points on faces {fidx}")
         hole = _is_hole(X, ctx.S.normals[m], f)
+        X, _ = _cylinder_points(X, f)
         ends, mating, _, a = _axis_ends(X, f, hole)
         B = tangent_basis(f.axis)
         e2 = (ends[1] - ends[0]) @ B.T
@@ -295,11 +388,13 @@ def eval_position(c, ctx: EvalContext):
         if f.kind != "cylinder":
             raise ValueError(f"{c.name}: feature {ref} is a {f.kind} face; position takes "
                              "cylinder faces (holes, bosses)")
-        m = ctx.S.on(fidx)
+        m = _on(ctx, fidx)
         X = ctx.S.X[m] if drf is None else drf.apply(ctx.S.X[m])
         if X.shape[0] < 8:
             return _not_measured(c, f"only {X.shape[0]} scan points on {ref}")
         hole = _is_hole(X, ctx.S.normals[m], f)
+        n_all = X.shape[0]
+        X, _ = _cylinder_points(X, f)
         ends, mating, _, a = _axis_ends(X, f, hole)
         least = _least_material(X, f, hole) if c.material == "L" else float("nan")
         q = ends - f.center
@@ -308,10 +403,13 @@ def eval_position(c, ctx: EvalContext):
         bonus, note = _bonus(c, hole, mating, least, f.diameter)
         zq = extreme_quantile(X.shape[0], ctx.k)
         ext = float(np.linalg.norm(ends[1] - ends[0]))
-        U = float(np.hypot(2.0 * zq * ctx.S.noise, 2.0 * _datum_part(drf, ctx, ext, zq)))
+        U = float(np.sqrt((2.0 * zq * ctx.S.noise) ** 2
+                          + (2.0 * _datum_part(drf, ctx, ext, zq)) ** 2
+                          + (2.0 * _datum_offsets(drf, ctx, f.axis)) ** 2))
         tol = float(c.tol) + bonus
         rows.append({"feature": ref if isinstance(ref, str) else list(ref), "faces": fidx,
                      "hole": hole, "value": value, "bonus": bonus, "tolerance": tol,
+                     "n": int(X.shape[0]), "outliers": int(n_all - X.shape[0]),
                      "mating_diameter": mating, "least_material_diameter": least,
                      "nominal_diameter": float(f.diameter), "U": U,
                      "verdict": decide(value, None, tol, U), "ends": ends.tolist(),
@@ -342,6 +440,8 @@ def eval_runout(c, ctx: EvalContext):
     nom = _datum_feature(ax.name, spec, ctx)       # its nominal axis (the DRF puts it there)
     if X.shape[0] < 5:
         return _not_measured(c, f"only {X.shape[0]} scan points on faces {fidx}")
+    if ctx.feats[fidx[0]].kind == "cylinder":
+        X, _ = _cylinder_points(X, ctx.feats[fidx[0]])
     circ, total = runout(X, nom.point, nom.direction)
     value = circ if c.type == "circular_runout" else total
     zq = extreme_quantile(X.shape[0], ctx.k)
@@ -363,6 +463,7 @@ def eval_circularity(c, ctx: EvalContext):
     f = ctx.feats[fidx[0]]
     if f.kind != "cylinder":
         raise ValueError(f"{c.name}: circularity of a {f.kind} face (give cylinder faces)")
+    X, _ = _cylinder_points(X, f)
     B = tangent_basis(f.axis)
     h = (X - f.center) @ f.axis
     vals = []
@@ -385,6 +486,7 @@ def eval_cylindricity(c, ctx: EvalContext):
     if f.kind != "cylinder" or X.shape[0] < 8:
         return _not_measured(c, f"cylindricity needs cylinder faces with 8 points "
                                 f"({f.kind}, {X.shape[0]} points)")
+    X, _ = _cylinder_points(X, f)
     value, p, a, _ = cylinders_zone(X, f.center, f.axis, "zone")
     zq = extreme_quantile(X.shape[0], ctx.k)
     return _result(c, ctx, value, 2.0 * zq * ctx.S.noise,
@@ -442,7 +544,7 @@ def eval_width(c, ctx: EvalContext):
             abs(abs(f1.axis @ f2.axis) - 1) > 1e-6:
         raise ValueError(f"{c.name}: width needs two parallel planar faces, got {c.faces}")
     S = ctx.S
-    P1, P2 = S.X[S.on([fidx[0]])], S.X[S.on([fidx[1]])]
+    P1, P2 = S.X[_on(ctx, [fidx[0]])], S.X[_on(ctx, [fidx[1]])]
     if len(P1) < 3 or len(P2) < 3:
         return _not_measured(c, "fewer than 3 scan points on a face of the width")
     nominal = float(abs((f2.center - f1.center) @ f1.axis))

@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import linprog
 
-__all__ = ["planes_zone", "width_planes", "circles_zone", "cylinders_zone", "tangent_basis", "runout"]
+__all__ = ["angular_coverage", "planes_zone", "width_planes", "circles_zone", "cylinders_zone", "tangent_basis", "runout"]
 
 _ROUNDS = 60
 _STOP = 1e-12
@@ -39,8 +39,13 @@ def tangent_basis(n) -> np.ndarray:
     return np.stack([a, np.cross(n, a)])
 
 
-def _lp(c, A, b, what):
-    res = linprog(c, A_ub=A, b_ub=b, bounds=[(None, None)] * len(c), method="highs")
+def _lp(c, A, b, what, step: float | None = None, n_step: int = 0):
+    """HiGHS; the first ``n_step`` variables (the geometry's update) bounded by +-step (a trust
+    region: a linearised problem of points on part of a circle may be unbounded)."""
+    bounds = [(None, None)] * len(c)
+    if step is not None:
+        bounds[:n_step] = [(-step, step)] * n_step
+    res = linprog(c, A_ub=A, b_ub=b, bounds=bounds, method="highs")
     if res.status != 0:
         raise ValueError(f"minimum zone of {what}: the linear programme failed ({res.message})")
     return res.x
@@ -153,6 +158,21 @@ def width_planes(points1, points2, normal, turn=()):
     return h1 + h2, n, (h1, h2), 0.5 * (h1 - h2)
 
 
+def angular_coverage(points, point, axis) -> float:
+    """Degrees of the circumference about the axis that the points cover (360 less the
+    largest angular gap)."""
+    B = tangent_basis(axis)
+    q = (np.asarray(points, np.float64) - np.asarray(point, np.float64)) @ B.T
+    if q.shape[0] < 2:
+        return 0.0
+    ang = np.sort(np.degrees(np.arctan2(q[:, 1], q[:, 0])))
+    return 360.0 - float(np.diff(np.r_[ang, ang[0] + 360.0]).max())
+
+
+#: a mating circle/cylinder needs points over this much of the circumference (degrees)
+MIN_COVERAGE = 240.0
+
+
 def _radial(xy, c):
     q = xy - c
     rho = np.sqrt(np.sum(q * q, axis=1))
@@ -179,19 +199,21 @@ def circles_zone(xy, center, kind: str = "zone"):
         raise ValueError(f"a circle fit needs (N, 2) points, N >= 3; got {Q.shape}")
     c = np.asarray(center, np.float64).copy()
     m = Q.shape[0]
+    tr = None
     for _ in range(_ROUNDS):
         rho, u = _radial(Q, c)
+        tr = tr or 0.25 * float(rho.max())
         # radial distance after moving the centre by dc: rho - u.dc (first order)
         if kind == "zone":     # vars (dx, dy, lo, hi): lo <= rho - u dc <= hi
             A = np.block([[-u, np.zeros((m, 1)), -np.ones((m, 1))],
                           [u, np.ones((m, 1)), np.zeros((m, 1))]])
-            x = _lp([0, 0, -1, 1], A, np.r_[-rho, rho], "concentric circles")
+            x = _lp([0, 0, -1, 1], A, np.r_[-rho, rho], "concentric circles", tr, 2)
         elif kind == "inscribed":   # vars (dx, dy, r): max r, r <= rho - u dc
             A = np.column_stack([u, np.ones(m)])
-            x = _lp([0, 0, -1], A, rho, "the inscribed circle")
+            x = _lp([0, 0, -1], A, rho, "the inscribed circle", tr, 2)
         elif kind == "circumscribed":   # min r, rho - u dc <= r
             A = np.column_stack([-u, -np.ones(m)])
-            x = _lp([0, 0, 1], A, -rho, "the circumscribed circle")
+            x = _lp([0, 0, 1], A, -rho, "the circumscribed circle", tr, 2)
         else:
             raise ValueError(f"kind must be zone, inscribed or circumscribed, not {kind!r}")
         step = x[:2]
@@ -229,19 +251,20 @@ def cylinders_zone(points, point, axis, kind: str = "zone"):
         L = L or (float(np.abs(h).max()) or 1.0)
         xy = np.column_stack([q @ e1, q @ e2])
         rho, u = _radial(xy, np.zeros(2))
+        tr = 0.25 * float(rho.max())
         # moving the axis by (d1, d2) at the mid-height and tilting it by (t1, t2) per unit height:
         # radial distance rho - u.(d + h t)
         J = np.column_stack([u, u * (h / L)[:, None]])
         if kind == "zone":
             A = np.block([[-J, np.zeros((m, 1)), -np.ones((m, 1))],
                           [J, np.ones((m, 1)), np.zeros((m, 1))]])
-            x = _lp([0, 0, 0, 0, -1, 1], A, np.r_[-rho, rho], "coaxial cylinders")
+            x = _lp([0, 0, 0, 0, -1, 1], A, np.r_[-rho, rho], "coaxial cylinders", tr, 4)
         elif kind == "inscribed":
             x = _lp([0, 0, 0, 0, -1], np.column_stack([J, np.ones(m)]), rho,
-                    "the inscribed cylinder")
+                    "the inscribed cylinder", tr, 4)
         elif kind == "circumscribed":
             x = _lp([0, 0, 0, 0, 1], np.column_stack([-J, -np.ones(m)]), -rho,
-                    "the circumscribed cylinder")
+                    "the circumscribed cylinder", tr, 4)
         else:
             raise ValueError(f"kind must be zone, inscribed or circumscribed, not {kind!r}")
         d = x[0] * e1 + x[1] * e2
