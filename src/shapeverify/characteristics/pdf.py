@@ -19,6 +19,8 @@ from pathlib import Path
 
 import numpy as np
 
+from .registry import label as _type_label   # the type's label (the registry; hook)
+
 __all__ = ["write_pdf_report", "band_edges", "BAND_COLOURS"]
 
 logger = logging.getLogger(__name__)
@@ -209,7 +211,8 @@ def write_pdf_report(result, path, prep=None, *, part: str | None = None,
                 "verdict"]
         rows, colours = [], []
         for c in result.characteristics:
-            rows.append([c.name, c.type, _fmt(c.nominal), _fmt(c.measured), _fmt(c.deviation),
+            rows.append([c.name, _type_label(c.type), _fmt(c.nominal), _fmt(c.measured),
+                         _fmt(c.deviation),
                          _fmt(c.lower), _fmt(c.upper), _fmt(c.uncertainty, 3), c.verdict])
             colours.append(_VERDICT.get(c.verdict, "black"))
         tx = fig.add_axes([0.03, 0.05, 0.94, 0.84])

@@ -22,6 +22,15 @@ Further characteristic types: ``flatness`` (``feature: face:3`` or ``near``, ``t
 every face that carries it.  A plan written by ``shapeverify plan`` from the CAD file's semantic PMI marks each entry
 with its source (``pmi: {kind: geometric_tolerance | dimension | datum, type: Position}``) and
 lists the PMI it does not check in ``unsupported: [{pmi: {...}, reason: "..."}]``.
+GD&T types (issue 28; docs/characteristics.md): ``straightness``, ``circularity``,
+``cylindricity`` (``faces``, ``tol``); ``parallelism``, ``perpendicularity``, ``angularity``
+(``faces``, ``tol``, ``datums: [A, ...]``, ``zone: planes | diameter``); ``position``
+(``features: [hole:N | face:N | [face:N, ...]]``, ``tol``, ``datums``, ``material: M | L`` with
+``size: {lower, upper}``); ``circular_runout``, ``total_runout`` (``faces``, ``tol``,
+``datums``); ``width`` (two ``faces``, ``lower``, ``upper``); ``surface_profile`` takes
+``datums`` too.  The datum letters come from the plan's table
+``datums: {A: {faces: [face:0]}, B: {faces: [face:3, face:4]}, ...}`` (fitted by
+:mod:`.drf`).  Every type is one row of :mod:`.registry`.
 ``section`` (optional): a cross-section plane
 ``{point: [x, y, z], normal: [nx, ny, nz], width: 1.0}`` for the PDF report.
 
