@@ -437,3 +437,46 @@ def test_a_boss_moved_0p5_mm_fails_its_position_and_nothing_else(bracket_prep):
     assert 0.0 <= bonus < 0.2          # MMC size 16.2 less the mating size (16 + noise)
     for name in ("PERP_B", "PERP_BOSS", "CYL", "CIRC", "STRAIGHT"):
         assert res[name].verdict == "pass", (name, res[name].measured)
+
+
+def test_straightness_of_the_base_line_elements_equals_a_scan_of_the_angle(gdt_ctx):
+    """Each line element (band across the direction) against the narrowest slab whose normal
+    turns only along the band (in the plane of z and the direction): a scan of the angle."""
+    from shapeverify.characteristics.gdt import _on, _sections
+
+    ctx, res = gdt_ctx
+    r = res["STRAIGHT"]
+    X = ctx.S.X[_on(ctx, [0])]
+    u = np.asarray(r.details["direction"])
+    v = np.cross([0.0, 0.0, 1.0], u)
+    vals = []
+    for idx in _sections(X @ v):
+        if idx.size >= 3:
+            Y = X[idx]
+            vals.append(_brute_one_turn(
+                lambda t: np.ptp(Y @ (np.cos(t) * np.array([0, 0, 1.0]) + np.sin(t) * u)),
+                -0.01, 0.01))
+    assert r.measured == pytest.approx(max(vals), abs=TOL)
+    assert r.details["lines"] == pytest.approx(vals, abs=TOL)
+
+
+def test_angularity_and_parallelism_use_the_cad_orientation_in_the_drf(gdt_ctx):
+    """Angularity of wall B to A (the CAD's 90 degrees) is perpendicularity's value; its
+    parallelism to itself as a datum (B|A: all rotations fixed by B then A about ...) is the
+    plain range along B's normal after the DRF."""
+    from shapeverify.characteristics.evaluate import evaluate_characteristics
+    from shapeverify.characteristics.gdt import _on
+    from shapeverify.characteristics.plan import load_plan
+
+    ctx, res = gdt_ctx
+    extra = load_plan(_GDT_PLAN.replace(
+        "characteristics:\n",
+        "characteristics:\n"
+        "  - {name: ANG_B, type: angularity, faces: [face:1], tol: 0.4, datums: [A]}\n"
+        "  - {name: PAR_B, type: parallelism, faces: [face:1], tol: 0.4, datums: [B, A]}\n"))
+    chars, _, _ = evaluate_characteristics(ctx.prep, ctx.scan, extra, ctx.al)
+    got = {c.name: c for c in chars}
+    assert got["ANG_B"].measured == pytest.approx(res["PERP_B"].measured, abs=1e-12)
+    T = np.asarray(got["PAR_B"].details["drf"]["T"])
+    X = ctx.S.X[_on(ctx, [1])] @ T[:3, :3].T + T[:3, 3]
+    assert got["PAR_B"].measured == pytest.approx(np.ptp(X[:, 0]), abs=TOL)

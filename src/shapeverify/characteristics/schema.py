@@ -256,11 +256,10 @@ class Perpendicularity(_Oriented):
 
 
 class Angularity(_Oriented):
-    """``angle``: the nominal angle (degrees) between the feature and the primary datum
-    (default: the CAD's)."""
+    """The nominal angle to the datums is the CAD's (the zone has the CAD face's
+    orientation in the DRF)."""
 
     type: Literal["angularity"]
-    angle: Optional[float] = None
 
 
 class Position(_Char):
