@@ -240,18 +240,31 @@ def eval_surface_profile(c, ctx: EvalContext):
 # ------------------------------------------------------------------------------ orientation
 def _axis_ends(X, feat, hole: bool):
     """(end points (2, 3) of the mating cylinder's axis over the points' extent, mating
-    diameter, largest radial extent about that axis x 2, axis)."""
+    diameter, largest radial extent about that axis x 2, axis, how the axis was fitted).
+
+    A feature shorter than its diameter, or with fewer than 60 points, does not fix the tilt
+    of an extreme fit (a few points at each end decide it): its axis keeps the CAD direction
+    and the mating circle of the points projected along it is taken (the datum axis fit of
+    :mod:`.drf` with a fixed direction)."""
     _coverage_check(X, feat)
     kind = "inscribed" if hole else "circumscribed"
-    _, p, a, (lo, hi) = cylinders_zone(X, feat.center, feat.axis, kind)
-    a = a if a @ feat.axis > 0 else -a
+    h0 = (X - feat.center) @ feat.axis
+    if np.ptp(h0) < float(feat.diameter or 0.0) or X.shape[0] < 60:
+        B = tangent_basis(feat.axis)
+        _, c2, (lo, hi) = circles_zone((X - feat.center) @ B.T, np.zeros(2), kind)
+        p, a = feat.center + c2 @ B, np.asarray(feat.axis, float)
+        how = f"{kind} circle, CAD direction (short feature or few points)"
+    else:
+        _, p, a, (lo, hi) = cylinders_zone(X, feat.center, feat.axis, kind)
+        a = a if a @ feat.axis > 0 else -a
+        how = f"{kind} cylinder"
     h = (X - p) @ a
     ends = np.stack([p + h.min() * a, p + h.max() * a])
     mating, least = (2 * lo, 2 * hi) if hole else (2 * hi, 2 * lo)
-    return ends, mating, least, a
+    return ends, mating, least, a, how
 
 
-def _cylinder_points(X, feat, N=None):
+def _cylinder_points(X, feat):
     """The points of a cylinder feature less the gross outliers of a robust fit: a residual
     from the Tukey least-squares cylinder (:func:`shapeverify.fitting.fit_cylinder`) more than
     5 robust sigmas (1.4826 MAD) from the median.  The extreme fits (mating cylinders, minimum
@@ -343,7 +356,7 @@ def eval_orientation(c, ctx: EvalContext):
             return _not_measured(c, f"fewer than 5 scan points on faces {fidx}")
         hole = _is_hole(X, ctx.S.normals[m], f)
         X, _ = _cylinder_points(X, f)
-        ends, mating, _, a = _axis_ends(X, f, hole)
+        ends, mating, _, a, how = _axis_ends(X, f, hole)
         B = tangent_basis(f.axis)
         e2 = (ends[1] - ends[0]) @ B.T
         value = float(np.linalg.norm(e2))
@@ -354,7 +367,7 @@ def eval_orientation(c, ctx: EvalContext):
         return _result(c, ctx, value, U, {"faces": fidx, "n": int(X.shape[0]),
                                           "axis": a.tolist(), "ends": ends.tolist(),
                                           "hole": hole, "mating_diameter": mating,
-                                          "bonus": bonus, "note": note,
+                                          "axis_fit": how, "bonus": bonus, "note": note,
                                           "noise": ctx.S.noise,
                                           "excluded": ctx.S.excluded(fidx)}, drf,
                        0.0, float(c.tol) + bonus)
@@ -395,7 +408,7 @@ def eval_position(c, ctx: EvalContext):
         hole = _is_hole(X, ctx.S.normals[m], f)
         n_all = X.shape[0]
         X, _ = _cylinder_points(X, f)
-        ends, mating, _, a = _axis_ends(X, f, hole)
+        ends, mating, _, a, how = _axis_ends(X, f, hole)
         least = _least_material(X, f, hole) if c.material == "L" else float("nan")
         q = ends - f.center
         off = q - np.outer(q @ f.axis, f.axis)
@@ -410,6 +423,7 @@ def eval_position(c, ctx: EvalContext):
         rows.append({"feature": ref if isinstance(ref, str) else list(ref), "faces": fidx,
                      "hole": hole, "value": value, "bonus": bonus, "tolerance": tol,
                      "n": int(X.shape[0]), "outliers": int(n_all - X.shape[0]),
+                     "axis_fit": how,
                      "mating_diameter": mating, "least_material_diameter": least,
                      "nominal_diameter": float(f.diameter), "U": U,
                      "verdict": decide(value, None, tol, U), "ends": ends.tolist(),
