@@ -281,6 +281,7 @@ def test_plan_refuses_a_characteristic_whose_datum_is_not_in_the_datums_table():
 
 
 # ------------------------------------------------------------------------------ evaluators
+# (slow: the bracket fixture is four virtual scans and a plan evaluation, about 30 s of CPU)
 _GDT_PLAN = """units: mm
 alignment: {type: best_fit}
 datums: {A: {faces: [face:0]}, B: {faces: [face:1]}, C: {faces: [face:2]}, D: {faces: [face:3]}}
@@ -325,6 +326,7 @@ def gdt_clean(bracket_prep):
     return evaluate_plan(bracket_prep, _scan_of(bracket_prep, 13), _GDT_PLAN)
 
 
+@pytest.mark.slow
 def test_gdt_characteristics_of_a_perfect_bracket_pass(gdt_clean):
     bad = {c.name: (c.verdict, c.measured, c.upper, c.details.get("reason"))
            for c in gdt_clean.characteristics if c.verdict != "pass"}
@@ -351,6 +353,7 @@ def gdt_ctx(bracket_prep, gdt_clean):
                        float("nan"), plan), {c.name: c for c in chars}
 
 
+@pytest.mark.slow
 def test_perpendicularity_of_the_bracket_wall_equals_brute_force_on_its_points(gdt_ctx):
     """The evaluator's value = the narrowest slab about a normal turning about the datum A's
     normal (z), on the same points in the same DRF frame: a scan of the angle."""
@@ -366,6 +369,7 @@ def test_perpendicularity_of_the_bracket_wall_equals_brute_force_on_its_points(g
     assert r.measured == pytest.approx(brute, abs=TOL)
 
 
+@pytest.mark.slow
 def test_cylindricity_of_the_boss_equals_slsqp_on_its_points(gdt_ctx):
     from shapeverify.characteristics.gdt import _cylinder_points, _on
 
@@ -377,6 +381,7 @@ def test_cylindricity_of_the_boss_equals_slsqp_on_its_points(gdt_ctx):
         abs=TOL)
 
 
+@pytest.mark.slow
 def test_circularity_of_the_boss_equals_enumeration_in_its_sections(gdt_ctx):
     """Each section's value against the candidate-centre enumeration (on 12 of its points
     spread around, so that the enumeration stays small, compared with the LP on the same)."""
@@ -439,6 +444,7 @@ def test_a_boss_moved_0p5_mm_fails_its_position_and_nothing_else(bracket_prep):
         assert res[name].verdict == "pass", (name, res[name].measured)
 
 
+@pytest.mark.slow
 def test_straightness_of_the_base_line_elements_equals_a_scan_of_the_angle(gdt_ctx):
     """Each line element (band across the direction) against the narrowest slab whose normal
     turns only along the band (in the plane of z and the direction): a scan of the angle."""
@@ -460,6 +466,7 @@ def test_straightness_of_the_base_line_elements_equals_a_scan_of_the_angle(gdt_c
     assert r.details["lines"] == pytest.approx(vals, abs=TOL)
 
 
+@pytest.mark.slow
 def test_angularity_and_parallelism_use_the_cad_orientation_in_the_drf(gdt_ctx):
     """Angularity of wall B to A (the CAD's 90 degrees) is perpendicularity's value; its
     parallelism to itself as a datum (B|A: all rotations fixed by B then A about ...) is the

@@ -3,8 +3,9 @@ good"): OpenCASCADE's tessellation of the STEP file, points uniform by area at 1
 Gaussian noise along the triangles' normals, a rigid motion (``tests/independent_scans.py``).
 
 * a perfect part fails no characteristic;
-* the wall of hole face 70 moved 0.3 mm sideways fails that hole's position (GT21, the
-  ⌀0.508 MMC segment) and nothing else;
+* the wall of hole face 70 moved 0.3 mm sideways puts that hole's position (GT21, the
+  ⌀0.508 MMC segment) out of its zone ('fail', or 'undecided' within U of the limit) and
+  fails nothing else;
 * face 4 tilted 0.2 degrees fails its parallelism tolerances (GT7, GT8) and nothing that does
   not control face 4.
 
@@ -74,14 +75,21 @@ def test_ftc08_perfect_scan_fails_no_characteristic(ftc08):
 
 @pytest.mark.slow
 def test_ftc08_hole_moved_0p3_mm_fails_exactly_its_position(ftc08):
+    """Hole face 70 moved 0.3 mm: its position (twice the offset, about 0.6 mm, + the
+    datums' noise) leaves the 0.508 zone; with U about 0.12 mm (a 3 mm deep hole of 20 scan
+    points) the verdict is 'fail' or, within U of the limit, 'undecided' -- never 'pass';
+    the 1.27 segment (GT20) passes, and nothing else fails."""
     h = ftc08["feats"][70]
     e = np.cross(h.axis, [1.0, 0.0, 0.0])
     e /= np.linalg.norm(e)
     P = ftc08["P"].copy()
     P[ftc08["face"] == 70] += 0.3 * e
     res = _run(ftc08, P)
-    assert _fails(res) == {"GT21_position"}
-    assert res["GT21_position"].measured == pytest.approx(0.6 + 0.1, abs=0.15)
+    assert _fails(res) <= {"GT21_position"}
+    r = res["GT21_position"]
+    assert r.verdict in ("fail", "undecided")
+    assert r.measured - r.upper > 0 and r.measured == pytest.approx(0.6, abs=0.1)
+    assert res["GT20_position"].verdict == "pass"
 
 
 @pytest.mark.slow
