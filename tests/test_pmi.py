@@ -125,11 +125,17 @@ def test_plan_from_nist_pmi_holds_every_tolerance_and_datum_of_the_file(shared_d
     gt = Counter(t for k, t in kinds.values() if k == "geometric_tolerance")
     assert gt == Counter(truth["tolerances"])
     assert sum(1 for k, _ in kinds.values() if k == "dimension") == truth["dimensions"]
-    # the datums: in the alignment or unsupported, one entry per letter
+    # the datums: in the alignment, in the datums table or unsupported, one entry per letter
     names = [u.pmi.model_extra["name"] for u in plan.unsupported if u.pmi.kind == "datum"]
     if plan.alignment.type == "datums":
         names += [p.model_extra["name"] for p in plan.alignment.pmi]
+    names += [n for n in plan.datums if n not in names]
     assert sorted(names) == truth["datums"]
+    for n, spec in plan.datums.items():
+        assert spec.pmi.model_extra["name"] == n
+    # every datum letter a characteristic names is in the datums table (the plan checks it)
+    for c in plan.characteristics:
+        assert set(getattr(c, "datums", None) or []) <= set(plan.datums)
     assert data["unsupported"] == [u.model_dump(exclude_none=True) for u in plan.unsupported]
 
 

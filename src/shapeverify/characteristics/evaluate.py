@@ -65,9 +65,10 @@ from ..registration.rigid import apply_transform
 from .alignment import AlignmentResult, align, best_fit, face_indices
 from .features import find_feature, model_features
 from .holes import measure_hole, plane_basis
+from . import registry
 from .plan import Plan, load_plan
 from .support import extreme_quantile
-from .zones import decide, minimum_zone_flatness, worst_verdict
+from .zones import decide, minimum_zone_flatness, worst_verdict, zone_decide
 
 __all__ = ["CharacteristicResult", "PlanResult", "evaluate_plan", "evaluate_characteristics"]
 
@@ -352,7 +353,7 @@ def _profile(c, S: _Scan, al: AlignmentResult, k: float, prep, scan, max_distanc
                     "faces": "all" if fidx is None else fidx.tolist()})
     details.update(_lower_bound(Sx, fidx))
     return CharacteristicResult(c.name, c.type, 0.0, value, value, lo, hi, U,
-                                decide(value, None, hi, U), details)
+                                zone_decide(c.type, value, lo, hi, U), details)
 
 
 def _untrusted(r: CharacteristicResult, al: AlignmentResult) -> CharacteristicResult:
@@ -411,8 +412,16 @@ def _face_feature(c, feats, S: _Scan, kind):
 
 
 def _flatness(c, S: _Scan, feats, k):
-    f = _face_feature(c, feats, S, "flatness")
-    m = S.on([f.face])
+    if getattr(c, "faces", None) is not None:    # coplanar faces, one zone
+        fidx = face_indices(S.prep.model, c.faces)
+        f = feats[int(fidx[0])]
+        if any(feats[int(i)].kind != "plane" for i in fidx):
+            raise ValueError(f"{c.name}: flatness of faces {c.faces}: not all are planar faces")
+    else:
+        f = _face_feature(c, feats, S, "flatness")
+        fidx = np.array([f.face])
+    fl = fidx.tolist()
+    m = S.on(fl)
     if np.count_nonzero(m) < 3:
         return _not_measured(c, f"fewer than 3 scan points on {f.id}")
     P = S.X[m]
@@ -423,10 +432,12 @@ def _flatness(c, S: _Scan, feats, k):
     U = 2.0 * zq * S.noise
     details = {"feature": f.id, "n": int(m.sum()), "normal": n.tolist(),
                "definition": "minimum zone", "noise": S.noise, "extreme_quantile": zq,
-               "excluded": S.excluded([f.face])}
-    details.update(_lower_bound(S, [f.face]))
+               "excluded": S.excluded(fl)}
+    if len(fl) > 1:
+        details["faces"] = fl
+    details.update(_lower_bound(S, fl))
     return CharacteristicResult(c.name, c.type, 0.0, width, width, 0.0, float(c.tol), U,
-                                decide(width, None, float(c.tol), U), details)
+                                zone_decide(c.type, width, 0.0, float(c.tol), U), details)
 
 
 def _hole(c, S: _Scan, feats, al, k):
@@ -569,6 +580,45 @@ def _largest_tolerance(plan) -> float:
     return max(found) if found else 0.2
 
 
+@dataclass(frozen=True, eq=False)
+class EvalContext:
+    """What every evaluator ``f(c, ctx)`` of :mod:`.registry` gets: the aligned scan ``S``
+    (``_Scan``), the model's features ``feats``, the plan's alignment ``al``, the coverage
+    factor ``k``, ``prep``, the raw ``scan``, the evaluation distance ``md`` and the ``plan``.
+    ``cache``: per-evaluation memo (e.g. fitted datum reference frames, :mod:`.drf`)."""
+
+    S: object
+    feats: list
+    al: AlignmentResult
+    k: float
+    prep: object
+    scan: np.ndarray
+    md: float
+    plan: Plan
+    cache: dict = field(default_factory=dict)
+
+
+def eval_profile(c, ctx: EvalContext):
+    """surface_profile located by the plan's alignment (its own DRF: :func:`.gdt.eval_surface_profile`)."""
+    return _profile(c, ctx.S, ctx.al, ctx.k, ctx.prep, ctx.scan, ctx.md)
+
+
+def eval_flatness(c, ctx: EvalContext):
+    return _flatness(c, ctx.S, ctx.feats, ctx.k)
+
+
+def eval_hole(c, ctx: EvalContext):
+    return _hole(c, ctx.S, ctx.feats, ctx.al, ctx.k)
+
+
+def eval_cylinder(c, ctx: EvalContext):
+    return _cylinder(c, ctx.S, ctx.feats, ctx.k)
+
+
+def eval_check_point(c, ctx: EvalContext):
+    return _check_point(c, ctx.S, ctx.al, ctx.k)
+
+
 def evaluate_characteristics(prep, scan, plan, alignment: AlignmentResult, exclude=None,
                              evaluation_distance: float | None = None, deviations=None):
     """Evaluate a plan's characteristics at a given alignment (see :func:`evaluate_plan`).
@@ -585,19 +635,11 @@ def evaluate_characteristics(prep, scan, plan, alignment: AlignmentResult, exclu
     S = _Scan(prep, scan, alignment.T_model_scan, md, exclude, deviations)
     feats = model_features(prep.model) if prep.model.kind == "cad" else []
     k = float(plan.coverage_factor)
+    ctx = EvalContext(S, feats, alignment, k, prep, scan, md, plan)
     out = []
     for c in plan.characteristics:
         try:
-            if c.type == "surface_profile":
-                r = _profile(c, S, alignment, k, prep, scan, md)
-            elif c.type == "flatness":
-                r = _flatness(c, S, feats, k)
-            elif c.type == "hole":
-                r = _hole(c, S, feats, alignment, k)
-            elif c.type == "cylinder":
-                r = _cylinder(c, S, feats, k)
-            else:
-                r = _check_point(c, S, alignment, k)
+            r = registry.evaluator(c.type)(c, ctx)   # the one dispatch (.registry)
         except ValueError as exc:
             if "feature" in str(exc) or "face" in str(exc):
                 raise ValueError(f"characteristic {c.name!r}: {exc}") from None

@@ -21,6 +21,7 @@ import numpy as np
 
 from ..report.colours import BAND_COLOURS  # noqa: F401 (re-exported: the PDF's bands)
 from ..verdict_table import verdict_style
+from .registry import label as _type_label   # the type's label (the registry)
 
 __all__ = ["write_pdf_report", "band_edges", "BAND_COLOURS"]
 
@@ -216,7 +217,8 @@ def write_pdf_report(result, path, prep=None, *, part: str | None = None,
                 "verdict"]
         rows, colours = [], []
         for c in result.characteristics:
-            rows.append([c.name, c.type, _fmt(c.nominal), _fmt(c.measured), _fmt(c.deviation),
+            rows.append([c.name, _type_label(c.type), _fmt(c.nominal), _fmt(c.measured),
+                         _fmt(c.deviation),
                          _fmt(c.lower), _fmt(c.upper), _fmt(c.uncertainty, 3), c.verdict])
             colours.append(_colour(c.verdict))
         tx = fig.add_axes([0.03, 0.05, 0.94, 0.84])

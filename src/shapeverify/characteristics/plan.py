@@ -22,6 +22,15 @@ Further characteristic types: ``flatness`` (``feature: face:3`` or ``near``, ``t
 every face that carries it.  A plan written by ``shapeverify plan`` from the CAD file's semantic PMI marks each entry
 with its source (``pmi: {kind: geometric_tolerance | dimension | datum, type: Position}``) and
 lists the PMI it does not check in ``unsupported: [{pmi: {...}, reason: "..."}]``.
+GD&T types (issue 28; docs/characteristics.md): ``straightness``, ``circularity``,
+``cylindricity`` (``faces``, ``tol``); ``parallelism``, ``perpendicularity``, ``angularity``
+(``faces``, ``tol``, ``datums: [A, ...]``, ``zone: planes | diameter``); ``position``
+(``features: [hole:N | face:N | [face:N, ...]]``, ``tol``, ``datums``, ``material: M | L`` with
+``size: {lower, upper}``); ``circular_runout``, ``total_runout`` (``faces``, ``tol``,
+``datums``); ``width`` (two ``faces``, ``lower``, ``upper``); ``surface_profile`` takes
+``datums`` too.  The datum letters come from the plan's table
+``datums: {A: {faces: [face:0]}, B: {faces: [face:3, face:4]}, ...}`` (fitted by
+:mod:`.drf`).  Every type is one row of :mod:`.registry`.
 ``section`` (optional): a cross-section plane
 ``{point: [x, y, z], normal: [nx, ny, nz], width: 1.0}`` for the PDF report.
 
@@ -44,6 +53,10 @@ from typing import Annotated, Literal, Optional, Union
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 
 from ..errors import ShapeVerifyError
+from . import registry
+from .schema import (  # noqa: F401 - re-exported: the plan's schema lives in .schema
+    CheckPoint, Cylinder, DatumSpec, FeatureId, FeatureRef, Flatness, Hole, PmiSource,
+    SurfaceProfile, Tol, Unsupported, Vec3, _Char, _Located, _Strict)
 
 __all__ = ["Plan", "PlanError", "load_plan", "parse_plan", "Tol", "DOF_NAMES", "PmiSource",
            "Unsupported"]
@@ -51,11 +64,6 @@ __all__ = ["Plan", "PlanError", "load_plan", "parse_plan", "Tol", "DOF_NAMES", "
 #: the six rigid degrees of freedom, in the order of the alignment's parameter vector
 DOF_NAMES = ("rx", "ry", "rz", "tx", "ty", "tz")
 _AXES = ("x", "y", "z")
-
-Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
-FeatureId = Annotated[str, Field(pattern=r"^(hole|face|cylinder|plane):\d+$")]
-#: a feature id, or the CAD name of a face (a STEP face name: no colon, not blank)
-FeatureRef = Annotated[str, Field(pattern=r"^((hole|face|cylinder|plane):\d+|[^:\s][^:]*)$")]
 
 
 class PlanError(ShapeVerifyError, ValueError):
@@ -68,55 +76,6 @@ class PlanError(ShapeVerifyError, ValueError):
         super().__init__(message)
         self.line = line
         self.key = key
-
-
-class _Strict(BaseModel):
-    # NaN and infinity are no limits and no coordinates (a tol of .inf would pass anything)
-    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
-
-
-class Tol(_Strict):
-    """Limits of a deviation: ``tol`` (symmetric ±tol, or a zone width, see module doc) or
-    ``lower``/``upper`` (mm)."""
-
-    tol: Optional[float] = Field(default=None, gt=0)
-    lower: Optional[float] = None
-    upper: Optional[float] = None
-
-    @model_validator(mode="after")
-    def _one_form(self):
-        if self.tol is None and (self.lower is None or self.upper is None):
-            raise ValueError("give tol (> 0) or both lower and upper")
-        if self.tol is not None and (self.lower is not None or self.upper is not None):
-            raise ValueError("give either tol or lower/upper, not both")
-        if self.tol is None and not self.lower < self.upper:
-            raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
-        return self
-
-    def limits(self) -> tuple[float, float]:
-        """(lower, upper) of a symmetric tolerance (±tol) or the given limits."""
-        if self.tol is not None:
-            return -self.tol, self.tol
-        return float(self.lower), float(self.upper)
-
-
-class PmiSource(BaseModel):
-    """Where a plan entry came from: a semantic PMI item of the CAD file (``shapeverify plan``).
-
-    ``kind``: ``geometric_tolerance``, ``dimension`` or ``datum``; ``type``: OpenCASCADE's type
-    name (``Position``, ``ProfileOfSurface``, ``Size_Diameter``, ``Datum`` ...); further keys
-    (``id``, ``value``, ``datums`` ...) describe the item and are kept as they are."""
-
-    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
-    kind: Literal["geometric_tolerance", "dimension", "datum"]
-    type: str = Field(min_length=1)
-
-
-class Unsupported(_Strict):
-    """A PMI item of the CAD file that the plan does not check, and why."""
-
-    pmi: PmiSource
-    reason: str = Field(min_length=1)
 
 
 # ------------------------------------------------------------------------------ alignments
@@ -191,67 +150,8 @@ class Datums(_Strict):
 Alignment = Annotated[Union[BestFit, Constrained, Rps, Datums], Field(discriminator="type")]
 
 
-# ------------------------------------------------------------------------------ characteristics
-class _Char(_Strict):
-    name: str = Field(min_length=1)
-    pmi: Optional[PmiSource] = None
-
-
-class _Located(_Char):
-    feature: Optional[FeatureRef] = None
-    near: Optional[Vec3] = None
-
-    @model_validator(mode="after")
-    def _where(self):
-        if (self.feature is None) == (self.near is None):
-            raise ValueError("give exactly one of feature (e.g. 'hole:3') or near: [x, y, z]")
-        return self
-
-
-class Hole(_Located):
-    """Diameter and/or position of a hole (circular inner trim loop of a face)."""
-
-    type: Literal["hole"]
-    diameter: Optional[Tol] = None
-    position: Optional[Tol] = None
-
-    @model_validator(mode="after")
-    def _something(self):
-        if self.diameter is None and self.position is None:
-            raise ValueError("a hole needs diameter: {tol: ...} and/or position: {tol: ...}")
-        if self.position is not None and self.position.tol is None:
-            raise ValueError("position takes tol (the diameter of the tolerance zone)")
-        return self
-
-
-class SurfaceProfile(_Char, Tol):
-    """Profile of a surface (ISO 1101) of a face group; ``datum: false`` fits the group first."""
-
-    type: Literal["surface_profile"]
-    faces: Union[Literal["all"], list[Union[FeatureId, int, str]]] = "all"
-    datum: bool = True
-
-
-class Flatness(_Located):
-    type: Literal["flatness"]
-    tol: float = Field(gt=0)
-
-
-class Cylinder(_Located):
-    type: Literal["cylinder"]
-    diameter: Tol
-
-
-class CheckPoint(_Char, Tol):
-    """Deviation along the CAD normal at a named point (mean of the scan within ``radius``)."""
-
-    type: Literal["check_point"]
-    at: Vec3
-    radius: float = Field(default=2.0, gt=0)
-
-
-Characteristic = Annotated[Union[Hole, SurfaceProfile, Flatness, Cylinder, CheckPoint],
-                           Field(discriminator="type")]
+#: every registered characteristic type (:mod:`.registry`)
+Characteristic = Annotated[Union[registry.schemas()], Field(discriminator="type")]
 
 
 class Section(_Strict):
@@ -274,6 +174,9 @@ class Plan(_Strict):
     max_distance: Optional[float] = Field(default=None, gt=0)
     coverage_factor: float = Field(default=2.0, gt=0)
     unsupported: list[Unsupported] = Field(default_factory=list)
+    #: datum features by letter, for the characteristics' own datum reference frames
+    #: (``datums: [A, B, C]`` on a characteristic; fitted by :mod:`.drf`)
+    datums: dict[str, DatumSpec] = Field(default_factory=dict)
 
     @model_validator(mode="after")
     def _unique_names(self):
@@ -283,6 +186,15 @@ class Plan(_Strict):
                 raise ValueError(f"characteristic name {c.name!r} is used twice; names must be "
                                  "unique")
             seen.add(c.name)
+            drf = getattr(c, "datums", None) or []
+            missing = [d for d in drf if d not in self.datums]
+            if missing:
+                raise ValueError(f"characteristic {c.name!r} names datum {missing[0]!r}, which "
+                                 f"the plan's datums table does not define (have: "
+                                 f"{sorted(self.datums) or 'none'}); add datums: "
+                                 f"{{{missing[0]}: {{faces: [face:N]}}}}")
+            if len(set(drf)) != len(drf):
+                raise ValueError(f"characteristic {c.name!r} names a datum twice: {drf}")
         return self
 
     @classmethod
@@ -314,8 +226,7 @@ def _where(loc: tuple, data, lines: dict) -> tuple[tuple, int | None]:
     return tuple(path), None
 
 
-_TAGS = {"best_fit", "constrained", "rps", "datums", "hole", "surface_profile", "flatness",
-         "cylinder", "check_point"}
+_TAGS = {"best_fit", "constrained", "rps", "datums"} | {t.name for t in registry.TYPES}
 
 
 def _key_text(path: tuple) -> str:

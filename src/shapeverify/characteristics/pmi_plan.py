@@ -231,12 +231,80 @@ def _datum_ref(d: dict, ctx) -> tuple[str | None, str]:
                   "the plan's datums are one plane face or one hole")
 
 
+def _planes_coplanar(ctx, faces) -> bool:
+    f0 = ctx.feats[faces[0]]
+    tol = 1e-6 * ctx.size + 1e-6
+    return all(abs(abs(ctx.feats[f].axis @ f0.axis) - 1) < 1e-6
+               and ctx.feats[f].axis @ f0.axis > 0
+               and abs((ctx.feats[f].center - f0.center) @ f0.axis) <= tol for f in faces)
+
+
+def _datum_spec(d: dict, ctx) -> tuple[dict | None, str]:
+    """(the plan's ``datums`` entry of a PMI datum, '') or (None, why not) (:mod:`.drf`)."""
+    if d["type"] == "DatumTarget" or d["targets"]:
+        return None, (f"datum {d['name']} is set up from datum targets "
+                      f"({', '.join(t['type'] for t in d['targets'])}); the target positions "
+                      "are not read from the file")
+    if not d["faces"]:
+        if d["other"]:
+            return None, f"datum {d['name']} is attached to {d['other'][0]}s, not faces"
+        return None, (f"datum {d['name']} is not attached to any face in the file (as "
+                      "OpenCASCADE's XCAF reader reads it)")
+    faces = [ctx.fmap.get(f) for f in d["faces"]]
+    if any(f is None for f in faces):
+        return None, f"a face of datum {d['name']} could not be imported"
+    src = _src(d)
+    kinds = {ctx.feats[f].kind for f in faces}
+    if kinds == {"plane"} and _planes_coplanar(ctx, faces):
+        return {"faces": [f"face:{f}" for f in faces], "kind": "plane", "pmi": src}, ""
+    if kinds == {"cylinder"}:
+        groups, _ = _cylinders(ctx.feats, ctx.model, faces)
+        if len(groups) == 1:
+            return {"faces": [f"face:{f}" for f in faces], "kind": "axis", "pmi": src}, ""
+        return None, (f"datum {d['name']} is a pattern of {len(groups)} cylinders (a pattern "
+                      "datum is not fitted yet)")
+    if kinds == {"plane"}:
+        f0 = ctx.feats[faces[0]]
+        one = [f for f in faces if ctx.feats[f].axis @ f0.axis > 0]
+        two = [f for f in faces if ctx.feats[f].axis @ f0.axis < 0]
+        if one and two and _planes_coplanar(ctx, one) and _planes_coplanar(ctx, two) and \
+                abs(ctx.feats[two[0]].axis @ f0.axis + 1) < 1e-6:
+            return {"faces": [f"face:{f}" for f in faces], "kind": "midplane", "pmi": src}, ""
+        return None, (f"datum {d['name']} is {len(faces)} planar faces that are neither one "
+                      "plane nor the two sides of a width")
+    return None, (f"datum {d['name']} is a feature of {len(faces)} faces "
+                  f"({', '.join(sorted(kinds))}); datum features are planes or axes")
+
+
+def _item_drf(item, ctx) -> tuple[list | None, str]:
+    """(datum letters of the item's DRF, '') when every datum can be fitted, else (None, why)."""
+    ds = item["datums"]
+    mods = [f"{d['name']} {', '.join(d['modifiers'])}" for d in ds if d["modifiers"]]
+    if mods:
+        return None, f"datum modifiers ({'; '.join(mods)}) are not applied"
+    orders = [d["order"] for d in ds]
+    if len(set(orders)) != len(orders):
+        return None, ("a common datum (two datums of the same precedence: "
+                      f"{'-'.join(d['name'] for d in ds if orders.count(d['order']) > 1)}) "
+                      "is not fitted yet")
+    names = [d["name"] for d in sorted(ds, key=lambda d: d["order"])]
+    for n in names:
+        if n not in ctx.datum_specs:
+            return None, ctx.datum_why.get(n, f"datum {n} is not in the file")
+    for n in names:
+        ctx.used_datums.add(n)
+    return names, ""
+
+
 class _Ctx:
     def __init__(self, pmi, model, fmap):
         self.pmi, self.model, self.fmap = pmi, model, fmap
         self.feats = model_features(model)
         self.size = float(model.size)
         self.names: Counter = Counter()
+        self.datum_specs: dict = {}
+        self.datum_why: dict = {}
+        self.used_datums: set = set()
 
     def name(self, base: str) -> str:
         self.names[base] += 1
@@ -280,8 +348,12 @@ def _faces_ok(item, ctx, key="faces"):
 
 
 #: tolerance modifiers that do not change what a characteristic measures, per type
-_HARMLESS = {"ProfileOfSurface": {"All_Around", "All_Over"}, "Flatness": set(),
-             "Position": set()}
+#: (Free_State: a scan of the unrestrained part is a free-state measurement)
+_HARMLESS = {"ProfileOfSurface": {"All_Around", "All_Over", "Free_State"},
+             "Flatness": {"Free_State"}, "Position": {"Free_State"},
+             "Parallelism": {"Free_State", "Tangent_Plane"},
+             "Perpendicularity": {"Free_State", "Tangent_Plane"},
+             "Angularity": {"Free_State", "Tangent_Plane"}}
 
 
 def _modifier_reason(item) -> str:
@@ -317,9 +389,14 @@ def _tolerance(item, ctx, drf, why) -> tuple[list, str]:
     if reason:
         return [], reason
     if t == "Flatness":
+        if len(faces) > 1 and {ctx.feats[f].kind for f in faces} == {"plane"} and \
+                _planes_coplanar(ctx, faces):
+            return [{"name": ctx.name(f"{item['id']}_flatness"), "type": "flatness",
+                     "faces": [f"face:{f}" for f in faces], "tol": item["value"],
+                     "pmi": src}], ""
         if len(faces) != 1 or ctx.feats[faces[0]].kind != "plane":
-            return [], (f"flatness of {len(faces)} faces ({ctx.feats[faces[0]].kind}); the plan's "
-                        "flatness is of one planar face")
+            return [], (f"flatness of {len(faces)} faces ({ctx.feats[faces[0]].kind}) that are "
+                        "not one plane")
         return [{"name": ctx.name(f"{item['id']}_flatness"), "type": "flatness",
                  "feature": f"face:{faces[0]}", "tol": item["value"], "pmi": src}], ""
     if t == "ProfileOfSurface":
@@ -327,15 +404,23 @@ def _tolerance(item, ctx, drf, why) -> tuple[list, str]:
             return [], f"a {item['zone_modifier']} zone modifier (uniform zones only)"
         if item["datums"]:
             r = _drf_reason(item, drf, why)
-            if r:
-                return [], r
+            if r:            # not the plan's alignment: in its own DRF (.drf)
+                names, r2 = _item_drf(item, ctx)
+                if names is None:
+                    return [], r2
+                return [{"name": ctx.name(f"{item['id']}_profile"), "type": "surface_profile",
+                         "faces": [f"face:{f}" for f in faces], "tol": item["value"],
+                         "datums": names, "pmi": src}], ""
         return [{"name": ctx.name(f"{item['id']}_profile"), "type": "surface_profile",
                  "faces": [f"face:{f}" for f in faces], "tol": item["value"],
                  "datum": bool(item["datums"]), "pmi": src}], ""
+    if t in ("Parallelism", "Perpendicularity", "Angularity"):
+        return _orientation(item, ctx, faces, src)
     if t == "Position":
-        if item["material"]:
-            return [], (f"material modifier {item['material']}: the bonus tolerance from the "
-                        "measured size is not computed yet")
+        if item["material"] or (item["value_type"] == "Diameter"
+                                and item["zone_modifier"] == "None"
+                                and _drf_reason(item, drf, why)):
+            return _position(item, ctx, faces, src)
         if item["value_type"] != "Diameter":
             zone = {"None": "two parallel planes", "SphericalDiameter": "a sphere"}.get(
                 item["value_type"], item["value_type"])
@@ -362,6 +447,80 @@ def _tolerance(item, ctx, drf, why) -> tuple[list, str]:
                         "pmi": src})
         return out, ""
     return [], f"no plan characteristic for {t} yet (issue 28 item 3)"
+
+
+def _size_of(item, ctx, faces) -> tuple[dict | None, str]:
+    """The ``size`` limits of a material modifier: the Size_Diameter dimension on the same
+    faces (the drawing's nominal and limits)."""
+    want = set(item["faces"])
+    for d in ctx.pmi["dimensions"]:
+        if d["type"] == "Size_Diameter" and d["lower"] is not None and want <= set(d["faces"]):
+            return {"lower": _mm(d["lower"]), "upper": _mm(d["upper"]),
+                    "nominal": _mm(d["nominal"])}, ""
+    return None, (f"material modifier {item['material']}: no toleranced diameter (Size_Diameter) "
+                  "on its faces for the bonus tolerance")
+
+
+def _orientation(item, ctx, faces, src) -> tuple[list, str]:
+    t = item["type"]
+    if item["zone_modifier"] != "None":
+        return [], f"a {item['zone_modifier']} zone modifier"
+    names, r = _item_drf(item, ctx)
+    if names is None:
+        return [], r or "no datum reference frame"
+    kinds = {ctx.feats[f].kind for f in faces}
+    entry = {"name": ctx.name(f"{item['id']}_{t.lower()}"), "type": t.lower(),
+             "faces": [f"face:{f}" for f in faces], "tol": item["value"], "datums": names,
+             "pmi": src}
+    if kinds == {"plane"} and item["value_type"] == "None":
+        if not _planes_coplanar(ctx, faces):
+            return [], f"{t.lower()} of {len(faces)} planar faces that are not one plane"
+        if item["material"]:
+            return [], f"material modifier {item['material']} on a plane"
+        entry["zone"] = "planes"
+        if "Tangent_Plane" in item["modifiers"]:
+            entry["tangent_plane"] = True
+        return [entry], ""
+    if kinds == {"cylinder"} and item["value_type"] == "Diameter":
+        groups, _ = _cylinders(ctx.feats, ctx.model, faces)
+        if len(groups) != 1:
+            return [], f"{t.lower()} of {len(groups)} axes under one tolerance"
+        if "Tangent_Plane" in item["modifiers"]:
+            return [], "a tangent plane modifier on an axis"
+        entry["zone"] = "diameter"
+        if item["material"]:
+            size, r = _size_of(item, ctx, faces)
+            if size is None:
+                return [], r
+            entry["material"], entry["size"] = item["material"], size
+        return [entry], ""
+    zone = "\u2300 (an axis)" if item["value_type"] == "Diameter" else "two parallel planes"
+    return [], (f"{t.lower()} of {', '.join(sorted(kinds))} faces with a {zone} zone (planes "
+                "with a planes zone, cylinders with a \u2300 zone are supported)")
+
+
+def _position(item, ctx, faces, src) -> tuple[list, str]:
+    if item["value_type"] != "Diameter":
+        zone = {"None": "two parallel planes", "SphericalDiameter": "a sphere"}.get(
+            item["value_type"], item["value_type"])
+        return [], f"the zone is {zone} (no \u2300); position is of axes in a cylindrical zone"
+    if item["zone_modifier"] != "None":
+        return [], f"a {item['zone_modifier']} zone modifier"
+    names, r = _item_drf(item, ctx)
+    if names is None:
+        return [], r or "no datum reference frame"
+    groups, other = _cylinders(ctx.feats, ctx.model, faces)
+    if other or not groups:
+        return [], "it controls faces that are not cylinders (position is of axes)"
+    entry = {"name": ctx.name(f"{item['id']}_position"), "type": "position",
+             "features": [[f"face:{f}" for f in g[0]] for g in groups], "tol": item["value"],
+             "datums": names, "pmi": src}
+    if item["material"]:
+        size, r = _size_of(item, ctx, faces)
+        if size is None:
+            return [], r
+        entry["material"], entry["size"] = item["material"], size
+    return [entry], ""
 
 
 def _dimension(item, ctx) -> tuple[list, str]:
@@ -456,6 +615,12 @@ def pmi_plan(path, *, model=None, pmi=None, timeout: float | None = 600.0) -> Pm
     model = getattr(model, "model", model)
     ctx = _Ctx(pmi, model, _face_map(pmi, model))
     datums = {d["name"]: d for d in pmi["datums"]}
+    for name, d in datums.items():
+        spec, reason = _datum_spec(d, ctx)
+        if spec is None:
+            ctx.datum_why[name] = reason
+        else:
+            ctx.datum_specs[name] = spec
     alignment, drf, why = _alignment(ctx, datums)
     chars, unsupported, rows = [], [], []
     used = set(drf or ())
@@ -471,9 +636,10 @@ def pmi_plan(path, *, model=None, pmi=None, timeout: float | None = 600.0) -> Pm
         if not entries:
             unsupported.append({"pmi": _src(item), "reason": reason})
         rows.append(_row(item, ctx, entries, reason))
+    table = {n: ctx.datum_specs[n] for n in sorted(ctx.used_datums)}
     for name, d in datums.items():
-        if name in used:
-            rows.append(_row(d, ctx, [{"name": "alignment"}], ""))
+        if name in used or name in table:
+            rows.append(_row(d, ctx, [{"name": "alignment" if name in used else "datums"}], ""))
             continue
         reason = why.get(name) or (f"datum {name} is not in the plan's alignment (the plan "
                                    f"aligns on one datum reference frame: "
@@ -482,6 +648,8 @@ def pmi_plan(path, *, model=None, pmi=None, timeout: float | None = 600.0) -> Pm
         rows.append(_row(d, ctx, [], reason))
     data = {"units": "mm", "part": path.name, "alignment": alignment,
             "characteristics": chars, "unsupported": unsupported}
+    if table:
+        data["datums"] = table
     plan = load_plan(data)
     logger.info("%s: plan from PMI: %d characteristics, %d PMI items unsupported, alignment %s",
                 path.name, len(chars), len(unsupported), alignment["type"])

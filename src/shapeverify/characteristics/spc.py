@@ -32,6 +32,8 @@ from pathlib import Path
 
 import numpy as np
 
+from . import registry
+
 __all__ = ["store_characteristics", "characteristic_rows", "characteristic_names", "capability",
            "Capability", "plot_run_chart", "export_csv", "MIN_PARTS"]
 
@@ -40,7 +42,9 @@ logger = logging.getLogger(__name__)
 #: fewer values than this are flagged: capability indices are not reliable
 MIN_PARTS = 25
 _D2 = 1.128  # d2 for moving ranges of 2
-_ONE_SIDED = ("surface_profile", "flatness", "position")
+#: zone widths (no lower limit, no Cp): the registry's one-sided types (a hole's position
+#: series is named "position" too)
+_ONE_SIDED = tuple(dict.fromkeys(registry.one_sided_types() + ("position",)))
 
 _SCHEMA = """
 CREATE TABLE IF NOT EXISTS characteristics (

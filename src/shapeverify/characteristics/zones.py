@@ -24,7 +24,7 @@ import numpy as np
 from scipy.optimize import linprog
 
 __all__ = ["minimum_zone_flatness", "least_squares_flatness", "decide", "worst_verdict",
-           "VERDICTS"]
+           "VERDICTS", "is_one_sided", "zone_decide"]
 
 #: ISO 14253-1 outcomes: conforms, does not conform, cannot be decided within the uncertainty
 VERDICTS = ("pass", "fail", "undecided")
@@ -133,3 +133,17 @@ def worst_verdict(verdicts) -> str:
     if "undecided" in v or not v:
         return "undecided"
     return "pass"
+
+
+def is_one_sided(type_name: str) -> bool:
+    """The characteristic type's value is a zone width with an upper limit only
+    (:mod:`.registry`'s ``one_sided``)."""
+    from .registry import by_name
+
+    return by_name(type_name).one_sided
+
+
+def zone_decide(type_name: str, value: float, lower, upper, U: float) -> str:
+    """:func:`decide` with the type's sidedness from the registry (a one-sided type's lower
+    limit is not checked)."""
+    return decide(value, None if is_one_sided(type_name) else lower, upper, U)

@@ -1,0 +1,581 @@
+"""Evaluators of the GD&T characteristics (issue 28 item 3), each in its own datum reference
+frame (:mod:`.drf`) where it names ``datums``.
+
+Definitions (ISO 1101 / ASME Y14.5; zones by :mod:`.gdt_zones`; lengths in mm)
+-------------------------------------------------------------------------------
+Cylinder features lose their gross outliers first (:func:`_cylinder_points`: 5 robust sigmas
+from the robust least-squares cylinder).  The points of a characteristic are the kept points of its faces (:mod:`.evaluate`) whose
+closest CAD point is at least 2 scan spacings (0.5 mm) inside the face's edges (:func:`_on`),
+moved into the
+characteristic's DRF (:meth:`.drf.DRF.apply`) when it names datums.
+
+* **straightness** ``zone: lines``: the faces' points cut into 10 bands across ``direction``
+  (default: the face's longest extent); each band's line element is enclosed by two parallel
+  lines (minimum zone, the normal turning only along the band); the value is the largest.
+  ``zone: diameter``: the axis of a cylinder: centres of the minimum-zone circles of 10
+  cross-sections; value = diameter of the smallest cylinder holding them.
+* **circularity**: minimum-zone concentric circles of each of 10 cross-sections of the cylinder
+  (perpendicular to the CAD axis); the value is the largest radial separation.
+* **cylindricity**: minimum-zone coaxial cylinders of all points.
+* **parallelism, perpendicularity, angularity** of a plane (``zone: planes``): two parallel
+  planes at the CAD orientation relative to the DRF; the zone may turn only about the
+  rotations the DRF leaves free (about a single datum plane's normal for a perpendicular or
+  inclined face); value = their minimum distance.  Of an axis (``zone: diameter``, a hole or
+  boss): the axis of the mating cylinder (largest inscribed for a hole, smallest
+  circumscribed for a boss) between the ends of the feature; value = the
+  diameter of the smallest cylinder in the CAD axis's direction holding those ends (the
+  distance of the ends across that direction).
+* **position** (``zone: diameter``): each feature's axis is the axis of its mating cylinder
+  (ASME Y14.5: the unrelated actual mating envelope); value = twice the largest distance of its
+  ends from the true position (the CAD axis in the DRF).  ``material: M``: bonus = the mating
+  size's departure from the maximum material size (a hole: mating diameter - (nominal +
+  lower); a boss: (nominal + upper) - mating diameter); ``L``: from the least material size
+  (a hole's smallest circumscribed, a boss's largest inscribed diameter).  The limit is
+  ``tol + bonus`` (a negative bonus, a feature out of its size limits, counts as 0 and is
+  reported).  A pattern is one tolerance: every feature in the same DRF; the result is the
+  feature with the smallest margin, every feature's numbers in ``details['features']``.
+* **circular / total runout** about the DRF's axis (the primary datum's, at its nominal
+  place in the DRF): :func:`.gdt_zones.runout`.
+* **width** (size): distance between two parallel faces: each face's points' mean distance
+  from the other face's least-squares plane, averaged; deviation = measured - CAD distance.
+* **surface_profile** with ``datums``: as the plan's profile but the points are moved into the
+  DRF and their deviations taken again from the CAD (exact closest points).
+
+Uncertainty (k, ISO 14253-1) of a zone width taken from extreme points: ``2 z_n sigma`` per
+zone (:func:`.support.extreme_quantile`, sigma the scan noise), combined with the datum part:
+a datum plane fitted on its high points turns (:func:`_datum_part`) and shifts by the largest
+of its noisy deviations (:func:`_datum_offsets`); the shift enters location (position,
+profile in a DRF), the turn every zone over the feature's extent.  For position
+``2 z_n sigma`` per axis end (the mating cylinder rests on extreme points too).  Free directions of the DRF stay at the plan's alignment.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .alignment import face_indices
+from .drf import DatumFeature, fit_drf
+from .evaluate import CharacteristicResult, EvalContext, _not_measured, _profile
+from .gdt_zones import (MIN_COVERAGE, angular_coverage, circles_zone, cylinders_zone,
+                        planes_zone, runout, tangent_basis)
+from .support import extreme_quantile
+from .zones import decide, zone_decide
+
+__all__ = ["eval_surface_profile", "eval_orientation", "eval_position", "eval_runout",
+           "eval_straightness", "eval_circularity", "eval_cylindricity", "eval_width", "drf_of"]
+
+
+# ------------------------------------------------------------------------------ points
+def _on(ctx: EvalContext, faces) -> np.ndarray:
+    """The kept points of ``faces`` whose closest CAD point lies inside the face, at least
+    ``EDGE`` spacings (and 0.5 mm) from its edges: a point of a neighbouring surface beyond an
+    edge (the plate at the foot of a moved boss) is not the face's."""
+    S = ctx.S
+    m = S.on(faces)
+    sp = float(getattr(S.support, "spacing", 0.0) or 0.0)
+    e = max(EDGE * sp, 0.5)
+    out = m.copy()
+    for f in (np.unique(S.face[m]) if faces is None else faces):
+        key = ("edge", int(f))
+        if key not in ctx.cache:
+            from scipy.spatial import cKDTree
+
+            from .features import _dense_loop
+
+            face = ctx.prep.model.faces[int(f)]
+            rim = np.concatenate([face.evaluate(_dense_loop(lp, 8)) for lp in face.loops])
+            ctx.cache[key] = cKDTree(rim)
+        sel = m & (S.face == f)
+        if sel.any():
+            d, _ = ctx.cache[key].query(S.feet[sel])
+            out[np.flatnonzero(sel)[d < e]] = False
+    return out
+
+
+#: points whose closest CAD point is nearer than this many scan spacings to the face's edge
+#: are left out of the GD&T characteristics (:func:`_on`)
+EDGE = 2.0
+
+
+# ------------------------------------------------------------------------------ DRF
+def _datum_feature(name, spec, ctx: EvalContext) -> DatumFeature:
+    S, feats = ctx.S, ctx.feats
+    if spec.at is not None:
+        at = np.asarray(spec.at, float)
+        foot = ctx.prep.closest(at[None], exact=True)
+        q, n, fc = foot.points[0], foot.normals[0], int(foot.face[0])
+        m = _on(ctx, [fc]) & (np.linalg.norm(S.feet - q, axis=1) <= 2.0)
+        return DatumFeature(name, "point", q, n, S.X[m], deviations=S.d[m])
+    fidx = face_indices(ctx.prep.model, spec.faces).tolist()
+    kinds = {feats[i].kind for i in fidx}
+    kind = spec.kind or ("plane" if kinds == {"plane"} else
+                         "axis" if kinds == {"cylinder"} else None)
+    if kind is None:
+        raise ValueError(f"datum {name}: faces {spec.faces} are {sorted(kinds)}; a datum "
+                         "feature is planar faces (plane) or cylinder faces (axis); give kind")
+    m = _on(ctx, fidx)
+    f = feats[fidx[0]]
+    if kind == "plane":
+        return DatumFeature(name, "plane", f.center, f.axis, S.X[m])
+    if kind == "midplane":
+        one = [i for i in fidx if feats[i].axis @ f.axis > 0]
+        two = [i for i in fidx if feats[i].axis @ f.axis < 0]
+        if not one or not two or kinds != {"plane"}:
+            raise ValueError(f"datum {name}: a midplane needs planar faces on both sides of a "
+                             f"width; faces {spec.faces} are not")
+        g2 = feats[two[0]]
+        mid = 0.5 * (f.center + g2.center)
+        mid = f.center + ((mid - f.center) @ f.axis) * f.axis
+        return DatumFeature(name, "midplane", mid, f.axis, S.X[_on(ctx, one)],
+                            points2=S.X[_on(ctx, two)])
+    X = S.X[m]
+    q = X - f.center
+    radial = q - np.outer(q @ f.axis, f.axis)
+    hole = float(np.sum(S.normals[m] * radial)) < 0 if len(X) else True
+    X, _ = _cylinder_points(X, f)
+    return DatumFeature(name, "axis", f.center, f.axis, X, hole=hole)
+
+
+def drf_of(names, ctx: EvalContext):
+    """The fitted DRF of the datum letters ``names`` (cached per evaluation)."""
+    key = ("drf", tuple(names))
+    if key not in ctx.cache:
+        fs = [_datum_feature(n, ctx.plan.datums[n], ctx) for n in names]
+        ctx.cache[key] = fit_drf(fs, size=float(ctx.prep.model.size))
+    return ctx.cache[key]
+
+
+def _frame_points(c, ctx, fidx):
+    """(points of the faces in the characteristic's frame, mask, drf or None)."""
+    m = _on(ctx, fidx)
+    X = ctx.S.X[m]
+    names = getattr(c, "datums", None)
+    if not names:
+        return X, m, None
+    drf = drf_of(names, ctx)
+    return drf.apply(X), m, drf
+
+
+def _datum_part(drf, ctx, extent: float, zq: float) -> float:
+    """Expanded (k) change of a zone's half-width over ``extent`` mm from the datum planes'
+    own noise: a tangent plane rests on the extreme points near its ends, whose difference
+    has the standard deviation ``sqrt(2) (pi / sqrt(6)) sigma / sqrt(2 ln n)`` (the Gumbel
+    spread of the largest of n normal deviates); it tilts by that over the datum's length
+    ``L_d``, which moves the zone's ends by ``extent / L_d`` times it."""
+    if drf is None:
+        return 0.0
+    out = 0.0
+    for d in drf.datums:
+        if d.kind not in ("plane", "midplane"):
+            continue
+        spec = ctx.plan.datums[d.name]
+        fidx = face_indices(ctx.prep.model, spec.faces) if spec.faces else None
+        P = ctx.S.X[ctx.S.on(fidx)] if fidx is not None else np.zeros((0, 3))
+        Ld = float(np.ptp(P @ tangent_basis(d.direction).T, axis=0).max()) if len(P) > 2 else 0
+        if Ld > 0:
+            s = np.sqrt(2.0) * (np.pi / np.sqrt(6.0)) * ctx.S.noise / np.sqrt(
+                2.0 * np.log(max(len(P), 3)))
+            out = max(out, ctx.k * s * extent / Ld)
+    return out
+
+
+def _datum_offsets(drf, ctx, axis=None) -> float:
+    """Expanded (k) shift of the frame from where the noise puts the datum planes: a tangent
+    plane rests on the largest of its n noisy deviations, ``z_n sigma``
+    (:func:`.support.extreme_quantile`); combined in quadrature over the plane datums (those
+    across ``axis`` only, when given: they move an axis sideways)."""
+    if drf is None:
+        return 0.0
+    tot = 0.0
+    for d in drf.datums:
+        if d.kind not in ("plane", "midplane"):
+            continue
+        if axis is not None and abs(float(d.direction @ axis)) > 0.5:
+            continue
+        n = max(d.n, 2)
+        tot += (extreme_quantile(n, ctx.k) * ctx.S.noise) ** 2
+    return float(np.sqrt(tot))
+
+
+def _result(c, ctx, value, U, details, drf=None, lower=0.0, upper=None, nominal=0.0):
+    upper = float(c.tol) if upper is None else upper
+    if drf is not None:
+        details["drf"] = drf.to_dict()
+    return CharacteristicResult(c.name, c.type, nominal, value, value - nominal, lower, upper,
+                                U, zone_decide(c.type, value, lower, upper, U), details)
+
+
+def _faces(c, ctx):
+    return face_indices(ctx.prep.model, c.faces).tolist()
+
+
+# ------------------------------------------------------------------------------ profile
+def eval_surface_profile(c, ctx: EvalContext):
+    """surface_profile: in the plan's alignment, or in its own DRF when it names ``datums``."""
+    from .evaluate import eval_profile
+
+    if not getattr(c, "datums", None):
+        return eval_profile(c, ctx)
+    fidx = face_indices(ctx.prep.model, c.faces)
+    fl = None if fidx is None else fidx.tolist()
+    X, m, drf = _frame_points(c, ctx, fl)
+    if X.shape[0] == 0:
+        return _not_measured(c, "no scan points on the profile's faces")
+    cl = ctx.prep.closest(X, exact=True)
+    d = np.asarray(cl.distances, float)
+    d = d[np.isfinite(d)]
+    i = int(np.argmax(np.abs(d)))
+    value = 2.0 * float(abs(d[i]))
+    zq = extreme_quantile(d.size, ctx.k)
+    ext = float(np.ptp(X, axis=0).max())
+    U = float(np.sqrt((2.0 * zq * ctx.S.noise) ** 2 + (2.0 * _datum_part(drf, ctx, ext, zq)) ** 2
+                      + (2.0 * _datum_offsets(drf, ctx)) ** 2))
+    lo, hi = (0.0, float(c.tol)) if c.tol is not None else (0.0, float(c.upper - c.lower))
+    return _result(c, ctx, value, U, {"n": int(d.size), "min": float(d.min()),
+                                      "max": float(d.max()), "noise": ctx.S.noise,
+                                      "extreme_quantile": zq, "faces": fl or "all",
+                                      "excluded": ctx.S.excluded(fl)},
+                   drf, 0.0, hi)
+
+
+# ------------------------------------------------------------------------------ orientation
+def _axis_ends(X, feat, hole: bool):
+    """(end points (2, 3) of the mating cylinder's axis over the points' extent, mating
+    diameter, largest radial extent about that axis x 2, axis, how the axis was fitted).
+
+    A feature shorter than its diameter, or with fewer than 60 points, does not fix the tilt
+    of an extreme fit (a few points at each end decide it): its axis keeps the CAD direction
+    and the mating circle of the points projected along it is taken (the datum axis fit of
+    :mod:`.drf` with a fixed direction)."""
+    _coverage_check(X, feat)
+    kind = "inscribed" if hole else "circumscribed"
+    h0 = (X - feat.center) @ feat.axis
+    if np.ptp(h0) < float(feat.diameter or 0.0) or X.shape[0] < 60:
+        B = tangent_basis(feat.axis)
+        _, c2, (lo, hi) = circles_zone((X - feat.center) @ B.T, np.zeros(2), kind)
+        p, a = feat.center + c2 @ B, np.asarray(feat.axis, float)
+        how = f"{kind} circle, CAD direction (short feature or few points)"
+    else:
+        _, p, a, (lo, hi) = cylinders_zone(X, feat.center, feat.axis, kind)
+        a = a if a @ feat.axis > 0 else -a
+        how = f"{kind} cylinder"
+    h = (X - p) @ a
+    ends = np.stack([p + h.min() * a, p + h.max() * a])
+    mating, least = (2 * lo, 2 * hi) if hole else (2 * hi, 2 * lo)
+    return ends, mating, least, a, how
+
+
+def _cylinder_points(X, feat):
+    """The points of a cylinder feature less the gross outliers of a robust fit: a residual
+    from the Tukey least-squares cylinder (:func:`shapeverify.fitting.fit_cylinder`) more than
+    5 robust sigmas (1.4826 MAD) from the median.  The extreme fits (mating cylinders, minimum
+    zones) rest on single points; one stray point must not set them.  Returns (X, keep mask)."""
+    from ..fitting import fit_cylinder
+
+    if X.shape[0] < 8:
+        return X, np.ones(X.shape[0], bool)
+    cy = fit_cylinder(X, loss="tukey", axis=feat.axis)
+    r = np.asarray(cy.residuals, float)
+    med = float(np.median(r))
+    s = 1.4826 * float(np.median(np.abs(r - med)))
+    keep = np.abs(r - med) <= 5.0 * max(s, 1e-9)
+    return X[keep], keep
+
+
+def _coverage_check(X, feat):
+    """A mating cylinder is defined by points all around: refuse (ValueError; the
+    characteristic is then not measured) below :data:`.gdt_zones.MIN_COVERAGE` degrees."""
+    cover = angular_coverage(X, feat.center, feat.axis)
+    if cover < MIN_COVERAGE:
+        raise ValueError(f"the scan covers {cover:.0f} degrees of the circumference of the "
+                         f"cylinder (a mating cylinder needs {MIN_COVERAGE:.0f}: scan it from "
+                         "more sides)")
+
+
+def _least_material(X, feat, hole: bool) -> float:
+    """The least material size: a hole's smallest circumscribed, a boss's largest inscribed
+    cylinder diameter."""
+    kind = "circumscribed" if hole else "inscribed"
+    return 2.0 * cylinders_zone(X, feat.center, feat.axis, kind)[0]
+
+
+def _bonus(c, hole: bool, mating: float, least: float, cad_diameter: float):
+    """(bonus, note) of a material modifier (module docstring); (0, None) without one."""
+    if getattr(c, "material", None) is None:
+        return 0.0, None
+    nom = float(c.size.nominal) if c.size.nominal is not None else float(cad_diameter)
+    mmc = nom + (c.size.lower if hole else c.size.upper)
+    lmc = nom + (c.size.upper if hole else c.size.lower)
+    if c.material == "M":
+        bonus = (mating - mmc) if hole else (mmc - mating)
+    else:
+        bonus = (lmc - least) if hole else (least - lmc)
+    if bonus < 0:
+        size = mating if c.material == "M" else least
+        return 0.0, (f"the {'mating' if c.material == 'M' else 'least material'} size "
+                     f"{size:.4f} is outside the size limits: no bonus")
+    return float(bonus), None
+
+
+def _is_hole(X, N, feat) -> bool:
+    q = X - feat.center
+    radial = q - np.outer(q @ feat.axis, feat.axis)
+    return float(np.sum(N * radial)) < 0
+
+
+def eval_orientation(c, ctx: EvalContext):
+    """parallelism, perpendicularity, angularity (module docstring)."""
+    fidx = _faces(c, ctx)
+    feats = ctx.feats
+    kinds = {feats[i].kind for i in fidx}
+    X, m, drf = _frame_points(c, ctx, fidx)
+    f = feats[fidx[0]]
+    zq = extreme_quantile(max(X.shape[0], 2), ctx.k)
+    if kinds == {"plane"} and c.zone == "planes":
+        if X.shape[0] < 3:
+            return _not_measured(c, f"fewer than 3 scan points on faces {fidx}")
+        n0 = f.axis
+        turns = [np.cross(w, n0) for w in drf.free_rotations()]
+        turns = [t for t in turns if np.linalg.norm(t) > 1e-9]
+        Xz = X
+        if c.tangent_plane:   # the contacting plane over the face, not the points
+            _, nt, (_, hi) = planes_zone(X, n0, list(tangent_basis(n0)))
+            Xz = X + np.outer(hi - X @ nt, nt)
+        width, n, _ = planes_zone(Xz, n0, turns[:2])
+        ext = float(np.ptp(X @ tangent_basis(n0).T, axis=0).max())
+        U = float(np.hypot(2.0 * zq * ctx.S.noise, 2.0 * _datum_part(drf, ctx, ext, zq)))
+        ang = float(np.degrees(np.arccos(np.clip(abs(n0 @ drf.datums[0].direction), 0, 1))))
+        return _result(c, ctx, width, U, {"faces": fidx, "n": int(X.shape[0]),
+                                          "normal": n.tolist(), "turns": len(turns),
+                                          "angle_to_primary_deg": ang,
+                                          "definition": "minimum zone, orientation fixed by "
+                                                        "the DRF", "noise": ctx.S.noise,
+                                          "tangent_plane": bool(c.tangent_plane),
+                                          "excluded": ctx.S.excluded(fidx)}, drf)
+    if kinds == {"cylinder"} and c.zone == "diameter":
+        if X.shape[0] < 5:
+            return _not_measured(c, f"fewer than 5 scan points on faces {fidx}")
+        hole = _is_hole(X, ctx.S.normals[m], f)
+        X, _ = _cylinder_points(X, f)
+        ends, mating, _, a, how = _axis_ends(X, f, hole)
+        B = tangent_basis(f.axis)
+        e2 = (ends[1] - ends[0]) @ B.T
+        value = float(np.linalg.norm(e2))
+        ext = float(np.linalg.norm(ends[1] - ends[0]))
+        U = float(np.hypot(2.0 * zq * ctx.S.noise, 2.0 * _datum_part(drf, ctx, ext, zq)))
+        least = _least_material(X, f, hole) if c.material == "L" else float("nan")
+        bonus, note = _bonus(c, hole, mating, least, f.diameter)
+        return _result(c, ctx, value, U, {"faces": fidx, "n": int(X.shape[0]),
+                                          "axis": a.tolist(), "ends": ends.tolist(),
+                                          "hole": hole, "mating_diameter": mating,
+                                          "axis_fit": how, "bonus": bonus, "note": note,
+                                          "noise": ctx.S.noise,
+                                          "excluded": ctx.S.excluded(fidx)}, drf,
+                       0.0, float(c.tol) + bonus)
+    raise ValueError(f"{c.name}: {c.type} of faces {fidx} ({sorted(kinds)}) with a {c.zone} "
+                     "zone: planes need zone: planes, cylinders zone: diameter")
+
+
+# ------------------------------------------------------------------------------ position
+def _feature_faces(ref, ctx) -> list:
+    if isinstance(ref, (list, tuple)):
+        return face_indices(ctx.prep.model, list(ref)).tolist()
+    if str(ref).startswith("hole:"):
+        from .features import find_feature
+
+        h = find_feature(ctx.feats, ref, kind="hole")
+        if not h.walls:
+            raise ValueError(f"{ref}: the hole has no cylindrical wall faces in the model; "
+                             "position needs the wall (use type: hole for a hole without one)")
+        return list(h.walls)
+    return face_indices(ctx.prep.model, [ref]).tolist()
+
+
+def eval_position(c, ctx: EvalContext):
+    """position of one or a pattern of axes, with MMC/LMC bonus (module docstring)."""
+    rows = []
+    drf = drf_of(c.datums, ctx) if c.datums else None
+    zq = None
+    for ref in c.features:
+        fidx = _feature_faces(ref, ctx)
+        f = ctx.feats[fidx[0]]
+        if f.kind != "cylinder":
+            raise ValueError(f"{c.name}: feature {ref} is a {f.kind} face; position takes "
+                             "cylinder faces (holes, bosses)")
+        m = _on(ctx, fidx)
+        X = ctx.S.X[m] if drf is None else drf.apply(ctx.S.X[m])
+        if X.shape[0] < 8:
+            return _not_measured(c, f"only {X.shape[0]} scan points on {ref}")
+        hole = _is_hole(X, ctx.S.normals[m], f)
+        n_all = X.shape[0]
+        X, _ = _cylinder_points(X, f)
+        ends, mating, _, a, how = _axis_ends(X, f, hole)
+        least = _least_material(X, f, hole) if c.material == "L" else float("nan")
+        q = ends - f.center
+        off = q - np.outer(q @ f.axis, f.axis)
+        value = 2.0 * float(np.linalg.norm(off, axis=1).max())
+        bonus, note = _bonus(c, hole, mating, least, f.diameter)
+        zq = extreme_quantile(X.shape[0], ctx.k)
+        ext = float(np.linalg.norm(ends[1] - ends[0]))
+        U = float(np.sqrt((2.0 * zq * ctx.S.noise) ** 2
+                          + (2.0 * _datum_part(drf, ctx, ext, zq)) ** 2
+                          + (2.0 * _datum_offsets(drf, ctx, f.axis)) ** 2))
+        tol = float(c.tol) + bonus
+        rows.append({"feature": ref if isinstance(ref, str) else list(ref), "faces": fidx,
+                     "hole": hole, "value": value, "bonus": bonus, "tolerance": tol,
+                     "n": int(X.shape[0]), "outliers": int(n_all - X.shape[0]),
+                     "axis_fit": how,
+                     "mating_diameter": mating, "least_material_diameter": least,
+                     "nominal_diameter": float(f.diameter), "U": U,
+                     "verdict": decide(value, None, tol, U), "ends": ends.tolist(),
+                     "note": note})
+    worst = min(rows, key=lambda r: (r["tolerance"] - r["value"]) - r["U"])
+    details = {"features": rows, "material": c.material, "n_features": len(rows)}
+    res = _result(c, ctx, worst["value"], worst["U"], details, drf, 0.0, worst["tolerance"])
+    verdicts = [r["verdict"] for r in rows]
+    from .zones import worst_verdict
+
+    if worst_verdict(verdicts) != res.verdict:
+        import dataclasses
+
+        res = dataclasses.replace(res, verdict=worst_verdict(verdicts))
+    return res
+
+
+# ------------------------------------------------------------------------------ runout
+def eval_runout(c, ctx: EvalContext):
+    """circular_runout / total_runout about the DRF's primary axis."""
+    fidx = _faces(c, ctx)
+    X, m, drf = _frame_points(c, ctx, fidx)
+    ax = next((d for d in drf.datums if d.kind == "axis"), None)
+    if ax is None:
+        raise ValueError(f"{c.name}: runout needs an axis datum (a hole or boss); "
+                         f"{'|'.join(c.datums)} has none")
+    spec = ctx.plan.datums[ax.name]
+    nom = _datum_feature(ax.name, spec, ctx)       # its nominal axis (the DRF puts it there)
+    if X.shape[0] < 5:
+        return _not_measured(c, f"only {X.shape[0]} scan points on faces {fidx}")
+    if ctx.feats[fidx[0]].kind == "cylinder":
+        X, _ = _cylinder_points(X, ctx.feats[fidx[0]])
+    circ, total = runout(X, nom.point, nom.direction)
+    value = circ if c.type == "circular_runout" else total
+    zq = extreme_quantile(X.shape[0], ctx.k)
+    return _result(c, ctx, value, 2.0 * zq * ctx.S.noise,
+                   {"faces": fidx, "n": int(X.shape[0]), "circular": circ, "total": total,
+                    "axis_point": nom.point.tolist(), "axis": nom.direction.tolist(),
+                    "noise": ctx.S.noise, "excluded": ctx.S.excluded(fidx)}, drf)
+
+
+# ------------------------------------------------------------------------------ form
+def _sections(h, n: int = 10):
+    edges = np.linspace(h.min(), h.max() + 1e-12, n + 1)
+    return [np.flatnonzero((h >= edges[i]) & (h < edges[i + 1])) for i in range(n)]
+
+
+def eval_circularity(c, ctx: EvalContext):
+    fidx = _faces(c, ctx)
+    X, _, _ = _frame_points(c, ctx, fidx)
+    f = ctx.feats[fidx[0]]
+    if f.kind != "cylinder":
+        raise ValueError(f"{c.name}: circularity of a {f.kind} face (give cylinder faces)")
+    X, _ = _cylinder_points(X, f)
+    B = tangent_basis(f.axis)
+    h = (X - f.center) @ f.axis
+    vals = []
+    for idx in _sections(h):
+        if idx.size >= 6:
+            vals.append(circles_zone((X[idx] - f.center) @ B.T, np.zeros(2))[0])
+    if not vals:
+        return _not_measured(c, "no cross-section with 6 scan points")
+    value = float(max(vals))
+    zq = extreme_quantile(max(X.shape[0] // max(len(vals), 1), 2), ctx.k)
+    return _result(c, ctx, value, 2.0 * zq * ctx.S.noise,
+                   {"faces": fidx, "sections": vals, "n": int(X.shape[0]),
+                    "noise": ctx.S.noise})
+
+
+def eval_cylindricity(c, ctx: EvalContext):
+    fidx = _faces(c, ctx)
+    X, _, _ = _frame_points(c, ctx, fidx)
+    f = ctx.feats[fidx[0]]
+    if f.kind != "cylinder" or X.shape[0] < 8:
+        return _not_measured(c, f"cylindricity needs cylinder faces with 8 points "
+                                f"({f.kind}, {X.shape[0]} points)")
+    X, _ = _cylinder_points(X, f)
+    value, p, a, _ = cylinders_zone(X, f.center, f.axis, "zone")
+    zq = extreme_quantile(X.shape[0], ctx.k)
+    return _result(c, ctx, value, 2.0 * zq * ctx.S.noise,
+                   {"faces": fidx, "n": int(X.shape[0]), "axis": a.tolist(),
+                    "point": p.tolist(), "noise": ctx.S.noise})
+
+
+def eval_straightness(c, ctx: EvalContext):
+    fidx = _faces(c, ctx)
+    X, _, _ = _frame_points(c, ctx, fidx)
+    f = ctx.feats[fidx[0]]
+    zq = extreme_quantile(max(X.shape[0], 2), ctx.k)
+    if c.zone == "diameter":
+        if f.kind != "cylinder":
+            raise ValueError(f"{c.name}: straightness of an axis needs cylinder faces")
+        B = tangent_basis(f.axis)
+        h = (X - f.center) @ f.axis
+        cen = []
+        for idx in _sections(h):
+            if idx.size >= 6:
+                _, c2, _ = circles_zone((X[idx] - f.center) @ B.T, np.zeros(2))
+                cen.append(f.center + c2 @ B + h[idx].mean() * f.axis)
+        if len(cen) < 5:
+            return _not_measured(c, "fewer than 5 cross-sections with 6 scan points")
+        r = cylinders_zone(np.array(cen), f.center, f.axis, "circumscribed")[0]
+        return _result(c, ctx, 2.0 * r, 2.0 * zq * ctx.S.noise,
+                       {"faces": fidx, "centres": np.array(cen).tolist()})
+    if f.kind != "plane":
+        raise ValueError(f"{c.name}: straightness of line elements needs a planar face")
+    n0 = f.axis
+    B = tangent_basis(n0)
+    if c.direction is not None:
+        u = np.asarray(c.direction, float)
+        u = u - (u @ n0) * n0
+        u /= np.linalg.norm(u)
+    else:
+        _, _, vt = np.linalg.svd((X - X.mean(0)) @ B.T, full_matrices=False)
+        u = vt[0] @ B
+    v = np.cross(n0, u)
+    vals = []
+    for idx in _sections(X @ v):
+        if idx.size >= 3:
+            vals.append(planes_zone(X[idx], n0, [u])[0])
+    if not vals:
+        return _not_measured(c, "no line element with 3 scan points")
+    return _result(c, ctx, float(max(vals)), 2.0 * zq * ctx.S.noise,
+                   {"faces": fidx, "direction": u.tolist(), "lines": vals})
+
+
+# ------------------------------------------------------------------------------ size
+def eval_width(c, ctx: EvalContext):
+    fidx = _faces(c, ctx)
+    f1, f2 = ctx.feats[fidx[0]], ctx.feats[fidx[-1]]
+    if len(fidx) != 2 or f1.kind != "plane" or f2.kind != "plane" or \
+            abs(abs(f1.axis @ f2.axis) - 1) > 1e-6:
+        raise ValueError(f"{c.name}: width needs two parallel planar faces, got {c.faces}")
+    S = ctx.S
+    P1, P2 = S.X[_on(ctx, [fidx[0]])], S.X[_on(ctx, [fidx[1]])]
+    if len(P1) < 3 or len(P2) < 3:
+        return _not_measured(c, "fewer than 3 scan points on a face of the width")
+    nominal = float(abs((f2.center - f1.center) @ f1.axis))
+
+    def lsq(P):
+        cen = P.mean(0)
+        n = np.linalg.svd(P - cen, full_matrices=False)[2][2]
+        return cen, n
+
+    c1, n1 = lsq(P1)
+    c2, n2 = lsq(P2)
+    value = 0.5 * (abs(float(np.mean((P2 - c1) @ n1))) + abs(float(np.mean((P1 - c2) @ n2))))
+    u = ctx.S.noise * np.sqrt(1.0 / len(P1) + 1.0 / len(P2))
+    U = ctx.k * float(u)
+    dev = value - nominal
+    return CharacteristicResult(c.name, c.type, nominal, value, dev, float(c.lower),
+                                float(c.upper), U, decide(dev, c.lower, c.upper, U),
+                                {"faces": fidx, "n": [len(P1), len(P2)],
+                                 "definition": "mean distance between the least-squares "
+                                               "planes"})

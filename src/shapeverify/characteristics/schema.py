@@ -1,0 +1,317 @@
+"""The characteristic schemas of a plan (pydantic models), shared base types.
+
+Each characteristic type is one model here and one row of :mod:`.registry` (which ties it to
+its evaluator, its zone sidedness and its label); :mod:`.plan` builds the plan's union of
+characteristics from that table.  Lengths in mm.
+"""
+from __future__ import annotations
+
+from typing import Annotated, Literal, Optional, Union
+
+from pydantic import BaseModel, ConfigDict, Field, model_validator
+
+__all__ = ["Tol", "PmiSource", "Unsupported", "Vec3", "FeatureId", "FeatureRef", "Hole",
+           "SurfaceProfile", "Flatness", "Cylinder", "CheckPoint", "DatumSpec", "Straightness",
+           "Circularity", "Cylindricity", "Parallelism", "Perpendicularity", "Angularity",
+           "Position", "CircularRunout", "TotalRunout", "Width", "SizeLimits"]
+
+Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
+FeatureId = Annotated[str, Field(pattern=r"^(hole|face|cylinder|plane):\d+$")]
+#: a feature id, or the CAD name of a face (a STEP face name: no colon, not blank)
+FeatureRef = Annotated[str, Field(pattern=r"^((hole|face|cylinder|plane):\d+|[^:\s][^:]*)$")]
+#: a datum reference frame: datum letters of the plan's ``datums`` table, primary first
+DrfRef = Annotated[list[Annotated[str, Field(min_length=1)]], Field(min_length=1, max_length=3)]
+
+
+class _Strict(BaseModel):
+    # NaN and infinity are no limits and no coordinates (a tol of .inf would pass anything)
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+
+class Tol(_Strict):
+    """Limits of a deviation: ``tol`` (symmetric ±tol, or a zone width, see module doc) or
+    ``lower``/``upper`` (mm)."""
+
+    tol: Optional[float] = Field(default=None, gt=0)
+    lower: Optional[float] = None
+    upper: Optional[float] = None
+
+    @model_validator(mode="after")
+    def _one_form(self):
+        if self.tol is None and (self.lower is None or self.upper is None):
+            raise ValueError("give tol (> 0) or both lower and upper")
+        if self.tol is not None and (self.lower is not None or self.upper is not None):
+            raise ValueError("give either tol or lower/upper, not both")
+        if self.tol is None and not self.lower < self.upper:
+            raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
+        return self
+
+    def limits(self) -> tuple[float, float]:
+        """(lower, upper) of a symmetric tolerance (±tol) or the given limits."""
+        if self.tol is not None:
+            return -self.tol, self.tol
+        return float(self.lower), float(self.upper)
+
+
+class PmiSource(BaseModel):
+    """Where a plan entry came from: a semantic PMI item of the CAD file (``shapeverify plan``).
+
+    ``kind``: ``geometric_tolerance``, ``dimension`` or ``datum``; ``type``: OpenCASCADE's type
+    name (``Position``, ``ProfileOfSurface``, ``Size_Diameter``, ``Datum`` ...); further keys
+    (``id``, ``value``, ``datums`` ...) describe the item and are kept as they are."""
+
+    model_config = ConfigDict(extra="allow", frozen=True, allow_inf_nan=False)
+    kind: Literal["geometric_tolerance", "dimension", "datum"]
+    type: str = Field(min_length=1)
+
+
+class Unsupported(_Strict):
+    """A PMI item of the CAD file that the plan does not check, and why."""
+
+    pmi: PmiSource
+    reason: str = Field(min_length=1)
+
+
+
+# ------------------------------------------------------------------------------ characteristics
+class _Char(_Strict):
+    name: str = Field(min_length=1)
+    pmi: Optional[PmiSource] = None
+
+
+class _Located(_Char):
+    feature: Optional[FeatureRef] = None
+    near: Optional[Vec3] = None
+
+    @model_validator(mode="after")
+    def _where(self):
+        if (self.feature is None) == (self.near is None):
+            raise ValueError("give exactly one of feature (e.g. 'hole:3') or near: [x, y, z]")
+        return self
+
+
+class Hole(_Located):
+    """Diameter and/or position of a hole (circular inner trim loop of a face)."""
+
+    type: Literal["hole"]
+    diameter: Optional[Tol] = None
+    position: Optional[Tol] = None
+
+    @model_validator(mode="after")
+    def _something(self):
+        if self.diameter is None and self.position is None:
+            raise ValueError("a hole needs diameter: {tol: ...} and/or position: {tol: ...}")
+        if self.position is not None and self.position.tol is None:
+            raise ValueError("position takes tol (the diameter of the tolerance zone)")
+        return self
+
+
+class SurfaceProfile(_Char, Tol):
+    """Profile of a surface (ISO 1101) of a face group; ``datum: false`` fits the group first."""
+
+    type: Literal["surface_profile"]
+    faces: Union[Literal["all"], list[Union[FeatureId, int, str]]] = "all"
+    datum: bool = True
+    #: located in this datum reference frame of the plan's ``datums`` (fitted, :mod:`.drf`)
+    #: instead of the plan's alignment
+    datums: Optional[DrfRef] = None
+
+    @model_validator(mode="after")
+    def _drf(self):
+        if self.datums is not None and not self.datum:
+            raise ValueError("datums and datum: false contradict each other (a profile "
+                             "without datums floats)")
+        return self
+
+
+class Flatness(_Char):
+    """Flatness of one planar face (``feature`` or ``near``) or of coplanar faces (``faces``,
+    one zone)."""
+
+    type: Literal["flatness"]
+    tol: float = Field(gt=0)
+    feature: Optional[FeatureRef] = None
+    near: Optional[Vec3] = None
+    faces: Optional[Annotated[list[Union[FeatureId, int, str]], Field(min_length=1)]] = None
+
+    @model_validator(mode="after")
+    def _where(self):
+        if sum(x is not None for x in (self.feature, self.near, self.faces)) != 1:
+            raise ValueError("give exactly one of feature (e.g. 'face:3'), near: [x, y, z] or "
+                             "faces: [...] (coplanar faces)")
+        return self
+
+
+class Cylinder(_Located):
+    type: Literal["cylinder"]
+    diameter: Tol
+
+
+class CheckPoint(_Char, Tol):
+    """Deviation along the CAD normal at a named point (mean of the scan within ``radius``)."""
+
+    type: Literal["check_point"]
+    at: Vec3
+    radius: float = Field(default=2.0, gt=0)
+
+
+
+# ------------------------------------------------------------------------------ GD&T (issue 28)
+FaceList = Annotated[list[Union[FeatureId, int, str]], Field(min_length=1)]
+
+
+class DatumSpec(_Strict):
+    """A datum feature of the plan's ``datums`` table (see :mod:`.drf`).
+
+    ``faces``: the faces of the datum feature (one plane, or the cylinder faces of a hole or
+    boss, or coplanar faces, or with ``kind: midplane`` the two opposite faces of a width); ``at`` with ``kind: point``: a point datum (target) on the
+    surface.  ``kind`` (default: from the faces' CAD geometry): ``plane``, ``axis``, ``point``.
+    """
+
+    faces: Optional[FaceList] = None
+    at: Optional[Vec3] = None
+    kind: Optional[Literal["plane", "midplane", "axis", "point"]] = None
+    pmi: Optional[PmiSource] = None
+
+    @model_validator(mode="after")
+    def _what(self):
+        if (self.faces is None) == (self.at is None):
+            raise ValueError("a datum takes faces: [...] (a datum feature) or at: [x, y, z] "
+                             "(a point)")
+        if self.at is not None and self.kind not in (None, "point"):
+            raise ValueError("a datum given by at: [x, y, z] is a point (kind: point)")
+        return self
+
+
+class _Gdt(_Char):
+    """A geometric tolerance: zone width ``tol`` (mm) of the faces ``faces``."""
+
+    faces: FaceList
+    tol: float = Field(gt=0)
+
+
+class _Form(_Gdt):
+    pass
+
+
+class Straightness(_Form):
+    """Straightness of a cylinder's axis (``zone: diameter``) or of the line elements of the
+    faces along ``direction`` (two parallel lines, default)."""
+
+    type: Literal["straightness"]
+    zone: Literal["lines", "diameter"] = "lines"
+    direction: Optional[Vec3] = None
+
+
+class Circularity(_Form):
+    type: Literal["circularity"]
+
+
+class Cylindricity(_Form):
+    type: Literal["cylindricity"]
+
+
+class SizeLimits(_Strict):
+    """Limits of a feature of size's deviation from nominal (mm): ``lower < upper``;
+    ``nominal``: the drawing's size (default: the CAD's diameter)."""
+
+    lower: float
+    upper: float
+    nominal: Optional[float] = Field(default=None, gt=0)
+
+    @model_validator(mode="after")
+    def _order(self):
+        if not self.lower < self.upper:
+            raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
+        return self
+
+
+class _Oriented(_Gdt):
+    """Orientation/location of ``faces`` relative to the datum reference frame ``datums``.
+    ``zone``: ``planes`` (two parallel planes: a plane, or an axis in one direction) or
+    ``diameter`` (a cylinder about the axis of a hole or boss)."""
+
+    datums: DrfRef
+    zone: Literal["planes", "diameter"] = "planes"
+    #: the zone holds the surface's tangent (contacting) plane, not every point (ASME (T))
+    tangent_plane: bool = False
+    #: an axis's bonus tolerance from its measured size (``size``: the diameter's limits)
+    material: Optional[Literal["M", "L"]] = None
+    size: Optional[SizeLimits] = None
+
+    @model_validator(mode="after")
+    def _bonus(self):
+        if self.material is not None and (self.size is None or self.zone != "diameter"):
+            raise ValueError(f"material {self.material} applies to an axis (zone: diameter) "
+                             "and needs size: {lower, upper}")
+        return self
+
+
+class Parallelism(_Oriented):
+    type: Literal["parallelism"]
+
+
+class Perpendicularity(_Oriented):
+    type: Literal["perpendicularity"]
+
+
+class Angularity(_Oriented):
+    """The nominal angle to the datums is the CAD's (the zone has the CAD face's
+    orientation in the DRF)."""
+
+    type: Literal["angularity"]
+
+
+class Position(_Char):
+    """Position of the axes of holes/bosses (``features``: each ``hole:N``, a cylinder face
+    ``face:N`` or a list of coaxial cylinder faces; several: a pattern under one tolerance), in the datum reference frame
+    ``datums`` (none: the plan's alignment).  ``zone: diameter``: a cylindrical zone of
+    diameter ``tol``.  ``material: M`` or ``L``: the bonus tolerance from the measured size
+    (``size``: the diameter's limits of deviation)."""
+
+    type: Literal["position"]
+    features: Annotated[list[Union[FeatureRef, Annotated[list[FeatureRef], Field(min_length=1)]]],
+                        Field(min_length=1)]
+    tol: float = Field(gt=0)
+    zone: Literal["diameter"] = "diameter"
+    datums: Optional[DrfRef] = None
+    material: Optional[Literal["M", "L"]] = None
+    size: Optional[SizeLimits] = None
+
+    @model_validator(mode="after")
+    def _bonus(self):
+        if self.material is not None and self.size is None:
+            raise ValueError(f"material {self.material} needs size: {{lower, upper}} (the "
+                             "diameter's limits of deviation) for the bonus tolerance")
+        return self
+
+
+class _Runout(_Gdt):
+    """Runout of the surfaces ``faces`` about the datum axis (``datums``: an axis datum)."""
+
+    datums: DrfRef
+
+
+class CircularRunout(_Runout):
+    type: Literal["circular_runout"]
+
+
+class TotalRunout(_Runout):
+    type: Literal["total_runout"]
+
+
+class Width(_Char):
+    """Size: the distance between two opposite parallel planar faces (``faces``: two)
+    within ``lower``/``upper`` of the CAD's distance (two-point sizes, ISO 14405-1)."""
+
+    type: Literal["width"]
+    faces: Annotated[list[Union[FeatureId, int, str]], Field(min_length=2, max_length=2)]
+    lower: float
+    upper: float
+
+    @model_validator(mode="after")
+    def _order(self):
+        if not self.lower < self.upper:
+            raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
+        return self
+
