@@ -365,6 +365,7 @@ def inspect(
     Exit code: 0 pass, 1 fail, 2 error, 3 incomplete (not enough of the part seen).
     """
     _prestart_importer(model)
+    from shapeverify.options import InspectionOptions, OutputRequest
     from shapeverify.pipeline import run_inspection
 
     from shapeverify.registration.icp import INIT_MODES
@@ -374,23 +375,15 @@ def inspect(
                    *([plan] if plan is not None else []), *([poses] if poses else []))
     for scan in scans:
         _check_scan_suffix(model, scan)
-    if poses is not None and init is not None:
-        _fail("give either --init (one scan) or --poses (several views), not both")
-    if tolerance is None and lower is None and upper is None:
-        if plan is None:
-            _fail("give --tolerance MM (or --lower/--upper limits in mm, or a --plan)")
-        from shapeverify.cli_plan import default_tolerance
-        tolerance = _guard(default_tolerance, plan)
-    T0 = _guard(_read_init, init_file) if init_file is not None else init
-    if poses is not None:
-        T0 = _guard(_read_poses, poses, len(scans))
+    options = _guard(InspectionOptions.from_cli, dict(
+        tolerance=tolerance, lower=lower, upper=upper, evaluation_distance=evaluation_distance,
+        faces=faces, min_coverage=min_coverage, init=init, poses=poses, scan_unit=scan_unit,
+        model_unit=model_unit, plan=plan), n_scans=len(scans))
+    request = OutputRequest(json=json_path, report=report, pdf=pdf, png=png, colored=colored,
+                            db=db)
     result, outputs = _guard(
-        run_inspection, model, scans[0] if len(scans) == 1 else list(scans), tolerance=tolerance, evaluation_distance=evaluation_distance,
-        lower=lower, upper=upper, faces=faces, min_coverage=min_coverage, init=T0,
-        scan_unit=scan_unit, model_unit=model_unit, plan=plan, pdf_path=pdf,
-        json_path=json_path, report_path=report, png_path=png,
-        colored_path=colored, db_path=db, part=part, stage=_stage, _scan_unit=scan_unit,
-        allow_incomplete=allow_incomplete_model)
+        run_inspection, model, scans[0] if len(scans) == 1 else list(scans), options, request,
+        part=part, stage=_stage, _scan_unit=scan_unit, allow_incomplete=allow_incomplete_model)
     _print_result(result)
     for label, path in (("JSON", outputs.json), ("report", outputs.report), ("PDF", outputs.pdf),
                         ("PNG", outputs.png), ("coloured PLY", outputs.colored)):
@@ -418,24 +411,6 @@ def _check_scan_suffix(model: Path, scan: Path) -> None:
               "`shapeverify inspect MODEL SCAN`")
     _fail(f"{scan}: unsupported scan extension {scan.suffix or '(none)'!r}; supported: "
           f"{', '.join(SCAN_SUFFIXES)}")
-
-
-def _read_poses(path: Path, n_scans: int) -> list:
-    """``--poses``: a JSON list of 4x4 start poses (or null), one per view."""
-    import json
-
-    import numpy as np
-
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (ValueError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path}: not a JSON file ({exc})") from None
-    if not isinstance(data, list) or not all(p is None or np.shape(p) == (4, 4) for p in data):
-        raise ValueError(f"{path}: --poses must be a JSON list of 4x4 matrices (or null), one "
-                         "per view")
-    if n_scans > 1 and len(data) != n_scans:
-        raise ValueError(f"{path}: {len(data)} poses for {n_scans} scans: give one per view")
-    return [None if p is None else np.asarray(p, dtype=np.float64) for p in data]
 
 
 def _read_init(path: Path):

@@ -52,13 +52,11 @@ def print_features(m, title: str, json_out: Optional[Path] = None) -> None:
 
 def default_tolerance(plan) -> float:
     """±tolerance of the colour map for a plan without one: half the first surface profile's
-    zone width (ISO 1101: a profile tolerance t is a zone of total width t), else 0.1 mm."""
-    from shapeverify.characteristics import load_plan
+    zone width (ISO 1101: a profile tolerance t is a zone of total width t), else 0.1 mm
+    (:meth:`shapeverify.InspectionOptions.from_plan`)."""
+    from shapeverify.options import InspectionOptions
 
-    for c in load_plan(plan).characteristics:
-        if c.type == "surface_profile" and getattr(c, "tol", None):
-            return 0.5 * float(c.tol)
-    return 0.1
+    return InspectionOptions.from_plan(plan).tolerance
 
 
 def print_characteristic_history(db: Path, characteristic: str, part: Optional[str] = None,
