@@ -200,13 +200,14 @@ def test_only_shapeverify_errors_are_scan_errors_a_bug_is_marked_internal(folder
 
     import shapeverify.inspection
     from shapeverify.batch import inspect_bytes
+    from shapeverify.options import InspectionOptions
 
     d, _ = folder
     svm = (d / "panel.svm").read_bytes()
     digest = hashlib.sha256(svm).hexdigest()
     scan = (d / "scans" / "a_clean.npy").read_bytes()
     bad = inspect_bytes(svm, digest, "d_corrupt.ply", (d / "scans" / "d_corrupt.ply").read_bytes(),
-                        0.3, None, False)
+                        InspectionOptions(tolerance=0.3), False)
     assert bad["verdict"] == "error" and "internal_error" not in bad
     assert bad["error"].startswith("ScanError")
 
@@ -214,7 +215,7 @@ def test_only_shapeverify_errors_are_scan_errors_a_bug_is_marked_internal(folder
         raise TypeError("unsupported operand type(s)")
 
     monkeypatch.setattr(shapeverify.inspection, "inspect", bug)
-    res = inspect_bytes(svm, digest, "a_clean.npy", scan, 0.3, None, False)
+    res = inspect_bytes(svm, digest, "a_clean.npy", scan, InspectionOptions(tolerance=0.3), False)
     assert res["verdict"] == "error" and res["internal_error"] is True
     assert res["error"].startswith("internal error (a bug in shapeverify")
     assert "TypeError: unsupported operand" in res["error"] and "in bug" in res["traceback"]

@@ -81,6 +81,14 @@ _EVALUATION_DISTANCE = typer.Option(
     None, "--evaluation-distance", "--max-distance",
     help="Scan points farther than this from the CAD are not evaluated [mm] "
          "(default: max(5 x the tolerance, min(1 mm, 5 % of the model size)))")
+# the inspection options that inspect and batch share (one help text each)
+_LOWER = typer.Option(None, help="Lower limit [mm] (negative: into the material)")
+_UPPER = typer.Option(None, help="Upper limit [mm]")
+_FACES = typer.Option(None, "--faces", help="Inspect only these CAD faces, e.g. '0,3,7' (default: all)")
+_MIN_COVERAGE = typer.Option(None, "--min-coverage", help="Least share of the inspected CAD area that must be seen (0..1, default 0.2 = shapeverify.inspection.MIN_COVERAGE); below it the verdict is 'incomplete'")
+_INIT = typer.Option(None, "--init", help="Start pose T_model_scan: a 4x4 in T.json or T.npy, or a strategy: auto (default: the identity when the scan overlaps the model, else a global search), identity, principal-axes, global")
+_SCAN_UNIT = typer.Option(None, "--scan-unit", help="Unit of the scan file (mm, cm, m, in, um; default mm)")
+_PLAN = typer.Option(None, "--plan", help="Inspection plan (plan.yaml): alignment, characteristics with uncertainty; without --tolerance the colour map uses half its first surface profile's zone")
 VERDICT_EXIT = {"pass": EXIT_PASS, "fail": EXIT_FAIL, "error": EXIT_ERROR,
                 "incomplete": EXIT_INCOMPLETE}
 
@@ -341,16 +349,16 @@ def inspect(
     model: Path = typer.Argument(..., help="Prepared model (.svm, fastest) or CAD/mesh file"),
     scans: List[Path] = typer.Argument(..., metavar="SCAN...", help="Scan: .ply .xyz .txt .csv .npy .pcd .e57 .las .laz .stl .obj (mm; .e57 files are metres, converted). Several scans (or an E57 file with several) are views of one part: each is placed, the union inspected"),
     tolerance: Optional[float] = typer.Option(None, help="Symmetric tolerance ±MM"),
-    lower: Optional[float] = typer.Option(None, help="Lower limit [mm] (negative: into the material)"),
-    upper: Optional[float] = typer.Option(None, help="Upper limit [mm]"),
+    lower: Optional[float] = _LOWER,
+    upper: Optional[float] = _UPPER,
     evaluation_distance: Optional[float] = _EVALUATION_DISTANCE,
-    faces: Optional[str] = typer.Option(None, "--faces", help="Inspect only these CAD faces, e.g. '0,3,7' (default: all)"),
-    min_coverage: Optional[float] = typer.Option(None, "--min-coverage", help="Least share of the inspected CAD area that must be seen (0..1, default 0.2 = shapeverify.inspection.MIN_COVERAGE); below it the verdict is 'incomplete'"),
-    init: Optional[str] = typer.Option(None, "--init", help="Start pose T_model_scan: a 4x4 in T.json or T.npy, or a strategy: auto (default: the identity when the scan overlaps the model, else a global search), identity, principal-axes, global"),
+    faces: Optional[str] = _FACES,
+    min_coverage: Optional[float] = _MIN_COVERAGE,
+    init: Optional[str] = _INIT,
     poses: Optional[Path] = typer.Option(None, "--poses", help="With several views: their start poses, a JSON list of 4x4 T_model_scan (null: found by the global search), one per view"),
-    scan_unit: Optional[str] = typer.Option(None, "--scan-unit", help="Unit of the scan file (mm, cm, m, in, um; default mm)"),
+    scan_unit: Optional[str] = _SCAN_UNIT,
     model_unit: Optional[str] = typer.Option(None, "--model-unit", help="Unit of the model file (default mm for STL/PLY/OBJ/point clouds; overrides the unit a CAD file declares, with a warning naming both and the size)"),
-    plan: Optional[Path] = typer.Option(None, "--plan", help="Inspection plan (plan.yaml): alignment, characteristics with uncertainty; without --tolerance the colour map uses half its first surface profile's zone"),
+    plan: Optional[Path] = _PLAN,
     json_path: Optional[Path] = typer.Option(None, "--json", help="Write the result as JSON"),
     report: Optional[Path] = typer.Option(None, "--report", help="Write the HTML report"),
     pdf: Optional[Path] = typer.Option(None, "--pdf", help="Write the PDF report (colour map, histogram, characteristics)"),
@@ -368,9 +376,7 @@ def inspect(
     from shapeverify.options import InspectionOptions, OutputRequest
     from shapeverify.pipeline import run_inspection
 
-    from shapeverify.registration.icp import INIT_MODES
-
-    init_file = Path(init) if init is not None and init not in INIT_MODES else None
+    init_file = Path(init) if init is not None and not _is_init_mode(init) else None
     _require_files(model, *scans, *([init_file] if init_file is not None else []),
                    *([plan] if plan is not None else []), *([poses] if poses else []))
     for scan in scans:
@@ -411,6 +417,13 @@ def _check_scan_suffix(model: Path, scan: Path) -> None:
               "`shapeverify inspect MODEL SCAN`")
     _fail(f"{scan}: unsupported scan extension {scan.suffix or '(none)'!r}; supported: "
           f"{', '.join(SCAN_SUFFIXES)}")
+
+
+def _is_init_mode(init: str) -> bool:
+    """Whether ``--init`` names a start strategy (else it is a T.json / T.npy file)."""
+    from shapeverify.options import is_pose_file
+
+    return not is_pose_file(init)
 
 
 def _read_init(path: Path):

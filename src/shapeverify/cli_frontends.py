@@ -57,8 +57,19 @@ def register_commands(app: typer.Typer) -> None:
         model: Path = typer.Argument(..., help="Prepared model (.svm)"),
         scans_dir: Path = typer.Argument(..., help="Folder of scans"),
         out_dir: Path = typer.Option(..., "--out", help="Output folder (JSON per scan, summary.csv, dask.log: Dask's own log lines, on the terminal too with shapeverify --verbose batch)"),
-        tolerance: float = typer.Option(..., help="Symmetric tolerance ±MM"),
+        tolerance: Optional[float] = typer.Option(None, help="Symmetric tolerance ±MM"),
+        lower: Optional[float] = _cli._LOWER,
+        upper: Optional[float] = _cli._UPPER,
         evaluation_distance: Optional[float] = _cli._EVALUATION_DISTANCE,
+        faces: Optional[str] = _cli._FACES,
+        min_coverage: Optional[float] = _cli._MIN_COVERAGE,
+        init: Optional[str] = _cli._INIT,
+        scan_unit: Optional[str] = _cli._SCAN_UNIT,
+        plan: Optional[Path] = _cli._PLAN,
+        part_pattern: Optional[str] = typer.Option(
+            None, "--part-pattern", help="The part id in the history is taken from the scan's "
+            "file name: the first group (else the whole match) of this regular expression, e.g. "
+            "'SN(\\d+)' (default: the file name without its suffix)"),
         scheduler: Optional[str] = typer.Option(None, help="Existing Dask scheduler address (default: local cluster)"),
         workers: int = typer.Option(2, help="Local worker processes"),
         reports: bool = typer.Option(False, "--reports", help="Also write an HTML report per scan"),
@@ -70,6 +81,14 @@ def register_commands(app: typer.Typer) -> None:
 
         _cli._require_extra("distributed", "batch", "batch")
         from shapeverify.batch import run_batch
+        from shapeverify.options import InspectionOptions
+
+        init_file = Path(init) if init is not None and not _cli._is_init_mode(init) else None
+        _cli._require_files(*([init_file] if init_file is not None else []),
+                            *([plan] if plan is not None else []))
+        options = _cli._guard(InspectionOptions.from_cli, dict(
+            tolerance=tolerance, lower=lower, upper=upper, evaluation_distance=evaluation_distance,
+            faces=faces, min_coverage=min_coverage, init=init, scan_unit=scan_unit, plan=plan))
 
         with Progress("[progress.description]{task.description}", BarColumn(), MofNCompleteColumn(),
                       TimeRemainingColumn(), console=_cli.console) as bar:
@@ -78,10 +97,10 @@ def register_commands(app: typer.Typer) -> None:
             def tick(done: int, total: int, name: str) -> None:
                 bar.update(task, completed=done, total=total, description=name)
 
-            summary = _cli._guard(run_batch, model, scans_dir, out_dir, tolerance=tolerance,
-                             evaluation_distance=evaluation_distance,
-                             scheduler=scheduler, workers=workers, reports=reports, db_path=db,
-                             retry_errors=retry_errors, progress=tick)
+            summary = _cli._guard(run_batch, model, scans_dir, out_dir, options,
+                                  scheduler=scheduler, workers=workers, reports=reports,
+                                  db_path=db, retry_errors=retry_errors, progress=tick,
+                                  part_pattern=part_pattern, _scan_unit=scan_unit)
         s = summary
         _cli.out.print(f"{s.total} scans ({s.skipped} already done): {s.passed} pass, {s.failed} fail, "
                   f"{s.incomplete} incomplete, {s.errors} error; {s.scans_per_minute:.1f} scans/min; "

@@ -330,7 +330,7 @@ class InspectionOptions:
                     raise OptionError("poses", "give either --init (one scan) or {name} (several "
                                       "views), not both")
                 v["init"] = read_poses(poses, n_scans)
-            elif isinstance(v.get("init"), (str, os.PathLike)) and _is_pose_file(v["init"]):
+            elif isinstance(v.get("init"), (str, os.PathLike)) and is_pose_file(v["init"]):
                 from shapeverify.registration import read_init
 
                 v["init"] = read_init(Path(v["init"]))    # a strategy's name is not a file
@@ -396,7 +396,9 @@ def _plan_tolerance(plan) -> float:
     return 0.1
 
 
-def _is_pose_file(init) -> bool:
+def is_pose_file(init) -> bool:
+    """Whether a command line's ``--init`` value is a file (``T.json``, ``T.npy``), not the
+    name of a start strategy."""
     from shapeverify.registration.options import InitMode
 
     try:
@@ -440,8 +442,8 @@ def read_poses(path, n_scans: int) -> list:
 
 @dataclass(frozen=True)
 class OutputRequest:
-    """What to write after one inspection (None: not written); see
-    :func:`shapeverify.pipeline.write_outputs`.
+    """What to write after one inspection (None: not written); the one writer is
+    :func:`shapeverify.pipeline.write_outputs` (command line, service and batch).
 
     Attributes
     ----------
@@ -449,11 +451,14 @@ class OutputRequest:
         The result as JSON, the HTML report, the PDF report, a PNG summary, a PLY coloured by
         deviation.
     db : path, optional
-        A SQLite history (:class:`~shapeverify.report.history.HistoryDB`) the result is appended
-        to (with a plan, its characteristics too).
-    scan_store : path, optional
-        A folder the scan is stored in (with the report's per-point arrays: what the service's
-        ``/report/{id}`` redraws); its file name goes into the stored row (``scan_file``).
+        A SQLite history (:class:`~shapeverify.report.history.HistoryDB`) the result is stored
+        in (with a plan, its characteristics too).
+    part : str, optional
+        The part id of the history row and the reports.
+    model_hash : str, optional
+        The SHA-256 of the model file, stored with the row.
+    replace_record : int, optional
+        Overwrite this history row instead of adding one (a batch scan inspected again).
     """
 
     json: Path | None = None
@@ -462,13 +467,25 @@ class OutputRequest:
     png: Path | None = None
     colored: Path | None = None
     db: Path | None = None
-    scan_store: Path | None = None
+    part: str | None = None
+    model_hash: str | None = None
+    replace_record: int | None = None
 
     def __post_init__(self):
-        for f in dataclasses.fields(self):
-            v = getattr(self, f.name)
+        for name in _FILES:
+            v = getattr(self, name)
             if v is not None and not isinstance(v, Path):
-                object.__setattr__(self, f.name, Path(v))
+                object.__setattr__(self, name, Path(v))
 
-    def __bool__(self) -> bool:
-        return any(getattr(self, f.name) is not None for f in dataclasses.fields(self))
+    @property
+    def files(self) -> bool:
+        """Whether anything is to be written."""
+        return any(getattr(self, name) is not None for name in _FILES)
+
+    def replace(self, **changes) -> "OutputRequest":
+        """A copy with ``changes``."""
+        return dataclasses.replace(self, **changes)
+
+
+#: the outputs of an :class:`OutputRequest` that are files (or the history)
+_FILES = ("json", "report", "pdf", "png", "colored", "db")

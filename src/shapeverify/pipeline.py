@@ -309,57 +309,144 @@ def run_inspection(model_path: str | Path, scan_path, options, outputs=None, *,
     done = inspect_scan(prep, scan_path, options, stage=stage)
     out.timings.update(done.timings)
     # the model file's hash ties the written outputs to it; no need to read the file again without
-    model_hash = file_hash(model_path) if request else None
+    model_hash = file_hash(model_path) if request.files else None
     scan_names = ([Path(p).name for p in scan_path] if isinstance(scan_path, (list, tuple))
                   else [Path(scan_path).name])
     result = dataclasses.replace(done.result, inputs={
         "part": part, "scan": ", ".join(scan_names), "model": Path(model_path).name,
         "model_sha256": model_hash})
-    write_outputs(result, request, prep=prep, scan=done.scan, part=part, model_hash=model_hash,
-                  stage=stage, out=out)
+    write_outputs(result, request.replace(part=part, model_hash=model_hash), prep=prep,
+                  scan=done.scan, stage=stage, out=out)
     return result, out
 
 
-def write_outputs(result, request, *, prep, scan, part: str | None = None,
-                  model_hash: str | None = None, stage: Stage | None = None,
-                  out: InspectionOutputs | None = None) -> InspectionOutputs:
-    """Write the outputs ``request`` (an :class:`~shapeverify.OutputRequest`) asks for of one
-    inspection and note them in ``out`` (its ``timings`` go into the JSON, plus ``outputs_s``).
+#: keys of a result dict that its history row leaves out (a batch task's own figures)
+_NOT_STORED = ("worker_seconds", "record_id", "_report_html")
 
-    The one writer of the command line, the service and batch.
+
+def write_outputs(result, request, *, prep=None, scan=None, stage: Stage | None = None,
+                  out: InspectionOutputs | None = None, commit: Callable[[], bool] | None = None,
+                  history=None) -> InspectionOutputs | None:
+    """Write what ``request`` (an :class:`~shapeverify.OutputRequest`) asks for of one
+    inspection: the one writer of the command line, the service and batch.
+
+    The order: the reports (HTML, PNG, PDF, coloured PLY), then the history row, then the JSON
+    (last, so that a JSON on disk means everything before it was written: batch skips such
+    scans when it runs again).
+
+    Parameters
+    ----------
+    result : InspectionResult or dict
+        The result, or its JSON-ready dict (what a batch worker sends back, with its HTML
+        report, rendered where the points are, under ``"_report_html"``; a dict gets its
+        ``record_id`` when it is stored).  PNG, PDF and coloured PLY need the result itself.
+    request : shapeverify.OutputRequest
+    prep, scan
+        The prepared model and the scan points (mm), for the reports of a result.
+    stage : callable(name) -> context manager, optional
+        Wraps each slow output (the command line's progress lines).
+    out : InspectionOutputs, optional
+        Filled in and returned (its ``timings`` go into the JSON, plus ``outputs_s``).
+    commit : callable() -> bool, optional
+        Asked just before the history row is written: False stores nothing more and returns
+        None (the service's request that timed out meanwhile).
+    history : HistoryDB, optional
+        An open history to write the row to (the service keeps one per thread); default: open
+        ``request.db``.
+
+    Returns
+    -------
+    InspectionOutputs, or None when ``commit`` said no.
     """
-    from shapeverify.report import write_colored_ply, write_html_report, write_png_summary
-    from shapeverify.report.result_json import write_result_json
-
     stage = stage or _no_stage
     out = out if out is not None else InspectionOutputs()
+    is_dict = isinstance(result, dict)
+    if is_dict and (request.png or request.pdf or request.colored):
+        raise ValueError("a PNG, PDF or coloured PLY is drawn from the InspectionResult, not "
+                         "from its dict")
     t0 = time.perf_counter()
-    if request.json:
-        out.json = write_result_json(result, request.json, timings=out.timings)
     if request.report:
         with stage("Writing HTML report"):
-            out.report = write_html_report(result, prep, scan, request.report)
+            out.report = _write_report(result, request.report, prep, scan)
     if request.png:
+        from shapeverify.report import write_png_summary
         with stage("Writing PNG summary"):
             out.png = write_png_summary(result, scan, request.png)
     if request.pdf:
-        from shapeverify.characteristics.pdf import write_pdf_report
-        from shapeverify.inspection.plan_link import plan_result_of
         with stage("Writing PDF report"):
-            plan_result = plan_result_of(result)   # no plan: the inspection's own pose
-            inputs = result.inputs or {}
-            out.pdf = Path(write_pdf_report(
-                plan_result, request.pdf, prep, part=part, scan_file=inputs.get("scan"),
-                model_file=inputs.get("model"), tolerance=result.tolerance.max_abs))
+            out.pdf = _write_pdf(result, request, prep)
     if request.colored:
+        from shapeverify.report import write_colored_ply
         out.colored = write_colored_ply(result, scan, request.colored)
-    if request.db:
-        from shapeverify.report.history import HistoryDB
-        with HistoryDB(request.db) as db:
-            out.record_id = db.add(result, part=part, model_hash=model_hash)
-        if result.plan is not None:
-            from shapeverify.characteristics.spc import store_characteristics
-            store_characteristics(request.db, result.plan, part=part,
-                                  inspection_id=out.record_id)
+    if request.db or history is not None:
+        if commit is not None and not commit():
+            return None
+        out.record_id = _store(result, request, history)
+        if is_dict:
+            result["record_id"] = out.record_id
+    if request.json:
+        if is_dict:
+            out.json = _write_json_atomically(request.json, result)
+        else:
+            from shapeverify.report.result_json import write_result_json
+            out.json = write_result_json(result, request.json, timings=out.timings)
     out.timings["outputs_s"] = time.perf_counter() - t0
     return out
+
+
+def _write_report(result, path: Path, prep, scan) -> Path:
+    if isinstance(result, dict):
+        html = result.pop("_report_html", None)
+        if html is None:
+            raise ValueError(f"{path}: an HTML report of a result dict needs its rendered "
+                             "'_report_html'")
+        path.write_text(html, encoding="utf-8")
+        return path
+    from shapeverify.report import write_html_report
+    return write_html_report(result, prep, scan, path)
+
+
+def _write_pdf(result, request, prep) -> Path:
+    from shapeverify.characteristics.pdf import write_pdf_report
+    from shapeverify.inspection.plan_link import plan_result_of
+
+    plan_result = plan_result_of(result)   # no plan: the inspection's own pose
+    inputs = result.inputs or {}
+    return Path(write_pdf_report(
+        plan_result, request.pdf, prep, part=request.part, scan_file=inputs.get("scan"),
+        model_file=inputs.get("model"), tolerance=result.tolerance.max_abs))
+
+
+def _store(result, request, history) -> int:
+    """The history row (added, or replacing ``request.replace_record``); a plan's
+    characteristics beside it."""
+    from shapeverify.report.history import HistoryDB
+
+    row = {k: v for k, v in result.items() if k not in _NOT_STORED} \
+        if isinstance(result, dict) else result
+    db = history if history is not None else HistoryDB(request.db)
+    try:
+        if request.replace_record is not None:
+            record_id = db.replace(request.replace_record, row, part=request.part,
+                                   model_hash=request.model_hash)
+        else:
+            record_id = db.add(row, part=request.part, model_hash=request.model_hash)
+    finally:
+        if history is None:
+            db.close()
+    if not isinstance(result, dict) and result.plan is not None:
+        from shapeverify.characteristics.spc import store_characteristics
+        store_characteristics(db.path, result.plan, part=request.part, inspection_id=record_id)
+    return record_id
+
+
+def _write_json_atomically(path: Path, data: dict) -> Path:
+    """``data`` as JSON at ``path``, complete or absent (written to a temporary name, renamed):
+    a half-written JSON would be taken for a finished scan."""
+    import json
+    import os
+
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(data, indent=2))
+    os.replace(tmp, path)
+    return path
