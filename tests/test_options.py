@@ -202,7 +202,7 @@ def test_batch_run_takes_the_part_id_from_the_file_name(panel, tmp_path):
     assert res["record_id"] == rows[0]["id"]
     assert _core(res) == _core(sv.inspect(prep, scan, tolerance=0.2, faces=[1]).to_dict())
     with pytest.raises(ValueError, match="does not match"):
-        run_batch(d / "panel.svm", scans, tmp_path / "out2", tolerance=0.2, part_pattern="XX")
+        run_batch(d / "panel.svm", scans, tmp_path / "out2", {"tolerance": 0.2}, part_pattern="XX")
 
 
 def test_one_output_writer_stores_the_row_before_the_json_and_only_when_committed(panel,
@@ -228,3 +228,22 @@ def test_one_output_writer_stores_the_row_before_the_json_and_only_when_committe
     assert [(r["id"], r["part"]) for r in rows] == [(out.record_id, "P1"), (again.record_id, "P1")]
     with pytest.raises(ValueError, match="InspectionResult"):
         write_outputs(payload, OutputRequest(png=tmp_path / "x.png"))
+
+
+def test_old_cli_flag_max_distance_still_works_and_says_so(panel, tmp_path):
+    from typer.testing import CliRunner
+
+    from shapeverify.cli import app
+
+    _, _, d = panel
+    args = ["inspect", str(d / "panel.svm"), str(d / "scan_cm.npy"), "--scan-unit", "cm",
+            "--tolerance", "0.2"]
+    old = CliRunner().invoke(app, args + ["--max-distance", "1.7", "--json", str(tmp_path / "o.json")])
+    assert old.exit_code == 0, old.output
+    assert "--max-distance is now called --evaluation-distance" in old.output
+    assert json.loads((tmp_path / "o.json").read_text())["evaluation_distance"] == 1.7
+    both = CliRunner().invoke(app, args + ["--max-distance", "1.7", "--evaluation-distance", "1"])
+    assert both.exit_code == 2 and "give --evaluation-distance only" in both.output
+    prep = CliRunner().invoke(app, ["prepare", str(d / "panel.svm"), "-o", str(tmp_path / "p.svm"),
+                                    "--max-distance", "9"])
+    assert "--max-distance is now called --reach" in prep.output

@@ -319,14 +319,15 @@ def _dask_logs_to(path: Path):
 
 
 def _run_on_dask(todo: list[Path], svm: bytes, digest: str, task_args: tuple, record,
-                 scheduler: str | None, workers: int, progress) -> None:
-    """Inspect the scans ``todo`` on Dask (a LocalCluster of ``workers`` unless ``scheduler``),
+                 workers: int | str, progress) -> None:
+    """Inspect the scans ``todo`` on Dask (a LocalCluster of ``workers``, or the scheduler at
+    the address ``workers``),
     a bounded number in flight; ``record(result)`` for each as it completes."""
     from distributed import Client, as_completed
 
     cluster = None
-    if scheduler:
-        client = Client(scheduler)
+    if isinstance(workers, str):
+        client = Client(workers)
     else:
         cluster = _local_cluster(max(1, int(workers)))
         client = Client(cluster)
@@ -391,11 +392,10 @@ def _write_summary(scans: list[Path], out_dir: Path) -> tuple[list[dict], Path]:
     return rows, summary_csv
 
 
-def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, options=None, *,
-              scheduler: str | None = None, workers: int = 2, reports: bool = False,
-              db_path: str | Path | None = None, retry_errors: bool = False,
-              progress: Callable[[int, int, str], None] | None = None,
-              part_pattern: str | None = None, **inspection) -> BatchSummary:
+def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, options, *,
+              workers: int | str = 2, reports: bool = False, db_path: str | Path | None = None,
+              retry_errors: bool = False, progress: Callable[[int, int, str], None] | None = None,
+              part_pattern: str | None = None) -> BatchSummary:
     """Inspect every scan in ``scans_dir`` against the prepared model ``svm_path`` on Dask.
 
     Parameters
@@ -408,15 +408,16 @@ def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, 
         Output folder: ``<scan stem>.json`` per scan (``.html`` with ``reports``), ``summary.csv``,
         and ``dask.log``: Dask's own log lines (they reach the root logger's handlers too only
         when it is enabled for INFO).
-    options : shapeverify.InspectionOptions, optional
+    options : shapeverify.InspectionOptions or dict
         Every setting of the inspections (tolerance or limits, evaluation distance, faces, init,
-        plan, scan unit ...), shipped whole to the workers.  Instead, its fields may be given
-        as keywords (``**inspection``: ``tolerance=0.3``, ``faces="0,3"`` ...).
-    scheduler : str, optional
-        Address of an existing Dask scheduler (``tcp://host:8786``); default: a LocalCluster
-        with ``workers`` single-threaded worker processes. (Start the workers of your own
-        cluster with ``distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_: null`` in
-        the dask config, or ``--no-nanny``: dask's default makes inspections ~1.5x slower.)
+        plan, scan unit ...), shipped whole to the workers; a dict of its fields is taken too
+        (``{"tolerance": 0.3, "faces": "0,3"}``).
+    workers : int or str
+        The number of single-threaded worker processes of a local Dask cluster (default 2), or
+        the address of an existing Dask scheduler (``"tcp://host:8786"``). (Start the workers of
+        your own cluster with ``distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_:
+        null`` in the dask config, or ``--no-nanny``: dask's default makes inspections ~1.5x
+        slower.)
     db_path : path, optional
         Append every result (errors too) to this SQLite history; ``part`` is the scan's part id
         (see ``part_pattern``).
@@ -450,11 +451,8 @@ def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, 
         raise FileNotFoundError(f"{scans_dir}: not a folder of scans")
     from shapeverify.options import InspectionOptions
 
-    if options is None:
-        options = InspectionOptions(**inspection)
-    elif inspection:
-        raise TypeError("give the options either as options= or as keywords, not both (also "
-                        f"given: {', '.join(sorted(inspection))})")
+    if not isinstance(options, InspectionOptions):
+        options = InspectionOptions(**dict(options))
     part_of = part_from_name(part_pattern)
     scans = _list_scans(scans_dir)
     for p in scans:
@@ -474,7 +472,7 @@ def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, 
         if todo:
             with _dask_logs_to(out_dir / DASK_LOG):
                 _run_on_dask(todo, svm, digest, (options, reports),
-                             outputs.record, scheduler, workers, progress)
+                             outputs.record, workers, progress)
     finally:
         outputs.close()
     rows, summary_csv = _write_summary(scans, out_dir)

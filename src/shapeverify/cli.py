@@ -7,7 +7,6 @@ seen to decide). Other commands: 0 success, 2 error.
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import os
 import sys
@@ -17,17 +16,29 @@ import sys
 # from the service's and batch's other workers) for no gain (bench_inspect: 154 -> 100 ms CPU
 # per inspection).  Set before numpy is first imported; a value the user set is kept.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-import time
 from pathlib import Path
 from typing import List, Optional
 
 import typer
-from rich.console import Console
 from rich.logging import RichHandler
 from rich.markup import escape
 from typer.core import TyperGroup
 
-from shapeverify.cli_errors import clean, cli_hint, os_error_message, size_note
+from shapeverify.cli_errors import clean, size_note
+from shapeverify.cli_common import (EVALUATION_DISTANCE as _EVALUATION_DISTANCE,  # noqa: F401
+                                    EXIT_ERROR, EXIT_FAIL, EXIT_INCOMPLETE, EXIT_PASS,
+                                    FACES as _FACES, INIT as _INIT, LOWER as _LOWER,
+                                    MAX_DISTANCE as _MAX_DISTANCE,
+                                    MIN_COVERAGE as _MIN_COVERAGE, PLAN as _PLAN,
+                                    SCAN_UNIT as _SCAN_UNIT, UPPER as _UPPER,
+                                    VERBOSE_KEY as _VERBOSE_KEY, console, out)
+from shapeverify.cli_common import fail as _fail  # noqa: F401 (the old private names)
+from shapeverify.cli_common import guard as _guard
+from shapeverify.cli_common import internal_error as _internal_error
+from shapeverify.cli_common import is_init_mode as _is_init_mode
+from shapeverify.cli_common import require_files as _require_files
+from shapeverify.cli_common import renamed as _renamed
+from shapeverify.cli_common import stage as _stage
 from shapeverify.cli_start import CAD_SUFFIXES as _CAD_SUFFIXES
 from shapeverify.cli_start import early_importer as _early_importer
 from shapeverify.cli_start import is_prepared as _is_prepared
@@ -72,23 +83,7 @@ app = typer.Typer(
     no_args_is_help=True,
     help="Shape verification of free-form parts against their CAD model. Lengths in mm.",
 )
-console = Console(stderr=True)
-out = Console()
 
-EXIT_PASS, EXIT_FAIL, EXIT_ERROR, EXIT_INCOMPLETE = 0, 1, 2, 3
-# one option, one default (shapeverify.inspection.default_evaluation_distance), for inspect and batch
-_EVALUATION_DISTANCE = typer.Option(
-    None, "--evaluation-distance", "--max-distance",
-    help="Scan points farther than this from the CAD are not evaluated [mm] "
-         "(default: max(5 x the tolerance, min(1 mm, 5 % of the model size)))")
-# the inspection options that inspect and batch share (one help text each)
-_LOWER = typer.Option(None, help="Lower limit [mm] (negative: into the material)")
-_UPPER = typer.Option(None, help="Upper limit [mm]")
-_FACES = typer.Option(None, "--faces", help="Inspect only these CAD faces, e.g. '0,3,7' (default: all)")
-_MIN_COVERAGE = typer.Option(None, "--min-coverage", help="Least share of the inspected CAD area that must be seen (0..1, default 0.2 = shapeverify.inspection.MIN_COVERAGE); below it the verdict is 'incomplete'")
-_INIT = typer.Option(None, "--init", help="Start pose T_model_scan: a 4x4 in T.json or T.npy, or a strategy: auto (default: the identity when the scan overlaps the model, else a global search), identity, principal-axes, global")
-_SCAN_UNIT = typer.Option(None, "--scan-unit", help="Unit of the scan file (mm, cm, m, in, um; default mm)")
-_PLAN = typer.Option(None, "--plan", help="Inspection plan (plan.yaml): alignment, characteristics with uncertainty; without --tolerance the colour map uses half its first surface profile's zone")
 VERDICT_EXIT = {"pass": EXIT_PASS, "fail": EXIT_FAIL, "error": EXIT_ERROR,
                 "incomplete": EXIT_INCOMPLETE}
 
@@ -105,88 +100,6 @@ def _setup_logging(verbose: bool) -> None:
     logging.getLogger("py.warnings").setLevel(logging.WARNING if verbose else logging.ERROR)
 
 
-_COMPILE_NOTICES: dict | None = None
-
-
-def _say_compiling(text: str) -> None:
-    console.print(f"[yellow]note:[/yellow] {escape(text)}", soft_wrap=True)
-
-
-def _watch_compiles() -> None:
-    """From the first stage on, say once (with an estimate) when numba compiles a kernel: the
-    first run after installing can take a minute, and it must not look like a hang."""
-    global _COMPILE_NOTICES
-    if _COMPILE_NOTICES is not None:
-        return
-    from shapeverify.warmup import install_compile_notices
-
-    command = next((a for a in sys.argv[1:] if not a.startswith("-")), "inspect")
-    _COMPILE_NOTICES = install_compile_notices(_say_compiling, command)
-
-
-@contextlib.contextmanager
-def _stage(name: str, watch: bool = True):
-    """Show a spinner while a stage runs, then a tick with its duration.
-
-    ``watch=False``: do not install the compile notices (they import numba, ~1.3 s), for a
-    stage that runs no numba kernel in this process (``info`` of a CAD file or mesh)."""
-    if watch:
-        _watch_compiles()
-    t0 = time.perf_counter()
-    name = escape(clean(name))  # a non-UTF-8 file name must not stop the command
-    with console.status(f"[bold]{name}…"):
-        yield
-    console.print(f"[green]✓[/green] {name} [dim]({time.perf_counter() - t0:.2f} s)[/dim]")
-
-
-def _fail(message: str) -> None:
-    """Print ``error: MESSAGE`` on one line (no markup, no wrapping) and exit with code 2."""
-    console.print(f"[bold red]error:[/bold red] {escape(' '.join(clean(message).split()))}",
-                  soft_wrap=True)
-    raise typer.Exit(EXIT_ERROR)
-
-
-def _internal_error(exc: BaseException, verbose: bool) -> None:
-    """An exception that is not one of shapeverify's errors: a bug.  One line and exit code 2;
-    the traceback with ``--verbose``."""
-    if verbose:
-        console.print_exception()
-    what = escape(" ".join(clean(f"{type(exc).__name__}: {exc}").split()))
-    hint = "the traceback is above" if verbose else "run with --verbose for the traceback"
-    console.print(f"[bold red]internal error:[/bold red] {what} (a bug in shapeverify, please "
-                  f"report it); {hint}", soft_wrap=True)
-    raise typer.Exit(EXIT_ERROR)
-
-
-_VERBOSE_KEY = "shapeverify.verbose"
-
-
-def _guard(fn, *args, _scan_unit=None, **kwargs):
-    """Run ``fn``; turn shapeverify's errors (and unreadable or missing files) into a one-line
-    message and exit code 2.  Anything else is a bug and propagates to the command group, which
-    reports it as an internal error (also exit code 2).  ``_scan_unit``: the ``--scan-unit``
-    given, for the command-line hint of a unit mismatch (:func:`cli_errors.cli_hint`)."""
-    from shapeverify.errors import is_input_error
-
-    try:
-        return fn(*args, **kwargs)
-    except OSError as exc:      # a missing input, an output folder that is not there, no room
-        _fail(os_error_message(exc))
-    except Exception as exc:  # noqa: BLE001 - sorted: input errors here, bugs further up
-        if not is_input_error(exc):
-            raise
-        _fail(str(exc) + cli_hint(str(exc), _scan_unit))
-
-
-def _require_extra(module: str, extra: str, command: str) -> None:
-    """Fail with the install command when an optional front end's dependency is missing."""
-    import importlib.util
-
-    if importlib.util.find_spec(module) is None:
-        _fail(f"`shapeverify {command}` needs the '{extra}' extra ({module} is not installed): "
-              f"pip install 'shapeverify[{extra}]'")
-
-
 def _prestart_importer(model: Path, summary: bool = False) -> None:
     """Start the CAD importer process now when ``model`` is a CAD file: its start (a Python that
     imports OpenCASCADE, about a second) then overlaps the rest of this process's start-up
@@ -195,17 +108,6 @@ def _prestart_importer(model: Path, summary: bool = False) -> None:
         from shapeverify.cad.occ_worker import prestart
 
         prestart(summary)
-
-
-def _require_files(*paths: Path) -> None:
-    """Fail fast, before any slow work, when an input file does not exist."""
-    for p in paths:
-        if not p.exists():
-            _fail(f"{p}: no such file")
-        if p.is_dir():
-            _fail(f"{p}: is a directory; give a file")
-        if not p.is_file():     # a pipe or device: reading it would wait (info hashed a FIFO for ever)
-            _fail(f"{p}: is not a regular file (a pipe, socket or device); give a file")
 
 
 @app.callback()
@@ -320,15 +222,17 @@ def prepare(
     model: Path = typer.Argument(..., help="CAD file, mesh or point cloud"),
     output: Path = typer.Option(..., "-o", "--output", help="Output .svm file"),
     spacing: Optional[float] = typer.Option(None, help="Model-point spacing [mm] (default: model size / 500, up to 2x coarser for a solid part; see prepare)"),
-    reach: Optional[float] = typer.Option(None, "--reach", "--max-distance",
+    reach: Optional[float] = typer.Option(None, "--reach",
                                           help="Reach of the closest-point structure [mm]: queries "
                                                "within it are answered by the grid tree, farther ones "
                                                "more slowly (default: 3 % of the model size)"),
     model_unit: Optional[str] = typer.Option(None, "--model-unit", help="Unit of the model file (default mm for STL/PLY/OBJ/point clouds; overrides the unit a CAD file declares, with a warning naming both and the size)"),
     fixture: Optional[Path] = typer.Option(None, "--fixture", help="Fixture pose T_model_scan (T.json or T.npy) saved with the model: inspections start there when no --init is given"),
     allow_incomplete_model: bool = _ALLOW_INCOMPLETE,
+    max_distance: Optional[float] = _MAX_DISTANCE,
 ):
     """Import a model and pre-compute its closest-point structure (once per model)."""
+    reach = _renamed(max_distance, reach, "--max-distance", "--reach")
     _prestart_importer(model)
     from shapeverify.pipeline import load_reference
 
@@ -367,11 +271,14 @@ def inspect(
     db: Optional[Path] = typer.Option(None, "--db", help="Append the result to this SQLite history"),
     part: Optional[str] = typer.Option(None, "--part", help="Part id stored in the history"),
     allow_incomplete_model: bool = _ALLOW_INCOMPLETE,
+    max_distance: Optional[float] = _MAX_DISTANCE,
 ):
     """Register a scan to the model, compute deviations and decide the verdict.
 
     Exit code: 0 pass, 1 fail, 2 error, 3 incomplete (not enough of the part seen).
     """
+    evaluation_distance = _renamed(max_distance, evaluation_distance, "--max-distance",
+                                   "--evaluation-distance")
     _prestart_importer(model)
     from shapeverify.options import InspectionOptions, OutputRequest
     from shapeverify.pipeline import run_inspection
@@ -417,13 +324,6 @@ def _check_scan_suffix(model: Path, scan: Path) -> None:
               "`shapeverify inspect MODEL SCAN`")
     _fail(f"{scan}: unsupported scan extension {scan.suffix or '(none)'!r}; supported: "
           f"{', '.join(SCAN_SUFFIXES)}")
-
-
-def _is_init_mode(init: str) -> bool:
-    """Whether ``--init`` names a start strategy (else it is a T.json / T.npy file)."""
-    from shapeverify.options import is_pose_file
-
-    return not is_pose_file(init)
 
 
 def _read_init(path: Path):

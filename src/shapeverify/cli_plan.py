@@ -24,7 +24,7 @@ __all__ = ["print_features", "default_tolerance", "print_characteristic_history"
 def print_features(m, title: str, json_out: Optional[Path] = None) -> None:
     """``shapeverify info --features``: the CAD features an inspection plan can name."""
     from shapeverify.characteristics.features import feature_notes, features_table
-    from shapeverify.cli import _guard, _stage, out
+    from shapeverify.cli_common import guard as _guard, out, stage as _stage
 
     with _stage("Finding features"):
         rows = _guard(features_table, m)
@@ -68,7 +68,7 @@ def print_characteristic_history(db: Path, characteristic: str, part: Optional[s
                                                  plot_run_chart)
     from rich.text import Text
 
-    from shapeverify.cli import _fail, out
+    from shapeverify.cli_common import fail as _fail, out
 
     if not db.exists():
         _fail(f"{db}: no such history file")
@@ -100,7 +100,7 @@ def print_characteristic_history(db: Path, characteristic: str, part: Optional[s
 
 def _pmi_plan(model_path: Path, m=None):
     from shapeverify.characteristics.pmi_plan import pmi_plan
-    from shapeverify.cli import _guard, _stage
+    from shapeverify.cli_common import guard as _guard, stage as _stage
 
     with _stage(f"Reading the PMI of {model_path.name}", watch=False):
         return _guard(pmi_plan, model_path, model=m)
@@ -110,7 +110,7 @@ def write_pmi_plan(model_path: Path, output: Optional[Path]) -> None:
     """``shapeverify plan PART.stp -o plan.yaml``: the inspection plan of the file's semantic
     PMI (YAML on stdout without ``-o``)."""
     from shapeverify.characteristics.pmi_plan import plan_yaml
-    from shapeverify.cli import _guard, console, out
+    from shapeverify.cli_common import console, guard as _guard, out
 
     res = _pmi_plan(model_path)
     text = plan_yaml(res)
@@ -131,7 +131,7 @@ def print_pmi(model_path: Path, m=None) -> None:
     """``shapeverify info PART.stp --pmi``: the semantic PMI and what the plan makes of it."""
     from rich.markup import escape
 
-    from shapeverify.cli import out
+    from shapeverify.cli_common import out
 
     res = _pmi_plan(model_path, m)
     al = res.plan.alignment

@@ -112,7 +112,7 @@ def _init(value):
         except ValueError:
             raise OptionError("init", "{name} must be 'auto', 'identity', 'principal-axes', "
                               f"'global' or a 4x4 T_model_scan, got {value!r}") from None
-        return None if mode == InitMode.AUTO else str(mode)
+        return str(mode)      # 'auto' stays: unlike None it does not start at a fixture pose
     if isinstance(value, (list, tuple)) and value and (
             value[0] is None or np.shape(value[0]) == (4, 4)):
         return tuple(None if p is None else _pose("init", p) for p in value)   # one per view
@@ -171,9 +171,10 @@ class InspectionOptions:
     min_coverage : float, optional
         Least covered share of the inspected area, 0..1 (None: 0.2).
     init : str, 4x4 or tuple of 4x4, optional
-        Start pose: a strategy (``'identity'``, ``'principal-axes'``, ``'global'``; ``'auto'`` is
-        None), a ``T_model_scan`` (stored as a nested tuple, see :attr:`init_pose`), or for
-        several views one pose (or None) per view.
+        Start pose: None (the prepared model's fixture pose if it has one, else ``'auto'``), a
+        strategy (``'auto'``, ``'identity'``, ``'principal-axes'``, ``'global'``; aliases are
+        stored by these names), a ``T_model_scan`` (stored as a nested tuple, see
+        :attr:`init_pose`), or for several views one pose (or None) per view.
     plan : Plan, optional
         An inspection plan (a path, dict or YAML text is loaded when the object is built).
     scan_unit, model_unit : str, optional
@@ -190,7 +191,8 @@ class InspectionOptions:
         Seed of the registration's random choices (default 0: the same result every run).
     registration : tuple of (name, value)
         More keywords of :func:`shapeverify.register` (a dict is accepted; see
-        :attr:`register_kwargs`).
+        :attr:`register_kwargs`): ``{"method": "point-to-point", "options":
+        RegistrationOptions(restart=False)}``.
     """
 
     tolerance: Any = None
@@ -411,7 +413,9 @@ def is_pose_file(init) -> bool:
 def _query_init(text: str):
     """The ``init`` query parameter: a strategy name or 16 numbers (T_model_scan row by row)."""
     key = str(text).strip().lower()
-    if key in ("auto", "identity", "global", "principal-axes", "pca"):
+    if key == "auto":
+        return None           # the service's 'auto': the model's fixture pose if it has one
+    if key in ("identity", "global", "principal-axes", "pca"):
         return key
     try:
         T = np.array([float(v) for v in key.replace(";", ",").split(",")], dtype=np.float64)
