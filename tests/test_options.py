@@ -183,18 +183,24 @@ def test_batch_worker_inspects_with_the_options_it_was_sent(panel):
 
 @pytest.mark.slow
 def test_batch_run_takes_the_part_id_from_the_file_name(panel, tmp_path):
+    """`shapeverify batch` with inspection options (faces, scan unit) and --part-pattern, end to
+    end on a local cluster: the history's part is the file name's serial number."""
     pytest.importorskip("distributed")
+    from typer.testing import CliRunner
+
     from shapeverify.batch import run_batch
+    from shapeverify.cli import app
     from shapeverify.report.history import HistoryDB
 
     prep, scan, d = panel
     scans = tmp_path / "scans"
     scans.mkdir()
     np.save(scans / "SN0042_top.npy", scan / 10.0)
-    s = run_batch(d / "panel.svm", scans, tmp_path / "out", InspectionOptions(
-        tolerance=0.2, scan_unit="cm", faces="1"), workers=1, db_path=tmp_path / "h.sqlite",
-        part_pattern=r"SN(\d+)")
-    assert (s.total, s.errors) == (1, 0)
+    r = CliRunner().invoke(app, ["batch", str(d / "panel.svm"), str(scans), "--out",
+                                 str(tmp_path / "out"), "--tolerance", "0.2", "--scan-unit", "cm",
+                                 "--faces", "1", "--workers", "1", "--db", str(tmp_path / "h.sqlite"),
+                                 "--part-pattern", r"SN(\d+)"])
+    assert r.exit_code == 0, r.output
     with HistoryDB(tmp_path / "h.sqlite") as db:
         rows = db.query()
     assert [r["part"] for r in rows] == ["0042"]
@@ -203,6 +209,9 @@ def test_batch_run_takes_the_part_id_from_the_file_name(panel, tmp_path):
     assert _core(res) == _core(sv.inspect(prep, scan, tolerance=0.2, faces=[1]).to_dict())
     with pytest.raises(ValueError, match="does not match"):
         run_batch(d / "panel.svm", scans, tmp_path / "out2", {"tolerance": 0.2}, part_pattern="XX")
+    bad = CliRunner().invoke(app, ["batch", str(d / "panel.svm"), str(scans), "--out",
+                                   str(tmp_path / "out3"), "--tolerance", "0.2", "--faces", "x"])
+    assert bad.exit_code == 2 and "--faces must be CAD face numbers" in bad.output
 
 
 def test_one_output_writer_stores_the_row_before_the_json_and_only_when_committed(panel,
