@@ -152,6 +152,15 @@ def test_service_offers_every_inspection_option_and_says_when_a_name_is_old(pane
         assert "evaluation_distance" in old.headers["warning"]
         bad = client.post("/inspect", params={**params, "faces": "1,zero"}, content=b"0 0 0\n")
         assert bad.status_code == 422 and "faces" in bad.json()["detail"]
+        # a plan is its YAML text (never a file name on the server); no tolerance: half its zone
+        by_plan = client.post("/inspect", params={"model": "p", "plan": PLAN, "scan_unit": "cm"},
+                              content=(d / "scan_cm.npy").read_bytes())
+        assert by_plan.status_code == 200, by_plan.text
+    lib = sv.inspect(prep, scan, plan=PLAN, tolerance=0.2).to_dict()
+    got = by_plan.json()
+    assert [c["name"] for c in got["characteristics"]] == ["SKIN"]
+    assert got["characteristics"][0]["measured"] == lib["characteristics"][0]["measured"]
+    assert _core(got) == _core(lib)
 
 
 def test_batch_offers_every_inspection_option():
@@ -256,3 +265,19 @@ def test_old_cli_flag_max_distance_still_works_and_says_so(panel, tmp_path):
     prep = CliRunner().invoke(app, ["prepare", str(d / "panel.svm"), "-o", str(tmp_path / "p.svm"),
                                     "--max-distance", "9"])
     assert "--max-distance is now called --reach" in prep.output
+
+
+def test_register_takes_rtol_and_the_old_name_tolerance_once_with_a_warning(panel):
+    """`tolerance` is the ±mm zone of an inspection; register's relative stopping threshold is
+    `rtol` (its old name still works, with one DeprecationWarning, and means the same)."""
+    prep, scan, _ = panel
+    new = sv.register(scan, prep, init="identity", rtol=1e-5)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        old = sv.register(scan, prep, init="identity", tolerance=1e-5)
+    dep = [w for w in caught if issubclass(w.category, DeprecationWarning)]
+    assert len(dep) == 1 and "rtol=" in str(dep[0].message) and dep[0].filename == __file__
+    np.testing.assert_array_equal(old.T_model_scan, new.T_model_scan)
+    assert old.iterations == new.iterations
+    with pytest.raises(TypeError, match="give rtol= only"):
+        sv.register(scan, prep, rtol=1e-5, tolerance=1e-5)

@@ -60,6 +60,7 @@ from .options import (InitMode, InitName, LossName, Method, MethodName, Registra
                       StageSettings)
 from .rigid import pose_covariance, rotation_vector, undetermined_directions
 
+from .._renamed import renamed_keywords
 from ..errors import RegistrationError, ScanError
 
 __all__ = ["register", "Registration", "IterationRecord", "DegenerateGeometryWarning"]
@@ -234,9 +235,10 @@ def _describe(undet: np.ndarray) -> list[str]:
     return out
 
 
+@renamed_keywords(tolerance="rtol")
 def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
              method: "MethodName | Method" = "point-to-plane", loss: "LossName" = "tukey",
-             scale: float | None = None, max_iterations: int = 100, tolerance: float = 1e-7,
+             scale: float | None = None, max_iterations: int = 100, rtol: float = 1e-7,
              rng=0, options: "RegistrationOptions | None" = None) -> Registration:
     """Robust ICP: register a scan to a prepared model (IRLS-ICP with automatic scale).
 
@@ -273,12 +275,14 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
     max_iterations : int
         Limit of rigid steps of the final stage (the coarse stage stops at 60);
         ``converged`` is False when the final stage hits it.
-    tolerance : float
-        Inner stopping rule of each stage: the objective (at the previous iteration's scale)
-        decreased by less than ``tolerance`` relative, and the pose change still to come --
-        the last step's length in standard deviations of the pose (``sqrt(v^T H v) / sigma``,
-        ``H = sum w J^T J``), extrapolated by the observed rate of convergence -- is below
-        ``sqrt(tolerance * n_valid)``.  (1e-7 with 30,000 points: 0.05 standard deviation.)
+    rtol : float
+        Inner stopping rule of each stage (a relative threshold; ``tolerance=``, its old name,
+        still works with a :class:`DeprecationWarning`): the objective (at the previous
+        iteration's scale) decreased by less than ``rtol`` relative, and the pose change still
+        to come -- the last step's length in standard deviations of the pose
+        (``sqrt(v^T H v) / sigma``, ``H = sum w J^T J``), extrapolated by the observed rate of
+        convergence -- is below ``sqrt(rtol * n_valid)``.  (1e-7 with 30,000 points: 0.05
+        standard deviation.)
     rng : int, Generator or None
         Seeds the random subsets (coarse stage, verification, global search).  The default
         (0, also for None) makes the result bit-identical on every run and in every process;
@@ -311,7 +315,7 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
     ScanError (a ValueError)
         scan not (N, 3), fewer than 6 points, NaN/inf.
     ValueError
-        Bad method, loss, init, scale, max_iterations or tolerance.
+        Bad method, loss, init, scale, max_iterations or rtol.
     RegistrationError
         With a given start ('identity', 'principal-axes' or a matrix): fewer than 6 scan
         points within ``max(prep.max_distance, 0.2 * model size)`` of the model at the start
@@ -359,9 +363,9 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
     if int(max_iterations) != max_iterations or max_iterations < 1:
         raise ValueError(f"max_iterations must be a positive integer, got {max_iterations}")
     max_iterations = int(max_iterations)
-    tolerance = float(tolerance)
+    tolerance = float(rtol)     # the stages' relative stopping threshold
     if not (np.isfinite(tolerance) and tolerance > 0):
-        raise ValueError(f"tolerance must be positive, got {tolerance}")
+        raise ValueError(f"rtol must be positive, got {rtol}")
     rng = np.random.default_rng(0 if rng is None else rng)
     mode, T0 = InitMode.parse(init, validate_pose)
     how = mode.value
