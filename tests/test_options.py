@@ -281,3 +281,14 @@ def test_register_takes_rtol_and_the_old_name_tolerance_once_with_a_warning(pane
     assert old.iterations == new.iterations
     with pytest.raises(TypeError, match="give rtol= only"):
         sv.register(scan, prep, rtol=1e-5, tolerance=1e-5)
+
+
+def test_per_face_tolerances_keep_their_face_numbers(panel):
+    prep, scan, _ = panel
+    opts = InspectionOptions(tolerance=0.2, per_face={1: 0.05, 0: (-0.3, 0.3)})
+    assert opts.per_face == ((0, (-0.3, 0.3)), (1, 0.05))
+    a = sv.inspect(prep, scan, options=opts)
+    b = sv.inspect(prep, scan, tolerance=0.2, per_face={1: 0.05, 0: (-0.3, 0.3)})
+    assert a.tolerance == b.tolerance and a.tolerance.limits_for(1) == (-0.05, 0.05)
+    with pytest.raises(ValueError, match="face indices"):
+        sv.inspect(prep, scan, tolerance=0.2, per_face={-1: 0.1})

@@ -145,11 +145,12 @@ def _plan(value):
     return load_plan(value)
 
 
-def _pairs(value) -> tuple:
+def _pairs(value, key=str) -> tuple:
+    """A mapping (or pairs) as a sorted tuple of ``(key(k), v)`` pairs: frozen, comparable."""
     if value is None:
         return ()
     items = value.items() if isinstance(value, Mapping) else value
-    return tuple(sorted((str(k), v) for k, v in items))
+    return tuple(sorted(((key(k), v) for k, v in items), key=lambda kv: repr(kv[0])))
 
 
 @dataclass(frozen=True)
@@ -241,7 +242,7 @@ class InspectionOptions:
         put("plan", _plan(self.plan))
         put("scan_unit", _unit("scan_unit", self.scan_unit))
         put("model_unit", _unit("model_unit", self.model_unit))
-        put("per_face", _pairs(self.per_face))
+        put("per_face", _pairs(self.per_face, key=lambda f: f))   # face numbers: Tolerance checks them
         if self.min_region_points is not None:
             n = _number("min_region_points", self.min_region_points, positive=True, unit="")
             if n != int(n):
