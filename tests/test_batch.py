@@ -63,7 +63,7 @@ def first_run(folder):
     d, _ = folder
     out, db = d / "out", d / "history.sqlite"
     seen = []
-    s = run_batch(d / "panel.svm", d / "scans", out, tolerance=0.3, workers=2, db_path=db,
+    s = run_batch(d / "panel.svm", d / "scans", out, {"tolerance": 0.3}, workers=2, db_path=db,
                   progress=lambda done, total, name: seen.append((done, total, name)))
     return out, db, s, seen
 
@@ -98,14 +98,14 @@ def test_batch_local_cluster_resumable(folder, first_run):
 
     # a second run skips everything: no cluster, no new rows, files untouched
     mtimes = {p.name: p.stat().st_mtime_ns for p in out.glob("*.json")}
-    s2 = run_batch(d / "panel.svm", d / "scans", out, tolerance=0.3, workers=2, db_path=db)
+    s2 = run_batch(d / "panel.svm", d / "scans", out, {"tolerance": 0.3}, workers=2, db_path=db)
     assert (s2.total, s2.skipped, s2.passed, s2.failed, s2.errors) == (4, 4, 2, 1, 1)
     assert len(_rows(db)) == 4
     assert {p.name: p.stat().st_mtime_ns for p in out.glob("*.json")} == mtimes
 
     # interrupted after the history row but before the JSON: recovered from the row, not re-run
     (out / "b_clean.json").unlink()
-    s3 = run_batch(d / "panel.svm", d / "scans", out, tolerance=0.3, workers=2, db_path=db)
+    s3 = run_batch(d / "panel.svm", d / "scans", out, {"tolerance": 0.3}, workers=2, db_path=db)
     assert s3.skipped == 4 and len(_rows(db)) == 4
     assert json.loads((out / "b_clean.json").read_text())["record_id"] == results["b_clean"]["record_id"]
 
@@ -121,13 +121,13 @@ def test_batch_on_existing_scheduler_ships_model_once(folder, tmp_path):
     out = tmp_path / "out"
     with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None) as cluster, \
             Client(cluster) as client:
-        s = batch.run_batch(d / "panel.svm", d / "scans", out, tolerance=0.3, scheduler=cluster.scheduler_address)
+        s = batch.run_batch(d / "panel.svm", d / "scans", out, {"tolerance": 0.3}, workers=cluster.scheduler_address)
         assert (s.passed, s.failed, s.errors) == (2, 1, 1)
         loaded = client.run(lambda: {k: id(v) for k, v in __import__("shapeverify.batch").batch._WORKER_MODELS.items()})
         assert all(len(m) <= 1 for m in loaded.values()) and sum(len(m) for m in loaded.values()) >= 1
         before = {stem: (out / f"{stem}.json").stat().st_mtime_ns for stem in truth}
-        s2 = batch.run_batch(d / "panel.svm", d / "scans", out, tolerance=0.3,
-                             scheduler=cluster.scheduler_address, retry_errors=True)
+        s2 = batch.run_batch(d / "panel.svm", d / "scans", out, {"tolerance": 0.3},
+                             workers=cluster.scheduler_address, retry_errors=True)
         assert s2.skipped == 3 and s2.errors == 1
         after = {stem: (out / f"{stem}.json").stat().st_mtime_ns for stem in truth}
         assert [k for k in truth if after[k] != before[k]] == ["d_corrupt"]
@@ -144,13 +144,13 @@ def test_batch_cli_and_bad_arguments(folder, first_run, tmp_path):
 
     d, _ = folder
     with pytest.raises(FileNotFoundError, match="prepared model"):
-        run_batch(d / "missing.svm", d / "scans", tmp_path / "o", tolerance=0.2)
+        run_batch(d / "missing.svm", d / "scans", tmp_path / "o", {"tolerance": 0.2})
     with pytest.raises(ValueError, match="no scan files"):
         empty = tmp_path / "empty"
         empty.mkdir()
-        run_batch(d / "panel.svm", empty, tmp_path / "o", tolerance=0.2)
+        run_batch(d / "panel.svm", empty, tmp_path / "o", {"tolerance": 0.2})
     with pytest.raises(ValueError, match="tolerance"):
-        run_batch(d / "panel.svm", d / "scans", tmp_path / "o", tolerance=0)
+        run_batch(d / "panel.svm", d / "scans", tmp_path / "o", {"tolerance": 0})
     # the CLI over a folder whose results exist: nothing to do, exit code 2 (one scan is an error)
     out = first_run[0]
     r = CliRunner().invoke(app, ["batch", str(d / "panel.svm"), str(d / "scans"), "--out", str(out),
@@ -176,16 +176,16 @@ def test_retry_errors_replaces_the_scans_history_row(folder, tmp_path):
     out, db = tmp_path / "out", tmp_path / "h.sqlite"
     with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
                       dashboard_address=None) as cluster:
-        s1 = run_batch(d / "panel.svm", scans, out, tolerance=0.3, db_path=db,
-                       scheduler=cluster.scheduler_address)
+        s1 = run_batch(d / "panel.svm", scans, out, {"tolerance": 0.3}, db_path=db,
+                       workers=cluster.scheduler_address)
         assert (s1.passed, s1.errors, s1.internal_errors) == (1, 1, 0)
         first = {part: (rid, verdict) for rid, part, verdict, _ in _rows(db)}
         assert first["d_corrupt"][1] == "error"
         # the scan is fixed (a good file under the same name) and retried
         np.savetxt(scans / "d_corrupt.xyz", np.load(scans / "a_clean.npy"), fmt="%.6f")
         (scans / "d_corrupt.ply").unlink()
-        s2 = run_batch(d / "panel.svm", scans, out, tolerance=0.3, db_path=db, retry_errors=True,
-                       scheduler=cluster.scheduler_address)
+        s2 = run_batch(d / "panel.svm", scans, out, {"tolerance": 0.3}, db_path=db, retry_errors=True,
+                       workers=cluster.scheduler_address)
     assert (s2.skipped, s2.passed, s2.errors) == (1, 2, 0)
     rows = _rows(db)
     assert len(rows) == 2 and sorted(r[1] for r in rows) == ["a_clean", "d_corrupt"]
@@ -200,13 +200,14 @@ def test_only_shapeverify_errors_are_scan_errors_a_bug_is_marked_internal(folder
 
     import shapeverify.inspection
     from shapeverify.batch import inspect_bytes
+    from shapeverify.options import InspectionOptions
 
     d, _ = folder
     svm = (d / "panel.svm").read_bytes()
     digest = hashlib.sha256(svm).hexdigest()
     scan = (d / "scans" / "a_clean.npy").read_bytes()
     bad = inspect_bytes(svm, digest, "d_corrupt.ply", (d / "scans" / "d_corrupt.ply").read_bytes(),
-                        0.3, None, False)
+                        InspectionOptions(tolerance=0.3), False)
     assert bad["verdict"] == "error" and "internal_error" not in bad
     assert bad["error"].startswith("ScanError")
 
@@ -214,7 +215,7 @@ def test_only_shapeverify_errors_are_scan_errors_a_bug_is_marked_internal(folder
         raise TypeError("unsupported operand type(s)")
 
     monkeypatch.setattr(shapeverify.inspection, "inspect", bug)
-    res = inspect_bytes(svm, digest, "a_clean.npy", scan, 0.3, None, False)
+    res = inspect_bytes(svm, digest, "a_clean.npy", scan, InspectionOptions(tolerance=0.3), False)
     assert res["verdict"] == "error" and res["internal_error"] is True
     assert res["error"].startswith("internal error (a bug in shapeverify")
     assert "TypeError: unsupported operand" in res["error"] and "in bug" in res["traceback"]

@@ -47,6 +47,7 @@ def test_cli_service_and_batch_give_the_same_result_dict_for_the_same_scan(wavy)
     from shapeverify.inspection import inspect
     from shapeverify.io.points import read_points
     from shapeverify.nearest import load_prepared
+    from shapeverify.options import InspectionOptions
     from shapeverify.service import ServiceConfig, create_app
 
     svm, scan = wavy / "wavy.svm", wavy / "scan.ply"
@@ -65,7 +66,7 @@ def test_cli_service_and_batch_give_the_same_result_dict_for_the_same_scan(wavy)
 
     svm_bytes = svm.read_bytes()
     batch = inspect_bytes(svm_bytes, hashlib.sha256(svm_bytes).hexdigest(), scan.name,
-                          scan.read_bytes(), 0.2, None, False)
+                          scan.read_bytes(), InspectionOptions(tolerance=0.2), False)
 
     library = inspect(prep, read_points(scan), tolerance=0.2).to_dict()  # the oracle
     assert cli["verdict"] == "fail" and any(g["extreme"] < -0.3 for g in cli["regions"])

@@ -11,7 +11,7 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from shapeverify.registration import _restart, icp, register
+from shapeverify.registration import RegistrationOptions, _restart, register
 from shapeverify.registration.rigid import make_transform, rodrigues
 
 
@@ -64,10 +64,9 @@ def impeller(shared_data):
 
 
 def _register(scan, prep, restart, monkeypatch, **kw):
-    monkeypatch.setattr(icp, "RESTART", restart)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return register(scan, prep, **kw)
+        return register(scan, prep, options=RegistrationOptions(restart=restart), **kw)
 
 
 @pytest.mark.slow

@@ -10,7 +10,7 @@ import pytest
 from shapeverify.cad.model import Face, Model
 from shapeverify.cad.nurbs import NurbsSurface
 from shapeverify.nearest import prepare
-from shapeverify.registration import icp, register
+from shapeverify.registration import RegistrationOptions, register
 from shapeverify.registration.rigid import make_transform, rodrigues
 from shapeverify.simulate import virtual_scan
 
@@ -65,12 +65,10 @@ def test_thin_walls_seen_from_one_side_end_in_the_right_minimum(finned, monkeypa
         start = _spun_start(vs, deg)
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
-            monkeypatch.setattr(icp, "PROBE", False)
-            monkeypatch.setattr(icp, "RESTART", False)    # the spin restarts (_restart) too
-            plain = register(vs.scan, prep, init=start)
-            monkeypatch.setattr(icp, "PROBE", True)
-            monkeypatch.setattr(icp, "RESTART", True)
-            reg = register(vs.scan, prep, init=start)
+            # without the probe, and without the spin restarts (_restart) too
+            plain = register(vs.scan, prep, init=start,
+                             options=RegistrationOptions(probe=False, restart=False))
+            reg = register(vs.scan, prep, init=start)     # the default: both on
             again = register(vs.scan, prep, init=start)
         wrong_without_probe += vs.accuracy(plain.T_model_scan).rotation_deg > 0.5
         acc = vs.accuracy(reg.T_model_scan)

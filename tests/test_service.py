@@ -213,7 +213,14 @@ def test_bad_scans_get_clear_4xx_and_store_nothing(server, panel, name, body, ct
 
 
 @pytest.mark.parametrize("params,status,words", [
-    ({"tolerance": None}, 422, "tolerance: field required"),
+    ({"tolerance": None}, 422, "tolerance: give tolerance (±mm) or both lower and upper"),
+    ({"tolerance": None, "lower": -0.1}, 422, "tolerance: give tolerance"),
+    ({"lower": 0.1}, 422, "lower: lower limit is a signed deviation"),
+    ({"faces": "0,x"}, 422, "faces: faces must be cad face numbers"),
+    ({"faces": "99"}, 422, "face 99 does not exist"),
+    ({"min_coverage": 2}, 422, "min_coverage"),
+    ({"scan_unit": "furlong"}, 422, "scan_unit: unknown length unit 'furlong'"),
+    ({"plan": "characteristics: [1, 2"}, 422, "plan:"),
     ({"tolerance": -1}, 422, "tolerance: input should be greater than 0"),
     ({"tolerance": "nan"}, 422, "tolerance: input should be a finite number"),
     ({"tolerance": "abc"}, 422, "tolerance"),
@@ -257,8 +264,9 @@ def test_token_and_openapi(server, panel):
     op = spec["paths"]["/inspect"]["post"]
     assert {"401", "404", "408", "413", "415", "422", "504"} <= set(op["responses"])
     assert "application/x-npy" in op["requestBody"]["content"]
-    assert {p["name"] for p in op["parameters"]} == {"model", "tolerance", "evaluation_distance",
-                                                     "max_distance", "part", "init"}
+    assert {p["name"] for p in op["parameters"]} == {
+        "model", "tolerance", "lower", "upper", "evaluation_distance", "max_distance", "faces",
+        "min_coverage", "init", "scan_unit", "plan", "part"}
     assert [p.get("deprecated") for p in op["parameters"] if p["name"] == "max_distance"] == [True]
     assert any(s.get("type") == "http" and s.get("scheme") == "bearer"
                for s in spec["components"]["securitySchemes"].values())

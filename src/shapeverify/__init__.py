@@ -38,10 +38,12 @@ _PUBLIC = {
     "deviations": ("shapeverify.inspection", "deviations"),
     "inspect": ("shapeverify.inspection", "inspect"),
     "InspectionResult": ("shapeverify.inspection", "InspectionResult"),
+    "InspectionOptions": ("shapeverify.options", "InspectionOptions"),
+    "OutputRequest": ("shapeverify.options", "OutputRequest"),
     "ShapeVerifyError": ("shapeverify.errors", "ShapeVerifyError"),
 }
 _SUBMODULES = {"cad", "io", "nearest", "registration", "inspection", "report", "simulate",
-               "camera", "phase", "fitting", "errors", "pipeline"}
+               "camera", "phase", "fitting", "errors", "pipeline", "options"}
 
 __all__ = sorted(_PUBLIC) + sorted(_SUBMODULES) + ["__version__"]
 

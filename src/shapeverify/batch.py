@@ -43,7 +43,6 @@ DASK_LOG = "dask.log"
 _WORKER_MODELS: dict = {}  # sha256 -> Prepared, one per worker process
 _CSV_COLUMNS = ["scan", "verdict", "n_points", "mean_mm", "std_mm", "min_mm", "max_mm", "p95_mm",
                 "in_tolerance_fraction", "n_regions", "rms_registration_mm", "record_id", "error"]
-_NOT_STORED = ("worker_seconds", "record_id")  # keys of a batch result the history row leaves out
 
 
 def _prepared_from_bytes(svm: bytes, digest: str):
@@ -57,10 +56,13 @@ def _prepared_from_bytes(svm: bytes, digest: str):
     return prep
 
 
-def inspect_bytes(svm: bytes, digest: str, name: str, scan: bytes, tolerance: float,
-                  evaluation_distance: float | None, report: bool) -> dict:
+def inspect_bytes(svm: bytes, digest: str, name: str, scan: bytes, options,
+                  report: bool) -> dict:
     """One batch task: inspect one scan (its file bytes; the format from ``name``'s suffix) with
-    :func:`shapeverify.pipeline.inspect_scan` and return a JSON-ready dict.
+    :func:`shapeverify.pipeline.inspect_scan` and the batch's
+    :class:`~shapeverify.InspectionOptions` (shipped whole to the worker), and return a
+    JSON-ready dict (with ``report``: the HTML report under ``"_report_html"``, rendered here,
+    where the points are; :func:`shapeverify.pipeline.write_outputs` writes it).
 
     Never raises for a bad scan: the result then has ``verdict='error'`` and ``error``.
     """
@@ -70,8 +72,7 @@ def inspect_bytes(svm: bytes, digest: str, name: str, scan: bytes, tolerance: fl
         from shapeverify.pipeline import inspect_scan
 
         prep = _prepared_from_bytes(svm, digest)
-        done = inspect_scan(prep, scan, scan_format=Path(name).suffix, scan_name=name,
-                            tolerance=tolerance, evaluation_distance=evaluation_distance)
+        done = inspect_scan(prep, scan, options, scan_format=Path(name).suffix, scan_name=name)
         out.update(done.result.to_dict())
         if report:
             from shapeverify.report.html import html_report
@@ -128,9 +129,9 @@ class BatchSummary:
 
 
 def _write_json(path: Path, data: dict) -> None:
-    tmp = path.with_name(path.name + ".tmp")
-    tmp.write_text(json.dumps(data, indent=2))
-    os.replace(tmp, path)  # complete or absent: a half-written JSON would be skipped as done
+    from shapeverify.pipeline import _write_json_atomically
+
+    _write_json_atomically(path, data)  # complete or absent: a half-written JSON would be skipped as done
 
 
 def _stored_row(db_path: Path, part: str, digest: str, name: str | None) -> dict | None:
@@ -183,12 +184,13 @@ def _list_scans(scans_dir: Path) -> list[Path]:
 
 class _Outputs:
     """Where a batch run's results go: one JSON per scan stem in ``out_dir`` and, with a
-    history, one row per scan (an earlier error row replaced with ``retry_errors``)."""
+    history, one row per scan (an earlier error row replaced with ``retry_errors``); written
+    by :func:`shapeverify.pipeline.write_outputs`.  ``part_of(stem)`` is a scan's part id."""
 
     def __init__(self, out_dir: Path, model_name: str, digest: str, db_path: Path | None,
-                 retry_errors: bool):
+                 retry_errors: bool, part_of: Callable[[str], str]):
         self.out_dir, self.model_name, self.digest = out_dir, model_name, digest
-        self.db_path, self.retry_errors = db_path, retry_errors
+        self.db_path, self.retry_errors, self.part_of = db_path, retry_errors, part_of
         self.db = None
         self.replace_ids: dict[str, int] = {}  # scan stem -> history row of its earlier error
 
@@ -216,37 +218,64 @@ class _Outputs:
         self.db = HistoryDB(self.db_path)
         recovered = []
         for p in todo:
-            row = _stored_row(self.db_path, p.stem, self.digest, p.name)
+            part = self.part_of(p.stem)
+            row = _stored_row(self.db_path, part, self.digest, p.name)
             if row is not None and (row.get("verdict") != "error" or not self.retry_errors):
                 _write_json(self.json_path(p), row)
                 recovered.append(p)
             elif self.retry_errors:  # an error retried: its new result replaces that row
-                old = row or _stored_row(self.db_path, p.stem, self.digest, None)  # (renamed .ply -> .xyz)
+                old = row or _stored_row(self.db_path, part, self.digest, None)  # (renamed .ply -> .xyz)
                 if old is not None and old.get("verdict") == "error":
                     self.replace_ids[p.stem] = old["record_id"]
         return [p for p in todo if p not in recovered]
 
     def record(self, res: dict) -> None:
         """Write one task's result: its report, its history row, then its JSON."""
-        html = res.pop("_report_html", None)
+        from shapeverify.options import OutputRequest
+        from shapeverify.pipeline import write_outputs
+
         stem = Path(res["scan"]).stem
         res["batch"] = {"model": self.model_name, "model_sha256": self.digest}
-        if html is not None:
-            (self.out_dir / f"{stem}.html").write_text(html, encoding="utf-8")
         if res.get("internal_error"):
             log.error("%s: internal error (a bug in shapeverify): %s", res["scan"], res["error"])
-        if self.db is not None:
-            stored = {k: v for k, v in res.items() if k not in _NOT_STORED}
-            if stem in self.replace_ids:
-                res["record_id"] = self.db.replace(self.replace_ids.pop(stem), stored, part=stem,
-                                                   model_hash=self.digest)
-            else:
-                res["record_id"] = self.db.add(stored, part=stem, model_hash=self.digest)
-        _write_json(self.json_path(stem), res)
+        request = OutputRequest(
+            json=self.json_path(stem), part=self.part_of(stem), model_hash=self.digest,
+            report=self.out_dir / f"{stem}.html" if "_report_html" in res else None,
+            replace_record=self.replace_ids.pop(stem, None))
+        write_outputs(res, request, history=self.db)
 
     def close(self) -> None:
         if self.db is not None:
             self.db.close()
+
+
+def part_from_name(pattern: str | None) -> Callable[[str], str]:
+    """The part id of a scan file's stem: the stem itself (no ``pattern``), or the first group
+    (else the whole match) of the regular expression ``pattern`` searched in the stem
+    (``r"SN(\\d+)"``: ``SN0042_top`` is part ``0042``).
+
+    Raises
+    ------
+    ValueError
+        A pattern that is not a regular expression.
+    """
+    if pattern is None:
+        return lambda stem: stem
+    import re
+
+    try:
+        rx = re.compile(pattern)
+    except re.error as exc:
+        raise ValueError(f"the part pattern {pattern!r} is not a regular expression: {exc}") from None
+
+    def part(stem: str) -> str:
+        m = rx.search(stem)
+        if m is None:
+            raise ValueError(f"scan {stem!r}: the part pattern {pattern!r} does not match its "
+                             "name; fix the pattern or rename the scan")
+        return m.group(1) if rx.groups else m.group(0)
+
+    return part
 
 
 #: Dask's loggers, whose INFO lines (about 35 per run: scheduler, nannies, workers, clients)
@@ -299,14 +328,15 @@ def _dask_logs_to(path: Path):
 
 
 def _run_on_dask(todo: list[Path], svm: bytes, digest: str, task_args: tuple, record,
-                 scheduler: str | None, workers: int, progress) -> None:
-    """Inspect the scans ``todo`` on Dask (a LocalCluster of ``workers`` unless ``scheduler``),
+                 workers: int | str, progress) -> None:
+    """Inspect the scans ``todo`` on Dask (a LocalCluster of ``workers``, or the scheduler at
+    the address ``workers``),
     a bounded number in flight; ``record(result)`` for each as it completes."""
     from distributed import Client, as_completed
 
     cluster = None
-    if scheduler:
-        client = Client(scheduler)
+    if isinstance(workers, str):
+        client = Client(workers)
     else:
         cluster = _local_cluster(max(1, int(workers)))
         client = Client(cluster)
@@ -371,10 +401,10 @@ def _write_summary(scans: list[Path], out_dir: Path) -> tuple[list[dict], Path]:
     return rows, summary_csv
 
 
-def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, tolerance: float,
-              evaluation_distance: float | None = None, scheduler: str | None = None, workers: int = 2,
-              reports: bool = False, db_path: str | Path | None = None, retry_errors: bool = False,
-              progress: Callable[[int, int, str], None] | None = None) -> BatchSummary:
+def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, options, *,
+              workers: int | str = 2, reports: bool = False, db_path: str | Path | None = None,
+              retry_errors: bool = False, progress: Callable[[int, int, str], None] | None = None,
+              part_pattern: str | None = None) -> BatchSummary:
     """Inspect every scan in ``scans_dir`` against the prepared model ``svm_path`` on Dask.
 
     Parameters
@@ -387,15 +417,22 @@ def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, 
         Output folder: ``<scan stem>.json`` per scan (``.html`` with ``reports``), ``summary.csv``,
         and ``dask.log``: Dask's own log lines (they reach the root logger's handlers too only
         when it is enabled for INFO).
-    tolerance, evaluation_distance : float
-        As for :func:`shapeverify.inspect` (mm; None: its default).
-    scheduler : str, optional
-        Address of an existing Dask scheduler (``tcp://host:8786``); default: a LocalCluster
-        with ``workers`` single-threaded worker processes. (Start the workers of your own
-        cluster with ``distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_: null`` in
-        the dask config, or ``--no-nanny``: dask's default makes inspections ~1.5x slower.)
+    options : shapeverify.InspectionOptions or dict
+        Every setting of the inspections (tolerance or limits, evaluation distance, faces, init,
+        plan, scan unit ...), shipped whole to the workers; a dict of its fields is taken too
+        (``{"tolerance": 0.3, "faces": "0,3"}``).
+    workers : int or str
+        The number of single-threaded worker processes of a local Dask cluster (default 2), or
+        the address of an existing Dask scheduler (``"tcp://host:8786"``). (Start the workers of
+        your own cluster with ``distributed.nanny.pre-spawn-environ.MALLOC_TRIM_THRESHOLD_:
+        null`` in the dask config, or ``--no-nanny``: dask's default makes inspections ~1.5x
+        slower.)
     db_path : path, optional
-        Append every result (errors too) to this SQLite history; ``part`` is the scan's stem.
+        Append every result (errors too) to this SQLite history; ``part`` is the scan's part id
+        (see ``part_pattern``).
+    part_pattern : str, optional
+        A regular expression whose first group (else whole match) in a scan file's stem is its
+        part id (:func:`part_from_name`); default: the stem.
     retry_errors : bool
         Inspect again the scans whose earlier result is an error (default: skip them too).
     progress : callable, optional
@@ -410,7 +447,9 @@ def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, 
     FileNotFoundError
         Missing model or folder.
     ValueError
-        A folder without scans, two scans with the same stem, or ``tolerance <= 0``.
+        A folder without scans, two scans with the same stem, a bad option
+        (:class:`~shapeverify.options.OptionError`: ``tolerance <= 0`` ...), a part pattern
+        that does not match a scan's name.
     ModelFileError
         The prepared model is damaged or not a ``.svm`` file.
     """
@@ -419,9 +458,14 @@ def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, 
         raise FileNotFoundError(f"{svm_path}: prepared model not found (make one with `shapeverify prepare`)")
     if not scans_dir.is_dir():
         raise FileNotFoundError(f"{scans_dir}: not a folder of scans")
-    if not tolerance > 0:
-        raise ValueError(f"tolerance must be > 0 mm, got {tolerance}")
+    from shapeverify.options import InspectionOptions
+
+    if not isinstance(options, InspectionOptions):
+        options = InspectionOptions(**dict(options))
+    part_of = part_from_name(part_pattern)
     scans = _list_scans(scans_dir)
+    for p in scans:
+        part_of(p.stem)          # a pattern that misses a scan stops here, not per scan
     from shapeverify.nearest import load_prepared
 
     load_prepared(svm_path)  # a damaged model stops here (ModelFileError naming the file), not per scan
@@ -429,15 +473,15 @@ def run_batch(svm_path: str | Path, scans_dir: str | Path, out_dir: str | Path, 
     svm = svm_path.read_bytes()
     digest = hashlib.sha256(svm).hexdigest()
     outputs = _Outputs(out_dir, svm_path.name, digest,
-                       Path(db_path) if db_path is not None else None, retry_errors)
+                       Path(db_path) if db_path is not None else None, retry_errors, part_of)
     todo = [p for p in scans if not outputs.done_before(p)]
     t0 = time.perf_counter()
     try:
         todo = outputs.open_history(todo)
         if todo:
             with _dask_logs_to(out_dir / DASK_LOG):
-                _run_on_dask(todo, svm, digest, (tolerance, evaluation_distance, reports),
-                             outputs.record, scheduler, workers, progress)
+                _run_on_dask(todo, svm, digest, (options, reports),
+                             outputs.record, workers, progress)
     finally:
         outputs.close()
     rows, summary_csv = _write_summary(scans, out_dir)

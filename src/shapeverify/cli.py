@@ -7,7 +7,6 @@ seen to decide). Other commands: 0 success, 2 error.
 
 from __future__ import annotations
 
-import contextlib
 import logging
 import os
 import sys
@@ -17,17 +16,29 @@ import sys
 # from the service's and batch's other workers) for no gain (bench_inspect: 154 -> 100 ms CPU
 # per inspection).  Set before numpy is first imported; a value the user set is kept.
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
-import time
 from pathlib import Path
 from typing import List, Optional
 
 import typer
-from rich.console import Console
 from rich.logging import RichHandler
 from rich.markup import escape
 from typer.core import TyperGroup
 
-from shapeverify.cli_errors import clean, cli_hint, os_error_message, size_note
+from shapeverify.cli_errors import clean, size_note
+from shapeverify.cli_common import (EVALUATION_DISTANCE as _EVALUATION_DISTANCE,  # noqa: F401
+                                    EXIT_ERROR, EXIT_FAIL, EXIT_INCOMPLETE, EXIT_PASS,
+                                    FACES as _FACES, INIT as _INIT, LOWER as _LOWER,
+                                    MAX_DISTANCE as _MAX_DISTANCE,
+                                    MIN_COVERAGE as _MIN_COVERAGE, PLAN as _PLAN,
+                                    SCAN_UNIT as _SCAN_UNIT, UPPER as _UPPER,
+                                    VERBOSE_KEY as _VERBOSE_KEY, console, out)
+from shapeverify.cli_common import fail as _fail  # noqa: F401 (the old private names)
+from shapeverify.cli_common import guard as _guard
+from shapeverify.cli_common import internal_error as _internal_error
+from shapeverify.cli_common import is_init_mode as _is_init_mode
+from shapeverify.cli_common import require_files as _require_files
+from shapeverify.cli_common import renamed as _renamed
+from shapeverify.cli_common import stage as _stage
 from shapeverify.cli_start import CAD_SUFFIXES as _CAD_SUFFIXES
 from shapeverify.cli_start import early_importer as _early_importer
 from shapeverify.cli_start import is_prepared as _is_prepared
@@ -74,16 +85,8 @@ app = typer.Typer(
     no_args_is_help=True,
     help="Shape verification of free-form parts against their CAD model. Lengths in mm.",
 )
-console = Console(stderr=True)
-out = Console()
 
-EXIT_PASS, EXIT_FAIL, EXIT_ERROR, EXIT_INCOMPLETE = (VERDICT_TABLE[v].exit_code for v in
-                                                     ("pass", "fail", "error", "incomplete"))
-# one option, one default (shapeverify.inspection.default_evaluation_distance), for inspect and batch
-_EVALUATION_DISTANCE = typer.Option(
-    None, "--evaluation-distance", "--max-distance",
-    help="Scan points farther than this from the CAD are not evaluated [mm] "
-         "(default: max(5 x the tolerance, min(1 mm, 5 % of the model size)))")
+# the verdict table's exit codes (shapeverify.verdict_table; cli_common reads the same table)
 VERDICT_EXIT = {str(v): row.exit_code for v, row in VERDICT_TABLE.items()}
 
 
@@ -99,88 +102,6 @@ def _setup_logging(verbose: bool) -> None:
     logging.getLogger("py.warnings").setLevel(logging.WARNING if verbose else logging.ERROR)
 
 
-_COMPILE_NOTICES: dict | None = None
-
-
-def _say_compiling(text: str) -> None:
-    console.print(f"[yellow]note:[/yellow] {escape(text)}", soft_wrap=True)
-
-
-def _watch_compiles() -> None:
-    """From the first stage on, say once (with an estimate) when numba compiles a kernel: the
-    first run after installing can take a minute, and it must not look like a hang."""
-    global _COMPILE_NOTICES
-    if _COMPILE_NOTICES is not None:
-        return
-    from shapeverify.warmup import install_compile_notices
-
-    command = next((a for a in sys.argv[1:] if not a.startswith("-")), "inspect")
-    _COMPILE_NOTICES = install_compile_notices(_say_compiling, command)
-
-
-@contextlib.contextmanager
-def _stage(name: str, watch: bool = True):
-    """Show a spinner while a stage runs, then a tick with its duration.
-
-    ``watch=False``: do not install the compile notices (they import numba, ~1.3 s), for a
-    stage that runs no numba kernel in this process (``info`` of a CAD file or mesh)."""
-    if watch:
-        _watch_compiles()
-    t0 = time.perf_counter()
-    name = escape(clean(name))  # a non-UTF-8 file name must not stop the command
-    with console.status(f"[bold]{name}…"):
-        yield
-    console.print(f"[green]✓[/green] {name} [dim]({time.perf_counter() - t0:.2f} s)[/dim]")
-
-
-def _fail(message: str) -> None:
-    """Print ``error: MESSAGE`` on one line (no markup, no wrapping) and exit with code 2."""
-    console.print(f"[bold red]error:[/bold red] {escape(' '.join(clean(message).split()))}",
-                  soft_wrap=True)
-    raise typer.Exit(EXIT_ERROR)
-
-
-def _internal_error(exc: BaseException, verbose: bool) -> None:
-    """An exception that is not one of shapeverify's errors: a bug.  One line and exit code 2;
-    the traceback with ``--verbose``."""
-    if verbose:
-        console.print_exception()
-    what = escape(" ".join(clean(f"{type(exc).__name__}: {exc}").split()))
-    hint = "the traceback is above" if verbose else "run with --verbose for the traceback"
-    console.print(f"[bold red]internal error:[/bold red] {what} (a bug in shapeverify, please "
-                  f"report it); {hint}", soft_wrap=True)
-    raise typer.Exit(EXIT_ERROR)
-
-
-_VERBOSE_KEY = "shapeverify.verbose"
-
-
-def _guard(fn, *args, _scan_unit=None, **kwargs):
-    """Run ``fn``; turn shapeverify's errors (and unreadable or missing files) into a one-line
-    message and exit code 2.  Anything else is a bug and propagates to the command group, which
-    reports it as an internal error (also exit code 2).  ``_scan_unit``: the ``--scan-unit``
-    given, for the command-line hint of a unit mismatch (:func:`cli_errors.cli_hint`)."""
-    from shapeverify.errors import is_input_error
-
-    try:
-        return fn(*args, **kwargs)
-    except OSError as exc:      # a missing input, an output folder that is not there, no room
-        _fail(os_error_message(exc))
-    except Exception as exc:  # noqa: BLE001 - sorted: input errors here, bugs further up
-        if not is_input_error(exc):
-            raise
-        _fail(str(exc) + cli_hint(str(exc), _scan_unit))
-
-
-def _require_extra(module: str, extra: str, command: str) -> None:
-    """Fail with the install command when an optional front end's dependency is missing."""
-    import importlib.util
-
-    if importlib.util.find_spec(module) is None:
-        _fail(f"`shapeverify {command}` needs the '{extra}' extra ({module} is not installed): "
-              f"pip install 'shapeverify[{extra}]'")
-
-
 def _prestart_importer(model: Path, summary: bool = False) -> None:
     """Start the CAD importer process now when ``model`` is a CAD file: its start (a Python that
     imports OpenCASCADE, about a second) then overlaps the rest of this process's start-up
@@ -189,17 +110,6 @@ def _prestart_importer(model: Path, summary: bool = False) -> None:
         from shapeverify.cad.occ_worker import prestart
 
         prestart(summary)
-
-
-def _require_files(*paths: Path) -> None:
-    """Fail fast, before any slow work, when an input file does not exist."""
-    for p in paths:
-        if not p.exists():
-            _fail(f"{p}: no such file")
-        if p.is_dir():
-            _fail(f"{p}: is a directory; give a file")
-        if not p.is_file():     # a pipe or device: reading it would wait (info hashed a FIFO for ever)
-            _fail(f"{p}: is not a regular file (a pipe, socket or device); give a file")
 
 
 @app.callback()
@@ -314,15 +224,17 @@ def prepare(
     model: Path = typer.Argument(..., help="CAD file, mesh or point cloud"),
     output: Path = typer.Option(..., "-o", "--output", help="Output .svm file"),
     spacing: Optional[float] = typer.Option(None, help="Model-point spacing [mm] (default: model size / 500, up to 2x coarser for a solid part; see prepare)"),
-    reach: Optional[float] = typer.Option(None, "--reach", "--max-distance",
+    reach: Optional[float] = typer.Option(None, "--reach",
                                           help="Reach of the closest-point structure [mm]: queries "
                                                "within it are answered by the grid tree, farther ones "
                                                "more slowly (default: 3 % of the model size)"),
     model_unit: Optional[str] = typer.Option(None, "--model-unit", help="Unit of the model file (default mm for STL/PLY/OBJ/point clouds; overrides the unit a CAD file declares, with a warning naming both and the size)"),
     fixture: Optional[Path] = typer.Option(None, "--fixture", help="Fixture pose T_model_scan (T.json or T.npy) saved with the model: inspections start there when no --init is given"),
     allow_incomplete_model: bool = _ALLOW_INCOMPLETE,
+    max_distance: Optional[float] = _MAX_DISTANCE,
 ):
     """Import a model and pre-compute its closest-point structure (once per model)."""
+    reach = _renamed(max_distance, reach, "--max-distance", "--reach")
     _prestart_importer(model)
     from shapeverify.pipeline import load_reference
 
@@ -343,16 +255,16 @@ def inspect(
     model: Path = typer.Argument(..., help="Prepared model (.svm, fastest) or CAD/mesh file"),
     scans: List[Path] = typer.Argument(..., metavar="SCAN...", help=f"Scan: {scan_help()}. Several scans (or an E57 file with several) are views of one part: each is placed, the union inspected"),
     tolerance: Optional[float] = typer.Option(None, help="Symmetric tolerance ±MM"),
-    lower: Optional[float] = typer.Option(None, help="Lower limit [mm] (negative: into the material)"),
-    upper: Optional[float] = typer.Option(None, help="Upper limit [mm]"),
+    lower: Optional[float] = _LOWER,
+    upper: Optional[float] = _UPPER,
     evaluation_distance: Optional[float] = _EVALUATION_DISTANCE,
-    faces: Optional[str] = typer.Option(None, "--faces", help="Inspect only these CAD faces, e.g. '0,3,7' (default: all)"),
-    min_coverage: Optional[float] = typer.Option(None, "--min-coverage", help="Least share of the inspected CAD area that must be seen (0..1, default 0.2 = shapeverify.inspection.MIN_COVERAGE); below it the verdict is 'incomplete'"),
-    init: Optional[str] = typer.Option(None, "--init", help="Start pose T_model_scan: a 4x4 in T.json or T.npy, or a strategy: auto (default: the identity when the scan overlaps the model, else a global search), identity, principal-axes, global"),
+    faces: Optional[str] = _FACES,
+    min_coverage: Optional[float] = _MIN_COVERAGE,
+    init: Optional[str] = _INIT,
     poses: Optional[Path] = typer.Option(None, "--poses", help="With several views: their start poses, a JSON list of 4x4 T_model_scan (null: found by the global search), one per view"),
-    scan_unit: Optional[str] = typer.Option(None, "--scan-unit", help="Unit of the scan file (mm, cm, m, in, um; default mm)"),
+    scan_unit: Optional[str] = _SCAN_UNIT,
     model_unit: Optional[str] = typer.Option(None, "--model-unit", help="Unit of the model file (default mm for STL/PLY/OBJ/point clouds; overrides the unit a CAD file declares, with a warning naming both and the size)"),
-    plan: Optional[Path] = typer.Option(None, "--plan", help="Inspection plan (plan.yaml): alignment, characteristics with uncertainty; without --tolerance the colour map uses half its first surface profile's zone"),
+    plan: Optional[Path] = _PLAN,
     json_path: Optional[Path] = typer.Option(None, "--json", help="Write the result as JSON"),
     report: Optional[Path] = typer.Option(None, "--report", help="Write the HTML report"),
     pdf: Optional[Path] = typer.Option(None, "--pdf", help="Write the PDF report (colour map, histogram, characteristics)"),
@@ -361,38 +273,32 @@ def inspect(
     db: Optional[Path] = typer.Option(None, "--db", help="Append the result to this SQLite history"),
     part: Optional[str] = typer.Option(None, "--part", help="Part id stored in the history"),
     allow_incomplete_model: bool = _ALLOW_INCOMPLETE,
+    max_distance: Optional[float] = _MAX_DISTANCE,
 ):
     """Register a scan to the model, compute deviations and decide the verdict.
 
     Exit code: 0 pass, 1 fail, 2 error, 3 incomplete (not enough of the part seen).
     """
+    evaluation_distance = _renamed(max_distance, evaluation_distance, "--max-distance",
+                                   "--evaluation-distance")
     _prestart_importer(model)
+    from shapeverify.options import InspectionOptions, OutputRequest
     from shapeverify.pipeline import run_inspection
 
-    from shapeverify.registration.icp import INIT_MODES
-
-    init_file = Path(init) if init is not None and init not in INIT_MODES else None
+    init_file = Path(init) if init is not None and not _is_init_mode(init) else None
     _require_files(model, *scans, *([init_file] if init_file is not None else []),
                    *([plan] if plan is not None else []), *([poses] if poses else []))
     for scan in scans:
         _check_scan_suffix(model, scan)
-    if poses is not None and init is not None:
-        _fail("give either --init (one scan) or --poses (several views), not both")
-    if tolerance is None and lower is None and upper is None:
-        if plan is None:
-            _fail("give --tolerance MM (or --lower/--upper limits in mm, or a --plan)")
-        from shapeverify.cli_plan import default_tolerance
-        tolerance = _guard(default_tolerance, plan)
-    T0 = _guard(_read_init, init_file) if init_file is not None else init
-    if poses is not None:
-        T0 = _guard(_read_poses, poses, len(scans))
+    options = _guard(InspectionOptions.from_cli, dict(
+        tolerance=tolerance, lower=lower, upper=upper, evaluation_distance=evaluation_distance,
+        faces=faces, min_coverage=min_coverage, init=init, poses=poses, scan_unit=scan_unit,
+        model_unit=model_unit, plan=plan), n_scans=len(scans))
+    request = OutputRequest(json=json_path, report=report, pdf=pdf, png=png, colored=colored,
+                            db=db)
     result, outputs = _guard(
-        run_inspection, model, scans[0] if len(scans) == 1 else list(scans), tolerance=tolerance, evaluation_distance=evaluation_distance,
-        lower=lower, upper=upper, faces=faces, min_coverage=min_coverage, init=T0,
-        scan_unit=scan_unit, model_unit=model_unit, plan=plan, pdf_path=pdf,
-        json_path=json_path, report_path=report, png_path=png,
-        colored_path=colored, db_path=db, part=part, stage=_stage, _scan_unit=scan_unit,
-        allow_incomplete=allow_incomplete_model)
+        run_inspection, model, scans[0] if len(scans) == 1 else list(scans), options, request,
+        part=part, stage=_stage, _scan_unit=scan_unit, allow_incomplete=allow_incomplete_model)
     _print_result(result)
     for label, path in (("JSON", outputs.json), ("report", outputs.report), ("PDF", outputs.pdf),
                         ("PNG", outputs.png), ("coloured PLY", outputs.colored)):
@@ -420,24 +326,6 @@ def _check_scan_suffix(model: Path, scan: Path) -> None:
               "`shapeverify inspect MODEL SCAN`")
     _fail(f"{scan}: unsupported scan extension {scan.suffix or '(none)'!r}; supported: "
           f"{', '.join(SCAN_SUFFIXES)}")
-
-
-def _read_poses(path: Path, n_scans: int) -> list:
-    """``--poses``: a JSON list of 4x4 start poses (or null), one per view."""
-    import json
-
-    import numpy as np
-
-    try:
-        data = json.loads(path.read_text(encoding="utf-8"))
-    except (ValueError, UnicodeDecodeError) as exc:
-        raise ValueError(f"{path}: not a JSON file ({exc})") from None
-    if not isinstance(data, list) or not all(p is None or np.shape(p) == (4, 4) for p in data):
-        raise ValueError(f"{path}: --poses must be a JSON list of 4x4 matrices (or null), one "
-                         "per view")
-    if n_scans > 1 and len(data) != n_scans:
-        raise ValueError(f"{path}: {len(data)} poses for {n_scans} scans: give one per view")
-    return [None if p is None else np.asarray(p, dtype=np.float64) for p in data]
 
 
 def _read_init(path: Path):

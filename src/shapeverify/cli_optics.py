@@ -79,7 +79,7 @@ def _split_pairs(images):
 
 def register_commands(app: typer.Typer) -> None:
     """Add ``measure`` and ``calibrate`` to ``app``."""
-    from shapeverify import cli as _cli
+    from shapeverify import cli_common as _cli
 
     @app.command()
     def measure(
@@ -101,32 +101,32 @@ def register_commands(app: typer.Typer) -> None:
 
         import numpy as np
 
-        _cli._require_files(rig, left, right, *([model] if model else []), *([pose] if pose else []))
-        with _cli._stage("reading rig and images"):
-            r = _cli._guard(load_rig, rig)
-            L = _cli._guard(read_image, left, r.left.size, "left image")
-            R = _cli._guard(read_image, right, r.right.size, "right image")
+        _cli.require_files(rig, left, right, *([model] if model else []), *([pose] if pose else []))
+        with _cli.stage("reading rig and images"):
+            r = _cli.guard(load_rig, rig)
+            L = _cli.guard(read_image, left, r.left.size, "left image")
+            R = _cli.guard(read_image, right, r.right.size, "right image")
         dr = None
         if depth_range:
             try:
                 dr = tuple(float(x) for x in depth_range.split(","))
                 assert len(dr) == 2
             except (ValueError, AssertionError):
-                _cli._fail(f"--depth-range must be ZNEAR,ZFAR in mm, got {depth_range!r}")
+                _cli.fail(f"--depth-range must be ZNEAR,ZFAR in mm, got {depth_range!r}")
         prep = T = None
         if model is not None:
             import shapeverify as sv
-            with _cli._stage("loading model"):
-                prep = _cli._guard(sv.load_prepared if model.suffix.lower() == ".svm" else sv.load_model, model)
-            T = _cli._guard(read_pose, pose) if pose else np.eye(4)
-        with _cli._stage("phase, fringe orders, triangulation"):
-            scan = _cli._guard(_measure, r, L, R, model=prep, T_left_model=T, method=method, depth_range=dr)
+            with _cli.stage("loading model"):
+                prep = _cli.guard(sv.load_prepared if model.suffix.lower() == ".svm" else sv.load_model, model)
+            T = _cli.guard(read_pose, pose) if pose else np.eye(4)
+        with _cli.stage("phase, fringe orders, triangulation"):
+            scan = _cli.guard(_measure, r, L, R, model=prep, T_left_model=T, method=method, depth_range=dr)
         keep = scan.quality >= min_quality
         if not keep.any():
-            _cli._fail(f"no point measured (usable left pixels: {scan.info.get('usable_left', 0)}); check the rig "
+            _cli.fail(f"no point measured (usable left pixels: {scan.info.get('usable_left', 0)}); check the rig "
                        "and the images (fringe contrast, exposure)")
-        with _cli._stage(f"writing {output}"):
-            _cli._guard(write_ply, output, scan.points[keep], scalars={"quality": scan.quality[keep]})
+        with _cli.stage(f"writing {output}"):
+            _cli.guard(write_ply, output, scan.points[keep], scalars={"quality": scan.quality[keep]})
         t = ", ".join(f"{k} {v:.2f} s" for k, v in scan.timings.items())
         _cli.out.print(f"{int(keep.sum()):,} points (of {scan.info['usable_left']:,} usable left pixels), "
                        f"median quality {float(np.median(scan.quality[keep])):.3f}; {t}; frame: left camera, mm")
@@ -144,23 +144,23 @@ def register_commands(app: typer.Typer) -> None:
         from shapeverify.camera.calibration import calibrate as _calibrate
         from shapeverify.camera.rig import load_rig, save_rig
 
-        _cli._require_files(*images, *([projector] if projector else []))
+        _cli.require_files(*images, *([projector] if projector else []))
         try:
             pat = tuple(int(x) for x in pattern.lower().split("x"))
             assert len(pat) == 2 and min(pat) >= 2
         except (ValueError, AssertionError):
-            _cli._fail(f"--pattern must be COLSxROWS inner corners (e.g. 9x6), got {pattern!r}")
-        lefts, rights = _cli._guard(_split_pairs, list(images))
+            _cli.fail(f"--pattern must be COLSxROWS inner corners (e.g. 9x6), got {pattern!r}")
+        lefts, rights = _cli.guard(_split_pairs, list(images))
         proj = pat_f = None
         if projector is not None:
-            base = _cli._guard(load_rig, projector)
+            base = _cli.guard(load_rig, projector)
             proj, pat_f = base.projector, base.pattern
-        with _cli._stage(f"finding corners and calibrating ({len(lefts)} pairs)"):
-            L = [_cli._guard(read_image, p) for p in lefts]
-            R = [_cli._guard(read_image, p) for p in rights]
-            cal = _cli._guard(_calibrate, L, R, pattern=pat, square_mm=square, projector=proj,
+        with _cli.stage(f"finding corners and calibrating ({len(lefts)} pairs)"):
+            L = [_cli.guard(read_image, p) for p in lefts]
+            R = [_cli.guard(read_image, p) for p in rights]
+            cal = _cli.guard(_calibrate, L, R, pattern=pat, square_mm=square, projector=proj,
                               pattern_fringe=pat_f, fix_k3=fix_k3)
-        _cli._guard(save_rig, cal.rig, output)
+        _cli.guard(save_rig, cal.rig, output)
         skipped = f"; board not found in pair(s) {list(cal.rejected)}" if cal.rejected else ""
         _cli.out.print(f"reprojection error (RMS): left {cal.rms_left:.4f} px, right {cal.rms_right:.4f} px, "
                        f"stereo {cal.rms_stereo:.4f} px over {cal.views} pairs{skipped}; wrote {output}"

@@ -24,7 +24,7 @@ __all__ = ["print_features", "default_tolerance", "print_characteristic_history"
 def print_features(m, title: str, json_out: Optional[Path] = None) -> None:
     """``shapeverify info --features``: the CAD features an inspection plan can name."""
     from shapeverify.characteristics.features import feature_notes, features_table
-    from shapeverify.cli import _guard, _stage, out
+    from shapeverify.cli_common import guard as _guard, out, stage as _stage
 
     with _stage("Finding features"):
         rows = _guard(features_table, m)
@@ -52,13 +52,11 @@ def print_features(m, title: str, json_out: Optional[Path] = None) -> None:
 
 def default_tolerance(plan) -> float:
     """±tolerance of the colour map for a plan without one: half the first surface profile's
-    zone width (ISO 1101: a profile tolerance t is a zone of total width t), else 0.1 mm."""
-    from shapeverify.characteristics import load_plan
+    zone width (ISO 1101: a profile tolerance t is a zone of total width t), else 0.1 mm
+    (:meth:`shapeverify.InspectionOptions.from_plan`)."""
+    from shapeverify.options import InspectionOptions
 
-    for c in load_plan(plan).characteristics:
-        if c.type == "surface_profile" and getattr(c, "tol", None):
-            return 0.5 * float(c.tol)
-    return 0.1
+    return InspectionOptions.from_plan(plan).tolerance
 
 
 def print_characteristic_history(db: Path, characteristic: str, part: Optional[str] = None,
@@ -70,7 +68,7 @@ def print_characteristic_history(db: Path, characteristic: str, part: Optional[s
                                                  plot_run_chart)
     from rich.text import Text
 
-    from shapeverify.cli import _fail, out
+    from shapeverify.cli_common import fail as _fail, out
 
     if not db.exists():
         _fail(f"{db}: no such history file")
@@ -102,7 +100,7 @@ def print_characteristic_history(db: Path, characteristic: str, part: Optional[s
 
 def _pmi_plan(model_path: Path, m=None):
     from shapeverify.characteristics.pmi_plan import pmi_plan
-    from shapeverify.cli import _guard, _stage
+    from shapeverify.cli_common import guard as _guard, stage as _stage
 
     with _stage(f"Reading the PMI of {model_path.name}", watch=False):
         return _guard(pmi_plan, model_path, model=m)
@@ -112,7 +110,7 @@ def write_pmi_plan(model_path: Path, output: Optional[Path]) -> None:
     """``shapeverify plan PART.stp -o plan.yaml``: the inspection plan of the file's semantic
     PMI (YAML on stdout without ``-o``)."""
     from shapeverify.characteristics.pmi_plan import plan_yaml
-    from shapeverify.cli import _guard, console, out
+    from shapeverify.cli_common import console, guard as _guard, out
 
     res = _pmi_plan(model_path)
     text = plan_yaml(res)
@@ -133,7 +131,7 @@ def print_pmi(model_path: Path, m=None) -> None:
     """``shapeverify info PART.stp --pmi``: the semantic PMI and what the plan makes of it."""
     from rich.markup import escape
 
-    from shapeverify.cli import out
+    from shapeverify.cli_common import out
 
     res = _pmi_plan(model_path, m)
     al = res.plan.alignment

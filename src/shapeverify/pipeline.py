@@ -106,12 +106,9 @@ class ScanInspection:
                 f"timings={ {k: round(v, 3) for k, v in self.timings.items()} })")
 
 
-def inspect_scan(prepared, scan_source, *, tolerance: float | None,
-                 evaluation_distance: float | None = None, lower: float | None = None,
-                 upper: float | None = None, faces=None, min_coverage: float | None = None,
-                 init=None, plan=None, scan_format: str | None = None,
-                 scan_name: str | None = None, scan_unit: str | None = None, progress=None,
-                 stage: Stage | None = None) -> ScanInspection:
+def inspect_scan(prepared, scan_source, options=None, *, scan_format: str | None = None,
+                 scan_name: str | None = None, progress=None, stage: Stage | None = None,
+                 **kwargs) -> ScanInspection:
     """Read a scan and inspect it against a prepared model: the one inspection of every front end.
 
     Parameters
@@ -122,14 +119,14 @@ def inspect_scan(prepared, scan_source, *, tolerance: float | None,
         or points already read (mm). A list is several views of one part, and so is an E57
         file with several scans (:func:`shapeverify.inspection.inspect_views`; ``init`` then a
         list of start poses, one per view).
-    tolerance, evaluation_distance, lower, upper, faces, min_coverage, init, plan
-        As for :func:`shapeverify.inspect` (None: its defaults; lengths in mm).
+    options : shapeverify.InspectionOptions, optional
+        Every setting of the inspection (tolerance, evaluation distance, faces, init, plan,
+        ``scan_unit``: the unit of a scan file that carries none ...).  Instead, the keywords of
+        :func:`shapeverify.inspect` and ``scan_unit`` may be given (``**kwargs``).
     scan_format : str, optional
         The scan's format as a suffix (``".ply"``); needed for bytes (default: the path's suffix).
     scan_name : str, optional
         Stands for the scan in messages (default: the path or the file object's name).
-    scan_unit : str, optional
-        The unit of a scan file that carries none (:mod:`shapeverify.units`; default mm).
     progress : callable(stage: str, fraction: float), optional
         Called after the scan is read (``"read_scan"``) and then by :func:`shapeverify.inspect`;
         it may raise to stop the inspection (the service's time limit does).
@@ -160,7 +157,14 @@ def inspect_scan(prepared, scan_source, *, tolerance: float | None,
     """
     from shapeverify.inspection import inspect
     from shapeverify.io.points import read_points
+    from shapeverify.options import InspectionOptions
 
+    if options is None:
+        options = InspectionOptions.from_kwargs(**kwargs)
+    elif kwargs:
+        raise TypeError("give the options either as options= or as keywords, not both (also "
+                        f"given: {', '.join(sorted(kwargs))})")
+    scan_unit = options.scan_unit
     stage = stage or _no_stage
     if isinstance(scan_source, (str, Path)) and (scan_format or Path(scan_source).suffix).lower() \
             .lstrip(".") == "e57":
@@ -168,10 +172,7 @@ def inspect_scan(prepared, scan_source, *, tolerance: float | None,
     if isinstance(scan_source, (list, tuple)) and not isinstance(scan_source[0], (float, int)):
         views, names, shared = _read_views(scan_source, scan_format, scan_unit, stage)
         if len(views) > 1:
-            return _inspect_views(prepared, views, names, shared, stage, progress,
-                                  tolerance=tolerance, evaluation_distance=evaluation_distance,
-                                  lower=lower, upper=upper, faces=faces,
-                                  min_coverage=min_coverage, init=init, plan=plan)
+            return _inspect_views(prepared, views, names, shared, stage, progress, options)
         scan_source, scan_unit = views[0], None
     timings = {}
     t0 = time.perf_counter()
@@ -190,11 +191,8 @@ def inspect_scan(prepared, scan_source, *, tolerance: float | None,
         progress("read_scan", 1.0)
 
     t0 = time.perf_counter()
-    opts = {} if min_coverage is None else {"min_coverage": min_coverage}
     with stage(f"Registering and inspecting {len(scan):,} points"):
-        result = inspect(prepared, scan, tolerance=tolerance,
-                         evaluation_distance=evaluation_distance, lower=lower, upper=upper,
-                         faces=faces, init=init, plan=plan, progress=progress, **opts)
+        result = inspect(prepared, scan, options=options, progress=progress)
     timings["inspect_s"] = time.perf_counter() - t0
     return ScanInspection(result, scan, timings)
 
@@ -231,27 +229,23 @@ def _read_views(sources, scan_format, scan_unit, stage):
     return views, names, e57_multi and len(sources) == 1
 
 
-def _inspect_views(prepared, views, names, shared, stage, progress, *, init, plan, **opts):
+def _inspect_views(prepared, views, names, shared, stage, progress, options):
     """Several views of one part (:func:`shapeverify.inspection.inspect_views`)."""
     from shapeverify.inspection import inspect_views
 
-    if plan is not None:
+    if options.plan is not None:
         raise ValueError("an inspection plan with several views is not supported yet: inspect "
                          "the views one by one, or merge them into one scan first")
-    poses = None
-    if init is not None:
-        arr = np.asarray(init, dtype=object) if not isinstance(init, str) else None
-        if arr is None or arr.shape == (4, 4):
-            raise ValueError("with several views give one start pose per view (--poses "
-                             "poses.json: a list of 4x4 T_model_scan, null for none), not one "
-                             "--init")
-        poses = list(init)
+    poses = options.init_pose
+    if poses is not None and not isinstance(poses, list):
+        raise ValueError("with several views give one start pose per view (--poses "
+                         "poses.json: a list of 4x4 T_model_scan, null for none), not one "
+                         "--init")
     t0 = time.perf_counter()
-    clean = {k: v for k, v in opts.items() if v is not None or k == "tolerance"}
     with stage(f"Registering and inspecting {len(views)} views "
                f"({sum(len(v) for v in views):,} points)"):
         result = inspect_views(prepared, views, names=names, poses=poses, shared_frame=shared,
-                               **clean)
+                               **options.view_kwargs())
     if progress is not None:
         progress("done", 1.0)
     union = np.concatenate([views[i] @ v.T_model_scan[:3, :3].T + v.T_model_scan[:3, 3]
@@ -272,89 +266,187 @@ class InspectionOutputs:
     timings: dict = field(default_factory=dict)
 
 
-def run_inspection(model_path: str | Path, scan_path: str | Path, tolerance: float,
-                   evaluation_distance: float | None = None, lower: float | None = None,
-                   upper: float | None = None, json_path=None, report_path=None, png_path=None,
-                   colored_path=None, db_path=None, part: str | None = None,
-                   stage: Stage | None = None, *, faces=None, min_coverage: float | None = None,
-                   init=None, scan_unit: str | None = None, model_unit: str | None = None,
-                   plan=None, pdf_path=None, allow_incomplete: bool = False):
-    """Inspect one scan file against one model file and write the requested outputs
-    (``shapeverify inspect``): :func:`load_reference`, :func:`inspect_scan`, :func:`write_outputs`.
+def run_inspection(model_path: str | Path, scan_path, options, outputs=None, *,
+                   part: str | None = None, stage: Stage | None = None,
+                   allow_incomplete: bool = False):
+    """Inspect one scan file (or several views) against one model file and write the requested
+    outputs (``shapeverify inspect``): :func:`load_reference`, :func:`inspect_scan`,
+    :func:`write_outputs`.
 
-    ``evaluation_distance``, ``faces``, ``min_coverage`` and ``init`` are passed to
-    :func:`shapeverify.inspect` (None: its defaults); ``scan_unit`` / ``model_unit`` give the
-    units of files that carry none (:mod:`shapeverify.units`). ``plan``: an inspection plan
-    (``plan.yaml``, :mod:`shapeverify.characteristics`); ``pdf_path``: the PDF report. The result
-    carries ``inputs`` (part id, scan and model file names, the model file's SHA-256).
+    Parameters
+    ----------
+    model_path : path
+        Prepared model (``.svm``) or a model file (its unit: ``options.model_unit``).
+    scan_path : path or list of paths
+        The scan (several: views of one part).
+    options : shapeverify.InspectionOptions
+        Every setting of the inspection.
+    outputs : shapeverify.OutputRequest, optional
+        What to write (None: nothing).
+    part : str, optional
+        The part id (history, reports).
+    stage : callable(name) -> context manager, optional
+        Wraps each stage (the command line's progress lines).
+    allow_incomplete : bool
+        Prepare a CAD model that lacks faces its file declares (:func:`shapeverify.prepare`).
 
     Returns
     -------
     result : shapeverify.inspection.InspectionResult
+        With ``inputs`` (part id, scan and model file names, the model file's SHA-256).
     outputs : InspectionOutputs
     """
+    from shapeverify.options import OutputRequest
+
+    request = outputs if outputs is not None else OutputRequest()
     stage = stage or _no_stage
     out = InspectionOutputs()
     t0 = time.perf_counter()
-    prep = load_reference(model_path, stage=stage, model_unit=model_unit,
+    prep = load_reference(model_path, stage=stage, model_unit=options.model_unit,
                           allow_incomplete=allow_incomplete)
     out.timings["load_model_s"] = time.perf_counter() - t0
 
-    done = inspect_scan(prep, scan_path, tolerance=tolerance,
-                        evaluation_distance=evaluation_distance, lower=lower, upper=upper,
-                        faces=faces, min_coverage=min_coverage, init=init, plan=plan,
-                        scan_unit=scan_unit, stage=stage)
+    done = inspect_scan(prep, scan_path, options, stage=stage)
     out.timings.update(done.timings)
     # the model file's hash ties the written outputs to it; no need to read the file again without
-    outputs = (json_path, report_path, png_path, pdf_path, colored_path, db_path)
-    model_hash = file_hash(model_path) if any(outputs) else None
+    model_hash = file_hash(model_path) if request.files else None
     scan_names = ([Path(p).name for p in scan_path] if isinstance(scan_path, (list, tuple))
                   else [Path(scan_path).name])
     result = dataclasses.replace(done.result, inputs={
         "part": part, "scan": ", ".join(scan_names), "model": Path(model_path).name,
         "model_sha256": model_hash})
-    write_outputs(result, prep, done.scan, out, json_path=json_path, report_path=report_path,
-                  png_path=png_path, pdf_path=pdf_path, colored_path=colored_path,
-                  db_path=db_path, part=part, model_hash=model_hash, stage=stage)
+    write_outputs(result, request.replace(part=part, model_hash=model_hash), prep=prep,
+                  scan=done.scan, stage=stage, out=out)
     return result, out
 
 
-def write_outputs(result, prep, scan, out: InspectionOutputs, *, json_path=None, report_path=None,
-                  png_path=None, pdf_path=None, colored_path=None, db_path=None,
-                  part: str | None = None, model_hash: str | None = None,
-                  stage: Stage | None = None) -> InspectionOutputs:
-    """Write the requested outputs of one inspection (None: not written) and note them in
-    ``out`` (its ``timings`` go into the JSON, plus ``outputs_s``)."""
-    from shapeverify.report import write_colored_ply, write_html_report, write_png_summary
-    from shapeverify.report.result_json import write_result_json
+#: keys of a result dict that its history row leaves out (a batch task's own figures)
+_NOT_STORED = ("worker_seconds", "record_id", "_report_html")
 
+
+def write_outputs(result, request, *, prep=None, scan=None, stage: Stage | None = None,
+                  out: InspectionOutputs | None = None, commit: Callable[[], bool] | None = None,
+                  history=None) -> InspectionOutputs | None:
+    """Write what ``request`` (an :class:`~shapeverify.OutputRequest`) asks for of one
+    inspection: the one writer of the command line, the service and batch.
+
+    The order: the reports (HTML, PNG, PDF, coloured PLY), then the history row, then the JSON
+    (last, so that a JSON on disk means everything before it was written: batch skips such
+    scans when it runs again).
+
+    Parameters
+    ----------
+    result : InspectionResult or dict
+        The result, or its JSON-ready dict (what a batch worker sends back, with its HTML
+        report, rendered where the points are, under ``"_report_html"``; a dict gets its
+        ``record_id`` when it is stored).  PNG, PDF and coloured PLY need the result itself.
+    request : shapeverify.OutputRequest
+    prep, scan
+        The prepared model and the scan points (mm), for the reports of a result.
+    stage : callable(name) -> context manager, optional
+        Wraps each slow output (the command line's progress lines).
+    out : InspectionOutputs, optional
+        Filled in and returned (its ``timings`` go into the JSON, plus ``outputs_s``).
+    commit : callable() -> bool, optional
+        Asked just before the history row is written: False stores nothing more and returns
+        None (the service's request that timed out meanwhile).
+    history : HistoryDB, optional
+        An open history to write the row to (the service keeps one per thread); default: open
+        ``request.db``.
+
+    Returns
+    -------
+    InspectionOutputs, or None when ``commit`` said no.
+    """
     stage = stage or _no_stage
+    out = out if out is not None else InspectionOutputs()
+    is_dict = isinstance(result, dict)
+    if is_dict and (request.png or request.pdf or request.colored):
+        raise ValueError("a PNG, PDF or coloured PLY is drawn from the InspectionResult, not "
+                         "from its dict")
     t0 = time.perf_counter()
-    if json_path:
-        out.json = write_result_json(result, json_path, timings=out.timings)
-    if report_path:
+    if request.report:
         with stage("Writing HTML report"):
-            out.report = write_html_report(result, prep, scan, report_path)
-    if png_path:
+            out.report = _write_report(result, request.report, prep, scan)
+    if request.png:
+        from shapeverify.report import write_png_summary
         with stage("Writing PNG summary"):
-            out.png = write_png_summary(result, scan, png_path)
-    if pdf_path:
-        from shapeverify.characteristics.pdf import write_pdf_report
-        from shapeverify.inspection.plan_link import plan_result_of
+            out.png = write_png_summary(result, scan, request.png)
+    if request.pdf:
         with stage("Writing PDF report"):
-            plan_result = plan_result_of(result)   # no plan: the inspection's own pose
-            inputs = result.inputs or {}
-            out.pdf = Path(write_pdf_report(
-                plan_result, pdf_path, prep, part=part, scan_file=inputs.get("scan"),
-                model_file=inputs.get("model"), tolerance=result.tolerance.max_abs))
-    if colored_path:
-        out.colored = write_colored_ply(result, scan, colored_path)
-    if db_path:
-        from shapeverify.report.history import HistoryDB
-        with HistoryDB(db_path) as db:
-            out.record_id = db.add(result, part=part, model_hash=model_hash)
-        if result.plan is not None:
-            from shapeverify.characteristics.spc import store_characteristics
-            store_characteristics(db_path, result.plan, part=part, inspection_id=out.record_id)
+            out.pdf = _write_pdf(result, request, prep)
+    if request.colored:
+        from shapeverify.report import write_colored_ply
+        out.colored = write_colored_ply(result, scan, request.colored)
+    if request.db or history is not None:
+        if commit is not None and not commit():
+            return None
+        out.record_id = _store(result, request, history)
+        if is_dict:
+            result["record_id"] = out.record_id
+    if request.json:
+        if is_dict:
+            out.json = _write_json_atomically(request.json, result)
+        else:
+            from shapeverify.report.result_json import write_result_json
+            out.json = write_result_json(result, request.json, timings=out.timings)
     out.timings["outputs_s"] = time.perf_counter() - t0
     return out
+
+
+def _write_report(result, path: Path, prep, scan) -> Path:
+    if isinstance(result, dict):
+        html = result.pop("_report_html", None)
+        if html is None:
+            raise ValueError(f"{path}: an HTML report of a result dict needs its rendered "
+                             "'_report_html'")
+        path.write_text(html, encoding="utf-8")
+        return path
+    from shapeverify.report import write_html_report
+    return write_html_report(result, prep, scan, path)
+
+
+def _write_pdf(result, request, prep) -> Path:
+    from shapeverify.characteristics.pdf import write_pdf_report
+    from shapeverify.inspection.plan_link import plan_result_of
+
+    plan_result = plan_result_of(result)   # no plan: the inspection's own pose
+    inputs = result.inputs or {}
+    return Path(write_pdf_report(
+        plan_result, request.pdf, prep, part=request.part, scan_file=inputs.get("scan"),
+        model_file=inputs.get("model"), tolerance=result.tolerance.max_abs))
+
+
+def _store(result, request, history) -> int:
+    """The history row (added, or replacing ``request.replace_record``); a plan's
+    characteristics beside it."""
+    from shapeverify.report.history import HistoryDB
+
+    row = {k: v for k, v in result.items() if k not in _NOT_STORED} \
+        if isinstance(result, dict) else result
+    db = history if history is not None else HistoryDB(request.db)
+    try:
+        if request.replace_record is not None:
+            record_id = db.replace(request.replace_record, row, part=request.part,
+                                   model_hash=request.model_hash)
+        else:
+            record_id = db.add(row, part=request.part, model_hash=request.model_hash)
+    finally:
+        if history is None:
+            db.close()
+    if not isinstance(result, dict) and result.plan is not None:
+        from shapeverify.characteristics.spc import store_characteristics
+        store_characteristics(db.path, result.plan, part=request.part, inspection_id=record_id)
+    return record_id
+
+
+def _write_json_atomically(path: Path, data: dict) -> Path:
+    """``data`` as JSON at ``path``, complete or absent (written to a temporary name, renamed):
+    a half-written JSON would be taken for a finished scan."""
+    import json
+    import os
+
+    tmp = path.with_name(path.name + ".tmp")
+    tmp.write_text(json.dumps(data, indent=2))
+    os.replace(tmp, path)
+    return path

@@ -37,13 +37,9 @@ def _report(progress, stage: str, fraction: float) -> None:
         progress(stage, fraction)
 
 
-def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None, lower=None,
-            upper=None, init=None, register_kwargs: dict | None = None, progress=None, *,
-            faces=None, per_face=None, min_coverage: float = MIN_COVERAGE,
-            min_region_points: int = MIN_POINTS,
-            min_inlier_fraction: float = MIN_INLIER_FRACTION, rng=0,
-            max_distance: float | None = None, plan=None,
-            missing: bool = False) -> InspectionResult:
+def inspect(prep, scan, tolerance=None, evaluation_distance: float | None = None, lower=None,
+            upper=None, init=None, register_kwargs: dict | None = None, progress=None,
+            **options) -> InspectionResult:
     """Register a scan to the model, compute its deviations and decide the verdict.
 
     Parameters
@@ -56,7 +52,8 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
         by :func:`shapeverify.inspection.views.inspect_views` (``init``: then a list of start
         poses, one per view, None for a view to be placed by the global search).
     tolerance : float or Tolerance, optional
-        Symmetric tolerance ±mm (default 0.2), or a :class:`Tolerance`.
+        Symmetric tolerance ±mm (None: 0.2, unless ``lower`` and ``upper`` are both given), or
+        a :class:`Tolerance`.
     evaluation_distance : float, optional
         Scan points farther than this from the CAD surface after registration are not evaluated
         (mm). None: :func:`default_evaluation_distance` (``max(5 x the largest |limit|,
@@ -89,7 +86,10 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
     rng : int or numpy Generator
         Seed of the registration's random choices (default 0: the same result every run).
     max_distance : float, optional
-        Old name of ``evaluation_distance`` (deprecated).
+        Old name of ``evaluation_distance`` (accepted with a :class:`DeprecationWarning`).
+    options : shapeverify.InspectionOptions, optional
+        All of the above in one checked object (what the command line, the service and batch
+        pass); then give no other option keyword.
     missing : bool
         Also fail the part where the scan sees through the CAD surface: an unseen area enclosed
         by seen, in-tolerance surface becomes a region of kind ``"missing"``
@@ -135,24 +135,42 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
     >>> str(res.verdict), res.rule
     ('fail', 'regions')
     """
+    given = _given(options, tolerance=tolerance, evaluation_distance=evaluation_distance,
+                   lower=lower, upper=upper, init=init, registration=register_kwargs)
+    return _inspect(prep, scan, given, progress)
+
+
+def _given(options: dict, **keywords):
+    """The :class:`~shapeverify.options.InspectionOptions` of :func:`inspect`'s (or
+    :func:`inspect_registered`'s) keywords, or the one passed as ``options=``."""
+    from ..options import InspectionOptions
+
+    given = options.pop("options", None)
+    if given is None:
+        return InspectionOptions.from_kwargs(**options, **keywords, stacklevel=4)
+    if not isinstance(given, InspectionOptions):
+        raise TypeError(f"options= takes an InspectionOptions, got {type(given).__name__}")
+    extra = sorted(k for k, v in {**options, **keywords}.items() if v is not None)
+    if extra:
+        raise TypeError(f"give the options either as options= or as keywords, not both "
+                        f"(also given: {', '.join(extra)}); use options.replace({extra[0]}=...)")
+    return given
+
+
+def _inspect(prep, scan, given, progress) -> InspectionResult:
+    """:func:`inspect` with its options checked (an InspectionOptions)."""
     from ..registration import register
     from .views import inspect_views, is_view_list
 
+    init, plan, rng = given.init_pose, given.plan, given.rng
     if is_view_list(scan):   # several views of one part (inspection.views)
         if plan is not None:
             raise ValueError("an inspection plan with several views is not supported yet: "
                              "merge the views first or inspect them one by one")
-        return inspect_views(prep, scan, tolerance, poses=None if init is None else init,
-                             rng=rng, register_kwargs=register_kwargs,
-                             evaluation_distance=evaluation_distance, lower=lower, upper=upper,
-                             faces=faces, per_face=per_face, min_coverage=min_coverage,
-                             min_region_points=min_region_points,
-                             min_inlier_fraction=min_inlier_fraction, max_distance=max_distance,
-                             missing=missing)
+        return inspect_views(prep, scan, poses=init, **given.view_kwargs())
     t_start = time.perf_counter()
     timings = {}
-    opts = _options(prep, tolerance, lower, upper, per_face, evaluation_distance, max_distance,
-                    faces, min_coverage, min_region_points, min_inlier_fraction, missing)
+    opts = _options(prep, given)
     scan = check_scan(scan, _model_size(prep))
     if init is None and getattr(prep, "fixture", None) is not None:
         init = np.asarray(prep.fixture, dtype=np.float64)
@@ -162,14 +180,11 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
 
     _report(progress, "register", 0.0)
     t0 = time.perf_counter()
-    kwargs = dict(register_kwargs or {})
+    kwargs = given.register_kwargs
     kwargs.setdefault("rng", rng)
     if init is not None:
         kwargs["init"] = init
-    plan_obj = None
-    if plan is not None:
-        from ..characteristics import load_plan
-        plan_obj = load_plan(plan)
+    plan_obj = plan                      # loaded by InspectionOptions
     try:
         if plan_obj is not None and (plan_obj.alignment.type == "constrained"
                                      or (init is not None and not isinstance(init, str))):
@@ -245,23 +260,22 @@ def _at_alternatives(prep, scan, result, poses, kwargs, opts, timings):
     return out
 
 
-def inspect_registered(prep, scan, registration, tolerance=0.2,
-                       evaluation_distance: float | None = None, lower=None, upper=None, *,
-                       faces=None, per_face=None, min_coverage: float = MIN_COVERAGE,
-                       min_region_points: int = MIN_POINTS,
-                       min_inlier_fraction: float = MIN_INLIER_FRACTION,
-                       max_distance: float | None = None, missing: bool = False) -> InspectionResult:
+def inspect_registered(prep, scan, registration, tolerance=None,
+                       evaluation_distance: float | None = None, lower=None, upper=None,
+                       **options) -> InspectionResult:
     """:func:`inspect` for a scan that is already registered (``registration.T_model_scan``).
 
     ``registration`` is any object with ``T_model_scan``, ``rms``, ``iterations``, ``converged``,
     ``inlier_fraction`` and optionally ``weights`` and ``message`` (e.g. a
     :class:`shapeverify.registration.Registration`). Use it to re-evaluate a scan with other
-    tolerances without registering it again. Parameters, result and errors as :func:`inspect`.
+    tolerances without registering it again. Parameters, result and errors as :func:`inspect`
+    (``init``, ``plan``, ``rng`` and the registration's keywords are not used).
     """
     t_start = time.perf_counter()
     timings = {}
-    opts = _options(prep, tolerance, lower, upper, per_face, evaluation_distance, max_distance,
-                    faces, min_coverage, min_region_points, min_inlier_fraction, missing)
+    opts = _options(prep, _given(options, tolerance=tolerance,
+                                 evaluation_distance=evaluation_distance, lower=lower,
+                                 upper=upper))
     scan = check_scan(scan, _model_size(prep))
     timings["validate"] = time.perf_counter() - t_start
     result = _evaluate(prep, scan, registration, opts, None, timings)
@@ -314,27 +328,19 @@ class _Options:
     missing: bool = False
 
 
-def _options(prep, tolerance, lower, upper, per_face, evaluation_distance, max_distance, faces,
-             min_coverage, min_region_points, min_inlier_fraction, missing=False) -> _Options:
-    tol = Tolerance.from_args(tolerance, lower, upper, per_face)
-    if max_distance is not None:
-        if evaluation_distance is not None:
-            raise ValueError("give evaluation_distance only (max_distance is its old name)")
-        warnings.warn("inspect(max_distance=) is now called evaluation_distance=",
-                      DeprecationWarning, stacklevel=3)
-        evaluation_distance = max_distance
+def _options(prep, given) -> _Options:
+    """The settings of ``given`` (an InspectionOptions) resolved against the model: the default
+    evaluation distance, the face numbers checked."""
+    pf = dict(given.per_face) or None
+    tol = Tolerance.from_args(given.tolerance, given.lower, given.upper, pf)
+    evaluation_distance = given.evaluation_distance
     if evaluation_distance is None:
         evaluation_distance = default_evaluation_distance(tol, prep.model.size)
-    try:
-        evaluation_distance = float(evaluation_distance)
-    except (TypeError, ValueError):
-        raise ValueError(f"evaluation_distance must be a number of mm, got {evaluation_distance!r}") from None
-    if not evaluation_distance > 0:
-        raise ValueError(f"evaluation_distance must be > 0 mm, got {evaluation_distance}")
-    if not 0.0 <= float(min_coverage) <= 1.0:
-        raise ValueError(f"min_coverage is a fraction of the inspected area, 0..1; got {min_coverage!r}")
-    return _Options(tol, evaluation_distance, _check_faces(prep, faces), float(min_coverage),
-                    int(min_region_points), float(min_inlier_fraction), bool(missing))
+    return _Options(tol, float(evaluation_distance), _check_faces(prep, given.faces),
+                    MIN_COVERAGE if given.min_coverage is None else given.min_coverage,
+                    MIN_POINTS if given.min_region_points is None else given.min_region_points,
+                    MIN_INLIER_FRACTION if given.min_inlier_fraction is None
+                    else given.min_inlier_fraction, given.missing)
 
 
 def _check_faces(prep, faces) -> tuple | None:

@@ -56,9 +56,11 @@ from ._pose_warnings import (WARN_REJECTED_INFO, WARN_RUNNER_UP, _rejected_infor
                              close_runner_up, pose_warnings)
 from ._irls import IterationRecord
 from .losses import get_loss
-from .options import InitMode, InitName, LossName, Method, MethodName, StageSettings
+from .options import (InitMode, InitName, LossName, Method, MethodName, RegistrationOptions,
+                      StageSettings)
 from .rigid import pose_covariance, rotation_vector, undetermined_directions
 
+from .._renamed import renamed_keywords
 from ..errors import RegistrationError, ScanError
 
 __all__ = ["register", "Registration", "IterationRecord", "DegenerateGeometryWarning"]
@@ -69,20 +71,11 @@ logger = logging.getLogger(__name__)
 COARSE_SUBSET = 800
 #: tolerance and iteration cap of the coarse stage
 _COARSE_TOL = 1e-4
-#: the coarse stage's robust scale may fall by at most this factor per iteration (graduated
-#: scale, see ``_irls.stage_rematch``); None: off (it did not keep the impeller out of its
-#: wrong minima and costs a second matching of the final stage on the example panel)
-ANNEAL = None
 _STAGE_CAP = 60
-#: probe the least-determined direction for a better minimum (:mod:`._basin`)
-PROBE = True
-#: probe rounds at most (another direction may rest on few points once one is right; a start
-#: several wall thicknesses deep moves one wall per round: 3 left one impeller scan locked)
-PROBE_ROUNDS = 6
 #: scan points (a uniform subset) whose local scatter gives the scan's noise (:mod:`._noise`)
 NOISE_POINTS = 200_000
-#: restart a pose flagged as a wrong minimum about the model's near-symmetry axis (:mod:`._restart`)
-RESTART = True
+# the probe, the restart and the graduated scale are switched by RegistrationOptions
+# (register(options=...)), no longer by module flags
 
 
 class DegenerateGeometryWarning(UserWarning):
@@ -242,10 +235,11 @@ def _describe(undet: np.ndarray) -> list[str]:
     return out
 
 
+@renamed_keywords(tolerance="rtol")
 def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
              method: "MethodName | Method" = "point-to-plane", loss: "LossName" = "tukey",
-             scale: float | None = None, max_iterations: int = 100, tolerance: float = 1e-7,
-             rng=0) -> Registration:
+             scale: float | None = None, max_iterations: int = 100, rtol: float = 1e-7,
+             rng=0, options: "RegistrationOptions | None" = None) -> Registration:
     """Robust ICP: register a scan to a prepared model (IRLS-ICP with automatic scale).
 
     Parameters
@@ -281,16 +275,22 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
     max_iterations : int
         Limit of rigid steps of the final stage (the coarse stage stops at 60);
         ``converged`` is False when the final stage hits it.
-    tolerance : float
-        Inner stopping rule of each stage: the objective (at the previous iteration's scale)
-        decreased by less than ``tolerance`` relative, and the pose change still to come --
-        the last step's length in standard deviations of the pose (``sqrt(v^T H v) / sigma``,
-        ``H = sum w J^T J``), extrapolated by the observed rate of convergence -- is below
-        ``sqrt(tolerance * n_valid)``.  (1e-7 with 30,000 points: 0.05 standard deviation.)
+    rtol : float
+        Inner stopping rule of each stage (a relative threshold; ``tolerance=``, its old name,
+        still works with a :class:`DeprecationWarning`): the objective (at the previous
+        iteration's scale) decreased by less than ``rtol`` relative, and the pose change still
+        to come -- the last step's length in standard deviations of the pose
+        (``sqrt(v^T H v) / sigma``, ``H = sum w J^T J``), extrapolated by the observed rate of
+        convergence -- is below ``sqrt(rtol * n_valid)``.  (1e-7 with 30,000 points: 0.05
+        standard deviation.)
     rng : int, Generator or None
         Seeds the random subsets (coarse stage, verification, global search).  The default
         (0, also for None) makes the result bit-identical on every run and in every process;
         the operating system is never asked for entropy.
+    options : RegistrationOptions, optional
+        Which safeguards against a wrong minimum run (the probe of the least-determined
+        direction, the restart about a near-symmetry axis, the graduated coarse scale);
+        default: :class:`~shapeverify.registration.options.RegistrationOptions` ().
 
     Notes
     -----
@@ -315,7 +315,7 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
     ScanError (a ValueError)
         scan not (N, 3), fewer than 6 points, NaN/inf.
     ValueError
-        Bad method, loss, init, scale, max_iterations or tolerance.
+        Bad method, loss, init, scale, max_iterations or rtol.
     RegistrationError
         With a given start ('identity', 'principal-axes' or a matrix): fewer than 6 scan
         points within ``max(prep.max_distance, 0.2 * model size)`` of the model at the start
@@ -351,6 +351,9 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
     if not callable(getattr(prep, "closest", None)):
         raise ValueError("prep must be a Prepared model (from shapeverify.prepare) with a "
                          f".closest method, got {type(prep).__name__}")
+    stages = options if options is not None else RegistrationOptions()
+    if not isinstance(stages, RegistrationOptions):
+        raise TypeError(f"options= takes a RegistrationOptions, got {type(stages).__name__}")
     method = Method.parse(method)
     lossobj = get_loss(loss)
     if scale is not None:
@@ -360,9 +363,9 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
     if int(max_iterations) != max_iterations or max_iterations < 1:
         raise ValueError(f"max_iterations must be a positive integer, got {max_iterations}")
     max_iterations = int(max_iterations)
-    tolerance = float(tolerance)
+    tolerance = float(rtol)     # the stages' relative stopping threshold
     if not (np.isfinite(tolerance) and tolerance > 0):
-        raise ValueError(f"tolerance must be positive, got {tolerance}")
+        raise ValueError(f"rtol must be positive, got {rtol}")
     rng = np.random.default_rng(0 if rng is None else rng)
     mode, T0 = InitMode.parse(init, validate_pose)
     how = mode.value
@@ -407,7 +410,7 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
         st = _irls.State(T[:3, :3].copy(), T[:3, 3].copy())
         # graduation: convex loss on a subset first, then the requested loss on every point
         _irls.stage_rematch("coarse", S_coarse, prep, st, coarse_cfg,
-                            first=_reachable if check else None, anneal=ANNEAL)
+                            first=_reachable if check else None, anneal=stages.anneal)
         return st
 
     ga = None
@@ -437,7 +440,7 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
 
     def settle(st, ev, converged, why):
         # another minimum along the least-determined direction (thin walls, see _basin)
-        for _ in range(PROBE_ROUNDS if PROBE else 0):
+        for _ in range(stages.probe_rounds if stages.probe else 0):
             c0 = _irls.centroid(ev.X, ev.w)
             null0 = _irls.null_directions(ev, _irls.model_points(prep),
                                           _irls.system(ev.Y, ev.Y, ev.N, ev.w, c0)[0], c0, radius)
@@ -479,9 +482,9 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
     # angle: 31 deg off at 16 x the noise, converged, no warning)
     # (a free spin or slide is not a wrong minimum: no restart where the data leave one)
     noise = scan_noise(P[::max(1, n // NOISE_POINTS)])
-    suspect = RESTART and (not converged or any(True for _ in pose_warnings(
+    suspect = stages.restart and (not converged or any(True for _ in pose_warnings(
         ev, ev.w, None, tau, radius, noise=noise)))
-    if RESTART and (suspect or (ga is not None and _restart._model_axis(prep) is not None)) \
+    if stages.restart and (suspect or (ga is not None and _restart._model_axis(prep) is not None)) \
             and _determined(ev, prep, radius):
         T_alt = _restart.restart(P, prep, T0 if T0 is not None else np.eye(4), _pose(st),
                                  radius, rng, in_place=not suspect)

@@ -146,7 +146,7 @@ def principal_axes_alignment(scan, prep, rng=0, n_sample: int = 600,
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")
                 reg = register(S, prep, init=cands[i], loss="huber", max_iterations=15,
-                               tolerance=1e-4, rng=rng)
+                               rtol=1e-4, rng=rng)
             T = reg.T_model_scan
         except RegistrationError:
             T = cands[i]

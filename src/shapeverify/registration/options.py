@@ -20,7 +20,8 @@ import numpy as np
 
 from .losses import Loss
 
-__all__ = ["Method", "InitMode", "MethodName", "LossName", "InitName", "StageSettings"]
+__all__ = ["Method", "InitMode", "MethodName", "LossName", "InitName", "StageSettings",
+           "RegistrationOptions"]
 
 #: the canonical names (the values of the enums; what results and reports carry)
 MethodName = Literal["point-to-plane", "point-to-point", "point-then-plane"]
@@ -142,3 +143,45 @@ class StageSettings:
     max_iterations: int
     tolerance: float
     overlap: bool = False
+
+
+@dataclass(frozen=True)
+class RegistrationOptions:
+    """Which of :func:`~shapeverify.registration.register`'s safeguards against a wrong minimum
+    run (they were the module flags ``icp.PROBE``, ``icp.RESTART`` and ``icp.ANNEAL``).
+
+    Attributes
+    ----------
+    probe : bool
+        Probe the least-determined direction for a better minimum (:mod:`._basin`), at most
+        ``probe_rounds`` times (another direction may rest on few points once one is right; a
+        start several wall thicknesses deep moves one wall per round).
+    probe_rounds : int
+        Probe rounds at most (default 6).
+    restart : bool
+        Restart a pose flagged as a wrong minimum about the model's near-symmetry axis
+        (:mod:`._restart`).
+    anneal : float, optional
+        The coarse stage's robust scale may fall by at most this factor per iteration
+        (graduated scale, see ``_irls.stage_rematch``); None (default): off (it did not keep
+        the impeller out of its wrong minima and costs a second matching of the final stage on
+        the example panel).
+
+    >>> RegistrationOptions(probe=False)
+    RegistrationOptions(probe=False, probe_rounds=6, restart=True, anneal=None)
+    """
+
+    probe: bool = True
+    probe_rounds: int = 6
+    restart: bool = True
+    anneal: float | None = None
+
+    def __post_init__(self):
+        if isinstance(self.probe_rounds, bool) or int(self.probe_rounds) != self.probe_rounds \
+                or self.probe_rounds < 0:
+            raise ValueError(f"probe_rounds must be a whole number >= 0, got {self.probe_rounds!r}")
+        if self.anneal is not None and not (np.isfinite(self.anneal) and self.anneal > 1.0):
+            raise ValueError(f"anneal is the largest factor the coarse scale may fall per "
+                             f"iteration (> 1) or None, got {self.anneal!r}")
+        object.__setattr__(self, "probe", bool(self.probe))
+        object.__setattr__(self, "restart", bool(self.restart))

@@ -4,7 +4,11 @@ Endpoints (JSON unless noted; lengths in mm):
 
 - ``POST /inspect?model=NAME&tolerance=0.2&evaluation_distance=1.0&part=ID``, body: the scan (PLY, NPY,
   PCD or XYZ/CSV text; the content type or a sniff of the first bytes decides) -> the
-  ``shapeverify inspect --json`` result plus ``record_id``, ``model`` and ``part``.
+  ``shapeverify inspect --json`` result plus ``record_id``, ``model`` and ``part``.  Every option
+  of ``shapeverify inspect`` is a query parameter (``lower``, ``upper``, ``faces``,
+  ``min_coverage``, ``init``, ``scan_unit``, ``plan``: the plan's YAML text), checked by
+  :meth:`shapeverify.InspectionOptions.from_query` (422 naming the parameter); the old name
+  ``max_distance`` still works and says so in a ``Warning`` header.
 - ``GET /health``, ``GET /models``, ``GET /history?part=&limit=&model=``, ``GET /report/{id}`` (HTML,
   drawn on demand from the stored result: its verdict, reasons and per-point deviations, never
   inspected again; :mod:`.stored`).
@@ -42,7 +46,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from fastapi import Depends, FastAPI, HTTPException, Query, Request
+from fastapi import Depends, FastAPI, HTTPException, Query, Request, Response
 from fastapi.exceptions import RequestValidationError
 from fastapi.responses import HTMLResponse, JSONResponse
 from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
@@ -50,7 +54,7 @@ from fastapi.security import HTTPAuthorizationCredentials, HTTPBearer
 from shapeverify.errors import ShapeVerifyError
 from shapeverify.service.body import SCAN_TYPES, SUPPORTED
 from shapeverify.service.jobs import Runner
-from shapeverify.service.work import Work
+from shapeverify.service.work import Upload, Work
 
 log = logging.getLogger(__name__)
 
@@ -107,21 +111,25 @@ class _TokenMiddleware:
         await self.app(scope, receive, send)
 
 
-def _parse_init(text: str | None):
-    """The ``init`` query parameter: None, a strategy name, or a 4x4 pose from 16 numbers."""
-    if text is None or text.strip().lower() in ("", "auto"):
-        return None
-    key = text.strip().lower()
-    if key in ("identity", "global", "principal-axes", "pca"):
-        return key
+def _options(params: dict):
+    """The :class:`~shapeverify.InspectionOptions` of a request's query parameters (422 naming
+    the parameter when one is bad) and the deprecation notes for old names."""
+    import warnings
+
+    from shapeverify.options import InspectionOptions
+
     try:
-        T = np.array([float(v) for v in text.replace(";", ",").split(",")], dtype=np.float64)
-    except ValueError:
-        T = np.zeros(0)
-    if T.shape != (16,) or not np.all(np.isfinite(T)):
-        raise HTTPException(422, "init must be 'auto', 'identity', 'global', 'principal-axes' or 16 "
-                                 "comma-separated numbers (T_model_scan row by row)")
-    return T.reshape(4, 4)
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", DeprecationWarning)
+            options = InspectionOptions.from_query(params)
+    except ValueError as exc:   # OptionError, PlanError (its line and key named)
+        name = getattr(exc, "option", "plan" if type(exc).__name__ == "PlanError" else None)
+        raise HTTPException(422, f"bad request parameters: {name}: {exc}" if name
+                            else f"bad request parameters: {exc}") from None
+    notes = [str(w.message) for w in caught if issubclass(w.category, DeprecationWarning)]
+    for note in notes:
+        log.warning("deprecated query parameter: %s", note)
+    return options, notes
 
 
 def create_app(config: ServiceConfig) -> FastAPI:
@@ -195,7 +203,8 @@ def _model_routes(app: FastAPI, config: ServiceConfig, auth: list) -> None:
     def models() -> dict:
         """The prepared models this service holds (lengths in mm)."""
         return {name: {"faces": len(p.model.faces), "model_points": int(p.n_points),
-                       "spacing_mm": float(p.spacing), "max_distance_mm": float(p.max_distance),
+                       "spacing_mm": float(p.spacing), "reach_mm": float(p.reach),
+                       "max_distance_mm": float(p.reach),   # the old name of reach_mm (will go)
                        "size_mm": float(p.model.size), "unit": "mm",
                        "sha256": config.model_hashes.get(name)}
                 for name, p in config.models.items()}
@@ -212,23 +221,42 @@ def _inspect_route(app: FastAPI, config: ServiceConfig, runner: Runner, work: Wo
                        "content": {t: {"schema": {"type": "string", "format": "binary"}} for t in _SCAN_TYPES}}})
     async def inspect_scan(
         request: Request,
+        response: Response,
         model: str = Query(..., description="name of a loaded model (see /models)"),
-        tolerance: float = Query(..., gt=0, allow_inf_nan=False, description="symmetric tolerance ±mm"),
+        tolerance: float | None = Query(None, gt=0, allow_inf_nan=False,
+                                        description="symmetric tolerance ±mm (or give lower and upper)"),
+        lower: float | None = Query(None, allow_inf_nan=False, description="lower limit, mm (<= 0)"),
+        upper: float | None = Query(None, allow_inf_nan=False, description="upper limit, mm (>= 0)"),
         evaluation_distance: float | None = Query(
             None, gt=0, allow_inf_nan=False,
             description="scan points farther than this from the CAD surface are not evaluated "
-                        "(mm; default max(1, 5 x tolerance))"),
+                        "(mm; default max(5 x tolerance, min(1, 5 % of the model size)))"),
         max_distance: float | None = Query(None, gt=0, allow_inf_nan=False, deprecated=True,
-                                           description="old name of evaluation_distance"),
-        part: str | None = Query(None, max_length=200, description="part id (serial number) for the history"),
+                                           description="old name of evaluation_distance (accepted "
+                                                       "with a 'Warning' header; it will go)"),
+        faces: str | None = Query(None, max_length=10_000,
+                                  description="inspect only these CAD faces, e.g. '0,3,7' (default: all)"),
+        min_coverage: float | None = Query(None, ge=0, le=1, allow_inf_nan=False,
+                                           description="least share of the inspected CAD area that "
+                                                       "must be seen (0..1, default 0.2)"),
         init: str | None = Query(None, max_length=2000,
                                  description="start pose: 'auto' (default: the model's fixture pose "
                                              "if it has one, else found automatically), 'identity', "
                                              "'global', 'principal-axes', or 16 comma-separated "
                                              "numbers, T_model_scan row by row (mm)"),
+        scan_unit: str | None = Query(None, max_length=20,
+                                      description="unit of a scan that carries none (mm, cm, m, in, um; default mm)"),
+        plan: str | None = Query(None, max_length=200_000,
+                                 description="an inspection plan: its YAML text (plan.yaml's content)"),
+        part: str | None = Query(None, max_length=200, description="part id (serial number) for the history"),
     ) -> dict:
         """Register and inspect the scan in the request body; store the result; return it."""
-        start = _parse_init(init)
+        options, notes = _options(dict(
+            tolerance=tolerance, lower=lower, upper=upper, evaluation_distance=evaluation_distance,
+            max_distance=max_distance, faces=faces, min_coverage=min_coverage, init=init,
+            scan_unit=scan_unit, plan=plan))
+        for note in notes:
+            response.headers.append("Warning", f'299 shapeverify "{note}"')
         deadline = runner.deadline()
         if model not in config.models:
             raise HTTPException(404, f"unknown model {model!r}; loaded models: {sorted(config.models)}")
@@ -237,10 +265,8 @@ def _inspect_route(app: FastAPI, config: ServiceConfig, runner: Runner, work: Wo
         except asyncio.TimeoutError:
             raise HTTPException(408, f"the upload did not complete within the time limit of "
                                      f"{runner.limit:g} s") from None
-        return await runner.run(deadline, work.inspect_and_store, model, body,
-                                request.headers.get("content-type"), tolerance,
-                                evaluation_distance if evaluation_distance is not None else max_distance,
-                                part, start)
+        upload = Upload(model, body, request.headers.get("content-type"), options, part)
+        return await runner.run(deadline, work.inspect_and_store, upload)
 
 
 def _history_routes(app: FastAPI, runner: Runner, work: Work, auth: list) -> None:

@@ -133,55 +133,76 @@ def warm_up(models: dict) -> None:
             log.warning("warm-up of %s failed: %s", name, exc)
 
 
-def serve(model_paths, *, host: str = "127.0.0.1", port: int = 8000, db_path="history.sqlite",
-          token: str | None = None, max_body_bytes: int = 64 * 1024 * 1024, time_limit_s: float = 60.0,
-          threads: int = 2, workers: int = 1, keep_scans: bool = True, log_level: str = "warning",
-          on_ready=None, header_timeout_s: float = HEADER_TIMEOUT_S) -> None:
+def serve(model_paths, *, host: str = "127.0.0.1", port: int = 8000, workers: int = 1,
+          log_level: str = "warning", on_ready=None, **settings) -> None:
     """Load and warm up the models, then serve HTTP until interrupted (blocks).
 
     Parameters
     ----------
     model_paths : list of path
         Prepared models (``.svm``); the file stems are the model names.
-    threads : int
-        Inspection threads per process.
+    host, port
+        Where to listen.
     workers : int
         Server processes (uvicorn workers) sharing the port.
+    log_level : str
+        uvicorn's log level.
     on_ready : callable(models: dict), optional
         Called after loading and warm-up, before the port is bound (the CLI prints a line).
-    header_timeout_s : float
-        Connections whose request headers are not complete within this many seconds are closed.
+    **settings
+        The service's settings, the fields of :class:`~shapeverify.service.app.ServiceConfig`:
+        ``db_path`` (default ``history.sqlite``), ``token``, ``max_body_bytes``,
+        ``time_limit_s``, ``threads`` (inspection threads per process), ``keep_scans``; and
+        ``header_timeout_s``: connections whose request headers are not complete within this
+        many seconds are closed (default 10).
     """
     import uvicorn
 
     from shapeverify.service.app import ServiceConfig, create_app
 
-    if not header_timeout_s > 0:
-        raise ValueError(f"header_timeout_s must be > 0 seconds, got {header_timeout_s!r}")
-    HeaderTimeoutProtocol.header_timeout = float(header_timeout_s)
+    s = _settings(settings)
+    header_timeout_s = s.pop("header_timeout_s")
+    HeaderTimeoutProtocol.header_timeout = header_timeout_s
     models, hashes = load_models(model_paths)
     warm_up(models)
     if on_ready is not None:
         on_ready(models)
-    settings = dict(model_paths=[str(Path(p).resolve()) for p in model_paths],
-                    db_path=str(Path(db_path).resolve()), token=token, max_body_bytes=int(max_body_bytes),
-                    time_limit_s=float(time_limit_s), threads=int(threads), keep_scans=bool(keep_scans),
-                    header_timeout_s=float(header_timeout_s))
     if workers <= 1:
-        config = ServiceConfig(models=models, model_hashes=hashes, db_path=Path(db_path), token=token,
-                               max_body_bytes=int(max_body_bytes), time_limit_s=float(time_limit_s),
-                               threads=int(threads), keep_scans=bool(keep_scans))
+        config = ServiceConfig(models=models, model_hashes=hashes, **s)
         uvicorn.run(create_app(config), host=host, port=port, log_level=log_level,
                     http=HeaderTimeoutProtocol)
         return
     del models
-    os.environ[_ENV] = json.dumps(settings)
+    os.environ[_ENV] = json.dumps(dict(
+        s, model_paths=[str(Path(p).resolve()) for p in model_paths],
+        db_path=str(s["db_path"].resolve()), header_timeout_s=header_timeout_s))
     from uvicorn.supervisors import Multiprocess
 
     config = uvicorn.Config("shapeverify.service.server:app_from_env", factory=True, host=host,
                             port=port, workers=int(workers), log_level=log_level,
                             http=HeaderTimeoutProtocol)
     Multiprocess(config, sockets=[listen_socket(host, port)]).run()
+
+
+def _settings(given: dict) -> dict:
+    """``serve``'s settings with their defaults (:class:`ServiceConfig`'s), checked and typed."""
+    import dataclasses
+
+    from shapeverify.service.app import ServiceConfig
+
+    defaults = {f.name: f.default for f in dataclasses.fields(ServiceConfig)
+                if f.name not in ("models", "model_hashes")}
+    defaults["header_timeout_s"] = HEADER_TIMEOUT_S
+    unknown = sorted(set(given) - set(defaults))
+    if unknown:
+        raise TypeError(f"serve() got unknown setting(s) {unknown}; known: {sorted(defaults)}")
+    s = {**defaults, **given}
+    if not s["header_timeout_s"] > 0:
+        raise ValueError(f"header_timeout_s must be > 0 seconds, got {s['header_timeout_s']!r}")
+    return dict(db_path=Path(s["db_path"]), token=s["token"],
+                max_body_bytes=int(s["max_body_bytes"]), time_limit_s=float(s["time_limit_s"]),
+                threads=int(s["threads"]), keep_scans=bool(s["keep_scans"]),
+                header_timeout_s=float(s["header_timeout_s"]))
 
 
 def listen_socket(host: str, port: int) -> socket.socket:

@@ -63,6 +63,18 @@ class StoredRegistration:
                    _float(r.get("inlier_fraction")), weights, r.get("message") or "stored registration")
 
 
+@dataclass(frozen=True)
+class Upload:
+    """One ``POST /inspect``: the model's name, the body, its content type, the request's
+    :class:`~shapeverify.InspectionOptions` and the part id."""
+
+    model: str
+    body: bytes
+    content_type: str | None
+    options: object
+    part: str | None = None
+
+
 def _float(x) -> float:
     return float("nan") if x is None else float(x)
 
@@ -96,43 +108,39 @@ class Work:
     def model_hash(self, name: str) -> str:
         return self.config.model_hashes.get(name, name)
 
-    def inspect_and_store(self, job: Job, name: str, body: bytes, content_type: str | None,
-                          tolerance: float, evaluation_distance: float | None, part: str | None,
-                          init=None) -> dict | None:
+    def inspect_and_store(self, job: Job, upload: Upload) -> dict | None:
         """Read and inspect the upload, store the scan, commit the row (if still wanted)."""
-        from shapeverify.pipeline import inspect_scan
+        from shapeverify.options import OutputRequest
+        from shapeverify.pipeline import inspect_scan, write_outputs
         from shapeverify.service.body import body_format
 
         if not job.start():
             return None
-        fmt = body_format(body, content_type)
-        done = inspect_scan(self.config.models[name], body, scan_format=fmt,
-                            scan_name="request body", tolerance=tolerance,
-                            evaluation_distance=evaluation_distance, init=init,
-                            progress=job.check)
+        name = upload.model
+        fmt = body_format(upload.body, upload.content_type)
+        done = inspect_scan(self.config.models[name], upload.body, upload.options,
+                            scan_format=fmt, scan_name="request body", progress=job.check)
         from shapeverify.service.stored import report_arrays
 
         payload = done.result.to_dict()
         payload["timings"]["parse_s"] = done.timings["read_scan_s"]
-        payload.update(model=name, part=part)
+        payload.update(model=name, part=upload.part)
         scan_file = None
         if self.config.keep_scans:
             scan_file = self.scan_dir / f"{uuid.uuid4().hex}.npz"
             write_scan(scan_file, done.scan, getattr(done.result.registration, "weights", None),
                        report_arrays(done.result))
             payload["scan_file"] = scan_file.name
-        if not job.begin_commit():  # timed out meanwhile: the client got 504, store nothing
-            if scan_file is not None:
-                scan_file.unlink(missing_ok=True)
-            return None
+        request = OutputRequest(part=upload.part, model_hash=self.model_hash(name))
+        written = None
         try:
-            record_id = self.history_db().add(payload, part=part, model_hash=self.model_hash(name))
-        except BaseException:
-            if scan_file is not None:
+            # the row only while the request still wants it: a timed-out client got 504
+            written = write_outputs(payload, request, commit=job.begin_commit,
+                                    history=self.history_db())
+        finally:
+            if written is None and scan_file is not None:
                 scan_file.unlink(missing_ok=True)
-            raise
-        payload["record_id"] = record_id
-        return payload
+        return payload if written is not None else None
 
     def query(self, job: Job, part: str | None, limit: int, model: str | None = None) -> list:
         """Stored rows; ``model``: a loaded model's name (no records yet: none) or a SHA-256
