@@ -24,12 +24,15 @@ the region's equivalent radius, at least ``MIN_PEAK_RADIUS`` spacings and enough
 only near its peak.  The stated uncertainty (one standard uncertainty) combines the fit's
 standard error at the peak and its model error, a quarter of the change of the peak when the fit
 reaches 1.5 times as far (the quartic term's bias grows fivefold).  The extreme never exceeds the
-largest measured value by more than twice its uncertainty: beyond that the data do not support
-the fit, and the largest measured value is the extreme (its uncertainty the difference).
+largest measured value by more than twice the fit's standard error, nor at all when the fit's
+residuals exceed twice the local noise (``local_noise``: a flat-bottomed pit is no paraboloid):
+then the data do not support the fit, and the largest measured value is the extreme (its
+uncertainty the difference).
 """
 from __future__ import annotations
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from ._cluster_kernels import cell_areas
 
@@ -206,10 +209,10 @@ def _peak_at(center, normal, tree, ev_idx, points, values, radius):
         s = _stationary(c, radius)
         if s is None:
             v, se = _value(c, cov, sigma, np.zeros(2))
-            best = (v, se, at.copy())
+            best = (v, se, at.copy(), sigma)
             break
         v, se = _value(c, cov, sigma, s)
-        best = (v, se, at + s[0] * e1 + s[1] * e2)
+        best = (v, se, at + s[0] * e1 + s[1] * e2, sigma)
         if np.hypot(*s) <= 0.05 * radius:
             break
         at = best[2]
@@ -217,8 +220,10 @@ def _peak_at(center, normal, tree, ev_idx, points, values, radius):
 
 
 def fitted_peak(center, normal, tree, ev_idx, points, values, spacing, area):
-    """``(extreme, uncertainty, position)`` of a region (module docstring), or None when there
-    are too few points around ``center`` for a quadratic."""
+    """``(extreme, uncertainty, position, standard error of the fit alone, its residual sigma)``
+    of a region
+    (module docstring), or None when there are too few points around ``center`` for a
+    quadratic."""
     r = float(np.clip(np.sqrt(area / np.pi) / 3.0, MIN_PEAK_RADIUS * spacing,
                       MAX_PEAK_RADIUS * spacing))
     k = min(MIN_PEAK_POINTS, ev_idx.size)
@@ -236,4 +241,16 @@ def fitted_peak(center, normal, tree, ev_idx, points, values, spacing, area):
         return None
     wide = _peak_at(first[2], normal, tree, ev_idx, points, values, 1.5 * r)
     model = abs(first[0] - wide[0]) / 4.0 if wide is not None else 0.0
-    return first[0], float(np.hypot(first[1], model)), first[2]
+    return first[0], float(np.hypot(first[1], model)), first[2], float(first[1]), float(first[3])
+
+
+def local_noise(tree, ev_idx, values, center, radius) -> float:
+    """Noise sigma of the deviations around ``center`` (mm): ``1.4826 median |d_i - d_j| /
+    sqrt 2`` over nearest-neighbour pairs within ``radius`` (the form cancels in a neighbour's
+    difference; a step between a few pairs does not move the median).  NaN under 6 points."""
+    i = np.sort(np.asarray(tree.query_ball_point(center, radius), np.int64))
+    if i.size < 6:
+        return float("nan")
+    p, v = tree.data[i], values[ev_idx[i]]
+    _, j = cKDTree(p).query(p, k=2)
+    return float(1.4826 * np.median(np.abs(v - v[j[:, 1]])) / np.sqrt(2.0))

@@ -36,7 +36,8 @@ For each region:
   of largest neighbourhood-median |deviation|, a quadratic ``d(x, y)`` is fitted in the tangent
   plane and moved to its extremum (:func:`.region_measures.fitted_peak`); the neighbourhood
   median when the fit finds no extremum beyond the region's limit, the largest measured value
-  when the fitted peak lies more than twice its uncertainty beyond it.  ``extreme`` therefore
+  when the fitted peak lies more than twice the fit's standard error beyond it (or beyond it
+  at all when the quadratic does not fit to the local noise).  ``extreme`` therefore
   always lies outside the tolerance, on the region's side; ``extreme_uncertainty`` is its
   standard uncertainty (mm); ``extreme_raw`` the single largest measured value (same side);
 * ``severity``: the out-of-tolerance volume ``sum_i a_i (|d_i| - |limit_i|)`` (mm^3) over the
@@ -60,7 +61,7 @@ from scipy.spatial import cKDTree
 from .._arrays import bounds
 from ._cluster_kernels import component_labels
 from ._grid_kernels import kernel_array, mark_within, nearest_other
-from .region_measures import CELL_BOUND, fitted_peak, out_area
+from .region_measures import CELL_BOUND, MAX_PEAK_RADIUS, fitted_peak, local_noise, out_area
 
 logger = logging.getLogger(__name__)
 
@@ -85,6 +86,10 @@ DENSITY_SUBSET = 20000
 #: points make at least this share of the points there.
 LAYER_RADIUS = 1.5
 LAYER_SHARE = 0.25
+#: ... and at least this many times as many points there as around the component (in-tolerance
+#: points between these distances, in spacings, from its core points: the surface alone).
+LAYER_DENSITY = 1.4
+LAYER_RING = (3.0, 6.0)
 #: Registration weight below which a point counts as rejected by the robust registration.
 LOW_WEIGHT = 1e-3
 #: Widest neighbourhood of an out-of-tolerance point looked at, in spacings (the quadratic peak
@@ -388,7 +393,9 @@ def _over_measured_surface(tree, ev_idx, values, pc, med, up, labels, comps, lo,
     evaluated points within ``LAYER_RADIUS`` spacings whose deviation is deep inside the
     tolerance (at most half the limit) and at least half the core's median away from it: the
     part's surface seen *under* the out-of-tolerance points.  A component is a layer when at
-    its median core point they are at least 2 and ``LAYER_SHARE`` of the points there.  A real defect replaces the surface: inside it no such points are seen,
+    its median core point they are at least 2 and ``LAYER_SHARE`` of the points there, and
+    there are ``LAYER_DENSITY`` times as many points there as on the in-tolerance surface
+    around it (two layers, not a small pit whose rim is within reach).  A real defect replaces the surface: inside it no such points are seen,
     and at its rim they lie on one side only."""
     out = np.zeros(comps.size, bool)
     sel = np.flatnonzero(np.isin(labels, comps))
@@ -408,9 +415,24 @@ def _over_measured_surface(tree, ev_idx, values, pc, med, up, labels, comps, lo,
     # the share of the points there (the density of a thin part's two sides or of a ghost
     # over it is not the scan's spacing)
     share = n_lower / np.maximum(lens, 1)
+    all_pts = tree.data
     for k, c in enumerate(comps):
         at = labels[sel] == c
-        out[k] = np.median(share[at]) >= LAYER_SHARE and np.median(n_lower[at]) >= 2
+        if not (np.median(share[at]) >= LAYER_SHARE and np.median(n_lower[at]) >= 2):
+            continue
+        # and two layers: denser there than the surface around (a small sharp pit has its
+        # rim's good surface within reach of its core points too, but one layer)
+        pc_c = pc[sel[at]]
+        ring = np.flatnonzero(np.isfinite(cKDTree(pc_c).query(
+            all_pts, k=1, distance_upper_bound=LAYER_RING[1] * spacing)[0]))
+        if ring.size:
+            dr, _ = cKDTree(pc_c).query(all_pts[ring], k=1)
+            lim_c = np.abs(np.where(up[sel[at]], hi[sel[at]], lo[sel[at]])).min()
+            ring = ring[(dr > LAYER_RING[0] * spacing) & (np.abs(values[ev_idx[ring]]) <= 0.5 * lim_c)]
+        if ring.size < 3:
+            continue
+        base = tree.query_ball_point(all_pts[ring], r, return_length=True)
+        out[k] = np.median(lens[at]) >= LAYER_DENSITY * np.median(base)
     return out
 
 
@@ -528,8 +550,10 @@ def _describe(idx, core, med, points, values, face, normals, tree, ev_idx, spaci
     peak = fitted_peak(points[core[k]], normals[core[k]], tree, ev_idx, points, values, spacing,
                        area)
     if peak is not None and (peak[0] > limit[k] if above else peak[0] < limit[k]):
-        extreme, uncertainty, at = peak
-        if abs(extreme) > abs(extreme_raw) + 2.0 * uncertainty:
+        extreme, uncertainty, at, se, sigma = peak
+        noise = local_noise(tree, ev_idx, values, points[core[k]],
+                            MAX_PEAK_RADIUS * spacing)
+        if abs(extreme) > abs(extreme_raw) + (2.0 * se if sigma <= 2.0 * noise else 0.0):
             # the data do not support a peak so far beyond every measured value
             uncertainty = abs(extreme) - abs(extreme_raw)
             extreme, at = extreme_raw, points[idx[int(np.argmax(np.abs(v)))]].copy()
