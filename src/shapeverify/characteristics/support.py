@@ -108,7 +108,7 @@ def neighbourhood_support(feet, d, ok, alpha: float = ALPHA) -> Support:
     Support
     """
     from ..inspection._grid_kernels import kernel_array, mark_within
-    from ..inspection.regions import _neighbourhood_median, median_spacing
+    from ..inspection.regions import median_spacing, neighbourhood_median
     from scipy.spatial import cKDTree
 
     n = d.shape[0]
@@ -145,6 +145,6 @@ def neighbourhood_support(feet, d, ok, alpha: float = ALPHA) -> Support:
         mark_within(kernel_array(ev_pts), kernel_array(ev_pts[cand]), radius * (1 + 1e-6), near)
         keep = np.flatnonzero(near)
         tree = cKDTree(ev_pts[keep], balanced_tree=False, compact_nodes=False)
-        med = _neighbourhood_median(tree, keep, dv, ev_pts[cand], radius, k=NEIGHBOURS)
+        med = neighbourhood_median(tree, keep, dv, ev_pts[cand], radius, k=NEIGHBOURS)
         out[ev[cand[np.abs(dv[cand] - med) > thr]]] = True
     return Support(out, noise, thr, spacing, z)

@@ -22,8 +22,10 @@ The rule (all distances in mm, ``s`` = the scan's spacing on the part as area pe
    (at least 80 % of its points have 2 linked neighbours, and its median area per point, from a
    smooth kernel within ``DENSE_RADIUS x s``, is at most ``SPARSE_AREA x s^2``: a surface sampled
    like the part, not scattered outliers), and
-   **joins the part without a step**: its points within ``LINK_FACTOR x s`` of an evaluated scan
-   point continue that point's surface (median slope ``|offset along the CAD normal| / |offset
+   **joins the part without a step**, attached along a rim (at least 3 and a tenth of its points
+   within ``ATTACH_RADIUS x s`` of an evaluated scan point: a sheet beside an edge touching the
+   part at a point or two is a reflection); its points within ``LINK_FACTOR x s`` of an
+   evaluated scan point continue that point's surface (median slope ``|offset along the CAD normal| / |offset
    along the surface|`` at most ``MAX_JOIN_SLOPE``, about 30 degrees).  Material that was never
    removed continues the part; a surface floating over it with a step at its rim -- a
    reflection, a foreign object, background -- is not material of the part (its points stay
@@ -53,6 +55,11 @@ MIN_MATERIAL_POINTS = 10
 DENSE_RADIUS = 3.0
 #: Largest median slope (normal / tangential offset) where material joins the part.
 MAX_JOIN_SLOPE = 0.6
+#: Material is attached along a rim: at least ``max(ATTACH_MIN, ATTACH_SHARE x its points)``
+#: of its points lie within ``ATTACH_RADIUS`` spacings of an evaluated scan point.
+ATTACH_RADIUS = 1.5
+ATTACH_MIN = 3
+ATTACH_SHARE = 0.1
 #: Largest share of a candidate's offset from the CAD that may lie along the CAD normal.
 MAX_NORMAL_SHARE = 0.5
 
@@ -182,6 +189,10 @@ def _joins_part(p, ev_tree, ev_idx, dev, link: float, spacing: float) -> bool:
     d, j = ev_tree.query(p, k=1, distance_upper_bound=link)
     near = np.isfinite(d)
     if not near.any():
+        return False
+    # attached along a rim, not touching at a point: material continues the part from an
+    # edge (a sheet floating beside an edge, a reflection, touches it at one or two points)
+    if np.count_nonzero(d <= ATTACH_RADIUS * spacing) < max(ATTACH_MIN, ATTACH_SHARE * p.shape[0]):
         return False
     k = ev_idx[j[near]]
     delta = p[near] - dev.points_model[k]

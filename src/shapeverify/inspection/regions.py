@@ -19,26 +19,31 @@ for no measured surface) number at least ``min_points`` and cover at least ``min
 The region's points are the out-of-tolerance points on its side within the link distance of
 its core points; every other out-of-tolerance point is a measurement outlier (counted, excluded
 from the statistics, never failing the part).  Scattered bad points among good ones (uniform
-outliers, dust, spikes, noise) are never core.
+outliers, dust, spikes, noise) are never core.  Nor is a dense layer *over* in-tolerance measured
+surface a defect (a reflection, multipath ghost or misplaced second view of a good part: the
+part's surface is seen under it, :func:`_over_measured_surface`; a real defect replaces the
+surface): its points are outliers too (``Outliers.n_layer``).
 
 For each region:
 
-* ``n``: number of its (out-of-tolerance) points; ``area``: the sum over them of the surface
-  area each stands for (:func:`area_per_point`: a smooth kernel density within
-  ``AREA_RADIUS = 5 s`` of all evaluated points, so that duplicates share their area), the
-  out-of-tolerance surface area (mm^2);
-* ``extreme``: the signed deviation at the region's worst point, taken from its neighbourhood so
-  that one noisy point does not set it: the core point of largest neighbourhood-median
-  |deviation| is located, a quadratic ``d(x, y)`` is fitted by least squares (3-sigma spike
-  rejection) to the deviations within ``0.6 x`` the region's equivalent radius (2.5-4 spacings)
-  in the tangent plane there, and its extremum is taken when it lies beyond the region's limit,
-  the neighbourhood median otherwise.  ``extreme`` therefore always lies outside the tolerance,
-  on the region's side; ``extreme_raw`` is the single largest measured value (same side, at
-  least as large);
+* ``n``: number of its (out-of-tolerance) points; ``area``: the out-of-tolerance surface area
+  (mm^2): of the cell each of its points and their in-tolerance neighbours stands for (its
+  Voronoi cell in its tangent plane), the part where ``|d| - |limit|`` continued by its local
+  slope is positive (:func:`.region_measures.out_area`: the same area for random, lattice,
+  scanner-row and anisotropic sampling, the boundary interpolated between points in and out);
+* ``extreme``: the signed deviation at the region's worst point, the fitted peak of the local
+  surface (a sampled dent's deepest point is missed by up to the spacing): from the core point
+  of largest neighbourhood-median |deviation|, a quadratic ``d(x, y)`` is fitted in the tangent
+  plane and moved to its extremum (:func:`.region_measures.fitted_peak`); the neighbourhood
+  median when the fit finds no extremum beyond the region's limit, the largest measured value
+  when the fitted peak lies more than twice the fit's standard error beyond it (or beyond it
+  at all when the quadratic does not fit to the local noise).  ``extreme`` therefore
+  always lies outside the tolerance, on the region's side; ``extreme_uncertainty`` is its
+  standard uncertainty (mm); ``extreme_raw`` the single largest measured value (same side);
 * ``severity``: the out-of-tolerance volume ``sum_i a_i (|d_i| - |limit_i|)`` (mm^3) over the
   region's points (``a_i`` the area per point): large and far-out regions first.  Regions are
   returned most severe first, so a real dent comes before specks in a reflection;
-* ``centroid``: area-weighted mean of its foot points (model coordinates, mm);
+* ``centroid``: mean of the foot points weighted by their out-of-tolerance area (model coordinates, mm);
   ``extreme_point``: where the extreme is, on the CAD surface's tangent plane; ``faces``: CAD
   faces it touches;
 * ``kind``: ``"deviation"`` here; :mod:`.material` adds ``"material"`` regions, :mod:`.missing`
@@ -56,11 +61,12 @@ from scipy.spatial import cKDTree
 from .._arrays import bounds
 from ._cluster_kernels import component_labels
 from ._grid_kernels import kernel_array, mark_within, nearest_other
+from .region_measures import CELL_BOUND, MAX_PEAK_RADIUS, fitted_peak, local_noise, out_area
 
 logger = logging.getLogger(__name__)
 
 __all__ = ["DefectRegion", "Outliers", "find_regions", "median_spacing", "surface_spacing", "MIN_POINTS",
-           "LINK_FACTOR"]
+           "LINK_FACTOR", "neighbourhood_median"]
 
 #: Default smallest number of points of a defect region.
 MIN_POINTS = 5
@@ -76,10 +82,19 @@ SPARSE_AREA = 3.0
 K_DENSITY = 8
 #: Most points the density is estimated from.
 DENSITY_SUBSET = 20000
+#: A layer over measured surface: in-tolerance points within this radius (spacings) of its core
+#: points make at least this share of the points there.
+LAYER_RADIUS = 1.5
+LAYER_SHARE = 0.25
+#: ... and at least this many times as many points there as around the component (in-tolerance
+#: points between these distances, in spacings, from its core points: the surface alone).
+LAYER_DENSITY = 1.4
+LAYER_RING = (3.0, 6.0)
 #: Registration weight below which a point counts as rejected by the robust registration.
 LOW_WEIGHT = 1e-3
-#: Widest neighbourhood of an out-of-tolerance point looked at, in spacings (the quadratic peak).
-NEIGHBOURHOOD = 4.0
+#: Widest neighbourhood of an out-of-tolerance point looked at, in spacings (the quadratic peak
+#: reaches 1.5 x region_measures.MAX_PEAK_RADIUS).
+NEIGHBOURHOOD = 9.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -103,10 +118,12 @@ class DefectRegion:
     indices: np.ndarray       # scan point indices
     severity: float = 0.0     # out-of-tolerance volume, mm^3
     kind: str = "deviation"
+    extreme_uncertainty: float = float("nan")   # standard uncertainty of ``extreme``, mm
 
     def to_dict(self) -> dict:
         return {"kind": self.kind, "n": self.n, "area": self.area, "extreme": self.extreme,
-                "extreme_raw": self.extreme_raw, "severity": self.severity,
+                "extreme_raw": self.extreme_raw,
+                "extreme_uncertainty": self.extreme_uncertainty, "severity": self.severity,
                 "centroid": [float(c) for c in self.centroid],
                 "extreme_point": [float(c) for c in self.extreme_point],
                 "faces": [int(f) for f in self.faces], "side": self.side}
@@ -141,6 +158,7 @@ class Outliers:
 
     indices: np.ndarray       # scan point indices
     low_weight: np.ndarray    # (k,) bool: the registration gave the point weight ~ 0
+    n_layer: int = 0          # of them, in dense layers over in-tolerance measured surface
 
     @property
     def n(self) -> int:
@@ -151,10 +169,10 @@ class Outliers:
         return int(np.count_nonzero(self.low_weight))
 
     def to_dict(self) -> dict:
-        return {"n": self.n, "n_low_weight": self.n_low_weight}
+        return {"n": self.n, "n_low_weight": self.n_low_weight, "n_layer": self.n_layer}
 
     def __repr__(self) -> str:
-        return f"Outliers(n={self.n}, low_weight={self.n_low_weight})"
+        return f"Outliers(n={self.n}, low_weight={self.n_low_weight}, layer={self.n_layer})"
 
 
 def median_spacing(tree: cKDTree | None, points: np.ndarray, max_samples: int = 1500) -> float:
@@ -306,7 +324,7 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
     d1, _ = cKDTree(p_out).query(tree.data, k=1, distance_upper_bound=MEDIAN_RADIUS * spacing)
     near = np.isfinite(d1)
     cand = np.sort(ev_idx[near])
-    med = _neighbourhood_median(tree, ev_idx, values, points[cand], MEDIAN_RADIUS * spacing)
+    med = neighbourhood_median(tree, ev_idx, values, points[cand], MEDIAN_RADIUS * spacing)
     with np.errstate(invalid="ignore"):
         up = med > hi_lim[cand]
         down = med < lo_lim[cand]
@@ -316,6 +334,7 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
 
     regions = []
     member = np.zeros(values.shape[0], bool)
+    n_layer_comp = np.zeros(0, np.int64)
     if core.size:
         pc = points[core]
         pairs = cKDTree(pc).query_pairs(link, output_type="ndarray")
@@ -329,6 +348,11 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
         comp_area = np.bincount(labels, weights=np.where(dense, a, 0.0), minlength=n_comp)
         comp_n = np.bincount(labels, weights=dense.astype(np.float64), minlength=n_comp)
         keep = np.flatnonzero((comp_area >= min_points * spacing ** 2) & (comp_n >= min_points))
+        if keep.size:
+            layer = _over_measured_surface(tree, ev_idx, values, pc, core_med, core_up, labels,
+                                           keep, lo_lim[core], hi_lim[core], spacing)
+            n_layer_comp = keep[layer]
+            keep = keep[~layer]
         if keep.size:
             # out-of-tolerance points on the same side within the link of a kept core point
             # belong to its region; the others are measurement outliers
@@ -350,13 +374,76 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
                 sel = labels == comp
                 member[idx] = True
                 regions.append(_describe(idx, core[sel], core_med[sel], points, values, face,
-                                         normals, tree, ev_idx, spacing, lo_lim, hi_lim))
+                                         normals, tree, ev_idx, spacing, lo_lim, hi_lim,
+                                         within))
     small = ~member[out_idx]
-    outliers = Outliers(out_idx[small], _low_weight(weights, out_idx[small]))
+    outliers = Outliers(out_idx[small], _low_weight(weights, out_idx[small]),
+                        _layer_points(points, out_idx[small], values, core, labels, n_layer_comp,
+                                      LINK_FACTOR * spacing) if n_layer_comp.size else 0)
     regions.sort(key=lambda r: (-r.severity, -abs(r.extreme)))
     logger.debug("regions: %d out-of-tolerance points -> %d regions, %d outliers (spacing %.3g mm)",
                  out_idx.size, len(regions), outliers.n, spacing)
     return regions, outliers, float(spacing)
+
+
+def _over_measured_surface(tree, ev_idx, values, pc, med, up, labels, comps, lo, hi,
+                           spacing) -> np.ndarray:
+    """(len(comps),) bool: is the component a layer over in-tolerance measured surface (a
+    reflection, a ghost of multipath, a second view misplaced)?  At each core point count the
+    evaluated points within ``LAYER_RADIUS`` spacings whose deviation is deep inside the
+    tolerance (at most half the limit) and at least half the core's median away from it: the
+    part's surface seen *under* the out-of-tolerance points.  A component is a layer when at
+    its median core point they are at least 2 and ``LAYER_SHARE`` of the points there, and
+    there are ``LAYER_DENSITY`` times as many points there as on the in-tolerance surface
+    around it (two layers, not a small pit whose rim is within reach).  A real defect replaces the surface: inside it no such points are seen,
+    and at its rim they lie on one side only."""
+    out = np.zeros(comps.size, bool)
+    sel = np.flatnonzero(np.isin(labels, comps))
+    if sel.size == 0:
+        return out
+    r = LAYER_RADIUS * spacing
+    lists = tree.query_ball_point(pc[sel], r)
+    lens = np.fromiter((len(x) for x in lists), np.int64, sel.size)
+    flat = ev_idx[np.concatenate([np.asarray(x, np.int64) for x in lists])] if lens.sum() else \
+        np.zeros(0, np.int64)
+    row = np.repeat(np.arange(sel.size), lens)
+    v = values[flat]
+    m = med[sel][row]
+    lim = np.where(up[sel], hi[sel], lo[sel])[row]
+    lower = (np.abs(v) <= 0.5 * np.abs(lim)) & (np.abs(v - m) > 0.5 * np.abs(m))
+    n_lower = np.bincount(row, weights=lower.astype(np.float64), minlength=sel.size)
+    # the share of the points there (the density of a thin part's two sides or of a ghost
+    # over it is not the scan's spacing)
+    share = n_lower / np.maximum(lens, 1)
+    all_pts = tree.data
+    for k, c in enumerate(comps):
+        at = labels[sel] == c
+        if not (np.median(share[at]) >= LAYER_SHARE and np.median(n_lower[at]) >= 2):
+            continue
+        # and two layers: denser there than the surface around (a small sharp pit has its
+        # rim's good surface within reach of its core points too, but one layer)
+        pc_c = pc[sel[at]]
+        ring = np.flatnonzero(np.isfinite(cKDTree(pc_c).query(
+            all_pts, k=1, distance_upper_bound=LAYER_RING[1] * spacing)[0]))
+        if ring.size:
+            dr, _ = cKDTree(pc_c).query(all_pts[ring], k=1)
+            lim_c = np.abs(np.where(up[sel[at]], hi[sel[at]], lo[sel[at]])).min()
+            ring = ring[(dr > LAYER_RING[0] * spacing) & (np.abs(values[ev_idx[ring]]) <= 0.5 * lim_c)]
+        if ring.size < 3:
+            continue
+        base = tree.query_ball_point(all_pts[ring], r, return_length=True)
+        out[k] = np.median(lens[at]) >= LAYER_DENSITY * np.median(base)
+    return out
+
+
+def _layer_points(points, idx, values, core, labels, comps, link) -> int:
+    """How many of the out-of-tolerance points ``idx`` lie within ``link`` of a core point of
+    the layer components ``comps``."""
+    sel = np.isin(labels, comps)
+    if not sel.any() or idx.size == 0:
+        return 0
+    d, _ = cKDTree(points[core[sel]]).query(points[idx], k=1, distance_upper_bound=link)
+    return int(np.count_nonzero(np.isfinite(d)))
 
 
 def area_per_point(tree: cKDTree, p: np.ndarray, radius: float) -> np.ndarray:
@@ -396,7 +483,7 @@ def linked_components(n: int, pairs: np.ndarray) -> tuple[int, np.ndarray]:
     return int(component_labels(int(n), pairs, labels)), labels
 
 
-def _neighbourhood_median(tree, ev_idx, values, p, radius, k: int = 9) -> np.ndarray:
+def neighbourhood_median(tree, ev_idx, values, p, radius, k: int = 9) -> np.ndarray:
     """Median deviation of the (up to) ``k`` nearest evaluated points within ``radius`` of each
     row of ``p`` (itself included when ``p`` are evaluated foot points); the point's own nearest
     value when fewer than 3 neighbours are found."""
@@ -431,74 +518,63 @@ def _low_weight(weights, idx):
 
 
 def _describe(idx, core, med, points, values, face, normals, tree, ev_idx, spacing,
-              lo_lim, hi_lim) -> DefectRegion:
+              lo_lim, hi_lim, within) -> DefectRegion:
     """Size, area, severity, extreme and position of one region: its out-of-tolerance points
     (scan indices ``idx``) and its core points ``core`` with their neighbourhood medians
-    ``med``."""
+    ``med`` (:mod:`.region_measures` measures the area and the extreme)."""
     above = bool(med[0] > 0)
     v = values[idx]
-    a = area_per_point(tree, points[idx], AREA_RADIUS * spacing)
-    a = np.where(a <= SPARSE_AREA * spacing ** 2, a, 0.0)     # stray points stand for no area
-    area = float(np.sum(a))
+    r_area = AREA_RADIUS * spacing
+    sparse = SPARSE_AREA * spacing ** 2
+    a = area_per_point(tree, points[idx], r_area)
+    a = np.where(a <= sparse, a, 0.0)     # stray points stand for no area
     severity = float(np.sum(a * np.maximum(np.abs(v) - np.abs(hi_lim[idx] if above else lo_lim[idx]),
                                             0.0)))
     extreme_raw = float(v[int(np.argmax(np.abs(v)))])
     limit = hi_lim[core] if above else lo_lim[core]
-    # the quadratic's reach: 4 spacings, less on a small region (a dent a few spacings wide is
-    # no paraboloid over 4 spacings), never under 2.5 (at least about 12 points)
-    reach = float(np.clip(0.6 * np.sqrt(area / np.pi), 2.5 * spacing, NEIGHBOURHOOD * spacing))
 
-    # The worst core point by its neighbourhood median, refined by a local quadratic.
+    # the area: the out-of-tolerance part of the cells of the region's points and of their
+    # in-tolerance neighbours (the boundary runs between them)
+    nb = tree.query_ball_point(points[idx], 2.0 * CELL_BOUND * spacing)
+    nb = np.unique(ev_idx[np.concatenate([np.asarray(x, np.int64) for x in nb])])
+    q = np.union1d(idx, nb[within[nb]])
+    g = np.full(values.shape[0], np.nan)
+    g[ev_idx] = (values[ev_idx] - hi_lim[ev_idx]) if above else (lo_lim[ev_idx] - values[ev_idx])
+    part, cell = out_area(tree, ev_idx, points, normals, g, q, spacing)
+    part = np.where(cell <= 2.0 * sparse, part, 0.0)    # a point in a gap stands for no area
+    area = float(np.sum(part))
+
+    # the extreme: the fitted peak of the local surface around the worst core point
     k = int(np.argmax(np.abs(med)))
-    fallback = float(med[k])
-    extreme, at = _quadratic_peak(points[core[k]], normals[core[k]], tree, ev_idx, points, values,
-                                  reach, fallback)
-    beyond = extreme > limit[k] if above else extreme < limit[k]
-    if not beyond or abs(extreme) > abs(extreme_raw):
-        extreme, at = fallback, points[core[k]].copy()
-    w = a if a.sum() > 0 else np.ones_like(a)
-    centroid = (w[:, None] * points[idx]).sum(axis=0) / w.sum()
+    extreme, uncertainty, at = float(med[k]), float("nan"), points[core[k]].copy()
+    peak = fitted_peak(points[core[k]], normals[core[k]], tree, ev_idx, points, values, spacing,
+                       area)
+    if peak is not None and (peak[0] > limit[k] if above else peak[0] < limit[k]):
+        extreme, uncertainty, at, se, sigma = peak
+        noise = local_noise(tree, ev_idx, values, points[core[k]],
+                            MAX_PEAK_RADIUS * spacing)
+        if abs(extreme) > abs(extreme_raw) + (2.0 * se if sigma <= 2.0 * noise else 0.0):
+            # the data do not support a peak so far beyond every measured value
+            uncertainty = abs(extreme) - abs(extreme_raw)
+            extreme, at = extreme_raw, points[idx[int(np.argmax(np.abs(v)))]].copy()
+    if not np.isfinite(uncertainty):        # the neighbourhood median: its standard error
+        uncertainty = _median_uncertainty(tree, ev_idx, values, points[core[k]], spacing)
+    w = part if part.sum() > 0 else np.ones_like(part)
+    centroid = (w[:, None] * points[q]).sum(axis=0) / w.sum()
     return DefectRegion(
         n=int(idx.size), area=area, extreme=float(extreme), extreme_raw=extreme_raw,
         centroid=centroid, extreme_point=at,
         faces=tuple(int(f) for f in np.unique(face[idx])),
-        side="above" if above else "below", indices=idx, severity=severity)
+        side="above" if above else "below", indices=idx, severity=severity,
+        extreme_uncertainty=float(uncertainty))
 
 
-def _quadratic_peak(center, normal, tree, ev_idx, points, values, radius, fallback):
-    """Extremum of a least-squares quadratic of the deviations around ``center``.
-
-    Returns ``(value, position)``; falls back to ``(fallback, center)`` with too few neighbours.
-    """
-    # in scan order: the fit does not depend on how the tree was built
-    nb = np.sort(ev_idx[tree.query_ball_point(center, radius)])
-    if nb.size < 12:
-        return fallback, center.copy()
-    n = normal / (np.linalg.norm(normal) or 1.0)
-    a = np.array([1.0, 0.0, 0.0]) if abs(n[0]) < 0.9 else np.array([0.0, 1.0, 0.0])
-    e1 = np.cross(n, a)
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(n, e1)
-    d = points[nb] - center
-    x, y = d @ e1, d @ e2
-    A = np.column_stack([np.ones_like(x), x, y, x * x, x * y, y * y])
-    b = values[nb]
-    keep = np.ones(b.size, bool)
-    for _ in range(3):                     # drop spikes: residuals beyond 3 robust sigmas
-        c, *_ = np.linalg.lstsq(A[keep], b[keep], rcond=None)
-        res = b - A @ c
-        scale = 1.4826 * np.median(np.abs(res[keep])) + 1e-12
-        new = np.abs(res) <= 3.0 * scale
-        if new.sum() < 12 or np.array_equal(new, keep):
-            break
-        keep = new
-    H = np.array([[2 * c[3], c[4]], [c[4], 2 * c[5]]])
-    value, xy = float(c[0]), np.zeros(2)
-    det = np.linalg.det(H)
-    if det > 0 and np.sign(H[0, 0]) == -np.sign(c[0]):      # an extremum of the dent's/bump's sign
-        s = np.linalg.solve(H, -c[1:3])
-        if np.hypot(*s) <= 0.5 * radius:
-            xy = s
-            value = float(c[0] + c[1] * s[0] + c[2] * s[1] + c[3] * s[0] ** 2
-                          + c[4] * s[0] * s[1] + c[5] * s[1] ** 2)
-    return value, center + xy[0] * e1 + xy[1] * e2
+def _median_uncertainty(tree, ev_idx, values, p, spacing) -> float:
+    """Standard error of a neighbourhood median (:func:`neighbourhood_median`) at ``p``:
+    ``1.2533 x`` the robust sigma of its values over the root of their number."""
+    d, j = tree.query(p, k=min(9, ev_idx.size), distance_upper_bound=MEDIAN_RADIUS * spacing)
+    j = np.atleast_1d(j)[np.isfinite(np.atleast_1d(d))]
+    if j.size < 3:
+        return float("nan")
+    x = values[ev_idx[j]]
+    return float(1.2533 * 1.4826 * np.median(np.abs(x - np.median(x))) / np.sqrt(j.size))

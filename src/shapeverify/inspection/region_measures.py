@@ -1,0 +1,256 @@
+"""A region's out-of-tolerance area and its extreme, measured so that the sampling does not show.
+
+**Area.**  Each scan point near the region stands for its *cell*: its Voronoi cell among its
+neighbours in its own tangent plane (:func:`._cluster_kernels.cell_areas`; the neighbours'
+offsets are unfolded to their 3-D distance, so cells do not shrink across an edge), bounded by a
+square of ``2 x CELL_BOUND`` spacings (a point in a gap stands for no more).  The cells of a
+sampled surface tile it whatever the sampling -- random, a lattice, scanner rows, rows farther
+apart than the points along them -- where a density from a few spacings around counts the
+random clumping of a random sample (a dent of 25 points read -18 %).  Of each cell, the part
+where ``g = |d| - |limit|`` (on the region's side) is positive counts: ``g`` is the point's own
+value continued by the slope of a robust least-squares plane of ``g`` over its neighbours within
+``SLOPE_RADIUS`` spacings, so the boundary runs between an out-of-tolerance point and its
+in-tolerance neighbours where ``g`` crosses zero, not half a cell beyond the last point out.
+The region's area is the sum of these parts over its out-of-tolerance points and their
+in-tolerance neighbours; a cell larger than ``2 x regions.SPARSE_AREA`` spacings^2 (a point in a gap
+of the scan, beside the part) counts nothing.
+
+**Extreme.**  A sampled dent's deepest point is missed by up to the spacing; the fitted peak of
+the local surface is not.  A quadratic ``d(x, y)`` is fitted by least squares (3-sigma spike
+rejection) to the deviations within ``r`` of a centre in its tangent plane, the centre is moved
+to the fitted extremum and the fit repeated (at most ``PEAK_STEPS`` times).  ``r`` is a third of
+the region's equivalent radius, at least ``MIN_PEAK_RADIUS`` spacings and enough for
+``MIN_PEAK_POINTS`` points, at most ``MAX_PEAK_RADIUS`` spacings: a dent's top is a paraboloid
+only near its peak.  The stated uncertainty (one standard uncertainty) combines the fit's
+standard error at the peak and its model error, a quarter of the change of the peak when the fit
+reaches 1.5 times as far (the quartic term's bias grows fivefold).  The extreme never exceeds the
+largest measured value by more than twice the fit's standard error, nor at all when the fit's
+residuals exceed twice the local noise (``local_noise``: a flat-bottomed pit is no paraboloid):
+then the data do not support the fit, and the largest measured value is the extreme (its
+uncertainty the difference).
+"""
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from ._cluster_kernels import cell_areas
+
+__all__ = ["out_area", "fitted_peak", "CELL_BOUND", "SLOPE_RADIUS"]
+
+#: Half size of the square that bounds a point's cell, in spacings.
+CELL_BOUND = 1.5
+#: Radius of the plane whose slope continues ``|d| - |limit|`` across a cell, in spacings.
+SLOPE_RADIUS = 2.5
+#: The peak's quadratic: smallest and largest radius (spacings), fewest points, most steps.
+MIN_PEAK_RADIUS = 2.2
+MAX_PEAK_RADIUS = 6.0
+MIN_PEAK_POINTS = 15
+PEAK_STEPS = 4
+#: Smallest ratio of the quadratic's design matrix's singular values (coordinates in radii).
+MIN_CONDITION = 0.02
+#: The radius grows by this factor (at most ``GROW_STEPS`` times) until the points fix a quadratic.
+GROW = 1.25
+GROW_STEPS = 4
+#: Points whose cells are computed at once (memory: about 30 neighbours each).
+CHUNK = 20000
+
+
+def _basis(normals):
+    n = normals / np.maximum(np.linalg.norm(normals, axis=1), 1e-300)[:, None]
+    a = np.where((np.abs(n[:, 0]) < 0.9)[:, None], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0])
+    e1 = np.cross(n, a)
+    e1 /= np.linalg.norm(e1, axis=1)[:, None]
+    return e1, np.cross(n, e1)
+
+
+def out_area(tree, ev_idx, points, normals, g, q, spacing):
+    """``(part, cell)`` (each (len(q),), mm^2): of each point ``q`` (scan indices of evaluated
+    points), its cell's area and the part of it where ``g`` (per scan point, > 0 out of
+    tolerance on the region's side) continued by its local slope is positive.
+
+    ``tree`` holds the evaluated foot points ``points[ev_idx]`` (at least those within
+    ``2 x CELL_BOUND`` spacings of ``q``)."""
+    bound = CELL_BOUND * spacing
+    reach = max(2.0 * bound, SLOPE_RADIUS * spacing)
+    part = np.zeros(q.size)
+    cell = np.zeros(q.size)
+    for lo in range(0, q.size, CHUNK):
+        qq = q[lo:lo + CHUNK]
+        p = points[qq]
+        lists = tree.query_ball_point(p, reach)
+        k = max(1, max(len(x) for x in lists))
+        nb = np.full((qq.size, k), -1, np.int64)
+        for i, x in enumerate(lists):
+            s = np.sort(ev_idx[x])                  # in scan order: independent of the tree
+            nb[i, :s.size] = s
+        ok = (nb >= 0) & (nb != qq[:, None])
+        D = points[np.maximum(nb, 0)] - p[:, None, :]
+        e1, e2 = _basis(normals[qq])
+        x = np.einsum("ijk,ik->ij", D, e1)
+        y = np.einsum("ijk,ik->ij", D, e2)
+        r3 = np.linalg.norm(D, axis=2)
+        rp = np.hypot(x, y)
+        f = np.where(rp > 0, r3 / np.where(rp > 0, rp, 1.0), 1.0)   # unfolded to the 3-D distance
+        x, y = np.where(ok, x * f, np.nan), np.where(ok, y * f, np.nan)
+        gx, gy = _slopes(x, y, r3, ok, g[np.maximum(nb, 0)], g[qq], SLOPE_RADIUS * spacing)
+        c = np.empty(qq.size)
+        pa = np.empty(qq.size)
+        cell_areas(np.ascontiguousarray(x), np.ascontiguousarray(y), nb,
+                   np.ascontiguousarray(qq, dtype=np.int64), np.ascontiguousarray(g[qq]),
+                   gx, gy, float(bound), c, pa)
+        part[lo:lo + qq.size] = pa
+        cell[lo:lo + qq.size] = c
+    return part, cell
+
+
+def _slopes(x, y, r3, ok, g_nb, g0, radius):
+    """Slope ``(gx, gy)`` of a least-squares plane of ``g`` over each point and its neighbours
+    within ``radius``; neighbours beyond 3 robust sigmas of the first plane are dropped (one
+    spike among them tilts a plane); 0 where the plane is undetermined."""
+    w = ok & (r3 <= radius)
+    m = x.shape[0]
+    X = np.column_stack([np.zeros(m), np.where(w, x, 0.0)])
+    Y = np.column_stack([np.zeros(m), np.where(w, y, 0.0)])
+    G = np.column_stack([g0, np.where(w, g_nb, 0.0)])
+    W = np.column_stack([np.ones(m, bool), w]).astype(np.float64)
+    gx = np.zeros(m)
+    gy = np.zeros(m)
+    for step in range(2):
+        S = W.sum(1)
+        sx, sy, sg = (W * X).sum(1), (W * Y).sum(1), (W * G).sum(1)
+        sxx, sxy, syy = (W * X * X).sum(1), (W * X * Y).sum(1), (W * Y * Y).sum(1)
+        sxg, syg = (W * X * G).sum(1), (W * Y * G).sum(1)
+        M = np.stack([np.stack([S, sx, sy], -1), np.stack([sx, sxx, sxy], -1),
+                      np.stack([sy, sxy, syy], -1)], -2)
+        rhs = np.stack([sg, sxg, syg], -1)
+        det = np.linalg.det(M)
+        scale = np.maximum(S * sxx * syy, 1e-300)
+        good = (S >= 4) & (np.abs(det) > 1e-9 * scale)
+        sol = np.zeros((m, 3))
+        if good.any():
+            sol[good] = np.linalg.solve(M[good], rhs[good][:, :, None])[:, :, 0]
+        gx = np.where(good, sol[:, 1], 0.0)
+        gy = np.where(good, sol[:, 2], 0.0)
+        if step == 1:
+            break
+        res = G - (sol[:, :1] + sol[:, 1:2] * X + sol[:, 2:3] * Y)
+        r = np.where(W > 0, np.abs(res), np.nan)
+        with np.errstate(invalid="ignore"):
+            sig = 1.4826 * np.nanmedian(r, axis=1)
+        keep = (W > 0) & (np.abs(res) <= 3.0 * sig[:, None] + 1e-12 * (np.abs(G).max() + 1.0))
+        keep[:, 0] = True                                # the point itself stays
+        W = keep.astype(np.float64)
+    return gx, gy
+
+
+def _fit(center, e1, e2, tree, ev_idx, points, values, radius):
+    """Robust least-squares quadratic of the deviations within ``radius`` of ``center``:
+    ``(coefficients, (A^T A)^-1, residual sigma, points kept)`` or None (under 12 points)."""
+    nb = np.sort(ev_idx[tree.query_ball_point(center, radius)])
+    if nb.size < 12:
+        return None
+    d = points[nb] - center
+    x, y = d @ e1 / radius, d @ e2 / radius        # scaled: the conditioning below is unitless
+    A = np.column_stack([np.ones_like(x), x, y, x * x, x * y, y * y])
+    sv = np.linalg.svd(A, compute_uv=False)
+    if not sv[-1] > MIN_CONDITION * sv[0]:
+        return None           # the points do not fix a quadratic (e.g. two scanner rows)
+    b = values[nb]
+    keep = np.ones(b.size, bool)
+    for _ in range(3):                     # drop spikes: residuals beyond 3 robust sigmas
+        c, *_ = np.linalg.lstsq(A[keep], b[keep], rcond=None)
+        res = b - A @ c
+        scale = 1.4826 * np.median(np.abs(res[keep])) + 1e-12 * (abs(c[0]) + 1e-300)
+        new = np.abs(res) <= 3.0 * scale
+        if new.sum() < 12 or np.array_equal(new, keep):
+            break
+        keep = new
+    Ak = A[keep]
+    n_k = int(keep.sum())
+    sigma = float(np.sqrt(np.sum(res[keep] ** 2) / max(n_k - 6, 1)))
+    try:
+        cov = np.linalg.inv(Ak.T @ Ak)
+    except np.linalg.LinAlgError:
+        return None
+    # back to mm: d = c0 + c1 x/r + ... + c5 (y/r)^2
+    unscale = np.array([1.0, 1 / radius, 1 / radius, radius ** -2, radius ** -2, radius ** -2])
+    return c * unscale, cov * np.outer(unscale, unscale), sigma, n_k
+
+
+def _stationary(c, radius):
+    """The extremum ``(x, y)`` of the quadratic ``c`` when it is one of the sign of ``c[0]``
+    (a dent's minimum, a bump's maximum) within ``radius``; else None."""
+    H = np.array([[2 * c[3], c[4]], [c[4], 2 * c[5]]])
+    if not (np.linalg.det(H) > 0 and np.sign(H[0, 0]) == -np.sign(c[0])):
+        return None
+    s = np.linalg.solve(H, -c[1:3])
+    return s if np.hypot(*s) <= radius else None
+
+
+def _value(c, cov, sigma, s):
+    a = np.array([1.0, s[0], s[1], s[0] ** 2, s[0] * s[1], s[1] ** 2])
+    return float(a @ c), float(sigma * np.sqrt(max(a @ cov @ a, 0.0)))
+
+
+def _peak_at(center, normal, tree, ev_idx, points, values, radius):
+    """``(value, se, position)`` of the fitted extremum moved to from ``center`` (or the fit's
+    value at its last centre when it has none), or None."""
+    n = normal / (np.linalg.norm(normal) or 1.0)
+    e1, e2 = _basis(n[None])
+    e1, e2 = e1[0], e2[0]
+    at = np.asarray(center, np.float64).copy()
+    best = None
+    for _ in range(PEAK_STEPS):
+        fit = _fit(at, e1, e2, tree, ev_idx, points, values, radius)
+        if fit is None:
+            break
+        c, cov, sigma, _ = fit
+        s = _stationary(c, radius)
+        if s is None:
+            v, se = _value(c, cov, sigma, np.zeros(2))
+            best = (v, se, at.copy(), sigma)
+            break
+        v, se = _value(c, cov, sigma, s)
+        best = (v, se, at + s[0] * e1 + s[1] * e2, sigma)
+        if np.hypot(*s) <= 0.05 * radius:
+            break
+        at = best[2]
+    return best
+
+
+def fitted_peak(center, normal, tree, ev_idx, points, values, spacing, area):
+    """``(extreme, uncertainty, position, standard error of the fit alone, its residual sigma)``
+    of a region
+    (module docstring), or None when there are too few points around ``center`` for a
+    quadratic."""
+    r = float(np.clip(np.sqrt(area / np.pi) / 3.0, MIN_PEAK_RADIUS * spacing,
+                      MAX_PEAK_RADIUS * spacing))
+    k = min(MIN_PEAK_POINTS, ev_idx.size)
+    d, _ = tree.query(center, k=k)
+    d = np.atleast_1d(d)
+    if np.isfinite(d[-1]):
+        r = max(r, float(d[-1]) * (1 + 1e-9))
+    first = None
+    for _ in range(GROW_STEPS + 1):
+        first = _peak_at(center, normal, tree, ev_idx, points, values, r)
+        if first is not None or r * GROW > MAX_PEAK_RADIUS * spacing:
+            break
+        r *= GROW
+    if first is None:
+        return None
+    wide = _peak_at(first[2], normal, tree, ev_idx, points, values, 1.5 * r)
+    model = abs(first[0] - wide[0]) / 4.0 if wide is not None else 0.0
+    return first[0], float(np.hypot(first[1], model)), first[2], float(first[1]), float(first[3])
+
+
+def local_noise(tree, ev_idx, values, center, radius) -> float:
+    """Noise sigma of the deviations around ``center`` (mm): ``1.4826 median |d_i - d_j| /
+    sqrt 2`` over nearest-neighbour pairs within ``radius`` (the form cancels in a neighbour's
+    difference; a step between a few pairs does not move the median).  NaN under 6 points."""
+    i = np.sort(np.asarray(tree.query_ball_point(center, radius), np.int64))
+    if i.size < 6:
+        return float("nan")
+    p, v = tree.data[i], values[ev_idx[i]]
+    _, j = cKDTree(p).query(p, k=2)
+    return float(1.4826 * np.median(np.abs(v - v[j[:, 1]])) / np.sqrt(2.0))
