@@ -9,6 +9,9 @@ the result's ``rule``:
 2. ``error`` (rule ``registration``): the registration did not converge and its robust
    residual scale exceeds the evaluation distance: the scan fits the model at no pose found (a
    wrong part, a wrong scan, wrong units);
+2b. ``error`` (rule ``registration``): the registration says its pose is a wrong minimum -- the
+   scan fits better elsewhere (a warning whose ``wrong_minimum`` is True, :func:`_wrong_minimum`);
+   checked before the coverage, which a wrong pose spoils;
 3. ``incomplete`` (rule ``coverage``): less than ``min_coverage`` (default 20 %) of the inspected
    CAD area has evaluated scan points near it (:mod:`.coverage`). A part that was not seen is never
    passed and never failed; the reasons say how much was seen, where the largest gap is, whether
@@ -358,6 +361,11 @@ def decide(registration, deviations, regions, coverage=None, *,
                                f"evaluation distance {deviations.max_distance:g} mm (a wrong "
                                "part, a wrong scan or wrong units?)",) + tuple(errors), \
             "registration"
+    wrong = _wrong_minimum(registration)
+    if wrong:
+        # a pose the scan fits better elsewhere than at: not a part that was not seen (issue 30)
+        return Verdict.ERROR, (f"the registration ended in a wrong minimum: {wrong[0]}",) \
+            + tuple(wrong[1:]) + tuple(errors), "registration"
     listed = [f"region {i + 1}: {r.describe()}" for i, r in enumerate(regions[:5])]
     if len(regions) > 5:
         listed.append(f"... and {len(regions) - 5} more regions")
@@ -390,6 +398,17 @@ def decide(registration, deviations, regions, coverage=None, *,
     seen = f"; {100 * coverage.fraction:.1f} % of the inspected area seen" if coverage is not None else ""
     return Verdict.PASS, (f"pass: all {n_eval} evaluated points are within tolerance except isolated "
                     f"measurement outliers{seen}",), "within_tolerance"
+
+
+def _wrong_minimum(registration) -> list[str]:
+    """Rule 2b ``wrong_minimum`` (issue 30): the registration's warnings that say the scan fits
+    better elsewhere than at its pose (``PoseWarning.wrong_minimum``, see
+    :mod:`shapeverify.registration._pose_warnings`).  Such a pose is ``error (registration)``,
+    never ``incomplete (coverage)``: its small coverage is the pose's fault, not the scan's."""
+    if registration is None:
+        return []
+    return [str(w) for w in (getattr(registration, "warnings", ()) or ())
+            if getattr(w, "wrong_minimum", False)]
 
 
 def _undecided(noise, tolerance, n_outliers: int, n_eval: int) -> list[str]:
