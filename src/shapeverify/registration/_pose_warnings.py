@@ -54,7 +54,7 @@ class PoseWarning(str):
 
 #: the kinds of warning that say the pose is a wrong minimum (the scan fits better elsewhere):
 #: the verdict turns them into ``error (registration)``
-WRONG_MINIMUM = frozenset({"scale", "noise"})
+WRONG_MINIMUM = frozenset({"scale", "noise", "better-elsewhere"})
 
 #: below this inlier fraction the pose is flagged (it may be a wrong minimum)
 WARN_INLIERS = 0.5
@@ -109,6 +109,40 @@ def surface_tilt(ev, k: int = 24, points: int = 1000) -> tuple[float, float]:
     return float(np.median(sine)), float(np.median(sine / np.maximum(explained, 1e-12)))
 
 
+#: a pose from a given start (no global search ran) with fewer inliers than this is checked
+#: against the global search (:func:`better_elsewhere`)
+CHECK_INLIERS = 0.9
+#: ... and flagged when the global search's best pose fits the scan at least this many times
+#: better (truncated fit at the sharp fit distance) and is neither this pose nor a symmetric copy
+BETTER = 1.1
+
+
+def better_elsewhere(ev, prep, rng=0):
+    """(fit here, fit there, rotation deg, shift mm) when the global search, run on the scan
+    as placed (``ev.X``), finds a pose that fits clearly better (:data:`BETTER`) and is neither
+    this one nor an exact symmetric copy of it; else None.
+
+    Issue 30 proxies: one side of a box given 120 deg off ended 90 deg off, lying flat on the
+    wrong faces with its residual at the noise level (1.4 x), planes parallel, converged: no
+    other sign tells it; the scan fits far better elsewhere.
+    """
+    from .global_search import _distinct, _model_side, _sharp_fits, global_alignment, is_symmetry
+
+    X = np.asarray(ev.X, np.float64)
+    side = _model_side(prep)
+    ga = global_alignment(X, prep, rng=rng)
+    S = X[np.linspace(0, X.shape[0] - 1, min(400, X.shape[0])).astype(np.int64)]
+    (f0, f1), tau = _sharp_fits(side, S, [np.eye(4), ga.T_model_scan])
+    if not f1 > BETTER * f0:
+        return None
+    ang, dn = _distinct(np.eye(4), ga.T_model_scan, S, side, full=True)
+    if dn <= tau and ang <= 5.0:
+        return None
+    if is_symmetry(side, ga.T_model_scan, float(np.clip(tau, 2.0 * side.spacing, side.tau))):
+        return None
+    return f0, f1, ang, dn
+
+
 def _rejected_information(ev, w, radius) -> float:
     """Largest ratio ``v^T H_rej v / v^T H_w v`` over the eigenvectors v of the weighted
     point-to-plane information H_w (rotation scaled by the scan's radius), H_rej the
@@ -154,11 +188,21 @@ def close_runner_up(ga, T, undet, tau, radius) -> bool:
                 ga.runner_up_pose @ np.linalg.inv(T), undet, tau, radius)))
 
 
-def pose_warnings(ev, w, ga, tau, radius, T=None, undet=(), noise=float("nan")):
+def pose_warnings(ev, w, ga, tau, radius, T=None, undet=(), noise=float("nan"), prep=None):
     """Signs that the final pose is not the right minimum (see ``Registration.warnings``);
     with the final pose T and its undetermined directions, a global runner-up that is only
-    a free spin of T is no sign."""
+    a free spin of T is no sign.  With ``prep`` and no global search (``ga`` None: a given
+    start), a final pose with few inliers is checked by one (:func:`better_elsewhere`)."""
     inl = float(ev.inliers.mean())
+    if ga is None and prep is not None and T is not None and inl < CHECK_INLIERS:
+        better = better_elsewhere(ev, prep)
+        if better is not None:
+            f0, f1, ang, dn = better
+            yield PoseWarning(
+                f"the scan fits better elsewhere: the global search places it {ang:.1f} deg "
+                f"away (moving it {dn:.3g} mm RMS along the normals) with a fit of {f1:.3f} "
+                f"against {f0:.3f} here: the pose is a wrong minimum of the given start",
+                "better-elsewhere")
     if inl < WARN_INLIERS:
         yield PoseWarning(
             f"only {100 * inl:.0f} % of the scan points are inliers at the final pose: it may "
