@@ -219,3 +219,33 @@ def test_inspect_views_reports_each_views_joint_change():
     assert all(ch is not None and np.isfinite(ch).all() for ch in changes), changes
     assert all(ch[0] < 0.05 and ch[1] < 0.05 for ch in changes), changes   # at the truth
     assert set(res.views[0].to_dict()["joint_change"]) == {"rotation_deg", "translation_mm"}
+
+
+@pytest.mark.slow
+def test_a_box_side_lying_on_the_wrong_faces_is_warned_better_elsewhere():
+    """One side of a box (depth noise 1.5 mm) given 120 deg off ended 90 deg off, lying flat on
+    the wrong faces with its residual at the noise level, converged, with no warning (issue 30
+    proxies, 2026-12-06).  The global search finds where it fits better: ``better-elsewhere``, a
+    wrong minimum; the right pose from a 10 deg start carries no warning."""
+    import sys
+    import warnings as _w
+    from pathlib import Path
+
+    sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "benchmarks"))
+    import bench_partial_views as bench
+    from shapeverify.nearest import prepare
+    from shapeverify.registration import register
+
+    prep = prepare(pv.box_model())
+    scan, T_true = pv.box_view(2)
+    size = prep.model.size
+    with _w.catch_warnings():
+        _w.simplefilter("ignore")
+        bad = register(scan, prep, init=bench.given_start(T_true, scan, size, 2, 120.0, 0.1))
+        good = register(scan, prep, init=bench.given_start(T_true, scan, size, 2, 10.0, 0.01))
+    e_bad = bench.errors(bad.T_model_scan, T_true, scan, pv.box_copies())
+    e_good = bench.errors(good.T_model_scan, T_true, scan, pv.box_copies())
+    assert e_bad[0] > 30.0 and bad.converged          # the wrong minimum is real
+    assert [w.kind for w in bad.warnings] == ["better-elsewhere"], bad.warnings
+    assert bad.warnings[0].wrong_minimum
+    assert e_good[0] < 1.0 and good.warnings == (), good.warnings
