@@ -9,6 +9,9 @@ the result's ``rule``:
 2. ``error`` (rule ``registration``): the registration did not converge and its robust
    residual scale exceeds the evaluation distance: the scan fits the model at no pose found (a
    wrong part, a wrong scan, wrong units);
+2b. ``error`` (rule ``registration``): the registration says its pose is a wrong minimum -- the
+   scan fits better elsewhere (a warning whose ``wrong_minimum`` is True, :func:`_wrong_minimum`);
+   checked before the coverage, which a wrong pose spoils;
 3. ``incomplete`` (rule ``coverage``): less than ``min_coverage`` (default 20 %) of the inspected
    CAD area has evaluated scan points near it (:mod:`.coverage`). A part that was not seen is never
    passed and never failed; the reasons say how much was seen, where the largest gap is, whether
@@ -371,6 +374,16 @@ def _rule_does_not_fit(f: _Facts):
     return None
 
 
+def _rule_wrong_minimum(f: _Facts):
+    """Rule 2b: a pose the scan fits better elsewhere than at (a wrong-minimum warning of the
+    registration) is an error of the registration, not a part that was not seen (issue 30)."""
+    wrong = _wrong_minimum(f.registration)
+    if not wrong:
+        return None
+    return Verdict.ERROR, (f"the registration ended in a wrong minimum: {wrong[0]}",) \
+        + tuple(wrong[1:]) + f.errors, "registration"
+
+
 def _rule_coverage(f: _Facts):
     coverage, regions = f.coverage, f.regions
     if coverage is None or coverage.sufficient:
@@ -423,7 +436,8 @@ def _rule_within_tolerance(f: _Facts):
 #: ``(verdict, reasons, rule)`` or None (does not apply); the first that applies decides.  A new
 #: rule is one function inserted here at its place (e.g. a rule of its own for missing material
 #: would go between ``_rule_registration`` and ``_rule_regions``).
-RULES = (_rule_no_data, _rule_does_not_fit, _rule_coverage, _rule_registration,
+RULES = (_rule_no_data, _rule_does_not_fit, _rule_wrong_minimum, _rule_coverage,
+         _rule_registration,
          # slot: a rule for missing material (inspection/missing.py) goes here, before regions
          _rule_regions, _rule_undecided, _rule_within_tolerance)
 
@@ -515,6 +529,17 @@ def symmetric_copy_fits_alike(fit_first: float, fit_other: float) -> bool:
     """Rule 9, second part: the alternative's fit of the scan (:mod:`.ambiguity` computes it) is
     at least :data:`SYMMETRIC_COPY_SHARE` of the first pose's: its pass is the result."""
     return not fit_other < SYMMETRIC_COPY_SHARE * fit_first
+
+
+def _wrong_minimum(registration) -> list[str]:
+    """Rule 2b ``wrong_minimum`` (issue 30): the registration's warnings that say the scan fits
+    better elsewhere than at its pose (``PoseWarning.wrong_minimum``, see
+    :mod:`shapeverify.registration._pose_warnings`).  Such a pose is ``error (registration)``,
+    never ``incomplete (coverage)``: its small coverage is the pose's fault, not the scan's."""
+    if registration is None:
+        return []
+    return [str(w) for w in (getattr(registration, "warnings", ()) or ())
+            if getattr(w, "wrong_minimum", False)]
 
 
 def _undecided(noise, tolerance, n_outliers: int, n_eval: int) -> list[str]:

@@ -12,9 +12,12 @@ there (the part's own form cancels out); its median |.| is reported for every ov
 and a pair that disagrees by more than half the tightest limit is named in the reasons (one of
 the two poses is off, or the part moved between the views).
 
-The views are registered to the CAD one by one; they are not yet refined jointly against each
-other (a pose graph over the overlaps): the agreement check is what tells when that would
-matter.
+After each view is placed alone, all placed views are refined together (:func:`joint_refine`):
+in :data:`JOINT_ROUNDS` rounds, each view in turn takes Huber point-to-plane steps against the
+CAD (its closest points) and against the other views where they overlap (its points within two
+scan spacings of another view's point, the residual along the CAD normal: the views must agree
+where they see the same surface).  Each view's pose change is reported (``joint_change``), and
+the agreement is measured at the refined poses.
 
 Example
 -------
@@ -34,6 +37,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 from dataclasses import dataclass, field
+from types import SimpleNamespace
 
 import numpy as np
 from scipy.spatial import cKDTree
@@ -68,6 +72,9 @@ class ViewSummary:
         The view's registration warnings.
     disagreement : dict {view name: mm}
         Median |difference of the deviations| where this view overlaps another.
+    joint_change : (deg, mm) or None
+        How far the joint refinement moved the view from its pose alone (rotation, and the
+        displacement of its centroid); None when it was not refined jointly (one view).
     """
 
     name: str
@@ -81,6 +88,7 @@ class ViewSummary:
     verdict: str = ""
     warnings: tuple = ()
     disagreement: dict = field(default_factory=dict)
+    joint_change: tuple | None = None
 
     def to_dict(self) -> dict:
         from .result import _num
@@ -91,7 +99,10 @@ class ViewSummary:
                 else [[float(v) for v in row] for row in self.T_model_scan],
                 "rms": _num(self.rms), "inlier_fraction": _num(self.inlier_fraction),
                 "coverage": _num(self.coverage), "warnings": list(self.warnings),
-                "disagreement_mm": {k: _num(v) for k, v in self.disagreement.items()}}
+                "disagreement_mm": {k: _num(v) for k, v in self.disagreement.items()},
+                "joint_change": None if self.joint_change is None
+                else {"rotation_deg": _num(self.joint_change[0]),
+                      "translation_mm": _num(self.joint_change[1])}}
 
 
 def is_view_list(scan) -> bool:
@@ -130,9 +141,66 @@ def _union_registration(regs, used):
         message="; ".join(r.message for r in ok if r.message))
 
 
+#: rounds of the joint refinement (each view in turn against the CAD and the other views)
+JOINT_ROUNDS = 4
+#: scan points of each view that take part in the joint refinement (an evenly spaced subset)
+JOINT_POINTS = 4000
+
+
+def joint_refine(pts, poses, prep, spacing: float, rounds: int = JOINT_ROUNDS) -> list:
+    """The poses (4, 4) of the views ``pts`` (each (N_i, 3), own frame), refined together
+    (module docstring): ``rounds`` sweeps over the views, one Huber point-to-plane step each
+    against the CAD's closest points and the overlapping points of the other views (within
+    ``2 x spacing``, residual along the CAD normal at the view's point).  Directions the data
+    leave undetermined get no step (:func:`~shapeverify.registration.rigid.solve_step`)."""
+    from ..registration.losses import get_loss
+    from ..registration.rigid import compose_step, make_transform, point_to_plane_system, \
+        solve_step
+
+    huber = get_loss("huber")
+    T = [np.asarray(P, np.float64).copy() for P in poses]
+    sub = [p[np.linspace(0, len(p) - 1, min(JOINT_POINTS, len(p))).astype(np.int64)]
+           for p in pts]
+    for _ in range(rounds):
+        for i in range(len(pts)):
+            X = sub[i] @ T[i][:3, :3].T + T[i][:3, 3]
+            cl = prep.closest(X)
+            ok = np.isfinite(cl.distances) & ~np.asarray(cl.on_boundary, bool)
+            src, dst, nrm = [X[ok]], [cl.points[ok]], [cl.normals[ok]]
+            others = [j for j in range(len(pts)) if j != i]
+            if others:
+                Z = np.concatenate([pts[j] @ T[j][:3, :3].T + T[j][:3, 3] for j in others])
+                dist, k = cKDTree(Z).query(X, distance_upper_bound=2.0 * spacing)
+                near = ok & np.isfinite(dist)
+                src.append(X[near])
+                dst.append(Z[np.minimum(k[near], len(Z) - 1)])
+                nrm.append(cl.normals[near])
+            Xa, Ya, Na = (np.concatenate(a) for a in (src, dst, nrm))
+            if Xa.shape[0] < 6:
+                continue
+            r = np.einsum("ij,ij->i", Xa - Ya, Na)
+            sigma = max(1.4826 * float(np.median(np.abs(r))), 1e-9 * spacing)
+            c = Xa.mean(axis=0)
+            radius = max(float(np.sqrt(np.mean(np.sum((Xa - c) ** 2, axis=1)))), 1e-12)
+            H, g, _ = point_to_plane_system(Xa, Ya, Na, huber.weight(r, sigma), c)
+            theta, _ = solve_step(H, g, radius)
+            T[i] = make_transform(*compose_step(T[i][:3, :3], T[i][:3, 3], theta, c))
+    return T
+
+
+def _pose_change(T0, T1, p) -> tuple[float, float]:
+    """(rotation deg, displacement mm of the centroid of p) between the poses T0 and T1."""
+    from ..registration.rigid import rotation_vector
+
+    c = p.mean(axis=0)
+    ang = float(np.degrees(np.linalg.norm(rotation_vector(T1[:3, :3] @ T0[:3, :3].T))))
+    return ang, float(np.linalg.norm(T1[:3, :3] @ c + T1[:3, 3] - T0[:3, :3] @ c - T0[:3, 3]))
+
+
 def _disagreement(alone, placed, labels, used, spacing):
     """{(a, b): median |d_a - d_b|} over the evaluated points of view a within 2 spacings of
-    an evaluated point of view b (the deviations each view's own inspection measured)."""
+    an evaluated point of view b (``alone[i].deviations.values``: each view's deviations, one
+    per point of ``placed[i]``)."""
     out = {}
     dev = {i: alone[i].deviations.values for i in used}
     trees = {i: cKDTree(placed[i]) for i in used}
@@ -228,12 +296,26 @@ def inspect_views(prep, views, tolerance=0.2, *, poses=None, names=None, rng=0,
     if not used:
         raise ScanError("no view fits the CAD: " + "; ".join(f"{s.name}: {s.reason}"
                                                               for s in summaries))
+    spacing = float(np.nanmedian([alone[i].spacing for i in used]))
+    if len(used) > 1:          # all placed views refined together (module docstring)
+        joint = joint_refine([pts[i] for i in used], [regs[i].T_model_scan for i in used],
+                             prep, spacing)
+        for i, T in zip(used, joint):
+            summaries[i] = dataclasses.replace(
+                summaries[i], T_model_scan=T,
+                joint_change=_pose_change(regs[i].T_model_scan, T, pts[i]))
+            regs[i] = dataclasses.replace(regs[i], T_model_scan=T)
     placed = {i: pts[i] @ regs[i].T_model_scan[:3, :3].T + regs[i].T_model_scan[:3, 3]
               for i in used}
-    spacing = float(np.nanmedian([alone[i].spacing for i in used]))
-    pairs = _disagreement(alone, placed, labels, used, spacing) if len(used) > 1 else {}
     union = np.concatenate([placed[i] for i in used])
     result = inspect_registered(prep, union, _union_registration(regs, used), tolerance, **opts)
+    # the agreement at the refined poses: the union's deviations, view by view
+    vals = np.asarray(result.deviations.values, np.float64)
+    ends = np.cumsum([len(placed[i]) for i in used])
+    split = ({i: SimpleNamespace(deviations=SimpleNamespace(values=v))
+              for i, v in zip(used, np.split(vals, ends[:-1]))}
+             if vals.shape[0] == ends[-1] else alone)
+    pairs = _disagreement(split, placed, labels, used, spacing) if len(used) > 1 else {}
 
     limit = min(abs(result.tolerance.lower), abs(result.tolerance.upper))
     notes = []

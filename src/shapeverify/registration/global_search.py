@@ -81,7 +81,10 @@ class GlobalAlignment:
     runner_up : (fit, rotation deg, normal displacement mm) of the best refined hypothesis that
     moves the scan differently (None if none); seconds : wall time; runner_up_pose : that
     hypothesis' pose (4, 4) or None; others : (fit, pose) of every refined hypothesis that
-    moves the scan differently from the best, best fit first (the runner-up the first).
+    moves the scan differently from the best, best fit first (the runner-up the first);
+    symmetric : one bool per entry of ``others``: that pose is an exact symmetric copy of the
+    best -- the model maps onto itself under the motion between them (:func:`is_symmetry`), so
+    the two are equally right answers, not a doubt about the pose.
     """
 
     T_model_scan: np.ndarray
@@ -92,6 +95,7 @@ class GlobalAlignment:
     seconds: float
     runner_up_pose: np.ndarray | None = None
     others: tuple = ()
+    symmetric: tuple = ()
 
     def __repr__(self) -> str:
         return (f"GlobalAlignment(fit={self.fit:.3f}, source={self.source!r}, "
@@ -349,6 +353,27 @@ def _distinct(T1, T2, S, side, full: bool = False) -> tuple[float, float]:
     return ang, float(np.sqrt(np.mean(dn ** 2)))
 
 
+#: model points (a regular subset) moved by a candidate symmetry
+SYMMETRY_POINTS = 20000
+
+
+def is_symmetry(side, D, tol: float | None = None) -> bool:
+    """The model maps onto itself under D (4, 4, model frame): every one of a regular subset of
+    its points (:data:`SYMMETRY_POINTS`), moved by D, lies within ``tol`` (mm; default the fit
+    distance) of the model (the distance to the nearest model point's tangent plane,
+    :func:`_distances`).  The global search passes its sharp fit distance (three times the
+    robust residual scale of the best pose, at least two model spacings): a motion that misses
+    the nearest true symmetry by more than the scan's own fit is not one.
+
+    Every point, not a share: a near-symmetric part (a plate whose one chamfered corner tells its
+    ends apart) moves the points of that feature far off, and its copies are not equally right.
+    """
+    M = side.all_points[::max(1, side.all_points.shape[0] // SYMMETRY_POINTS)]
+    d, _ = _distances(side, M, np.asarray(D, np.float64))
+    tol = side.tau if tol is None else float(tol)
+    return bool(np.all(np.isfinite(d) & (d <= tol)))
+
+
 def _apart(dist, tq) -> bool:
     """Two hypotheses differ: 5 degrees apart, or moving the scan by tq along the normals."""
     return dist[0] > 5.0 or dist[1] > tq
@@ -420,7 +445,10 @@ def global_alignment(scan, prep, rng=0, extra=()) -> GlobalAlignment:
             others.append((f, T))
             if runner is None:
                 runner, runner_T = (f, ang, dn), T
+    inv = np.linalg.inv(best_T)
+    tol = float(np.clip(tau, 2.0 * side.spacing, side.tau))
+    symmetric = tuple(is_symmetry(side, T @ inv, tol) for _, T in others)
     out = GlobalAlignment(best_T, best_fit, best_src, len(hyps), runner,
-                          time.perf_counter() - t0, runner_T, tuple(others))
+                          time.perf_counter() - t0, runner_T, tuple(others), symmetric)
     logger.info("global alignment: %r", out)
     return out

@@ -518,7 +518,7 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
     msg = (f"converged in {st.iterations} iterations" if converged else
            f"not converged: {why}")
     desc = tuple(_describe(undet))
-    notes = list(pose_warnings(ev, w, ga, tau, radius, T, undet, noise))
+    notes = list(pose_warnings(ev, w, ga, tau, radius, T, undet, noise, prep=prep))
     if undet.shape[0]:
         txt = ("scan geometry leaves %d pose direction(s) undetermined: %s"
                % (undet.shape[0], "; ".join(desc)))
