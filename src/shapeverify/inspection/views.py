@@ -36,7 +36,7 @@ import logging
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial import cKDTree
+from shapeverify._lazy import cKDTree
 
 from ..errors import RegistrationError, ScanError
 
