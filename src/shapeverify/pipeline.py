@@ -346,7 +346,8 @@ def write_outputs(result, prep, scan, out: InspectionOutputs, *, json_path=None,
             inputs = result.inputs or {}
             out.pdf = Path(write_pdf_report(
                 plan_result, pdf_path, prep, part=part, scan_file=inputs.get("scan"),
-                model_file=inputs.get("model"), tolerance=result.tolerance.max_abs))
+                model_file=inputs.get("model"), tolerance=result.tolerance.max_abs,
+                regions=result.regions))
     if colored_path:
         out.colored = write_colored_ply(result, scan, colored_path)
     if db_path:
