@@ -134,10 +134,11 @@ def _commands(d: Path, inp: dict) -> list[list]:
 
     model, rig, T = demo_scene(150, 140)
     imgs = fringe_images(model, rig, T, period_mm=1.2, rng=9)
-    cv2.imwrite(str(d / "l.png"), imgs.left)
-    cv2.imwrite(str(d / "r.png"), imgs.right)
+    cv2.imwrite(str(d / "left_cam.png"), imgs.left)
+    cv2.imwrite(str(d / "right_cam.png"), imgs.right)
     save_rig(imgs.rig, d / "rig.json")
-    cmds.append(["measure", d / "rig.json", d / "l.png", d / "r.png", "-o", d / "m.ply"])
+    cmds.append(["measure", d / "rig.json", d / "left_cam.png", d / "right_cam.png", "-o",
+                 d / "m.ply"])
     return cmds
 
 
