@@ -24,7 +24,7 @@ import numpy as np
 
 from .colours import CMAP, color_limit
 from .labels import free_labels
-from .quantities import area_text
+from .quantities import area_text, length_text
 from .ply import check_scan_length
 
 logger = logging.getLogger(__name__)
@@ -48,6 +48,11 @@ def _fmt(x, digits: int = 4, signed: bool = False) -> str:
     if isinstance(x, (int, np.integer)):
         return f"{int(x):,}"
     return f"{float(x):+.{digits}f}" if signed else f"{float(x):.{digits}f}"
+
+
+def _length(x) -> str:
+    """A signed length with three significant digits in µm, mm or m ("–" when not finite)."""
+    return "–" if x is None or not math.isfinite(float(x)) else length_text(x, signed=True)
 
 
 def _table(rows, header=None, cls="kv") -> str:
@@ -451,12 +456,12 @@ def render_html(result, model=None, *, max_points: int = MAX_POINTS, title: str 
     t_html = "<pre>" + "\n".join(" ".join(f"{x:+.6f}" for x in row) for row in T) + "</pre>"
     if result.regions:
         reg_tab = _table(
-            [(f"R{i + 1}", g.kind, _fmt(g.n), area_text(g.area), _fmt(g.extreme, 4, True),
-              _fmt(g.extreme_raw, 4, True), _fmt(g.severity, 3),
+            [(f"R{i + 1}", g.kind, _fmt(g.n), area_text(g.area), _length(g.extreme),
+              _length(g.extreme_raw), _fmt(g.severity, 3),
               ", ".join(f"{c:.2f}" for c in g.centroid),
               html.escape(", ".join(str(f) for f in g.faces[:10])), g.side)
              for i, g in enumerate(result.regions)],
-            header=("region", "kind", "points", "area", "extreme [mm]", "largest single [mm]",
+            header=("region", "kind", "points", "area", "extreme", "largest single",
                     "severity [mm³]", "centroid x, y, z [mm]", "faces", "side"), cls="regions")
     else:
         reg_tab = ('<p class="note">No regions: no connected out-of-tolerance surface, no '
