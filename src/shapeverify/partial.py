@@ -24,7 +24,7 @@ import dataclasses
 import logging
 
 import numpy as np
-from scipy.spatial import cKDTree
+from shapeverify._lazy import cKDTree
 
 logger = logging.getLogger(__name__)
 

@@ -414,7 +414,8 @@ def _write_pdf(result, request, prep) -> Path:
     inputs = result.inputs or {}
     return Path(write_pdf_report(
         plan_result, request.pdf, prep, part=request.part, scan_file=inputs.get("scan"),
-        model_file=inputs.get("model"), tolerance=result.tolerance.max_abs))
+        model_file=inputs.get("model"), tolerance=result.tolerance.max_abs,
+        regions=result.regions))
 
 
 def _store(result, request, history) -> int:

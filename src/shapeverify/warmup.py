@@ -8,10 +8,13 @@ inspection does not pay for compiling.  Run it yourself after ``pip install shap
 
     python -m shapeverify.warmup
 
-It imports, prepares, simulates a scan of and inspects the bundled example panel at a coarse
-spacing through the command line (``info``, ``prepare``, ``inspect`` with every report), each in
-its own process as a user would run them, so every kernel those commands call is compiled for
-the argument types they call it with.
+It imports, prepares, simulates a scan of and inspects the bundled example panel through the
+command line (``info``, ``prepare``, ``inspect`` with every report, and with a plan), then runs
+``unwrap``, ``hologram``, ``fit`` and ``measure`` on small inputs
+(:mod:`shapeverify._warmup_commands`), each in its own process as a user would run them, so
+every kernel those commands call is compiled for the argument types they call it with; then,
+in this process, the library with the arrays other programs hand over (read-only, float32,
+Fortran-ordered).
 
 :func:`compile_notices` is what the command line uses to tell the user, once, that numba is
 compiling (with an estimate) instead of sitting silent for a minute.
@@ -154,7 +157,8 @@ def _run(argv, cwd: Path) -> float:
 
 
 def warm_up(say=logger.info) -> float:
-    """Compile (or load from the cache) every kernel of ``info``, ``prepare`` and ``inspect``.
+    """Compile (or load from the cache) every kernel of ``info``, ``prepare``, ``inspect`` (with
+    and without a plan), ``measure``, ``unwrap``, ``hologram`` and ``fit``.
 
     Parameters
     ----------
@@ -192,6 +196,11 @@ def warm_up(say=logger.info) -> float:
         _far_queries(work / "panel.svm")
         say("scans as other programs hand them over (read-only, float32, Fortran order)")
         input_variants(work / "panel.svm", work / "scan.ply")
+        from shapeverify._warmup_commands import library_variants, run_all
+
+        run_all(work, _run, say, step=step, svm=work / "panel.svm", scan=work / "scan.ply")
+        say("phase maps and points as other programs hand them over")
+        library_variants()
     return time.perf_counter() - t0
 
 

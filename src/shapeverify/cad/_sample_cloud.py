@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 from numba import njit
-from scipy.spatial import cKDTree
+from shapeverify._lazy import cKDTree
 
 from ._sample_common import _RADIUS, _thin
 

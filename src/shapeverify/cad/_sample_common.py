@@ -12,7 +12,7 @@ import math
 
 import numpy as np
 from numba import njit
-from scipy.spatial import cKDTree
+from shapeverify._lazy import cKDTree
 
 #: Largest number of model points :func:`sample_model` agrees to make.
 MAX_POINTS = 20_000_000

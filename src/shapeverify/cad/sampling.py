@@ -70,7 +70,7 @@ import math
 
 import numpy as np
 from numba import njit
-from scipy.spatial import cKDTree
+from shapeverify._lazy import cKDTree
 
 # the samplers of each model kind, and what they share; the private names stay importable from here
 from ._sample_cloud import _any_tangent, _neighbour_cov, _pca_normals, _sample_cloud  # noqa: F401

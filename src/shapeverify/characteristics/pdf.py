@@ -23,7 +23,7 @@ from ..report.colours import BAND_COLOURS  # noqa: F401 (re-exported: the PDF's 
 from ..verdict_table import verdict_style
 from .registry import label as _type_label   # the type's label (the registry)
 
-__all__ = ["write_pdf_report", "band_edges", "BAND_COLOURS"]
+__all__ = ["write_pdf_report", "pdf_figures", "band_edges", "BAND_COLOURS"]
 
 logger = logging.getLogger(__name__)
 
@@ -63,6 +63,16 @@ def _view(points):
     return np.stack([vt[0], vt[1], np.cross(vt[0], vt[1])]), ("axis 1 [mm]", "axis 2 [mm]")
 
 
+def _mm(v: float) -> str:
+    """A coordinate in mm to the µm, without trailing zeros.
+
+    >>> _mm(28000.0), _mm(-0.0), _mm(12.3456)
+    ('28000', '0', '12.346')
+    """
+    text = f"{float(v):.3f}".rstrip("0").rstrip(".")
+    return "0" if text in ("-0", "") else text
+
+
 def _fmt(v, digits=4):
     if v is None:
         return "-"
@@ -70,7 +80,8 @@ def _fmt(v, digits=4):
         parts = []
         for k, x in v.items():
             if k == "center" and isinstance(x, (list, tuple, np.ndarray)):
-                parts.append("c=(" + ", ".join(f"{y:.3f}" for y in x) + ")")
+                # one coordinate a line: a table cell holds "x=28000.001", not all three
+                parts += [f"{a}={_mm(y)}" for a, y in zip("xyz", x)]
             elif x is not None:
                 parts.append(f"{'pos' if k == 'position' else k[0]}={x:.{digits}g}")
         return "\n".join(parts)
@@ -82,7 +93,7 @@ def _fmt(v, digits=4):
 def write_pdf_report(result, path, prep=None, *, part: str | None = None,
                      scan_file: str | None = None, model_file: str | None = None,
                      date: _dt.datetime | str | None = None, tolerance: float | None = None,
-                     max_points: int = 40_000, rng=0) -> Path:
+                     max_points: int = 40_000, rng=0, regions=None) -> Path:
     """Write the PDF report of a :class:`~shapeverify.characteristics.evaluate.PlanResult`.
 
     Parameters
@@ -100,6 +111,9 @@ def write_pdf_report(result, path, prep=None, *, part: str | None = None,
         Band tolerance b (mm); default half the first surface profile's t, else 0.1.
     max_points : int
         Points drawn in the colour map (a seeded random subset beyond).
+    regions : sequence of DefectRegion, optional
+        The inspection's regions (most severe first, model coordinates): labelled R1, R2, ...
+        on the map where their labels do not overlap, and listed under it.
 
     Returns
     -------
@@ -111,10 +125,34 @@ def write_pdf_report(result, path, prep=None, *, part: str | None = None,
         The file cannot be written.
     """
     from matplotlib.backends.backend_pdf import PdfPages
-    from matplotlib.colors import BoundaryNorm, ListedColormap
-    from matplotlib.figure import Figure
 
     path = Path(path)
+    if date is None:
+        date = _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0)
+    part = part if part is not None else (result.plan.part or "-")
+    meta = {"Title": f"Inspection report {part}", "Creator": "shapeverify",
+            "Subject": f"scan {scan_file or '-'}"}
+    if isinstance(date, _dt.datetime):
+        meta["CreationDate"] = date
+        meta["ModDate"] = date
+    figures = pdf_figures(result, prep, part=part, scan_file=scan_file, model_file=model_file,
+                          date=date, tolerance=tolerance, max_points=max_points, rng=rng,
+                          regions=regions)
+    with PdfPages(path, metadata=meta) as pdf:
+        for fig in figures:
+            pdf.savefig(fig)
+    logger.info("PDF report written to %s", path)
+    return path
+
+
+def pdf_figures(result, prep=None, *, part: str | None = None, scan_file: str | None = None,
+                model_file: str | None = None, date=None, tolerance: float | None = None,
+                max_points: int = 40_000, rng=0, regions=None) -> list:
+    """The pages of :func:`write_pdf_report` as matplotlib figures (A4 portrait, the
+    cross-section A4 landscape), for writing and for checking their layout (parameters as
+    there)."""
+    from matplotlib.colors import BoundaryNorm, ListedColormap
+
     rng = np.random.default_rng(rng)
     if date is None:
         date = _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0)
@@ -124,6 +162,26 @@ def write_pdf_report(result, path, prep=None, *, part: str | None = None,
     edges = band_edges(b)
     cmap = ListedColormap(BAND_COLOURS)
     norm = BoundaryNorm(np.r_[-1e9, edges, 1e9], cmap.N)
+    figures = [_page_map(result, prep, part, scan_file, model_file, stamp, b, edges, cmap,
+                         norm, max_points, rng, list(regions or ()))]
+    figures += _pages_table(result, part)
+    if result.section is not None:
+        figures.append(_page_section(result.section, b, cmap, norm))
+    return figures
+
+
+def _figure(width: float, height: float):
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(width, height))
+    FigureCanvasAgg(fig)              # text extents measured as drawn (labels, table rows)
+    return fig
+
+
+def _page_map(result, prep, part, scan_file, model_file, stamp, b, edges, cmap, norm,
+              max_points, rng, regions):
+    """Page 1: header, the colour map of the deviations (regions labelled), the histogram."""
     X = result.points
     dev = result.deviations
     ok = np.isfinite(dev)
@@ -131,146 +189,258 @@ def write_pdf_report(result, path, prep=None, *, part: str | None = None,
     if idx.size > max_points:
         idx = np.sort(rng.choice(idx, max_points, replace=False))
     R, labels = _view(X[ok] if ok.any() else X)
+    fig = _figure(*A4_PORTRAIT)
+    v = result.verdict
+    fig.text(0.06, 0.965, "Inspection report", fontsize=17, weight="bold", va="top")
+    fig.text(0.94, 0.965, verdict_style(v).word, fontsize=17, weight="bold", va="top", ha="right",
+             color=_colour(v))
+    al = result.alignment
+    head = [("part", part), ("scan file", scan_file or "-"), ("model", model_file or "-"),
+            ("date", stamp), ("alignment", f"{al.kind} (rms {al.rms:.4f} mm; fitted "
+                                           f"{' '.join(al.dof_fitted)}"
+                                           + (f"; locked {' '.join(al.dof_locked)}"
+                                              if al.dof_locked else "") + ")"),
+            ("units", "mm; deviations along the CAD normal, + outside the material")]
+    for i, (k, val) in enumerate(head):
+        fig.text(0.06, 0.93 - 0.018 * i, f"{k}:", fontsize=9, weight="bold", va="top")
+        _fit_width(fig, fig.text(0.2, 0.93 - 0.018 * i, str(val), fontsize=9, va="top"))
+    ax = fig.add_axes([0.08, 0.40, 0.78, 0.40])
+    if prep is not None:
+        mp = prep.points.points
+        mp = mp[:: max(1, len(mp) // 60000)]
+        P2 = mp @ R.T
+        ax.scatter(P2[:, 0], P2[:, 1], s=0.6, c="#c8c8c8", linewidths=0, rasterized=True,
+                   label="CAD not covered")
+    S2 = X[idx] @ R.T
+    order = np.argsort(S2[:, 2])
+    sc = ax.scatter(S2[order, 0], S2[order, 1], s=1.2, c=dev[idx][order], cmap=cmap,
+                    norm=norm, linewidths=0, rasterized=True)
+    span = np.ptp(S2[:, :2], axis=0).max() if len(S2) else 1.0
+    for c in result.characteristics:
+        if c.type == "check_point" and c.measured is not None:
+            q = np.asarray(c.details["point"])
+            n = np.asarray(c.details["normal"])
+            q2, n2 = q @ R.T, n @ R.T
+            L = 0.08 * span * float(np.clip(c.measured / max(b, 1e-12), -3, 3))
+            end = q2[:2] + L * (n2[:2] / max(np.linalg.norm(n2[:2]), 1e-9)) \
+                if np.linalg.norm(n2[:2]) > 1e-3 else q2[:2] + [0, L]
+            col = _colour(c.verdict)
+            ax.plot([q2[0], end[0]], [q2[1], end[1]], color=col, lw=2)
+            ax.plot(*q2[:2], "o", color=col, ms=3)
+            ax.annotate(f"{c.name} {c.measured:+.3f}", end, fontsize=7, color=col)
+        if c.type == "hole" and c.measured is not None:
+            q2 = np.asarray(c.measured["center"]) @ R.T
+            ax.annotate(c.name, q2[:2], fontsize=7, ha="center", va="center", weight="bold")
+    ax.set_aspect("equal")
+    ax.set_xlabel(labels[0])
+    ax.set_ylabel(labels[1])
+    ax.set_title(f"Deviation map, bands of b = {b:g} mm (grey: CAD not covered by the scan)",
+                 fontsize=10)
+    cax = fig.add_axes([0.88, 0.40, 0.02, 0.40])
+    cb = fig.colorbar(sc, cax=cax, ticks=edges, spacing="uniform")
+    cb.ax.set_yticklabels([f"{e:+.3g}" for e in edges], fontsize=7)
+    cb.set_label("deviation [mm]", fontsize=8)
+    if regions:
+        _region_list(fig, regions)
+    hx = fig.add_axes([0.1, 0.06, 0.8, 0.2])
+    dv = dev[ok]
+    if dv.size:
+        lim = histogram_limit(dv, b)
+        bins = np.linspace(-lim, lim, 81)
+        cnt, be = np.histogram(np.clip(dv, -lim, lim), bins)
+        mids = 0.5 * (be[1:] + be[:-1])
+        hx.bar(mids, cnt, width=np.diff(be), color=cmap(norm(mids)), edgecolor="none")
+        for e in (-b, b):
+            hx.axvline(e, color="#b3261e", ls="--", lw=1)
+        hx.set_title(f"Histogram of {dv.size:,} deviations: mean {dv.mean():+.4f}, std "
+                     f"{dv.std():.4f}, min {dv.min():+.4f}, max {dv.max():+.4f} mm",
+                     fontsize=9)
+    hx.set_xlabel("deviation [mm]")
+    hx.set_ylabel("points")
+    _keep_inside(fig, [ax, hx])
+    if regions:                      # last: the map's limits and aspect are final
+        from shapeverify.report.labels import place_labels
 
-    meta = {"Title": f"Inspection report {part}", "Creator": "shapeverify",
-            "Subject": f"scan {scan_file or '-'}"}
-    if isinstance(date, _dt.datetime):
-        meta["CreationDate"] = date
-        meta["ModDate"] = date
-    with PdfPages(path, metadata=meta) as pdf:
-        # ---------------------------------------------------------------- page 1
-        fig = Figure(figsize=(8.27, 11.69))
-        v = result.verdict
-        fig.text(0.06, 0.965, "Inspection report", fontsize=17, weight="bold", va="top")
-        fig.text(0.94, 0.965, verdict_style(v).word, fontsize=17, weight="bold", va="top", ha="right",
-                 color=_colour(v))
-        al = result.alignment
-        head = [("part", part), ("scan file", scan_file or "-"), ("model", model_file or "-"),
-                ("date", stamp), ("alignment", f"{al.kind} (rms {al.rms:.4f} mm; fitted "
-                                               f"{' '.join(al.dof_fitted)}"
-                                               + (f"; locked {' '.join(al.dof_locked)}"
-                                                  if al.dof_locked else "") + ")"),
-                ("units", "mm; deviations along the CAD normal, + outside the material")]
-        for i, (k, val) in enumerate(head):
-            fig.text(0.06, 0.93 - 0.018 * i, f"{k}:", fontsize=9, weight="bold", va="top")
-            fig.text(0.2, 0.93 - 0.018 * i, str(val), fontsize=9, va="top")
-        ax = fig.add_axes([0.08, 0.38, 0.78, 0.42])
-        if prep is not None:
-            mp = prep.points.points
-            mp = mp[:: max(1, len(mp) // 60000)]
-            P2 = mp @ R.T
-            ax.scatter(P2[:, 0], P2[:, 1], s=0.6, c="#c8c8c8", linewidths=0, rasterized=True,
-                       label="CAD not covered")
-        S2 = X[idx] @ R.T
-        order = np.argsort(S2[:, 2])
-        sc = ax.scatter(S2[order, 0], S2[order, 1], s=1.2, c=dev[idx][order], cmap=cmap,
-                        norm=norm, linewidths=0, rasterized=True)
-        span = np.ptp(S2[:, :2], axis=0).max() if len(S2) else 1.0
-        for c in result.characteristics:
-            if c.type == "check_point" and c.measured is not None:
-                q = np.asarray(c.details["point"])
-                n = np.asarray(c.details["normal"])
-                q2, n2 = q @ R.T, n @ R.T
-                L = 0.08 * span * float(np.clip(c.measured / max(b, 1e-12), -3, 3))
-                end = q2[:2] + L * (n2[:2] / max(np.linalg.norm(n2[:2]), 1e-9)) \
-                    if np.linalg.norm(n2[:2]) > 1e-3 else q2[:2] + [0, L]
-                col = _colour(c.verdict)
-                ax.plot([q2[0], end[0]], [q2[1], end[1]], color=col, lw=2)
-                ax.plot(*q2[:2], "o", color=col, ms=3)
-                ax.annotate(f"{c.name} {c.measured:+.3f}", end, fontsize=7, color=col)
-            if c.type == "hole" and c.measured is not None:
-                q2 = np.asarray(c.measured["center"]) @ R.T
-                ax.annotate(c.name, q2[:2], fontsize=7, ha="center", va="center", weight="bold")
-        ax.set_aspect("equal")
-        ax.set_xlabel(labels[0])
-        ax.set_ylabel(labels[1])
-        ax.set_title(f"Deviation map, bands of b = {b:g} mm (grey: CAD not covered by the scan)",
-                     fontsize=10)
-        cax = fig.add_axes([0.88, 0.38, 0.02, 0.42])
-        cb = fig.colorbar(sc, cax=cax, ticks=edges, spacing="uniform")
-        cb.ax.set_yticklabels([f"{e:+.3g}" for e in edges], fontsize=7)
-        cb.set_label("deviation [mm]", fontsize=8)
-        hx = fig.add_axes([0.1, 0.07, 0.8, 0.24])
-        dv = dev[ok]
-        if dv.size:
-            lim = histogram_limit(dv, b)
-            bins = np.linspace(-lim, lim, 81)
-            cnt, be = np.histogram(np.clip(dv, -lim, lim), bins)
-            mids = 0.5 * (be[1:] + be[:-1])
-            hx.bar(mids, cnt, width=np.diff(be), color=cmap(norm(mids)), edgecolor="none")
-            for e in (-b, b):
-                hx.axvline(e, color="#b3261e", ls="--", lw=1)
-            hx.set_title(f"Histogram of {dv.size:,} deviations: mean {dv.mean():+.4f}, std "
-                         f"{dv.std():.4f}, min {dv.min():+.4f}, max {dv.max():+.4f} mm",
-                         fontsize=9)
-        hx.set_xlabel("deviation [mm]")
-        hx.set_ylabel("points")
-        pdf.savefig(fig)
+        xy = np.array([np.asarray(g.centroid, float) for g in regions[:9]]) @ R.T
+        place_labels(ax, xy[:, :2], [f"R{i + 1}" for i in range(len(xy))], fontsize=8)
+    return fig
 
-        # ---------------------------------------------------------------- page 2
-        fig = Figure(figsize=(11.69, 8.27))
-        fig.text(0.04, 0.95, f"Characteristics — part {part}", fontsize=15, weight="bold")
-        fig.text(0.04, 0.915, f"U: expanded uncertainty (k = {result.plan.coverage_factor:g}); "
-                 "verdict by ISO 14253-1 (undecided: within U of a limit). Zone widths "
-                 "(profile, flatness, position) have an upper limit only. mm.", fontsize=8)
-        cols = ["name", "type", "nominal", "measured", "deviation", "lower", "upper", "U",
-                "verdict"]
-        rows, colours = [], []
-        for c in result.characteristics:
-            rows.append([c.name, _type_label(c.type), _fmt(c.nominal), _fmt(c.measured),
-                         _fmt(c.deviation),
-                         _fmt(c.lower), _fmt(c.upper), _fmt(c.uncertainty, 3), c.verdict])
-            colours.append(_colour(c.verdict))
-        tx = fig.add_axes([0.03, 0.05, 0.94, 0.84])
+
+def _keep_inside(fig, axes, margin: float = 0.02) -> None:
+    """Move and narrow each of ``axes`` until it and its tick labels and axis labels lie
+    inside the page with ``margin`` (of the page) to spare: a 40 m part's long tick labels
+    pushed the map's y label off the page."""
+    for ax in axes:
+        for _ in range(6):
+            fig.canvas.draw()
+            tb = ax.get_tightbbox(fig.canvas.get_renderer())
+            W, H = fig.bbox.width, fig.bbox.height
+            left = max(0.0, margin * W - tb.x0) / W
+            right = max(0.0, tb.x1 - (1 - margin) * W) / W
+            if left <= 1e-4 and right <= 1e-4:
+                break
+            pos = ax.get_position()
+            ax.set_position([pos.x0 + 1.1 * left, pos.y0, pos.width - 1.1 * (left + right),
+                             pos.height])
+
+
+def _region_list(fig, regions, most: int = 6) -> None:
+    """The numbered list of regions under the map (their labels on it are R1, R2, ...)."""
+    from shapeverify.report.quantities import area_text, length_text
+
+    lines = []
+    for i, g in enumerate(regions[:most]):
+        ext = length_text(g.extreme, signed=True) if np.isfinite(g.extreme) else "seen through"
+        c = ", ".join(f"{x:.1f}" for x in g.centroid)
+        lines.append(f"R{i + 1}  {g.kind}: {ext}, {area_text(g.area)}, {g.n:,} points, "
+                     f"at ({c}) mm")
+    if len(regions) > most:
+        lines.append(f"... and {len(regions) - most} more (in the HTML report and the JSON)")
+    fig.text(0.08, 0.355, f"Regions (most severe first): {len(regions)}", fontsize=9,
+             weight="bold", va="top")
+    _fit_width(fig, fig.text(0.08, 0.338, "\n".join(lines), fontsize=8, va="top",
+                             family="monospace", linespacing=1.3))
+
+
+def _fit_width(fig, text, right: float = 0.96) -> None:
+    """Cut each line of ``text`` with "…" until it ends left of ``right`` (of the page width),
+    measured as drawn (a 259-character part id ran off the page)."""
+    renderer = fig.canvas.get_renderer()
+    limit = right * fig.bbox.width
+    lines = text.get_text().split("\n")
+    for _ in range(200):
+        bb = text.get_window_extent(renderer)
+        if bb.x1 <= limit:
+            return
+        i = max(range(len(lines)), key=lambda k: len(lines[k]))
+        if len(lines[i]) <= 2:
+            return
+        keep = int(len(lines[i]) * (limit - bb.x0) / max(bb.width, 1.0)) - 1
+        lines[i] = _clip(lines[i], max(2, min(keep, len(lines[i]) - 1)))
+        text.set_text("\n".join(lines))
+
+
+def _fit_cells(fig, tab) -> None:
+    """Cut a cell's too-long lines with "…" (a 259-character name) until its text lies
+    inside the cell, measured as drawn; the font stays 8.5 pt."""
+    for cell in tab.get_celld().values():
+        cell.PAD = 0.05
+    fig.canvas.draw()                    # places each cell and its text once
+    renderer = fig.canvas.get_renderer()
+    for cell in tab.get_celld().values():
+        text = cell.get_text()
+        for _ in range(200):
+            box, bb = cell.get_window_extent(renderer), text.get_window_extent(renderer)
+            if bb.x0 >= box.x0 and bb.x1 <= box.x1:
+                break
+            lines = text.get_text().split("\n")
+            i = max(range(len(lines)), key=lambda k: len(lines[k]))
+            if len(lines[i]) <= 2:
+                break
+            keep = int(len(lines[i]) * box.width / max(bb.width, 1.0))
+            lines[i] = _clip(lines[i], max(2, min(keep, len(lines[i]) - 1)))
+            text.set_text("\n".join(lines))
+
+
+def _clip(text: str, n: int) -> str:
+    """``text`` cut to ``n`` characters with "…" (a long part id must not run off the page).
+
+    >>> _clip("SN-0042", 10), _clip("x" * 12, 10)
+    ('SN-0042', 'xxxxxxxxx…')
+    """
+    return text if len(text) <= n else text[: n - 1] + "…"
+
+
+#: characteristics per table page at most (A4 portrait, 8.5 pt)
+ROWS_PER_PAGE = 30
+_ROW_BASE, _ROW_LINE = 0.008, 0.0125     # a row's height: fractions of the table's axes
+_TABLE_ROOM = 0.95                       # of the table's axes, under the header row
+
+
+def _pages_table(result, part):
+    """Page 2 (and more for a long plan): the characteristics table, A4 portrait."""
+    cols = ["name", "type", "nominal", "measured", "deviation", "lower", "upper", "U",
+            "verdict"]
+    widths = [0.11, 0.10, 0.13, 0.13, 0.11, 0.10, 0.10, 0.11, 0.09]
+    rows, colours = [], []
+    for c in result.characteristics:
+        rows.append([c.name, _type_label(c.type).replace("_", "\n"), _fmt(c.nominal),
+                     _fmt(c.measured), _fmt(c.deviation), _fmt(c.lower), _fmt(c.upper),
+                     _fmt(c.uncertainty, 3), c.verdict])
+        colours.append(_colour(c.verdict))
+    heights = [_ROW_BASE + _ROW_LINE * (max(str(x).count("\n") for x in row) + 1)
+               for row in rows]
+    chunks, start, used = [], 0, 0.0
+    for i, h in enumerate(heights):            # as many rows a page as fit under its header
+        if i > start and (used + h > _TABLE_ROOM or i - start >= ROWS_PER_PAGE):
+            chunks.append(range(start, i))
+            start, used = i, 0.0
+        used += h
+    chunks = chunks + [range(start, len(rows))] if rows else [range(0)]
+    pages = []
+    for k, chunk in enumerate(chunks):
+        fig = _figure(*A4_PORTRAIT)
+        more = f" ({k + 1}/{len(chunks)})" if len(chunks) > 1 else ""
+        _fit_width(fig, fig.text(0.05, 0.965, f"Characteristics — part {part}{more}",
+                                 fontsize=14, weight="bold", va="top"))
+        fig.text(0.05, 0.935, "U: expanded uncertainty (k = "
+                 f"{result.plan.coverage_factor:g}); verdict by ISO 14253-1 (undecided: "
+                 "within U of a limit).\nZone widths (profile, flatness, position) have an "
+                 "upper limit only. mm.", fontsize=8.5, va="top")
+        tx = fig.add_axes([0.04, 0.04, 0.92, 0.86])
         tx.axis("off")
-        if rows:
-            tab = tx.table(cellText=rows, colLabels=cols, loc="upper center", cellLoc="center",
-                           colWidths=[0.08, 0.1, 0.17, 0.17, 0.12, 0.08, 0.08, 0.1, 0.08])
+        if len(chunk):
+            body = [rows[i] for i in chunk]
+            tab = tx.table(cellText=body, colLabels=cols, loc="upper center",
+                           cellLoc="center", colWidths=widths)
             tab.auto_set_font_size(False)
-            tab.set_fontsize(7)
-            for i, row in enumerate(rows, start=1):
-                nl = max(str(x).count("\n") for x in row) + 1
+            tab.set_fontsize(8.5)
+            for r, i in enumerate(chunk, start=1):
                 for j in range(len(cols)):
-                    tab[i, j].set_height(0.03 * nl)
-                tab[i, len(cols) - 1].get_text().set_color(colours[i - 1])
-                tab[i, len(cols) - 1].get_text().set_weight("bold")
+                    tab[r, j].set_height(heights[i])
+                tab[r, len(cols) - 1].get_text().set_color(colours[i])
+                tab[r, len(cols) - 1].get_text().set_weight("bold")
             for j in range(len(cols)):
                 tab[0, j].set_facecolor("#e8e8e8")
-                tab[0, j].set_height(0.035)
+                tab[0, j].set_height(0.025)
+            _fit_cells(fig, tab)
         else:
             no_plan = result.alignment.details.get("source") == "registration"
-            tx.text(0.5, 0.5, "no inspection plan: the verdict is the tolerance on every "
+            tx.text(0.5, 0.5, "no inspection plan: the verdict is the tolerance on every\n"
                     "evaluated point (free best fit of all faces)" if no_plan else
-                    "the plan has no characteristics", ha="center")
-        pdf.savefig(fig)
+                    "the plan has no characteristics", ha="center", fontsize=10)
+        pages.append(fig)
+    return pages
 
-        # ---------------------------------------------------------------- page 3
-        sec = result.section
-        if sec is not None:
-            fig = Figure(figsize=(11.69, 8.27))
-            ax = fig.add_axes([0.08, 0.12, 0.86, 0.74])
-            s = np.asarray(sec["s"], float)
-            d = np.asarray(sec["deviation"], float)
-            fig.text(0.04, 0.94, section_title(sec), fontsize=12, weight="bold")
-            if s.size:
-                k = max(1, s.size // 400)
-                for si, di in zip(s[::k], d[::k]):
-                    ax.plot([si, si], [0, di], color=cmap(norm(di)), lw=0.8)
-                ax.scatter(s, d, s=3, c=d, cmap=cmap, norm=norm, linewidths=0, zorder=3)
-                ax.axhline(0, color="black", lw=1)
-                for e in (-b, b):
-                    ax.axhline(e, color="#b3261e", ls="--", lw=1)
-                ax.set_title(f"{s.size} points within the section band; whiskers: deviation "
-                             "from the CAD (every point up to 400)", fontsize=9)
-            else:
-                ax.text(0.5, 0.5, "no scan points in the section band", ha="center",
-                        transform=ax.transAxes)
-            ax.set_xlabel("position along the section [mm]")
-            ax.set_ylabel("deviation [mm]")
-            ax.grid(alpha=0.3)
-            pdf.savefig(fig)
-    logger.info("PDF report written to %s", path)
-    return path
+
+def _page_section(sec, b, cmap, norm):
+    """Page 3: the deviation along the plan's cross-section (A4 landscape)."""
+    fig = _figure(A4_PORTRAIT[1], A4_PORTRAIT[0])
+    ax = fig.add_axes([0.08, 0.12, 0.86, 0.74])
+    s = np.asarray(sec["s"], float)
+    d = np.asarray(sec["deviation"], float)
+    fig.text(0.04, 0.94, section_title(sec), fontsize=12, weight="bold")
+    if s.size:
+        k = max(1, s.size // 400)
+        for si, di in zip(s[::k], d[::k]):
+            ax.plot([si, si], [0, di], color=cmap(norm(di)), lw=0.8)
+        ax.scatter(s, d, s=3, c=d, cmap=cmap, norm=norm, linewidths=0, zorder=3)
+        ax.axhline(0, color="black", lw=1)
+        for e in (-b, b):
+            ax.axhline(e, color="#b3261e", ls="--", lw=1)
+        ax.set_title(f"{s.size} points within the section band; whiskers: deviation "
+                     "from the CAD (every point up to 400)", fontsize=9)
+    else:
+        ax.text(0.5, 0.5, "no scan points in the section band", ha="center",
+                transform=ax.transAxes)
+    ax.set_xlabel("position along the section [mm]")
+    ax.set_ylabel("deviation [mm]")
+    ax.grid(alpha=0.3)
+    return fig
+
+
+#: A4 portrait, inches
+A4_PORTRAIT = (8.27, 11.69)
 
 
 def histogram_limit(dv, b: float) -> float:

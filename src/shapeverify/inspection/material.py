@@ -42,7 +42,7 @@ too-far points and cannot be found this way (lower the evaluation distance).
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
+from shapeverify._lazy import cKDTree
 
 from .deviations import ON_BOUNDARY, TOO_FAR
 from .regions import LINK_FACTOR, SPARSE_AREA, DefectRegion, area_per_point, linked_components

@@ -66,7 +66,7 @@ about 20) can leave strips wider than ``MIN_WIDTH`` area-based spacings.
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
+from shapeverify._lazy import cKDTree
 
 from ._grid_kernels import any_within, kernel_array, mark_within
 from .coverage import model_samples

@@ -56,7 +56,7 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
+from shapeverify._lazy import cKDTree
 
 from .._arrays import bounds
 from ._cluster_kernels import component_labels

@@ -58,7 +58,7 @@ import logging
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
+from shapeverify._lazy import cKDTree
 
 from .._arrays import check_points
 from . import _build_kernels, _kernels

@@ -24,7 +24,7 @@ from __future__ import annotations
 import logging
 
 import numpy as np
-from scipy.spatial import cKDTree
+from shapeverify._lazy import cKDTree
 
 from . import _build_kernels as _bk
 from . import _classify_kernels, _kernels

@@ -36,7 +36,7 @@ import logging
 
 import numpy as np
 from numpy.polynomial import polynomial as P
-from scipy.spatial import cKDTree
+from shapeverify._lazy import cKDTree
 
 from shapeverify.cad.trim import pack_trims
 

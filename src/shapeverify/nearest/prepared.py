@@ -48,7 +48,7 @@ from functools import cached_property
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial import cKDTree
+from shapeverify._lazy import cKDTree
 
 from . import dvg as _dvg
 from ._svm_checks import check_structure, payload_digest

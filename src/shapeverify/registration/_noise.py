@@ -22,7 +22,7 @@ Examples
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
+from shapeverify._lazy import cKDTree
 
 __all__ = ["scan_noise"]
 

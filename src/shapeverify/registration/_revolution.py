@@ -33,7 +33,7 @@ from __future__ import annotations
 import weakref
 
 import numpy as np
-from scipy.spatial import cKDTree
+from shapeverify._lazy import cKDTree
 
 from .rigid import make_transform, rodrigues
 

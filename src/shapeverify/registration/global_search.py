@@ -43,7 +43,7 @@ import weakref
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
+from shapeverify._lazy import cKDTree
 
 from . import _axis_pairs, _features, _irls, _revolution
 from .losses import get_loss

@@ -24,7 +24,7 @@ import warnings
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial import cKDTree
+from shapeverify._lazy import cKDTree
 
 from .rigid import make_transform
 

@@ -24,11 +24,14 @@ import numpy as np
 
 from ..verdict_table import verdict_style
 from .colours import CMAP, color_limit
+from .labels import free_labels
+from .quantities import area_text, length_text
 from .ply import check_scan_length
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["html_report", "write_html_report", "render_html", "cad_mesh"]
+__all__ = ["html_report", "write_html_report", "render_html", "cad_mesh", "scene_camera",
+           "view_projection"]
 
 _MAX_TRIANGLES = 120_000
 _MAX_NOT_EVALUATED = 10_000
@@ -45,6 +48,11 @@ def _fmt(x, digits: int = 4, signed: bool = False) -> str:
     if isinstance(x, (int, np.integer)):
         return f"{int(x):,}"
     return f"{float(x):+.{digits}f}" if signed else f"{float(x):.{digits}f}"
+
+
+def _length(x) -> str:
+    """A signed length with three significant digits in µm, mm or m ("–" when not finite)."""
+    return "–" if x is None or not math.isfinite(float(x)) else length_text(x, signed=True)
 
 
 def _table(rows, header=None, cls="kv") -> str:
@@ -136,22 +144,143 @@ def _figure_3d(result, model, idx, c_lim):
         traces.append(go.Scatter3d(
             x=u[:, 0], y=u[:, 1], z=u[:, 2], mode="markers", name="CAD area not seen (no scan data)",
             marker=dict(size=2, color="#9e9e9e"), hoverinfo="skip"))
+    drawn = [p] + ([mesh[0]] if mesh is not None else [])
+    if cov is not None and (~cov.covered).any():
+        drawn.append(u)
+    c = np.array([r.centroid for r in result.regions], dtype=np.float64).reshape(-1, 3)
+    drawn.append(c)
+    camera, project = scene_camera(np.vstack([np.asarray(a, np.float64).reshape(-1, 3)
+                                              for a in drawn]), _worst(result))
     if result.regions:
-        c = np.array([r.centroid for r in result.regions], dtype=np.float64)
+        names = [f"R{i + 1} {r.extreme:+.3f}" if np.isfinite(r.extreme) else f"R{i + 1} {r.kind}"
+                 for i, r in enumerate(result.regions)]
+        # a label is drawn only where it meets no label drawn before (most severe first) in
+        # the opening view; every region keeps its marker, its hover text and its table row
+        xy = project(c)
+        w = [_LABEL_FONT * 0.62 * len(t) for t in names]
+        corners = [(x - wi / 2, y + 6) for (x, y), wi in zip(xy, w)]
+        shown = set(free_labels(corners, w, 1.3 * _LABEL_FONT, pad=3.0))
         traces.append(go.Scatter3d(
             x=c[:, 0], y=c[:, 1], z=c[:, 2], mode="markers+text", name="regions (R1 most severe)",
             marker=dict(size=5, color="black", symbol="diamond"),
-            text=[f"R{i + 1} {r.extreme:+.3f}" if np.isfinite(r.extreme) else f"R{i + 1} {r.kind}"
-                  for i, r in enumerate(result.regions)],
+            text=[t if i in shown else "" for i, t in enumerate(names)],
+            hovertext=names, textfont=dict(size=_LABEL_FONT),
             textposition="top center", hoverinfo="text"))
     fig = go.Figure(traces)
     axis = lambda name: dict(title=dict(text=f"{name} [mm]"), backgroundcolor="white")  # noqa: E731
     fig.update_layout(
         scene=dict(aspectmode="data", xaxis=axis("x"), yaxis=axis("y"), zaxis=axis("z"),
-                   camera=dict(eye=dict(x=1.5, y=1.5, z=1.4))),
-        margin=dict(l=0, r=0, t=30, b=0), height=640,
+                   camera=camera),
+        margin=dict(l=0, r=0, t=30, b=0), height=_HEIGHT,
         legend=dict(orientation="h", yanchor="bottom", y=1.0, x=0.0))
     return fig
+
+
+_HEIGHT = 640                 # px, the 3D view's height
+_WIDTH = 900                  # px, the width assumed for the opening view (a laptop's page)
+_FOVY = math.pi / 4           # plotly's (gl-plot3d's) vertical field of view
+_LABEL_FONT = 11
+
+
+def _worst(result):
+    """(centroid, outward normal) of the most severe region, or None."""
+    if not result.regions:
+        return None
+    g = result.regions[0]
+    n = np.asarray(result.deviations.normals, np.float64)[np.asarray(g.indices)]
+    n = n[np.all(np.isfinite(n), axis=1)].mean(axis=0) if len(n) else np.zeros(3)
+    return np.asarray(g.centroid, np.float64), n
+
+
+def scene_camera(points, worst=None, *, width: float = _WIDTH, height: float = _HEIGHT):
+    """The opening camera of the 3D view: centred on the worst region (or on the part), looking
+    at it from its outward side, tilted 25 degrees so that it is seen in relief, never edge-on,
+    and far enough back that the whole part is in view.
+
+    Plotly (``aspectmode="data"``) maps the data to its scene box uniformly: a point ``x`` is
+    at ``(x - mid) / (1.0625 G)`` in camera units, ``mid`` the middle of the data's bounding
+    box, ``G`` the geometric mean of its three sides (plotly.js ``scene.js``: axis ranges padded
+    by 1/32 each side, aspect ratio ``side / G``; gl-plot3d: the padded range maps to ``aspect``).
+
+    Parameters
+    ----------
+    points : (N, 3) array
+        Everything the view draws (it sets plotly's bounding box).
+    worst : (centroid (3,), normal (3,)) or None
+    width, height : float
+        The view's size in pixels (the field of view is vertical, 45 degrees).
+
+    Returns
+    -------
+    camera : dict
+        ``layout.scene.camera`` (eye, center, up).
+    project : callable
+        ``(M, 3)`` data points -> ``(M, 2)`` pixels (x right, y up) in the opening view.
+    """
+    norm, lo, side = _scene_frame(points)
+    if worst is not None:
+        centre, n = norm(worst[0]), np.asarray(worst[1], np.float64)
+    else:
+        centre, n = np.zeros(3), np.zeros(3)
+    if not np.linalg.norm(n) > 1e-9:
+        n = np.eye(3)[int(np.argmin(side))]
+    n = n / np.linalg.norm(n)
+    # tilt: towards +z (or -y for a face looking along z), so the view is in relief
+    a = np.array([0.0, 0.0, 1.0]) if abs(n[2]) < 0.9 else np.array([0.0, -1.0, 0.0])
+    t = a - (a @ n) * n
+    view = n + np.tan(np.radians(25.0)) * t / np.linalg.norm(t)
+    view /= np.linalg.norm(view)
+    up = np.array([0.0, 0.0, 1.0]) if abs(view[2]) < 0.9 else np.array([0.0, 1.0, 0.0])
+    # far enough back that every corner of the (padded) box is in view, with a 10 % margin
+    box = np.array([[x, y, z] for x in (0, 1) for y in (0, 1) for z in (0, 1)], float)
+    corners = norm(lo - side / 32 + box * (side * (1 + 1 / 16)))
+    right, upv = _screen_axes(view, up)
+    tan_y = math.tan(_FOVY / 2)
+    tan_x = tan_y * width / height
+    rel = corners - centre
+    need = np.max(np.maximum(np.abs(rel @ right) / tan_x, np.abs(rel @ upv) / tan_y)
+                  + rel @ view)
+    eye = centre + 1.1 * max(float(need), 1e-6) * view
+    xyz = lambda v: dict(x=float(v[0]), y=float(v[1]), z=float(v[2]))  # noqa: E731
+    camera = dict(eye=xyz(eye), center=xyz(centre), up=xyz(up))
+    return camera, view_projection(points, camera, width=width, height=height)
+
+
+def _scene_frame(points):
+    """``(norm, lo, side)``: data -> plotly's camera units, and the data's bounding box."""
+    P = np.asarray(points, np.float64).reshape(-1, 3)
+    P = P[np.all(np.isfinite(P), axis=1)]
+    lo, hi = (P.min(axis=0), P.max(axis=0)) if len(P) else (np.zeros(3), np.ones(3))
+    side = np.where(hi > lo, hi - lo, 1.0)
+    mid = 0.5 * (lo + hi)
+    unit = 1.0625 * float(np.prod(side) ** (1.0 / 3.0))
+    return (lambda x: (np.asarray(x, np.float64) - mid) / unit), lo, side
+
+
+def _screen_axes(view, up):
+    right = np.cross(-view, up)
+    right /= np.linalg.norm(right)
+    return right, np.cross(right, -view)
+
+
+def view_projection(points, camera, *, width: float = _WIDTH, height: float = _HEIGHT):
+    """``project((M, 3) data points) -> (M, 2) pixels`` (x right, y up) of the 3D view of
+    ``points`` (which set plotly's box) through ``camera`` (``layout.scene.camera``)."""
+    norm, _, _ = _scene_frame(points)
+    vec = lambda key: np.array([camera[key][k] for k in "xyz"], np.float64)  # noqa: E731
+    eye, centre, up = vec("eye"), vec("center"), vec("up")
+    view = (eye - centre) / np.linalg.norm(eye - centre)
+    right, upv = _screen_axes(view, up)
+    tan_y = math.tan(_FOVY / 2)
+
+    def project(q):
+        v = norm(np.asarray(q, np.float64).reshape(-1, 3)) - eye
+        depth = np.maximum(v @ -view, 1e-12)
+        x = (v @ right) / depth / tan_y * height / 2 + width / 2
+        y = (v @ upv) / depth / tan_y * height / 2 + height / 2
+        return np.column_stack([x, y])
+
+    return project
 
 
 def _figure_hist(result, c_lim):
@@ -327,12 +456,12 @@ def render_html(result, model=None, *, max_points: int = MAX_POINTS, title: str 
     t_html = "<pre>" + "\n".join(" ".join(f"{x:+.6f}" for x in row) for row in T) + "</pre>"
     if result.regions:
         reg_tab = _table(
-            [(f"R{i + 1}", g.kind, _fmt(g.n), _fmt(g.area, 2), _fmt(g.extreme, 4, True),
-              _fmt(g.extreme_raw, 4, True), _fmt(g.severity, 3),
+            [(f"R{i + 1}", g.kind, _fmt(g.n), area_text(g.area), _length(g.extreme),
+              _length(g.extreme_raw), _fmt(g.severity, 3),
               ", ".join(f"{c:.2f}" for c in g.centroid),
               html.escape(", ".join(str(f) for f in g.faces[:10])), g.side)
              for i, g in enumerate(result.regions)],
-            header=("region", "kind", "points", "area [mm²]", "extreme [mm]", "largest single [mm]",
+            header=("region", "kind", "points", "area", "extreme", "largest single",
                     "severity [mm³]", "centroid x, y, z [mm]", "faces", "side"), cls="regions")
     else:
         reg_tab = ('<p class="note">No regions: no connected out-of-tolerance surface, no '

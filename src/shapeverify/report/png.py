@@ -168,6 +168,7 @@ def summary_figure(result, scan=None, *, max_points: int = 20_000, dpi: int = 11
     frames = (_view_frames(p_all) if len(p_all) >= 3 else
               [("view along z", ("x [mm]", "y [mm]"), np.eye(3))] * 2)
     sc = None
+    to_label = []                  # (axes, origin, R): region labels, placed once laid out
     for col, (name, labels, R) in enumerate(frames):
         a2 = fig.add_subplot(gs[1, col])
         # view 1 in model coordinates, view 2 about the centre of the points
@@ -187,7 +188,7 @@ def summary_figure(result, scan=None, *, max_points: int = 20_000, dpi: int = 11
             order = np.argsort(q[:, 2])                   # painter's order: far points first
             sc = a2.scatter(q[order, 0], q[order, 1], c=v[order], cmap=CMAP, norm=norm, s=1.5,
                             linewidths=0, rasterized=True)
-            _label_regions(a2, result.regions, origin, R)
+            to_label.append((a2, origin, R))
         a2.set_aspect("equal", adjustable="datalim")
         a2.set_title(name, fontsize=10)
         a2.set_xlabel(labels[0], fontsize=8)
@@ -262,6 +263,8 @@ def summary_figure(result, scan=None, *, max_points: int = 20_000, dpi: int = 11
     fits.append((at.text(0.0, 1.0, text, family="monospace", fontsize=9, va="top",
                          transform=at.transAxes), (0.0, None, None, 1.0), fig))
     _fit_texts(fig, fits)
+    for a2, origin, R in to_label:
+        _label_regions(a2, result.regions, origin, R)
     return fig
 
 
@@ -321,23 +324,14 @@ def _fit_texts(fig, fits) -> None:
             text.set_text("\n".join(lines))
 
 
-def _label_regions(ax, regions, origin, R, most: int = 9) -> None:
-    """Label the most severe regions R1, R2, ...; a label that would sit on an earlier one is
-    left out (its region is still listed in the table)."""
-    placed = []
-    min_gap = 0.04 * _span(ax)
-    for i, g in enumerate(regions[:most]):
-        gx, gy, _ = (g.centroid - origin) @ R.T
-        if any(np.hypot(gx - px, gy - py) < min_gap for px, py in placed):
-            continue
-        placed.append((gx, gy))
-        ax.annotate(f"R{i + 1}", (gx, gy), xytext=(6, 6), textcoords="offset points",
-                    fontsize=9, weight="bold",
-                    arrowprops=dict(arrowstyle="-", color="black", linewidth=0.6))
+def _label_regions(ax, regions, origin, R, most: int = 9) -> list:
+    """Label the most severe regions R1, R2, ... on leader lines where no label meets another
+    (:func:`shapeverify.report.labels.place_labels`); a region whose label finds no free place
+    is left unlabelled here (it is still in the numbered list beside the views)."""
+    from .labels import place_labels
 
-
-def _span(ax) -> float:
-    """Extent of the data drawn in ``ax`` (its largest side), for the label spacing."""
-    x0, x1 = ax.dataLim.intervalx
-    y0, y1 = ax.dataLim.intervaly
-    return float(max(x1 - x0, y1 - y0, 1e-9))
+    regions = list(regions[:most])
+    if not regions:
+        return []
+    xy = (np.array([g.centroid for g in regions], float) - origin) @ R.T
+    return place_labels(ax, xy[:, :2], [f"R{i + 1}" for i in range(len(regions))])

@@ -1,0 +1,322 @@
+"""The command line against an Open3D script doing the same job (issue 32 item 7), in CPU time.
+
+Both are run as a user runs them, each as a fresh process started from this one, and timed by
+the CPU (user + system) of that child and the children it waited for
+(``resource.getrusage(RUSAGE_CHILDREN)`` before and after; on this shared 2-core machine CPU
+time is the fair figure, wall time also counts waiting for a core):
+
+* **ours**: ``shapeverify inspect panel.svm scan.ply --tolerance 0.2 --json r.json`` (a
+  prepared model, a 30,000-point scan, the verdict and its JSON report);
+* **Open3D**: a script (written next to the inputs, ``open3d_inspect.py``) that reads the scan
+  and the prepared model's own points with their normals (``model.ply``: the same surface
+  samples our ``.svm`` holds, 115,647 for the example panel), registers the scan by ICP
+  point-to-plane with a Tukey loss from the identity pose, takes the signed distance of every
+  matched scan point along its model point's normal, and writes a JSON report (statistics and
+  the fraction within tolerance);
+* for reference: the same inspection as a Python script calling the library (what the command
+  line costs on top of it), ``shapeverify info`` of a STEP file whose summary is cached (goal 0.3 s), and
+  the floor of any process that runs a numba kernel: ``import numpy, numba`` and one call of a
+  cached one-line kernel (numba's first use imports its lowering registries and
+  ``scipy.linalg``).
+
+Goals: ``inspect`` <= 0.6 s CPU, ``info`` (cached) <= 0.3 s, Open3D / ours >= 3.
+
+Inputs: the bundled example panel (300 x 200 mm with a hole, ``example_part_step``), prepared at
+the default spacing, and the 30,000-point scan of ``bench_service.py`` (seed 7; noise 0.02 mm,
+3 % outliers, 2 mm / 3 degree misalignment).  Each command runs once untimed (numba's cache,
+the page cache), then ``--repeat`` times; the table gives the median and the range.
+
+Run:  .venv/bin/python benchmarks/bench_cli.py [--repeat 5] [--work DIR]
+      [--out benchmarks/results_cli.md]
+"""
+
+from __future__ import annotations
+
+import argparse
+import datetime
+import json
+import os
+import platform
+import resource
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+ROOT = Path(__file__).resolve().parents[1]
+
+OPEN3D_SCRIPT = r'''
+"""Inspect a scan against sampled model points with Open3D: ICP point-to-plane, signed
+distances along the model normals, a JSON report."""
+import json
+import sys
+
+import numpy as np
+import open3d as o3d
+
+scan_path, model_path, out_path, tol = sys.argv[1], sys.argv[2], sys.argv[3], float(sys.argv[4])
+scan = o3d.io.read_point_cloud(scan_path)
+model = o3d.io.read_point_cloud(model_path)          # points + normals
+reg = o3d.pipelines.registration
+icp = reg.registration_icp(
+    scan, model, 2.0, np.eye(4),
+    reg.TransformationEstimationPointToPlane(reg.TukeyLoss(k=0.1)),
+    reg.ICPConvergenceCriteria(relative_fitness=1e-7, relative_rmse=1e-7, max_iteration=60))
+T = np.asarray(icp.transformation)
+P = np.asarray(scan.points) @ T[:3, :3].T + T[:3, 3]
+Q, N = np.asarray(model.points), np.asarray(model.normals)
+pair = np.asarray(icp.correspondence_set)
+d = np.einsum("ij,ij->i", P[pair[:, 0]] - Q[pair[:, 1]], N[pair[:, 1]])
+report = {"n": int(len(d)), "fitness": icp.fitness, "rmse": icp.inlier_rmse,
+          "mean": float(d.mean()), "std": float(d.std()), "min": float(d.min()),
+          "max": float(d.max()), "p05": float(np.percentile(d, 5)),
+          "p95": float(np.percentile(d, 95)),
+          "in_tolerance_fraction": float(np.mean(np.abs(d) <= tol)),
+          "verdict": "pass" if np.all(np.abs(d) <= tol) else "fail",
+          "T_model_scan": T.tolist()}
+with open(out_path, "w") as f:
+    json.dump(report, f, indent=1)
+'''
+
+LIBRARY = r'''
+import sys
+
+import shapeverify as sv
+from shapeverify.report.result_json import write_result_json
+
+prep = sv.load_prepared(sys.argv[1])
+result = sv.inspect(prep, sv.read_points(sys.argv[2]), tolerance=0.2)
+write_result_json(result, sys.argv[3])
+'''
+
+BREAKDOWN = r'''
+import json
+import resource
+import sys
+
+
+def cpu():
+    r = resource.getrusage(resource.RUSAGE_SELF)
+    return r.ru_utime + r.ru_stime
+
+
+steps, t = [], cpu()
+
+
+def step(name):
+    global t
+    now = cpu()
+    steps.append((name, now - t))
+    t = now
+
+
+import numpy as np
+step("import numpy")
+import numba
+step("import numba")
+
+
+@numba.njit(cache=True)
+def total(x):
+    return x.sum()
+
+
+total(np.ones(3))
+step("numba's first use (a cached one-line kernel: its lowering registries, scipy.linalg)")
+import scipy.spatial
+step("import scipy.spatial (the k-d trees of the scan's noise and regions)")
+import shapeverify as sv
+import shapeverify.inspection, shapeverify.registration, shapeverify.nearest
+step("import shapeverify's inspection, registration and closest-point modules")
+prep = sv.load_prepared(sys.argv[1])
+step("load the prepared model (.svm)")
+scan = sv.read_points(sys.argv[2])
+step("read the scan (PLY)")
+sv.inspect(prep, scan, tolerance=0.2)
+step("first inspection (loads its cached kernels)")
+sv.inspect(prep, scan, tolerance=0.2)
+step("second inspection (the computation alone)")
+print(json.dumps(steps))
+'''
+
+NUMBA_FLOOR = r'''
+import numpy as np
+import numba
+
+@numba.njit(cache=True)
+def total(x):
+    return x.sum()
+
+total(np.ones(3))
+'''
+
+
+def _env() -> dict:
+    env = dict(os.environ)
+    # as on a user's machine: Python keeps the modules' bytecode (this shared machine sets
+    # PYTHONDONTWRITEBYTECODE, which makes every start compile every module again)
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
+    env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "src")] + [
+        p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p])
+    env.setdefault("COLUMNS", "120")
+    return env
+
+
+def cpu_of(argv: list, cwd: Path, env: dict) -> float:
+    """CPU seconds (user + system) of one child process and the children it waited for."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    proc = subprocess.run(argv, cwd=cwd, env=env, stdout=subprocess.DEVNULL,
+                          stderr=subprocess.PIPE, text=True)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if proc.returncode not in (0, 1, 3):   # inspect: 1 fail, 3 incomplete are answers too
+        raise RuntimeError(f"{' '.join(map(str, argv))} exited {proc.returncode}:\n"
+                           f"{proc.stderr[-3000:]}")
+    return (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+
+
+def make_inputs(work: Path, env: dict) -> dict:
+    """The example panel's STEP file, its prepared model, its points with normals as PLY and
+    the 30,000-point scan (made once per work directory)."""
+    paths = {k: work / v for k, v in (("step", "panel.step"), ("svm", "panel.svm"),
+                                      ("scan", "scan.ply"), ("model", "model.ply"),
+                                      ("o3d", "open3d_inspect.py"), ("floor", "numba_floor.py"),
+                                      ("lib", "library_inspect.py"),
+                                      ("breakdown", "breakdown.py"))}
+    paths["o3d"].write_text(OPEN3D_SCRIPT)
+    paths["floor"].write_text(NUMBA_FLOOR)
+    paths["lib"].write_text(LIBRARY)
+    paths["breakdown"].write_text(BREAKDOWN)
+    if all(paths[k].is_file() for k in ("step", "svm", "scan", "model")):
+        return paths
+    code = f"""
+import sys
+sys.path.insert(0, {str(ROOT / 'benchmarks')!r})
+import numpy as np
+from bench_service import make_scan
+from shapeverify.cad.examples import example_part_step
+from shapeverify.cad.load import load_model
+from shapeverify.io.points import write_ply
+from shapeverify.nearest import prepare
+step = example_part_step({str(paths['step'])!r})
+model = load_model(step)
+prep = prepare(model)
+prep.save({str(paths['svm'])!r})
+write_ply({str(paths['scan'])!r}, make_scan(model, 7))
+mp = prep.points
+with open({str(paths['model'])!r}, "wb") as f:
+    f.write(("ply\\nformat binary_little_endian 1.0\\nelement vertex %d\\n"
+             "property double x\\nproperty double y\\nproperty double z\\n"
+             "property double nx\\nproperty double ny\\nproperty double nz\\nend_header\\n"
+             % len(mp.points)).encode())
+    f.write(np.ascontiguousarray(np.hstack([mp.points, mp.normals]), dtype="<f8").tobytes())
+"""
+    subprocess.run([sys.executable, "-c", code], cwd=work, env=env, check=True)
+    return paths
+
+
+def measure(label: str, argv: list, cwd: Path, env: dict, repeat: int) -> dict:
+    cpu_of(argv, cwd, env)                      # untimed: numba's cache, the page cache
+    times = [cpu_of(argv, cwd, env) for _ in range(repeat)]
+    return {"label": label, "argv": argv, "median": statistics.median(times),
+            "min": min(times), "max": max(times)}
+
+
+def _shown(argv: list, work: Path) -> str:
+    text = " ".join(str(a) for a in argv)
+    return text.replace(sys.executable, "python").replace(str(work) + os.sep, "")
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--repeat", type=int, default=5)
+    ap.add_argument("--work", type=Path, default=None,
+                    help="directory of the inputs (kept; made when missing)")
+    ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results_cli.md"))
+    args = ap.parse_args()
+    env = _env()
+    work = args.work or Path(tempfile.mkdtemp(prefix="bench_cli_"))
+    work.mkdir(parents=True, exist_ok=True)
+    paths = make_inputs(work, env)
+    env["SHAPEVERIFY_CACHE_DIR"] = str(work / "summaries")     # info: its summary cached
+    py = sys.executable
+
+    load_start = os.getloadavg()
+    ours = measure("shapeverify inspect (prepared model, 30,000 points, JSON report)",
+                   [py, "-m", "shapeverify", "inspect", paths["svm"], paths["scan"],
+                    "--tolerance", "0.2", "--json", work / "r.json"], work, env, args.repeat)
+    peer = measure("Open3D script (ICP point-to-plane + signed distances + JSON report)",
+                   [py, paths["o3d"], paths["scan"], paths["model"], work / "o3d.json", "0.2"],
+                   work, env, args.repeat)
+    lib = measure("the same inspection through the library (a Python script, no command line)",
+                  [py, paths["lib"], paths["svm"], paths["scan"], work / "lib.json"], work, env,
+                  args.repeat)
+    info = measure("shapeverify info (STEP file, summary cached)",
+                   [py, "-m", "shapeverify", "info", paths["step"]], work, env, args.repeat)
+    floor = measure("floor: import numpy, numba + one cached kernel",
+                    [py, paths["floor"]], work, env, args.repeat)
+    bare = measure("floor: python -c pass", [py, "-c", "pass"], work, env, args.repeat)
+    runs = [json.loads(subprocess.run([py, paths["breakdown"], paths["svm"], paths["scan"]],
+                                      cwd=work, env=env, capture_output=True, text=True,
+                                      check=True).stdout.splitlines()[-1])
+            for _ in range(args.repeat)]
+    breakdown = [(name, statistics.median(r[i][1] for r in runs))
+                 for i, (name, _) in enumerate(runs[0])]
+    load_end = os.getloadavg()
+
+    ratio = peer["median"] / ours["median"]
+    ours_json = json.loads((work / "r.json").read_text())
+    peer_json = json.loads((work / "o3d.json").read_text())
+    verdict = ours_json.get("verdict", "?")
+    dev = ours_json.get("deviation", {})
+    lines = [
+        "## CLI against an Open3D script, CPU time (issue 32 item 7)",
+        "",
+        f"### {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC",
+        "",
+        f"Command: `env -u PYTHONDONTWRITEBYTECODE .venv/bin/python benchmarks/bench_cli.py "
+        f"--repeat {args.repeat}`  ",
+        f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
+        f"Python {platform.python_version()}; load average (1, 5, 15 min) "
+        f"{', '.join(f'{x:.1f}' for x in load_start)} at the start, "
+        f"{', '.join(f'{x:.1f}' for x in load_end)} at the end (a shared machine: CPU times "
+        "run higher under load).",
+        "",
+        "Each row: a fresh process started by the benchmark, CPU = user + system of it and its "
+        "waited-for children (`getrusage(RUSAGE_CHILDREN)`), median and range of "
+        f"{args.repeat} runs after one untimed run.",
+        "",
+        "| command | CPU median [s] | range [s] |",
+        "|---|---:|---:|",
+    ]
+    for r in (ours, peer, lib, info, floor, bare):
+        lines.append(f"| {r['label']}: `{_shown(r['argv'], work)}` | {r['median']:.2f} | "
+                     f"{r['min']:.2f}-{r['max']:.2f} |")
+    lines += [
+        "",
+        f"Ratio Open3D / ours: **{ratio:.2f}** (goal >= 3).  Goals: inspect <= 0.6 s "
+        f"({'met' if ours['median'] <= 0.6 else 'NOT met'}, {ours['median']:.2f} s), info "
+        f"(cached) <= 0.3 s ({'met' if info['median'] <= 0.3 else 'NOT met'}, "
+        f"{info['median']:.2f} s).",
+        "",
+        f"Answers: ours {verdict}, {dev.get('n', '?')} evaluated points, std "
+        f"{dev.get('std', float('nan')):.4f} mm, min {dev.get('min', float('nan')):+.3f}, max "
+        f"{dev.get('max', float('nan')):+.3f} mm; Open3D: fitness {peer_json['fitness']:.3f}, {peer_json['n']} matched points, "
+        f"std {peer_json['std']:.4f} mm, min {peer_json['min']:+.3f}, max {peer_json['max']:+.3f} "
+        f"mm (no outlier rule: its verdict is {peer_json['verdict']}).",
+    ]
+    lines += ["", "Where the library's process spends its CPU (one Python process doing the steps in "
+              f"order, CPU of each step, median of {args.repeat} runs):", "",
+              "| step | CPU [s] |", "|---|---:|"]
+    lines += [f"| {name} | {sec:.2f} |" for name, sec in breakdown]
+    lines.append(f"| total | {sum(sec for _, sec in breakdown):.2f} |")
+    text = "\n".join(lines) + "\n"
+    print(text)
+    out = Path(args.out)
+    old = out.read_text() if out.is_file() else "# CLI start-up and speed\n\n"
+    head, sep, rest = old.partition("## ")
+    out.write_text(head + text + ("\n" + sep + rest if sep else ""))
+
+
+if __name__ == "__main__":
+    main()
