@@ -180,6 +180,6 @@ def test_symmetric_copy_rule_is_the_policy_s():
 
 def test_rules_are_listed_in_the_documented_order():
     names = [r.__name__ for r in V.RULES]
-    assert names == ["_rule_no_data", "_rule_does_not_fit", "_rule_coverage",
+    assert names == ["_rule_no_data", "_rule_does_not_fit", "_rule_wrong_minimum", "_rule_coverage",
                      "_rule_registration", "_rule_regions", "_rule_undecided",
                      "_rule_within_tolerance"]
