@@ -61,10 +61,10 @@ points, which lie outside the true edge by a fraction of a spacing.  :func:`meas
    tessellation sampled at random, 1 mm) the diameter error went from -0.39 .. +0.20 mm (steps
    2-3) to -0.034 .. +0.030 mm (grid: -0.026 .. +0.057); synthetic sheets (Ø20, 20 runs): radius
    error standard deviation 0.041 / 0.030 / 0.043 mm at 1 mm (random / square grid / 1 x 1.6
-   grid), 0.055 / 0.057 / 0.098 mm at 1.5 mm -- the diameter's U (k = 2) is about ``0.16 h``
-   (random, square grid) to ``0.25 h`` (anisotropic) at 1-1.5 mm: for U <= 0.05 mm on the
-   diameter take ``h <= 0.3 mm``; the measured error at 1 mm is within 0.06 mm (see
-   ``benchmarks/results_uncertainty.md``).
+   grid), 0.055 / 0.057 / 0.098 mm at 1.5 mm: the diameter's U (k = 2) at 1 mm is about
+   0.16 mm on a Ø20 hole and 0.07 mm on the panel's Ø36 (it goes as one over the perimeter):
+   for U <= 0.05 mm on a Ø20 rim take ``h <= 0.3 mm`` (or let the scan see the wall); the
+   Monte-Carlo coverage is in ``benchmarks/results_uncertainty.md``.
 
 Uncertainties of the edge method (standard, k = 1): centre per in-plane axis
 ``s_edge sqrt(2 / n_edge)``; radius ``s_edge / sqrt(n_edge)`` combined with the virtual offset's
