@@ -107,7 +107,12 @@ def _upside_down(T_true):
                          ids=["best_fit", "datums", "rps"])
 def test_every_alignment_finds_the_true_pose_of_ctc01_from_any_start(ctc01, alignment):
     prep, scan, T_true = ctc01
-    for start in (None, _upside_down(T_true)):
+    from scipy.spatial.transform import Rotation
+
+    rnd = np.eye(4)                 # a random start pose (issue 27: "from any start pose")
+    rnd[:3, :3] = Rotation.random(random_state=5).as_matrix()
+    rnd[:3, 3] = np.random.default_rng(5).uniform(-300, 300, 3)
+    for start in (None, _upside_down(T_true), rnd):
         al = align(scan, prep, alignment, init=start)
         deg, mm = _pose_off(al.T_model_scan, T_true)
         assert deg < 0.01 and mm < 0.01, (alignment["type"], start is None, deg, mm, al.details)

@@ -28,8 +28,9 @@ Starts and convergence (issue 27).  A fixture-like alignment needs the right *pl
 scan on the part first (an upside-down plate fits its datum plane and holes as well as the right
 one): RPS and datums, and a best fit without a trusted free registration, start from the
 placement the whole scan fits best among the caller's start and the global search's
-(:mod:`.placement`, the search :func:`shapeverify.register` makes with no start); two that fit
-alike give a warning (``details['warnings']``).  The Gauss-Newton fits stop when the step still
+(:mod:`.placement`, the search :func:`shapeverify.register` makes with no start); RPS and datums
+are solved at each placement and pick among those that fit alike by their own fit (lock or datum
+misfit); two that fit alike give a warning (``details['warnings']``).  The Gauss-Newton fits stop when the step still
 to take is small against the pose's own standard deviation or the noise (:func:`best_fit`'s
 ``tolerance``), as the registration does: a clean scan converges.
 """
@@ -415,9 +416,11 @@ def rps_alignment(scan, prep, points, init=None, radius: float = 4.0, max_iterat
         ``feature``, ``radius``, ``name``)
         ``lock``: the model axes ('x', 'y', 'z') whose coordinate the point fixes.
     init : (4, 4) or None
-        A start pose.  The start is the placement the whole scan fits best of ``init`` and the
-        global search's (:mod:`.placement`; only to find the points' neighbourhoods); another
-        that fits alike gives a warning in ``details['warnings']``.
+        A start pose.  The locks are solved from every placement of the scan: ``init`` and the
+        global search's (:mod:`.placement`); the result the whole scan fits best is taken, and
+        among those that fit alike the one whose locks fit best (RMS of residual over
+        uncertainty; ``init``'s when it fits alike on both counts).  Two that fit alike on
+        both counts give a warning in ``details['warnings']``.
     radius : float
         Default neighbourhood radius of a surface point (mm).
 
@@ -438,9 +441,6 @@ def rps_alignment(scan, prep, points, init=None, radius: float = 4.0, max_iterat
     pts = [p if isinstance(p, dict) else p.model_dump() for p in points]
     feats = model_features(prep.model) if prep.model.kind == "cad" else []
     P = np.asarray(scan, np.float64)
-    # the start: of the caller's start and the global search's placements, the one the whole
-    # scan fits best (an upside-down copy puts the RPS points on the wrong face)
-    T, where, warns = _best_start(P, prep, None if init is None else _check_T(init), rng)
     spec = []
     for k, p in enumerate(pts):
         at = np.asarray(p["at"], np.float64)
@@ -457,8 +457,74 @@ def rps_alignment(scan, prep, points, init=None, radius: float = 4.0, max_iterat
         spec.append((p.get("name") or f"P{k + 1}", at, [("xyz".index(a)) for a in p["lock"]],
                      hole, float(p.get("radius") or radius)))
     n_locks = sum(len(s[2]) for s in spec)
-    rows, res, unc, info = None, None, None, []
     feet = prep.closest(np.array([s[1] for s in spec]), exact=True)
+    T, where, warns, it, J, Wh, r, unc, info = _rps_at_placements(
+        P, prep, spec, n_locks, feet, None if init is None else _check_T(init), rng,
+        max_iterations, tolerance)
+    Js = J * Wh[:, None]
+    cov = np.linalg.pinv(Js.T @ Js)
+    locks = [{"point": nm, "axis": ax, "kind": kd, "residual": float(v), "uncertainty": float(u)}
+             for (nm, ax, kd), v, u in zip(info, r, unc)]
+    return AlignmentResult(T, 0.5 * (cov + cov.T), r, float(np.sqrt(np.mean(r * r))), DOF_NAMES,
+                           (), "rps", {"iterations": it, "locks": locks, "warnings": warns,
+                                       "placement": where})
+
+
+def _rps_at_placements(P, prep, spec, n_locks, feet, init, rng, max_iterations, tolerance):
+    """The RPS locks solved from every placement of the scan (:mod:`.placement`: the caller's
+    start and the global search's poses); judged by the whole scan's fit at the result, and
+    among those that fit alike by the locks' misfit (RMS of residual / uncertainty); the
+    caller's start when it fits alike on both counts.  Two that fit alike on both counts and
+    are distinct give a warning.  A placement where a lock cannot be solved (a point not
+    scanned there) is left out; when every one fails, the error of the best-fitting one."""
+    from .placement import ALIKE, placements, scan_noise_of, whole_fit
+
+    noise = scan_noise_of(P)
+    tried, failed = [], []
+    for name, T0 in placements(P, prep, init, rng):
+        try:
+            out = _rps_solve(P, prep, spec, n_locks, feet, T0, max_iterations, tolerance)
+        except ValueError as exc:
+            failed.append((whole_fit(P, prep, T0, noise), name, exc))
+            continue
+        r, unc = out[4], out[5]
+        tried.append({"name": name, "out": out, "fit": whole_fit(P, prep, out[0], noise),
+                      "misfit": float(np.sqrt(np.mean((np.asarray(r) / np.asarray(unc)) ** 2)))})
+    if not tried:
+        failed.sort(key=lambda f: -f[0])
+        raise failed[0][2]
+    best = max(t["fit"] for t in tried)
+    alike = sorted([t for t in tried if t["fit"] >= ALIKE * best], key=lambda t: t["misfit"])
+    ch = alike[0]
+    st = next((t for t in alike if t["name"] == "start"
+               and t["misfit"] <= 1.2 * ch["misfit"] + 0.5), None)
+    ch = st or ch
+    warns = []
+    if init is not None and st is None:
+        f0 = next((t["fit"] for t in tried if t["name"] == "start"), None)
+        if f0 is not None:
+            warns.append(f"the given start fits the scan worse than the global search's "
+                         f"placement (whole fit {f0:.3f} vs {ch['fit']:.3f}): started from "
+                         "the latter")
+    T = ch["out"][0]
+    for t in ([] if st is not None else alike):
+        if t is ch:
+            continue
+        D = t["out"][0] @ np.linalg.inv(T)
+        ang = float(np.degrees(np.linalg.norm(rotation_vector(D[:3, :3]))))
+        if (ang > 1.0 or np.linalg.norm(D[:3, 3]) > 0.01 * prep.model.size) and \
+                t["misfit"] <= 1.2 * ch["misfit"] + 0.5:
+            warns.append(f"another placement of the scan ({t['name']}) fits it and the RPS "
+                         f"locks alike (whole fit {t['fit']:.3f} vs {ch['fit']:.3f}, lock misfit "
+                         f"{t['misfit']:.2f} vs {ch['misfit']:.2f}, {ang:.1f} deg away): the "
+                         "pose may be a symmetric copy; give init= to choose")
+    return (T, ch["name"], warns, *ch["out"][1:])
+
+
+def _rps_solve(P, prep, spec, n_locks, feet, T, max_iterations, tolerance):
+    """Gauss-Newton on the RPS locks from the pose T: (T, iterations, J, weights, residuals,
+    uncertainties, lock info)."""
+    rows, res, unc, info = None, None, None, []
     for it in range(1, max_iterations + 1):
         X = apply_transform(T, P)
         cl = prep.closest(X, exact=True)
@@ -517,14 +583,7 @@ def rps_alignment(scan, prep, points, init=None, radius: float = 4.0, max_iterat
         if np.max(np.abs(delta[3:])) + prep.model.size * np.max(np.abs(delta[:3])) < tolerance * \
                 max(prep.model.size, 1.0):
             break
-    Js = J * Wh[:, None]
-    cov = np.linalg.pinv(Js.T @ Js)
-    r = np.array(res)
-    locks = [{"point": nm, "axis": ax, "kind": kd, "residual": float(v), "uncertainty": float(u)}
-             for (nm, ax, kd), v, u in zip(info, r, unc)]
-    return AlignmentResult(T, 0.5 * (cov + cov.T), r, float(np.sqrt(np.mean(r * r))), DOF_NAMES,
-                           (), "rps", {"iterations": it, "locks": locks, "warnings": warns,
-                                       "placement": where})
+    return T, it, J, Wh, np.array(res), np.array(unc), info
 
 
 def _best_start(scan, prep, init, rng):

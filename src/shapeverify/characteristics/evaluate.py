@@ -64,7 +64,7 @@ from ..registration.losses import MAD_TO_SIGMA
 from ..registration.rigid import apply_transform
 from .alignment import AlignmentResult, align, best_fit, face_indices
 from .features import find_feature, model_features
-from .holes import measure_hole, plane_basis
+from .holes import measure_hole, plane_basis, position_coverage
 from . import registry
 from .plan import Plan, load_plan
 from .support import extreme_quantile
@@ -457,7 +457,7 @@ def _hole(c, S: _Scan, feats, al, k):
         u_rad = float(np.sqrt(w ** 2 @ var))
     else:
         u_rad = float(np.sqrt(var.mean()))
-    U_pos = 2.0 * k * u_rad
+    U_pos = 2.0 * position_coverage(k) * u_rad      # (a 2-D offset: .holes)
     U_d = k * hm.u_diameter
     verdicts, lower, upper = {}, {}, {}
     dd = hm.diameter - f.diameter
