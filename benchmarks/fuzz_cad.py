@@ -473,12 +473,16 @@ def run(n: int, seed: int, hang_s: float, mem_gb: float, nice: int, budget_s: fl
     done = 0
     mdir = workdir / "mutants"
     mdir.mkdir(exist_ok=True)
+    import resource
+    ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu0 = ru0.ru_utime + ru0.ru_stime
+    cpu = [float("nan")]
 
     def result():
         return dict(n=done, wall=time.monotonic() - t_start, per=per, per_damage=per_damage,
                     wrong=wrong, bugs=bugs, times=times, mems=mems,
                     sources={k: orig[k] for k in sources}, worker_starts=worker.starts,
-                    warm_s=worker.warm_s, mutant_dir=str(mdir))
+                    warm_s=worker.warm_s, mutant_dir=str(mdir), cpu_s=cpu[0])
 
     try:
         for i, name, damage, data in mutants(sources, n, seed):
@@ -511,6 +515,9 @@ def run(n: int, seed: int, hang_s: float, mem_gb: float, nice: int, budget_s: fl
                 partial(result())
     finally:
         worker.close()
+    import resource
+    ru = resource.getrusage(resource.RUSAGE_CHILDREN)  # the workers and their importers, reaped
+    cpu[0] = ru.ru_utime + ru.ru_stime - cpu0
     return result()
 
 
@@ -529,6 +536,11 @@ def write_results(r: dict, path: Path, command: str, seed: int, hang_s: float, m
         f"and prepare a clean file, numba compiling: "
         f"{', '.join(f'{x:.0f}' for x in r['warm_s'][:5])} s wall, inside the total)."
         + (" **Partial: the run is still going.**" if r.get("partial") else ""),
+        "",
+        (f"CPU time of the workers and importers (user + system, `getrusage`): {r['cpu_s']:.0f} s, "
+         f"{r['cpu_s'] / max(r['n'], 1):.3f} s per mutant (the machine is shared: wall time "
+         "is mostly waiting for a core at nice 10)." if np.isfinite(r.get("cpu_s", np.nan)) else
+         "CPU time: counted when the run ends."),
         "",
         "Sources (faces declared): " + ", ".join(f"`{k}` ({v})" for k, v in r["sources"].items()),
         "",
