@@ -150,7 +150,7 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
             min_region_points: int = MIN_POINTS,
             min_inlier_fraction: float = MIN_INLIER_FRACTION, rng=0,
             max_distance: float | None = None, plan=None,
-            missing: bool = False) -> InspectionResult:
+            missing: bool = True) -> InspectionResult:
     """Register a scan to the model, compute its deviations and decide the verdict.
 
     Parameters
@@ -198,11 +198,12 @@ def inspect(prep, scan, tolerance=0.2, evaluation_distance: float | None = None,
     max_distance : float, optional
         Old name of ``evaluation_distance`` (deprecated).
     missing : bool
-        Also fail the part where the scan sees through the CAD surface: an unseen area enclosed
-        by seen, in-tolerance surface becomes a region of kind ``"missing"``
-        (:mod:`shapeverify.inspection.missing`). Off by default: a scanner's dropout (a shiny
-        or dark spot) looks the same, and a hole in a solid already fails through the
-        deviations of its wall.
+        Fail the part where the scan sees through the CAD surface (on by default, issue 33 row
+        3): an unseen area, enclosed by seen surface, with scan points seen *behind* it (the
+        wall of a hole the CAD does not have, what lies behind a sheet) becomes a region of kind
+        ``"missing"`` (:mod:`shapeverify.inspection.missing`); an area merely not seen (a
+        dropout, the far side of a one-sided scan) has no such points and stays a coverage gap.
+        ``False``: skip the rule.
     plan : Plan, dict, str or path, optional
         An inspection plan (:mod:`shapeverify.characteristics`: ``plan.yaml``): the scan is
         aligned the plan's way (best fit on faces, constrained, RPS, datums; an array ``init``
@@ -357,7 +358,7 @@ def inspect_registered(prep, scan, registration, tolerance=0.2,
                        faces=None, per_face=None, min_coverage: float = MIN_COVERAGE,
                        min_region_points: int = MIN_POINTS,
                        min_inlier_fraction: float = MIN_INLIER_FRACTION,
-                       max_distance: float | None = None, missing: bool = False) -> InspectionResult:
+                       max_distance: float | None = None, missing: bool = True) -> InspectionResult:
     """:func:`inspect` for a scan that is already registered (``registration.T_model_scan``).
 
     ``registration`` is any object with ``T_model_scan``, ``rms``, ``iterations``, ``converged``,
@@ -418,11 +419,11 @@ class _Options:
     min_coverage: float
     min_region_points: int
     min_inlier_fraction: float
-    missing: bool = False
+    missing: bool = True
 
 
 def _options(prep, tolerance, lower, upper, per_face, evaluation_distance, max_distance, faces,
-             min_coverage, min_region_points, min_inlier_fraction, missing=False) -> _Options:
+             min_coverage, min_region_points, min_inlier_fraction, missing=True) -> _Options:
     tol = Tolerance.from_args(tolerance, lower, upper, per_face)
     if max_distance is not None:
         if evaluation_distance is not None:

@@ -19,7 +19,8 @@ the result's ``rule``:
 5. ``fail`` (rule ``regions``): at least one region fails the part: a connected out-of-tolerance
    surface area (``kind="deviation"``, :mod:`.regions`) or measured material where the CAD has
    none (``kind="material"``, :mod:`.material`), or CAD surface the scan sees through, a hole
-   or cut-out the CAD does not have (``kind="missing"``, :mod:`.missing`);
+   or cut-out the CAD does not have (``kind="missing"``, :mod:`.missing`, on by default:
+   :func:`missing_material`);
 6. ``incomplete`` (rule ``undecided``): no region fails the part, but the measurement cannot
    decide that it conforms (ISO 14253-1: conformance is proven only inside the tolerance zone
    reduced by the measurement uncertainty): the scan's own noise (sigma about local quadrics,
@@ -376,13 +377,11 @@ def decide(registration, deviations, regions, coverage=None, *,
         return Verdict.ERROR, tuple(errors), "registration"
     if regions:
         n_mat = sum(1 for r in regions if getattr(r, "kind", "deviation") == "material")
-        n_mis = sum(1 for r in regions if getattr(r, "kind", "deviation") == "missing")
-        n_dev = len(regions) - n_mat - n_mis
+        missing = missing_material(regions)
+        n_dev = len(regions) - n_mat - sum(1 for r in regions if getattr(r, "kind", "") == "missing")
         parts = ([f"{n_dev} out-of-tolerance region{'s' if n_dev != 1 else ''}"] if n_dev else []) + \
                 ([f"{n_mat} region{'s' if n_mat != 1 else ''} of material the CAD does not have"]
-                 if n_mat else []) + \
-                ([f"{n_mis} region{'s' if n_mis != 1 else ''} of CAD surface the scan sees "
-                  "through (material missing)"] if n_mis else [])
+                 if n_mat else []) + ([missing] if missing else [])
         return Verdict.FAIL, tuple([f"fail: {' and '.join(parts)} (most severe first)"] + listed), "regions"
     why = _undecided(noise, tolerance, n_outliers, n_eval)
     if why:
@@ -390,6 +389,18 @@ def decide(registration, deviations, regions, coverage=None, *,
     seen = f"; {100 * coverage.fraction:.1f} % of the inspected area seen" if coverage is not None else ""
     return Verdict.PASS, (f"pass: all {n_eval} evaluated points are within tolerance except isolated "
                     f"measurement outliers{seen}",), "within_tolerance"
+
+
+def missing_material(regions) -> str | None:
+    """The missing-material rule (issue 33 row 3; part of rule 5, ``regions``): the regions of
+    kind ``"missing"`` -- CAD surface the scan sees through (:mod:`.missing`: points seen behind
+    it) -- fail the part; returns the reason's words for them, or None when there are none.
+    Surface merely not seen is no region: it only lowers the coverage (rule 3)."""
+    n_mis = sum(1 for r in regions if getattr(r, "kind", "deviation") == "missing")
+    if not n_mis:
+        return None
+    return (f"{n_mis} region{'s' if n_mis != 1 else ''} of CAD surface the scan sees through "
+            "(material missing)")
 
 
 def _undecided(noise, tolerance, n_outliers: int, n_eval: int) -> list[str]:
