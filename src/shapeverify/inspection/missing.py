@@ -159,17 +159,19 @@ def find_missing(prep, dev, spacing: float, within: np.ndarray, tolerance=None, 
     ev_dist = float(dev.evaluation_distance)
     delta = ev_dist if np.isfinite(ev_dist) else 3.0 * s
     depth_max = float(getattr(getattr(prep, "model", None), "size", 0.0) or np.ptp(pts, axis=0).max())
-    other = dev.points_model[~ev]                    # not evaluated: too far, past an edge, ...
-    other = kernel_array(other[np.all(np.isfinite(other), axis=1)])
-    view = _view_direction(dev)
-    ok_band = within | (dev.values <= 0)             # only raised material casts a shadow
     lower = abs(float(getattr(tolerance, "lower", 1.0))) or 1.0
-    out = []
+    out, lazy = [], {}
     for c in comps:
         g = gap_idx[labels == c]
         if _seen_behind(pts, normals, g, off_pts, r_seen + BEHIND_LATERAL * s, delta, depth_max) \
                 < max(MIN_BEHIND, MIN_BEHIND_SHARE * g.size * a_pt / (s * s)):
             continue
+        if not lazy:                                 # what the other rules need, once
+            other = dev.points_model[~ev]            # not evaluated: too far, past an edge, ...
+            lazy["other"] = kernel_array(other[np.all(np.isfinite(other), axis=1)])
+            lazy["view"] = _view_direction(dev)
+            lazy["ok_band"] = within | (dev.values <= 0)   # only raised material casts a shadow
+        other, view, ok_band = lazy["other"], lazy["view"], lazy["ok_band"]
         if _enclosed(pts, seen, g, h, a_pt) < MIN_ENCLOSED:
             continue
         if _in_tolerance(dev, ok_band, pts[g], r_seen + BAND * s) < MIN_IN_TOLERANCE:
