@@ -17,10 +17,12 @@ runs
 
 Outcomes per stage: ``ok``, ``ok (faces missing, warned)``, an input error (its class),
 ``importer crashed`` (contained: a signal in the importer child), ``importer timeout`` (the
-importer killed after ``--hang-s``: a *hang*), ``memory`` (MemoryError: the limit was hit), or
+importer killed by a watchdog after ``--hang-s`` seconds of *CPU* on one import: a *hang*;
+the wall clock is only a backstop at 10 x that, since a nice'd process on a loaded machine can
+wait minutes for a core), ``memory`` (MemoryError: the limit was hit), or
 ``BUG <exception>`` (an exception that is not an input error).  The parent restarts the worker
 when it dies (a *parent crash*: the process that ran ``info``/``prepare`` died) or does not
-answer within ``2 * hang-s + 30`` s (a *parent hang*).
+spends over ``2 * hang-s`` of its own CPU on one mutant (a *parent hang*).
 
 Silently wrong (each counted, and the first ones listed in the results):
 
@@ -58,6 +60,8 @@ import numpy as np
 ROOT = Path(__file__).resolve().parents[1]
 SHARED_CAD = ROOT.parent / "shared" / "data" / "cad"
 SEED = 20261206
+#: the wall-clock backstop of an import, in multiples of the CPU limit of a hang
+WALL_FACTOR = 10.0
 EXTREME = {"step": [b"NaN", b"1.E+400", b"-INF", b"*", b"9.99D+99"],
            "iges": [b"NaN", b"1.E+400", b"-INF", b"1.0D+999"]}
 
@@ -246,7 +250,49 @@ def _worker_main(hang_s: float) -> None:
     from shapeverify.cad.summary import read_summary
     from shapeverify.errors import IncompleteModelError, ShapeVerifyError, is_input_error
 
-    occ_worker.DEFAULT_TIMEOUT_S = hang_s
+    # a hang is counted in CPU seconds (a watchdog kills an importer that spends more than
+    # hang_s of CPU on one request); the wall-clock limit is only a backstop, because on a
+    # loaded machine a nice'd importer can wait minutes for a core
+    occ_worker.DEFAULT_TIMEOUT_S = max(WALL_FACTOR * hang_s, 600.0)
+    import threading
+
+    watch = {"pid": None, "cpu0": 0.0, "killed": False, "on": False}
+
+    def proc_cpu(pid):
+        try:
+            f = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+            return (int(f[11]) + int(f[12])) / os.sysconf("SC_CLK_TCK")
+        except (OSError, IndexError, ValueError):
+            return None
+
+    def watchdog():
+        while True:
+            time.sleep(0.5)
+            if not watch["on"]:
+                continue
+            imp = occ_worker._CURRENT
+            if imp is None or imp.proc.poll() is not None:
+                continue
+            pid = imp.proc.pid
+            c = proc_cpu(pid)
+            if c is None:
+                continue
+            if watch["pid"] != pid:          # a new importer during this request: from its start
+                watch["pid"], watch["cpu0"] = pid, 0.0
+            if c - watch["cpu0"] > hang_s:
+                watch["killed"] = True
+                try:
+                    os.kill(pid, 9)
+                except OSError:
+                    pass
+
+    threading.Thread(target=watchdog, daemon=True).start()
+
+    def watch_start():
+        imp = occ_worker._CURRENT
+        pid = imp.proc.pid if imp is not None and imp.proc.poll() is None else None
+        watch["pid"], watch["cpu0"] = pid, (proc_cpu(pid) or 0.0) if pid else 0.0
+        watch["killed"], watch["on"] = False, True
     logging.getLogger("shapeverify").setLevel(logging.WARNING)
     warnings: list[str] = []
 
@@ -285,7 +331,9 @@ def _worker_main(hang_s: float) -> None:
         if isinstance(exc, MemoryError):
             return "memory"
         if "did not finish within" in msg:
-            return "importer timeout"
+            return "importer timeout (wall)"
+        if "importer crashed" in msg and watch["killed"]:
+            return f"importer hang (over {hang_s:g} s of CPU)"
         if "importer crashed" in msg:
             return "importer crashed" + (" (memory?)" if "SIGABRT" in msg or "signal 6" in msg else "")
         if isinstance(exc, ShapeVerifyError) and is_input_error(exc):
@@ -325,6 +373,7 @@ def _worker_main(hang_s: float) -> None:
         # info
         warnings.clear()
         t0 = time.perf_counter()
+        watch_start()
         try:
             s = read_summary(path)
             miss = (s.faces_in_file or s.faces) - s.faces
@@ -345,6 +394,7 @@ def _worker_main(hang_s: float) -> None:
         # prepare
         warnings.clear()
         t0 = time.perf_counter()
+        watch_start()
         try:
             model = sv.load_model(path)
             miss = model.n_missing_faces
@@ -371,6 +421,7 @@ def _worker_main(hang_s: float) -> None:
                 raise
             res["prepare"] = classify(exc)
         res["t_prepare"] = time.perf_counter() - t0
+        watch["on"] = False
         c1, (pid1, ic1) = cpu_now()
         # CPU of this mutant: the worker, the importers reaped meanwhile, the live importer
         res["cpu"] = c1 - c0 + ic1 - (ic0 if pid1 == pid0 else 0.0)
@@ -379,6 +430,15 @@ def _worker_main(hang_s: float) -> None:
         res["worker_mb"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss // 1024
         out.write(json.dumps(res) + "\n")
         out.flush()
+
+
+def _proc_cpu(pid):
+    """CPU seconds (user + system) of a live process, from /proc; None when unreadable."""
+    try:
+        f = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        return (int(f[11]) + int(f[12])) / os.sysconf("SC_CLK_TCK")
+    except (OSError, IndexError, ValueError):
+        return None
 
 
 class Worker:
@@ -424,11 +484,19 @@ class Worker:
             self.proc.stdin.flush()
         except OSError:
             pass
-        limit = 2 * self.hang_s + 30
-        ready, _, _ = select.select([self.proc.stdout], [], [], limit)
-        if not ready:
-            self.kill()
-            return {"info": "PARENT HANG", "prepare": "PARENT HANG", "wrong": []}
+        # a hang of the worker itself (prepare runs in it): over 2 x hang_s of its CPU on one
+        # mutant (info + prepare); the wall clock is only a backstop (a loaded machine)
+        wall_limit = 2 * max(WALL_FACTOR * self.hang_s, 600.0) + 60
+        t0, c0 = time.monotonic(), _proc_cpu(self.proc.pid)
+        while True:
+            ready, _, _ = select.select([self.proc.stdout], [], [], 1.0)
+            if ready:
+                break
+            c = _proc_cpu(self.proc.pid)
+            if (c is not None and c0 is not None and c - c0 > 2 * self.hang_s) \
+                    or time.monotonic() - t0 > wall_limit:
+                self.kill()
+                return {"info": "PARENT HANG", "prepare": "PARENT HANG", "wrong": []}
         line = self.proc.stdout.readline()
         if not line:
             status = self.proc.wait()
@@ -526,9 +594,9 @@ def run(n: int, seed: int, hang_s: float, mem_gb: float, nice: int, budget_s: fl
             if res["wrong"]:
                 wrong.append((path.name, name, res["wrong"]))
                 keep = True
-            if any(str(res[k]).startswith(("BUG", "PARENT", "importer timeout", "memory"))
+            if any(str(res[k]).startswith(("BUG", "PARENT", "importer timeout", "importer hang", "memory"))
                    for k in ("info", "prepare")):
-                bugs.append((path.name, name, res["info"], res["prepare"]))
+                bugs.append((path.name, name, res["info"], f"{res['prepare']} (CPU {res.get('cpu', float('nan')):.1f} s)"))
                 keep = True
             if not keep:
                 path.unlink()
@@ -571,9 +639,11 @@ def write_results(r: dict, path: Path, command: str, seed: int, hang_s: float, m
         "|---|---|",
         f"| parent crashes (the process running info/prepare died) | "
         f"{sum(v for k, v in r['per'].items() if 'PARENT CRASH' in k)} |",
-        f"| parent hangs (no answer within {2 * hang_s + 30:g} s) | "
+        f"| parent hangs (over {2 * hang_s:g} s of the worker's CPU on one mutant) | "
         f"{sum(v for k, v in r['per'].items() if 'PARENT HANG' in k)} |",
-        f"| imports stopped after {hang_s:g} s wall (importer timeout) | "
+        f"| importer hangs (over {hang_s:g} s of CPU on one import, killed by the watchdog) | "
+        f"{sum(v for k, v in r['per'].items() if 'importer hang' in k)} |",
+        f"| imports stopped by the wall-clock backstop ({max(WALL_FACTOR * hang_s, 600.0):g} s) | "
         f"{sum(v for k, v in r['per'].items() if 'importer timeout' in k)} |",
         f"| memory limit hit (MemoryError) | {sum(v for k, v in r['per'].items() if 'memory' in k)} |",
         f"| exceptions that are not input errors (bugs) | "

@@ -228,7 +228,7 @@ def _harness():
 
 def _assert_clean(r):
     bad = {k: v for k, v in r["per"].items()
-           if any(w in k for w in ("PARENT", "BUG", "memory", "importer timeout"))}
+           if any(w in k for w in ("PARENT", "BUG", "memory", "importer timeout", "importer hang"))}
     assert not bad, (bad, r["bugs"][:5])
     assert not r["wrong"], r["wrong"][:5]
     cpus = [t[4] for t in r["times"]]
