@@ -123,6 +123,9 @@ def _summary_here(path: Path, fmt: str) -> ModelSummary:
                        n_in_file - len(kept), n_in_file, "; ".join(why))
     t_faces = time.perf_counter()
     lo, hi = _bounds(kept)
+    from .number_check import check_extent
+
+    check_extent(path, lo, hi)  # issue 33 fuzz: a finite but absurd number in the file
     size = float(np.linalg.norm(hi - lo))
     logger.info("%s: summary of %d faces (%d left out) from OpenCASCADE alone; read %.2f s, "
                 "faces %.2f s, bounds %.2f s", path.name, len(kept), skipped, t_read - t0,
