@@ -552,7 +552,7 @@ def run(n: int, seed: int, hang_s: float, mem_gb: float, nice: int, budget_s: fl
         workdir: Path, shared: bool = True, progress=None, partial=None) -> dict:
     """Run up to n mutants (or until budget_s); return the tallies (see :func:`write_results`).
     ``progress(done, wall, per, wrong, bugs)`` is called every 100 mutants, ``partial(result)``
-    every 500."""
+    every 50."""
     sources = make_sources(workdir / "src", shared=shared)
     orig = original_faces(None, sources)
     worker = Worker(hang_s, mem_gb, nice, warm=sources[sorted(sources)[0]])
@@ -602,7 +602,7 @@ def run(n: int, seed: int, hang_s: float, mem_gb: float, nice: int, budget_s: fl
                 path.unlink()
             if progress and done % 100 == 0:
                 progress(done, time.monotonic() - t_start, per, wrong, bugs)
-            if partial and done % 500 == 0:
+            if partial and done % 50 == 0:
                 partial(result())
     finally:
         worker.close()

@@ -116,7 +116,8 @@ def _summary_here(path: Path, fmt: str) -> ModelSummary:
         rational += surface.rational
         holed += loops > 1
     if not kept:
-        raise CADImportError(f"{path}: none of the {len(faces)} faces could be converted")
+        raise CADImportError(f"{path}: none of the {len(faces)} faces could be converted "
+                             f"({'; '.join(why[:3])}{' ...' if len(why) > 3 else ''})")
     n_in_file = oi._missing_faces(path, fmt, len(faces), why)  # issue 33 row 2: info says so
     if why:
         logger.warning("%s: %d of the %d faces in the file were not loaded: %s", path,
