@@ -11,12 +11,16 @@ exception, or this process dying -- fails the test.
 
 The unmarked test runs one mutant per kind of damage of the example panel (STEP and IGES); the
 slow one 6 per kind and file: 108 mutants with ``../shared/data/cad/wavy-cube.stp`` (when present).
+The large run (``benchmarks/fuzz_cad.py``: info and prepare in a nice'd worker with a 2 GB limit,
+restarted on crash, results in ``benchmarks/results_fuzz.md``) is checked here on 45 mutants
+(slow) and runs in full with ``SHAPEVERIFY_FUZZ_LARGE=1``.
 """
 
 from __future__ import annotations
 
 import collections
 import logging
+import os
 import re
 from pathlib import Path
 
@@ -209,3 +213,50 @@ def test_fuzz_many_mutants_only_shapeverify_errors(sources, tmp_path, monkeypatc
     out = _fuzz(sources, names, 6, tmp_path, monkeypatch, caplog)
     assert sum(out.values()) == 6 * len(DAMAGE) * len(names), out
     print(f"CAD fuzz: {sum(out.values())} mutants of {names}: {dict(out)}")  # shown with -s
+
+
+# ------------------------------------------------------------------------------- the large run
+def _harness():
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "fuzz_cad.py"
+    spec = importlib.util.spec_from_file_location("fuzz_cad", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
+
+
+def _assert_clean(r):
+    bad = {k: v for k, v in r["per"].items()
+           if any(w in k for w in ("PARENT", "BUG", "memory", "importer timeout", "importer hang"))}
+    assert not bad, (bad, r["bugs"][:5])
+    assert not r["wrong"], r["wrong"][:5]
+    cpus = [t[4] for t in r["times"]]
+    assert max(cpus) < 60.0, max(cpus)
+
+
+@pytest.mark.slow
+def test_fuzz_cad_harness_every_damage_through_info_and_prepare(tmp_path):
+    """``benchmarks/fuzz_cad.py`` (the large run's harness): one mutant per damage and source
+    file through ``info`` and ``prepare`` in its nice'd, memory-limited worker: no crash of
+    the worker, no hang, no bug, nothing silently wrong."""
+    fz = _harness()
+    n = len(fz.DAMAGE) * 5
+    r = fz.run(n, fz.SEED + 1, hang_s=300.0, mem_gb=2.0, nice=10, budget_s=None,
+               workdir=tmp_path)
+    assert r["n"] == n
+    _assert_clean(r)
+
+
+@pytest.mark.slow
+@pytest.mark.skipif(os.environ.get("SHAPEVERIFY_FUZZ_LARGE") != "1",
+                    reason="the large CAD fuzz run: set SHAPEVERIFY_FUZZ_LARGE=1 (hours of CPU "
+                           "on a busy machine; SHAPEVERIFY_FUZZ_CAD_N mutants, default 10,000)")
+def test_fuzz_cad_large_run(tmp_path):
+    fz = _harness()
+    n = int(os.environ.get("SHAPEVERIFY_FUZZ_CAD_N", "10000"))
+    r = fz.run(n, fz.SEED, hang_s=60.0, mem_gb=2.0, nice=10, budget_s=None, workdir=tmp_path)
+    fz.write_results(r, tmp_path / "results_fuzz.md", f"pytest (N={n})", fz.SEED, 60.0, 2.0)
+    print((tmp_path / "results_fuzz.md").read_text())
+    assert r["n"] == n
+    _assert_clean(r)

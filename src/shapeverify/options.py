@@ -187,7 +187,7 @@ class InspectionOptions:
     min_inlier_fraction : float, optional
         Below this registration inlier fraction the verdict is 'error' (None: 0.25).
     missing : bool
-        Also look for CAD surface the scan sees through (:func:`shapeverify.inspect`).
+        Look for CAD surface the scan sees through (default True; :func:`shapeverify.inspect`).
     rng : int or numpy Generator
         Seed of the registration's random choices (default 0: the same result every run).
     registration : tuple of (name, value)
@@ -209,7 +209,7 @@ class InspectionOptions:
     per_face: tuple = ()
     min_region_points: int | None = None
     min_inlier_fraction: float | None = None
-    missing: bool = False
+    missing: bool = True
     rng: Any = 0
     registration: tuple = ()
 

@@ -34,7 +34,11 @@ import numpy as np
 
 from ..errors import CADImportError
 
-__all__ = ["check_numbers"]
+__all__ = ["check_numbers", "check_extent", "MAX_MODEL_COORDINATE"]
+
+#: Largest coordinate (mm) of a model accepted from a CAD file: 1e12 mm is a million km, as for
+#: scans (:data:`shapeverify.io.points.MAX_COORDINATE`).
+MAX_MODEL_COORDINATE = 1e12
 
 _WORD = rb"(?:NAN|INF|INFINITY)"
 # a real with a long exponent (E or D) | any D exponent | NaN/INF as a parameter | * beside a real
@@ -203,3 +207,24 @@ _KEEP = np.ones(256, bool)
 _KEEP[[9, 10, 11, 12, 13, 32]] = False
 _SPACE = bytes([9, 10, 11, 12, 13, 32])
 _UPPER_TABLE = bytes.maketrans(bytes(range(97, 123)), bytes(range(65, 91)))
+
+
+def check_extent(path, lo, hi) -> None:
+    """Raise :class:`CADImportError` if a model's bounding box (mm) is not finite or reaches
+    beyond :data:`MAX_MODEL_COORDINATE`.
+
+    A finite number that is absurd for a length (``1E+300`` in a control point: found by the CAD
+    fuzz run, issue 33) passes :func:`check_numbers`; OpenCASCADE reads it, and the model's
+    size overflows to ``inf`` (``info`` showed it, ``prepare`` failed with "spacing must be a
+    finite number ... got inf", naming no file).
+    """
+    lo = np.asarray(lo, dtype=np.float64)
+    hi = np.asarray(hi, dtype=np.float64)
+    with np.errstate(over="ignore", invalid="ignore"):
+        big = float(np.max(np.abs(np.concatenate([lo.ravel(), hi.ravel()]))))
+        size = float(np.linalg.norm(hi - lo))
+    if not (np.isfinite(big) and np.isfinite(size)) or big > MAX_MODEL_COORDINATE:
+        raise CADImportError(
+            f"{path}: the model reaches a coordinate of {big:.3g} mm, beyond +-"
+            f"{MAX_MODEL_COORDINATE:g} mm (a million km): a damaged number in the file (a point "
+            "or control point far out)? Export it again from the CAD system")

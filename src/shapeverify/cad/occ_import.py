@@ -319,6 +319,14 @@ def _face_surface(face, index: int, path: Path):
     except ValueError as exc:
         raise CADImportError(f"{path}: face {index} has an invalid B-spline surface: "
                              f"{exc}") from exc
+    from .number_check import MAX_MODEL_COORDINATE
+
+    big = float(np.max(np.abs(surface.control))) if surface.control.size else 0.0
+    if not big <= MAX_MODEL_COORDINATE:  # issue 33 fuzz: 1E+300 in a control point made the
+        # edge sampling subdivide without end (memory without bound, the process OOM-killed)
+        raise CADImportError(f"{path}: face {index} has a control point at {big:.3g} mm, beyond "
+                             f"+-{MAX_MODEL_COORDINATE:g} mm (a million km): a damaged number in "
+                             "the file? Export it again from the CAD system")
     return work, surface, conv
 
 
@@ -503,4 +511,8 @@ def _read_cad_here(path: Path, fmt: str, chord_tol: float, gap_tol: float) -> Mo
                 "(%d on free edges); read %.2f s, faces %.2f s, total %.2f s",
                 path.name, len(surfaces), n_converted, unit, scale, n_seg, n_free,
                 t_read - t_start, t_faces - t_read, t_end - t_start)
+    from .number_check import check_extent
+
+    b = model.bounds  # cached: computed here anyway (the importer sends it with the model)
+    check_extent(path, b[0], b[1])  # issue 33 fuzz: a finite but absurd number in the file
     return model

@@ -116,13 +116,17 @@ def _summary_here(path: Path, fmt: str) -> ModelSummary:
         rational += surface.rational
         holed += loops > 1
     if not kept:
-        raise CADImportError(f"{path}: none of the {len(faces)} faces could be converted")
+        raise CADImportError(f"{path}: none of the {len(faces)} faces could be converted "
+                             f"({'; '.join(why[:3])}{' ...' if len(why) > 3 else ''})")
     n_in_file = oi._missing_faces(path, fmt, len(faces), why)  # issue 33 row 2: info says so
     if why:
         logger.warning("%s: %d of the %d faces in the file were not loaded: %s", path,
                        n_in_file - len(kept), n_in_file, "; ".join(why))
     t_faces = time.perf_counter()
     lo, hi = _bounds(kept)
+    from .number_check import check_extent
+
+    check_extent(path, lo, hi)  # issue 33 fuzz: a finite but absurd number in the file
     size = float(np.linalg.norm(hi - lo))
     logger.info("%s: summary of %d faces (%d left out) from OpenCASCADE alone; read %.2f s, "
                 "faces %.2f s, bounds %.2f s", path.name, len(kept), skipped, t_read - t0,

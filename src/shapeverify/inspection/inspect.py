@@ -91,11 +91,12 @@ def inspect(prep, scan, tolerance=None, evaluation_distance: float | None = None
         All of the above in one checked object (what the command line, the service and batch
         pass); then give no other option keyword.
     missing : bool
-        Also fail the part where the scan sees through the CAD surface: an unseen area enclosed
-        by seen, in-tolerance surface becomes a region of kind ``"missing"``
-        (:mod:`shapeverify.inspection.missing`). Off by default: a scanner's dropout (a shiny
-        or dark spot) looks the same, and a hole in a solid already fails through the
-        deviations of its wall.
+        Fail the part where the scan sees through the CAD surface (on by default, issue 33 row
+        3): an unseen area, enclosed by seen surface, with scan points seen *behind* it (the
+        wall of a hole the CAD does not have, what lies behind a sheet) becomes a region of kind
+        ``"missing"`` (:mod:`shapeverify.inspection.missing`); an area merely not seen (a
+        dropout, the far side of a one-sided scan) has no such points and stays a coverage gap.
+        ``False``: skip the rule.
     plan : Plan, dict, str or path, optional
         An inspection plan (:mod:`shapeverify.characteristics`: ``plan.yaml``): the scan is
         aligned the plan's way (best fit on faces, constrained, RPS, datums; an array ``init``
@@ -325,7 +326,7 @@ class _Options:
     min_coverage: float
     min_region_points: int
     min_inlier_fraction: float
-    missing: bool = False
+    missing: bool = True
 
 
 def _options(prep, given) -> _Options:

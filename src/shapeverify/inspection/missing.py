@@ -1,66 +1,61 @@
 """Missing material: CAD surface the scan sees through (a hole or cut-out the CAD does not have).
 
-The mirror of :mod:`.material`, **opt-in** (``inspect(..., missing=True)``): an enclosed
-unseen area is told from a scanner's dropout (a shiny or dark spot) by no more than the rules
-below, and a hole drilled through a solid already fails the part without it, through the
-deviations of its wall, which lies inside the CAD's material (tested).  Evidence seen *through*
-the gap (the wall or the fixture behind it) would make it decisive: not used yet.
-
-Where the CAD has surface and the scan has no point near it,
-either the part has no material there (a hole that should not be there, a missing flange) or
-the scanner did not look there (outside its view, shadowed, the edge of a partial scan).  The
-first fails the part (a region of ``kind="missing"``); the second is only a coverage gap
+The mirror of :mod:`.material`, **on by default** (``inspect(..., missing=False)`` skips it).
+Where the CAD has surface and the scan has no point near it, either the part has no material
+there (a hole that should not be there, a missing flange) or the scanner did not look there
+(outside its view, shadowed, a shiny or dark spot, the back of a one-sided scan).  The first
+fails the part (a region of ``kind="missing"``); the second is only a coverage gap
 (:mod:`.coverage`: ``incomplete`` when too little is seen overall).
 
-**How the two are told apart** (the rule chosen; all lengths in mm, ``s`` = the scan's spacing
-as area per point, :func:`.regions.surface_spacing`).  A scanner that stopped seeing leaves a gap
-that runs out to where its view ended; a hole leaves a gap that the scan's points surround.  So
-an unseen area is missing material only when all of these hold:
+**How the two are told apart: see-through evidence.**  A scanner that did not look leaves no
+trace; a scanner that looked *through* the CAD surface measured what lies behind it -- the wall of
+a hole drilled through a solid, the table or fixture behind a sheet.  So an unseen area is missing
+material only when scan points are seen behind it.  The rules (all lengths in mm, ``s`` = the
+scan's spacing as area per point, :func:`.regions.surface_spacing`):
 
-1. **Unseen**: the model points (an even subset of ``prep.points``, :func:`.coverage.model_samples`)
+1. **Seen behind** (the evidence, checked first): scan points *off the CAD surface* -- not
+   evaluated (farther than the evaluation distance), or evaluated inside the material beyond the
+   lower limit -- that lie deeper than the evaluation distance behind the gap against its CAD
+   normal (inside a solid's material; for a sheet, on the side its normals turn away from) and
+   within ``SEEN_RADIUS + BEHIND_LATERAL`` spacings of a gap point across it: at least
+   ``MIN_BEHIND`` (10) of them and ``MIN_BEHIND_SHARE`` (10 %) of the points the gap's area would
+   hold.  A good part's points all lie on its CAD surface, so a dropout, a shadow or the unseen
+   back of a plate has none (the back face's points of a plate lie *on* the CAD, not off it);
+2. **unseen**: the model points (an even subset of ``prep.points``, :func:`.coverage.model_samples`)
    with no evaluated foot point within ``SEEN_RADIUS x s`` (random sampling leaves such a spot
    with probability ``exp(-4 pi)``, 4e-6), linked into connected gaps like the coverage gaps;
-2. **wider than sampling explains**: some point of the gap is farther than ``MIN_WIDTH x s``
-   from every foot point (the gap is at least 5 spacings across; the largest empty disc among
-   100,000 random points has a radius of about 1.9 spacings, so sparse or thinned sampling never
-   makes one);
-3. **enclosed by seen surface**: along the gap's border, seen surface and "no surface" are
-   weighed: for each gap point, the model points within ``2.5`` model spacings that are seen
-   (weight for "seen"), and the deficit of model points against a full disc (weight for "the
-   model ends here": the CAD's outline, a free edge, a face that is not inspected).  The seen
-   share must be at least ``MIN_ENCLOSED`` (90 %).  A gap that reaches the CAD's outline where
-   no scan point is (the unseen half of a partial scan) is bordered by the outline and is not
-   missing material: the scanner may simply have stopped there;
-4. **the surrounding surface is in tolerance**: at least ``MIN_IN_TOLERANCE`` of the evaluated
-   points within ``SEEN_RADIUS + BAND`` spacings of the gap are within tolerance: a gap beside a
-   raised defect is its shadow, and the defect fails the part already;
-5. **seen through, in the line of sight**: at least ``MIN_VISIBLE`` of the gap's points must be
-   seen through: no scan point that was not evaluated (too far, past an edge) lies within the
-   seen radius of their line of sight, on either side of the surface within 10 evaluation
-   distances (a reflection pushed off the surface, a foreign object: the scanner saw something
-   there, not through the surface); and, when the scan has a dominant view direction ``v`` (the
-   mean CAD normal at the evaluated foot points has a length of at least ``DOMINANT_VIEW``), they
-   must face the view (``n . v > 0.1``) and not be hidden behind other CAD surface along ``v`` (a
-   shadow behind a rib or a wall is hidden).  Without a dominant direction (views from all
-   around) the line of sight is each point's normal and the hiding test is skipped.  Points seen
-   *behind* the surface through the gap are not used as evidence for a hole (they block it, like
-   points in front, when they are that close: conservative).
+3. **wider than sampling explains**: some point of the gap is farther than ``MIN_WIDTH x s``
+   from every foot point (the largest empty disc among 100,000 random points has a radius of
+   about 1.9 spacings);
+4. **enclosed by seen surface**: along the gap's border, seen surface and "no surface" (the
+   CAD's outline, a free edge, a face not inspected) are weighed; the seen share must be at least
+   ``MIN_ENCLOSED`` (90 %): a gap that runs out to where the CAD ends is the edge of the scan;
+5. **not a shadow**: at least ``MIN_IN_TOLERANCE`` of the evaluated points within
+   ``SEEN_RADIUS + BAND`` spacings of the gap are not raised beyond the upper limit (a raised
+   defect's shadow; points below the lower limit, such as a hole's wall near its rim, are what a
+   hole looks like and do not count against it);
+6. **in the line of sight**: at least ``MIN_VISIBLE`` of the gap's points have no scan point in
+   *front* of the surface within the seen radius of their line of sight (a reflection pushed off
+   the surface, a foreign object: the scanner saw something there); and, when the scan has a
+   dominant view direction ``v`` (the mean CAD normal at the evaluated foot points has a length of
+   at least ``DOMINANT_VIEW``), they face the view (``n . v > 0.1``) and are not hidden behind
+   other CAD surface along ``v``.  Without a dominant direction (views from all around, no sensor
+   position) the line of sight is each point's normal and the hiding test is skipped: then rules
+   1 and 4 (a gap in densely seen surface, with surface seen behind it) decide.
 
 A region's ``area`` is the gap's CAD area, grown back by what the seen radius ate from its rim
-(``SEEN_RADIUS - RIM`` spacings: the last scan points lie a fraction of a spacing before the edge
-of the material), measured on probes finer than the scan (:func:`_area`).  On random scans of a
-Ø12 mm hole it read 1.02-1.08 of the hole's area at 0.5 and 1 mm spacing, 0.82-1.03 at 2 mm
-(a gap only 3 spacings wide is cut smaller by its nearest rim points); ``extreme`` is NaN (nothing was measured there; the depth of the missing material
-is unknown), ``n`` 0 and ``indices`` empty (no scan point belongs to it), ``side`` ``"below"``,
-``severity`` the area times the tolerance's lower-limit magnitude (so a larger hole ranks first
-among the missing regions; deviation regions' severities are volumes beyond the limit).
+(``SEEN_RADIUS - RIM`` spacings), measured on probes finer than the scan (:func:`_area`).  On
+random scans of a Ø12 mm hole in the wavy panel it read 1.02-1.08 of the hole's area at 0.5 and
+1 mm spacing; Ø12 and Ø16 mm holes through a 10 mm plate (tests/test_missing_see_through.py),
+within 20 % on both faces.  ``extreme`` is NaN (the depth of the missing material is unknown),
+``n`` 0 and ``indices`` empty (no scan point belongs to it), ``side`` ``"below"``, ``severity``
+the area times the tolerance's lower-limit magnitude.
 
-Limits: material missing *at the CAD's own edges* (an oversized hole, a short flange, a notch in
-the outline) is bordered by the model's end and is not found by this rule: without points seen
-behind the CAD surface, the part's ending and the scanner's stopping look alike there.  A
-dropout of the scanner enclosed by seen surface (a shiny or dark spot) looks like a hole, and
-the reason says so.  A scan whose lines are far apart across and dense along (spacing ratio over
-about 20) can leave strips wider than ``MIN_WIDTH`` area-based spacings.
+Limits: with nothing seen behind it (a hole in a sheet scanned against a black background, a cut
+flange with nothing behind) missing material stays a coverage gap -- not seen, not judged.
+Material missing *at the CAD's own edges* (an oversized hole, a short flange) is bordered by the
+model's end and is not found by rule 4.  A deep dent (deeper than the evaluation distance) whose
+floor is seen can look like missing material; its slopes fail the part anyway.
 """
 
 from __future__ import annotations
@@ -94,6 +89,12 @@ RIM = 0.3
 MAX_SAMPLES = 200_000
 #: Most gaps looked at closely (largest first).
 MAX_GAPS = 50
+#: Least number of scan points seen behind a gap (rule 1) ...
+MIN_BEHIND = 10
+#: ... and least share of the points the gap's area would hold at the scan's spacing.
+MIN_BEHIND_SHARE = 0.1
+#: How far across (scan spacings, beyond the seen radius) a point behind a gap may lie from it.
+BEHIND_LATERAL = 1.5
 
 
 def find_missing(prep, dev, spacing: float, within: np.ndarray, tolerance=None, *,
@@ -122,6 +123,13 @@ def find_missing(prep, dev, spacing: float, within: np.ndarray, tolerance=None, 
     ev = dev.evaluated
     if not (np.isfinite(s) and s > 0) or np.count_nonzero(ev) < 10:
         return []
+    # the evidence first (cheap, and absent from almost every inspection): scan points off the
+    # CAD surface -- not evaluated, or evaluated and inside the material beyond the tolerance
+    off = ~ev | (~within & (dev.values < 0))
+    off_pts = dev.points_model[off]
+    off_pts = off_pts[np.all(np.isfinite(off_pts), axis=1)]
+    if off_pts.shape[0] < MIN_BEHIND:
+        return []                                    # nothing seen off the surface: no evidence
     pts, face, a_pt = model_samples(prep, faces, MAX_SAMPLES)
     if pts.shape[0] < 10:
         return []
@@ -136,6 +144,9 @@ def find_missing(prep, dev, spacing: float, within: np.ndarray, tolerance=None, 
     any_within(feet, pts[gap_idx], float(MIN_WIDTH * s), near)
     if near.all():
         return []                                    # no spot wider than sampling explains
+    normals = _sample_normals(prep, faces, pts.shape[0])
+    if normals is None:
+        return []                                    # no CAD normals: no "behind"
     h = float(np.sqrt(a_pt))                         # the samples' spacing
     link = 2.5 * h
     n_comp, labels = linked_components(gap_idx.size,
@@ -145,17 +156,25 @@ def find_missing(prep, dev, spacing: float, within: np.ndarray, tolerance=None, 
     comps = [c for c in np.argsort(-size, kind="stable") if deep[c] > 0][:MAX_GAPS]
     if not comps:
         return []
-    normals = _sample_normals(prep, faces, pts.shape[0])
-    other = dev.points_model[~ev]                    # not evaluated: too far, past an edge, ...
-    other = kernel_array(other[np.all(np.isfinite(other), axis=1)])
-    view = _view_direction(dev)
+    ev_dist = float(dev.evaluation_distance)
+    delta = ev_dist if np.isfinite(ev_dist) else 3.0 * s
+    depth_max = float(getattr(getattr(prep, "model", None), "size", 0.0) or np.ptp(pts, axis=0).max())
     lower = abs(float(getattr(tolerance, "lower", 1.0))) or 1.0
-    out = []
+    out, lazy = [], {}
     for c in comps:
         g = gap_idx[labels == c]
+        if _seen_behind(pts, normals, g, off_pts, r_seen + BEHIND_LATERAL * s, delta, depth_max) \
+                < max(MIN_BEHIND, MIN_BEHIND_SHARE * g.size * a_pt / (s * s)):
+            continue
+        if not lazy:                                 # what the other rules need, once
+            other = dev.points_model[~ev]            # not evaluated: too far, past an edge, ...
+            lazy["other"] = kernel_array(other[np.all(np.isfinite(other), axis=1)])
+            lazy["view"] = _view_direction(dev)
+            lazy["ok_band"] = within | (dev.values <= 0)   # only raised material casts a shadow
+        other, view, ok_band = lazy["other"], lazy["view"], lazy["ok_band"]
         if _enclosed(pts, seen, g, h, a_pt) < MIN_ENCLOSED:
             continue
-        if _in_tolerance(dev, within, pts[g], r_seen + BAND * s) < MIN_IN_TOLERANCE:
+        if _in_tolerance(dev, ok_band, pts[g], r_seen + BAND * s) < MIN_IN_TOLERANCE:
             continue
         if _visible(pts, normals, g, view, h, prep, other, r_seen,
                     10.0 * float(dev.evaluation_distance)) < MIN_VISIBLE:
@@ -168,6 +187,24 @@ def find_missing(prep, dev, spacing: float, within: np.ndarray, tolerance=None, 
             indices=np.zeros(0, np.int64), severity=area * lower, kind="missing"))
     out.sort(key=lambda r: -r.area)
     return out
+
+
+def _seen_behind(pts, normals, g, off_pts, rho, delta, depth_max) -> int:
+    """How many scan points off the CAD surface lie *behind* the gap ``g`` (rule 1): deeper than
+    ``delta`` against the CAD normal of their nearest gap point (inside a solid's material, or
+    past a sheet on the side its normals turn away from) and within ``rho`` of it across."""
+    gp = pts[g]
+    lo, hi = gp.min(axis=0) - depth_max, gp.max(axis=0) + depth_max
+    q = off_pts[np.all((off_pts >= lo) & (off_pts <= hi), axis=1)]
+    if q.shape[0] == 0:
+        return 0
+    d, j = cKDTree(gp).query(q, distance_upper_bound=float(np.hypot(depth_max, rho)))
+    ok = np.isfinite(d)
+    q, j = q[ok], j[ok]
+    rel = gp[j] - q
+    depth = np.einsum("ij,ij->i", rel, normals[g][j])
+    lateral2 = np.einsum("ij,ij->i", rel, rel) - depth * depth
+    return int(np.count_nonzero((depth > delta) & (lateral2 <= rho * rho)))
 
 
 def _sample_normals(prep, faces, n: int) -> np.ndarray:
@@ -194,7 +231,7 @@ def _view_direction(dev):
 
 
 def _enclosed(pts, seen, g, h, a_pt) -> float:
-    """The seen share of the border of gap ``g`` (rule 3): for each gap point, the seen model
+    """The seen share of the border of gap ``g`` (rule 4): for each gap point, the seen model
     points within ``2.5 h`` weigh for "seen", the deficit against a full disc for "the model
     ends here", each less a slack of a fifth of a full disc (the count's own scatter)."""
     rho = 2.5 * h
@@ -212,8 +249,8 @@ def _enclosed(pts, seen, g, h, a_pt) -> float:
 
 
 def _in_tolerance(dev, within, gp, band) -> float:
-    """Share of in-tolerance points among the evaluated points whose foot point lies within
-    ``band`` of the gap points ``gp`` (rule 4); 0 when there are none."""
+    """Share of ``within`` (in tolerance or not raised) among the evaluated points whose foot point
+    lies within ``band`` of the gap points ``gp`` (rule 5); 0 when there are none."""
     ev = np.flatnonzero(dev.evaluated)
     mark = np.zeros(ev.size, bool)
     mark_within(kernel_array(dev.foot_points[ev]), kernel_array(gp), float(band), mark)
@@ -222,11 +259,11 @@ def _in_tolerance(dev, within, gp, band) -> float:
 
 
 def _visible(pts, normals, g, view, h, prep, other, r_seen, reach, most: int = 64) -> float:
-    """Share of (up to ``most``) gap points seen through (rule 5): facing ``view`` and not hidden
-    behind other model points along it (when there is a view direction), and with no scan
-    point that was not evaluated within ``r_seen`` of their line of sight, on either side of
-    the surface within ``reach`` (a reflection, a foreign object: the scanner saw something
-    there, not through the surface)."""
+    """Share of (up to ``most``) gap points in the line of sight (rule 6): facing ``view`` and not
+    hidden behind other model points along it (when there is a view direction), and with no scan
+    point that was not evaluated within ``r_seen`` of their line of sight *in front* of the
+    surface within ``reach`` (a reflection, a foreign object: the scanner saw something there;
+    points behind are the evidence of rule 1, :func:`_seen_behind`)."""
     gs = g[np.linspace(0, g.size - 1, min(most, g.size)).astype(np.int64)]
     ok = np.ones(gs.size, bool)
     if view is not None:
@@ -242,7 +279,7 @@ def _visible(pts, normals, g, view, h, prep, other, r_seen, reach, most: int = 6
         d = np.broadcast_to(view, (gs.size, 3)) if view is not None else normals[gs] \
             if normals is not None else None
         if d is not None:
-            t = np.arange(-reach, reach + 0.5 * r_seen, 0.5 * r_seen)
+            t = np.arange(0.5 * r_seen, reach + 0.5 * r_seen, 0.5 * r_seen)  # the front side
             ray = (pts[gs][:, None, :] + t[None, :, None] * d[:, None, :]).reshape(-1, 3)
             hit = np.empty(ray.shape[0], bool)
             any_within(other, kernel_array(ray), float(r_seen), hit)

@@ -22,7 +22,8 @@ the result's ``rule``:
 5. ``fail`` (rule ``regions``): at least one region fails the part: a connected out-of-tolerance
    surface area (``kind="deviation"``, :mod:`.regions`) or measured material where the CAD has
    none (``kind="material"``, :mod:`.material`), or CAD surface the scan sees through, a hole
-   or cut-out the CAD does not have (``kind="missing"``, :mod:`.missing`);
+   or cut-out the CAD does not have (``kind="missing"``, :mod:`.missing`, on by default: the
+   scan sees points *behind* that surface; surface merely not seen only lowers the coverage);
 6. ``incomplete`` (rule ``undecided``): no region fails the part, but the measurement cannot
    decide that it conforms (ISO 14253-1: conformance is proven only inside the tolerance zone
    reduced by the measurement uncertainty): the scan's own noise (sigma about local quadrics,
