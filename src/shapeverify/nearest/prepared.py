@@ -589,6 +589,7 @@ def _load_prepared(src, path, n_bytes: int) -> Prepared:
         if meta.get("version") != FORMAT_VERSION:
             raise ModelFileError(f"{path}: .svm version {meta.get('version')!r} is not supported "
                                  f"(this shapeverify reads {FORMAT_VERSION})")
+        # (tree_max_distance: the tree's reach; the file key keeps its deprecated old name)
         need = {"rec", "rows", "boundary", "tree_origin", "tree_cell", "tree_dims",
                 "tree_nodes", "tree_lists", "tree_n_points", "tree_max_distance", "tree_depth"}
         if not need <= files:
