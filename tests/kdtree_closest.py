@@ -25,7 +25,7 @@ class KDTreeClosest:
         self.points = mp
         self.n_points = int(mp.points.shape[0])
         self.spacing = float(prep.spacing)
-        self.max_distance = float(prep.max_distance)
+        self.reach = float(prep.reach)
         self.model = prep.model
         self.fixture = None
         self._kd = cKDTree(np.asarray(mp.points, np.float64))

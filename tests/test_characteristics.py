@@ -79,7 +79,7 @@ def clean(prep):
 def _evaluated(prep, result):
     """The documented point set: exact closest face, not on the free boundary, |d| <= reach."""
     cl = prep.closest(result.points, exact=True)
-    ok = ~cl.on_boundary & (np.abs(cl.distances) <= prep.max_distance)
+    ok = ~cl.on_boundary & (np.abs(cl.distances) <= prep.reach)
     return cl, ok
 
 

@@ -168,7 +168,7 @@ def test_input_validation(sheet):
         dvg.DVG.build(np.array([[0.0, 0.0, np.inf]]), H, 1.0)
     with pytest.raises(ValueError, match="spacing"):
         dvg.DVG.build(np.zeros((3, 3)), 0.0, 1.0)
-    with pytest.raises(ValueError, match="max_distance"):
+    with pytest.raises(ValueError, match="reach"):
         dvg.DVG.build(np.zeros((3, 3)), 1.0, np.nan)
     idx, dist = tree.nearest(np.zeros((0, 3)))
     assert idx.shape == (0,) and dist.shape == (0,)

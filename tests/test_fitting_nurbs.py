@@ -81,8 +81,8 @@ def _noisy_curve(n=400, sigma=0.01, seed=2):
 def test_odr_beats_fixed_and_varpro_agrees():
     x = _noisy_curve()
     fixed = fitting.fit_curve(x, n_ctrl=10, method="fixed")
-    odr = fitting.fit_curve(x, n_ctrl=10, method="odr", tolerance=1e-13, max_iterations=300)
-    vp = fitting.fit_curve(x, n_ctrl=10, method="varpro", tolerance=1e-13, max_iterations=300)
+    odr = fitting.fit_curve(x, n_ctrl=10, method="odr", rtol=1e-13, max_iterations=300)
+    vp = fitting.fit_curve(x, n_ctrl=10, method="varpro", rtol=1e-13, max_iterations=300)
     assert odr.converged and vp.converged
     assert odr.rms < 0.97 * fixed.rms
     # same objective, same optimum
@@ -99,7 +99,7 @@ def test_odr_beats_fixed_and_varpro_agrees():
 def test_orthogonal_residuals_at_convergence(second_order):
     x = _noisy_curve(300, 0.02, seed=3)
     fit = fitting.fit_curve(x, n_ctrl=8, method="odr", second_order=second_order,
-                            tolerance=1e-14, max_iterations=400)
+                            rtol=1e-14, max_iterations=400)
     assert fit.converged
     d = fit.curve.derivatives(fit.params, 1)
     r = x - d[:, 0]
@@ -377,8 +377,8 @@ def test_slide_prior_is_part_of_the_objective():
     """odr and varpro reach the same optimum of distances + prior; the prior's gradient balances
     the data's (a perturbation of the control points raises the objective)."""
     x = _noisy_curve(n=800, sigma=0.02, seed=6)
-    odr = fitting.fit_curve(x, n_ctrl=12, tolerance=1e-14, max_iterations=200)
-    vp = fitting.fit_curve(x, n_ctrl=12, method="varpro", tolerance=1e-14, max_iterations=200)
+    odr = fitting.fit_curve(x, n_ctrl=12, rtol=1e-14, max_iterations=200)
+    vp = fitting.fit_curve(x, n_ctrl=12, method="varpro", rtol=1e-14, max_iterations=200)
     assert odr.converged and vp.converged
     assert abs(odr.history[-1] - vp.history[-1]) < 1e-8 * odr.history[-1]
     np.testing.assert_allclose(odr.curve.control, vp.curve.control, atol=1e-6)

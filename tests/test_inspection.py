@@ -251,7 +251,7 @@ def test_scan_mostly_away_from_the_model_is_incomplete_and_wholly_away_is_error(
 
 
 def test_decide_rules_directly():
-    dev = SimpleNamespace(n=100, n_evaluated=100, n_too_far=0, n_on_boundary=0, max_distance=1.0)
+    dev = SimpleNamespace(n=100, n_evaluated=100, n_too_far=0, n_on_boundary=0, evaluation_distance=1.0)
     ok = SimpleNamespace(converged=True, inlier_fraction=0.9, iterations=5, message="")
     region = SimpleNamespace(n=12, area=3.0, extreme=-0.31, centroid=np.array([1.0, 2, 3]),
                              faces=(4,), kind="deviation",
@@ -354,7 +354,7 @@ def test_noise_free_deviations_equal_the_exact_offsets(panel_prep):
     nrm = model.faces[0].normal(uv)
     assert np.all(nrm[:, 2] > 0)                      # outward = +z side of the panel
     pts = base + truth[:, None] * nrm
-    dev = deviations(pts, panel_prep, np.eye(4), max_distance=1.0)
+    dev = deviations(pts, panel_prep, np.eye(4), evaluation_distance=1.0)
     assert dev.evaluated.all()
     np.testing.assert_allclose(dev.values, truth, atol=1e-6)
     np.testing.assert_array_equal(dev.face, face)
@@ -365,7 +365,7 @@ def test_noise_free_deviations_equal_the_exact_offsets(panel_prep):
 
     T = random_motion(20.0, 15.0, rng=3)
     scan = pts @ invert_transform(T)[:3, :3].T + invert_transform(T)[:3, 3]
-    dev2 = deviations(scan, panel_prep, T, max_distance=1.0)
+    dev2 = deviations(scan, panel_prep, T, evaluation_distance=1.0)
     np.testing.assert_allclose(dev2.values, truth, atol=1e-6)
 
 
@@ -380,7 +380,7 @@ def test_points_past_the_outer_edge_are_not_evaluated_but_the_shared_edge_is(pan
     # on the shared edge u = 0.5 and near it, 0.1 mm above the surface
     uv_in = np.array([[0.5, 0.5], [0.499, 0.3], [0.501, 0.7]])
     inside = f.evaluate(uv_in) + 0.1 * f.normal(uv_in)
-    dev = deviations(np.vstack([outside, inside]), panel_prep, None, max_distance=1.0)
+    dev = deviations(np.vstack([outside, inside]), panel_prep, None, evaluation_distance=1.0)
     np.testing.assert_array_equal(dev.reason, [ON_BOUNDARY, ON_BOUNDARY, EVALUATED, EVALUATED,
                                                EVALUATED])
     np.testing.assert_allclose(dev.values[2:], 0.1, atol=1e-6)
@@ -405,7 +405,7 @@ def simulated(panel_prep):
 
 def test_simulated_dent_is_found_as_one_region(panel_prep, simulated):
     vs, _ = simulated
-    res = inspect(panel_prep, vs.scan, tolerance=0.2, max_distance=1.0)
+    res = inspect(panel_prep, vs.scan, tolerance=0.2, evaluation_distance=1.0)
     assert res.registration.converged
     assert res.verdict == "fail", res.reasons
     assert len(res.regions) == 1, res.regions
@@ -417,7 +417,7 @@ def test_simulated_dent_is_found_as_one_region(panel_prep, simulated):
 
 def test_same_part_without_dent_passes(panel_prep, simulated):
     _, vs = simulated
-    res = inspect(panel_prep, vs.scan, tolerance=0.2, max_distance=1.0)
+    res = inspect(panel_prep, vs.scan, tolerance=0.2, evaluation_distance=1.0)
     assert res.verdict == "pass", res.reasons
     assert res.regions == () and res.outliers.n > 0
     s = res.statistics

@@ -138,7 +138,7 @@ def test_a_scan_that_fits_at_no_pose_is_an_error_not_incomplete():
 
     reg = SimpleNamespace(converged=False, inlier_fraction=1.0, iterations=91, message="moving",
                           scale=59.1)
-    dev = SimpleNamespace(n=100, n_evaluated=40, max_distance=2.5, n_too_far=60, n_on_boundary=0)
+    dev = SimpleNamespace(n=100, n_evaluated=40, evaluation_distance=2.5, n_too_far=60, n_on_boundary=0)
     cov = SimpleNamespace(sufficient=False, fraction=0.15, covered_area=2413.0, area=15966.0,
                           min_coverage=0.2, describe_gap=lambda: "")
     verdict, reasons, rule = decide(reg, dev, [], cov)

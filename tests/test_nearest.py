@@ -11,7 +11,7 @@ from scipy.spatial import cKDTree
 from shapeverify.cad.model import Face, Model
 from shapeverify.cad.nurbs import NurbsSurface, cylinder, sphere
 from shapeverify.nearest import Closest, Prepared, load_prepared, prepare
-from shapeverify.nearest.prepared import default_max_distance, default_spacing
+from shapeverify.nearest.prepared import default_reach, default_spacing
 
 RECT = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
 
@@ -110,7 +110,7 @@ def test_point_above_a_hole_projects_onto_the_hole_edge():
     face = Face(_plane([0, 0, 0], [10, 0, 0], [0, 10, 0]), (RECT, hole),
                 (np.zeros(4, bool), np.ones(4, bool)))
     prep = prepare(Model(faces=(face,), source="plate with hole"), spacing=0.2,
-                   max_distance=2.0)
+                   reach=2.0)
     q = np.array([[5.3, 5.1, 1.0],     # above the hole: nearest is the edge x = 6
                   [4.5, 5.9, -0.5],    # below it: nearest is the edge y = 6
                   [5.0, 5.0, 0.3],     # over the centre: 1 mm to every edge
@@ -310,7 +310,7 @@ def test_save_load_round_trip(cylinder_prep, tmp_path):
     assert time.perf_counter() - t0 < 0.5
     assert isinstance(back, Prepared)
     assert back.spacing == cylinder_prep.spacing
-    assert back.max_distance == cylinder_prep.max_distance
+    assert back.reach == cylinder_prep.reach
     rng = np.random.default_rng(8)
     q = np.column_stack([rng.uniform(-8, 8, 2000), rng.uniform(-8, 8, 2000),
                          rng.uniform(-3, 23, 2000)])
@@ -361,8 +361,8 @@ def test_prepare_arguments(sphere_model):
             prepare(sphere_model, spacing=1.0, reach=bad)
     assert default_spacing(100.0) == pytest.approx(0.2)
     assert default_spacing(4e4) == pytest.approx(80.0) and default_spacing(0.0) == 1.0
-    assert default_max_distance(100.0, 0.2) == pytest.approx(3.0)
-    assert default_max_distance(1.0, 0.1) == pytest.approx(0.2)
+    assert default_reach(100.0, 0.2) == pytest.approx(3.0)
+    assert default_reach(1.0, 0.1) == pytest.approx(0.2)
 
 
 @pytest.mark.slow
@@ -371,7 +371,7 @@ def test_prepare_with_defaults():
     model = Model(faces=(face,), source="plate")
     prep = prepare(model)
     assert prep.spacing == pytest.approx(default_spacing(model.size))
-    assert prep.max_distance == pytest.approx(default_max_distance(model.size, prep.spacing))
+    assert prep.reach == pytest.approx(default_reach(model.size, prep.spacing))
     q = np.array([[5.0, 5.0, 0.3], [5.0, 5.0, -50.0], [12.0, 5.0, 0.0]])  # near, far, beyond
     near = prep.closest(q, exact=True)
     np.testing.assert_allclose(near.distances, [0.3, -50.0, 2.0], atol=1e-9)

@@ -105,7 +105,7 @@ def test_old_name_max_distance_warns_once_and_means_the_evaluation_distance(pane
     assert len(dep) == 1 and "evaluation_distance" in str(dep[0].message)
     assert dep[0].filename == __file__            # it points at the caller's line
     new = sv.inspect(prep, scan, tolerance=0.2, evaluation_distance=1.7)
-    assert old.deviations.max_distance == new.deviations.max_distance == 1.7
+    assert old.deviations.evaluation_distance == new.deviations.evaluation_distance == 1.7
     assert old.to_dict()["deviation"] == new.to_dict()["deviation"]
     with pytest.raises(ValueError, match="give evaluation_distance only"):
         sv.inspect(prep, scan, tolerance=0.2, max_distance=1.0, evaluation_distance=1.0)

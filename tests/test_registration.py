@@ -366,7 +366,7 @@ def test_bad_input_gets_clear_errors(panel, panel_prep):
         register(bad, panel_prep)
     with pytest.raises(ValueError):
         register(good[:, :2], panel_prep)  # ScanError is a ValueError
-    with pytest.raises(RegistrationError, match="max_distance"):   # no global search asked
+    with pytest.raises(RegistrationError, match="reach"):   # no global search asked
         register(good + [0.0, 0.0, 1e5], panel_prep, init="identity")
     with pytest.raises(ValueError, match="method"):
         register(good, panel_prep, method="point-to-line")

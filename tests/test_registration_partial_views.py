@@ -120,7 +120,7 @@ def test_a_warned_wrong_minimum_is_a_registration_error_not_incomplete_coverage(
     of the kind (few inliers) leaves the coverage rule as it was."""
     from shapeverify.inspection.verdict import decide
 
-    dev = SimpleNamespace(n=1000, n_evaluated=300, max_distance=0.5, n_too_far=700,
+    dev = SimpleNamespace(n=1000, n_evaluated=300, evaluation_distance=0.5, n_too_far=700,
                           n_on_boundary=0)
     cov = SimpleNamespace(sufficient=False, fraction=0.05, covered_area=5.0, area=100.0,
                           min_coverage=0.2, describe_gap=lambda: "")

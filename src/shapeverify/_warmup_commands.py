@@ -34,7 +34,9 @@ def element_points(element: str, n: int = 240, rng=0):
     """``(n, 3)`` points on a ``element`` (mm, 0.01 mm noise): the fit command's input."""
     import numpy as np
 
-    g = np.random.default_rng(rng)
+    from ._random import generator
+
+    g = generator(rng)
     a, b = g.uniform(0.0, 2.0 * np.pi, n), g.uniform(-1.0, 1.0, n)
     if element == "sphere":
         t = np.arccos(g.uniform(0.2, 1.0, n))          # a cap, as a probe reaches it

@@ -168,7 +168,7 @@ def info(model: Path = typer.Argument(..., help="CAD file (.step/.stp/.igs/.iges
     if note:
         console.print(f"[yellow]note:[/yellow] {escape(note)}", soft_wrap=True)
     if prep is not None:
-        out.print(f"prepared: {prep.n_points:,} model points at {prep.spacing:.3g} mm spacing, "
+        out.print(f"prepared: {prep.n_points:,} model points at {prep.model_spacing:.3g} mm spacing, "
                   f"reach {prep.reach:.3g} mm")
     if features:
         from shapeverify.cli_plan import print_features
@@ -246,7 +246,7 @@ def prepare(
         prep.fixture = T_fixture
     with _stage(f"Writing {output.name}"):
         _guard(prep.save, output)
-    out.print(f"{output}: {prep.n_points:,} model points, spacing {prep.spacing:.3g} mm, "
+    out.print(f"{output}: {prep.n_points:,} model points, spacing {prep.model_spacing:.3g} mm, "
               f"reach {prep.reach:.3g} mm" + (", with a fixture pose" if prep.fixture is not None else ""))
 
 

@@ -78,7 +78,7 @@ def main(outdir: str = "demo-output", *flags: str) -> int:
     svm = out / "panel.svm"
     prep.save(svm)
     console.print(f"[bold]2.[/bold] prepared {prep.n_points:,} model points "
-                  f"({prep.spacing:.2f} mm spacing) -> {svm}")
+                  f"({prep.model_spacing:.2f} mm spacing) -> {svm}")
 
     # a single-shot optical scan: noise, a shadow, a reflection blob, 5 % outliers, a 0.4 mm dent,
     # and the misalignment of a rough fixture (4 degrees, 8 mm)

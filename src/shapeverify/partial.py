@@ -156,7 +156,7 @@ def inspect_partial(prep, scan, *, box=None, seen: bool = False, spacing: float 
     _kind(model)
     if (box is None) == (not seen):
         raise ValueError("give either box=(lo, hi) or seen=True")
-    spacing = float(prep.spacing if spacing is None else spacing)
+    spacing = float(prep.model_spacing if spacing is None else spacing)
     if box is not None:
         part = crop_model(model, box=box)
         lo, hi = (np.asarray(c, dtype=np.float64).reshape(3) for c in box)
@@ -172,14 +172,14 @@ def inspect_partial(prep, scan, *, box=None, seen: bool = False, spacing: float 
         keep = np.zeros(len(model.triangles), dtype=bool)
         keep[np.asarray(dev.face)[ev]] = True
     else:
-        reach = 2.0 * max(spacing, float(whole.spacing) if np.isfinite(whole.spacing) else 0.0)
+        reach = 2.0 * max(spacing, float(whole.scan_spacing) if np.isfinite(whole.scan_spacing) else 0.0)
         near, _ = cKDTree(np.asarray(dev.foot_points)[ev]).query(
             np.asarray(model.vertices, dtype=np.float64), distance_upper_bound=reach)
         keep = np.isfinite(near)
     part = crop_model(model, keep=keep)
     opts = {k: v for k, v in inspect_kwargs.items()
             if k in ("evaluation_distance", "min_coverage", "min_region_points",
-                     "min_inlier_fraction", "max_distance")}
+                     "min_inlier_fraction", "max_distance")}   # (its deprecated old name)
     result = inspect_registered(prepare(part, spacing=spacing), scan, whole.registration,
                                 tolerance=whole.tolerance, **opts)
     logger.info("partial reference: %s", part.source)

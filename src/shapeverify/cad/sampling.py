@@ -72,6 +72,7 @@ import numpy as np
 from numba import njit
 from shapeverify._lazy import cKDTree
 
+from .._random import generator
 # the samplers of each model kind, and what they share; the private names stay importable from here
 from ._sample_cloud import _any_tangent, _neighbour_cov, _pca_normals, _sample_cloud  # noqa: F401
 from ._sample_common import (  # noqa: F401
@@ -139,7 +140,7 @@ def sample_model(model, spacing, rng=None, *, half_extents=True):
         raise ValueError(f"spacing must be a number > 0 (mm), got {spacing!r}") from None
     if not (math.isfinite(s) and s > 0):
         raise ValueError(f"spacing must be finite and > 0 (mm), got {spacing!r}")
-    rng = np.random.default_rng(0 if rng is None else rng)
+    rng = generator(rng)
     kind = getattr(model, "kind", "cad")
     if kind == "cad":
         parts = _sample_cad(model, s, rng)

@@ -32,7 +32,7 @@ placement the whole scan fits best among the caller's start and the global searc
 are solved at each placement and pick among those that fit alike by their own fit (lock or datum
 misfit); two that fit alike give a warning (``details['warnings']``).  The Gauss-Newton fits stop when the step still
 to take is small against the pose's own standard deviation or the noise (:func:`best_fit`'s
-``tolerance``), as the registration does: a clean scan converges.
+``rtol``), as the registration does: a clean scan converges.
 """
 from __future__ import annotations
 
@@ -41,6 +41,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._renamed import renamed_keywords
 from ..registration.losses import MAD_TO_SIGMA, get_loss
 from ..registration.rigid import apply_transform, compose_step, make_transform, rotation_vector
 from .features import faces_named, find_feature, model_features
@@ -297,11 +298,12 @@ def _gauss_newton(scan, prep, T0, free, center, faces, loss, max_iterations, tol
 def _reach(prep, reach):
     if reach is not None:
         return float(reach)
-    return float(max(getattr(prep, "max_distance", 1.0), 3.0 * prep.spacing))
+    return float(max(getattr(prep, "reach", 1.0), 3.0 * prep.spacing))
 
 
+@renamed_keywords(tolerance="rtol")
 def best_fit(scan, prep, faces=None, init=None, loss: str = "tukey", max_iterations: int = 50,
-             tolerance: float = 0.1, reach: float | None = None, rng=None,
+             rtol: float = 0.1, reach: float | None = None, rng=None,
              degenerate_ok: bool = False) -> AlignmentResult:
     """Free 6-DOF robust best fit, on all faces or on the faces named.
 
@@ -318,10 +320,10 @@ def best_fit(scan, prep, faces=None, init=None, loss: str = "tukey", max_iterati
     loss : str
         Robust loss of :mod:`shapeverify.registration.losses`.
     reach : float, optional
-        Points farther than this from the CAD are ignored (default: ``prep.max_distance``).
-    tolerance : float
+        Points farther than this from the CAD are ignored (default: ``prep.reach``).
+    rtol : float
         Convergence, judged against the scan's noise as :func:`shapeverify.register` judges
-        it: the Gauss-Newton step still to take is shorter than ``tolerance`` standard
+        it: the Gauss-Newton step still to take is shorter than ``rtol`` standard
         deviations of the pose (``sqrt(s^T H s) / sigma``, ``H`` the weighted normal matrix,
         ``sigma`` the robust residual scale), or moves no scan point by more than
         :data:`MOVE_SIGMA` sigma.  The pose is the one where the residuals were taken.
@@ -344,15 +346,16 @@ def best_fit(scan, prep, faces=None, init=None, loss: str = "tukey", max_iterati
     else:
         T0 = _check_T(init)
     T, cov, res, rms, p, it, ok, n, sigma = _gauss_newton(
-        scan, prep, T0, range(6), np.zeros(3), fidx, loss, max_iterations, tolerance,
+        scan, prep, T0, range(6), np.zeros(3), fidx, loss, max_iterations, rtol,
         _reach(prep, reach), degenerate_ok)
     return AlignmentResult(T, cov, res, rms, DOF_NAMES, (), "best_fit",
                            {"iterations": it, "converged": ok, "n_points": n, "scale": sigma,
                             "faces": "all" if fidx is None else fidx.tolist()})
 
 
+@renamed_keywords(tolerance="rtol")
 def constrained_fit(scan, prep, free, init=None, center=(0.0, 0.0, 0.0), faces=None,
-                    loss: str = "tukey", max_iterations: int = 50, tolerance: float = 0.1,
+                    loss: str = "tukey", max_iterations: int = 50, rtol: float = 0.1,
                     reach: float | None = None) -> AlignmentResult:
     """Best fit in the free degrees of freedom only; the locked ones stay at ``init``.
 
@@ -364,7 +367,7 @@ def constrained_fit(scan, prep, free, init=None, center=(0.0, 0.0, 0.0), faces=N
         The fixture's pose (None: identity, the scan is already in the model frame).
     center : (3,)
         Centre of the rotations (model frame, mm).
-    tolerance : float
+    rtol : float
         Convergence against the pose's standard deviation and the noise, as :func:`best_fit`.
 
     Returns
@@ -385,7 +388,7 @@ def constrained_fit(scan, prep, free, init=None, center=(0.0, 0.0, 0.0), faces=N
     T0 = np.eye(4) if init is None else _check_T(init)
     fidx = face_indices(prep.model, faces)
     T, cov, res, rms, p, it, ok, n, sigma = _gauss_newton(
-        scan, prep, T0, idx, center, fidx, loss, max_iterations, tolerance, _reach(prep, reach))
+        scan, prep, T0, idx, center, fidx, loss, max_iterations, rtol, _reach(prep, reach))
     locked = tuple(d for d in DOF_NAMES if DOF_NAMES.index(d) not in idx)
     return AlignmentResult(T, cov, res, rms, tuple(DOF_NAMES[j] for j in idx), locked,
                            "constrained",
@@ -405,8 +408,9 @@ def _check_T(T) -> np.ndarray:
 
 
 # ------------------------------------------------------------------------------ RPS
+@renamed_keywords(tolerance="rtol")
 def rps_alignment(scan, prep, points, init=None, radius: float = 4.0, max_iterations: int = 20,
-                  tolerance: float = 1e-10, rng=0) -> AlignmentResult:
+                  rtol: float = 1e-10, rng=0) -> AlignmentResult:
     """RPS (reference point system) alignment; 3-2-1 is six single locks.
 
     Parameters
@@ -580,7 +584,7 @@ def _rps_solve(P, prep, spec, n_locks, feet, T, max_iterations, tolerance):
         delta, *_ = np.linalg.lstsq(Js, -r * Wh, rcond=None)
         R, t = compose_step(T[:3, :3], T[:3, 3], delta, np.zeros(3))
         T = make_transform(R, t)
-        if np.max(np.abs(delta[3:])) + prep.model.size * np.max(np.abs(delta[:3])) < tolerance * \
+        if np.max(np.abs(delta[3:])) + prep.model.size * np.max(np.abs(delta[:3])) < rtol * \
                 max(prep.model.size, 1.0):
             break
     return T, it, J, Wh, np.array(res), np.array(unc), info

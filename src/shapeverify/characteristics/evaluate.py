@@ -4,8 +4,8 @@ Definitions (ISO 1101; lengths in mm, model frame after the plan's alignment)
 ------------------------------------------------------------------------------
 The *evaluated points* of a face group are the scan points whose exact closest CAD point
 (``prep.closest(x, exact=True)``) lies on a face of the group, not on the model's free boundary,
-with ``|d| <= max_distance`` (``d`` the signed distance along the outward CAD normal;
-``max_distance`` -- the evaluation distance -- from the caller, else the plan's, else the one
+with ``|d| <=`` the evaluation distance (``d`` the signed distance along the outward CAD normal;
+the evaluation distance from the caller, else the plan's ``evaluation_distance``, else the one
 default :func:`shapeverify.inspection.default_evaluation_distance` of the plan's largest
 tolerance, five times it at least: never a cut-off at or inside a limit).  The *kept points*
 are the evaluated points less the measurement outliers of the inspection's own rule,
@@ -173,7 +173,7 @@ class PlanResult:
     face : (N,) int32
         Face of each point's closest CAD point.
     evaluated : (N,) bool
-        Within max_distance, not past the model's free boundary.
+        Within the evaluation distance, not past the model's free boundary.
     noise : float
         Robust scale of the deviations (mm), ``1.4826 median |d|``.
     section : dict or None
@@ -232,13 +232,13 @@ class _Scan:
     pose and evaluation distance (its closest points are not computed again).
     """
 
-    def __init__(self, prep, scan, T, max_distance, exclude=None, deviations=None):
+    def __init__(self, prep, scan, T, evaluation_distance, exclude=None, deviations=None):
         from .support import neighbourhood_support
 
         self.prep = prep
         self.exclude = exclude
         dev = deviations
-        if dev is not None and _same_evaluation(dev, scan, T, max_distance):
+        if dev is not None and _same_evaluation(dev, scan, T, evaluation_distance):
             from ..inspection.deviations import ON_BOUNDARY, TOO_FAR
 
             self.X = np.asarray(dev.points_model, np.float64)
@@ -262,7 +262,7 @@ class _Scan:
             self.normals = np.asarray(cl.normals, np.float64)
             self.feet = np.asarray(cl.points, np.float64)
             found = np.isfinite(self.d)
-            self.too_far = ~found | (np.abs(np.where(found, self.d, 0.0)) > max_distance)
+            self.too_far = ~found | (np.abs(np.where(found, self.d, 0.0)) > evaluation_distance)
             self.on_boundary = np.asarray(cl.on_boundary, bool) & ~self.too_far
         self.evaluated = ~self.too_far & ~self.on_boundary
         self.by_caller = np.zeros(self.d.shape[0], bool) if exclude is None else \
@@ -293,10 +293,10 @@ class _Scan:
                 "unsupported_outliers": int(np.count_nonzero(on & self.unsupported))}
 
 
-def _same_evaluation(dev, scan, T, max_distance) -> bool:
+def _same_evaluation(dev, scan, T, evaluation_distance) -> bool:
     """``dev`` holds this scan's deviations at the pose T, evaluation distance and all faces."""
     if dev.n != scan.shape[0] or dev.n_outside_faces or not np.isclose(
-            float(dev.evaluation_distance), float(max_distance), rtol=1e-12, atol=0.0):
+            float(dev.evaluation_distance), float(evaluation_distance), rtol=1e-12, atol=0.0):
         return False
     k = np.linspace(0, scan.shape[0] - 1, min(scan.shape[0], 16)).astype(np.int64)
     return bool(np.allclose(apply_transform(T, scan[k]), dev.points_model[k], rtol=0.0,
@@ -321,7 +321,7 @@ def _not_measured(c, reason: str) -> CharacteristicResult:
                                 {"reason": reason})
 
 
-def _profile(c, S: _Scan, al: AlignmentResult, k: float, prep, scan, max_distance):
+def _profile(c, S: _Scan, al: AlignmentResult, k: float, prep, scan, evaluation_distance):
     fidx = face_indices(prep.model, c.faces)
     m = S.on(fidx)
     d, X, nrm = S.d, S.X, S.normals
@@ -330,9 +330,9 @@ def _profile(c, S: _Scan, al: AlignmentResult, k: float, prep, scan, max_distanc
     noise = S.noise
     Sx = S
     if not c.datum:
-        bf = best_fit(scan, prep, faces=c.faces, init=al.T_model_scan, reach=max_distance,
+        bf = best_fit(scan, prep, faces=c.faces, init=al.T_model_scan, reach=evaluation_distance,
                       degenerate_ok=True)
-        S2 = _Scan(prep, scan, bf.T_model_scan, max_distance, S.exclude)
+        S2 = _Scan(prep, scan, bf.T_model_scan, evaluation_distance, S.exclude)
         m, d, X, nrm, cov = S2.on(fidx), S2.d, S2.X, S2.normals, bf.covariance
         noise, Sx = S2.noise, S2
         details["T_model_scan"] = bf.T_model_scan.tolist()
@@ -630,7 +630,7 @@ def evaluate_characteristics(prep, scan, plan, alignment: AlignmentResult, exclu
     plan = load_plan(plan)
     from ..inspection.checks import default_evaluation_distance
 
-    md = float(evaluation_distance or plan.max_distance
+    md = float(evaluation_distance or plan.evaluation_distance
                or default_evaluation_distance(_largest_tolerance(plan), prep.model.size))
     S = _Scan(prep, scan, alignment.T_model_scan, md, exclude, deviations)
     feats = model_features(prep.model) if prep.model.kind == "cad" else []
@@ -680,7 +680,7 @@ def evaluate_plan(prep, scan, plan=None, registration=None, init=None, rng=None,
         leave out the points their neighbourhood does not support (:mod:`.support`).
     evaluation_distance : float, optional
         Points farther than this from the CAD are not used (mm; default: the plan's
-        ``max_distance``, else the default of :func:`shapeverify.inspect`).
+        ``evaluation_distance``, else the default of :func:`shapeverify.inspect`).
     deviations : Deviations, optional
         The scan's deviations at the alignment's pose and this evaluation distance (from
         :func:`shapeverify.deviations`, all faces): its closest points are used, not computed

@@ -19,6 +19,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._random import generator
 from ..report.colours import BAND_COLOURS  # noqa: F401 (re-exported: the PDF's bands)
 from ..verdict_table import verdict_style
 from .registry import label as _type_label   # the type's label (the registry)
@@ -153,7 +154,7 @@ def pdf_figures(result, prep=None, *, part: str | None = None, scan_file: str | 
     there)."""
     from matplotlib.colors import BoundaryNorm, ListedColormap
 
-    rng = np.random.default_rng(rng)
+    rng = generator(rng)
     if date is None:
         date = _dt.datetime.now(_dt.timezone.utc).replace(microsecond=0)
     stamp = date.isoformat() if isinstance(date, _dt.datetime) else str(date)

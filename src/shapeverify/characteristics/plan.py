@@ -33,6 +33,10 @@ GD&T types (issue 28; docs/characteristics.md): ``straightness``, ``circularity`
 :mod:`.drf`).  Every type is one row of :mod:`.registry`.
 ``section`` (optional): a cross-section plane
 ``{point: [x, y, z], normal: [nx, ny, nz], width: 1.0}`` for the PDF report.
+``evaluation_distance`` (optional, mm): scan points farther than this from the CAD are not
+evaluated (default: that of :func:`shapeverify.inspect`).  Its old key ``max_distance`` is
+still read, with a :class:`DeprecationWarning` and a warning in the log naming the file and
+line (issue 31: one name per concept).
 
 Tolerance conventions (ISO 1101)
 --------------------------------
@@ -46,7 +50,9 @@ Lengths in millimetres.
 """
 from __future__ import annotations
 
+import logging
 import os
+import warnings
 from pathlib import Path
 from typing import Annotated, Literal, Optional, Union
 
@@ -60,6 +66,8 @@ from .schema import (  # noqa: F401 - re-exported: the plan's schema lives in .s
 
 __all__ = ["Plan", "PlanError", "load_plan", "parse_plan", "Tol", "DOF_NAMES", "PmiSource",
            "Unsupported"]
+
+logger = logging.getLogger(__name__)
 
 #: the six rigid degrees of freedom, in the order of the alignment's parameter vector
 DOF_NAMES = ("rx", "ry", "rz", "tx", "ty", "tz")
@@ -171,12 +179,18 @@ class Plan(_Strict):
     alignment: Alignment = Field(default_factory=lambda: BestFit(type="best_fit"))
     characteristics: list[Characteristic] = Field(default_factory=list)
     section: Optional[Section] = None
-    max_distance: Optional[float] = Field(default=None, gt=0)
+    evaluation_distance: Optional[float] = Field(default=None, gt=0)
     coverage_factor: float = Field(default=2.0, gt=0)
     unsupported: list[Unsupported] = Field(default_factory=list)
     #: datum features by letter, for the characteristics' own datum reference frames
     #: (``datums: [A, B, C]`` on a characteristic; fitted by :mod:`.drf`)
     datums: dict[str, DatumSpec] = Field(default_factory=dict)
+
+    @model_validator(mode="before")
+    @classmethod
+    def _old_key(cls, data):
+        """The plan key ``max_distance`` (deprecated) read as ``evaluation_distance``."""
+        return _renamed_key(data, "<plan>", None)
 
     @model_validator(mode="after")
     def _unique_names(self):
@@ -274,10 +288,35 @@ def parse_plan(text: str, source: str = "<plan>") -> Plan:
     return _validate(data, lines, source)
 
 
+#: old plan keys still read: {old: new} (issue 31); each use is a DeprecationWarning and a log
+#: warning naming the file and line
+OLD_KEYS = {"max_distance": "evaluation_distance"}
+
+
+def _renamed_key(data, source: str, lines: dict | None):
+    if not isinstance(data, dict):
+        return data
+    for old, new in OLD_KEYS.items():
+        if old not in data:
+            continue
+        line = (lines or {}).get((old,))
+        where = f"{source}, line {line}" if line is not None else source
+        if new in data:
+            raise PlanError(f"{where}: give '{new}' only ('{old}' is its old name)", line=line,
+                            key=old)
+        data = {(new if k == old else k): v for k, v in data.items()}
+        msg = (f"{where}: the plan key '{old}' is now called '{new}' (read as '{new}'; the old "
+               "name will go)")
+        logger.warning("%s", msg)
+        warnings.warn(msg, DeprecationWarning, stacklevel=5)
+    return data
+
+
 def _validate(data, lines: dict, source: str) -> Plan:
     if not isinstance(data, dict):
         raise PlanError(f"{source}, line 1: the plan must be a mapping (key: value lines), got "
                         f"{type(data).__name__}", line=1)
+    data = _renamed_key(data, source, lines)
     try:
         return Plan.model_validate(data)
     except ValidationError as exc:

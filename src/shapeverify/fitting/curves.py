@@ -38,6 +38,7 @@ import scipy.linalg
 import scipy.sparse
 import scipy.sparse.linalg
 
+from .._renamed import renamed_keywords
 from ..cad.nurbs import NurbsCurve
 from . import _kernels, _odr, _slide
 from ._element_base import _Repr
@@ -330,17 +331,18 @@ def _check_common(method, max_iterations, tolerance, smoothing, parametrization,
     if not (isinstance(max_iterations, (int, np.integer)) and max_iterations >= 1):
         raise ValueError(f"max_iterations must be an integer >= 1, got {max_iterations!r}")
     if not (np.isfinite(tolerance) and tolerance > 0):
-        raise ValueError(f"tolerance must be a positive number, got {tolerance!r}")
+        raise ValueError(f"rtol must be a positive number, got {tolerance!r}")
     if not (np.isfinite(smoothing) and smoothing >= 0):
         raise ValueError(f"smoothing must be a finite number >= 0, got {smoothing!r}")
     if not (np.isfinite(slide_stiffness) and slide_stiffness >= 0):
         raise ValueError(f"slide_stiffness must be a finite number >= 0, got {slide_stiffness!r}")
 
 
+@renamed_keywords(tolerance="rtol")
 def fit_curve(points, degree: int = 3, n_ctrl: int | None = None, rational: bool = False,
               method: str = "odr", knots=None, params=None, parametrization: str = "chord",
               smoothing: float = 0.0, max_iterations: int = 100,
-              tolerance: float = 1e-10, second_order: bool | None = None,
+              rtol: float = 1e-10, second_order: bool | None = None,
               slide_stiffness: float = SLIDE_STIFFNESS) -> CurveFit:
     """Fit a B-spline / NURBS curve to ordered points.
 
@@ -364,8 +366,8 @@ def fit_curve(points, degree: int = 3, n_ctrl: int | None = None, rational: bool
     smoothing : float >= 0
         Adds ``smoothing * sum_j ||P_{j-1} - 2 P_j + P_{j+1}||^2`` to the objective.
     max_iterations : int
-    tolerance : float
-        Stop when an iteration decreases the objective by less than ``tolerance`` times its value.
+    rtol : float
+        Stop when an iteration decreases the objective by less than ``rtol`` times its value.
     slide_stiffness : float >= 0
         ``odr`` / ``varpro``: resistance of the control points to sliding along the curve, away
         from the fixed-parameter fit.  Sliding changes the shape only to second order, so the
@@ -412,7 +414,7 @@ def fit_curve(points, degree: int = 3, n_ctrl: int | None = None, rational: bool
         raise ValueError(f"fit_curve: points must have shape (N, 2) or (N, 3), got {x.shape}")
     if not np.all(np.isfinite(x)):
         raise ValueError("fit_curve: points contain NaN or inf; remove them before fitting")
-    _check_common(method, max_iterations, tolerance, smoothing, parametrization, slide_stiffness)
+    _check_common(method, max_iterations, rtol, smoothing, parametrization, slide_stiffness)
     if isinstance(degree, bool) or not isinstance(degree, (int, np.integer)) or degree < 1:
         raise ValueError(f"fit_curve: degree must be an integer >= 1, got {degree!r}")
     N = x.shape[0]
@@ -458,7 +460,7 @@ def fit_curve(points, degree: int = 3, n_ctrl: int | None = None, rational: bool
         hist = np.array([_odr.cost_of(prob, theta, _odr.evaluate(prob, theta, t0).r)])
         return _result(curve, t, dist, 0, True, method, hist)
     t, _ = project_to_curve(prob.curve(theta), x, t0)
-    theta, t, it, ok, hist = _slide.solve(prob, theta, t, method, max_iterations, tolerance,
+    theta, t, it, ok, hist = _slide.solve(prob, theta, t, method, max_iterations, rtol,
                                           second_order, slide_stiffness)
     curve = prob.curve(theta)
     t, dist = project_to_curve(curve, x, t, iterations=5)

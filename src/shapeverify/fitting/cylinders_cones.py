@@ -17,6 +17,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._renamed import renamed_keywords
 from ._element_base import _check_loss, _check_points, _irls, _lm, _perp_basis, _Repr, _unit
 from .spheres_circles import _pratt
 
@@ -175,8 +176,9 @@ def _fit_axial(x, loss, scale, axis, max_iterations, tolerance, kind):
     return p + c0, a, extra, r, w, s, it, ok
 
 
+@renamed_keywords(tolerance="rtol")
 def fit_cylinder(points, loss: str = "l2", scale: float | None = None, axis=None,
-                 max_iterations: int = 100, tolerance: float = 1e-12) -> CylinderFit:
+                 max_iterations: int = 100, rtol: float = 1e-12) -> CylinderFit:
     """Orthogonal-distance cylinder fit (5 parameters: axis line and radius).
 
     The distance of ``x`` is ``||(x - p) - ((x - p).a) a|| - R``.  Levenberg-Marquardt runs in a
@@ -187,7 +189,7 @@ def fit_cylinder(points, loss: str = "l2", scale: float | None = None, axis=None
     Parameters
     ----------
     points : (N, 3) float64, N >= 5
-    loss, scale, max_iterations, tolerance : as in :func:`fit_sphere`.
+    loss, scale, max_iterations, rtol : as in :func:`fit_sphere`.
     axis : (3,) array_like, optional
         Approximate axis direction, used as the only start when given.
 
@@ -202,14 +204,15 @@ def fit_cylinder(points, loss: str = "l2", scale: float | None = None, axis=None
     """
     x = _check_points(points, (3,), 5, "fit_cylinder", spread=2)
     _check_loss(loss, scale)
-    p, a, (R,), r, w, s, it, ok = _fit_axial(x, loss, scale, axis, max_iterations, tolerance, "cylinder")
+    p, a, (R,), r, w, s, it, ok = _fit_axial(x, loss, scale, axis, max_iterations, rtol, "cylinder")
     if R <= 0:
         raise ValueError("fit_cylinder: the fit degenerated to a non-positive radius")
     return CylinderFit(p, a, float(R), float(np.sqrt(np.mean(r * r))), r, w, s, loss, it, ok)
 
 
+@renamed_keywords(tolerance="rtol")
 def fit_cone(points, loss: str = "l2", scale: float | None = None, axis=None,
-             max_iterations: int = 100, tolerance: float = 1e-12) -> ConeFit:
+             max_iterations: int = 100, rtol: float = 1e-12) -> ConeFit:
     """Orthogonal-distance cone fit (6 parameters: axis line, radius at the axis point, half-angle).
 
     The signed distance of ``x`` from the cone is ``(rho - R) cos(psi) - h sin(psi)`` with ``h``
@@ -220,7 +223,7 @@ def fit_cone(points, loss: str = "l2", scale: float | None = None, axis=None,
     Parameters
     ----------
     points : (N, 3) float64, N >= 6
-    loss, scale, axis, max_iterations, tolerance : as in :func:`fit_cylinder`.
+    loss, scale, axis, max_iterations, rtol : as in :func:`fit_cylinder`.
 
     Returns
     -------
@@ -233,5 +236,5 @@ def fit_cone(points, loss: str = "l2", scale: float | None = None, axis=None,
     """
     x = _check_points(points, (3,), 6, "fit_cone", spread=2)
     _check_loss(loss, scale)
-    p, a, (R, psi), r, w, s, it, ok = _fit_axial(x, loss, scale, axis, max_iterations, tolerance, "cone")
+    p, a, (R, psi), r, w, s, it, ok = _fit_axial(x, loss, scale, axis, max_iterations, rtol, "cone")
     return ConeFit(p, a, float(R), float(psi), float(np.sqrt(np.mean(r * r))), r, w, s, loss, it, ok)

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._renamed import renamed_keywords
 from ._element_base import _check_loss, _check_points, _irls, _Repr
 
 __all__ = ["LineFit", "PlaneFit", "fit_line", "fit_plane"]
@@ -58,14 +59,15 @@ def _principal(x: np.ndarray, w: np.ndarray):
     return c, vt
 
 
+@renamed_keywords(tolerance="rtol")
 def fit_line(points, loss: str = "l2", scale: float | None = None,
-             max_iterations: int = 50, tolerance: float = 1e-10) -> LineFit:
+             max_iterations: int = 50, rtol: float = 1e-10) -> LineFit:
     """Orthogonal-distance line through (N, 2) or (N, 3) points.
 
     Parameters
     ----------
     points : (N, 2) or (N, 3) float64, N >= 2
-    loss, scale, max_iterations, tolerance : see module docstring (IRLS).
+    loss, scale, max_iterations, rtol : see module docstring (IRLS).
 
     Returns
     -------
@@ -94,15 +96,16 @@ def fit_line(points, loss: str = "l2", scale: float | None = None,
         y = x - c
         return np.linalg.norm(y - np.outer(y @ a, a), axis=1)
 
-    state, w, s, it, ok = _irls(solve, None, dist, loss, scale, len(x), floor, max_iterations, tolerance)
+    state, w, s, it, ok = _irls(solve, None, dist, loss, scale, len(x), floor, max_iterations, rtol)
     c, a = state
     a = a if a[np.argmax(np.abs(a))] > 0 else -a
     r = dist((c, a))
     return LineFit(c, a, float(np.sqrt(np.mean(r * r))), r, w, s, loss, it, ok)
 
 
+@renamed_keywords(tolerance="rtol")
 def fit_plane(points, loss: str = "l2", scale: float | None = None,
-              max_iterations: int = 50, tolerance: float = 1e-10) -> PlaneFit:
+              max_iterations: int = 50, rtol: float = 1e-10) -> PlaneFit:
     """Orthogonal-distance plane through (N, 3) points (N >= 3).
 
     Returns
@@ -131,7 +134,7 @@ def fit_plane(points, loss: str = "l2", scale: float | None = None,
         c, n = state
         return (x - c) @ n
 
-    state, w, s, it, ok = _irls(solve, None, dist, loss, scale, len(x), floor, max_iterations, tolerance)
+    state, w, s, it, ok = _irls(solve, None, dist, loss, scale, len(x), floor, max_iterations, rtol)
     c, n = state
     n = n if n[np.argmax(np.abs(n))] > 0 else -n
     n = n + 0.0  # no negative zeros

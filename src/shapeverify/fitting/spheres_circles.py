@@ -18,6 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
+from .._random import generator
+from .._renamed import renamed_keywords
 from ._element_base import _check_loss, _check_points, _irls, _lm, _perp_basis, _Repr, _unit
 
 __all__ = ["CircleFit", "SphereFit", "fit_circle", "fit_sphere"]
@@ -122,7 +124,7 @@ def _fit_hypersphere(x, loss, scale, max_iterations, tolerance, what, rng):
     if loss != "l2":
         # one-sided gross outliers (stray scanner points) capture the least-squares start:
         # take the least-median start when it explains the bulk of the points better
-        lm = _lmeds_hypersphere(y, np.random.default_rng(rng))
+        lm = _lmeds_hypersphere(y, generator(rng))
         med0 = float(np.median(np.abs(np.linalg.norm(y - state0[:-1], axis=1) - state0[-1])))
         if lm is not None and lm[2] < med0:
             state0 = np.concatenate([lm[0], [lm[1]]])
@@ -153,8 +155,9 @@ def _fit_hypersphere(x, loss, scale, max_iterations, tolerance, what, rng):
     return p[:d] + c0, float(p[d]), r, w, s, it, ok
 
 
+@renamed_keywords(tolerance="rtol")
 def fit_sphere(points, loss: str = "l2", scale: float | None = None,
-               max_iterations: int = 100, tolerance: float = 1e-12, rng=0) -> SphereFit:
+               max_iterations: int = 100, rtol: float = 1e-12, rng=0) -> SphereFit:
     """Orthogonal-distance (geometric) sphere fit.
 
     Minimises ``sum_i rho(||x_i - c|| - R)`` with ``rho`` the chosen loss (least squares by
@@ -171,8 +174,9 @@ def fit_sphere(points, loss: str = "l2", scale: float | None = None,
         Fixed residual scale for the robust losses (default: MAD, re-estimated each step).
     max_iterations : int
         Per Levenberg-Marquardt solve and per IRLS stage.
-    tolerance : float
-        Relative step tolerance of the Levenberg-Marquardt solve.
+    rtol : float
+        Relative step tolerance of the Levenberg-Marquardt solve (``tolerance=``: its old
+        name, a DeprecationWarning).
     rng : None, int or numpy Generator
         Seed of the random subsets of the robust start (default 0: repeatable results).
 
@@ -196,12 +200,13 @@ def fit_sphere(points, loss: str = "l2", scale: float | None = None,
     """
     x = _check_points(points, (3,), 4, "fit_sphere", spread=2)
     _check_loss(loss, scale)
-    c, R, r, w, s, it, ok = _fit_hypersphere(x, loss, scale, max_iterations, tolerance, "fit_sphere", rng)
+    c, R, r, w, s, it, ok = _fit_hypersphere(x, loss, scale, max_iterations, rtol, "fit_sphere", rng)
     return SphereFit(c, R, float(np.sqrt(np.mean(r * r))), r, w, s, loss, it, ok)
 
 
+@renamed_keywords(tolerance="rtol")
 def fit_circle(points, loss: str = "l2", scale: float | None = None,
-               max_iterations: int = 100, tolerance: float = 1e-12, rng=0) -> CircleFit:
+               max_iterations: int = 100, rtol: float = 1e-12, rng=0) -> CircleFit:
     """Orthogonal-distance circle fit in 2-D or 3-D.
 
     In 2-D the distance is ``||x - c|| - R``.  In 3-D the circle has centre ``c``, unit plane
@@ -212,7 +217,7 @@ def fit_circle(points, loss: str = "l2", scale: float | None = None,
     Parameters
     ----------
     points : (N, 2) or (N, 3) float64, N >= 3 (2-D) or N >= 4 (3-D)
-    loss, scale, max_iterations, tolerance, rng : as in :func:`fit_sphere` (the least-median
+    loss, scale, max_iterations, rtol, rng : as in :func:`fit_sphere` (the least-median
         start is used in 2-D only).
 
     Returns
@@ -235,7 +240,7 @@ def fit_circle(points, loss: str = "l2", scale: float | None = None,
     x = _check_points(points, (2, 3), 3, "fit_circle", spread=2)
     _check_loss(loss, scale)
     if x.shape[1] == 2:
-        c, R, r, w, s, it, ok = _fit_hypersphere(x, loss, scale, max_iterations, tolerance, "fit_circle", rng)
+        c, R, r, w, s, it, ok = _fit_hypersphere(x, loss, scale, max_iterations, rtol, "fit_circle", rng)
         return CircleFit(c, R, None, float(np.sqrt(np.mean(r * r))), r, w, s, loss, it, ok)
     if len(x) < 4:
         raise ValueError(f"fit_circle: a 3-D circle needs at least 4 points, got {len(x)}")
@@ -278,7 +283,7 @@ def fit_circle(points, loss: str = "l2", scale: float | None = None,
         return c + step[:3], _unit(n + step[3] * a + step[4] * b), R + step[5]
 
     def solve(st, w):
-        return _lm(st, fun, retract, np.concatenate([w, w]), L, max_iterations, tolerance)
+        return _lm(st, fun, retract, np.concatenate([w, w]), L, max_iterations, rtol)
 
     def dist(st):
         _, h, _, rho = parts(st)

@@ -26,6 +26,7 @@ import numpy as np
 import scipy.sparse
 import scipy.spatial
 
+from .._renamed import renamed_keywords
 from ..cad.nurbs import NurbsSurface
 from . import _odr, _slide
 from ._element_base import _Repr
@@ -300,9 +301,10 @@ def _knots(given, t, n_ctrl, degree, name):
     return np.ascontiguousarray(U)
 
 
+@renamed_keywords(tolerance="rtol")
 def fit_surface(points, degrees=(3, 3), n_ctrl=(8, 8), rational: bool = False,
                 method: str = "odr", knots=None, params=None, parametrization: str = "chord",
-                smoothing: float = 0.0, max_iterations: int = 100, tolerance: float = 1e-10,
+                smoothing: float = 0.0, max_iterations: int = 100, rtol: float = 1e-10,
                 second_order: bool | None = None, slide_stiffness: float = SLIDE_STIFFNESS) -> SurfaceFit:
     """Fit a tensor-product B-spline / NURBS surface to points.
 
@@ -323,7 +325,7 @@ def fit_surface(points, degrees=(3, 3), n_ctrl=(8, 8), rational: bool = False,
     smoothing : float >= 0
         Adds ``smoothing * sum ||second differences of the control net along u and v||^2``;
         needed when parts of the parameter domain hold no points.
-    max_iterations, tolerance, second_order : as in :func:`shapeverify.fitting.fit_curve`.
+    max_iterations, rtol, second_order : as in :func:`shapeverify.fitting.fit_curve`.
     slide_stiffness : float >= 0
         As in :func:`shapeverify.fitting.fit_curve`: resistance of the control points to sliding
         along the surface (two tangent directions per control point); 0 gives plain ODR.
@@ -353,7 +355,7 @@ def fit_surface(points, degrees=(3, 3), n_ctrl=(8, 8), rational: bool = False,
         raise ValueError(f"fit_surface: points must have shape (N, 3) or (ku, kv, 3), got {x.shape}")
     if not np.all(np.isfinite(x)):
         raise ValueError("fit_surface: points contain NaN or inf; remove them before fitting")
-    _check_common(method, max_iterations, tolerance, smoothing, parametrization, slide_stiffness)
+    _check_common(method, max_iterations, rtol, smoothing, parametrization, slide_stiffness)
     p, q = _pair(degrees, "degrees")
     nu, nv = _pair(n_ctrl, "n_ctrl")
     if p < 1 or q < 1:
@@ -405,7 +407,7 @@ def fit_surface(points, degrees=(3, 3), n_ctrl=(8, 8), rational: bool = False,
         hist = np.array([_odr.cost_of(prob, theta, _odr.evaluate(prob, theta, uv0).r)])
         return _result(surf, uv, dist, 0, True, method, hist)
     uv, _ = project_to_surface(prob.surface(theta), flat, uv0)
-    theta, uv, it, ok, hist = _slide.solve(prob, theta, uv, method, max_iterations, tolerance,
+    theta, uv, it, ok, hist = _slide.solve(prob, theta, uv, method, max_iterations, rtol,
                                            second_order, slide_stiffness)
     surf = prob.surface(theta)
     uv, dist = project_to_surface(surf, flat, uv, iterations=5)

@@ -24,10 +24,12 @@ Bergström (2011), thesis chapter 3 and Paper III (shape verification with proje
 from __future__ import annotations
 
 import logging
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
+from .._renamed import renamed_keywords
 from .._arrays import check_points
 from .._arrays import readonly as _readonly
 from ..registration.rigid import apply_transform
@@ -100,7 +102,9 @@ class Deviations:
 
     @property
     def max_distance(self) -> float:
-        """Old name of :attr:`evaluation_distance`."""
+        """Deprecated old name of :attr:`evaluation_distance` (a :class:`DeprecationWarning`)."""
+        warnings.warn("Deviations.max_distance is now called Deviations.evaluation_distance (the "
+                      "old name will go)", DeprecationWarning, stacklevel=2)
         return self.evaluation_distance
 
     def counts(self) -> dict:
@@ -128,8 +132,9 @@ class Deviations:
                 f"on_boundary={self.n_on_boundary}{rng})")
 
 
-def deviations(scan, prep, T_model_scan=None, evaluation_distance: float | None = None, *,
-               max_distance: float | None = None) -> Deviations:
+@renamed_keywords(max_distance="evaluation_distance")
+def deviations(scan, prep, T_model_scan=None,
+               evaluation_distance: float | None = None) -> Deviations:
     """Signed deviation of every scan point from the trimmed CAD surface.
 
     Parameters
@@ -174,10 +179,6 @@ def deviations(scan, prep, T_model_scan=None, evaluation_distance: float | None 
     T = np.eye(4) if T_model_scan is None else np.asarray(T_model_scan, dtype=np.float64)
     if T.shape != (4, 4) or not np.all(np.isfinite(T)):
         raise ValueError(f"T_model_scan must be a finite 4x4 matrix, got shape {T.shape}")
-    if max_distance is not None:
-        if evaluation_distance is not None:
-            raise ValueError("give evaluation_distance only (max_distance is its old name)")
-        evaluation_distance = max_distance
     if evaluation_distance is None:
         evaluation_distance = np.inf
     else:

@@ -474,7 +474,7 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
     return InspectionResult(
         verdict=verdict, reasons=tuple(reasons) + tuple(notes), registration=reg, deviations=dev,
         statistics=stats, per_face=per_face_stats, regions=tuple(regions), outliers=outliers,
-        tolerance=tol, timings=timings, spacing=spacing, coverage=coverage, rule=rule,
+        tolerance=tol, timings=timings, scan_spacing=spacing, coverage=coverage, rule=rule,
         excluded=excluded, noise=noise)
 
 

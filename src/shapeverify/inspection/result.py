@@ -55,9 +55,11 @@ class InspectionResult:
         Out-of-tolerance points in no region (measurement outliers).
     tolerance : Tolerance
     timings : dict {stage: seconds}
-    spacing : float
+    scan_spacing : float
         The scan's spacing as area per point on the part (mm,
         :func:`shapeverify.inspection.regions.surface_spacing`; NaN if not needed).
+        :attr:`spacing` is the same (its older name, kept: the scan's spacing, not the
+        model's ``Prepared.model_spacing``).
     units : str
     coverage : Coverage or None
         How much of the inspected CAD area was seen (:mod:`shapeverify.inspection.coverage`).
@@ -93,7 +95,7 @@ class InspectionResult:
     outliers: Outliers
     tolerance: Tolerance
     timings: dict = field(default_factory=dict)
-    spacing: float = float("nan")
+    scan_spacing: float = float("nan")
     units: str = "mm"
     coverage: Coverage | None = None
     rule: str = ""
@@ -115,6 +117,16 @@ class InspectionResult:
         """``{"verdict", "rule", "reason"}``: why the verdict is what it is."""
         return {"verdict": self.verdict.value, "rule": self.rule,
                 "reason": self.reasons[0] if self.reasons else ""}
+
+    @property
+    def spacing(self) -> float:
+        """The scan's spacing (mm): :attr:`scan_spacing` (this older name is kept)."""
+        return self.scan_spacing
+
+    @property
+    def evaluation_distance(self) -> float:
+        """The evaluation distance used (mm; ``inf``: none): ``deviations.evaluation_distance``."""
+        return float(self.deviations.evaluation_distance)
 
     @property
     def T_model_scan(self) -> np.ndarray:
@@ -169,7 +181,8 @@ class InspectionResult:
         symmetric[, tolerance][, per_face]), ``coverage`` (fraction, area_mm2, per_face, gaps,
         ...), ``n_points``, ``excluded`` (too_far, material, on_boundary, outside_faces,
         outliers), ``evaluation_distance``, ``regions`` (list, most severe first, each with
-        ``kind``), ``outliers`` (n, n_low_weight), ``spacing``, ``timings`` (seconds per stage)
+        ``kind``), ``outliers`` (n, n_low_weight), ``scan_spacing`` (and ``spacing``, the same under its
+        older name), ``timings`` (seconds per stage)
         and, if ``per_face``, ``per_face`` ({face: statistics}).
         """
         dev = self.deviations
@@ -191,7 +204,8 @@ class InspectionResult:
             "regions": [{k: (_num(v) if not isinstance(v, (list, str)) else v)
                          for k, v in r.to_dict().items()} for r in self.regions],
             "outliers": self.outliers.to_dict(),
-            "spacing": _num(self.spacing),
+            "scan_spacing": _num(self.scan_spacing),
+            "spacing": _num(self.scan_spacing),      # its older name (readers of old records)
             "noise": _num(self.noise),
             "timings": {k: _num(v) for k, v in self.timings.items()},
         }

@@ -355,8 +355,8 @@ def _registration_errors(registration, min_inlier_fraction: float) -> tuple[str,
 def _rule_no_data(f: _Facts):
     dev = f.deviations
     if dev.n_evaluated == 0:
-        return Verdict.ERROR, (f"no scan point lies within {dev.max_distance:g} mm (the evaluation "
-                               f"distance) of the inspected CAD faces ({dev.n_too_far} of {dev.n} too "
+        return Verdict.ERROR, (f"no scan point lies within {dev.evaluation_distance:g} mm "
+                               f"(the evaluation distance) of the inspected CAD faces ({dev.n_too_far} of {dev.n} too "
                                f"far, {dev.n_on_boundary} past the CAD's edges); is this the right "
                                "scan and model?",) + f.errors, "no_data"
     return None
@@ -365,11 +365,11 @@ def _rule_no_data(f: _Facts):
 def _rule_does_not_fit(f: _Facts):
     reg, dev = f.registration, f.deviations
     scale = float(getattr(reg, "scale", float("nan"))) if reg is not None else float("nan")
-    if f.errors and not bool(reg.converged) and scale > dev.max_distance:
+    if f.errors and not bool(reg.converged) and scale > dev.evaluation_distance:
         # not a patch too small to fix the pose: the scan fits the model at no pose found
         return Verdict.ERROR, (f"the scan does not fit the model: at the best pose found its "
                                f"robust residual scale is {scale:.3g} mm, more than the "
-                               f"evaluation distance {dev.max_distance:g} mm (a wrong "
+                               f"evaluation distance {dev.evaluation_distance:g} mm (a wrong "
                                "part, a wrong scan or wrong units?)",) + f.errors, \
             "registration"
     return None

@@ -296,7 +296,7 @@ def inspect_views(prep, views, tolerance=0.2, *, poses=None, names=None, rng=0,
     if not used:
         raise ScanError("no view fits the CAD: " + "; ".join(f"{s.name}: {s.reason}"
                                                               for s in summaries))
-    spacing = float(np.nanmedian([alone[i].spacing for i in used]))
+    spacing = float(np.nanmedian([alone[i].scan_spacing for i in used]))
     if len(used) > 1:          # all placed views refined together (module docstring)
         joint = joint_refine([pts[i] for i in used], [regs[i].T_model_scan for i in used],
                              prep, spacing)

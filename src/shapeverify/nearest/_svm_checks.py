@@ -45,7 +45,7 @@ def check_structure(tree, rec: np.ndarray, rows: np.ndarray, model) -> str | Non
         return "the tree's origin is not 3 finite numbers"
     if not (np.isfinite(tree.cell) and tree.cell > 0):
         return f"the tree's cell size {tree.cell!r} is not a positive number"
-    if not (np.isfinite(tree.max_distance) and tree.max_distance > 0):
+    if not (np.isfinite(tree.reach) and tree.reach > 0):
         return "the tree's reach is not a positive number"
     if dims.shape != (3,) or np.any(dims < 1) or np.any(dims > nodes.size):
         return f"the tree's top grid {dims.tolist()} does not fit its {nodes.size} nodes"

@@ -19,8 +19,8 @@ octree-style down to half a spacing.  At build time the exact nearest model poin
 vertex is computed (a kd-tree on the top grid, then brute force over candidate lists inherited
 from the parent cell: :mod:`shapeverify.nearest.dvg_build`).  A cell is
 
-* **FAR** when all its vertices are farther than ``max_distance + r`` from the model (r: half
-  its diagonal), so no point of it is within ``max_distance``; queries there fall back to an
+* **FAR** when all its vertices are farther than ``reach + r`` from the model (r: half
+  its diagonal), so no point of it is within ``reach``; queries there fall back to an
   exact kd-tree query, so no answer is ever wrong;
 * a **leaf with one seed** (the end of a walk towards the cell centre) when the walk from that
   seed reaches the exact nearest point of each of the 8 vertices in at most ``max_moves`` (2)
@@ -55,12 +55,14 @@ Q. Meyer et al., "On floating-point normal vectors", Computer Graphics Forum 29 
 from __future__ import annotations
 
 import logging
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 from shapeverify._lazy import cKDTree
 
 from .._arrays import check_points
+from .._renamed import renamed_keywords
 from . import _build_kernels, _kernels
 from ._threads import run_chunks
 from .dvg_build import build_tree
@@ -230,6 +232,11 @@ def aligned_empty(shape, dtype, align: int = 64) -> np.ndarray:
     return buf[off:off + nbytes].view(dtype).reshape(shape)
 
 
+#: the reach's key among the tree's saved arrays (``tree_max_distance`` in a ``.svm``): the
+#: file format keeps its old name (deprecated in the API) so that files of every version load
+_REACH_KEY = "max_distance"
+
+
 @dataclass(frozen=True, eq=False, repr=False)
 class DVGTree:
     """The arrays of a built DVG tree (layout in :mod:`shapeverify.nearest._kernels`).
@@ -242,7 +249,8 @@ class DVGTree:
     nodes : (T,) int32        top grid codes followed by child blocks of 8
     lists : (L,) int32        seed lists of multi-seed leaves (count, indices...)
     n_points : int            number of model points the tree refers to
-    max_distance : float      queries within it are answered by the tree
+    reach : float             queries within it are answered by the tree (``max_distance``:
+                              its deprecated old name)
     depth : int               deepest level below the top grid
     """
 
@@ -252,8 +260,15 @@ class DVGTree:
     nodes: np.ndarray
     lists: np.ndarray
     n_points: int
-    max_distance: float
+    reach: float
     depth: int
+
+    @property
+    def max_distance(self) -> float:
+        """Deprecated old name of :attr:`reach` (a :class:`DeprecationWarning`)."""
+        warnings.warn("DVGTree.max_distance is now called DVGTree.reach (the old name will go)",
+                      DeprecationWarning, stacklevel=2)
+        return self.reach
 
     @property
     def nbytes(self) -> int:
@@ -263,7 +278,7 @@ class DVGTree:
         """Plain arrays for saving (see :meth:`from_arrays`)."""
         return {"origin": self.origin, "cell": np.float64(self.cell), "dims": self.dims,
                 "nodes": self.nodes, "lists": self.lists, "n_points": np.int64(self.n_points),
-                "max_distance": np.float64(self.max_distance), "depth": np.int64(self.depth)}
+                _REACH_KEY: np.float64(self.reach), "depth": np.int64(self.depth)}
 
     @classmethod
     def from_arrays(cls, a) -> "DVGTree":
@@ -271,7 +286,7 @@ class DVGTree:
                    np.ascontiguousarray(a["dims"], np.int64),
                    np.ascontiguousarray(a["nodes"], np.int32),
                    np.ascontiguousarray(a["lists"], np.int32), int(a["n_points"]),
-                   float(a["max_distance"]), int(a["depth"]))
+                   float(a[_REACH_KEY]), int(a["depth"]))
 
     def locate(self, queries: np.ndarray) -> np.ndarray:
         """Leaf code of each (validated, (N, 3) float64) query; -1 = FAR."""
@@ -285,7 +300,7 @@ class DVGTree:
     def __repr__(self) -> str:
         return (f"DVGTree(top={tuple(int(x) for x in self.dims)}, cell={self.cell:.4g}, "
                 f"depth={self.depth}, nodes={self.nodes.shape[0]}, "
-                f"list_entries={self.lists.shape[0]}, max_distance={self.max_distance:.4g}, "
+                f"list_entries={self.lists.shape[0]}, reach={self.reach:.4g}, "
                 f"{self.nbytes / 2**20:.1f} MiB)")
 
 
@@ -345,7 +360,8 @@ class DVG:
             _NO_ROWS, _NO_BOUNDARY)
 
     @classmethod
-    def build(cls, points, spacing: float, max_distance: float, frames=None, *,
+    @renamed_keywords(max_distance="reach")
+    def build(cls, points, spacing: float, reach: float, frames=None, *,
               max_moves: int = 2, workers: int = -1) -> "DVG":
         """Build from (N, 3) points (kept in the given order) and optional (N, 8) frames.
 
@@ -357,10 +373,10 @@ class DVG:
         ------
         ValueError
             For bad points (shape, NaN, empty), frames of the wrong shape, or a spacing or
-            max_distance that is not finite and > 0.
+            reach that is not finite and > 0.
         """
         pts = check_points(points, allow_empty=False)
-        for name, val in (("spacing", spacing), ("max_distance", max_distance)):
+        for name, val in (("spacing", spacing), ("reach", reach)):
             if not (np.isfinite(val) and val > 0):
                 raise ValueError(f"{name} must be finite and > 0, got {val!r}")
         if frames is not None:
@@ -370,17 +386,17 @@ class DVG:
                                  f"({pts.shape[0]}, 8), got {frames.shape}")
         kd = cKDTree(pts)
         rec = make_records(pts, neighbor_graph(pts, tree=kd, spacing=spacing), frames)
-        return cls.from_records(rec, spacing, max_distance, kd, max_moves=max_moves,
+        return cls.from_records(rec, spacing, reach, kd, max_moves=max_moves,
                                 workers=workers)
 
     @classmethod
-    def from_records(cls, rec, spacing: float, max_distance: float, kd: cKDTree, *,
+    def from_records(cls, rec, spacing: float, reach: float, kd: cKDTree, *,
                      max_moves: int = 2, workers: int = -1) -> "DVG":
         """The second half of :meth:`build`: the tree over records made by
         :func:`make_records` (``kd``: a cKDTree over their points).  A caller that made the
         records itself can free the points and frames they came from before the tree, the
         build's memory peak (``prepare`` does)."""
-        tree = build_tree(rec, float(spacing), float(max_distance), kd=kd,
+        tree = build_tree(rec, float(spacing), float(reach), kd=kd,
                           max_moves=max_moves, workers=workers)
         out = cls(rec, tree)
         out._kd = kd

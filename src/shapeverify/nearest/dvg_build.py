@@ -85,11 +85,11 @@ def _offsets(counts):
     return off
 
 
-def _top_level(cells, origin, size, dims, bins, pts, RV, max_distance, max_moves):
+def _top_level(cells, origin, size, dims, bins, pts, RV, reach, max_moves):
     """Level 0: exact nearest points of the top grid's vertices (a search of the points
     binned on the top grid, :func:`._lattice_kernels.grid_nearest`: what a kd-tree bounded at
-    max_distance + 3.03 r gave for every vertex of a cell that is not FAR; inf for the
-    others beyond max_distance + 1.01 r), classification.
+    reach + 3.03 r gave for every vertex of a cell that is not FAR; inf for the
+    others beyond reach + 1.01 r), classification.
 
     Returns (kind, first, samples, nn_i, nn_d)."""
     m = cells.shape[0]
@@ -114,17 +114,17 @@ def _top_level(cells, origin, size, dims, bins, pts, RV, max_distance, max_moves
                              out_i[a:b], out_d[a:b])
         run_chunks(one, vx.shape[0], 1 << 12)
 
-    # first up to the FAR test's distance (max_distance + r): exact for every vertex that
-    # makes a cell not FAR, so the FAR cells are known; then, up to max_distance + 3 r (a
+    # first up to the FAR test's distance (reach + r): exact for every vertex that
+    # makes a cell not FAR, so the FAR cells are known; then, up to reach + 3 r (a
     # cell that is not FAR has all its vertices within it), the other vertices of the cells
     # that are not FAR.  (The other vertices only take part in FAR tests.)
-    _search(uvx, max_distance + 1.01 * r, nn_i, nn_d)
-    near = samples[nn_d[samples].min(axis=1) <= max_distance + r]
+    _search(uvx, reach + 1.01 * r, nn_i, nn_d)
+    near = samples[nn_d[samples].min(axis=1) <= reach + r]
     redo = np.unique(near[~np.isfinite(nn_d[near])])
     del near
     if redo.size:
         ri, rd = np.empty(redo.size, dtype=np.int64), np.empty(redo.size)
-        _search(np.ascontiguousarray(uvx[redo]), max_distance + 3.03 * r, ri, rd)
+        _search(np.ascontiguousarray(uvx[redo]), reach + 3.03 * r, ri, rd)
         nn_i[redo] = ri
         nn_d[redo] = rd
     del uvx, redo
@@ -133,14 +133,14 @@ def _top_level(cells, origin, size, dims, bins, pts, RV, max_distance, max_moves
 
     def _classify(a, b):
         _classify_kernels.classify(cells[a:b], origin, size, samples[a:b], nn_i, nn_d, *RV,
-                          float(max_distance), int(max_moves), kind[a:b], first[a:b])
+                          float(reach), int(max_moves), kind[a:b], first[a:b])
 
     run_chunks(_classify, m, 1 << 14)
     return kind, first, samples, nn_i, nn_d
 
 
 def _top_multi(fail, cells, origin, size, dims, kd, n, RV, samples, nn_i, nn_d, first,
-               max_distance, max_moves, max_seeds, last, workers):
+               reach, max_moves, max_seeds, last, workers):
     """Multi-seed classification of failed top cells (only when the top grid is the last
     level): extra samples from the kd-tree."""
     r = 0.5 * np.sqrt(3.0) * size
@@ -152,7 +152,7 @@ def _top_multi(fail, cells, origin, size, dims, kd, n, RV, samples, nn_i, nn_d, 
     exyz = np.stack([uek // (edims[1] * edims[2]), (uek // edims[2]) % edims[1],
                      uek % edims[2]], axis=1)
     xn_d, xn_i = kd.query(origin + 0.5 * size * exyz,
-                          distance_upper_bound=max_distance + 4.04 * r, workers=workers)
+                          distance_upper_bound=reach + 4.04 * r, workers=workers)
     xn_i = np.where(xn_i >= n, 0, xn_i).astype(np.int64)
     fkind = np.empty(fail.size, dtype=np.int8)
     fseeds = np.empty((fail.size, 16), dtype=np.int32)
@@ -266,7 +266,7 @@ def _child_segments(segs, ref, parents, pts, origin, size):
     return new
 
 
-def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
+def build_tree(rec: np.ndarray, spacing: float, reach: float, *,
                kd: cKDTree | None = None, max_moves: int = 2, max_seeds: int = 4,
                multi_size: float | None = None, tree_budget: float = 52.0,
                max_top_cells: int = 1 << 22, finest: float | None = None,
@@ -280,7 +280,7 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         Model point spacing h (mm); sets the top cell size (8 h, doubled while the top grid
         would exceed ``max_top_cells`` cells) and the finest cell size (``finest``, default
         h / 2).
-    max_distance : float > 0
+    reach : float > 0
         Queries within this distance of the model are answered by the tree.
     kd : cKDTree over the points, optional (spares a copy of the points; built when not
         given and needed: only when the top grid is the last level)
@@ -314,14 +314,14 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
     else:
         pts = np.ascontiguousarray(points)
     pad = 1e-9 * (1.0 + float(np.abs(pts).max()))
-    lo = pts.min(axis=0) - max_distance - pad
-    hi = pts.max(axis=0) + max_distance + pad
+    lo = pts.min(axis=0) - reach - pad
+    hi = pts.max(axis=0) + reach + pad
     cell, dims = _top_grid(lo, hi, spacing, max_top_cells)
     finest = 0.5 * spacing if finest is None else finest
     multi_size = 2.0 * spacing if multi_size is None else multi_size
     max_level = max(0, int(np.ceil(np.log2(cell / finest))))
     origin = np.ascontiguousarray(lo, dtype=np.float64)
-    md = float(max_distance)
+    md = float(reach)
 
     n_top = int(np.prod(dims))
     ii, jj, kk = np.meshgrid(*(np.arange(d, dtype=np.int64) for d in dims), indexing="ij")
@@ -364,7 +364,7 @@ def build_tree(rec: np.ndarray, spacing: float, max_distance: float, *,
         if last and level < max_level - 1 and fail.size:
             logger.warning("DVG tree: memory budget reached at level %d of %d (%d cells left "
                            "unrefined): near-surface queries will be slower; give a smaller "
-                           "max_distance or a coarser spacing", level, max_level, fail.size)
+                           "reach or a coarser spacing", level, max_level, fail.size)
         if fail.size and (size <= multi_size or last):
             if level == 0:
                 kd = cKDTree(pts) if kd is None else kd  # (only here)
@@ -430,7 +430,7 @@ def _check_codes(largest: int) -> None:
     large as ``largest`` would not fit in int32."""
     if largest >= 2**31 - 2:
         raise ValueError("the DVG tree is too large for int32 codes; increase the spacing "
-                         "or decrease max_distance")
+                         "or decrease reach")
 
 
 def _pack_lists(seeds: np.ndarray, count: np.ndarray):

@@ -12,8 +12,9 @@ Defaults (``size`` = bounding-box diagonal of the model, mm)
 -------------------------------------------------------------
 ``spacing = size / 500`` (coarser where the model needs less:
 :func:`shapeverify.cad.sampling.needed_spacing`: a mesh's triangles, a cloud's own spacing, a
-solid CAD part up to 2x coarser, to about 150,000 model points) and ``max_distance = 0.03 * size``
-(3 % of the size = 15 spacings; at most 15 and at least 2 spacings for other spacings).  Queries farther than ``max_distance`` from the model are still
+solid CAD part up to 2x coarser, to about 150,000 model points) and ``reach = 0.03 * size``
+(3 % of the size = 15 spacings; at most 15 and at least 2 spacings for other spacings).  Queries
+farther than ``reach`` from the model are still
 answered exactly, by a kd-tree (slower).
 
 Memory (:attr:`Prepared.nbytes`) per model point: a 128-byte record (coordinates, 8
@@ -42,6 +43,7 @@ import json
 import logging
 import os
 import time
+import warnings
 import zipfile
 from dataclasses import dataclass
 from functools import cached_property
@@ -49,6 +51,8 @@ from pathlib import Path
 
 import numpy as np
 from shapeverify._lazy import cKDTree
+
+from shapeverify._renamed import renamed_keywords
 
 from . import dvg as _dvg
 from ._svm_checks import check_structure, payload_digest
@@ -58,7 +62,7 @@ from .exact import for_model
 logger = logging.getLogger(__name__)
 
 __all__ = ["Closest", "Prepared", "prepare", "load_prepared", "default_spacing",
-           "default_max_distance", "FORMAT_TAG", "FORMAT_VERSION"]
+           "default_reach", "FORMAT_TAG", "FORMAT_VERSION"]
 
 FORMAT_TAG = "shapeverify-prepared"
 FORMAT_VERSION = 1
@@ -73,7 +77,7 @@ def default_spacing(size: float) -> float:
     return float(size / 500.0) if size > 0 else 1.0
 
 
-def default_max_distance(size: float, spacing: float) -> float:
+def default_reach(size: float, spacing: float) -> float:
     """Tree reach used when none is given: 3 % of the size, at most 15 and at least 2 spacings.
 
     At the default spacing (size / 500) 3 % of the size is 15 spacings. A finer spacing keeps
@@ -82,13 +86,20 @@ def default_max_distance(size: float, spacing: float) -> float:
     12x slower (1.7 us instead of 0.14 us on the panel at 0.35 mm); queries beyond the reach
     are still answered exactly, by the kd-tree.
 
-    >>> [round(default_max_distance(360.0, h), 6) for h in (0.72, 0.35, 10.0)]
+    >>> [round(default_reach(360.0, h), 6) for h in (0.72, 0.35, 10.0)]
     [10.8, 5.25, 20.0]
     """
     reach = 0.03 * size
     if 15.0 * spacing < reach * (1.0 - 1e-9):   # (not an ulp below 3 % at the default spacing)
         reach = 15.0 * spacing
     return float(max(reach, 2.0 * spacing))
+
+
+def default_max_distance(size: float, spacing: float) -> float:
+    """Deprecated old name of :func:`default_reach` (a :class:`DeprecationWarning`)."""
+    warnings.warn("default_max_distance() is now called default_reach() (the old name will go)",
+                  DeprecationWarning, stacklevel=2)
+    return default_reach(size, spacing)
 
 
 @dataclass(frozen=True, eq=False, repr=False)
@@ -134,8 +145,10 @@ class Prepared:
     Attributes
     ----------
     model : Model
-    spacing : float               model point spacing (mm)
-    max_distance : float          reach of the DVG tree (mm); also :attr:`reach`
+    model_spacing : float         model point spacing (mm); :attr:`spacing` is the same (its
+                                  older name, kept: the model's spacing, not a scan's)
+    reach : float                 reach of the DVG tree (mm): queries within it use the tree;
+                                  :attr:`max_distance` is its deprecated old name
     tree : DVGTree
     points : ModelPoints          the model points in the order ``Closest.index`` refers to
                                   (Morton order, not that of ``model.sample``), assembled from
@@ -148,7 +161,7 @@ class Prepared:
     """
 
     def __init__(self, model, fast: _dvg.DVG, rows: np.ndarray, boundary: np.ndarray,
-                 spacing: float, max_distance: float):
+                 spacing: float, reach: float):
         self.model = model
         self._fast = fast
         # one 16-byte row per model point: face (int32), u, v (float32), other-face point
@@ -161,8 +174,8 @@ class Prepared:
         self._uv = rows.view(np.float32)[:, 1:3]
         self._other = rows[:, 3]
         self._boundary = boundary
-        self.spacing = float(spacing)
-        self.max_distance = float(max_distance)
+        self.model_spacing = float(spacing)
+        self.reach = float(reach)
         self._exact = None
         #: (4, 4) float64 or None: the fixture pose T_model_scan of a production line where every
         #: part sits in the same place (``prepare --fixture T.json``); ``inspect`` starts there
@@ -171,9 +184,16 @@ class Prepared:
 
     # ---------------------------------------------------------------------------- views
     @property
-    def reach(self) -> float:
-        """The closest-point structure's reach (mm): queries within it use the DVG tree."""
-        return self.max_distance
+    def spacing(self) -> float:
+        """The model point spacing (mm): :attr:`model_spacing` (this older name is kept)."""
+        return self.model_spacing
+
+    @property
+    def max_distance(self) -> float:
+        """Deprecated old name of :attr:`reach` (a :class:`DeprecationWarning`)."""
+        warnings.warn("Prepared.max_distance is now called Prepared.reach (the old name will go)",
+                      DeprecationWarning, stacklevel=2)
+        return self.reach
 
     @property
     def tree(self) -> _dvg.DVGTree:
@@ -265,8 +285,9 @@ class Prepared:
         """
         from shapeverify.cad.persist import model_to_arrays
 
-        meta = {"format": FORMAT_TAG, "version": FORMAT_VERSION, "spacing": self.spacing,
-                "max_distance": self.max_distance, "n_points": self.n_points,
+        # "max_distance": the reach under its old key, for readers before issue 31 (deprecated)
+        meta = {"format": FORMAT_TAG, "version": FORMAT_VERSION, "spacing": self.model_spacing,
+                "reach": self.reach, "max_distance": self.reach, "n_points": self.n_points,
                 "fixture": None if self.fixture is None else np.asarray(self.fixture).tolist()}
         arrays = {"meta": np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8),
                   "rec": self._fast.rec, "rows": self._rows, "boundary": self._boundary}
@@ -280,7 +301,7 @@ class Prepared:
 
     def __repr__(self) -> str:
         return (f"Prepared(model={self.model!r}, n_points={self.n_points}, "
-                f"spacing={self.spacing:.4g} mm, max_distance={self.max_distance:.4g} mm, "
+                f"model_spacing={self.model_spacing:.4g} mm, reach={self.reach:.4g} mm, "
                 f"{self.memory_per_point:.0f} bytes/point, depth={self.tree.depth})")
 
 
@@ -387,8 +408,9 @@ def _near_other_face(points, face, cell):
     return (lo != hi)[inv.ravel()]
 
 
+@renamed_keywords(max_distance="reach")
 def prepare(model, spacing: float | None = None, reach: float | None = None, *,
-            max_distance: float | None = None, allow_incomplete: bool = False) -> Prepared:
+            allow_incomplete: bool = False) -> Prepared:
     """Prepare a model for fast closest-point queries (Paper I).
 
     Parameters
@@ -407,7 +429,7 @@ def prepare(model, spacing: float | None = None, reach: float | None = None, *,
         ``max(min(0.03 * model.size, 15 * spacing), 2 * spacing)``.
         (Not the inspection's evaluation distance, which decides which scan points count.)
     max_distance : float, optional
-        Old name of ``reach``.
+        Deprecated old name of ``reach`` (a :class:`DeprecationWarning`).
     allow_incomplete : bool, optional
         Prepare a CAD model that lacks faces its file declares
         (:func:`shapeverify.cad.completeness.is_incomplete`); every inspection against it then
@@ -439,11 +461,6 @@ def prepare(model, spacing: float | None = None, reach: float | None = None, *,
     if not allow_incomplete:
         from shapeverify.cad.completeness import require_complete
         require_complete(model)
-    if max_distance is not None:
-        if reach is not None:
-            raise ValueError("give reach only (max_distance is its old name)")
-        reach = max_distance
-    max_distance = reach
     for name, val in (("spacing", spacing), ("reach", reach)):
         if val is not None:
             try:
@@ -460,7 +477,7 @@ def prepare(model, spacing: float | None = None, reach: float | None = None, *,
         h = max(default_spacing(size), needed_spacing(model))
     else:
         h = float(spacing)
-    maxd = default_max_distance(size, h) if max_distance is None else float(max_distance)
+    maxd = default_reach(size, h) if reach is None else float(reach)
     # the patches' half extents are measured below from the neighbour graph, which the tree
     # needs anyway (the sampling's own kd-tree search for them would double that work)
     mp = model.sample(h, half_extents=False)
@@ -572,6 +589,7 @@ def _load_prepared(src, path, n_bytes: int) -> Prepared:
         if meta.get("version") != FORMAT_VERSION:
             raise ModelFileError(f"{path}: .svm version {meta.get('version')!r} is not supported "
                                  f"(this shapeverify reads {FORMAT_VERSION})")
+        # (tree_max_distance: the tree's reach; the file key keeps its deprecated old name)
         need = {"rec", "rows", "boundary", "tree_origin", "tree_cell", "tree_dims",
                 "tree_nodes", "tree_lists", "tree_n_points", "tree_max_distance", "tree_depth"}
         if not need <= files:
@@ -584,14 +602,16 @@ def _load_prepared(src, path, n_bytes: int) -> Prepared:
                              "damaged after it was written")
     try:
         n = int(meta["n_points"])
-        spacing, reach = float(meta["spacing"]), float(meta["max_distance"])
+        # files written before issue 31 name the reach only by its old key (deprecated)
+        spacing = float(meta["spacing"])
+        reach = float(meta["reach"] if "reach" in meta else meta["max_distance"])
     except (KeyError, TypeError, ValueError):
         raise ModelFileError(f"{path}: .svm file header lacks a valid n_points, spacing or "
-                             "max_distance") from None
+                             "reach") from None
     if not (n >= 1 and np.isfinite(spacing) and spacing > 0 and np.isfinite(reach)
             and reach > 0):
         raise ModelFileError(f"{path}: .svm file header is damaged (n_points {n}, spacing "
-                             f"{spacing!r}, max_distance {reach!r})")
+                             f"{spacing!r}, reach {reach!r})")
     rec0 = arrays.pop("rec")
     if rec0.shape != (n + 1, 16) or rec0.dtype != np.float64:
         raise ModelFileError(f"{path}: .svm file is inconsistent (the records are "

@@ -19,11 +19,13 @@ no base class to inherit).  Registration (:mod:`shapeverify.registration`) and i
 ``n_points``
     ``len(points.points)``, without assembling them.
 ``spacing``
-    The model point spacing (mm).
-``max_distance``
+    The model point spacing (mm).  (Also ``model_spacing`` on
+    :class:`~shapeverify.nearest.Prepared`, the unambiguous name; a structure need only have
+    ``spacing``.)
+``reach``
     The structure's reach (mm): queries within it are answered by the fast path; registration
-    reads it to choose its first correspondence distance.  (Also :attr:`reach` on
-    :class:`~shapeverify.nearest.Prepared`.)
+    reads it to choose its first correspondence distance.  (Its old name ``max_distance`` is a
+    deprecated property of :class:`~shapeverify.nearest.Prepared`.)
 ``model``
     The :class:`~shapeverify.cad.model.Model`: registration reads ``model.size`` and
     ``model.kind``; inspection ``model.size``, ``model.faces`` (face count and names) and what
@@ -53,7 +55,7 @@ from typing import Any, Protocol, runtime_checkable
 __all__ = ["ClosestPoints", "ExactSearch", "missing_attributes", "PROTOCOL_ATTRIBUTES"]
 
 #: The attributes of :class:`ClosestPoints`, in the order the module docstring gives them.
-PROTOCOL_ATTRIBUTES = ("closest", "points", "n_points", "spacing", "max_distance", "model",
+PROTOCOL_ATTRIBUTES = ("closest", "points", "n_points", "spacing", "reach", "model",
                        "fixture")
 
 
@@ -64,7 +66,7 @@ class ClosestPoints(Protocol):
     points: Any
     n_points: int
     spacing: float
-    max_distance: float
+    reach: float
     model: Any
     fixture: Any
 
@@ -115,12 +117,12 @@ class ExactSearch:
         return self._prep.spacing
 
     @property
-    def max_distance(self) -> float:
-        return self._prep.max_distance
+    def model_spacing(self) -> float:
+        return self._prep.spacing
 
     @property
     def reach(self) -> float:
-        return self._prep.max_distance
+        return self._prep.reach
 
     @property
     def model(self):

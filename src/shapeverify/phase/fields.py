@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._random import generator
 from .wrap import wrap
 
 __all__ = ["smooth_field", "fault_field", "PhaseField", "wrong_fraction"]
@@ -73,7 +74,7 @@ def _surface(h, w, peak_to_valley):
 
 
 def _noisy(true, sigma, rng):
-    g = np.random.default_rng(rng)
+    g = generator(rng)
     return wrap(true + sigma * g.standard_normal(true.shape)) if sigma > 0 else wrap(true)
 
 

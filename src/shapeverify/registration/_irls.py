@@ -411,7 +411,7 @@ def stage_rematch(name, P, prep, st: State, cfg: StageSettings, first=None,
                   anneal=None) -> tuple[Eval, bool, str]:
     """Iterate re-matching + one step until converged or ``max_it`` steps (module docstring).
 
-    ``first(d, valid)`` optionally checks the first matching (e.g. the max_distance test).
+    ``first(d, valid)`` optionally checks the first matching (e.g. the reach test).
     ``anneal`` (e.g. 0.7): the robust scale may fall by at most this factor per iteration
     (graduated non-convexity: the points that fit only once the pose is right -- a few blades
     that fix an impeller's spin, while its hub fits at once -- keep their pull until the pose

@@ -45,6 +45,7 @@ from dataclasses import dataclass
 import numpy as np
 from shapeverify._lazy import cKDTree
 
+from .._random import generator
 from . import _axis_pairs, _features, _irls, _revolution
 from .losses import get_loss
 from .rigid import make_transform, rotation_vector
@@ -401,7 +402,7 @@ def global_alignment(scan, prep, rng=0, extra=()) -> GlobalAlignment:
 
     t0 = time.perf_counter()
     P = _check_scan(scan)
-    rng = np.random.default_rng(rng)
+    rng = generator(rng)
     side = _model_side(prep)
     n = P.shape[0]
     S = P if n <= SCORE_POINTS else P[np.sort(rng.choice(n, SCORE_POINTS, replace=False))]

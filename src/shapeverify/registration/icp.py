@@ -49,6 +49,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .._arrays import check_points
+from .._random import generator
 
 from . import _basin, _irls, _restart
 from ._noise import scan_noise
@@ -318,7 +319,7 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
         Bad method, loss, init, scale, max_iterations or rtol.
     RegistrationError
         With a given start ('identity', 'principal-axes' or a matrix): fewer than 6 scan
-        points within ``max(prep.max_distance, 0.2 * model size)`` of the model at the start
+        points within ``max(prep.reach, 0.2 * model size)`` of the model at the start
         (every point far away), fewer than 6 with a closest point off the
         model's free boundary, or the robust loss left fewer than 6 weighted points.
 
@@ -366,7 +367,7 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
     tolerance = float(rtol)     # the stages' relative stopping threshold
     if not (np.isfinite(tolerance) and tolerance > 0):
         raise ValueError(f"rtol must be positive, got {rtol}")
-    rng = np.random.default_rng(0 if rng is None else rng)
+    rng = generator(rng)
     mode, T0 = InitMode.parse(init, validate_pose)
     how = mode.value
     if mode is InitMode.PRINCIPAL_AXES:
@@ -381,19 +382,19 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
     radius = max(radius, 1e-12)
     floor = 1e-9 * radius
     # "far away": beyond the prepared reach and a fifth of the model's size (ICP still works
-    # from a start 10 % of the size off, farther than the default max_distance of 3 %)
-    max_d = getattr(prep, "max_distance", None)
+    # from a start 10 % of the size off, farther than the default reach of 3 %)
+    max_d = getattr(prep, "reach", None)
     size = getattr(getattr(prep, "model", None), "size", None)
     reach = None if max_d is None else max(float(max_d), 0.2 * float(size or 0.0))
 
     def _reachable(d, valid):
         if reach is not None and np.count_nonzero(valid & (np.abs(d) <= reach)) < 6:
             raise RegistrationError(
-                f"fewer than 6 scan points lie within {reach:.4g} mm (max_distance="
+                f"fewer than 6 scan points lie within {reach:.4g} mm (the prepared reach "
                 f"{max_d:.4g} mm, or a fifth of the model's size) of the model at the start "
                 "pose: all points are far away.  Give a better init (e.g. init='auto' or "
                 "'global'), check the units of scan and model, or prepare with a larger "
-                "max_distance")
+                "reach")
 
     def subset(k):
         return P if n <= k else P[np.sort(rng.choice(n, k, replace=False))]

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 import numpy as np
 from shapeverify._lazy import cKDTree
 
+from .._random import generator
 from .rigid import make_transform
 
 __all__ = ["principal_axes_alignment", "InitialAlignment", "candidate_poses", "read_init"]
@@ -127,7 +128,7 @@ def principal_axes_alignment(scan, prep, rng=0, n_sample: int = 600,
     from .icp import RegistrationError, _check_scan, register
 
     S_all = _check_scan(scan)
-    rng = np.random.default_rng(0 if rng is None else rng)
+    rng = generator(rng)
     S = S_all[rng.choice(S_all.shape[0], min(n_sample, S_all.shape[0]), replace=False)]
     mp = prep.points
     M, Nm = np.asarray(mp.points, np.float64), np.asarray(mp.normals, np.float64)

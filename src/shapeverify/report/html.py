@@ -22,6 +22,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._random import generator
 from ..verdict_table import verdict_style
 from .colours import CMAP, color_limit
 from .labels import free_labels
@@ -389,7 +390,7 @@ def render_html(result, model=None, *, max_points: int = MAX_POINTS, title: str 
     """The report as one HTML string (see :func:`write_html_report`)."""
     import plotly.io as pio
 
-    rng = np.random.default_rng(rng)
+    rng = generator(rng)
     d = result.to_dict()
     tol = result.tolerance
     c_lim = color_limit(tol)
@@ -439,7 +440,7 @@ def render_html(result, model=None, *, max_points: int = MAX_POINTS, title: str 
         ("excluded: on faces not inspected", f"{ex.get('outside_faces', 0):,}"),
         ("excluded: measurement outliers", f"{d['outliers']['n']:,} ({d['outliers']['n_low_weight']:,} "
                                            "rejected by the registration)"),
-        ("point spacing [mm]", _fmt(d["spacing"], 3)),
+        ("point spacing [mm]", _fmt(d.get("scan_spacing", d.get("spacing")), 3)),
     ]
     r, fit = d["registration"], d.get("fit") or {}
     fi = fit.get("inlier_fraction")

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from .._random import generator
 from ..verdict_table import verdict_style
 from .colours import CMAP, color_limit
 from .ply import check_scan_length
@@ -114,7 +115,7 @@ def summary_figure(result, scan=None, *, max_points: int = 20_000, dpi: int = 11
 
     check_scan_length(result, scan)
     dev = result.deviations
-    rng = np.random.default_rng(rng)
+    rng = generator(rng)
     tol = result.tolerance
     c_lim = color_limit(tol)
     ev = np.flatnonzero(dev.evaluated)

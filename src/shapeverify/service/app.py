@@ -203,8 +203,8 @@ def _model_routes(app: FastAPI, config: ServiceConfig, auth: list) -> None:
     def models() -> dict:
         """The prepared models this service holds (lengths in mm)."""
         return {name: {"faces": len(p.model.faces), "model_points": int(p.n_points),
-                       "spacing_mm": float(p.spacing), "reach_mm": float(p.reach),
-                       "max_distance_mm": float(p.reach),   # the old name of reach_mm (will go)
+                       "spacing_mm": float(p.model_spacing), "reach_mm": float(p.reach),
+                       "max_distance_mm": float(p.reach),   # reach_mm's old name (deprecated; will go)
                        "size_mm": float(p.model.size), "unit": "mm",
                        "sha256": config.model_hashes.get(name)}
                 for name, p in config.models.items()}

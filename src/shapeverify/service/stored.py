@@ -122,7 +122,10 @@ class StoredResult:
         T = np.asarray(summary["T_model_scan"], dtype=np.float64)
         dev = StoredDeviations(values, np.asarray(arrays["dev_reason"], dtype=np.int8),
                                np.asarray(arrays["dev_face"], dtype=np.int32),
-                               apply_transform(T, scan), _nan(summary.get("evaluation_distance")))
+                               apply_transform(T, scan),
+                               # "max_distance": the deprecated key of records before issue 31
+                               _nan(summary.get("evaluation_distance",
+                                                summary.get("max_distance"))))
         tol = summary.get("tolerance") or {}
         per_face_tol = {int(f): (float(lo), float(hi))
                         for f, (lo, hi) in (tol.get("per_face") or {}).items()}

@@ -19,6 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._random import generator
+
 __all__ = ["FringeImages", "fringe_images", "demo_scene"]
 
 
@@ -225,7 +227,7 @@ def fringe_images(model, rig, T_left_model=None, period_mm=None, noise=1.0, rng=
         if not dent_m[2] > 0:
             raise ValueError(f"dent radius must be positive, got {radius}")
     refl = [(np.asarray(c, float), float(r), float(p)) for c, r, p in reflections]
-    gen = np.random.default_rng(0 if rng is None else rng)
+    gen = generator(rng)
     full = 255.0 if bits == 8 else 65535.0
     images, truth = {}, {}
     for name in ("left", "right"):

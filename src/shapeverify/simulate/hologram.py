@@ -24,6 +24,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+
+from .._random import generator
 from scipy import fft as sfft
 
 __all__ = ["Hologram", "simulate_hologram", "dual_wavelength_holograms", "rough_surface",
@@ -69,7 +71,7 @@ def rough_surface(shape, rms: float = 1e-3, rng=0):
     """
     if not (np.isfinite(rms) and rms >= 0):
         raise ValueError(f"rms must be finite and >= 0 (mm), got {rms!r}")
-    return float(rms) * np.random.default_rng(rng).standard_normal(tuple(shape))
+    return float(rms) * generator(rng).standard_normal(tuple(shape))
 
 
 def _lowpass(u, aperture):
@@ -162,7 +164,7 @@ def simulate_hologram(depth, wavelength: float, *, heights=None, reflectance=Non
     y, x = np.mgrid[0:H, 0:W]
     R = np.sqrt(reference_ratio) * np.exp(-2j * np.pi * (cx * x + cy * y))
     inten = np.abs(cam + R) ** 2
-    g = np.random.default_rng(rng)
+    g = generator(rng)
     if noise > 0:
         inten = inten + noise * inten.mean() * g.standard_normal(inten.shape)
     if bits is not None:

@@ -25,6 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .._random import generator
 from ..registration.rigid import (
     apply_transform, fisher_information, invert_transform, make_transform, pose_error, rodrigues,
 )
@@ -134,8 +135,11 @@ class VirtualScan:
 def random_motion(angle_deg: float, translation: float, center=(0.0, 0.0, 0.0),
                   rng=None) -> np.ndarray:
     """A rigid motion (4, 4): rotation by exactly ``angle_deg`` about a random axis through
-    ``center``, then a translation of length ``translation`` in a random direction."""
-    rng = np.random.default_rng(rng)
+    ``center``, then a translation of length ``translation`` in a random direction.
+
+    ``rng``: None (the fixed seed 0, as everywhere in shapeverify: :mod:`shapeverify._random`),
+    an int seed or a Generator; ``np.random.default_rng()`` for fresh randomness."""
+    rng = generator(rng)
     axis = rng.normal(size=3)
     axis /= np.linalg.norm(axis)
     tdir = rng.normal(size=3)
@@ -335,6 +339,10 @@ def virtual_scan(model, *, camera=None, view=None, distance=None, pixel: float =
         Force the z-buffer (True) or exact ray casting (False; CAD models only);
         None: exact for CAD models, z-buffer otherwise.
     rng : None, int or Generator
+        The noise, the motion and the shadows' places.  None means the fixed seed 0 (as
+        everywhere in shapeverify, :mod:`shapeverify._random`: the same call gives the same
+        scan; before issue 31 it meant fresh randomness here); pass
+        ``np.random.default_rng()`` for a different scan on each call.
 
     Returns
     -------
@@ -345,7 +353,7 @@ def virtual_scan(model, *, camera=None, view=None, distance=None, pixel: float =
     ValueError
         On negative sizes, a bad motion, or when no ray meets the model.
     """
-    rng = np.random.default_rng(rng)
+    rng = generator(rng)
     model = _model_of(model)
     noise = _nonneg(noise, "noise")
     pixel = float(pixel)
