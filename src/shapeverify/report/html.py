@@ -188,7 +188,10 @@ def _worst(result):
     if not result.regions:
         return None
     g = result.regions[0]
-    n = np.asarray(result.deviations.normals, np.float64)[np.asarray(g.indices)]
+    normals = getattr(result.deviations, "normals", None)   # a stored record keeps none
+    if normals is None:
+        return np.asarray(g.centroid, np.float64), np.zeros(3)  # the camera picks a side
+    n = np.asarray(normals, np.float64)[np.asarray(g.indices)]
     n = n[np.all(np.isfinite(n), axis=1)].mean(axis=0) if len(n) else np.zeros(3)
     return np.asarray(g.centroid, np.float64), n
 
