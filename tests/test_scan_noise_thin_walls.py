@@ -82,3 +82,15 @@ def test_scan_noise_stays_right_on_one_sheet_rasters_and_coarse_noise():
     assert scan_noise(raster) == pytest.approx(NOISE, rel=0.15)
     coarse = scan_noise(_sheets(1000.0, 7, noise=1.0))
     assert coarse == pytest.approx(1.0, rel=0.15)
+
+
+def test_scan_noise_of_a_scan_with_each_point_twice_is_the_sensor_noise():
+    """Each point twice (a merged file; or a copy 1 um off): the copy, a neighbour with the
+    point's own noise, pulled the quadric onto the point (0.007 mm for 0.02 mm; the old
+    quadrics 0.017 mm); two passes over the same places with their own noise read theirs."""
+    rng = np.random.default_rng(8)
+    one = _sheets(1000.0, 9)
+    for twice in (np.vstack([one, one]), np.vstack([one, one + rng.normal(0, 1e-3, one.shape)]),
+                  np.vstack([one, one + rng.normal(0, NOISE, len(one))[:, None] * _R[:, 2]])):
+        est = scan_noise(twice[rng.permutation(len(twice))])
+        assert est == pytest.approx(NOISE, rel=0.15), est

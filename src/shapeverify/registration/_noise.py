@@ -61,6 +61,9 @@ FLAT = 1.0 / 25.0
 #: the second sheet is taken when it lies farther than SEP x (the two sheets' sigmas summed)
 #: from the first at the point, and nearer to the point
 SEP = 3.0
+#: neighbours within COPY x the distance of the (COPIES x K)-th neighbour of the point or of a
+#: nearer neighbour are copies of it, left out
+COPY, COPIES = 0.07, 3
 #: points farther than this many of their sheet's sigmas off its quadric are left out
 MISS = 6.0
 
@@ -106,6 +109,39 @@ def _sheet(A, h, w):
     return AtA, coef, w, s
 
 
+def _neighbours(P, idx):
+    """The K neighbours of each point ``P[idx]`` about it (m, K, 3), copies left out, and
+    whether K were found.
+
+    A neighbour closer than :data:`COPY` x the distance of the (COPIES x K)-th to the point or
+    to a nearer neighbour is a copy (a doubled exposure, a merged file): its noise is the
+    other's, and counted twice it pulled the quadric onto the point (a scan with each point
+    twice read a third of its noise)."""
+    kk = min(COPIES * K + 1, P.shape[0])
+    d, nb = cKDTree(P).query(P[idx], k=kk)
+    Q = P[nb] - P[idx][:, None, :]                      # (m, kk, 3), the point itself first
+    delta = COPY * d[:, -1]
+    D2 = np.sum((Q[:, :, None, :] - Q[:, None, :, :]) ** 2, axis=3)
+    # which of two copies stays is decided by the file's order, not by the distance: the copy
+    # nearer to the point is the one whose noise is nearer to the point's (two passes with
+    # independent noise read half their noise)
+    seq = np.concatenate([np.zeros((len(idx), 1), np.int64),
+                          1 + np.argsort(nb[:, 1:], axis=1, kind="stable")], axis=1)
+    keep = np.zeros(d.shape, bool)
+    ar = np.arange(len(idx))
+    keep[:, 0] = True
+    for j in range(1, kk):
+        c = seq[:, j]
+        near = (D2[ar, c] <= (delta ** 2)[:, None]) & keep
+        keep[ar, c] = ~near.any(axis=1)
+    keep[:, 0] = False
+    rank = np.cumsum(keep, axis=1)
+    full = rank[:, -1] >= K
+    sel = keep & (rank <= K)
+    order = np.argsort(~sel, axis=1, kind="stable")[:, :K]
+    return np.take_along_axis(Q, order[..., None], 1), full
+
+
 def _frame(X):
     """Per point: (heights h (m, K) along the chosen normal, in-plane (u, v), seed weights,
     whether a plane was found)."""
@@ -149,13 +185,12 @@ def scan_noise(P) -> float:
     fewer than ``K + 1`` points or :data:`MIN_POINTS` well-fixed quadrics."""
     P = np.asarray(P, np.float64)
     n = P.shape[0]
-    if n <= K:
+    if n <= COPIES * K:
         return float("nan")
     # evenly spaced in the file's order (no random draw: a simulated scan's outliers drawn with
     # the same seed were once exactly the points measured)
     idx = np.arange(n) if n <= POINTS else np.linspace(0, n - 1, POINTS).astype(np.int64)
-    _, nb = cKDTree(P).query(P[idx], k=K + 1)
-    X = P[nb[:, 1:]] - P[idx][:, None, :]              # (m, K, 3) neighbours about the point
+    X, full = _neighbours(P, idx)                      # (m, K, 3) neighbours about the point
     h, u, v, w = _frame(X)
     A = np.stack([u * u, u * v, v * v, u, v, np.ones_like(u)], axis=2)   # (m, K, 6)
     AtA, coef, w, s = _sheet(A, h, w)
@@ -175,7 +210,7 @@ def scan_noise(P) -> float:
     # neighbours (nearly) on a line, as along one row of a raster seen at a grazing angle, do
     # not fix the quadric at the point: such points are left out
     with np.errstate(invalid="ignore"):
-        ok = ((lev >= 0.0) & (lev <= MAX_LEVERAGE) & _flat(np.stack([u, v], -1), w)
+        ok = (full & (lev >= 0.0) & (lev <= MAX_LEVERAGE) & _flat(np.stack([u, v], -1), w)
               & (np.abs(r) <= MISS * s[:, 0] * np.sqrt(1.0 + np.maximum(lev, 0.0))))
     if np.count_nonzero(ok) < MIN_POINTS:
         return float("nan")
