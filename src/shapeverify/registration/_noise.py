@@ -81,8 +81,8 @@ def _fit(A, h, w):
 def _flat(Y, w):
     """Whether the points Y (..., k, d) weighted by w (..., k) span a plane (:data:`FLAT`)."""
     sw = np.maximum(w.sum(-1, keepdims=True), 1e-300)
-    D = Y - (np.einsum("...k,...ki->...i", w, Y) / sw)[..., None, :]
-    e = np.linalg.eigvalsh(np.einsum("...k,...ki,...kj->...ij", w, D, D))
+    D = Y - ((w[..., None] * Y).sum(axis=-2) / sw)[..., None, :]
+    e = np.linalg.eigvalsh(np.matmul((D * w[..., None]).swapaxes(-1, -2), D))
     return e[..., -2] >= FLAT * e[..., -1]
 
 
@@ -121,7 +121,8 @@ def _neighbours(P, idx):
     d, nb = cKDTree(P).query(P[idx], k=kk)
     Q = P[nb] - P[idx][:, None, :]                      # (m, kk, 3), the point itself first
     delta = COPY * d[:, -1]
-    D2 = np.sum((Q[:, :, None, :] - Q[:, None, :, :]) ** 2, axis=3)
+    q2 = np.einsum("mki,mki->mk", Q, Q)
+    D2 = q2[:, :, None] + q2[:, None, :] - 2.0 * np.matmul(Q, Q.transpose(0, 2, 1))
     # which of two copies stays is decided by the file's order, not by the distance: the copy
     # nearer to the point is the one whose noise is nearer to the point's (two passes with
     # independent noise read half their noise)
