@@ -15,9 +15,10 @@ noise 8-17 x too high.  So the neighbourhood is split first: the plane that gath
 neighbourhood's principal plane) seeds a quadric, which grows to the neighbours within 3 robust
 sigmas of it (studentized residuals: a quadric through few points fits them too well); the
 neighbours it leaves grow a second quadric, and the point is measured against the one of the two
-sheets nearest to it.  A point its sheet's quadric misses by more than :data:`MISS` of that
-sheet's scatter (an outlier, a wall's rim where no quadric holds) tells nothing about the noise
-and is left out.
+sheets nearest to it.  Copies of a point (each point twice in a merged file) are no neighbours
+of it: counted twice, a point's own noise pulls the quadric onto it.  A point its sheet's
+quadric misses by more than :data:`MISS` of that sheet's scatter (an outlier, a wall's rim
+where no quadric holds) tells nothing about the noise and is left out.
 
 Examples
 --------
@@ -100,7 +101,8 @@ def _sheet(A, h, w):
         cnt = use.sum(axis=1)
         srt = np.sort(np.where(use, t_in, np.inf), axis=1)
         lo, hi = np.maximum(cnt - 1, 0) // 2, cnt // 2
-        med = 0.5 * (np.take_along_axis(srt, lo[:, None], 1) + np.take_along_axis(srt, hi[:, None], 1))
+        med = 0.5 * (np.take_along_axis(srt, lo[:, None], 1)
+                     + np.take_along_axis(srt, hi[:, None], 1))       # of the inliers
         s = np.where(cnt[:, None] > 0, 1.4826 * med, np.nan)
         keep = np.isfinite(s[:, 0])
         w_new = (np.where(w > 0, t_in, t_out) <= 3.0 * np.maximum(s, 1e-300)).astype(np.float64)
@@ -144,8 +146,9 @@ def _neighbours(P, idx):
 
 
 def _frame(X):
-    """Per point: (heights h (m, K) along the chosen normal, in-plane (u, v), seed weights,
-    whether a plane was found)."""
+    """Per point: the neighbours' heights h (m, K) along the chosen normal, their in-plane
+    coordinates u, v (m, K) and the seed's weights (m, K) (all neighbours where no candidate
+    plane's seed spans the plane)."""
     m = X.shape[0]
     ar = np.arange(m)
     _, V = np.linalg.eigh(np.einsum("mki,mkj->mij", X, X))
@@ -183,10 +186,11 @@ def _frame(X):
 
 def scan_noise(P) -> float:
     """Noise sigma (mm) of the scan points P (n, 3) about their local quadrics, or nan with
-    fewer than ``K + 1`` points or :data:`MIN_POINTS` well-fixed quadrics."""
+    fewer than ``K + 1`` points (copies counted once) or :data:`MIN_POINTS` well-fixed
+    quadrics."""
     P = np.asarray(P, np.float64)
     n = P.shape[0]
-    if n <= COPIES * K:
+    if n <= K:
         return float("nan")
     # evenly spaced in the file's order (no random draw: a simulated scan's outliers drawn with
     # the same seed were once exactly the points measured)
