@@ -113,19 +113,18 @@ def test_good_impeller_scanned_independently_has_no_material_and_passes(impeller
     defect.  A reflection beside a blade's edge, 3.4 mm off and touching the blade's scan at
     one point, was a 'material' region (0.7 mm, seed 3): material is attached along a rim.
     Not yet solved (see the report of this branch): 0.5 mm seed 4, a 6-point remnant of a
-    reflection inside a blade, 0.64 mm under its other side."""
+    reflection inside a blade, 0.64 mm under its other side.  At 1 mm spacing the scan's own
+    noise read 8 x too high (quadrics across the thin blades): 'incomplete', not 'pass'."""
     prep, V, T, _ = impeller
     P, _ = _scan(prep, V, T, spacing, seed, outliers, clusters)
     res = inspect_registered(prep, P, _identity(), tolerance=TOL)
     assert not [r for r in res.regions if r.kind == "material"], res.reasons
     assert res.excluded["material"] == 0
     assert not res.regions, res.reasons
-    if spacing < 1.0:
-        assert res.verdict == "pass", (res.noise, res.reasons)
-    else:
-        # at 1 mm the scan's own noise reads 0.15-0.17 mm (8 x the true 0.02 mm: quadrics over
-        # 24 neighbours across the thin blades), and the verdict is 'undecided' (not a failure)
-        assert res.verdict in ("pass", "incomplete") and res.rule != "regions", res.reasons
+    # at 1 mm the scan's own noise read 0.15-0.17 mm (8 x the true 0.02 mm: quadrics over 24
+    # neighbours across the thin blades) and the verdict was 'incomplete' (undecided)
+    assert res.verdict == "pass", (res.noise, res.reasons)
+    assert 0.7 * NOISE < res.noise < 1.3 * NOISE, res.noise
 
 
 def test_a_real_bump_on_the_impeller_is_still_found(impeller):

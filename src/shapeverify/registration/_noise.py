@@ -5,9 +5,20 @@ minimum leaves them at a fraction of the features it missed.  The fit distance t
 warns at (4 model spacings, or 0.5 % of the size) knows neither: on the impeller a pose 105 deg
 off converged at a robust scale of 0.86 mm, under that bar, with a sensor noise of 0.02 mm.
 :func:`scan_noise` measures the noise as the scatter of scan points about a quadric fitted to
-their neighbours (which absorbs the surface's curvature; refitted without the neighbours far
-off it: outliers, another surface): the median absolute residual of the points themselves,
-each scaled by its leverage, as a standard deviation.
+their neighbours (which absorbs the surface's curvature): the median absolute residual of the
+points themselves, each scaled by its leverage, as a standard deviation.
+
+One sheet of surface per quadric: the neighbours of a point on a thin wall (an impeller's blade
+1-2 mm thick scanned at 1 mm) hold points of both sides, and a quadric through both read the
+noise 8-17 x too high.  So the neighbourhood is split first: the plane that gathers the tightest
+:data:`SEED` neighbours (among the planes through triples of near neighbours, and the
+neighbourhood's principal plane) seeds a quadric, which grows to the neighbours within 3 robust
+sigmas of it (studentized residuals: a quadric through few points fits them too well); the
+neighbours it leaves grow a second quadric, and the point is measured against the one of the two
+sheets nearest to it.  Copies of a point (each point twice in a merged file) are no neighbours
+of it: counted twice, a point's own noise pulls the quadric onto it.  A point its sheet's
+quadric misses by more than :data:`MISS` of that sheet's scatter (an outlier, a wall's rim
+where no quadric holds) tells nothing about the noise and is left out.
 
 Examples
 --------
@@ -21,6 +32,8 @@ Examples
 
 from __future__ import annotations
 
+from itertools import combinations
+
 import numpy as np
 from shapeverify._lazy import cKDTree
 
@@ -30,18 +43,151 @@ __all__ = ["scan_noise"]
 POINTS = 1000
 #: neighbours of each, for its quadric
 K = 24
-#: fits of each quadric: the first on all neighbours, each later one without those more than
-#: 3 robust sigmas off the previous (outliers, a neighbouring surface)
-ROUNDS = 3
+#: rounds of each quadric's growth: refitted on the neighbours within 3 robust sigmas of it
+ROUNDS = 5
 #: points whose quadric predicts them with more than this variance (in noise variances) are
 #: left out, and fewer than MIN_POINTS left give no estimate
 MAX_LEVERAGE = 1.0
 MIN_POINTS = 50
+#: neighbours in the seed of a sheet (the tightest this many about a candidate plane); a
+#: second sheet needs as many points left over
+SEED = 10
+#: candidate planes through triples of the NEAR nearest neighbours, kept when the triangle's
+#: shape quality (1 for an equilateral one, 0 for collinear points) is at least QMIN
+NEAR = 8
+QMIN = 0.2
+#: a seed (and a sheet) must span the plane: the smaller in-plane second moment at least this
+#: share of the larger (a raster's row alone fixes no normal)
+FLAT = 1.0 / 25.0
+#: the second sheet is taken when it lies farther than SEP x (the two sheets' sigmas summed)
+#: from the first at the point, and nearer to the point
+SEP = 3.0
+#: neighbours within COPY x the distance of the (COPIES x K)-th neighbour of the point or of a
+#: nearer neighbour are copies of it, left out
+COPY, COPIES = 0.07, 3
+#: points farther than this many of their sheet's sigmas off its quadric are left out
+MISS = 6.0
+
+_TRIPLES = np.array(list(combinations(range(NEAR), 3)))
+
+
+def _fit(A, h, w):
+    """Weighted least squares quadrics: ``(A^T W A, coefficients)``."""
+    Aw = A * w[..., None]
+    AtA = np.einsum("mki,mkj->mij", Aw, A) + 1e-12 * np.eye(A.shape[-1])
+    coef = np.linalg.solve(AtA, np.einsum("mki,mk->mi", Aw, h)[..., None])[..., 0]
+    return AtA, coef
+
+
+def _flat(Y, w):
+    """Whether the points Y (..., k, d) weighted by w (..., k) span a plane (:data:`FLAT`)."""
+    sw = np.maximum(w.sum(-1, keepdims=True), 1e-300)
+    D = Y - ((w[..., None] * Y).sum(axis=-2) / sw)[..., None, :]
+    e = np.linalg.eigvalsh(np.matmul((D * w[..., None]).swapaxes(-1, -2), D))
+    return e[..., -2] >= FLAT * e[..., -1]
+
+
+def _sheet(A, h, w):
+    """Grow the quadrics seeded by w: ``(A^T W A, coefficients, weights, sigma)``, sigma NaN
+    where no inlier is left to measure it."""
+    s = np.full((h.shape[0], 1), np.nan)
+    for _ in range(ROUNDS):
+        AtA, coef = _fit(A, h, w)
+        hk = np.einsum("mki,mij,mkj->mk", A, np.linalg.inv(AtA), A)      # hat values
+        res = np.abs(h - np.einsum("mki,mi->mk", A, coef))
+        t_in = res / np.sqrt(np.maximum(1.0 - hk, 1e-12))      # studentized: inliers
+        t_out = res / np.sqrt(1.0 + hk)                         # predicted: the others
+        use = (w > 0) & (hk < 0.99)
+        cnt = use.sum(axis=1)
+        srt = np.sort(np.where(use, t_in, np.inf), axis=1)
+        lo, hi = np.maximum(cnt - 1, 0) // 2, cnt // 2
+        med = 0.5 * (np.take_along_axis(srt, lo[:, None], 1)
+                     + np.take_along_axis(srt, hi[:, None], 1))       # of the inliers
+        s = np.where(cnt[:, None] > 0, 1.4826 * med, np.nan)
+        keep = np.isfinite(s[:, 0])
+        w_new = (np.where(w > 0, t_in, t_out) <= 3.0 * np.maximum(s, 1e-300)).astype(np.float64)
+        w = np.where(keep[:, None], w_new, w)
+    AtA, coef = _fit(A, h, w)
+    return AtA, coef, w, s
+
+
+def _neighbours(P, idx):
+    """The K neighbours of each point ``P[idx]`` about it (m, K, 3), copies left out, and
+    whether K were found.
+
+    A neighbour closer than :data:`COPY` x the distance of the (COPIES x K)-th to the point or
+    to a nearer neighbour is a copy (a doubled exposure, a merged file): its noise is the
+    other's, and counted twice it pulled the quadric onto the point (a scan with each point
+    twice read a third of its noise)."""
+    kk = min(COPIES * K + 1, P.shape[0])
+    d, nb = cKDTree(P).query(P[idx], k=kk)
+    Q = P[nb] - P[idx][:, None, :]                      # (m, kk, 3), the point itself first
+    delta = COPY * d[:, -1]
+    q2 = np.einsum("mki,mki->mk", Q, Q)
+    D2 = q2[:, :, None] + q2[:, None, :] - 2.0 * np.matmul(Q, Q.transpose(0, 2, 1))
+    # which of two copies stays is decided by the file's order, not by the distance: the copy
+    # nearer to the point is the one whose noise is nearer to the point's (two passes with
+    # independent noise read half their noise)
+    seq = np.concatenate([np.zeros((len(idx), 1), np.int64),
+                          1 + np.argsort(nb[:, 1:], axis=1, kind="stable")], axis=1)
+    keep = np.zeros(d.shape, bool)
+    ar = np.arange(len(idx))
+    keep[:, 0] = True
+    for j in range(1, kk):
+        c = seq[:, j]
+        near = (D2[ar, c] <= (delta ** 2)[:, None]) & keep
+        keep[ar, c] = ~near.any(axis=1)
+    keep[:, 0] = False
+    rank = np.cumsum(keep, axis=1)
+    full = rank[:, -1] >= K
+    sel = keep & (rank <= K)
+    order = np.argsort(~sel, axis=1, kind="stable")[:, :K]
+    return np.take_along_axis(Q, order[..., None], 1), full
+
+
+def _frame(X):
+    """Per point: the neighbours' heights h (m, K) along the chosen normal, their in-plane
+    coordinates u, v (m, K) and the seed's weights (m, K) (all neighbours where no candidate
+    plane's seed spans the plane)."""
+    m = X.shape[0]
+    ar = np.arange(m)
+    _, V = np.linalg.eigh(np.einsum("mki,mkj->mij", X, X))
+    T = X[:, _TRIPLES]                                          # (m, t, 3, 3)
+    a, b = T[:, :, 1] - T[:, :, 0], T[:, :, 2] - T[:, :, 0]
+    nc = np.cross(a, b)
+    e2 = np.sum(a * a, -1) + np.sum(b * b, -1) + np.sum((b - a) ** 2, -1)
+    quality = 2.0 * np.sqrt(3.0) * np.linalg.norm(nc, axis=2) / np.maximum(e2, 1e-300)
+    good = np.concatenate([np.ones((m, 1), bool), quality >= QMIN], axis=1)
+    nc = np.concatenate([V[:, None, :, 0], nc], axis=1)        # principal normal first
+    nc /= np.maximum(np.linalg.norm(nc, axis=2, keepdims=True), 1e-300)
+    H = np.einsum("mki,mci->mck", X, nc)                        # (m, c, K)
+    order = np.argsort(H, axis=2)
+    Hs = np.take_along_axis(H, order, 2)
+    width = Hs[:, :, SEED - 1:] - Hs[:, :, :K - SEED + 1]       # windows of SEED heights
+    j = np.argmin(width, axis=2)
+    best = np.take_along_axis(width, j[..., None], 2)[..., 0]
+    win = np.take_along_axis(order, j[..., None] + np.arange(SEED), 2)   # (m, c, SEED)
+    Y = X[ar[:, None, None], win]
+    best = np.where(good & _flat(Y, np.ones(Y.shape[:-1])), best, np.inf)
+    c = np.argmin(best, axis=1)
+    found = np.isfinite(best[ar, c])
+    c = np.where(found, c, 0)
+    n = nc[ar, c]
+    h = H[ar, c]
+    lo, hi = Hs[ar, c, j[ar, c]], Hs[ar, c, j[ar, c] + SEED - 1]
+    pad = hi - lo                                   # the seed: its window widened by its width
+    w = (h >= (lo - pad)[:, None]) & (h <= (hi + pad)[:, None]) | ~found[:, None]
+    ref = np.where(np.abs(n[:, :1]) < 0.9, np.array([[1.0, 0.0, 0.0]]), np.array([[0.0, 1.0, 0.0]]))
+    t1 = np.cross(n, ref)
+    t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
+    t2 = np.cross(n, t1)
+    return h, np.einsum("mki,mi->mk", X, t1), np.einsum("mki,mi->mk", X, t2), w.astype(np.float64)
 
 
 def scan_noise(P) -> float:
     """Noise sigma (mm) of the scan points P (n, 3) about their local quadrics, or nan with
-    fewer than ``K + 1`` points or :data:`MIN_POINTS` well-fixed quadrics."""
+    fewer than ``K + 1`` points (copies counted once) or :data:`MIN_POINTS` well-fixed
+    quadrics."""
     P = np.asarray(P, np.float64)
     n = P.shape[0]
     if n <= K:
@@ -49,27 +195,28 @@ def scan_noise(P) -> float:
     # evenly spaced in the file's order (no random draw: a simulated scan's outliers drawn with
     # the same seed were once exactly the points measured)
     idx = np.arange(n) if n <= POINTS else np.linspace(0, n - 1, POINTS).astype(np.int64)
-    _, nb = cKDTree(P).query(P[idx], k=K + 1)
-    X = P[nb[:, 1:]] - P[idx][:, None, :]              # (m, K, 3) neighbours about the point
-    C = np.einsum("mki,mkj->mij", X, X)
-    _, V = np.linalg.eigh(C)                            # local frame: V[:, :, 0] the normal
-    L = np.einsum("mki,mij->mkj", X, V)                 # (u, v) = columns 2, 1; h = column 0
-    u, v, h = L[:, :, 2], L[:, :, 1], L[:, :, 0]
+    X, full = _neighbours(P, idx)                      # (m, K, 3) neighbours about the point
+    h, u, v, w = _frame(X)
     A = np.stack([u * u, u * v, v * v, u, v, np.ones_like(u)], axis=2)   # (m, K, 6)
-    w = np.ones_like(h)
-    for _ in range(ROUNDS):     # neighbours off their quadric (outliers) left out, refitted
-        Aw = A * w[..., None]
-        AtA = np.einsum("mki,mkj->mij", Aw, A) + 1e-12 * np.eye(6)
-        coef = np.linalg.solve(AtA, np.einsum("mki,mk->mi", Aw, h)[..., None])[..., 0]
-        res = np.abs(h - np.einsum("mki,mi->mk", A, coef))
-        s = 1.4826 * np.median(res, axis=1, keepdims=True)
-        w = (res <= 3.0 * np.maximum(s, 1e-300)).astype(np.float64)
+    AtA, coef, w, s = _sheet(A, h, w)
+    # the neighbours the first sheet left: a second sheet (the other side of a thin wall)
+    rest = (1.0 - w).sum(axis=1) >= SEED
+    if rest.any():
+        AtA2, coef2, w2, s2 = _sheet(A[rest], h[rest], 1.0 - w[rest])
+        c1, c2 = coef[rest, 5], coef2[:, 5]
+        with np.errstate(invalid="ignore"):
+            other = ((w2.sum(axis=1) >= SEED) & (np.abs(c2 - c1) > SEP * (s[rest, 0] + s2[:, 0]))
+                     & (np.abs(c2) < np.abs(c1)))
+        i = np.flatnonzero(rest)[other]
+        AtA[i], coef[i], w[i], s[i] = AtA2[other], coef2[other], w2[other], s2[other]
     r = coef[:, 5]                                      # the point (origin) off its quadric
     # its variance: sigma^2 (1 + leverage of the origin), the leverage e6^T (A^T W A)^-1 e6
     lev = np.linalg.solve(AtA, np.broadcast_to(np.eye(6)[5], (len(idx), 6))[..., None])[:, 5, 0]
     # neighbours (nearly) on a line, as along one row of a raster seen at a grazing angle, do
     # not fix the quadric at the point: such points are left out
-    ok = (lev >= 0.0) & (lev <= MAX_LEVERAGE)
+    with np.errstate(invalid="ignore"):
+        ok = (full & (lev >= 0.0) & (lev <= MAX_LEVERAGE) & _flat(np.stack([u, v], -1), w)
+              & (np.abs(r) <= MISS * s[:, 0] * np.sqrt(1.0 + np.maximum(lev, 0.0))))
     if np.count_nonzero(ok) < MIN_POINTS:
         return float("nan")
     z = r[ok] / np.sqrt(1.0 + lev[ok])
