@@ -54,16 +54,64 @@ def _step_with_control_point(tmp_path, value: bytes) -> Path:
     return bad
 
 
-def test_fuzz_1e300_control_point_is_refused_not_sampled_without_end(tmp_path):
-    bad = _step_with_control_point(tmp_path, b"1.E+300")
+def _refusals(bad: Path) -> list[str]:
     out = subprocess.run([sys.executable, "-c", _CHILD, str(bad)], capture_output=True, text=True,
                          timeout=300, env={"PYTHONPATH": SRC, "PATH": "/usr/bin:/bin"})
     lines = [ln for ln in out.stdout.splitlines() if ln.split(" ")[0] in
              ("ACCEPTED", "MEMORY", "CADImportError", "EmptyModelError", "ValueError")]
     assert len(lines) == 2, (out.stdout[-2000:], out.stderr[-2000:])
-    for ln in lines:                               # read_cad, then info's summary
+    return lines                                   # read_cad, then info's summary
+
+
+def test_fuzz_1e300_control_point_is_refused_not_sampled_without_end(tmp_path):
+    # refused by the number check (its square overflows a double) before OpenCASCADE reads it
+    for ln in _refusals(_step_with_control_point(tmp_path, b"1.E+300")):
         assert ln.startswith("CADImportError"), ln
-        assert "bad.step" in ln and "control point at 1e+300 mm" in ln, ln
+        assert "bad.step" in ln and "'1.E+300'" in ln and "too large" in ln, ln
+
+
+def test_fuzz_1e100_control_point_is_refused_before_its_edges_are_sampled(tmp_path):
+    # a number a double squares safely, absurd for a length: the face check refuses it
+    for ln in _refusals(_step_with_control_point(tmp_path, b"1.E+100")):
+        assert ln.startswith("CADImportError"), ln
+        assert "bad.step" in ln and "1e+100" in ln, ln
+
+
+_IGES = r"""
+import sys
+from OCP.IGESControl import IGESControl_Writer
+from shapeverify.cad.examples import panel_shape
+w = IGESControl_Writer("MM", 0)
+w.AddShape(panel_shape())
+w.ComputeModel()
+assert w.Write(sys.argv[1])
+"""
+
+
+def test_fuzz_1e300_in_an_iges_trimming_curve_is_refused_not_a_two_minute_hang(tmp_path):
+    """The CAD fuzz run's one hang (seed 20261207, mutant 485): ``1E+300`` for a control point
+    of a B-spline curve (entity 126) in the panel's IGES kept the importer busy for over 120 s
+    of CPU (``info`` did not return in 120 s).  Refused now in well under a second, naming
+    the file, the line and the token."""
+    src = tmp_path / "panel.igs"
+    subprocess.run([sys.executable, "-c", _IGES, str(src)], check=True, timeout=300,
+                   env={"PYTHONPATH": SRC, "PATH": "/usr/bin:/bin"})
+    lines = src.read_bytes().split(b"\n")
+    k = next(i for i, ln in enumerate(lines) if ln[72:73] == b"P" and ln[:4] == b"126,")
+    for i in range(k + 1, len(lines)):             # a control point of that curve
+        m = re.search(rb",(0\.\d{6,})", lines[i][:64])
+        if m:
+            tok = b"1E+300".rjust(len(m.group(1)))
+            lines[i] = lines[i][:m.start(1)] + tok + lines[i][m.end(1):]
+            break
+    bad = tmp_path / "bad.igs"
+    bad.write_bytes(b"\n".join(lines))
+    from shapeverify.cad.number_check import check_numbers
+
+    with pytest.raises(CADImportError, match=r"bad\.igs: line \d+ holds '1E\+300'.*too large"):
+        check_numbers(bad, "iges")
+    for ln in _refusals(bad):
+        assert ln.startswith("CADImportError") and "bad.igs" in ln, ln
 
 
 def test_fuzz_large_but_sane_control_point_still_loads(tmp_path):

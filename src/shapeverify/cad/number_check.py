@@ -18,6 +18,8 @@ a STEP string is told apart by the parity of the quotes before it).  What is ref
   ``INF``, ``INFINITY`` as a parameter; a ``*`` next to a real in a list (``(0.,*,1.)``).
 * IGES, the parameter-data section (columns 1-64 of ``P`` lines): a real (``E`` or ``D``
   exponent) that overflows a double; ``NAN``/``INF`` as a parameter.
+* Both: a finite real of magnitude :data:`MAX_CAD_NUMBER` (1e154) or more, whose square
+  overflows (``1E+300``).
 
 Measured on the shared 2-core machine: 1.3 s CPU for 55 MB of STEP (the seven NIST test parts
 repeated), 0.05 s for the 3.4 MB ``nist_ctc_02``, 0.06 s for the hammer IGES; OpenCASCADE takes
@@ -34,7 +36,7 @@ import numpy as np
 
 from ..errors import CADImportError
 
-__all__ = ["check_numbers", "check_extent", "MAX_MODEL_COORDINATE"]
+__all__ = ["check_numbers", "check_extent", "MAX_MODEL_COORDINATE", "MAX_CAD_NUMBER"]
 
 #: Largest coordinate (mm) of a model accepted from a CAD file: 1e12 mm is a million km, as for
 #: scans (:data:`shapeverify.io.points.MAX_COORDINATE`).
@@ -82,9 +84,18 @@ def check_numbers(path, fmt: str, data: bytes | None = None) -> None:
     line = data.count(b"\n", 0, pos) + 1
     text = token.decode("latin-1").strip()
     raise CADImportError(
-        f"{path}: line {line} holds {text!r}, which is not a finite number ({_why(text)}); "
+        f"{path}: line {line} holds {text!r}, which is {_what(text)} ({_why(text)}); "
         "OpenCASCADE cannot read such a value (it may never finish). The file is damaged or was "
         "written wrongly: export it again from the CAD system")
+
+
+def _what(text: str) -> str:
+    try:
+        v = float(text.lstrip("+-").upper().replace("D", "E"))
+    except ValueError:
+        return "not a finite number"
+    return "not a finite number" if not math.isfinite(v) or "D" in text.upper() else \
+        "too large for any CAD number"
 
 
 def _why(text: str) -> str:
@@ -99,6 +110,8 @@ def _why(text: str) -> str:
         return "not a number"
     if math.isinf(v):
         return "beyond the range of a double, about 1.8e308"
+    if abs(v) >= MAX_CAD_NUMBER:
+        return f"beyond +-{MAX_CAD_NUMBER:g}, where its square overflows a double"
     return "a Fortran 'D' exponent, which STEP does not allow"
 
 
@@ -124,9 +137,9 @@ def _candidates(data: bytes, start: int, step: bool):
             sign = (c == 43) | (c == 45)
             ed = (c == 69) | (c == 68)
             d = c.astype(np.int16) - 48
-            # an exponent of >= 3 digits with a value >= 300 (or >= 4 digits) starts at k
+            # an exponent of >= 3 digits with a value >= 150 (or >= 4 digits) starts at k
             big = dig[:-3] & dig[1:-2] & dig[2:-1] & ((d[:-3] * 100 + d[1:-2] * 10 + d[2:-1]
-                                                        >= 300) | dig[3:])
+                                                        >= 150) | dig[3:])
             big = np.concatenate([big, np.zeros(3, bool)])
             after = big[1:] | (sign[1:] & np.concatenate([big[2:], [False]]))
             hit = np.zeros(c.size, bool)
@@ -164,13 +177,22 @@ def _step_bad(data: bytes):
     return None
 
 
+#: Largest magnitude of a number accepted in a CAD file: beyond it the number's square overflows
+#: a double (sqrt(1.8e308) = 1.34e154), and OpenCASCADE's geometry (distances, curve lengths)
+#: goes to inf or never finishes: ``1E+300`` as a trimming curve's control point kept an IGES
+#: import busy for over 120 s of CPU (CAD fuzz run, issue 33).  OpenCASCADE's own "infinite"
+#: (``Precision::Infinite()``, 2e100) stays below it.
+MAX_CAD_NUMBER = 1e154
+
+
 def _harmless_real(tok: bytes) -> bool:
-    """An E-exponent real with a long exponent that a double holds (e.g. ``1.E-400`` -> 0)."""
+    """An E-exponent real with a long exponent whose square a double holds (e.g. ``1.E-400``
+    -> 0, ``2.E+100``), not ``1.E+300``."""
     t = tok.strip()
     if b"*" in t or b"d" in t.lower():
         return False
     try:
-        return math.isfinite(float(t))
+        return abs(float(t)) < MAX_CAD_NUMBER
     except ValueError:
         return False
 
