@@ -464,7 +464,7 @@ def rps_alignment(scan, prep, points, init=None, radius: float = 4.0, max_iterat
     feet = prep.closest(np.array([s[1] for s in spec]), exact=True)
     T, where, warns, it, J, Wh, r, unc, info = _rps_at_placements(
         P, prep, spec, n_locks, feet, None if init is None else _check_T(init), rng,
-        max_iterations, tolerance)
+        max_iterations, rtol)
     Js = J * Wh[:, None]
     cov = np.linalg.pinv(Js.T @ Js)
     locks = [{"point": nm, "axis": ax, "kind": kd, "residual": float(v), "uncertainty": float(u)}
@@ -474,7 +474,7 @@ def rps_alignment(scan, prep, points, init=None, radius: float = 4.0, max_iterat
                                        "placement": where})
 
 
-def _rps_at_placements(P, prep, spec, n_locks, feet, init, rng, max_iterations, tolerance):
+def _rps_at_placements(P, prep, spec, n_locks, feet, init, rng, max_iterations, rtol):
     """The RPS locks solved from every placement of the scan (:mod:`.placement`: the caller's
     start and the global search's poses); judged by the whole scan's fit at the result, and
     among those that fit alike by the locks' misfit (RMS of residual / uncertainty); the
@@ -487,7 +487,7 @@ def _rps_at_placements(P, prep, spec, n_locks, feet, init, rng, max_iterations, 
     tried, failed = [], []
     for name, T0 in placements(P, prep, init, rng):
         try:
-            out = _rps_solve(P, prep, spec, n_locks, feet, T0, max_iterations, tolerance)
+            out = _rps_solve(P, prep, spec, n_locks, feet, T0, max_iterations, rtol)
         except ValueError as exc:
             failed.append((whole_fit(P, prep, T0, noise), name, exc))
             continue
@@ -525,7 +525,7 @@ def _rps_at_placements(P, prep, spec, n_locks, feet, init, rng, max_iterations, 
     return (T, ch["name"], warns, *ch["out"][1:])
 
 
-def _rps_solve(P, prep, spec, n_locks, feet, T, max_iterations, tolerance):
+def _rps_solve(P, prep, spec, n_locks, feet, T, max_iterations, rtol):
     """Gauss-Newton on the RPS locks from the pose T: (T, iterations, J, weights, residuals,
     uncertainties, lock info)."""
     rows, res, unc, info = None, None, None, []
