@@ -71,11 +71,21 @@ MISS = 6.0
 _TRIPLES = np.array(list(combinations(range(NEAR), 3)))
 
 
+def _inv(M):
+    """Inverses of the stacked matrices M; a stack holding a singular one (a neighbourhood
+    left with too few inliers to fix its quadric: seen on a plate scanned at 1 mm) is
+    pseudo-inverted, so such a centre gets a huge leverage and is left out, never an error."""
+    try:
+        return np.linalg.inv(M)
+    except np.linalg.LinAlgError:
+        return np.linalg.pinv(M)
+
+
 def _fit(A, h, w):
     """Weighted least squares quadrics: ``(A^T W A, coefficients)``."""
     Aw = A * w[..., None]
     AtA = np.einsum("mki,mkj->mij", Aw, A) + 1e-12 * np.eye(A.shape[-1])
-    coef = np.linalg.solve(AtA, np.einsum("mki,mk->mi", Aw, h)[..., None])[..., 0]
+    coef = np.einsum("mij,mj->mi", _inv(AtA), np.einsum("mki,mk->mi", Aw, h))
     return AtA, coef
 
 
@@ -93,7 +103,7 @@ def _sheet(A, h, w):
     s = np.full((h.shape[0], 1), np.nan)
     for _ in range(ROUNDS):
         AtA, coef = _fit(A, h, w)
-        hk = np.einsum("mki,mij,mkj->mk", A, np.linalg.inv(AtA), A)      # hat values
+        hk = np.einsum("mki,mij,mkj->mk", A, _inv(AtA), A)      # hat values
         res = np.abs(h - np.einsum("mki,mi->mk", A, coef))
         t_in = res / np.sqrt(np.maximum(1.0 - hk, 1e-12))      # studentized: inliers
         t_out = res / np.sqrt(1.0 + hk)                         # predicted: the others
@@ -211,7 +221,7 @@ def scan_noise(P) -> float:
         AtA[i], coef[i], w[i], s[i] = AtA2[other], coef2[other], w2[other], s2[other]
     r = coef[:, 5]                                      # the point (origin) off its quadric
     # its variance: sigma^2 (1 + leverage of the origin), the leverage e6^T (A^T W A)^-1 e6
-    lev = np.linalg.solve(AtA, np.broadcast_to(np.eye(6)[5], (len(idx), 6))[..., None])[:, 5, 0]
+    lev = _inv(AtA)[:, 5, 5]
     # neighbours (nearly) on a line, as along one row of a raster seen at a grazing angle, do
     # not fix the quadric at the point: such points are left out
     with np.errstate(invalid="ignore"):
