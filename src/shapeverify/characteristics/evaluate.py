@@ -711,8 +711,9 @@ def evaluate_plan(prep, scan, plan=None, registration=None, init=None, rng=None,
     ...                 "characteristics:\\n"
     ...                 "  - {name: H1, type: hole, near: [30, 40, 0], diameter: {tol: 0.5}}\\n")
     >>> res = evaluate_plan(prep, scan, "plan.yaml")
-    >>> round(res["H1"].measured["diameter"], 1), res["H1"].verdict
-    (12.0, 'pass')
+    >>> h1 = res["H1"]          # a 12 mm hole seen at its rim only, 1 mm pixels
+    >>> abs(h1.measured["diameter"] - 12.0) <= h1.uncertainty["diameter"], h1.verdict
+    (True, 'pass')
     """
     from ..inspection.checks import check_scan
 
