@@ -204,12 +204,13 @@ def _drf_key(item) -> tuple:
     return tuple(d["name"] for d in item["datums"])
 
 
-def _datum_ref(d: dict, ctx) -> tuple[str | None, str]:
-    """(plan feature ref, '') of a datum, or (None, why not)."""
+def _datum_faces(d: dict, ctx, targets_why: str) -> tuple[list | None, str]:
+    """(the model's face numbers of a PMI datum, '') or (None, why not): a datum set up from
+    datum targets (``targets_why`` says what the caller lacks for them), on no face, or on a
+    face that was not imported."""
     if d["type"] == "DatumTarget" or d["targets"]:
         return None, (f"datum {d['name']} is set up from datum targets "
-                      f"({', '.join(t['type'] for t in d['targets'])}); the plan's datum "
-                      "alignment takes whole datum features")
+                      f"({', '.join(t['type'] for t in d['targets'])}); {targets_why}")
     if not d["faces"]:
         if d["other"]:
             return None, f"datum {d['name']} is attached to {d['other'][0]}s, not faces"
@@ -218,6 +219,14 @@ def _datum_ref(d: dict, ctx) -> tuple[str | None, str]:
     faces = [ctx.fmap.get(f) for f in d["faces"]]
     if any(f is None for f in faces):
         return None, f"a face of datum {d['name']} could not be imported"
+    return faces, ""
+
+
+def _datum_ref(d: dict, ctx) -> tuple[str | None, str]:
+    """(plan feature ref, '') of a datum, or (None, why not)."""
+    faces, why = _datum_faces(d, ctx, "the plan's datum alignment takes whole datum features")
+    if faces is None:
+        return None, why
     groups, other = _cylinders(ctx.feats, ctx.model, faces)
     if not groups and len(other) == 1 and ctx.feats[other[0]].kind == "plane":
         return f"face:{other[0]}", ""
@@ -241,18 +250,9 @@ def _planes_coplanar(ctx, faces) -> bool:
 
 def _datum_spec(d: dict, ctx) -> tuple[dict | None, str]:
     """(the plan's ``datums`` entry of a PMI datum, '') or (None, why not) (:mod:`.drf`)."""
-    if d["type"] == "DatumTarget" or d["targets"]:
-        return None, (f"datum {d['name']} is set up from datum targets "
-                      f"({', '.join(t['type'] for t in d['targets'])}); the target positions "
-                      "are not read from the file")
-    if not d["faces"]:
-        if d["other"]:
-            return None, f"datum {d['name']} is attached to {d['other'][0]}s, not faces"
-        return None, (f"datum {d['name']} is not attached to any face in the file (as "
-                      "OpenCASCADE's XCAF reader reads it)")
-    faces = [ctx.fmap.get(f) for f in d["faces"]]
-    if any(f is None for f in faces):
-        return None, f"a face of datum {d['name']} could not be imported"
+    faces, why = _datum_faces(d, ctx, "the target positions are not read from the file")
+    if faces is None:
+        return None, why
     src = _src(d)
     kinds = {ctx.feats[f].kind for f in faces}
     if kinds == {"plane"} and _planes_coplanar(ctx, faces):
