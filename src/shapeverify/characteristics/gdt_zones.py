@@ -90,8 +90,7 @@ def planes_zone(points, normal, turn=(), outer: bool = False):
     L = float(np.sqrt(np.mean(np.sum((P - c0) ** 2, axis=1)))) or 1.0
     turn = [np.asarray(t, np.float64) for t in turn]
     for _ in range(_ROUNDS if turn else 1):
-        E = [t - (t @ n) * n for t in turn]
-        E = [e / np.linalg.norm(e) for e in E if np.linalg.norm(e) > 1e-9]
+        E = _turns_across(turn, n)
         if not E:
             break
         z = H @ n
@@ -108,6 +107,13 @@ def planes_zone(points, normal, turn=(), outer: bool = False):
             break
     d = P @ n
     return float(d.max() - d.min()), n, (float(d.min()), float(d.max()))
+
+
+def _turns_across(turn, n) -> list:
+    """The unit directions in which the normal ``n`` may turn: each of ``turn`` made
+    perpendicular to ``n`` (one along ``n`` turns nothing and is left out)."""
+    E = [t - (t @ n) * n for t in turn]
+    return [e / np.linalg.norm(e) for e in E if np.linalg.norm(e) > 1e-9]
 
 
 def width_planes(points1, points2, normal, turn=()):
@@ -135,8 +141,7 @@ def width_planes(points1, points2, normal, turn=()):
     L = float(np.sqrt(np.mean(np.sum(np.vstack([H1, H2]) ** 2, axis=1)))) or 1.0
     turn = [np.asarray(t, np.float64) for t in turn]
     for _ in range(_ROUNDS if turn else 1):
-        E = [t - (t @ n) * n for t in turn]
-        E = [e / np.linalg.norm(e) for e in E if np.linalg.norm(e) > 1e-9]
+        E = _turns_across(turn, n)
         if not E:
             break
         k = len(E)
