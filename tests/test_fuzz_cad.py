@@ -39,68 +39,21 @@ SEED = 20261201
 
 
 # ------------------------------------------------------------------------------- the damage
-def _entity_lines(lines: list[bytes], fmt: str) -> list[int]:
-    if fmt == "step":
-        return [i for i, ln in enumerate(lines) if ln.startswith(b"#")]
-    return [i for i, ln in enumerate(lines) if len(ln) > 72 and ln[72:73] in (b"D", b"P")]
+def _harness():
+    import importlib.util
+
+    path = Path(__file__).resolve().parents[1] / "benchmarks" / "fuzz_cad.py"
+    spec = importlib.util.spec_from_file_location("fuzz_cad", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    return mod
 
 
-def remove_entity_line(data: bytes, fmt: str, rng) -> bytes:
-    lines = data.splitlines(keepends=True)
-    del lines[int(rng.choice(_entity_lines(lines, fmt)))]
-    return b"".join(lines)
-
-
-def duplicate_line(data: bytes, fmt: str, rng) -> bytes:
-    lines = data.splitlines(keepends=True)
-    i = int(rng.choice(_entity_lines(lines, fmt)))
-    return b"".join(lines[:i + 1] + [lines[i]] + lines[i + 1:])
-
-
-def flip_bytes(data: bytes, fmt: str, rng) -> bytes:
-    b = bytearray(data)
-    for pos in rng.integers(0, len(b), size=int(rng.integers(1, 9))):
-        b[pos] ^= int(rng.integers(1, 256))
-    return bytes(b)
-
-
-def truncate(data: bytes, fmt: str, rng) -> bytes:
-    return data[:int(rng.integers(len(data) // 10, len(data) - 1))]
-
-
-def dangling_reference(data: bytes, fmt: str, rng) -> bytes:
-    """One reference of one entity points at an entity that does not exist."""
-    lines = data.splitlines(keepends=True)
-    if fmt == "step":
-        cand = [i for i, ln in enumerate(lines) if ln.startswith(b"#") and ln.count(b"#") > 1]
-        i = int(rng.choice(cand))
-        refs = list(re.finditer(rb"#\d+", lines[i]))[1:]
-        m = refs[int(rng.integers(len(refs)))]
-        lines[i] = lines[i][:m.start()] + b"#987654" + lines[i][m.end():]
-    else:  # a parameter-data pointer (an odd directory-entry number) to a missing entry
-        cand = [i for i, ln in enumerate(lines) if len(ln) > 72 and ln[72:73] == b"P"
-                and re.search(rb"[,;]\d*[13579][,;]", ln[:64])]
-        i = int(rng.choice(cand))
-        ms = list(re.finditer(rb"(?<=[,;])\d*[13579](?=[,;])", lines[i][:64]))
-        m = ms[int(rng.integers(len(ms)))]
-        lines[i] = lines[i][:m.start()] + b"9" * (m.end() - m.start()) + lines[i][m.end():]
-    return b"".join(lines)
-
-
-def dangling_face(data: bytes, fmt: str, rng) -> bytes:
-    """STEP: a shell lists a face that is not in the file (its entity line is gone).
-    IGES: a face's directory entry and parameter lines are gone."""
-    lines = data.splitlines(keepends=True)
-    if fmt == "step":
-        text = b"".join(lines)
-        shell = re.search(rb"(?:CLOSED|OPEN)_SHELL\('[^']*',\(([^)]*)\)", text)
-        refs = re.findall(rb"#(\d+)", shell.group(1))
-        face = refs[int(rng.integers(len(refs)))]
-        return b"".join(ln for ln in lines if not ln.startswith(b"#" + face + b" ="))
-    de = [i for i, ln in enumerate(lines) if ln[72:73] == b"D" and ln[:8].strip() == b"144"
-          and int(ln[73:80]) % 2 == 1]
-    i = int(rng.choice(de))
-    return b"".join(lines[:i] + lines[i + 2:])
+#: the damage shared with the large run (one implementation: benchmarks/fuzz_cad.py)
+_FUZZ = _harness()
+remove_entity_line, duplicate_line, flip_bytes, truncate, dangling_reference, dangling_face = (
+    _FUZZ.remove_entity_line, _FUZZ.duplicate_line, _FUZZ.flip_bytes, _FUZZ.truncate,
+    _FUZZ.dangling_reference, _FUZZ.dangling_face)
 
 
 def bad_number(data: bytes, fmt: str, rng) -> bytes:
@@ -216,16 +169,6 @@ def test_fuzz_many_mutants_only_shapeverify_errors(sources, tmp_path, monkeypatc
 
 
 # ------------------------------------------------------------------------------- the large run
-def _harness():
-    import importlib.util
-
-    path = Path(__file__).resolve().parents[1] / "benchmarks" / "fuzz_cad.py"
-    spec = importlib.util.spec_from_file_location("fuzz_cad", path)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
 def _assert_clean(r):
     bad = {k: v for k, v in r["per"].items()
            if any(w in k for w in ("PARENT", "BUG", "memory", "importer timeout", "importer hang"))}
@@ -240,7 +183,7 @@ def test_fuzz_cad_harness_every_damage_through_info_and_prepare(tmp_path):
     """``benchmarks/fuzz_cad.py`` (the large run's harness): one mutant per damage and source
     file through ``info`` and ``prepare`` in its nice'd, memory-limited worker: no crash of
     the worker, no hang, no bug, nothing silently wrong."""
-    fz = _harness()
+    fz = _FUZZ
     n = len(fz.DAMAGE) * 5
     r = fz.run(n, fz.SEED + 1, hang_s=300.0, mem_gb=2.0, nice=10, budget_s=None,
                workdir=tmp_path)
@@ -253,7 +196,7 @@ def test_fuzz_cad_harness_every_damage_through_info_and_prepare(tmp_path):
                     reason="the large CAD fuzz run: set SHAPEVERIFY_FUZZ_LARGE=1 (hours of CPU "
                            "on a busy machine; SHAPEVERIFY_FUZZ_CAD_N mutants, default 10,000)")
 def test_fuzz_cad_large_run(tmp_path):
-    fz = _harness()
+    fz = _FUZZ
     n = int(os.environ.get("SHAPEVERIFY_FUZZ_CAD_N", "10000"))
     r = fz.run(n, fz.SEED, hang_s=60.0, mem_gb=2.0, nice=10, budget_s=None, workdir=tmp_path)
     fz.write_results(r, tmp_path / "results_fuzz.md", f"pytest (N={n})", fz.SEED, 60.0, 2.0)
