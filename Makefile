@@ -6,6 +6,8 @@ PYTHON ?= python3.11
 VENV := .venv
 BIN := $(VENV)/bin
 STAMP := $(VENV)/.installed
+# pytest-xdist workers for `make test` / `make test-fast` (auto: one per core)
+WORKERS ?= auto
 
 .PHONY: demo test test-fast browser bench clean venv
 
@@ -28,13 +30,15 @@ demo: $(STAMP)
 	$(BIN)/python -m shapeverify.demo demo-output $(if $(OPTICS),--optics,)
 
 # the whole suite (slow tests included), after `make browser` (Chromium for the HTML report's
-# browser test, or a note that it will be skipped)
+# browser test, or a note that it will be skipped).  pytest-xdist runs one worker per core
+# (WORKERS=0 runs it in this one process); each test file stays on one worker (--dist loadfile), so
+# a file's module fixtures (a NIST part imported and prepared) are built once
 test: $(STAMP) browser
-	$(BIN)/python -m pytest -q
+	$(BIN)/python -m pytest -q -n $(WORKERS) --dist loadfile
 
 # the quick tests only: no test marked slow, no browser, no real data (README: how long)
 test-fast: $(STAMP)
-	$(BIN)/python -m pytest -q -m "not slow and not shared"
+	$(BIN)/python -m pytest -q -n $(WORKERS) --dist loadfile -m "not slow and not shared"
 
 # The browser test of the HTML report (tests/test_report_browser.py) runs headless Chromium, and
 # only Chromium (Debian package `chromium`, without its recommended packages: 25 packages, about
