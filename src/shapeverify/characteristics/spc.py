@@ -272,7 +272,7 @@ def _series(rows):
 
 def plot_run_chart(rows, path, *, dpi: int = 110) -> Path:
     """Run chart(s) of characteristic rows (one panel per series) with control and
-    specification limits and Cp/Cpk in the title; writes a PNG.
+    specification limits, the feature control frame and Cp/Cpk in the title; writes a PNG.
 
     Raises
     ------
@@ -281,6 +281,8 @@ def plot_run_chart(rows, path, *, dpi: int = 110) -> Path:
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
+
+    from ..report.fcf import font_text     # the font lacks some symbols: abbreviations
 
     rows = list(rows)
     if not rows:
@@ -296,7 +298,8 @@ def plot_run_chart(rows, path, *, dpi: int = 110) -> Path:
         ax.plot(x, y, "-", color="#4c72b0", lw=1)
         col = {"pass": "#4c72b0", "fail": "#b3261e", "undecided": "#a15c00"}
         ax.scatter(x, y, s=20, c=[col.get(r["verdict"], "black") for r in rs], zorder=3)
-        title = name
+        fcf = rs[-1].get("fcf")
+        title = name + (f"  {font_text(fcf)}" if fcf else "")
         if np.isfinite(y).sum() >= 2:
             cap = capability(y, lo, hi)
             ax.axhline(cap.mean, color="#333333", lw=1)

@@ -35,9 +35,10 @@ from dataclasses import dataclass
 
 from ..characteristics import registry
 
-__all__ = ["Frame", "frames", "fcf_text", "drf_key", "group_by_drf", "frame_html",
-           "draw_frame", "drawn_symbol", "SYMBOLS", "STROKES", "MODIFIERS", "ZONE_MODIFIERS",
-           "DATUM_MODIFIERS", "SIZE_SYMBOLS", "FCF_CSS"]
+__all__ = ["Frame", "frames", "fcf_text", "drf_key", "drf_title", "group_by_drf",
+           "frame_html", "svg_symbol", "draw_frame", "frame_width", "drawn_symbol", "font_text",
+           "SYMBOLS", "STROKES", "MODIFIERS", "ZONE_MODIFIERS", "DATUM_MODIFIERS",
+           "SIZE_SYMBOLS", "FCF_CSS"]
 
 #: geometric-tolerance symbol -> (name, abbreviation written where no glyph can be drawn)
 SYMBOLS: dict[str, tuple[str, str]] = {
@@ -217,7 +218,17 @@ def _datums(entry, result) -> tuple:
     return tuple(names.split("|")) if names else ()
 
 
-def _modifier(table, name, where) -> tuple:
+def _default_zone(type_name) -> str:
+    """The zone a type's plan entry has by default (its schema's ``zone``: ``diameter`` for a
+    position, also a hole's), "" when it has none."""
+    try:
+        field = registry.by_name(str(type_name)).schema.model_fields.get("zone")
+    except (KeyError, AttributeError):
+        return ""
+    return field.default if field is not None and isinstance(field.default, str) else ""
+
+
+def _modifier(table, name) -> tuple:
     """A modifier's token, or ``("text", "[name]")`` for one not in ``table``."""
     return table.get(name, ("text", f"[{name}]"))
 
@@ -239,7 +250,8 @@ def _tolerance_frame(symbol, entry, result, part=None, tol=None) -> Frame:
             if isinstance(up, dict):
                 up = up.get(part) if part else None
             tol = up
-    zone_kind = str(_get(entry, "zone", "") or pmi.get("zone", "")).lower()
+    zone_kind = str(_get(entry, "zone", "") or pmi.get("zone", "")
+                    or _default_zone(part or _get(entry, "type") or _get(result, "type"))).lower()
     if zone_kind in ("diameter",):
         zone.append(("text", "Ø"))
     elif zone_kind in ("sphericaldiameter", "spherical_diameter"):
@@ -255,7 +267,7 @@ def _tolerance_frame(symbol, entry, result, part=None, tol=None) -> Frame:
         mods.append("Tangent_Plane")
     zm = pmi.get("zone_modifier")
     if zm and zm != "None":
-        kind, val = _modifier(ZONE_MODIFIERS, zm, "zone")
+        kind, val = _modifier(ZONE_MODIFIERS, zm)
         tokens.append((kind, val))
         zv = pmi.get("zone_modifier_value")
         if zv:
@@ -267,7 +279,7 @@ def _tolerance_frame(symbol, entry, result, part=None, tol=None) -> Frame:
         if m in seen:
             continue
         seen.add(m)
-        kind, val = _modifier(MODIFIERS, m, "tolerance")
+        kind, val = _modifier(MODIFIERS, m)
         if kind == "note":
             notes.append(val)
         else:
@@ -277,7 +289,7 @@ def _tolerance_frame(symbol, entry, result, part=None, tol=None) -> Frame:
     dmods = pmi.get("datum_modifiers") or {}
     comps = [(("symbol", symbol),), tuple(zone)]
     for d in datums:
-        comps.append((("text", d),) + tuple(_modifier(DATUM_MODIFIERS, m, "datum")
+        comps.append((("text", d),) + tuple(_modifier(DATUM_MODIFIERS, m)
                                              for m in dmods.get(d, ())))
     return Frame(symbol, tuple(comps), datums, tuple(notes), part)
 
@@ -396,8 +408,6 @@ def drf_title(datums) -> str:
     return f"DRF {'|'.join(datums)}" if datums else "without datums"
 
 
-__all__.append("drf_title")
-
 
 # ------------------------------------------------------------------------------ strokes
 def _arc(cx, cy, r, a0, a1, n=24):
@@ -468,8 +478,6 @@ def svg_symbol(symbol: str, size: float = 12.0) -> str:
             f'<title>{_html.escape(symbol)} {name}</title>{"".join(paths)}</svg>')
 
 
-__all__.append("svg_symbol")
-
 
 # ------------------------------------------------------------------------------ HTML
 #: the frames' CSS (boxes: compartments with borders; circled letters)
@@ -533,9 +541,24 @@ def drawn_symbol(symbol: str) -> tuple[str, str]:
     return "text", SYMBOLS.get(symbol, (symbol, symbol))[1]
 
 
-def _text_fallback(text: str) -> str:
-    """Text for the PDF's font: a character it lacks becomes its abbreviation or ``?``."""
-    return "".join(c if _font_has(c) else SYMBOLS.get(c, ("", "?"))[1] for c in text)
+_UNCIRCLED = {v: k for k, v in _CIRCLED.items()}
+
+
+def font_text(text: str) -> str:
+    """``text`` in characters matplotlib's font has: a symbol it lacks becomes the standard's
+    abbreviation (:data:`SYMBOLS`), a circled letter ``(M)``, anything else ``?``.
+
+    >>> font_text("⌖|Ø0.5Ⓜ|A")
+    'POS|Ø0.5(M)|A'
+    """
+    def one(c):
+        if _font_has(c):
+            return c
+        if c in _UNCIRCLED:
+            return f"({_UNCIRCLED[c]})"
+        return SYMBOLS.get(c, ("", "?"))[1]
+    return "".join(one(c) for c in text)
+
 
 
 def draw_frame(fig, frame: Frame, x: float, y: float, *, height: float = 11.0,
@@ -595,7 +618,7 @@ def draw_frame(fig, frame: Frame, x: float, y: float, *, height: float = 11.0,
                 text(cx + r, val, 0.62 * fontsize, ha="center")
                 cx += 2 * r + 1.0
                 continue
-            cx += text(cx, _text_fallback(val), fontsize)
+            cx += text(cx, font_text(val), fontsize)
         cx += pad
         if frame.is_tolerance:
             place(Rectangle((start * k, y * k), (cx - start) * k, height * k, fill=False,
@@ -614,5 +637,3 @@ def frame_width(fig, frame: Frame, *, height: float = 11.0, fontsize: float = 8.
         a.remove()
     return w
 
-
-__all__.append("frame_width")
