@@ -489,7 +489,7 @@ font-size:13px;line-height:18px;vertical-align:middle;white-space:nowrap;margin:
 .fcf-c{display:inline-block;border:1px solid currentColor;border-radius:50%;width:13px;
 height:13px;line-height:13px;font-size:9px;text-align:center;margin:0 1px}
 .fcf-dim{white-space:nowrap}
-.fcf-note{color:#555;font-size:12px}
+.fcf-note{color:#555;font-size:12px;white-space:nowrap}
 """
 
 

@@ -75,8 +75,8 @@ def _zone(ctype: str, lo, hi, fmt) -> str:
     if hi is None:
         return "–"
     if ctype in one_sided_types() or lo is None:
-        return f"≤ {fmt(hi)}"
-    return f"{fmt(lo, True)} … {fmt(hi, True)}"
+        return f"≤&nbsp;{fmt(hi)}"
+    return f"{fmt(lo, True)}&nbsp;…&nbsp;{fmt(hi, True)}"
 
 
 def _characteristics_table(chars, plan_result, fmt) -> str:
@@ -387,8 +387,9 @@ tr.drf th{background:#eef0f3;text-align:left;padding-top:6px}
 .note{color:#555;font-size:13px}
 @page{size:A4 portrait;margin:12mm}
 @media print{body{background:#fff}main{max-width:none;padding:0}.card{box-shadow:none;
-break-inside:auto}table.chars{font-size:10px}table.chars td,table.chars th{padding:2px 4px}
-table.chars tr{break-inside:avoid}}
+break-inside:auto}table.chars tr{break-inside:avoid}}
+@media print,(max-width:860px){main{padding:8px}table.chars{font-size:10px}
+table.chars td,table.chars th{padding:2px 3px}table.chars .fcf{font-size:11px}}
 """
 
 
