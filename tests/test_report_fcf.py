@@ -228,12 +228,26 @@ def test_pdf_frames_lie_inside_their_cells_and_a4():
             assert 0 <= bb.y0 and bb.y1 <= fig.bbox.height
 
 
-def test_pdf_file_is_written_with_the_frames(tmp_path):
+def test_pdf_and_run_chart_need_no_glyph_the_font_lacks(tmp_path):
+    """Ⓛ ⌖ ⌓ are not in DejaVu Sans: written, the PDF and the run chart (its title carries the
+    frame) must not ask the font for them (matplotlib warns "Glyph ... missing")."""
+    import warnings
+
     from shapeverify.characteristics.pdf import write_pdf_report
+    from shapeverify.characteristics.spc import plot_run_chart
 
     pr = synthetic_plan_result(PLANS / "nist_ctc_02.yaml")
-    out = write_pdf_report(pr, tmp_path / "r.pdf", part="CTC 02", date="2026-12-06",
-                           max_points=200)
+    pos = next(c for c in pr.characteristics if c.type == "position")
+    rows = [{"id": i, "part": f"P{i}", "name": pos.name, "value": 0.05 + 0.01 * (i % 3),
+             "lower": None, "upper": 0.15, "verdict": "pass",
+             "fcf": F.fcf_text(pos, pr.plan.characteristics[pr.characteristics.index(pos)])}
+            for i in range(5)]
+    assert "Ⓛ" in rows[0]["fcf"] and "⌖" in rows[0]["fcf"]
+    with warnings.catch_warnings():
+        warnings.filterwarnings("error", message=".*missing from font.*")
+        out = write_pdf_report(pr, tmp_path / "r.pdf", part="CTC 02", date="2026-12-06",
+                               max_points=200)
+        plot_run_chart(rows, tmp_path / "run.png")
     data = out.read_bytes()
     assert data.startswith(b"%PDF") and len(data) > 20_000
 
