@@ -222,6 +222,7 @@ def test_pdf_frames_lie_inside_their_cells_and_a4():
         x1 = max(c.get_window_extent(r).x1 for c in col)
         arts = fig.findobj(lambda a: (a.get_gid() or "").startswith("fcf:"))
         assert arts
+        assert not fig.findobj(lambda a: a.get_gid() == "_measure")   # measured, then removed
         for a in arts:
             bb = a.get_window_extent(r)
             assert x0 - 0.5 <= bb.x0 and bb.x1 <= x1 + 0.5, a.get_gid()

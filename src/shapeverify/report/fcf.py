@@ -632,8 +632,9 @@ def draw_frame(fig, frame: Frame, x: float, y: float, *, height: float = 11.0,
 
 def frame_width(fig, frame: Frame, *, height: float = 11.0, fontsize: float = 8.0) -> float:
     """The width (points) :func:`draw_frame` takes for ``frame`` (drawn and removed)."""
+    n_texts, n_artists = len(fig.texts), len(fig.artists)
     w = draw_frame(fig, frame, 0.0, 0.0, height=height, fontsize=fontsize, gid="_measure")
-    for a in [a for a in fig.findobj() if getattr(a, "get_gid", lambda: None)() == "_measure"]:
+    for a in list(fig.texts[n_texts:]) + list(fig.artists[n_artists:]):
         a.remove()
     return w
 
