@@ -330,9 +330,10 @@ def plot_run_chart(rows, path, *, dpi: int = 110) -> Path:
 
 
 def export_csv(rows, path) -> Path:
-    """Write characteristic rows to CSV (columns of the table, one row per value)."""
+    """Write characteristic rows to CSV (columns of the table, one row per value; UTF-8: the
+    ``fcf`` column holds the frames' symbols, ⌖ Ⓜ ..., whatever the locale's encoding)."""
     path = Path(path)
-    with open(path, "w", newline="") as fh:
+    with open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.DictWriter(fh, fieldnames=list(_COLS))
         w.writeheader()
         for r in rows:
