@@ -387,3 +387,21 @@ def test_plan_read_from_the_step_file_renders_every_frame(shared_data):
             pmi_drf = tuple((c.pmi.model_dump().get("datums") or "").split("|")) \
                 if c.pmi.model_dump().get("datums") else ()
             assert F.drf_key(fs) == pmi_drf
+
+
+def test_a_characteristic_not_measured_still_shows_the_drawings_frame():
+    """No values (too few scan points): the frames come from the plan entry alone."""
+    from shapeverify.characteristics.evaluate import CharacteristicResult
+
+    def unmeasured(entry):
+        return CharacteristicResult(entry.name, entry.type, None, None, None, None, None, None,
+                                    "undecided", {"reason": "no scan points"})
+
+    hole = _entry("hole")
+    assert F.fcf_text(unmeasured(hole), hole) == "Ø +0.05/−0.05; ⌖|Ø0.5|A|B|C"
+    pos = _entry("position")
+    assert F.fcf_text(unmeasured(pos), pos) == "⌖|Ø0.25Ⓛ|A|B|C"
+    width = _entry("width")
+    assert F.fcf_text(unmeasured(width), width) == "+0.2/−0.1"
+    cyl = _entry("cylinder")
+    assert F.fcf_text(unmeasured(cyl), cyl) == "Ø +0.05/−0.05"

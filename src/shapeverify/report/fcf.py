@@ -299,11 +299,18 @@ def _size_frame(symbol, entry, result, part=None) -> Frame:
     nom, lo, hi = (_get(result, k) for k in ("nominal", "lower", "upper"))
     if part is not None:
         nom, lo, hi = (x.get(part) if isinstance(x, dict) else None for x in (nom, lo, hi))
-    sub = _get(entry, part) if part else None           # a hole's diameter: {lower, upper}
-    if sub is not None and _get(sub, "lower") is not None:
-        lo, hi = _get(sub, "lower"), _get(sub, "upper")
-    elif sub is not None and _get(sub, "tol") is not None:
-        lo, hi = -float(_get(sub, "tol")), float(_get(sub, "tol"))
+    # the plan's limits: a part's (a hole's diameter), a size's own (a cylinder's diameter,
+    # a width's lower/upper); the result's where the plan gives none
+    sub = _get(entry, part or "diameter")
+    for src in (sub, None if part else entry):
+        if src is None:
+            continue
+        if _get(src, "lower") is not None and _get(src, "upper") is not None:
+            lo, hi = _get(src, "lower"), _get(src, "upper")
+            break
+        if isinstance(_get(src, "tol"), (int, float)):
+            lo, hi = -float(_get(src, "tol")), float(_get(src, "tol"))
+            break
     if pmi.get("kind") == "dimension" and pmi.get("nominal") is not None:
         nom = pmi["nominal"]                             # the drawing's size
     text = symbol
@@ -312,6 +319,24 @@ def _size_frame(symbol, entry, result, part=None) -> Frame:
     if lo is not None and hi is not None:
         text += (" " if text else "") + _limits(float(lo), float(hi))
     return Frame(symbol, ((("text", text or "–"),),), (), (), part)
+
+
+def _type_names() -> set:
+    return {t.name for t in registry.TYPES} | set(getattr(registry, "_BY_NAME", {}))
+
+
+def _parts_of(ctype, entry) -> list:
+    """The parts of a compound type's entry (a hole: ``diameter`` and/or ``position``): its
+    schema's fields named after a registered type or a size (:data:`SIZE_SYMBOLS`), when it
+    has two or more; ``[]`` for a simple type (a cylinder's one ``diameter``)."""
+    if entry is None:
+        return []
+    try:
+        fields = registry.by_name(str(ctype)).schema.model_fields
+    except (KeyError, AttributeError):
+        return []
+    names = [k for k in fields if k in _type_names() or k in SIZE_SYMBOLS]
+    return [k for k in names if _get(entry, k) is not None] if len(names) >= 2 else []
 
 
 def frames(result, entry=None) -> tuple:
@@ -342,16 +367,12 @@ def frames(result, entry=None) -> tuple:
     if ctype is None:
         raise KeyError("a characteristic result needs its 'type' to make its frame")
     up = _get(result, "upper")
-    keys = list(up) if isinstance(up, dict) else []
-    if not keys and isinstance(_get(result, "nominal"), dict):   # a hole not measured
-        keys = [k for k in ("diameter", "position") if _get(entry, k) is not None]
-    if not keys and entry is not None and ctype == "hole":
-        keys = [k for k in ("diameter", "position") if _get(entry, k) is not None]
+    keys = list(up) if isinstance(up, dict) else [] if up is not None else \
+        _parts_of(ctype, entry)                        # not measured: the entry's parts
     if keys:
         out = []
         for k in keys:
-            sym = registry.symbol(k) if k in {t.name for t in registry.TYPES} else \
-                SIZE_SYMBOLS.get(k, "")
+            sym = registry.symbol(k) if k in _type_names() else SIZE_SYMBOLS.get(k, "")
             if sym in SYMBOLS:
                 sub = _get(entry, k)
                 out.append(_tolerance_frame(sym, entry, result, k, _get(sub, "tol")))
