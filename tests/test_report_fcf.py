@@ -102,6 +102,21 @@ def test_new_registry_row_just_works(monkeypatch):
                        "upper": 0.1}) == "40.000 +0.1/−0.1"
 
 
+def test_registry_row_without_its_symbol_takes_the_pmis_or_its_label(monkeypatch):
+    """A row added without the symbol column (its default "") is still framed: with the PMI
+    type's symbol, else (a zone width) with its label in the symbol's place."""
+    row = registry.CharacteristicType("line_profile", object, "gdt:none", True,
+                                      "profile of a line")
+    monkeypatch.setattr(registry, "TYPES", registry.TYPES + (row,))
+    monkeypatch.setitem(registry._BY_NAME, "line_profile", row)
+    pmi = {"kind": "geometric_tolerance", "type": "ProfileOfLine", "datums": "A"}
+    res = {"type": "line_profile", "upper": 0.1}
+    assert F.fcf_text(res, {"type": "line_profile", "tol": 0.1, "pmi": pmi}) == "⌒|0.1|A"
+    f, = F.frames(res, {"type": "line_profile", "tol": 0.1})
+    assert f.is_tolerance and f.text == "profile of a line|0.1"
+    assert F.drawn_symbol("profile of a line") == ("text", "profile of a line")
+
+
 def test_sizes_are_written_as_dimensions_with_their_limits():
     cyl = {"type": "cylinder", "nominal": 20.0, "lower": -0.05, "upper": 0.05}
     assert F.fcf_text(cyl) == "Ø20.000 +0.05/−0.05"

@@ -8,7 +8,9 @@ A hole (diameter and position) gives both.
 
 Everything follows the characteristic registry (:mod:`shapeverify.characteristics.registry`,
 its ``symbol`` column): a type whose symbol is a geometric-tolerance symbol (:data:`SYMBOLS`)
-becomes a frame, any other a dimension.  The zone is the plan entry's ``tol`` (the drawing's
+becomes a frame, any other a dimension.  A row without a symbol takes its PMI's
+(:data:`PMI_SYMBOLS`: ``ProfileOfLine`` -> ``⌒``), or, a zone width (``one_sided``), is framed
+with its label in the symbol's place.  The zone is the plan entry's ``tol`` (the drawing's
 value, not the bonus-enlarged limit of the result), ``Ø`` where its ``zone`` is ``diameter``,
 Ⓜ/Ⓛ from ``material``, Ⓣ from ``tangent_plane``; the datums are the entry's ``datums`` (else
 its PMI's, else the evaluated DRF's); the PMI's own modifiers (``pmi.modifiers``,
@@ -37,7 +39,7 @@ from ..characteristics import registry
 
 __all__ = ["Frame", "frames", "fcf_text", "drf_key", "drf_title", "group_by_drf",
            "frame_html", "svg_symbol", "draw_frame", "frame_width", "drawn_symbol", "font_text",
-           "SYMBOLS", "STROKES", "MODIFIERS", "ZONE_MODIFIERS", "DATUM_MODIFIERS",
+           "SYMBOLS", "PMI_SYMBOLS", "STROKES", "MODIFIERS", "ZONE_MODIFIERS", "DATUM_MODIFIERS",
            "SIZE_SYMBOLS", "FCF_CSS"]
 
 #: geometric-tolerance symbol -> (name, abbreviation written where no glyph can be drawn)
@@ -57,6 +59,14 @@ SYMBOLS: dict[str, tuple[str, str]] = {
     "↗": ("circular runout", "CRO"),
     "⌰": ("total runout", "TRO"),
 }
+
+#: OpenCASCADE's geometric tolerance types (``pmi.type``) -> symbol: a frame for a registry
+#: row that has no symbol yet
+PMI_SYMBOLS = {"Straightness": "⏤", "Flatness": "⏥", "CircularityOrRoundness": "○",
+               "Cylindricity": "⌭", "ProfileOfLine": "⌒", "ProfileOfSurface": "⌓",
+               "Parallelism": "∥", "Perpendicularity": "⊥", "Angularity": "∠",
+               "Position": "⌖", "Concentricity": "◎", "Coaxiality": "◎", "Symmetry": "⌯",
+               "CircularRunout": "↗", "TotalRunout": "⌰"}
 
 #: a size's key in a compound result (a hole's ``diameter``) -> its symbol
 SIZE_SYMBOLS = {"diameter": "Ø", "radius": "R", "width": "", "distance": ""}
@@ -131,6 +141,9 @@ class Frame:
         What the drawing writes beside the frame (``all around``, ``SEP REQT``).
     part : str or None
         The key of a compound result this frame is of (a hole's ``diameter``/``position``).
+    framed : bool or None
+        A geometric tolerance drawn as a frame (None: when ``symbol`` is one of
+        :data:`SYMBOLS`).
     """
 
     symbol: str
@@ -138,11 +151,12 @@ class Frame:
     datums: tuple = ()
     notes: tuple = ()
     part: str | None = None
+    framed: bool | None = None
 
     @property
     def is_tolerance(self) -> bool:
         """A geometric tolerance (framed), not a size."""
-        return self.symbol in SYMBOLS
+        return self.symbol in SYMBOLS if self.framed is None else self.framed
 
     @property
     def text(self) -> str:
@@ -291,7 +305,7 @@ def _tolerance_frame(symbol, entry, result, part=None, tol=None) -> Frame:
     for d in datums:
         comps.append((("text", d),) + tuple(_modifier(DATUM_MODIFIERS, m)
                                              for m in dmods.get(d, ())))
-    return Frame(symbol, tuple(comps), datums, tuple(notes), part)
+    return Frame(symbol, tuple(comps), datums, tuple(notes), part, True)
 
 
 def _size_frame(symbol, entry, result, part=None) -> Frame:
@@ -380,7 +394,13 @@ def frames(result, entry=None) -> tuple:
                 out.append(_size_frame(sym, entry, result, k))
         return tuple(out)
     sym = registry.symbol(str(ctype))
-    if sym in SYMBOLS:
+    if not sym:                     # a row without its symbol yet: the PMI's, or its label
+        pmi = _pmi(entry)
+        sym = PMI_SYMBOLS.get(str(pmi.get("type")), "") \
+            if pmi.get("kind") == "geometric_tolerance" else ""
+        if not sym and str(ctype) in registry.one_sided_types():
+            sym = registry.label(str(ctype))
+    if sym in SYMBOLS or str(ctype) in registry.one_sided_types():
         return (_tolerance_frame(sym, entry, result),)
     return (_size_frame(sym, entry, result),)
 
