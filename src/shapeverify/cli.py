@@ -392,11 +392,17 @@ def _print_result(result) -> None:
     chars = d.get("characteristics") or []
     if chars:
         from shapeverify.characteristics.evaluate import format_value as _fmt_value
+        from shapeverify.report.fcf import fcf_text
+        plan = getattr(getattr(result, "plan", None), "plan", None)    # the Plan, if any
+        entries = {e.name: e for e in getattr(plan, "characteristics", ())}
         ct = Table(title="Characteristics [mm]")
-        for col in ("name", "type", "measured", "deviation", "limits", "uncertainty U", "verdict"):
+        for col in ("name", "type", "frame", "measured", "deviation", "limits", "uncertainty U",
+                    "verdict"):
             ct.add_column(col)
         for c in chars:
-            ct.add_row(str(c.get("name")), str(c.get("type")), _fmt_value(c.get("measured")),
+            ct.add_row(str(c.get("name")), str(c.get("type")),
+                       escape(fcf_text(c, entries.get(c.get("name")))),
+                       _fmt_value(c.get("measured")),
                        _fmt_value(c.get("deviation"), signed=True),
                        format_limits(c.get("lower"), c.get("upper")),
                        _fmt_value(c.get("uncertainty")), str(c.get("verdict")))

@@ -4,7 +4,10 @@ Page 1: header (part id, scan file, model, date, alignment, verdict), colour map
 deviations in discrete tolerance bands with the CAD area the scan does not cover in grey, the
 check points as whiskers (a line along the CAD normal, scaled, with the value), and the
 histogram with the tolerance limits.  Page 2: the characteristic table (nominal, measured,
-deviation, limits, uncertainty U, verdict).  Page 3 (when the plan has a ``section``): the
+zone, deviation, uncertainty U, verdict), grouped by datum reference frame ("DRF A|B|C", then
+the characteristics without datums), each with its feature control frame as the drawing writes
+it (:mod:`shapeverify.report.fcf`: symbol, zone, modifiers, datums; a size as its dimension
+``Ø20.000 +0.05/−0.05``).  Page 3 (when the plan has a ``section``): the
 deviation along the cross-section, with whiskers from the CAD line to each point.
 
 Bands: the band width is the *band tolerance* ``b`` (the half-width t/2 of the plan's first
@@ -356,28 +359,91 @@ def _clip(text: str, n: int) -> str:
 ROWS_PER_PAGE = 30
 _ROW_BASE, _ROW_LINE = 0.008, 0.0125     # a row's height: fractions of the table's axes
 _TABLE_ROOM = 0.95                       # of the table's axes, under the header row
+_COLS = ["characteristic", "feature control frame", "nominal", "measured", "zone",
+         "deviation", "U", "verdict"]
+_WIDTHS = [0.15, 0.25, 0.10, 0.11, 0.10, 0.11, 0.08, 0.10]
+_FCF_COL = 1
+_FRAME_H, _FRAME_FONT, _FRAME_MIN_FONT = 10.5, 8.0, 5.5   # points
+
+
+def _zone(c) -> str:
+    """The zone (limits) of a result: ``≤ t`` for a zone width (upper limit only), the upper
+    over the lower limit for a two-sided one; a hole's per key."""
+    from .registry import one_sided_types
+
+    def one(key, lo, hi):
+        if hi is None:
+            return "-"
+        if key in one_sided_types() or lo is None:
+            return f"≤ {_fmt(hi)}"
+        return f"{float(hi):+.4g}\n{float(lo):+.4g}"           # upper over lower
+
+    if isinstance(c.upper, dict):
+        lo = c.lower if isinstance(c.lower, dict) else {}
+        return "\n".join(f"{'pos' if k == 'position' else k[0]}: {one(k, lo.get(k), v)}"
+                          for k, v in c.upper.items())
+    return one(c.type, c.lower, c.upper)
+
+
+def _table_entries(result):
+    """``[("head", datums) | ("row", (cells, frames, colour)), ...]``: the characteristics
+    grouped by datum reference frame (:func:`shapeverify.report.fcf.group_by_drf`), each
+    group under its heading."""
+    from ..report.fcf import frames, group_by_drf
+
+    plan = {c.name: c for c in result.plan.characteristics}
+    items = []
+    for c in result.characteristics:
+        fs = frames(c, plan.get(c.name))
+        cells = [c.name, "", _fmt(c.nominal), _fmt(c.measured), _zone(c), _fmt(c.deviation),
+                 _fmt(c.uncertainty, 3), c.verdict]
+        items.append((cells, fs, _colour(c.verdict)))
+    out = []
+    for drf, group in group_by_drf(items):
+        out.append(("head", drf))
+        out += [("row", it) for it in group]
+    return out
+
+
+def _entry_height(entry) -> float:
+    if entry[0] == "head":
+        return _ROW_BASE + _ROW_LINE
+    cells, fs, _ = entry[1]
+    lines = max(max(str(x).count("\n") + 1 for x in cells), len(fs))
+    return _ROW_BASE + _ROW_LINE * lines
+
+
+def _paginate(entries) -> list[list]:
+    """The entries page by page: as many as fit under the header row (at most
+    :data:`ROWS_PER_PAGE` characteristics); a page that starts inside a group repeats its
+    heading (``("head", datums, True)``: continued)."""
+    pages, page, used, rows, drf = [], [], 0.0, 0, None
+    for e in entries:
+        h = _entry_height(e)
+        full = used + h > _TABLE_ROOM or (e[0] == "row" and rows >= ROWS_PER_PAGE)
+        if e[0] == "head" and used + h + _entry_height(("row", ([""], (), None))) > _TABLE_ROOM:
+            full = True                        # no heading alone at a page's foot
+        if page and full:
+            pages.append(page)
+            page, used, rows = [], 0.0, 0
+            if e[0] == "row":
+                page.append(("head", drf, True))
+                used += _entry_height(page[-1])
+        if e[0] == "head":
+            drf = e[1]
+        else:
+            rows += 1
+        page.append(e)
+        used += h
+    return pages + [page] if page else [[]]
 
 
 def _pages_table(result, part):
-    """Page 2 (and more for a long plan): the characteristics table, A4 portrait."""
-    cols = ["name", "type", "nominal", "measured", "deviation", "lower", "upper", "U",
-            "verdict"]
-    widths = [0.11, 0.10, 0.13, 0.13, 0.11, 0.10, 0.10, 0.11, 0.09]
-    rows, colours = [], []
-    for c in result.characteristics:
-        rows.append([c.name, _type_label(c.type).replace("_", "\n"), _fmt(c.nominal),
-                     _fmt(c.measured), _fmt(c.deviation), _fmt(c.lower), _fmt(c.upper),
-                     _fmt(c.uncertainty, 3), c.verdict])
-        colours.append(_colour(c.verdict))
-    heights = [_ROW_BASE + _ROW_LINE * (max(str(x).count("\n") for x in row) + 1)
-               for row in rows]
-    chunks, start, used = [], 0, 0.0
-    for i, h in enumerate(heights):            # as many rows a page as fit under its header
-        if i > start and (used + h > _TABLE_ROOM or i - start >= ROWS_PER_PAGE):
-            chunks.append(range(start, i))
-            start, used = i, 0.0
-        used += h
-    chunks = chunks + [range(start, len(rows))] if rows else [range(0)]
+    """Page 2 (and more for a long plan): the characteristics table, A4 portrait, grouped by
+    datum reference frame, each row with its feature control frame(s)."""
+    from ..report.fcf import drf_title
+
+    chunks = _paginate(_table_entries(result)) if result.characteristics else [[]]
     pages = []
     for k, chunk in enumerate(chunks):
         fig = _figure(*A4_PORTRAIT)
@@ -386,25 +452,34 @@ def _pages_table(result, part):
                                  fontsize=14, weight="bold", va="top"))
         fig.text(0.05, 0.935, "U: expanded uncertainty (k = "
                  f"{result.plan.coverage_factor:g}); verdict by ISO 14253-1 (undecided: "
-                 "within U of a limit).\nZone widths (profile, flatness, position) have an "
-                 "upper limit only. mm.", fontsize=8.5, va="top")
+                 "within U of a limit). mm.\nZone widths (profile, flatness, position ...) "
+                 "have an upper limit only (≤); with a material modifier (M, L)\nthe zone "
+                 "includes the bonus tolerance of the measured size. Grouped by datum "
+                 "reference frame (DRF).", fontsize=8.5, va="top")
         tx = fig.add_axes([0.04, 0.04, 0.92, 0.86])
         tx.axis("off")
-        if len(chunk):
-            body = [rows[i] for i in chunk]
-            tab = tx.table(cellText=body, colLabels=cols, loc="upper center",
-                           cellLoc="center", colWidths=widths)
+        if chunk:
+            body = [[""] * len(_COLS) if e[0] == "head" else list(e[1][0]) for e in chunk]
+            tab = tx.table(cellText=body, colLabels=_COLS, loc="upper center",
+                           cellLoc="center", colWidths=_WIDTHS)
             tab.auto_set_font_size(False)
             tab.set_fontsize(8.5)
-            for r, i in enumerate(chunk, start=1):
-                for j in range(len(cols)):
-                    tab[r, j].set_height(heights[i])
-                tab[r, len(cols) - 1].get_text().set_color(colours[i])
-                tab[r, len(cols) - 1].get_text().set_weight("bold")
-            for j in range(len(cols)):
+            for r, e in enumerate(chunk, start=1):
+                for j in range(len(_COLS)):
+                    tab[r, j].set_height(_entry_height(e))
+                if e[0] == "head":          # one band: no inner edges (its shade: _draw_frames)
+                    for j in range(len(_COLS)):
+                        tab[r, j].set_facecolor("none")
+                        tab[r, j].visible_edges = ("BTL" if j == 0 else
+                                                   "BTR" if j == len(_COLS) - 1 else "BT")
+                else:
+                    tab[r, len(_COLS) - 1].get_text().set_color(e[1][2])
+                    tab[r, len(_COLS) - 1].get_text().set_weight("bold")
+            for j in range(len(_COLS)):
                 tab[0, j].set_facecolor("#e8e8e8")
                 tab[0, j].set_height(0.025)
             _fit_cells(fig, tab)
+            _draw_frames(fig, tab, chunk, drf_title)
         else:
             no_plan = result.alignment.details.get("source") == "registration"
             tx.text(0.5, 0.5, "no inspection plan: the verdict is the tolerance on every\n"
@@ -412,6 +487,45 @@ def _pages_table(result, part):
                     "the plan has no characteristics", ha="center", fontsize=10)
         pages.append(fig)
     return pages
+
+
+def _draw_frames(fig, tab, chunk, drf_title) -> None:
+    """The group headings and each row's frames, drawn into the laid-out table (cells placed
+    by :func:`_fit_cells`' draw): a frame wider than its cell is drawn smaller, down to
+    :data:`_FRAME_MIN_FONT` points."""
+    from matplotlib.patches import Rectangle
+
+    from ..report.fcf import draw_frame, frame_width
+
+    renderer = fig.canvas.get_renderer()
+    to_pt = 72.0 / fig.dpi
+    for r, e in enumerate(chunk, start=1):
+        box = tab[r, 0].get_window_extent(renderer)
+        if e[0] == "head":
+            right = tab[r, len(_COLS) - 1].get_window_extent(renderer)
+            title = drf_title(e[1]) + (" (continued)" if len(e) > 2 else "")
+            t = fig.text((box.x0 + 4 / to_pt) / fig.bbox.width,
+                         (box.y0 + box.height / 2) / fig.bbox.height, title, fontsize=8.5,
+                         weight="bold", va="center_baseline", gid="drf-heading")
+            _fit_width(fig, t, right.x1 / fig.bbox.width)
+            d = fig.dpi                   # inches: in place at any output resolution
+            fig.add_artist(Rectangle((box.x0 / d, box.y0 / d), (right.x1 - box.x0) / d,
+                                     box.height / d, transform=fig.dpi_scale_trans,
+                                     facecolor="#ececec", edgecolor="none", zorder=-1))
+            continue
+        cell = tab[r, _FCF_COL].get_window_extent(renderer)
+        fs = e[1][1]
+        n = len(fs)
+        room = cell.width * to_pt - 6.0
+        for i, f in enumerate(fs):
+            size, h = _FRAME_FONT, _FRAME_H
+            while size > _FRAME_MIN_FONT and frame_width(fig, f, height=h,
+                                                          fontsize=size) > room:
+                size, h = size - 0.5, h * (size - 0.5) / size
+            slot = cell.height * to_pt / n
+            y = cell.y0 * to_pt + cell.height * to_pt - slot * (i + 1) + (slot - h) / 2
+            draw_frame(fig, f, cell.x0 * to_pt + 3.0, y, height=h, fontsize=size,
+                       gid=f"fcf:{e[1][0][0]}:{i}")
 
 
 def _page_section(sec, b, cmap, norm):

@@ -10,7 +10,10 @@ and one row of :data:`TYPES`.  From this table:
 * the zone sidedness (``one_sided``: a zone width with an upper limit only, ISO 14253-1
   decision against the upper limit; :func:`.zones.is_one_sided`),
 * SPC's one-sided series (:mod:`.spc`: no lower limit, no Cp),
-* the label a report prints for a type (:func:`label`; the PDF's table).
+* the label a report prints for a type (:func:`label`; the PDF's table),
+* the symbol of its feature control frame (``symbol``: the ISO 1101 / ASME Y14.5 symbol of a
+  geometric tolerance, "Ø" for a diameter, "" for a linear size or a point;
+  :mod:`shapeverify.report.fcf` draws the frame from it).
 
 Evaluators are named as ``"module:function"`` (relative to this package) and imported on first
 use, so that this table imports no evaluator module (no import cycle).
@@ -23,7 +26,7 @@ from dataclasses import dataclass
 from . import schema
 
 __all__ = ["CharacteristicType", "TYPES", "by_name", "schemas", "evaluator", "one_sided_types",
-           "label"]
+           "label", "symbol"]
 
 
 @dataclass(frozen=True)
@@ -37,6 +40,9 @@ class CharacteristicType:
     evaluator : str      ``"module:function"`` of its evaluator in this package
     one_sided : bool     the measured value is a zone width (upper limit only)
     label : str          what a report prints (the five first types: their name, as before)
+    symbol : str         the feature control frame's symbol (ISO 1101 / ASME Y14.5, Unicode),
+                         "Ø" for a diameter, "" for a linear size or a point
+                         (:mod:`shapeverify.report.fcf`)
     """
 
     name: str
@@ -44,34 +50,36 @@ class CharacteristicType:
     evaluator: str
     one_sided: bool
     label: str
+    symbol: str = ""
 
 
 TYPES: tuple[CharacteristicType, ...] = (
-    CharacteristicType("hole", schema.Hole, "evaluate:eval_hole", False, "hole"),
+    CharacteristicType("hole", schema.Hole, "evaluate:eval_hole", False, "hole", "⌖"),
     CharacteristicType("surface_profile", schema.SurfaceProfile, "gdt:eval_surface_profile", True,
-                       "surface_profile"),
-    CharacteristicType("flatness", schema.Flatness, "evaluate:eval_flatness", True, "flatness"),
+                       "surface_profile", "⌓"),
+    CharacteristicType("flatness", schema.Flatness, "evaluate:eval_flatness", True, "flatness",
+                       "⏥"),
     CharacteristicType("cylinder", schema.Cylinder, "evaluate:eval_cylinder", False,
-                       "cylinder"),
+                       "cylinder", "Ø"),
     CharacteristicType("check_point", schema.CheckPoint, "evaluate:eval_check_point", False,
                        "check_point"),
     CharacteristicType("straightness", schema.Straightness, "gdt:eval_straightness", True,
-                       "straightness"),
+                       "straightness", "⏤"),
     CharacteristicType("circularity", schema.Circularity, "gdt:eval_circularity", True,
-                       "circularity (roundness)"),
+                       "circularity (roundness)", "○"),
     CharacteristicType("cylindricity", schema.Cylindricity, "gdt:eval_cylindricity", True,
-                       "cylindricity"),
+                       "cylindricity", "⌭"),
     CharacteristicType("parallelism", schema.Parallelism, "gdt:eval_orientation", True,
-                       "parallelism"),
+                       "parallelism", "∥"),
     CharacteristicType("perpendicularity", schema.Perpendicularity, "gdt:eval_orientation",
-                       True, "perpendicularity"),
+                       True, "perpendicularity", "⊥"),
     CharacteristicType("angularity", schema.Angularity, "gdt:eval_orientation", True,
-                       "angularity"),
-    CharacteristicType("position", schema.Position, "gdt:eval_position", True, "position"),
+                       "angularity", "∠"),
+    CharacteristicType("position", schema.Position, "gdt:eval_position", True, "position", "⌖"),
     CharacteristicType("circular_runout", schema.CircularRunout, "gdt:eval_runout", True,
-                       "circular runout"),
+                       "circular runout", "↗"),
     CharacteristicType("total_runout", schema.TotalRunout, "gdt:eval_runout", True,
-                       "total runout"),
+                       "total runout", "⌰"),
     CharacteristicType("width", schema.Width, "gdt:eval_width", False, "size (width)"),
 )
 
@@ -115,3 +123,9 @@ def label(name: str) -> str:
     """What a report prints for the type ``name`` (the name itself if unregistered)."""
     t = _BY_NAME.get(name)
     return t.label if t is not None else str(name)
+
+
+def symbol(name: str) -> str:
+    """The feature control frame symbol of the type ``name`` ("" if unregistered)."""
+    t = _BY_NAME.get(name)
+    return t.symbol if t is not None else ""

@@ -3,8 +3,11 @@
 Every characteristic of a :class:`~.evaluate.PlanResult` becomes one row of the table
 ``characteristics`` in the same SQLite file as the inspection history
 (:class:`shapeverify.report.history.HistoryDB`, WAL mode; the table lives beside
-``inspections`` and may point at one of its rows with ``inspection_id``).  A hole gives two
-series, ``NAME.diameter`` and ``NAME.position``.
+``inspections`` and may point at one of its rows with ``inspection_id``).  A compound result
+(a hole) gives one series per key, ``NAME.diameter`` and ``NAME.position``.  Every row keeps
+its feature control frame as text (``fcf``: ``⌖|Ø0.5Ⓜ|A|B|C``, ``Ø20.000 +0.05/−0.05``;
+:mod:`shapeverify.report.fcf`), also in the CSV export; a history written before has the column
+added (empty for its old rows).
 
 The charted **value** of a row is the deviation ``measured - nominal`` (diameters, check points)
 or the zone value itself (surface profile, flatness, position: one-sided, ``lower`` NULL).
@@ -60,12 +63,13 @@ CREATE TABLE IF NOT EXISTS characteristics (
     lower REAL,
     upper REAL,
     uncertainty REAL,
-    verdict TEXT NOT NULL
+    verdict TEXT NOT NULL,
+    fcf TEXT
 );
 CREATE INDEX IF NOT EXISTS characteristics_name ON characteristics (name, id);
 """
 _COLS = ("id", "inspection_id", "part", "time", "name", "type", "nominal", "measured", "value",
-         "lower", "upper", "uncertainty", "verdict")
+         "lower", "upper", "uncertainty", "verdict", "fcf")
 
 
 def _num(x):
@@ -83,6 +87,9 @@ def _connect(db) -> sqlite3.Connection:
         con.execute("PRAGMA journal_mode=WAL")
         with con:
             con.executescript(_SCHEMA)
+            have = {r[1] for r in con.execute("PRAGMA table_info(characteristics)")}
+            if "fcf" not in have:        # a history written before the frames (issue 28)
+                con.execute("ALTER TABLE characteristics ADD COLUMN fcf TEXT")
     except sqlite3.DatabaseError as exc:
         con.close()
         raise ValueError(f"{path}: not an SQLite history database ({exc})") from None
@@ -90,25 +97,34 @@ def _connect(db) -> sqlite3.Connection:
 
 
 def _rows_of(result) -> list[tuple]:
+    """One row per series: a characteristic with one value, or one per key of a compound
+    result (a hole's ``diameter`` and ``position``: dicts of limits), each with its feature
+    control frame's text (:func:`shapeverify.report.fcf.fcf_text`)."""
+    from ..report.fcf import fcf_text
+
+    entries = {e.name: e for e in getattr(getattr(result, "plan", None), "characteristics",
+                                          None) or ()}
     out = []
     for c in result.characteristics:
         d = c.to_dict()
-        if c.type == "hole":
-            for key in ("diameter", "position"):
-                if d["upper"] is None or key not in (d["upper"] or {}):
-                    continue
-                nom = d["nominal"]["diameter"] if key == "diameter" and d["nominal"] else 0.0
-                meas = (d["measured"] or {}).get("diameter") if key == "diameter" else \
-                    (d["deviation"] or {}).get("position")
-                val = (d["deviation"] or {}).get(key)
-                lo = None if key == "position" else d["lower"].get(key)
-                out.append((f"{c.name}.{key}", "hole " + key, nom, meas, val, lo,
-                            d["upper"].get(key), (d["uncertainty"] or {}).get(key),
-                            d["details"].get("verdicts", {}).get(key, c.verdict)))
+        entry = entries.get(c.name)
+        if isinstance(d["upper"], dict):
+            get = lambda k, key: (d[k] or {}).get(key) if isinstance(d[k], dict) else None  # noqa: E731
+            for key, hi in d["upper"].items():
+                one = key in _ONE_SIDED
+                nom = 0.0 if one else get("nominal", key)
+                meas = get("deviation" if one else "measured", key)
+                out.append((f"{c.name}.{key}", f"{c.type} {key}", nom, meas,
+                            get("deviation", key), None if one else get("lower", key), hi,
+                            get("uncertainty", key),
+                            d["details"].get("verdicts", {}).get(key, c.verdict),
+                            fcf_text(c, entry, key)))
+        elif d["upper"] is None and c.type == "hole":
+            continue          # a hole not measured: neither series has a value (as before)
         else:
             lo = None if c.type in _ONE_SIDED else d["lower"]
             out.append((c.name, c.type, d["nominal"], d["measured"], d["deviation"], lo,
-                        d["upper"], d["uncertainty"], c.verdict))
+                        d["upper"], d["uncertainty"], c.verdict, fcf_text(c, entry)))
     return out
 
 
@@ -138,7 +154,7 @@ def store_characteristics(db, result, part: str | None = None,
     stamp = time.isoformat(timespec="seconds") if isinstance(time, _dt.datetime) else str(time)
     part = part if part is not None else result.plan.part
     rows = [(inspection_id, part, stamp, n, t, _num(a), _num(b), _num(v), _num(lo), _num(hi),
-             _num(u), vd) for n, t, a, b, v, lo, hi, u, vd in _rows_of(result)]
+             _num(u), vd, f) for n, t, a, b, v, lo, hi, u, vd, f in _rows_of(result)]
     con = _connect(db)
     try:
         with con:
@@ -256,7 +272,7 @@ def _series(rows):
 
 def plot_run_chart(rows, path, *, dpi: int = 110) -> Path:
     """Run chart(s) of characteristic rows (one panel per series) with control and
-    specification limits and Cp/Cpk in the title; writes a PNG.
+    specification limits, the feature control frame and Cp/Cpk in the title; writes a PNG.
 
     Raises
     ------
@@ -265,6 +281,8 @@ def plot_run_chart(rows, path, *, dpi: int = 110) -> Path:
     """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
     from matplotlib.figure import Figure
+
+    from ..report.fcf import font_text     # the font lacks some symbols: abbreviations
 
     rows = list(rows)
     if not rows:
@@ -280,7 +298,8 @@ def plot_run_chart(rows, path, *, dpi: int = 110) -> Path:
         ax.plot(x, y, "-", color="#4c72b0", lw=1)
         col = {"pass": "#4c72b0", "fail": "#b3261e", "undecided": "#a15c00"}
         ax.scatter(x, y, s=20, c=[col.get(r["verdict"], "black") for r in rs], zorder=3)
-        title = name
+        fcf = rs[-1].get("fcf")
+        title = name + (f"  {font_text(fcf)}" if fcf else "")
         if np.isfinite(y).sum() >= 2:
             cap = capability(y, lo, hi)
             ax.axhline(cap.mean, color="#333333", lw=1)
@@ -311,9 +330,10 @@ def plot_run_chart(rows, path, *, dpi: int = 110) -> Path:
 
 
 def export_csv(rows, path) -> Path:
-    """Write characteristic rows to CSV (columns of the table, one row per value)."""
+    """Write characteristic rows to CSV (columns of the table, one row per value; UTF-8: the
+    ``fcf`` column holds the frames' symbols, ⌖ Ⓜ ..., whatever the locale's encoding)."""
     path = Path(path)
-    with open(path, "w", newline="") as fh:
+    with open(path, "w", newline="", encoding="utf-8") as fh:
         w = csv.DictWriter(fh, fieldnames=list(_COLS))
         w.writeheader()
         for r in rows:

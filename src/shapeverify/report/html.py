@@ -25,6 +25,7 @@ import numpy as np
 from .._random import generator
 from ..verdict_table import verdict_style
 from .colours import CMAP, color_limit
+from .fcf import FCF_CSS, drf_title, frame_html, frames, group_by_drf
 from .labels import free_labels
 from .quantities import area_text, length_text
 from .ply import check_scan_length
@@ -62,6 +63,51 @@ def _table(rows, header=None, cls="kv") -> str:
         out.append("<tr>" + "".join(f"<th>{html.escape(str(h))}</th>" for h in header) + "</tr>")
     for row in rows:
         out.append("<tr>" + "".join(f"<td>{c}</td>" for c in row) + "</tr>")
+    out.append("</table>")
+    return "".join(out)
+
+
+def _zone(ctype: str, lo, hi, fmt) -> str:
+    """A zone: ``≤ t`` for a zone width (the registry's one-sided types: upper limit only),
+    ``lower … upper`` for a two-sided one."""
+    from ..characteristics.registry import one_sided_types
+
+    if hi is None:
+        return "–"
+    if ctype in one_sided_types() or lo is None:
+        return f"≤&nbsp;{fmt(hi)}"
+    return f"{fmt(lo, True)}&nbsp;…&nbsp;{fmt(hi, True)}"
+
+
+def _characteristics_table(chars, plan_result, fmt) -> str:
+    """The characteristics (their JSON dicts) grouped by datum reference frame ("DRF A|B|C",
+    then those without datums), each row with its feature control frame(s)
+    (:mod:`shapeverify.report.fcf`): frame, nominal, measured, zone, deviation, U, verdict."""
+    plan = getattr(plan_result, "plan", None)
+    entries = {c.name: c for c in getattr(plan, "characteristics", ())}
+    items = [(c, frames(c, entries.get(c["name"]))) for c in chars]
+    header = ("characteristic", "feature control frame", "nominal", "measured", "zone",
+              "deviation", "uncertainty U (k=2)", "verdict")
+    out = ['<table class="regions chars">', "<tr>" + "".join(f"<th>{h}</th>" for h in header)
+           + "</tr>"]
+    for drf, group in group_by_drf(items):
+        out.append(f'<tr class="drf" data-drf="{html.escape("|".join(drf))}"><th colspan='
+                   f'"{len(header)}">{html.escape(drf_title(drf))}</th></tr>')
+        for c, fs in group:
+            lo, hi = c.get("lower"), c.get("upper")
+            if isinstance(hi, dict):
+                lo = lo if isinstance(lo, dict) else {}
+                zone = "<br>".join(f"{html.escape(k)} {_zone(k, lo.get(k), v, fmt)}"
+                                   for k, v in hi.items())
+            else:
+                zone = _zone(str(c["type"]), lo, hi, fmt)
+            v = html.escape(str(c["verdict"]))
+            cells = (html.escape(str(c["name"])), "<br>".join(frame_html(f) for f in fs),
+                     fmt(c.get("nominal")), fmt(c.get("measured")), zone,
+                     fmt(c.get("deviation"), True), fmt(c.get("uncertainty")),
+                     f'<b class="v-{v}">{v}</b>')
+            out.append(f'<tr data-name="{html.escape(str(c["name"]))}">'
+                       + "".join(f"<td>{x}</td>" for x in cells) + "</tr>")
     out.append("</table>")
     return "".join(out)
 
@@ -336,7 +382,14 @@ h2{font-size:17px;margin:4px 0 10px}
 table{border-collapse:collapse;font-size:14px}
 td,th{padding:3px 10px;border-bottom:1px solid #e5e5e5;text-align:right}
 td:first-child,th:first-child{text-align:left}
+table.chars td:nth-child(2){text-align:left}
+tr.drf th{background:#eef0f3;text-align:left;padding-top:6px}
 .note{color:#555;font-size:13px}
+@page{size:A4 portrait;margin:12mm}
+@media print{body{background:#fff}main{max-width:none;padding:0}.card{box-shadow:none;
+break-inside:auto}table.chars tr{break-inside:avoid}}
+@media print,(max-width:860px){main{padding:8px}table.chars{font-size:10px}
+table.chars td,table.chars th{padding:2px 3px}table.chars .fcf{font-size:11px}}
 """
 
 
@@ -478,15 +531,7 @@ def render_html(result, model=None, *, max_points: int = MAX_POINTS, title: str 
         def _fmt_char(v, signed=False):
             return format_value(v, signed, sep="<br>", escape=html.escape)
 
-        char_tab = _table(
-            [(html.escape(str(c["name"])), html.escape(str(c["type"])), _fmt_char(c.get("nominal")),
-              _fmt_char(c.get("measured")), _fmt_char(c.get("deviation"), True),
-              _fmt_char(c.get("lower"), True), _fmt_char(c.get("upper"), True),
-              _fmt_char(c.get("uncertainty")),
-              f'<b class="v-{html.escape(str(c["verdict"]))}">{html.escape(str(c["verdict"]))}</b>')
-             for c in chars],
-            header=("characteristic", "type", "nominal", "measured", "deviation", "lower", "upper",
-                    "uncertainty U (k=2)", "verdict"), cls="regions")
+        char_tab = _characteristics_table(chars, result.plan, _fmt_char)
         al = d.get("alignment") or {}
         char_card = (f'<div class="card"><h2>Characteristics (mm)</h2><p class="note">Alignment: '
                      f'{html.escape(str(al.get("type", "–")))}, rms {_fmt(al.get("rms"), 4)} mm. '
@@ -513,7 +558,7 @@ def render_html(result, model=None, *, max_points: int = MAX_POINTS, title: str 
     return f"""<!DOCTYPE html>
 <html lang="en"><head><meta charset="utf-8">
 <meta name="viewport" content="width=device-width, initial-scale=1">
-<title>{html.escape(title)}</title><style>{_CSS}</style>
+<title>{html.escape(title)}</title><style>{_CSS}{FCF_CSS}</style>
 {_plotly_loader()}</head>
 <body><main>
 <div class="banner" id="verdict" style="background:{verdict_style(verdict).colour}">
