@@ -22,9 +22,10 @@ rim -- the tooth tops outside the root circle, and the flanks, tips and root arc
 deviation (ovality, three lobes and a tooth-wise term: 13 um RMS, up to 35 um) and 1 um noise,
 and moved by a random rigid motion.  It is placed from no start.
 
-Measured (seed 3): the seen faces are the 77 tooth faces and the top (the bore, the hub and the
-bottom are not seen; 52 % of the part's area), of which the scan covers 33 %; of the whole part
-15 %, under the 20 % needed for a verdict.
+Measured (seed 3, 33k points): placed 0.08 deg / 0.006 mm from a symmetric copy; the seen faces
+are the 76 tooth faces and one flat face (the hub, the bore and the other flat face are not
+seen; 41 % of the part's area), of which the scan covers 36 %; of the whole part 15 %, under the
+20 % needed for a verdict.
 """
 from __future__ import annotations
 
