@@ -241,10 +241,12 @@ def seen_faces(prep, foot_points: np.ndarray, scan_spacing: float, *,
     share = float(np.isin(cov.face, np.asarray(faces, dtype=cov.face.dtype)).mean())
     listed = ", ".join(str(f) for f in faces[:12]) + (f", ... ({len(faces)} faces)"
                                                        if len(faces) > 12 else "")
-    return faces, (f"inspection limited to the {len(faces)} faces the scan saw (at least "
+    plural = "s" if len(faces) != 1 else ""
+    return faces, (f"inspection limited to the {len(faces)} face{plural} the scan saw (at least "
                    f"{100 * min_fraction:.0f} % of a face's area covered; {100 * share:.0f} % of "
-                   f"the part's area): faces {listed}; coverage and verdict are of these faces "
-                   "only, the rest of the part was not measured")
+                   f"the part's area): face{plural} {listed}; coverage and verdict are of "
+                   f"{'these faces' if plural else 'it'} only, the rest of the part was not "
+                   "measured")
 
 
 def _gaps(pts: np.ndarray, face: np.ndarray, a_pt: float, link: float, most: int = 10) -> tuple:
