@@ -43,7 +43,7 @@ MAX_DISTANCE = typer.Option(None, "--max-distance", hidden=True,
 # the inspection options that inspect and batch share (one help text each)
 LOWER = typer.Option(None, help="Lower limit [mm] (negative: into the material)")
 UPPER = typer.Option(None, help="Upper limit [mm]")
-FACES = typer.Option(None, "--faces", help="Inspect only these CAD faces, e.g. '0,3,7' (default: all)")
+FACES = typer.Option(None, "--faces", help="Inspect only these CAD faces, e.g. '0,3,7', or 'seen': the faces the scan saw (default: all)")
 MIN_COVERAGE = typer.Option(None, "--min-coverage", help="Least share of the inspected CAD area that must be seen (0..1, default 0.2 = shapeverify.inspection.MIN_COVERAGE); below it the verdict is 'incomplete'")
 INIT = typer.Option(None, "--init", help="Start pose T_model_scan: a 4x4 in T.json or T.npy, or a strategy: auto (default: the identity when the scan overlaps the model, else a global search), identity, principal-axes, global")
 SCAN_UNIT = typer.Option(None, "--scan-unit", help="Unit of the scan file (mm, cm, m, in, um; default mm)")

@@ -69,10 +69,13 @@ def _number(name: str, value, *, positive: bool = False, unit: str = " mm") -> f
     return x
 
 
-def _faces(value) -> tuple | None:
-    """``"0,3,7"``, ``"all"``, a sequence of face numbers or None -> sorted tuple or None."""
+def _faces(value) -> tuple | str | None:
+    """``"0,3,7"``, ``"all"``, ``"seen"``, a sequence of face numbers or None -> sorted tuple,
+    ``"seen"`` or None."""
     if value is None or (isinstance(value, str) and value.strip().lower() == "all"):
         return None
+    if isinstance(value, str) and value.strip().lower() == "seen":
+        return "seen"
     items = [f for f in value.replace(",", " ").split() if f] if isinstance(value, str) \
         else list(np.atleast_1d(np.asarray(value, dtype=object)))
     out = []
@@ -167,8 +170,9 @@ class InspectionOptions:
     evaluation_distance : float, optional
         Scan points farther than this from the CAD surface are not evaluated (mm); None: the
         default of :func:`shapeverify.inspection.default_evaluation_distance`.
-    faces : tuple of int, optional
-        The inspected CAD faces (``"0,3,7"`` is accepted); None: all.
+    faces : tuple of int or "seen", optional
+        The inspected CAD faces (``"0,3,7"`` is accepted); None: all; ``"seen"``: the faces the
+        scan saw (:func:`shapeverify.inspection.coverage.seen_faces`).
     min_coverage : float, optional
         Least covered share of the inspected area, 0..1 (None: 0.2).
     init : str, 4x4 or tuple of 4x4, optional

@@ -36,7 +36,8 @@ def _kind(model) -> str:
     kind = getattr(kind, "value", kind)
     if kind not in ("mesh", "points"):
         raise ValueError(f"a partial reference needs a mesh or point-cloud model, got a {kind!r} "
-                         "model; for a CAD model choose its faces instead (inspect(faces=...))")
+                         "model; for a CAD model choose its faces instead (inspect(faces=[...]), or "
+                         "inspect(faces=\"seen\") for the faces the scan saw)")
     return kind
 
 

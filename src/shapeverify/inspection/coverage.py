@@ -30,7 +30,8 @@ from shapeverify._lazy import cKDTree
 from ._grid_kernels import any_within, kernel_array
 from .regions import linked_components
 
-__all__ = ["Coverage", "compute_coverage", "MIN_COVERAGE", "MAX_SAMPLES"]
+__all__ = ["Coverage", "compute_coverage", "seen_faces", "MIN_COVERAGE", "MAX_SAMPLES",
+           "SEEN_FACE_COVERAGE"]
 
 #: Default least covered share of the inspected area for a pass or fail verdict.  A normal
 #: single view of a sheet-metal part sees 70-95 % of it; a closed part (a turned part, an
@@ -40,6 +41,11 @@ __all__ = ["Coverage", "compute_coverage", "MIN_COVERAGE", "MAX_SAMPLES"]
 MIN_COVERAGE = 0.2
 #: Most model points used to measure the coverage.
 MAX_SAMPLES = 20_000
+#: ``faces="seen"``: least covered share of a face's own area for it to count as seen.  The
+#: coverage radius reaches past the edge of what the scan saw, so a face next to the seen ones
+#: is grazed along that edge (a strip one radius wide: a few percent of a face a few radii
+#: across); a tenth keeps such faces out and every face the scan looked at in.
+SEEN_FACE_COVERAGE = 0.1
 
 
 @dataclass(frozen=True, eq=False)
@@ -207,6 +213,40 @@ def compute_coverage(prep, foot_points: np.ndarray, scan_spacing: float, *, face
                     points=pts, face=face, covered=covered, gaps=gaps,
                     faces=None if faces is None else tuple(int(f) for f in faces),
                     min_coverage=float(min_coverage))
+
+
+def seen_faces(prep, foot_points: np.ndarray, scan_spacing: float, *,
+               model_size: float | None = None,
+               min_fraction: float = SEEN_FACE_COVERAGE) -> tuple[tuple | None, str]:
+    """The faces the scan saw (``inspect(faces="seen")``) and the sentence that says so.
+
+    A face is seen when at least ``min_fraction`` of its area is covered by the evaluated foot
+    points (the coverage of all faces, :func:`compute_coverage`).  The inspection is then
+    limited to these faces: its coverage and verdict are of them only, the rest of the part was
+    not measured, which the returned sentence (a reason of the verdict) states with the share of
+    the part's area they make up.
+
+    Returns
+    -------
+    faces : tuple of int or None
+        The seen faces, sorted; None when no face is seen that well (the whole part is then
+        inspected, and the sentence says so).
+    note : str
+    """
+    cov = compute_coverage(prep, foot_points, scan_spacing, model_size=model_size)
+    faces = tuple(sorted(f for f, c in cov.per_face.items() if c >= min_fraction))
+    if not faces:
+        return None, (f"faces=seen: no face has {100 * min_fraction:.0f} % of its area covered "
+                      "by the scan; the whole part is inspected")
+    share = float(np.isin(cov.face, np.asarray(faces, dtype=cov.face.dtype)).mean())
+    listed = ", ".join(str(f) for f in faces[:12]) + (f", ... ({len(faces)} faces)"
+                                                       if len(faces) > 12 else "")
+    plural = "s" if len(faces) != 1 else ""
+    return faces, (f"inspection limited to the {len(faces)} face{plural} the scan saw (at least "
+                   f"{100 * min_fraction:.0f} % of a face's area covered; {100 * share:.0f} % of "
+                   f"the part's area): face{plural} {listed}; coverage and verdict are of "
+                   f"{'these faces' if plural else 'it'} only, the rest of the part was not "
+                   "measured")
 
 
 def _gaps(pts: np.ndarray, face: np.ndarray, a_pt: float, link: float, most: int = 10) -> tuple:

@@ -17,7 +17,7 @@ from .ambiguity import resolve
 # the scan check and the evaluation distance's default live in a leaf (characteristics read them)
 from .checks import (MAX_COPY_FRACTION, MIN_SCAN_POINTS, _bbox_diagonal,  # noqa: F401
                      _unit_message, check_scan, default_evaluation_distance)
-from .coverage import MIN_COVERAGE, compute_coverage
+from .coverage import MIN_COVERAGE, compute_coverage, seen_faces
 from .deviations import _deviations
 from .material import beside_surface, find_material, floating_surfaces
 from .missing import find_missing
@@ -70,9 +70,12 @@ def inspect(prep, scan, tolerance=None, evaluation_distance: float | None = None
     progress : callable(stage: str, fraction: float), optional
         Called at the start of each stage ('register', 'deviations', 'regions') and with
         ('done', 1.0) at the end.
-    faces : sequence of int, optional
+    faces : sequence of int or "seen", optional
         The inspected CAD faces (None: all). Points whose closest CAD point lies on another face
-        are not evaluated, and the coverage is measured on these faces only.
+        are not evaluated, and the coverage is measured on these faces only.  ``"seen"``: the
+        faces the scan saw, at least 10 % of a face's area covered at the registered pose
+        (:func:`~shapeverify.inspection.coverage.seen_faces`; a reason names them and their
+        share of the part), so that a partial view (a gear's rim) can pass or fail.
     per_face : dict {face: tolerance or (lower, upper)}, optional
         Per-face tolerance overrides.
     min_coverage : float
@@ -344,14 +347,20 @@ def _options(prep, given) -> _Options:
                     else given.min_inlier_fraction, given.missing)
 
 
-def _check_faces(prep, faces) -> tuple | None:
+def _check_faces(prep, faces) -> tuple | str | None:
     if faces is None or (isinstance(faces, str) and faces.strip().lower() == "all"):
         return None
     model = getattr(prep, "model", None)
     n_faces = len(getattr(model, "faces", ()) or ())
+    seen = isinstance(faces, str) and faces.strip().lower() == "seen"
     if n_faces == 0:
         raise ValueError("faces= names CAD faces, but this model has none (a mesh or point-cloud "
-                         "reference); inspect all of it instead")
+                         "reference); inspect all of it instead" + (
+                             ", or limit it to the part the scan saw with "
+                             "shapeverify.partial.inspect_partial(prep, scan, seen=True)"
+                             if seen else ""))
+    if seen:
+        return "seen"
     if isinstance(faces, str):
         faces = [f for f in faces.replace(",", " ").split() if f]
     out = []
@@ -390,6 +399,13 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
     t0 = time.perf_counter()
     T = np.asarray(reg.T_model_scan, dtype=np.float64)
     dev = _deviations(scan, prep, T, opts.evaluation_distance)
+    seen_note = None
+    if opts.faces == "seen":             # the faces the scan saw (coverage.seen_faces)
+        feet = dev.foot_points[dev.evaluated]
+        faces, seen_note = seen_faces(
+            prep, feet, surface_spacing(feet) if feet.shape[0] >= 2 else float("nan"),
+            model_size=_model_size(prep))
+        opts = dataclasses.replace(opts, faces=faces)
     if opts.faces is not None:
         dev = dev.restricted_to(opts.faces)
     timings["deviations"] = time.perf_counter() - t0
@@ -450,7 +466,7 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
     verdict, reasons, rule = decide(reg, dev, regions, coverage,
                                     min_inlier_fraction=opts.min_inlier_fraction, noise=noise,
                                     tolerance=tol, n_outliers=outliers.n)
-    notes = []
+    notes = [] if seen_note is None else [seen_note]
     from shapeverify.cad.completeness import missing_faces_note  # issue 33 row 2
     if missing_faces_note(prep.model):
         notes.append(missing_faces_note(prep.model))

@@ -17,7 +17,9 @@ in :data:`JOINT_ROUNDS` rounds, each view in turn takes Huber point-to-plane ste
 CAD (its closest points) and against the other views where they overlap (its points within two
 scan spacings of another view's point, the residual along the CAD normal: the views must agree
 where they see the same surface).  Each view's pose change is reported (``joint_change``), and
-the agreement is measured at the refined poses.
+the agreement is measured at the refined poses.  With no CAD (``joint_refine(..., prep=None)``)
+the views are refined against each other only, the first one held (scan to scan: on the Stanford
+bunny's views within 0.13 deg of ``bun.conf``, ``tests/test_views_several.py``).
 
 Example
 -------
@@ -147,34 +149,67 @@ JOINT_ROUNDS = 4
 JOINT_POINTS = 4000
 
 
-def joint_refine(pts, poses, prep, spacing: float, rounds: int = JOINT_ROUNDS) -> list:
+def _view_normals(p: np.ndarray, k: int = 12) -> np.ndarray:
+    """(N, 3) unit normals of a view's points (own frame): the least principal axis of each
+    point's ``k`` nearest neighbours (their sign is arbitrary; only the line is used)."""
+    k = min(k, p.shape[0])
+    _, idx = cKDTree(p).query(p, k)
+    Q = p[idx] - p[idx].mean(axis=1, keepdims=True)
+    _, vec = np.linalg.eigh(np.einsum("nki,nkj->nij", Q, Q))
+    return vec[:, :, 0]
+
+
+def joint_refine(pts, poses, prep, spacing: float, rounds: int = JOINT_ROUNDS, *,
+                 reach: float | None = None, fixed=None) -> list:
     """The poses (4, 4) of the views ``pts`` (each (N_i, 3), own frame), refined together
     (module docstring): ``rounds`` sweeps over the views, one Huber point-to-plane step each
     against the CAD's closest points and the overlapping points of the other views (within
-    ``2 x spacing``, residual along the CAD normal at the view's point).  Directions the data
-    leave undetermined get no step (:func:`~shapeverify.registration.rigid.solve_step`)."""
+    ``reach``, default ``2 x spacing``; residual along the CAD normal at the view's point).
+    Directions the data leave undetermined get no step
+    (:func:`~shapeverify.registration.rigid.solve_step`).
+
+    ``prep`` None: the views against each other only (scan to scan, no CAD): the residual is
+    along the other view's normal there (a local plane fit of its points), and the views in
+    ``fixed`` (default the first) keep their pose, which fixes the common frame.
+    """
     from ..registration.losses import get_loss
     from ..registration.rigid import compose_step, make_transform, point_to_plane_system, \
         solve_step
 
     huber = get_loss("huber")
+    reach = 2.0 * spacing if reach is None else float(reach)
+    fixed = set((0,) if prep is None and fixed is None else (fixed or ()))
     T = [np.asarray(P, np.float64).copy() for P in poses]
     sub = [p[np.linspace(0, len(p) - 1, min(JOINT_POINTS, len(p))).astype(np.int64)]
            for p in pts]
+    own_normals = [_view_normals(p) for p in pts] if prep is None else None
     for _ in range(rounds):
         for i in range(len(pts)):
+            if i in fixed:
+                continue
             X = sub[i] @ T[i][:3, :3].T + T[i][:3, 3]
-            cl = prep.closest(X)
-            ok = np.isfinite(cl.distances) & ~np.asarray(cl.on_boundary, bool)
-            src, dst, nrm = [X[ok]], [cl.points[ok]], [cl.normals[ok]]
+            src, dst, nrm = [], [], []
+            if prep is not None:
+                cl = prep.closest(X)
+                ok = np.isfinite(cl.distances) & ~np.asarray(cl.on_boundary, bool)
+                src, dst, nrm = [X[ok]], [cl.points[ok]], [cl.normals[ok]]
+            else:
+                ok = np.ones(len(X), bool)
             others = [j for j in range(len(pts)) if j != i]
             if others:
                 Z = np.concatenate([pts[j] @ T[j][:3, :3].T + T[j][:3, 3] for j in others])
-                dist, k = cKDTree(Z).query(X, distance_upper_bound=2.0 * spacing)
+                dist, k = cKDTree(Z).query(X, distance_upper_bound=reach)
                 near = ok & np.isfinite(dist)
+                kk = np.minimum(k[near], len(Z) - 1)
                 src.append(X[near])
-                dst.append(Z[np.minimum(k[near], len(Z) - 1)])
-                nrm.append(cl.normals[near])
+                dst.append(Z[kk])
+                if prep is not None:
+                    nrm.append(cl.normals[near])
+                else:
+                    NZ = np.concatenate([own_normals[j] @ T[j][:3, :3].T for j in others])
+                    nrm.append(NZ[kk])
+            if not src:
+                continue
             Xa, Ya, Na = (np.concatenate(a) for a in (src, dst, nrm))
             if Xa.shape[0] < 6:
                 continue
