@@ -109,8 +109,8 @@ class HoleMeasurement:
     edge_points : (n_edge, 3)
     area_diameter : float  count-based diameter (a cross-check, noisier)
     anisotropy : float  of the local point lattice (1 = square)
-    method : str   ``'wall cylinder'``, ``'wall circle'``, ``'empty circle'`` (the largest
-                   empty circle of the rim, step 4) or ``'edge points'``: what gave the
+    method : str   ``'wall cylinder'``, ``'wall circle'``, ``'empty circle'`` (the circle
+                   holding none of the rim's points, step 4) or ``'edge points'``: what gave the
                    diameter and the in-plane centre
     n_wall : int   wall points fitted (0 for the edge method)
     n_virtual : int  virtual holes that measured the edge points' offset (0: lattice model)
@@ -576,8 +576,9 @@ def _edge_measure(xy, hgt, rho, slab, near, ring, c0, r0, spacing):
         bias = _bias_factor(aniso) * gap
         u_bias = 0.3 * bias
     r_area = _area_radius(rr, r_edge, h, reach - np.linalg.norm(cen2))
-    # the largest empty circle, calibrated on virtual holes (module docstring, step 4): where
-    # the rim is complete and enough virtual holes fit, it replaces the edge circle
+    # the circle holding no point (posterior mean), calibrated on virtual holes (module
+    # docstring, step 4): where the rim is complete and enough virtual holes fit, it replaces
+    # the edge circle
     lec = _lec_measure(xy[sheet], cen2, r_edge, h_eff, window,
                        reach - float(np.linalg.norm(cen2)))
     u_lec = None
@@ -590,7 +591,7 @@ def _edge_measure(xy, hgt, rho, slab, near, ring, c0, r0, spacing):
             sheet, rr, n_virtual, u_lec)
 
 
-_LEC_VIRTUAL = 16       # virtual holes that calibrate the largest empty circle
+_LEC_VIRTUAL = 16       # virtual holes that calibrate the empty-circle estimate
 _LEC_FILL = 0.95        # share of a circle's arc bins that must hold a point near its rim
 
 
