@@ -326,10 +326,12 @@ def test_cli_features_plan_inspect_and_spc(prep, tmp_path):
     np.save(tmp_path / "s.npy", vs.scan)
     (tmp_path / "plan.yaml").write_text(
         "alignment: {type: best_fit}\ncharacteristics:\n"
-        # zones wider than the rim-only U of a 9 mm hole at 1 mm pixels (diameter 0.49, position
-        # 1.07 mm: the empty-circle method's, about 7x the error here; this test is about the
-        # CLI, plan and SPC plumbing, not that U)
-        "  - {name: H2, type: hole, feature: 'hole:1', diameter: {tol: 1.2}, position: {tol: 2.5}}\n"
+        # zones wider than the rim-only U of a Ø9 hole at these 1.15 mm pixels: U ~ 1.3 h^2 / r
+        # (diameter) and 2.6 h^2 / r (position) = 0.38 / 0.77 mm (docs/characteristics.md, "Hole
+        # measurement"); estimated from 11 virtual holes U varies from run to run (this scan:
+        # 0.61 / 1.19 for errors -0.08 / 0.24; the same scan at the true pose 0.29 / 0.74).  The
+        # earlier 0.5 / 0.8 cannot be decided at this spacing (the result's notes say so)
+        "  - {name: H2, type: hole, feature: 'hole:1', diameter: {tol: 0.8}, position: {tol: 1.6}}\n"
         "  - {name: SKIN, type: surface_profile, faces: all, tol: 0.5}\n")
     run = CliRunner().invoke
     r = run(app, ["info", str(tmp_path / "b.svm"), "--features", "--json", str(tmp_path / "f.json")])

@@ -193,6 +193,10 @@ def m_estimator_sandwich(J, psi, dpsi) -> np.ndarray:
 
 #: a step that moves no scan point by more than this many noise sigmas ends the iterations
 MOVE_SIGMA = 0.05
+#: scan points (an even subset) each placement is refined on before their fits are compared
+_REFINE_POINTS = 20_000
+#: placements told apart by fewer of the whole fit's points than this fit alike (a warning)
+_ALIKE_POINTS = 10
 
 
 def _gauss_newton(scan, prep, T0, free, center, faces, loss, max_iterations, tol, reach,
@@ -591,16 +595,42 @@ def _rps_solve(P, prep, spec, n_locks, feet, T, max_iterations, rtol):
 
 
 def _best_start(scan, prep, init, rng):
-    """Of ``init`` (if any) and the global search's placements (:mod:`.placement`), the pose
-    the whole scan fits best: ``(T, name, warnings)``."""
-    from .placement import ALIKE, placements, scan_noise_of, whole_fit
+    """Of ``init`` (if any), the global search's placements and the global pose's half turns
+    (:mod:`.placement`), each refined by a short best fit, the pose the whole scan fits best:
+    ``(T, name, warnings)``; a warning names each distinct placement that fits alike (within
+    :data:`.placement.ALIKE` and told apart by fewer than ``_ALIKE_POINTS`` of 20,000 points).
+    Chamfered plate, 1 mm, random poses: the 180-degree copy was taken silently in 5 of 40
+    runs; now the right pose (a near-symmetric part's copies are refined before they are
+    compared)."""
+    from .placement import ALIKE, TRY_SHARE, placements, scan_noise_of, whole_fit
 
     P = np.asarray(scan, np.float64)
     noise = scan_noise_of(P)
-    cands = [(nm, T0, whole_fit(P, prep, T0, noise)) for nm, T0 in placements(P, prep, init, rng)]
+    # each placement is refined (a short best fit on an even subset) before the whole fits are
+    # compared: the global search's poses are rough (a tenth of a mm), the truncated fit is
+    # sharp (3 noise sigmas), and a part told from its symmetric copy by a small feature (the
+    # chamfered plate: 0.3 % of its area) was judged by the roughness of the poses -- the
+    # copy won 5 of 40 random starts, and the right pose was not even "alike" to warn
+    sub = P[np.linspace(0, P.shape[0] - 1, min(P.shape[0], _REFINE_POINTS)).astype(np.int64)]
+    tried = [(nm, T0, whole_fit(P, prep, T0, noise))
+             for nm, T0 in placements(P, prep, init, rng, turns=True)]
+    best0 = max(f for _, _, f in tried)
+    cands = []
+    for nm, T0, f0 in tried:
+        if f0 < TRY_SHARE * best0 and nm != "start":
+            continue
+        try:
+            T1 = best_fit(sub, prep, init=T0, max_iterations=30).T_model_scan
+        except ValueError:
+            T1 = T0
+        cands.append((nm, T1, whole_fit(P, prep, T1, noise, n=_REFINE_POINTS)))
     cands.sort(key=lambda c: -c[2])
     best = cands[0][2]
-    alike = [c for c in cands if c[2] >= ALIKE * best]
+    # alike: within ALIKE of the best, and fewer than _ALIKE_POINTS of the fit's points tell
+    # them apart (refined copies of a symmetric part score the same points alike; the plate's
+    # chamfer: about 0.005 of them, 65 of 13,000)
+    m = min(P.shape[0], _REFINE_POINTS)
+    alike = [c for c in cands if c[2] >= ALIKE * best and (best - c[2]) * m < _ALIKE_POINTS]
     # the caller's start, when it fits alike, is the caller's choice among symmetric copies
     chosen = next((c for c in alike if c[0] == "start"), alike[0])
     nm, T, f0 = chosen

@@ -468,6 +468,7 @@ def _hole(c, S: _Scan, feats, al, k):
     if c.position is not None:
         verdicts["position"] = decide(pos, None, float(c.position.tol), U_pos)
         lower["position"], upper["position"] = 0.0, float(c.position.tol)
+    notes = _rim_notes(hm, verdicts, lower, upper, {"diameter": U_d, "position": U_pos})
     return CharacteristicResult(
         c.name, c.type, {"center": f.center.tolist(), "diameter": float(f.diameter)},
         {"center": hm.center.tolist(), "diameter": float(hm.diameter)},
@@ -477,7 +478,24 @@ def _hole(c, S: _Scan, feats, al, k):
         {"feature": f.id, "verdicts": verdicts, "axis": f.axis.tolist(),
          "edge_diameter": hm.edge_diameter, "bias": hm.bias, "spacing": hm.spacing,
          "area_diameter": hm.area_diameter, "anisotropy": hm.anisotropy,
-         "n_edge": hm.n_edge, "edge_points": hm.edge_points.tolist()})
+         "n_edge": hm.n_edge, "edge_points": hm.edge_points.tolist(), "method": hm.method,
+         **({"notes": notes} if notes else {})})
+
+
+def _rim_notes(hm, verdicts, lower, upper, U) -> list:
+    """Why a hole seen only at its rim is undecided: its U there, and the spacing at which U
+    would be a quarter of the zone (:func:`.holes.rim_spacing_needed`)."""
+    from .holes import rim_spacing_needed
+
+    out = []
+    for key, v in verdicts.items():
+        width = upper[key] - (lower[key] if lower[key] is not None else 0.0)
+        need = rim_spacing_needed(hm, U[key], 0.25 * width)
+        if v == "undecided" and need is not None and need < hm.spacing:
+            out.append(f"{key}: the hole is seen only at its rim (no wall points), where U is "
+                       f"{U[key]:.3f} mm at {hm.spacing:.2f} mm point spacing; U of a quarter "
+                       f"of the zone needs a spacing <= {need:.2f} mm, or a view of its wall")
+    return out
 
 
 def _cylinder(c, S: _Scan, feats, k):

@@ -43,10 +43,11 @@ def _distinct(T1, T2, size) -> bool:
     return ang > 1.0 or np.linalg.norm(D[:3, 3]) > 0.01 * size
 
 
-def placements(P, prep, init=None, rng=0) -> list:
+def placements(P, prep, init=None, rng=0, turns: bool = False) -> list:
     """``[(name, T_model_scan), ...]``: the caller's start (if any), the global search's best
     pose and its other poses within :data:`TRY_SHARE` of its fit (at most
-    :data:`N_PLACEMENTS`), distinct (1 degree or 1 % of the model size apart)."""
+    :data:`N_PLACEMENTS`), distinct (1 degree or 1 % of the model size apart); with ``turns``
+    also the global pose turned half a turn about each of the model's principal axes."""
     from ..registration.global_search import global_alignment
 
     size = float(prep.model.size)
@@ -58,15 +59,47 @@ def placements(P, prep, init=None, rng=0) -> list:
     for name, T in cands:
         if all(_distinct(T, T2, size) for _, T2 in out):
             out.append((name, np.asarray(T, np.float64)))
+    # the global pose turned 180 degrees about the model's principal axes: a near-symmetric
+    # part's copies, which the search may not return (the chamfered plate: in 5 of 40 random
+    # poses it gave only the copy turned about the plate's normal)
+    for i, Tt in enumerate(_turns(prep, ga.T_model_scan) if turns else ()):
+        if all(_distinct(Tt, T2, size) for _, T2 in out):
+            out.append((f"global turned {i + 1}", Tt))
     return out
 
 
-def whole_fit(P, prep, T, noise, rng=0) -> float:
+def _turns(prep, T) -> list:
+    """``T`` followed by a half turn about each of the model's coordinate axes through the
+    centre of its bounds (a CAD part's symmetry usually lies along them: exact for the
+    chamfered plate) and about each principal axis of its points through their centroid."""
+    from ..registration import _irls
+
+    axes = []
+    b = getattr(prep.model, "bounds", None)
+    if b is not None:
+        c = 0.5 * (np.asarray(b[0], np.float64) + np.asarray(b[1], np.float64))
+        axes += [(c, a) for a in np.eye(3)]
+    mp = _irls.model_points(prep)
+    if mp is not None:
+        M = np.asarray(mp[0], np.float64)
+        c = M.mean(axis=0)
+        _, V = np.linalg.eigh(np.cov((M - c).T))
+        axes += [(c, V[:, k]) for k in range(3)]
+    out = []
+    for c, a in axes:
+        R = 2.0 * np.outer(a, a) - np.eye(3)          # half turn about a
+        H = np.eye(4)
+        H[:3, :3], H[:3, 3] = R, c - R @ c
+        out.append(H @ np.asarray(T, np.float64))
+    return out
+
+
+def whole_fit(P, prep, T, noise, rng=0, n: int = FIT_POINTS) -> float:
     """Share (truncated: ``mean max(0, 1 - (d / tau)^2)``) of an even subset of the scan's points
     within ``tau = max(3 noise, 1e-4 x size)`` of the CAD at the pose T (points past the model's
-    free boundary count 0)."""
+    free boundary count 0); ``n`` points at most (default :data:`FIT_POINTS`)."""
     from ..registration.global_search import fit_score
 
-    S = P[np.linspace(0, P.shape[0] - 1, min(P.shape[0], FIT_POINTS)).astype(np.int64)]
+    S = P[np.linspace(0, P.shape[0] - 1, min(P.shape[0], int(n))).astype(np.int64)]
     tau = max(3.0 * float(noise) if np.isfinite(noise) else 0.0, 1e-4 * float(prep.model.size))
     return fit_score(prep, S, T, tau)
