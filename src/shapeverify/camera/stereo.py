@@ -39,8 +39,9 @@ import numpy as np
 from scipy import ndimage
 
 from shapeverify.camera import _optics_kernels as _k
+from shapeverify._renamed import grouped_keywords
 
-__all__ = ["StereoScan", "measure", "phase_direction", "simulate_and_measure_demo"]
+__all__ = ["StereoMatching", "StereoScan", "measure", "phase_direction", "simulate_and_measure_demo"]
 
 log = logging.getLogger(__name__)
 TWO_PI = 2.0 * np.pi
@@ -206,9 +207,24 @@ def _cad_orders(rig, model, T_left_model, dirs, psi, m, delta=0.0):
     return k
 
 
-def measure(rig, left, right, model=None, T_left_model=None, method="ftp", depth_range=None,
-            tol_vote=0.5, tol_projector=0.5, cad_window=1, min_region=64, samples=300,
-            min_score=0.5, analysis_options=None, phases=None) -> StereoScan:
+@dataclass(frozen=True)
+class StereoMatching:
+    """How :func:`measure` matches the two cameras' pixels (its ``matching=``; the loose
+    keywords of these names still work, with a DeprecationWarning); the fields are described in
+    its Parameters."""
+
+    depth_range: tuple | None = None
+    tol_vote: float = 0.5
+    tol_projector: float = 0.5
+    cad_window: int = 1
+    min_region: int = 64
+    samples: int = 300
+    min_score: float = 0.5
+
+
+@grouped_keywords("matching", StereoMatching)
+def measure(rig, left, right, model=None, T_left_model=None, method="ftp", analysis_options=None,
+            phases=None, matching: StereoMatching = StereoMatching()) -> StereoScan:
     """3-D points from one fringe image per camera.
 
     Parameters
@@ -223,6 +239,10 @@ def measure(rig, left, right, model=None, T_left_model=None, method="ftp", depth
         Nominal pose of the model in the left camera frame (identity when a model is given without it).
     method : "ftp" or "wff"
         Single-image phase analysis (:func:`~shapeverify.phase.fringe_analysis.ftp`, ``wff``).
+    matching : StereoMatching
+        Groups ``depth_range``, ``tol_vote``, ``tol_projector``, ``cad_window``,
+        ``min_region``, ``samples``, ``min_score`` (described below); the loose keywords
+        still work, with a DeprecationWarning.
     depth_range : (z_near, z_far) or None
         Depth interval (mm, left camera z) that holds the part; default: where the left optical
         axis is seen by the right camera and the projector.
@@ -253,6 +273,13 @@ def measure(rig, left, right, model=None, T_left_model=None, method="ftp", depth
     ValueError
         Rig without projector, image sizes that differ from the rig, unknown method, bad ranges.
     """
+    depth_range = matching.depth_range
+    tol_vote = matching.tol_vote
+    tol_projector = matching.tol_projector
+    cad_window = matching.cad_window
+    min_region = matching.min_region
+    samples = matching.samples
+    min_score = matching.min_score
     from shapeverify.phase.fringe_analysis import ftp, wff
 
     if rig.projector is None:
