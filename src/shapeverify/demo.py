@@ -32,7 +32,7 @@ def optics(out: Path) -> int:
 
     import numpy as np
 
-    from shapeverify.camera.stereo import simulate_and_measure_demo
+    from shapeverify.simulate.stereo_demo import simulate_and_measure_demo
     from shapeverify.nearest import prepare
     from shapeverify.simulate.fringes import demo_scene
 

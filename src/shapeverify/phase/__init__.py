@@ -36,7 +36,7 @@ from __future__ import annotations
 
 from .cad_unwrap import HolographySetup, predict_phase, unwrap_with_cad
 from .fringes import PhaseShift, fringe_images, phase_shift, temporal_unwrap
-from .fringe_analysis import FringeAnalysis, find_carrier, ftp, wff
+from shapeverify.camera.fringe_analysis import FringeAnalysis, find_carrier, ftp, wff
 from .holography import (depth_per_fringe, phase_difference, phase_to_depth, phase_to_points,
                          points_to_phase, synthetic_wavelength)
 from .files import plot_unwrap, read_mask, read_phase, unwrap_file
