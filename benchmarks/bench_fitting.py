@@ -316,8 +316,10 @@ def main():
     args = ap.parse_args()
     load0 = os.getloadavg()
     # warm up numba (compile or load from cache)
-    fitting.fit_curve(spiral(200, np.random.default_rng(0)), n_ctrl=10, max_iterations=3)
-    fitting.fit_surface(field_points(500, np.random.default_rng(0)), n_ctrl=(5, 5), max_iterations=3)
+    fitting.fit_curve(spiral(200, np.random.default_rng(0)), n_ctrl=10,
+                      solver=fitting.FitSolver(max_iterations=3))
+    fitting.fit_surface(field_points(500, np.random.default_rng(0)), n_ctrl=(5, 5),
+                        solver=fitting.FitSolver(max_iterations=3))
     rows = []
     rng = np.random.default_rng(2011)
     kd = spiral_truth()

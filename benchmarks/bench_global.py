@@ -53,7 +53,7 @@ from shapeverify.nearest import prepare  # noqa: E402
 from shapeverify.registration import register  # noqa: E402
 from shapeverify.registration.global_search import _model_side, global_alignment  # noqa: E402
 from shapeverify.registration.rigid import apply_transform, make_transform, rotation_vector  # noqa: E402,E501
-from shapeverify.simulate import random_motion, virtual_scan  # noqa: E402
+from shapeverify.simulate import ScanEffects, random_motion, virtual_scan  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 
@@ -84,7 +84,8 @@ def cases(seeds):
         M[:3, :3] = Rotation.random(random_state=s).as_matrix()
         v = np.random.default_rng(s).normal(size=3)
         M[:3, 3] = 800.0 * v / np.linalg.norm(v)
-        vs = virtual_scan(model, pixel=1.37, noise=0.03, outlier_fraction=0.05, motion=M, rng=s)
+        vs = virtual_scan(model, pixel=1.37, noise=0.03, motion=M, rng=s,
+                          effects=ScanEffects(outlier_fraction=0.05))
         yield f"panel seed {s}", prep, vs.scan, vs.T_model_scan
     d = DATA / "scans" / "bunny"
     if not d.is_dir():

@@ -37,7 +37,7 @@ import numpy as np  # noqa: E402
 from shapeverify.cad.load import load_model  # noqa: E402
 from shapeverify.nearest import load_prepared, prepare  # noqa: E402
 from shapeverify.registration import register  # noqa: E402
-from shapeverify.simulate import virtual_scan  # noqa: E402
+from shapeverify.simulate import ScanEffects, virtual_scan  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 GROUPS = [("2 deg / 2 mm", (2.0, 2.0), 0.0), ("6 deg / 12 mm", (6.0, 12.0), 0.0),
@@ -60,7 +60,8 @@ def inputs(cache: Path | None, seeds: int, offset: int = 0):
     for name, motion, of in GROUPS:
         for s in range(offset, offset + seeds):
             scans[(name, s)] = virtual_scan(prep.model, pixel=0.15, noise=0.02,
-                                            outlier_fraction=of, motion=motion, rng=100 + s)
+                                            motion=motion, rng=100 + s,
+                                            effects=ScanEffects(outlier_fraction=of))
     if pk:
         pk.write_bytes(pickle.dumps(scans))
     return prep, scans

@@ -183,7 +183,7 @@ def main() -> None:
     from shapeverify.inspection import inspect
     from shapeverify.nearest import get_workers, prepare, set_workers
     from shapeverify.report import write_colored_ply, write_html_report, write_png_summary
-    from shapeverify.simulate import virtual_scan
+    from shapeverify.simulate import ScanEffects, virtual_scan
 
     if args.workers is not None:
         set_workers(args.workers)
@@ -193,8 +193,8 @@ def main() -> None:
     t_prep = time.perf_counter() - t0
     area = 120 * 90 * 1.02
     pixel = float(np.sqrt(area / args.points))
-    vs = virtual_scan(prep, pixel=pixel, noise=0.02, outlier_fraction=0.01, blobs=1,
-                      dents=[(0.4, 10.0)], motion=(3.0, 2.0), rng=2011)
+    vs = virtual_scan(prep, pixel=pixel, noise=0.02, motion=(3.0, 2.0), rng=2011,
+                      effects=ScanEffects(outlier_fraction=0.01, blobs=1, dents=[(0.4, 10.0)]))
     scan = vs.scan
     inspect(prep, scan, tolerance=0.2)                      # warm-up: numba JIT / cache load
     med, best, res = _median_time(lambda: inspect(prep, scan, tolerance=0.2), args.repeat)

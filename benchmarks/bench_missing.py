@@ -30,13 +30,14 @@ def main(argv=None):
     import importlib
 
     insp = importlib.import_module("shapeverify.inspection.inspect")
-    from shapeverify.simulate import virtual_scan
+    from shapeverify.simulate import ScanEffects, virtual_scan
 
     d = Path(tempfile.mkdtemp())
     model = sv.load_model(example_part_step(d / "panel.step"))
     prep = sv.prepare(model)
-    sim = virtual_scan(model, pixel=1.2, noise=0.02, shadows=1, blobs=1, outlier_fraction=0.05,
-                       dents=[(0.4, 15.0)], motion=(4.0, 8.0), rng=2011)
+    sim = virtual_scan(model, pixel=1.2, noise=0.02, motion=(4.0, 8.0), rng=2011,
+                       effects=ScanEffects(shadows=1, blobs=1, outlier_fraction=0.05,
+                                           dents=[(0.4, 15.0)]))
     scan = sim.scan
     spent = []
     real = insp.find_missing

@@ -35,14 +35,15 @@ sys.path.insert(0, str(HERE.parent / "tests"))
 def panel(cache: Path):
     import shapeverify as sv
     from shapeverify.cad.examples import PANEL_HOLE, example_part_step
-    from shapeverify.simulate import virtual_scan
+    from shapeverify.simulate import ScanEffects, virtual_scan
 
     svm = cache / "panel.svm"
     if not svm.exists():
         sv.prepare(sv.load_model(example_part_step(cache / "panel.step"))).save(svm)
     prep = sv.load_prepared(svm)
-    sim = virtual_scan(prep.model, pixel=1.2, noise=0.02, shadows=1, blobs=1,
-                       outlier_fraction=0.05, dents=[(0.4, 15.0)], motion=(4.0, 8.0), rng=2011)
+    sim = virtual_scan(prep.model, pixel=1.2, noise=0.02, motion=(4.0, 8.0), rng=2011,
+                       effects=ScanEffects(shadows=1, blobs=1, outlier_fraction=0.05,
+                                           dents=[(0.4, 15.0)]))
     x, y, _ = PANEL_HOLE
     plan = {"alignment": {"type": "best_fit"}, "characteristics": [
         {"name": "H1", "type": "hole", "near": [x, y, 0], "diameter": {"tol": 0.5},

@@ -42,10 +42,11 @@ from shapeverify.cad.examples import example_part_step  # noqa: E402
 from shapeverify.cad.load import load_model  # noqa: E402
 from shapeverify.nearest import prepare, set_workers  # noqa: E402
 from shapeverify.registration import register  # noqa: E402
-from shapeverify.simulate import virtual_scan  # noqa: E402
+from shapeverify.simulate import ScanEffects, virtual_scan  # noqa: E402
 
-SCAN = dict(pixel=1.37, noise=0.02, shadows=1, blobs=1, blob_radius=20.0, outlier_fraction=0.11,
-            dents=[(0.4, 12.0)], motion=(6.0, 12.0))
+SCAN = dict(pixel=1.37, noise=0.02, motion=(6.0, 12.0),
+            effects=ScanEffects(shadows=1, blobs=1, blob_radius=20.0, outlier_fraction=0.11,
+                                dents=[(0.4, 12.0)]))
 
 
 def timed(fn, repeat):

@@ -58,9 +58,10 @@ def _npy(a) -> bytes:
 
 
 def make_scan(model, seed: int) -> np.ndarray:
-    from shapeverify.simulate import virtual_scan
+    from shapeverify.simulate import ScanEffects, virtual_scan
 
-    sim = virtual_scan(model, pixel=1.3, noise=0.02, outlier_fraction=0.03, motion=(2.0, 3.0), rng=seed)
+    sim = virtual_scan(model, pixel=1.3, noise=0.02, motion=(2.0, 3.0), rng=seed,
+                       effects=ScanEffects(outlier_fraction=0.03))
     if len(sim.scan) < N_POINTS:
         raise RuntimeError(f"virtual scan has {len(sim.scan)} points, fewer than {N_POINTS}")
     idx = np.sort(np.random.default_rng(seed).choice(len(sim.scan), N_POINTS, replace=False))

@@ -40,7 +40,7 @@ from shapeverify.cad.load import load_model  # noqa: E402
 from shapeverify.nearest import prepare  # noqa: E402
 from shapeverify.nearest.prepared import default_spacing  # noqa: E402
 from shapeverify.registration import register  # noqa: E402
-from shapeverify.simulate import virtual_scan  # noqa: E402
+from shapeverify.simulate import ScanEffects, virtual_scan  # noqa: E402
 
 
 def judge(prep, scan, T, T_true):
@@ -98,8 +98,8 @@ def main():
         M = np.eye(4)
         M[:3, :3] = Rotation.random(random_state=100 + k).as_matrix()
         M[:3, 3] = rng.uniform(-800, 800, 3)
-        vs = virtual_scan(model, view=view, pixel=0.3, noise=args.noise, motion=M,
-                          outlier_fraction=args.outliers, rng=k)
+        vs = virtual_scan(model, view=view, pixel=0.3, noise=args.noise, motion=M, rng=k,
+                          effects=ScanEffects(outlier_fraction=args.outliers))
         c = time.process_time()
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")

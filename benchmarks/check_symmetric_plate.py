@@ -35,7 +35,7 @@ def main() -> None:
     from shapeverify.cad.examples import chamfered_plate_step
     from shapeverify.cad.load import load_model
     from shapeverify.nearest import prepare
-    from shapeverify.simulate import virtual_scan
+    from shapeverify.simulate import ScanEffects, virtual_scan
 
     module = sys.modules["shapeverify.inspection.inspect"]
     with_alternatives = module._at_alternatives
@@ -53,7 +53,7 @@ def main() -> None:
             v /= np.linalg.norm(v)
             for kind, dents in (("good", ()), ("dent", [(0.5, 8.0)])):
                 vs = virtual_scan(model, view=v, pixel=0.5, noise=0.02, motion=(120.0, 300.0),
-                                  rng=s, dents=dents)
+                                  rng=s, effects=ScanEffects(dents=dents))
                 with warnings.catch_warnings():
                     warnings.simplefilter("ignore")
                     t = time.process_time()

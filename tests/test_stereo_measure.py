@@ -160,7 +160,7 @@ def test_one_megapixel_rig_over_the_example_panel_meets_the_targets():
 
 def test_demo_renders_measures_and_writes_its_files(tmp_path):
     from shapeverify.camera.rig import load_rig
-    from shapeverify.camera.stereo import simulate_and_measure_demo
+    from shapeverify.simulate.stereo_demo import simulate_and_measure_demo
 
     scan, imgs = simulate_and_measure_demo(tmp_path, width=96, height=96)
     assert len(scan) > 0.9 * imgs.truth["left"]["lit"].sum()

@@ -16,7 +16,7 @@ from __future__ import annotations
 import functools
 import warnings
 
-__all__ = ["renamed_keywords"]
+__all__ = ["renamed_keywords", "grouped_keywords"]
 
 
 def renamed_keywords(**old_to_new):
@@ -34,6 +34,52 @@ def renamed_keywords(**old_to_new):
                     warnings.warn(f"{fn.__name__}({old}=) is now called {new}= (the old name "
                                   "will go)", DeprecationWarning, stacklevel=2)
                     kwargs[new] = kwargs.pop(old)
+            return fn(*args, **kwargs)
+
+        return inner
+
+    return wrap
+
+
+def grouped_keywords(param: str, cls):
+    """Decorator: the loose keywords that became fields of the frozen dataclass ``cls`` (passed
+    whole as ``param=``) still work, with a :class:`DeprecationWarning` at the caller's line;
+    they replace those fields of the ``param=`` given (or of the function's default).
+
+    >>> import dataclasses
+    >>> @dataclasses.dataclass(frozen=True)
+    ... class Stop:
+    ...     max_iterations: int = 10
+    ...     rtol: float = 1e-6
+    >>> @grouped_keywords("stop", Stop)
+    ... def f(x, stop=Stop()):
+    ...     return stop
+    >>> with warnings.catch_warnings(record=True) as w:
+    ...     warnings.simplefilter("always")
+    ...     f(1, rtol=0.5), str(w[0].message)
+    (Stop(max_iterations=10, rtol=0.5), 'f(rtol=) is now a field of Stop, passed as stop= (the loose keyword will go)')
+    """
+    import dataclasses
+    import inspect
+
+    fields = {f.name for f in dataclasses.fields(cls)}
+
+    def wrap(fn):
+        params = inspect.signature(fn).parameters
+        default = params[param].default
+        loose_names = fields - set(params)
+
+        @functools.wraps(fn)
+        def inner(*args, **kwargs):
+            loose = {k: kwargs.pop(k) for k in list(kwargs) if k in loose_names}
+            if loose:
+                warnings.warn(f"{fn.__name__}({'=, '.join(loose)}=) is now a field of "
+                              f"{cls.__name__}, passed as {param}= (the loose keyword will go)",
+                              DeprecationWarning, stacklevel=2)
+                base = kwargs.get(param)
+                if base is None:
+                    base = default if isinstance(default, cls) else cls()
+                kwargs[param] = dataclasses.replace(base, **loose)
             return fn(*args, **kwargs)
 
         return inner

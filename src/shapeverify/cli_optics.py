@@ -96,7 +96,7 @@ def register_commands(app: typer.Typer) -> None:
     ):
         """Measure 3-D points from one fringe image per camera (stereo phase matching)."""
         from shapeverify.camera.rig import load_rig
-        from shapeverify.camera.stereo import measure as _measure
+        from shapeverify.camera.stereo import StereoMatching, measure as _measure
         from shapeverify.io.points import write_ply
 
         import numpy as np
@@ -120,7 +120,8 @@ def register_commands(app: typer.Typer) -> None:
                 prep = _cli.guard(sv.load_prepared if model.suffix.lower() == ".svm" else sv.load_model, model)
             T = _cli.guard(read_pose, pose) if pose else np.eye(4)
         with _cli.stage("phase, fringe orders, triangulation"):
-            scan = _cli.guard(_measure, r, L, R, model=prep, T_left_model=T, method=method, depth_range=dr)
+            scan = _cli.guard(_measure, r, L, R, model=prep, T_left_model=T, method=method,
+                              matching=StereoMatching(depth_range=dr))
         keep = scan.quality >= min_quality
         if not keep.any():
             _cli.fail(f"no point measured (usable left pixels: {scan.info.get('usable_left', 0)}); check the rig "

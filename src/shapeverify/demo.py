@@ -32,7 +32,7 @@ def optics(out: Path) -> int:
 
     import numpy as np
 
-    from shapeverify.camera.stereo import simulate_and_measure_demo
+    from shapeverify.simulate.stereo_demo import simulate_and_measure_demo
     from shapeverify.nearest import prepare
     from shapeverify.simulate.fringes import demo_scene
 
@@ -65,7 +65,7 @@ def main(outdir: str = "demo-output", *flags: str) -> int:
     from shapeverify.cli import model_summary_table
     from shapeverify.io.points import write_ply
     from shapeverify.nearest import prepare
-    from shapeverify.simulate import DENT, virtual_scan
+    from shapeverify.simulate import DENT, ScanEffects, virtual_scan
 
     out = Path(outdir)
     out.mkdir(parents=True, exist_ok=True)
@@ -82,8 +82,9 @@ def main(outdir: str = "demo-output", *flags: str) -> int:
 
     # a single-shot optical scan: noise, a shadow, a reflection blob, 5 % outliers, a 0.4 mm dent,
     # and the misalignment of a rough fixture (4 degrees, 8 mm)
-    sim = virtual_scan(model, pixel=1.2, noise=0.02, shadows=1, blobs=1, outlier_fraction=0.05,
-                       dents=[(0.4, 15.0)], motion=(4.0, 8.0), rng=2011)
+    sim = virtual_scan(model, pixel=1.2, noise=0.02, motion=(4.0, 8.0), rng=2011,
+                       effects=ScanEffects(shadows=1, blobs=1, outlier_fraction=0.05,
+                                           dents=[(0.4, 15.0)]))
     scan_path = out / "scan.ply"
     write_ply(scan_path, sim.scan)
     dent = sim.points[sim.labels == DENT].mean(axis=0)

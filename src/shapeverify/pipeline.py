@@ -407,14 +407,15 @@ def _write_report(result, path: Path, prep, scan) -> Path:
 
 
 def _write_pdf(result, request, prep) -> Path:
-    from shapeverify.characteristics.pdf import write_pdf_report
+    from shapeverify.characteristics.pdf import ReportLabels, write_pdf_report
     from shapeverify.inspection.plan_link import plan_result_of
 
     plan_result = plan_result_of(result)   # no plan: the inspection's own pose
     inputs = result.inputs or {}
     return Path(write_pdf_report(
-        plan_result, request.pdf, prep, part=request.part, scan_file=inputs.get("scan"),
-        model_file=inputs.get("model"), tolerance=result.tolerance.max_abs,
+        plan_result, request.pdf, prep, tolerance=result.tolerance.max_abs,
+        labels=ReportLabels(part=request.part, scan_file=inputs.get("scan"),
+                            model_file=inputs.get("model")),
         regions=result.regions))
 
 

@@ -173,7 +173,7 @@ def warm_up(say=logger.info) -> float:
     from shapeverify.cad.examples import example_part_step
     from shapeverify.cad.load import load_model
     from shapeverify.io.points import write_ply
-    from shapeverify.simulate import virtual_scan
+    from shapeverify.simulate import ScanEffects, virtual_scan
 
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="shapeverify-warmup-") as d:
@@ -185,8 +185,9 @@ def warm_up(say=logger.info) -> float:
         # the default spacing, as a user's first prepare: a coarser one skips kernels (classify)
         _run(["prepare", step, "-o", work / "panel.svm"], work)
         say("simulating a scan")
-        sim = virtual_scan(load_model(step), pixel=3.0, noise=0.02, shadows=1, blobs=1,
-                           outlier_fraction=0.05, dents=[(0.4, 15.0)], motion=(4.0, 8.0), rng=2011)
+        sim = virtual_scan(load_model(step), pixel=3.0, noise=0.02, motion=(4.0, 8.0), rng=2011,
+                           effects=ScanEffects(shadows=1, blobs=1, outlier_fraction=0.05,
+                                               dents=[(0.4, 15.0)]))
         write_ply(work / "scan.ply", sim.scan)
         say("inspecting it, with every report")
         _run(["inspect", work / "panel.svm", work / "scan.ply", "--tolerance", "0.2",

@@ -48,8 +48,9 @@ import numpy as np
 
 from shapeverify.camera import _optics_kernels as _k
 from shapeverify.errors import ShapeVerifyError
+from shapeverify._renamed import grouped_keywords
 
-__all__ = ["Device", "Pattern", "Rig", "RigFormatError", "load_rig", "save_rig", "look_at_rig"]
+__all__ = ["RigProjector", "Device", "Pattern", "Rig", "RigFormatError", "load_rig", "save_rig", "look_at_rig"]
 
 
 class RigFormatError(ShapeVerifyError, ValueError):
@@ -329,9 +330,21 @@ def _look_at(eye, target, up):
     return np.vstack([x, y, z])  # rows: device axes in the parent frame -> R_device_parent
 
 
-def look_at_rig(target, distance: float, baselines=(-90.0, 130.0), width: int = 1000, height: int = 1000,
-                fov_deg: float = 24.0, projector_size=(1280, 800), projector_fov_deg: float = 26.0,
-                period_px: float = 9.0, dist=(0.0,) * 5, focal_px: float | None = None) -> tuple[Rig, np.ndarray]:
+@dataclass(frozen=True)
+class RigProjector:
+    """The projector of :func:`look_at_rig` (its ``projector=``; the loose keywords of these
+    names still work, with a DeprecationWarning)."""
+
+    projector_size: tuple = (1280, 800)
+    projector_fov_deg: float = 26.0
+    period_px: float = 9.0
+
+
+@grouped_keywords("projector", RigProjector)
+def look_at_rig(target, distance: float, baselines=(-90.0, 130.0), width: int = 1000,
+                height: int = 1000, fov_deg: float = 24.0, dist=(0.0,) * 5,
+                focal_px: float | None = None,
+                projector: RigProjector = RigProjector()) -> tuple[Rig, np.ndarray]:
     """A converging rig looking at ``target`` from ``distance`` mm (for simulation and tests).
 
     The projector sits at the origin of a scene frame and looks down -z at ``target`` (given in that
@@ -346,6 +359,9 @@ def look_at_rig(target, distance: float, baselines=(-90.0, 130.0), width: int = 
     T_left_scene : (4, 4) float64
         Maps scene coordinates to the left camera frame (the pose of the scene in the rig frame).
     """
+    projector_size = projector.projector_size
+    projector_fov_deg = projector.projector_fov_deg
+    period_px = projector.period_px
     target = np.asarray(target, dtype=np.float64)
     eye_p = target + np.array([0.0, 0.0, distance])
     up = np.array([0.0, -1.0, 0.0])

@@ -2,7 +2,7 @@
 
 The chain, for a rig of two cameras and a projector (:mod:`shapeverify.camera.rig`):
 
-1. wrapped phase and modulation of each image (:func:`shapeverify.phase.fringe_analysis.ftp` or
+1. wrapped phase and modulation of each image (:func:`shapeverify.camera.fringe_analysis.ftp` or
    ``wff``), with the lobe chosen so that both phases increase with the projector column;
 2. relative fringe orders in the left image by a quality-guided flood fill: each connected region
    of usable pixels gets ``psi + 2 pi m`` continuous, with one unknown integer offset ``K``;
@@ -39,8 +39,9 @@ import numpy as np
 from scipy import ndimage
 
 from shapeverify.camera import _optics_kernels as _k
+from shapeverify._renamed import grouped_keywords
 
-__all__ = ["StereoScan", "measure", "phase_direction", "simulate_and_measure_demo"]
+__all__ = ["StereoMatching", "StereoScan", "measure", "phase_direction"]
 
 log = logging.getLogger(__name__)
 TWO_PI = 2.0 * np.pi
@@ -206,9 +207,24 @@ def _cad_orders(rig, model, T_left_model, dirs, psi, m, delta=0.0):
     return k
 
 
-def measure(rig, left, right, model=None, T_left_model=None, method="ftp", depth_range=None,
-            tol_vote=0.5, tol_projector=0.5, cad_window=1, min_region=64, samples=300,
-            min_score=0.5, analysis_options=None, phases=None) -> StereoScan:
+@dataclass(frozen=True)
+class StereoMatching:
+    """How :func:`measure` matches the two cameras' pixels (its ``matching=``; the loose
+    keywords of these names still work, with a DeprecationWarning); the fields are described in
+    its Parameters."""
+
+    depth_range: tuple | None = None
+    tol_vote: float = 0.5
+    tol_projector: float = 0.5
+    cad_window: int = 1
+    min_region: int = 64
+    samples: int = 300
+    min_score: float = 0.5
+
+
+@grouped_keywords("matching", StereoMatching)
+def measure(rig, left, right, model=None, T_left_model=None, method="ftp", analysis_options=None,
+            phases=None, matching: StereoMatching = StereoMatching()) -> StereoScan:
     """3-D points from one fringe image per camera.
 
     Parameters
@@ -222,7 +238,11 @@ def measure(rig, left, right, model=None, T_left_model=None, method="ftp", depth
     T_left_model : (4, 4) or None
         Nominal pose of the model in the left camera frame (identity when a model is given without it).
     method : "ftp" or "wff"
-        Single-image phase analysis (:func:`~shapeverify.phase.fringe_analysis.ftp`, ``wff``).
+        Single-image phase analysis (:func:`~shapeverify.camera.fringe_analysis.ftp`, ``wff``).
+    matching : StereoMatching
+        Groups ``depth_range``, ``tol_vote``, ``tol_projector``, ``cad_window``,
+        ``min_region``, ``samples``, ``min_score`` (described below); the loose keywords
+        still work, with a DeprecationWarning.
     depth_range : (z_near, z_far) or None
         Depth interval (mm, left camera z) that holds the part; default: where the left optical
         axis is seen by the right camera and the projector.
@@ -253,7 +273,14 @@ def measure(rig, left, right, model=None, T_left_model=None, method="ftp", depth
     ValueError
         Rig without projector, image sizes that differ from the rig, unknown method, bad ranges.
     """
-    from shapeverify.phase.fringe_analysis import ftp, wff
+    depth_range = matching.depth_range
+    tol_vote = matching.tol_vote
+    tol_projector = matching.tol_projector
+    cad_window = matching.cad_window
+    min_region = matching.min_region
+    samples = matching.samples
+    min_score = matching.min_score
+    from shapeverify.camera.fringe_analysis import ftp, wff
 
     if rig.projector is None:
         raise ValueError("the rig has no projector; measuring needs its pattern (projector key of rig.json)")
@@ -455,35 +482,3 @@ def _continuity_prior(patch, good, korder, m_flat, psi_flat):
     if not ks:
         return None
     return float(np.median(np.concatenate(ks)))
-
-
-def simulate_and_measure_demo(out_dir=None, width: int = 1000, height: int = 1000, rng=0):
-    """Render fringe images of the example panel, measure them and return the scan (``make demo``).
-
-    Writes ``left.png``, ``right.png``, ``rig.json`` and ``scan.ply`` to ``out_dir`` when given.
-
-    Returns
-    -------
-    scan : StereoScan
-    images : shapeverify.simulate.fringes.FringeImages
-    """
-    from pathlib import Path
-
-    from shapeverify.camera.rig import save_rig
-    from shapeverify.simulate.fringes import demo_scene, fringe_images
-
-    model, rig, T = demo_scene(width, height)
-    dent_at = model.faces[0].evaluate(np.array([[0.3, 0.6]]))[0]
-    imgs = fringe_images(model, rig, T, period_mm=1.0, rng=rng, dent=(dent_at, 0.4, 8.0))
-    scan = measure(imgs.rig, imgs.left, imgs.right)
-    if out_dir is not None:
-        import cv2
-
-        from shapeverify.io.points import write_ply
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        cv2.imwrite(str(out / "left.png"), imgs.left)
-        cv2.imwrite(str(out / "right.png"), imgs.right)
-        save_rig(imgs.rig, out / "rig.json")
-        write_ply(out / "scan.ply", scan.points, scalars={"quality": scan.quality})
-    return scan, imgs

@@ -26,8 +26,10 @@ from .._random import generator
 from ..report.colours import BAND_COLOURS  # noqa: F401 (re-exported: the PDF's bands)
 from ..verdict_table import verdict_style
 from .registry import label as _type_label   # the type's label (the registry)
+from dataclasses import dataclass
+from shapeverify._renamed import grouped_keywords
 
-__all__ = ["write_pdf_report", "pdf_figures", "band_edges", "BAND_COLOURS"]
+__all__ = ["ReportLabels", "write_pdf_report", "pdf_figures", "band_edges", "BAND_COLOURS"]
 
 logger = logging.getLogger(__name__)
 
@@ -94,10 +96,21 @@ def _fmt(v, digits=4):
     return f"{v:.{digits}g}"
 
 
-def write_pdf_report(result, path, prep=None, *, part: str | None = None,
-                     scan_file: str | None = None, model_file: str | None = None,
-                     date: _dt.datetime | str | None = None, tolerance: float | None = None,
-                     max_points: int = 40_000, rng=0, regions=None) -> Path:
+@dataclass(frozen=True)
+class ReportLabels:
+    """What the PDF's header names (:func:`write_pdf_report`'s ``labels=``; the loose keywords
+    of these names still work, with a DeprecationWarning)."""
+
+    part: str | None = None
+    scan_file: str | None = None
+    model_file: str | None = None
+    date: _dt.datetime | str | None = None
+
+
+@grouped_keywords("labels", ReportLabels)
+def write_pdf_report(result, path, prep=None, *, tolerance: float | None = None,
+                     max_points: int = 40_000, rng=0, regions=None,
+                     labels: ReportLabels = ReportLabels()) -> Path:
     """Write the PDF report of a :class:`~shapeverify.characteristics.evaluate.PlanResult`.
 
     Parameters
@@ -107,6 +120,9 @@ def write_pdf_report(result, path, prep=None, *, part: str | None = None,
         Output ``.pdf``.
     prep : Prepared, optional
         The model: its points show the CAD area the scan does not cover (grey).
+    labels : ReportLabels
+        Groups ``part``, ``scan_file``, ``model_file``, ``date`` (described below); the
+        loose keywords still work, with a DeprecationWarning.
     part, scan_file, model_file : str, optional
         Shown in the header (part id default: the plan's ``part``).
     date : datetime or str, optional
@@ -128,6 +144,10 @@ def write_pdf_report(result, path, prep=None, *, part: str | None = None,
     OSError
         The file cannot be written.
     """
+    part = labels.part
+    scan_file = labels.scan_file
+    model_file = labels.model_file
+    date = labels.date
     from matplotlib.backends.backend_pdf import PdfPages
 
     path = Path(path)

@@ -12,7 +12,7 @@ style, robust losses by IRLS): :func:`fit_line`, :func:`fit_plane`, :func:`fit_c
 :func:`fit_sphere`, :func:`fit_cylinder`, :func:`fit_cone`.  Files: :func:`fit_points_file`.
 """
 
-from .curves import (CurveFit, approximation_knots, chord_length_params, fit_curve,
+from .curves import (CurveFit, FitSolver, approximation_knots, chord_length_params, fit_curve,
                      project_to_curve, uniform_knots)
 from .elements import (LOSSES, CircleFit, ConeFit, CylinderFit, LineFit, PlaneFit, SphereFit,
                        fit_circle, fit_cone, fit_cylinder, fit_line, fit_plane, fit_sphere,
@@ -21,6 +21,7 @@ from .export import fit_points_file, nurbs_from_dict, nurbs_to_dict
 from .surfaces import SurfaceFit, fit_surface, project_to_surface, surface_params
 
 __all__ = [
+    "FitSolver",
     "fit_curve", "fit_surface", "CurveFit", "SurfaceFit",
     "chord_length_params", "approximation_knots", "uniform_knots", "surface_params",
     "project_to_curve", "project_to_surface",

@@ -38,7 +38,7 @@ import scipy.linalg
 import scipy.sparse
 import scipy.sparse.linalg
 
-from .._renamed import renamed_keywords
+from .._renamed import grouped_keywords, renamed_keywords
 from ..cad.nurbs import NurbsCurve
 from . import _kernels, _odr, _slide
 from ._element_base import _Repr
@@ -48,7 +48,7 @@ logger = logging.getLogger(__name__)
 #: default of ``slide_stiffness`` (see _slide.py)
 SLIDE_STIFFNESS = 100.0
 
-__all__ = ["CurveFit", "fit_curve", "chord_length_params", "approximation_knots", "uniform_knots",
+__all__ = ["CurveFit", "FitSolver", "fit_curve", "chord_length_params", "approximation_knots", "uniform_knots",
            "project_to_curve"]
 
 METHODS = ("fixed", "odr", "varpro")
@@ -323,6 +323,33 @@ class _CurveProblem:
 # ----------------------------------------------------------------------------------------------
 # public entry point
 # ----------------------------------------------------------------------------------------------
+@dataclass(frozen=True)
+class FitSolver:
+    """How :func:`fit_curve` and :func:`~shapeverify.fitting.fit_surface` iterate (their
+    ``solver=``; the loose keywords of the same names still work, with a DeprecationWarning).
+
+    Attributes
+    ----------
+    max_iterations : int
+    rtol : float
+        Stop when an iteration decreases the objective by less than ``rtol`` times its value.
+    second_order : bool, optional
+        Include the foot-point curvature terms in the Levenberg-Marquardt matrix (see
+        :func:`fit_curve`); default: True for polynomial, False for rational fits.
+    slide_stiffness : float >= 0
+        ``odr`` / ``varpro``: resistance of the control points to sliding along the curve or
+        surface (see :func:`fit_curve`); 0 gives the plain ODR objective.
+
+    >>> FitSolver(rtol=1e-8)
+    FitSolver(max_iterations=100, rtol=1e-08, second_order=None, slide_stiffness=100.0)
+    """
+
+    max_iterations: int = 100
+    rtol: float = 1e-10
+    second_order: bool | None = None
+    slide_stiffness: float = SLIDE_STIFFNESS
+
+
 def _check_common(method, max_iterations, tolerance, smoothing, parametrization, slide_stiffness=0.0):
     if method not in METHODS:
         raise ValueError(f"unknown method {method!r}; choose one of {METHODS}")
@@ -339,11 +366,10 @@ def _check_common(method, max_iterations, tolerance, smoothing, parametrization,
 
 
 @renamed_keywords(tolerance="rtol")
+@grouped_keywords("solver", FitSolver)
 def fit_curve(points, degree: int = 3, n_ctrl: int | None = None, rational: bool = False,
               method: str = "odr", knots=None, params=None, parametrization: str = "chord",
-              smoothing: float = 0.0, max_iterations: int = 100,
-              rtol: float = 1e-10, second_order: bool | None = None,
-              slide_stiffness: float = SLIDE_STIFFNESS) -> CurveFit:
+              smoothing: float = 0.0, solver: FitSolver = FitSolver()) -> CurveFit:
     """Fit a B-spline / NURBS curve to ordered points.
 
     Parameters
@@ -365,6 +391,11 @@ def fit_curve(points, degree: int = 3, n_ctrl: int | None = None, rational: bool
     parametrization : {"chord", "centripetal"}
     smoothing : float >= 0
         Adds ``smoothing * sum_j ||P_{j-1} - 2 P_j + P_{j+1}||^2`` to the objective.
+    solver : FitSolver
+        The iteration's settings (``max_iterations``, ``rtol``, ``second_order``,
+        ``slide_stiffness``; the loose keywords of these names still work, with a
+        DeprecationWarning):
+
     max_iterations : int
     rtol : float
         Stop when an iteration decreases the objective by less than ``rtol`` times its value.
@@ -414,6 +445,8 @@ def fit_curve(points, degree: int = 3, n_ctrl: int | None = None, rational: bool
         raise ValueError(f"fit_curve: points must have shape (N, 2) or (N, 3), got {x.shape}")
     if not np.all(np.isfinite(x)):
         raise ValueError("fit_curve: points contain NaN or inf; remove them before fitting")
+    max_iterations, rtol = solver.max_iterations, solver.rtol
+    second_order, slide_stiffness = solver.second_order, solver.slide_stiffness
     _check_common(method, max_iterations, rtol, smoothing, parametrization, slide_stiffness)
     if isinstance(degree, bool) or not isinstance(degree, (int, np.integer)) or degree < 1:
         raise ValueError(f"fit_curve: degree must be an integer >= 1, got {degree!r}")

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from ..cad.nurbs import NurbsCurve, NurbsSurface
-from .curves import SLIDE_STIFFNESS, fit_curve
+from .curves import SLIDE_STIFFNESS, FitSolver, fit_curve
 from .surfaces import fit_surface
 
 logger = logging.getLogger(__name__)
@@ -112,8 +112,8 @@ def fit_points_file(points_path, out_path, surface: bool = False, ctrl=None, deg
             if len(ctrl) != 2:
                 raise ValueError(f"ctrl for a surface must be one or two integers, got {ctrl}")
         fit = fit_surface(x, degrees=(degree, degree), n_ctrl=ctrl, method=method,
-                          smoothing=smoothing, max_iterations=max_iterations,
-                          slide_stiffness=slide_stiffness)
+                          smoothing=smoothing, solver=FitSolver(
+                              max_iterations=max_iterations, slide_stiffness=slide_stiffness))
         shape = fit.surface
     else:
         if ctrl is not None and not isinstance(ctrl, (int, np.integer)):
@@ -122,7 +122,8 @@ def fit_points_file(points_path, out_path, surface: bool = False, ctrl=None, deg
                 raise ValueError(f"ctrl for a curve must be one integer, got {ctrl}")
             ctrl = int(vals[0])
         fit = fit_curve(x, degree=degree, n_ctrl=ctrl, method=method, smoothing=smoothing,
-                        max_iterations=max_iterations, slide_stiffness=slide_stiffness)
+                        solver=FitSolver(max_iterations=max_iterations,
+                                         slide_stiffness=slide_stiffness))
         shape = fit.curve
         ctrl = int(shape.control.shape[0])
     summary = {"kind": "surface" if surface else "curve", "points": int(N),

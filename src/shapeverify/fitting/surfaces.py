@@ -26,11 +26,11 @@ import numpy as np
 import scipy.sparse
 import scipy.spatial
 
-from .._renamed import renamed_keywords
+from .._renamed import grouped_keywords, renamed_keywords
 from ..cad.nurbs import NurbsSurface
 from . import _odr, _slide
 from ._element_base import _Repr
-from .curves import (SLIDE_STIFFNESS, _basis, _check_common, _second_difference, _solve_spd,
+from .curves import (SLIDE_STIFFNESS, FitSolver, _basis, _check_common, _second_difference, _solve_spd,
                      approximation_knots, chord_length_params)
 
 logger = logging.getLogger(__name__)
@@ -302,10 +302,10 @@ def _knots(given, t, n_ctrl, degree, name):
 
 
 @renamed_keywords(tolerance="rtol")
+@grouped_keywords("solver", FitSolver)
 def fit_surface(points, degrees=(3, 3), n_ctrl=(8, 8), rational: bool = False,
                 method: str = "odr", knots=None, params=None, parametrization: str = "chord",
-                smoothing: float = 0.0, max_iterations: int = 100, rtol: float = 1e-10,
-                second_order: bool | None = None, slide_stiffness: float = SLIDE_STIFFNESS) -> SurfaceFit:
+                smoothing: float = 0.0, solver: FitSolver = FitSolver()) -> SurfaceFit:
     """Fit a tensor-product B-spline / NURBS surface to points.
 
     Parameters
@@ -325,7 +325,10 @@ def fit_surface(points, degrees=(3, 3), n_ctrl=(8, 8), rational: bool = False,
     smoothing : float >= 0
         Adds ``smoothing * sum ||second differences of the control net along u and v||^2``;
         needed when parts of the parameter domain hold no points.
-    max_iterations, rtol, second_order : as in :func:`shapeverify.fitting.fit_curve`.
+    solver : FitSolver
+        ``max_iterations``, ``rtol``, ``second_order``, ``slide_stiffness``: as in
+        :func:`shapeverify.fitting.fit_curve` (the loose keywords still work, with a
+        DeprecationWarning).
     slide_stiffness : float >= 0
         As in :func:`shapeverify.fitting.fit_curve`: resistance of the control points to sliding
         along the surface (two tangent directions per control point); 0 gives plain ODR.
@@ -355,6 +358,8 @@ def fit_surface(points, degrees=(3, 3), n_ctrl=(8, 8), rational: bool = False,
         raise ValueError(f"fit_surface: points must have shape (N, 3) or (ku, kv, 3), got {x.shape}")
     if not np.all(np.isfinite(x)):
         raise ValueError("fit_surface: points contain NaN or inf; remove them before fitting")
+    max_iterations, rtol = solver.max_iterations, solver.rtol
+    second_order, slide_stiffness = solver.second_order, solver.slide_stiffness
     _check_common(method, max_iterations, rtol, smoothing, parametrization, slide_stiffness)
     p, q = _pair(degrees, "degrees")
     nu, nv = _pair(n_ctrl, "n_ctrl")

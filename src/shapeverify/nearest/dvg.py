@@ -65,7 +65,7 @@ from .._arrays import check_points
 from .._renamed import renamed_keywords
 from . import _build_kernels, _kernels
 from ._threads import run_chunks
-from .dvg_build import build_tree
+from .dvg_build import TreeLimits, build_tree
 
 logger = logging.getLogger(__name__)
 
@@ -396,8 +396,8 @@ class DVG:
         :func:`make_records` (``kd``: a cKDTree over their points).  A caller that made the
         records itself can free the points and frames they came from before the tree, the
         build's memory peak (``prepare`` does)."""
-        tree = build_tree(rec, float(spacing), float(reach), kd=kd,
-                          max_moves=max_moves, workers=workers)
+        tree = build_tree(rec, float(spacing), float(reach), kd=kd, workers=workers,
+                          limits=TreeLimits(max_moves=max_moves))
         out = cls(rec, tree)
         out._kd = kd
         return out

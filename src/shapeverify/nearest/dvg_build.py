@@ -31,10 +31,12 @@ from . import _classify_kernels, _kernels
 from . import _lattice_kernels as _lk
 from . import _seedlist_kernels as _sk
 from ._threads import run_chunks
+from dataclasses import dataclass
+from shapeverify._renamed import grouped_keywords
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["build_tree"]
+__all__ = ["TreeLimits", "build_tree"]
 
 SEGMENTS = 8  # the refined cells of a level are handled in this many segments
 _CORNER = np.array([[o & 1, (o >> 1) & 1, (o >> 2) & 1] for o in range(8)], dtype=np.int64)
@@ -266,11 +268,22 @@ def _child_segments(segs, ref, parents, pts, origin, size):
     return new
 
 
-def build_tree(rec: np.ndarray, spacing: float, reach: float, *,
-               kd: cKDTree | None = None, max_moves: int = 2, max_seeds: int = 4,
-               multi_size: float | None = None, tree_budget: float = 52.0,
-               max_top_cells: int = 1 << 22, finest: float | None = None,
-               workers: int = -1):
+@dataclass(frozen=True)
+class TreeLimits:
+    """Limits of :func:`build_tree` (its ``limits=``; the loose keywords of these names still
+    work, with a DeprecationWarning); the fields are described in the Parameters of
+    :func:`build_tree`."""
+
+    max_moves: int = 2
+    max_seeds: int = 4
+    tree_budget: float = 52.0
+    max_top_cells: int = 1 << 22
+
+
+@grouped_keywords("limits", TreeLimits)
+def build_tree(rec: np.ndarray, spacing: float, reach: float, *, kd: cKDTree | None = None,
+               multi_size: float | None = None, finest: float | None = None, workers: int = -1,
+               limits: TreeLimits = TreeLimits()):
     """Build the DVG tree over model point records (:func:`.dvg.make_records`).
 
     Parameters
@@ -284,6 +297,9 @@ def build_tree(rec: np.ndarray, spacing: float, reach: float, *,
         Queries within this distance of the model are answered by the tree.
     kd : cKDTree over the points, optional (spares a copy of the points; built when not
         given and needed: only when the top grid is the last level)
+    limits : TreeLimits
+        Groups ``max_moves``, ``max_seeds``, ``tree_budget``, ``max_top_cells`` (described
+        below); the loose keywords still work, with a DeprecationWarning.
     max_moves : int
         Greedy walk budget a leaf may need at its vertices (larger: fewer, bigger leaves and
         slower queries).
@@ -303,6 +319,10 @@ def build_tree(rec: np.ndarray, spacing: float, reach: float, *,
     -------
     DVGTree
     """
+    max_moves = limits.max_moves
+    max_seeds = limits.max_seeds
+    tree_budget = limits.tree_budget
+    max_top_cells = limits.max_top_cells
     from .dvg import DVGTree
 
     points = rec[:-1, :3]

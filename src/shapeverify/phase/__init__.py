@@ -36,23 +36,25 @@ from __future__ import annotations
 
 from .cad_unwrap import HolographySetup, predict_phase, unwrap_with_cad
 from .fringes import PhaseShift, fringe_images, phase_shift, temporal_unwrap
-from .fringe_analysis import FringeAnalysis, find_carrier, ftp, wff
+from shapeverify.camera.fringe_analysis import FringeAnalysis, find_carrier, ftp, wff
 from .holography import (depth_per_fringe, phase_difference, phase_to_depth, phase_to_points,
                          points_to_phase, synthetic_wavelength)
 from .files import plot_unwrap, read_mask, read_phase, unwrap_file
 from .fields import fault_field, smooth_field
 from .minimum_norm import solve_poisson_dct, unwrap_lp, unwrap_ls, unwrap_wls
-from .hologram import HologramDepth, angular_spectrum, dual_wavelength_depth, reconstruct
+from .hologram import (HologramDepth, Reconstruction, angular_spectrum, dual_wavelength_depth,
+                       reconstruct)
 from .network_flow import unwrap_mcf
 from .sum_of_norms import SumOfNormsUnwrap, unwrap_sum_of_norms
 from .path_following import pseudo_correlation, unwrap_filtered, unwrap_quality
-from .regularised import (DATA_METHODS, IterativeUnwrap, ReferenceUnwrap, iterate_unwrap,
-                          unwrap_data, unwrap_with_reference)
+from .regularised import (DATA_METHODS, IterativeUnwrap, ReferenceUnwrap, UnwrapStop,
+                          iterate_unwrap, unwrap_data, unwrap_with_reference)
 from .wrap import residues, unwrap_1d, wrap
 
 METHODS = tuple(DATA_METHODS) + ("nearest",)
 
 __all__ = [
+    "Reconstruction", "UnwrapStop",
     "wrap", "unwrap", "unwrap_1d", "residues", "pseudo_correlation", "METHODS",
     "unwrap_quality", "unwrap_filtered", "unwrap_mcf", "unwrap_ls", "unwrap_wls", "unwrap_lp",
     "fault_field", "smooth_field", "unwrap_sum_of_norms", "SumOfNormsUnwrap",

@@ -16,7 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from shapeverify.phase.holography import phase_to_points, points_to_phase
-from shapeverify.phase.regularised import IterativeUnwrap, iterate_unwrap
+from shapeverify._renamed import grouped_keywords
+from shapeverify.phase.regularised import IterativeUnwrap, UnwrapStop, iterate_unwrap
 
 
 @dataclass(frozen=True)
@@ -82,9 +83,10 @@ def points_from_phase(phi, setup: HolographySetup) -> np.ndarray:
     return pts[np.all(np.isfinite(pts), axis=1)]
 
 
+@grouped_keywords("stop", UnwrapStop)
 def unwrap_with_cad(psi, prep, setup: HolographySetup, T_model_scan, *, mask=None, quality=None,
-                    method: str = "auto", max_iterations: int = 10, register_kwargs: dict | None = None,
-                    rotation_tol: float = 1e-5, translation_tol: float = 1e-3) -> IterativeUnwrap:
+                    method: str = "auto", register_kwargs: dict | None = None,
+                    stop: UnwrapStop = UnwrapStop(10, 1e-5, 1e-3)) -> IterativeUnwrap:
     """Unwrap a wrapped phase map with the CAD model as prior, refining the part's pose.
 
     Parameters
@@ -98,9 +100,11 @@ def unwrap_with_cad(psi, prep, setup: HolographySetup, T_model_scan, *, mask=Non
         Approximate pose of the part (model = R @ scan + t).
     register_kwargs : dict, optional
         Passed to :func:`shapeverify.register` (default: point-to-plane, Tukey).
-    rotation_tol, translation_tol : float
-        Convergence: pose change per iteration below both (radians, mm) and no pixel changed.
-        The defaults sit above the scatter of registering noisy points again.
+    stop : UnwrapStop
+        ``max_iterations`` (10), and the convergence: pose change per iteration below both
+        ``rotation_tol`` (1e-5 rad) and ``translation_tol`` (1e-3 mm) and no pixel changed.
+        The defaults sit above the scatter of registering noisy points again.  (The loose
+        keywords of these names still work, with a DeprecationWarning.)
 
     Notes
     -----
@@ -132,6 +136,4 @@ def unwrap_with_cad(psi, prep, setup: HolographySetup, T_model_scan, *, mask=Non
         return reg.T_model_scan
 
     return iterate_unwrap(psi, _Predictor(prep, setup), lambda phi: points_from_phase(phi, setup), _register,
-                          T_model_scan, mask=mask, quality=quality, method=method,
-                          max_iterations=max_iterations, rotation_tol=rotation_tol,
-                          translation_tol=translation_tol)
+                          T_model_scan, mask=mask, quality=quality, method=method, stop=stop)

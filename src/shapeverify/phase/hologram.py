@@ -34,8 +34,9 @@ import numpy as np
 from scipy import fft as sfft
 
 from .holography import phase_difference, phase_to_depth, synthetic_wavelength
+from shapeverify._renamed import grouped_keywords
 
-__all__ = ["find_carrier", "reconstruct", "angular_spectrum", "synthetic_phase",
+__all__ = ["Reconstruction", "find_carrier", "reconstruct", "angular_spectrum", "synthetic_phase",
            "dual_wavelength_depth", "HologramDepth", "hologram_file"]
 
 
@@ -233,9 +234,25 @@ class HologramDepth:
                 f"measured={ok.mean():.1%})")
 
 
-def synthetic_phase(h1, h2, lambda1: float, lambda2: float, carrier1=None, carrier2=None,
-                    radius=None, distance: float = 0.0, pixel_pitch: float | None = None,
-                    window: int = 5, same_reference_angle: bool = True):
+@dataclass(frozen=True)
+class Reconstruction:
+    """How the holograms are reconstructed (the ``reconstruction=`` of :func:`synthetic_phase`
+    and :func:`dual_wavelength_depth`; the loose keywords of these names still work, with a
+    DeprecationWarning); the fields are described in :func:`dual_wavelength_depth`'s
+    Parameters."""
+
+    carrier1: tuple | None = None
+    carrier2: tuple | None = None
+    radius: float | None = None
+    distance: float = 0.0
+    pixel_pitch: float | None = None
+    window: int = 5
+    same_reference_angle: bool = True
+
+
+@grouped_keywords("reconstruction", Reconstruction)
+def synthetic_phase(h1, h2, lambda1: float, lambda2: float,
+                    reconstruction: Reconstruction = Reconstruction()):
     """Wrapped phase at the synthetic wavelength from two off-axis holograms, and its quality.
 
     The input of :func:`shapeverify.phase.unwrap_with_cad` (the predict-unwrap-register loop of
@@ -251,6 +268,13 @@ def synthetic_phase(h1, h2, lambda1: float, lambda2: float, carrier1=None, carri
         ``|mean(O1 conj(O2))| / mean(|O1| |O2|)`` over the box (low in dark speckles and where
         the two wavelengths' speckle decorrelates, e.g. on steep slopes).
     """
+    carrier1 = reconstruction.carrier1
+    carrier2 = reconstruction.carrier2
+    radius = reconstruction.radius
+    distance = reconstruction.distance
+    pixel_pitch = reconstruction.pixel_pitch
+    window = reconstruction.window
+    same_reference_angle = reconstruction.same_reference_angle
     from scipy import ndimage
 
     a1 = _check_image(h1, "h1")
@@ -275,11 +299,10 @@ def synthetic_phase(h1, h2, lambda1: float, lambda2: float, carrier1=None, carri
     return psi, quality
 
 
+@grouped_keywords("reconstruction", Reconstruction)
 def dual_wavelength_depth(h1, h2, lambda1: float, lambda2: float, reference_depth=None,
-                          carrier1=None, carrier2=None, radius=None, distance: float = 0.0,
-                          pixel_pitch: float | None = None, window: int = 5,
                           min_quality: float = 0.0, method: str = "auto",
-                          same_reference_angle: bool = True) -> HologramDepth:
+                          reconstruction: Reconstruction = Reconstruction()) -> HologramDepth:
     """Depth map from two off-axis holograms at two wavelengths (Paper V's chain).
 
     Parameters
@@ -298,6 +321,10 @@ def dual_wavelength_depth(h1, h2, lambda1: float, lambda2: float, reference_dept
         for both wavelengths, `same_reference_angle`), else found in `h2`.  A carrier error then
         nearly cancels in the phase difference; two independently found carriers leave a
         residual phase tilt (a few thousandths of a cycle per pixel).
+    reconstruction : Reconstruction
+        Groups ``carrier1``, ``carrier2``, ``radius``, ``distance``, ``pixel_pitch``,
+        ``window``, ``same_reference_angle`` (described below); the loose keywords still
+        work, with a DeprecationWarning.
     same_reference_angle : bool
         See above.
     window : odd int
@@ -316,6 +343,13 @@ def dual_wavelength_depth(h1, h2, lambda1: float, lambda2: float, reference_dept
     ValueError
         Bad images, shapes that differ, or bad parameters (see :func:`reconstruct`).
     """
+    carrier1 = reconstruction.carrier1
+    carrier2 = reconstruction.carrier2
+    radius = reconstruction.radius
+    distance = reconstruction.distance
+    pixel_pitch = reconstruction.pixel_pitch
+    window = reconstruction.window
+    same_reference_angle = reconstruction.same_reference_angle
     from .regularised import unwrap_data, unwrap_with_reference
     from .wrap import TWO_PI
 
@@ -324,8 +358,7 @@ def dual_wavelength_depth(h1, h2, lambda1: float, lambda2: float, reference_dept
     if a1.shape != a2.shape:
         raise ValueError(f"h1 and h2 must have the same shape, got {a1.shape} and {a2.shape}")
     Lam = synthetic_wavelength(lambda1, lambda2)
-    psi, quality = synthetic_phase(a1, a2, lambda1, lambda2, carrier1, carrier2, radius, distance,
-                                   pixel_pitch, window, same_reference_angle)
+    psi, quality = synthetic_phase(a1, a2, lambda1, lambda2, reconstruction=reconstruction)
     mask = np.isfinite(psi) & (quality >= min_quality)
     if reference_depth is not None:
         ref = np.asarray(reference_depth, dtype=np.float64)
@@ -377,8 +410,8 @@ def hologram_file(h1_path, h2_path, out_path, lambda1: float, lambda2: float,
             raise ValueError(f"reference depth must be a .npy array of depths in mm, got {rp.name}")
         ref = np.asarray(_read_raw(rp), dtype=np.float64)
     res = dual_wavelength_depth(a1, a2, lambda1, lambda2, reference_depth=ref,
-                                distance=distance, pixel_pitch=pixel_pitch, window=window,
-                                min_quality=min_quality)
+                                min_quality=min_quality, reconstruction=Reconstruction(
+                                    distance=distance, pixel_pitch=pixel_pitch, window=window))
     out = Path(out_path)
     if out.suffix.lower() != ".npy":
         raise ValueError(f"output must be a .npy file, got {out.name}")

@@ -47,10 +47,11 @@ from .minimum_norm import unwrap_lp, unwrap_ls, unwrap_wls
 from .network_flow import unwrap_mcf
 from .path_following import unwrap_filtered, unwrap_quality
 from .wrap import TWO_PI, check_map_like, check_phase_map, wrap
+from shapeverify._renamed import grouped_keywords
 
 log = logging.getLogger(__name__)
 
-__all__ = ["unwrap_with_reference", "ReferenceUnwrap", "iterate_unwrap", "IterativeUnwrap",
+__all__ = ["UnwrapStop", "unwrap_with_reference", "ReferenceUnwrap", "iterate_unwrap", "IterativeUnwrap",
            "DATA_METHODS"]
 
 #: data-only methods: name -> (function, how `quality` is passed)
@@ -231,9 +232,20 @@ def _pose_change(T_old, T_new):
     return float(np.arccos(c)), float(np.linalg.norm(T_new[:3, 3] - T_old[:3, 3]))
 
 
+@dataclass(frozen=True)
+class UnwrapStop:
+    """When :func:`iterate_unwrap` stops (its ``stop=``; the loose keywords of these names
+    still work, with a DeprecationWarning): after ``max_iterations`` rounds, or when the pose
+    changed by less than ``rotation_tol`` (rad) and ``translation_tol`` (mm)."""
+
+    max_iterations: int = 10
+    rotation_tol: float = 1e-07
+    translation_tol: float = 1e-05
+
+
+@grouped_keywords("stop", UnwrapStop)
 def iterate_unwrap(psi, predict_phase, points_from_phase, register, T_model_scan, *, mask=None,
-                   quality=None, method="auto", max_iterations: int = 10,
-                   rotation_tol: float = 1e-7, translation_tol: float = 1e-5):
+                   quality=None, method="auto", stop: UnwrapStop = UnwrapStop()):
     """Predict -> unwrap with the prediction -> 3-D points -> register, until nothing changes.
 
     Paper V's loop: the pose of the part is only known approximately, so the predicted phase has
@@ -259,6 +271,9 @@ def iterate_unwrap(psi, predict_phase, points_from_phase, register, T_model_scan
         Initial pose.
     mask, quality, method
         As :func:`unwrap_with_reference`.
+    stop : UnwrapStop
+        Groups ``max_iterations``, ``rotation_tol``, ``translation_tol`` (described below);
+        the loose keywords still work, with a DeprecationWarning.
     max_iterations : int >= 1
     rotation_tol, translation_tol : float
         Convergence: pose change below both (radians, model units) and no pixel changed.
@@ -277,6 +292,9 @@ def iterate_unwrap(psi, predict_phase, points_from_phase, register, T_model_scan
     ----------
     Bergström (2011), Paper V, Sec. 4 (iterative phase unwrapping).
     """
+    max_iterations = stop.max_iterations
+    rotation_tol = stop.rotation_tol
+    translation_tol = stop.translation_tol
     p, m = check_phase_map(psi, mask)
     T = _check_pose(T_model_scan, "T_model_scan")
     if int(max_iterations) < 1:

@@ -8,27 +8,35 @@ tunes k), and a weighted rigid step -- point-to-plane (thesis eq. 12-13) or poin
 (eq. 7-10).  Scan points whose closest model point lies on the model's free boundary get
 weight 0 (the scan runs past the CAD's edge).
 
-Stages (see :mod:`shapeverify.registration._irls` for the iterations and the convergence test):
+Stages, each a function of :mod:`shapeverify.registration._stages` that :func:`register` calls
+in this order (see :mod:`shapeverify.registration._irls` for the iterations and the
+convergence test):
 
-1. *coarse*: Huber (convex: one optimum, so it works from a rough fixture's misalignment, where
-   a redescending loss would reject the very points that must pull the scan into place) on a
-   random subset of 800 points, re-matched every iteration;
-2. *final*: the requested loss on every point.  Point-to-plane iterates against the tangent
-   planes of one matching and then verifies them by re-matching a random subset (re-matching
-   everything only when that asks for a correction); point-to-point re-matches every
-   iteration, with Anderson acceleration.
-
-3. *other minima*: the pose direction resting on the fewest points (90 % of its information on
-   at most 10 % of them: an impeller's spin on its thin blades) is probed for another minimum
+1. ``initial_placement`` -- *coarse*: Huber (convex: one optimum, so it works from a rough
+   fixture's misalignment, where a redescending loss would reject the very points that must
+   pull the scan into place) on a random subset of 800 points, re-matched every iteration,
+   from the start (with no start, from the identity or the global search's best hypothesis);
+2. ``refine`` -- *final*: the requested loss on every point.  Point-to-plane iterates against
+   the tangent planes of one matching and then verifies them by re-matching a random subset
+   (re-matching everything only when that asks for a correction); point-to-point re-matches
+   every iteration, with Anderson acceleration.  Then *other minima* (``probe``): the pose
+   direction resting on the fewest points (90 % of its information on at most 10 % of them:
+   an impeller's spin on its thin blades) is probed for another minimum
    (:mod:`shapeverify.registration._basin`); a better one found is refined by the final stage
-   and kept only if it fits all points better.
-4. *restarts*: a pose still flagged as a wrong minimum (not converged, or a warning of
-   ``Registration.warnings``) of a part that is nearly a solid of revolution (an impeller,
-   whose hub leaves x, y and the spin to the few blade points, so a start half a blade pitch
-   off converges onto the wrong blades) is restarted from spins about the model's own
-   near-symmetry axis (:mod:`shapeverify.registration._restart`); of the copies that fit
-   alike, the one nearest the start is refined by the final stage and kept only if it fits
-   better (at the sharper of the two robust scales).
+   and kept only if it fits all points better;
+3. ``retry_from_start``: where the points the robust loss rejected hold more information than
+   the kept ones, the final stage also runs from the start itself, kept if it fits better;
+4. ``restart_about_axis`` -- *restarts*: a pose still flagged as a wrong minimum (not
+   converged, or a warning of ``Registration.warnings``) of a part that is nearly a solid of
+   revolution (an impeller, whose hub leaves x, y and the spin to the few blade points, so a
+   start half a blade pitch off converges onto the wrong blades) is restarted from spins about
+   the model's own near-symmetry axis (:mod:`shapeverify.registration._restart`); of the
+   copies that fit alike, the one nearest the start is refined by the final stage and kept
+   only if it fits better (at the sharper of the two robust scales);
+5. ``uncertainty``: the covariance, the undetermined directions and the warnings.
+
+The switches (probe and its rounds, restart, the graduated coarse scale) are the fields of
+:class:`~shapeverify.registration.options.RegistrationOptions`.
 
 The final stage's robust scale is overlap-aware (:func:`._irls.overlap_scale`): when most of a
 partial view lies off the reference (a point cloud has no outline to exclude them), the scale
@@ -51,33 +59,19 @@ import numpy as np
 from .._arrays import check_points
 from .._random import generator
 
-from . import _basin, _irls, _restart
-from ._noise import scan_noise
-from ._pose_warnings import (WARN_REJECTED_INFO, WARN_RUNNER_UP, _rejected_information,
-                             close_runner_up, pose_warnings)
+from . import _stages
+# the stages' constants (the stages themselves and their switches: :mod:`._stages`)
+from ._stages import AUTO_FIT, AUTO_MAX_TURN, COARSE_SUBSET, NOISE_POINTS  # noqa: F401
 from ._irls import IterationRecord
 from .losses import get_loss
-from .options import (InitMode, InitName, LossName, Method, MethodName, RegistrationOptions,
-                      StageSettings)
-from .rigid import pose_covariance, rotation_vector, undetermined_directions
+from .options import InitMode, InitName, LossName, Method, MethodName, RegistrationOptions
 
 from .._renamed import renamed_keywords
-from ..errors import RegistrationError, ScanError
+from ..errors import RegistrationError, ScanError  # noqa: F401 (initial.py's)
 
 __all__ = ["register", "Registration", "IterationRecord", "DegenerateGeometryWarning"]
 
 logger = logging.getLogger(__name__)
-
-#: size of the random subset of the coarse stage (all points if the scan is smaller)
-COARSE_SUBSET = 800
-#: tolerance and iteration cap of the coarse stage
-_COARSE_TOL = 1e-4
-_STAGE_CAP = 60
-#: scan points (a uniform subset) whose local scatter gives the scan's noise (:mod:`._noise`)
-NOISE_POINTS = 200_000
-# the probe, the restart and the graduated scale are switched by RegistrationOptions
-# (register(options=...)), no longer by module flags
-
 
 class DegenerateGeometryWarning(UserWarning):
     """The scan's geometry does not determine every pose direction (flat or cylindrical scan)."""
@@ -204,15 +198,6 @@ def validate_pose(T, what: str = "init") -> np.ndarray:
 
 #: names of the automatic starts
 INIT_MODES = ("auto", "identity", "principal-axes", "global")
-#: "auto" keeps the identity when the coarse stage from it leaves at least this fit
-#: (share of the subset on the surface, :func:`.global_search.fit_score`)
-AUTO_FIT = 0.5
-#: ... and turned the scan by less than this (deg): a scan that "already lies on the model" is
-#: near its pose; one the coarse stage had to turn further was not, and the fit of where it
-#: ended says little (NIST CTC 01 at random poses: 4 of 4 ended 180 deg off at fits of
-#: 0.67-0.93, two with no warning); the global search then decides, the identity's end among
-#: its hypotheses
-AUTO_MAX_TURN = 30.0
 
 
 # ------------------------------------------------------------------------------ helpers
@@ -348,13 +333,26 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
     >>> bool(np.abs(reg.T_model_scan - sim.T_model_scan).max() < 0.05)   # the true pose, recovered
     True
     """
+    req = _request(scan, prep, init, method, loss, scale, max_iterations, rtol, rng, options)
+    ctx = _stages.setup(req)                            # start pose, scales, coarse subset
+    placed = _stages.initial_placement(ctx)             # coarse stage (or a global search first)
+    fit = _stages.refine(ctx, placed.state)             # final stage, probe of the weakest direction
+    fit = _stages.retry_from_start(ctx, fit, placed)    # final stage from the start itself
+    fit = _stages.restart_about_axis(ctx, fit, placed)  # spins about a near-symmetry axis
+    quality = _stages.uncertainty(ctx, fit, placed)     # covariance, undetermined, warnings
+    return _result(req, fit, placed, quality)
+
+
+def _request(scan, prep, init, method, loss, scale, max_iterations, rtol, rng,
+             options) -> _stages.Request:
+    """register's arguments, checked (the errors of its Raises section)."""
     P = _check_scan(scan)
     if not callable(getattr(prep, "closest", None)):
         raise ValueError("prep must be a Prepared model (from shapeverify.prepare) with a "
                          f".closest method, got {type(prep).__name__}")
-    stages = options if options is not None else RegistrationOptions()
-    if not isinstance(stages, RegistrationOptions):
-        raise TypeError(f"options= takes a RegistrationOptions, got {type(stages).__name__}")
+    options = options if options is not None else RegistrationOptions()
+    if not isinstance(options, RegistrationOptions):
+        raise TypeError(f"options= takes a RegistrationOptions, got {type(options).__name__}")
     method = Method.parse(method)
     lossobj = get_loss(loss)
     if scale is not None:
@@ -363,196 +361,36 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
             raise ValueError(f"scale must be a positive number of mm or None, got {scale}")
     if int(max_iterations) != max_iterations or max_iterations < 1:
         raise ValueError(f"max_iterations must be a positive integer, got {max_iterations}")
-    max_iterations = int(max_iterations)
     tolerance = float(rtol)     # the stages' relative stopping threshold
     if not (np.isfinite(tolerance) and tolerance > 0):
         raise ValueError(f"rtol must be positive, got {rtol}")
     rng = generator(rng)
     mode, T0 = InitMode.parse(init, validate_pose)
-    how = mode.value
-    if mode is InitMode.PRINCIPAL_AXES:
-        from .initial import principal_axes_alignment
-        T0 = principal_axes_alignment(P, prep, rng=rng).T_model_scan
-    elif mode in (InitMode.AUTO, InitMode.IDENTITY):
-        T0 = np.eye(4)
-        how = InitMode.IDENTITY.value
+    return _stages.Request(P, prep, mode, T0, method, lossobj, scale, int(max_iterations),
+                           tolerance, rng, options)
 
-    n = P.shape[0]
-    radius = float(np.sqrt(np.mean(np.sum((P - P.mean(axis=0)) ** 2, axis=1))))
-    radius = max(radius, 1e-12)
-    floor = 1e-9 * radius
-    # "far away": beyond the prepared reach and a fifth of the model's size (ICP still works
-    # from a start 10 % of the size off, farther than the default reach of 3 %)
-    max_d = getattr(prep, "reach", None)
-    size = getattr(getattr(prep, "model", None), "size", None)
-    reach = None if max_d is None else max(float(max_d), 0.2 * float(size or 0.0))
 
-    def _reachable(d, valid):
-        if reach is not None and np.count_nonzero(valid & (np.abs(d) <= reach)) < 6:
-            raise RegistrationError(
-                f"fewer than 6 scan points lie within {reach:.4g} mm (the prepared reach "
-                f"{max_d:.4g} mm, or a fifth of the model's size) of the model at the start "
-                "pose: all points are far away.  Give a better init (e.g. init='auto' or "
-                "'global'), check the units of scan and model, or prepare with a larger "
-                "reach")
-
-    def subset(k):
-        return P if n <= k else P[np.sort(rng.choice(n, k, replace=False))]
-
-    convex = lossobj if lossobj.name in ("l2", "huber") else get_loss("huber")
-    cap = min(max_iterations, _STAGE_CAP)
-    S_coarse = subset(COARSE_SUBSET)
-    coarse_cfg = StageSettings(method.coarse, convex, scale, floor, radius, cap,
-                               max(_COARSE_TOL, tolerance))
-    final_cfg = StageSettings(method.final, lossobj, scale, floor, radius, max_iterations,
-                              tolerance, overlap=True)
-
-    def coarse(T, check):
-        st = _irls.State(T[:3, :3].copy(), T[:3, 3].copy())
-        # graduation: convex loss on a subset first, then the requested loss on every point
-        _irls.stage_rematch("coarse", S_coarse, prep, st, coarse_cfg,
-                            first=_reachable if check else None, anneal=stages.anneal)
-        return st
-
-    ga = None
-    if mode in (InitMode.AUTO, InitMode.GLOBAL):
-        from .global_search import fit_distance, fit_score, global_alignment
-        st, extra = None, ()
-        if mode is InitMode.AUTO:
-            try:
-                st = coarse(T0, True)
-                T_id = _pose(st)
-                turn = np.degrees(np.linalg.norm(rotation_vector(T_id[:3, :3])))
-                if (turn > AUTO_MAX_TURN
-                        or fit_score(prep, S_coarse, T_id, fit_distance(prep)) < AUTO_FIT):
-                    extra, st = (("identity+icp", T_id),), None
-            except RegistrationError:
-                st = None
-        if st is None:
-            ga = global_alignment(P, prep, rng=rng, extra=extra)
-            how = "global: " + ga.source
-            st = coarse(ga.T_model_scan, False)
-    else:
-        st = coarse(T0, True)
-    def final(st):
-        if final_cfg.method is Method.POINT_TO_PLANE:
-            return _irls.stage_final_plane(P, prep, st, final_cfg, rng)
-        return _irls.stage_rematch("final", P, prep, st, final_cfg)
-
-    def settle(st, ev, converged, why):
-        # another minimum along the least-determined direction (thin walls, see _basin)
-        for _ in range(stages.probe_rounds if stages.probe else 0):
-            c0 = _irls.centroid(ev.X, ev.w)
-            null0 = _irls.null_directions(ev, _irls.model_points(prep),
-                                          _irls.system(ev.Y, ev.Y, ev.N, ev.w, c0)[0], c0, radius)
-            sigma0, best, moved = ev.sigma, ev.objective, False
-            for R_alt, t_alt in _basin.probe(P, prep, ev, st.R, st.t, final_cfg, null0, tau):
-                st2 = _irls.State(R_alt, t_alt, st.iterations, list(st.history))
-                ev2, conv2, why2 = final(st2)
-                obj = _irls._mean_rho(ev2, sigma0)
-                if obj < best:
-                    logger.info("registration: another minimum along the direction resting on "
-                                "the fewest points fits better (objective %.4g < %.4g): taken",
-                                obj, best)
-                    best, st, ev, converged, why, moved = obj, st2, ev2, conv2, why2, True
-            if not moved:
-                break
-        return st, ev, converged, why
-
-    from .global_search import fit_distance
-    tau = fit_distance(prep)
-    st, ev, converged, why = settle(st, *final(st))
-    # the coarse stage's subset can drift along a direction that few points fix (a flat face
-    # seen from above: the outline fixes the slide and spin; 0.2 deg from the true pose) and
-    # the final stage then rejects the points that would bring it back: the final stage from
-    # the start itself, kept if it fits better
-    start = T0 if mode not in (InitMode.AUTO, InitMode.GLOBAL) else (
-        ga.T_model_scan if ga is not None else None)
-    if start is not None and _rejected_information(ev, ev.w, radius) > WARN_REJECTED_INFO:
-        st2 = _irls.State(start[:3, :3].copy(), start[:3, 3].copy(), st.iterations,
-                          list(st.history))
-        st2, ev2, conv2, why2 = settle(st2, *final(st2))
-        s0 = min(ev.sigma, ev2.sigma)
-        if _irls._mean_rho(ev2, s0) < _irls._mean_rho(ev, s0):
-            logger.info("registration: the final stage from the start fits better than from "
-                        "the coarse stage's end: taken")
-            st, ev, converged, why = st2, ev2, conv2, why2
-    # a pose flagged as a wrong minimum on a near-axisymmetric part: spin restarts (_restart)
-    # ... or found by the global search on such a part: its hypotheses hold few spins, and a
-    # wrong spin can fit its subset well enough to pass every check (an impeller seen at an
-    # angle: 31 deg off at 16 x the noise, converged, no warning)
-    # (a free spin or slide is not a wrong minimum: no restart where the data leave one)
-    noise = scan_noise(P[::max(1, n // NOISE_POINTS)])
-    suspect = stages.restart and (not converged or any(True for _ in pose_warnings(
-        ev, ev.w, None, tau, radius, noise=noise)))
-    if stages.restart and (suspect or (ga is not None and _restart._model_axis(prep) is not None)) \
-            and _determined(ev, prep, radius):
-        T_alt = _restart.restart(P, prep, T0 if T0 is not None else np.eye(4), _pose(st),
-                                 radius, rng, in_place=not suspect)
-        if T_alt is not None:
-            st2 = _irls.State(T_alt[:3, :3].copy(), T_alt[:3, 3].copy(), st.iterations,
-                              list(st.history))
-            st2, ev2, conv2, why2 = settle(st2, *final(st2))
-            # compared at the sharper of the two scales: the right pose fits to the noise
-            # level, a wrong minimum only loosely (at its own broad scale both look alike)
-            s0 = min(ev.sigma, ev2.sigma)
-            obj, obj0 = _irls._mean_rho(ev2, s0), _irls._mean_rho(ev, s0)
-            if obj < obj0:
-                logger.info("registration: the restart about the model's near-symmetry axis "
-                            "fits better (objective %.4g < %.4g): taken", obj, obj0)
-                st, ev, converged, why = st2, ev2, conv2, why2
-
-    w = ev.w
-    center = _irls.centroid(ev.X, w)
-    H, _ = _irls.system(ev.Y, ev.Y, ev.N, w, center)
-    mp = _irls.model_points(prep)
-    undet_c = _irls.null_directions(ev, mp, H, center, radius)
-    if undet_c.shape[0]:
-        Q, Nq = _irls.information_points(ev, mp)
-    else:
-        Q, Nq = ev.Y, ev.N
-    undet = undetermined_directions(undet_c, center, radius)
-    cov = pose_covariance(Q, Nq, ev.d, w, center, radius, undet,
-                          loss=ev.loss if ev.sigma > 0 else None, sigma=ev.sigma)
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = st.R, st.t
-    msg = (f"converged in {st.iterations} iterations" if converged else
-           f"not converged: {why}")
+def _result(req, fit, placed, quality) -> Registration:
+    """The Registration of the final fit; warns once when directions are undetermined."""
+    st, ev, undet = fit.state, fit.ev, quality.undetermined
+    msg = (f"converged in {st.iterations} iterations" if fit.converged else
+           f"not converged: {fit.why}")
     desc = tuple(_describe(undet))
-    notes = list(pose_warnings(ev, w, ga, tau, radius, T, undet, noise, prep=prep))
     if undet.shape[0]:
         txt = ("scan geometry leaves %d pose direction(s) undetermined: %s"
                % (undet.shape[0], "; ".join(desc)))
         msg += "; " + txt
-        warnings.warn(txt, DegenerateGeometryWarning, stacklevel=2)    # once; also in the result
-    for txt in notes:
+        # once (also in the result); stacklevel: the caller of register (past the wrapper
+        # of renamed_keywords)
+        warnings.warn(txt, DegenerateGeometryWarning, stacklevel=4)
+    for txt in quality.warnings:
         logger.info("registration: %s", txt)             # in Registration.warnings
-    if not converged:
+    if not fit.converged:
         logger.info("registration %s", msg)              # in Registration.message
-    return Registration(T_model_scan=T, rms=ev.rms, iterations=st.iterations,
-                        converged=converged, weights=w, inlier_fraction=float(ev.inliers.mean()),
-                        covariance=cov, history=tuple(st.history), scale=ev.sigma, message=msg,
-                        undetermined=desc, method=method.value, loss=lossobj.name,
-                        undetermined_directions=undet, warnings=tuple(notes), init=how,
-                        alternatives=_alternatives(ga, T, undet, tau, radius))
-
-
-def _alternatives(ga, T, undet, tau, radius) -> tuple:
-    """The global search's other poses that fit nearly as well as its best (at least
-    WARN_RUNNER_UP of its fit), when the runner-up is one that is not a free spin of T."""
-    if not close_runner_up(ga, T, undet, tau, radius):
-        return ()
-    return tuple(np.array(P) for f, P in ga.others if f >= WARN_RUNNER_UP * ga.fit)
-
-
-def _determined(ev, prep, radius) -> bool:
-    """The data determine every pose direction (no free spin or slide)."""
-    c = _irls.centroid(ev.X, ev.w)
-    H, _ = _irls.system(ev.Y, ev.Y, ev.N, ev.w, c)
-    return _irls.null_directions(ev, _irls.model_points(prep), H, c, radius).shape[0] == 0
-
-
-def _pose(st) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3], T[:3, 3] = st.R, st.t
-    return T
+    return Registration(T_model_scan=_stages.pose(st), rms=ev.rms, iterations=st.iterations,
+                        converged=fit.converged, weights=ev.w,
+                        inlier_fraction=float(ev.inliers.mean()), covariance=quality.covariance,
+                        history=tuple(st.history), scale=ev.sigma, message=msg,
+                        undetermined=desc, method=req.method.value, loss=req.loss.name,
+                        undetermined_directions=undet, warnings=quality.warnings,
+                        init=placed.how, alternatives=quality.alternatives)

@@ -20,8 +20,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._random import generator
+from shapeverify._renamed import grouped_keywords
 
-__all__ = ["FringeImages", "fringe_images", "demo_scene"]
+__all__ = ["CameraResponse", "FringeImages", "fringe_images", "demo_scene"]
 
 
 @dataclass(frozen=True, repr=False)
@@ -154,9 +155,21 @@ def _render_camera(scene, rig, dev, T, pattern_period, rows, dent, reflections, 
     return (acc / len(offs)).reshape(H, W), truth
 
 
+@dataclass(frozen=True)
+class CameraResponse:
+    """How the cameras of :func:`fringe_images` respond (its ``response=``; the loose keywords
+    of these names still work, with a DeprecationWarning)."""
+
+    ambient: float = 0.08
+    gain: float = 200.0
+    bits: int = 8
+    supersample: int = 1
+
+
+@grouped_keywords("response", CameraResponse)
 def fringe_images(model, rig, T_left_model=None, period_mm=None, noise=1.0, rng=None, dent=None,
-                  reflections=(), ambient=0.08, gain=200.0, bits=8, supersample=1,
-                  phase_offset=0.0) -> FringeImages:
+                  reflections=(), phase_offset=0.0,
+                  response: CameraResponse = CameraResponse()) -> FringeImages:
     """Render what the two cameras of ``rig`` record of ``model`` lit by one fringe pattern.
 
     Parameters
@@ -180,6 +193,9 @@ def fringe_images(model, rig, T_left_model=None, period_mm=None, noise=1.0, rng=
     reflections : sequence of (center (3,), radius, peak)
         Specular spots: ``peak * exp(-s^2/radius^2)`` grey levels (before clipping) added around
         model points ``center`` (mm).
+    response : CameraResponse
+        Groups ``ambient``, ``gain``, ``bits``, ``supersample`` (described below); the
+        loose keywords still work, with a DeprecationWarning.
     ambient : float
         Ambient light, as a fraction of the projector's full intensity.
     gain : float
@@ -196,6 +212,10 @@ def fringe_images(model, rig, T_left_model=None, period_mm=None, noise=1.0, rng=
     -------
     FringeImages
     """
+    ambient = response.ambient
+    gain = response.gain
+    bits = response.bits
+    supersample = response.supersample
     from shapeverify.camera.intersect import scene_for
 
     if rig.projector is None:

@@ -27,8 +27,9 @@ import numpy as np
 
 from .._random import generator
 from scipy import fft as sfft
+from shapeverify._renamed import grouped_keywords
 
-__all__ = ["Hologram", "simulate_hologram", "dual_wavelength_holograms", "rough_surface",
+__all__ = ["OffAxis", "Hologram", "simulate_hologram", "dual_wavelength_holograms", "rough_surface",
            "grooved_plate", "depth_from_model"]
 
 
@@ -82,10 +83,20 @@ def _lowpass(u, aperture):
     return sfft.ifft2(F)
 
 
+@dataclass(frozen=True)
+class OffAxis:
+    """The off-axis reference of :func:`simulate_hologram` (its ``off_axis=``; the loose
+    keywords of these names still work, with a DeprecationWarning)."""
+
+    carrier: tuple = (0.25, 0.25)
+    aperture: float = 0.1
+    reference_ratio: float = 1.0
+
+
+@grouped_keywords("off_axis", OffAxis)
 def simulate_hologram(depth, wavelength: float, *, heights=None, reflectance=None,
-                      carrier=(0.25, 0.25), aperture: float = 0.1, reference_ratio: float = 1.0,
-                      distance: float = 0.0, pixel_pitch: float | None = None,
-                      noise: float = 0.0, bits: int | None = None, rng=0) -> Hologram:
+                      distance: float = 0.0, pixel_pitch: float | None = None, noise: float = 0.0,
+                      bits: int | None = None, rng=0, off_axis: OffAxis = OffAxis()) -> Hologram:
     """Off-axis hologram of a surface given as a depth map.
 
     Parameters
@@ -99,6 +110,9 @@ def simulate_hologram(depth, wavelength: float, *, heights=None, reflectance=Non
         Roughness heights (mm), e.g. :func:`rough_surface`; ``None``: a smooth (mirror) surface.
     reflectance : (H, W) array_like or None
         Amplitude reflectance >= 0 (``None``: 1 on the surface).
+    off_axis : OffAxis
+        Groups ``carrier``, ``aperture``, ``reference_ratio`` (described below); the loose
+        keywords still work, with a DeprecationWarning.
     carrier : (cx, cy)
         Carrier of the +1 order (cycles/pixel).  Needs ``|c| >= 3 * aperture`` and
         ``|cx|, |cy| + aperture < 0.5`` for the orders not to overlap.
@@ -127,6 +141,9 @@ def simulate_hologram(depth, wavelength: float, *, heights=None, reflectance=Non
     ValueError
         Bad shapes, a non-finite depth everywhere, overlapping orders, bad parameters.
     """
+    carrier = off_axis.carrier
+    aperture = off_axis.aperture
+    reference_ratio = off_axis.reference_ratio
     z = np.asarray(depth, dtype=np.float64)
     if z.ndim != 2 or min(z.shape) < 8:
         raise ValueError(f"depth must be a 2-D map of at least 8 x 8 pixels, got shape {z.shape}")
@@ -210,10 +227,11 @@ def dual_wavelength_holograms(depth, lambda1: float, lambda2: float, *, roughnes
         c1 = tuple(float(v) for v in carrier)
     c2 = tuple(v * lambda1 / lambda2 for v in c1)
     seed = int(rng) if isinstance(rng, (int, np.integer)) else 0
-    h1 = simulate_hologram(z, lambda1, heights=h, carrier=c1, pixel_pitch=pixel_pitch,
-                           rng=seed + 1, **kwargs)
-    h2 = simulate_hologram(z, lambda2, heights=h, carrier=c2, pixel_pitch=pixel_pitch,
-                           rng=seed + 2, **kwargs)
+    off_axis = {k: kwargs.pop(k) for k in ("aperture", "reference_ratio") if k in kwargs}
+    h1 = simulate_hologram(z, lambda1, heights=h, pixel_pitch=pixel_pitch, rng=seed + 1,
+                           off_axis=OffAxis(carrier=c1, **off_axis), **kwargs)
+    h2 = simulate_hologram(z, lambda2, heights=h, pixel_pitch=pixel_pitch, rng=seed + 2,
+                           off_axis=OffAxis(carrier=c2, **off_axis), **kwargs)
     return h1, h2
 
 

@@ -29,8 +29,9 @@ from .._random import generator
 from ..registration.rigid import (
     apply_transform, fisher_information, invert_transform, make_transform, pose_error, rodrigues,
 )
+from shapeverify._renamed import grouped_keywords
 
-__all__ = ["virtual_scan", "VirtualScan", "Accuracy", "random_motion",
+__all__ = ["ScanEffects", "virtual_scan", "VirtualScan", "Accuracy", "random_motion",
            "INLIER", "OUTLIER", "BLOB", "DENT", "LABELS"]
 
 logger = logging.getLogger(__name__)
@@ -294,12 +295,27 @@ def _nonneg(x, name):
 
 
 # ------------------------------------------------------------------------------ the scanner
+@dataclass(frozen=True)
+class ScanEffects:
+    """What the sensor and the scene add to the ideal points of :func:`virtual_scan` (its
+    ``effects=``; the loose keywords of these names still work, with a DeprecationWarning); the
+    fields are described in its Parameters."""
+
+    max_incidence: float = 75.0
+    shadows: int = 0
+    shadow_radius: float | None = None
+    blobs: int = 0
+    blob_radius: float | None = None
+    blob_height: float = 2.0
+    outlier_fraction: float = 0.0
+    outlier_range: float = 5.0
+    dents: tuple = ()
+
+
+@grouped_keywords("effects", ScanEffects)
 def virtual_scan(model, *, camera=None, view=None, distance=None, pixel: float = 1.0,
-                 noise: float = 0.02, max_incidence: float = 75.0, shadows: int = 0,
-                 shadow_radius: float | None = None, blobs: int = 0,
-                 blob_radius: float | None = None, blob_height: float = 2.0,
-                 outlier_fraction: float = 0.0, outlier_range: float = 5.0, dents=(),
-                 motion=None, zbuffer: bool | None = None, rng=None) -> VirtualScan:
+                 noise: float = 0.02, motion=None, zbuffer: bool | None = None, rng=None,
+                 effects: ScanEffects = ScanEffects()) -> VirtualScan:
     """Simulate one optical scan of a model (see the module docstring for the physics).
 
     Parameters
@@ -317,6 +333,11 @@ def virtual_scan(model, *, camera=None, view=None, distance=None, pixel: float =
         Pixel footprint at the model centre (mm): about ``area / pixel^2`` points.
     noise : float
         Depth noise sigma along the rays (mm).
+    effects : ScanEffects
+        Groups ``max_incidence``, ``shadows``, ``shadow_radius``, ``blobs``,
+        ``blob_radius``, ``blob_height``, ``outlier_fraction``, ``outlier_range``,
+        ``dents`` (described below); the loose keywords still work, with a
+        DeprecationWarning.
     max_incidence : float
         Rays meeting the surface at more than this angle from the normal (deg) are dropped.
     shadows, blobs : int
@@ -353,6 +374,15 @@ def virtual_scan(model, *, camera=None, view=None, distance=None, pixel: float =
     ValueError
         On negative sizes, a bad motion, or when no ray meets the model.
     """
+    max_incidence = effects.max_incidence
+    shadows = effects.shadows
+    shadow_radius = effects.shadow_radius
+    blobs = effects.blobs
+    blob_radius = effects.blob_radius
+    blob_height = effects.blob_height
+    outlier_fraction = effects.outlier_fraction
+    outlier_range = effects.outlier_range
+    dents = effects.dents
     rng = generator(rng)
     model = _model_of(model)
     noise = _nonneg(noise, "noise")

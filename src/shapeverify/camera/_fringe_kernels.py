@@ -1,4 +1,4 @@
-"""numba kernels of the single-image fringe analysis (private to phase.fringe_analysis)."""
+"""numba kernels of the single-image fringe analysis (private to camera.fringe_analysis)."""
 
 from __future__ import annotations
 
