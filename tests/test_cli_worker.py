@@ -238,11 +238,9 @@ def test_ctrl_c_on_the_client_cancels_and_the_worker_serves_on(files, worker, tm
     if proc.poll() is None:
         proc.send_signal(signal.SIGINT)
     out, err = proc.communicate(timeout=60)
-    # cancelled: the in-process answer to Ctrl-C (click's "Aborted!", exit 1); or, on a slow
-    # machine, the command had already finished with its verdict
-    assert proc.returncode in (0, 1, 130), err.decode()[-2000:]
-    if proc.returncode != 0:
-        assert b"Aborted" in err or proc.returncode == 130
+    # cancelled: exit code 130, as in-process; or, on a slow machine, the command had already
+    # finished with its verdict (0)
+    assert proc.returncode in (0, 130), err.decode()[-2000:]
     assert _alive(worker["pid"])
     after = _sv(["info", "panel.svm"], files, env)
     assert after.returncode == 0 and b"model points" in after.stdout

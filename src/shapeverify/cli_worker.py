@@ -457,7 +457,7 @@ class Worker:
 
         self.path, self.idle = Path(path), float(idle_minutes) * 60.0
         self.key, self.import_env = version_key(), import_env(os.environ)
-        self.started, self.requests, self.cpu = time.time(), 0, 0.0
+        self.started, self.requests, self.cpu, self.preload_cpu = time.time(), 0, 0.0, 0.0
         self.queue = __import__("queue").Queue()
         self.stopping = threading.Event()
         self.lock = threading.Lock()
@@ -486,6 +486,11 @@ class Worker:
             import scipy.spatial  # noqa: F401
             typer.main.get_command(cli.app)
         _keep_prepared_models()
+        import gc
+
+        gc.collect()
+        gc.freeze()  # the libraries' objects: later collections need not walk them again
+        self.preload_cpu = _cpu()
         self.filters = list(warnings.filters)
         self.logging_level = logging.getLogger().level
 
@@ -510,7 +515,9 @@ class Worker:
         self.inode = os.stat(self.path).st_ino
         listener.listen(16)
         signal.signal(signal.SIGTERM, lambda *_: self._stop_now())
-        signal.signal(signal.SIGINT, signal.SIG_IGN)  # cancels come as frames
+        # a cancel arrives as a frame and is raised by _thread.interrupt_main, which needs
+        # Python's own SIGINT handler (the worker has no terminal: its own session)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
         threading.Thread(target=self._accept, args=(listener,), daemon=True).start()
         try:
             self._loop()
@@ -579,7 +586,8 @@ class Worker:
     def _state(self) -> dict:
         return {"pid": self.pid, "key": self.key, "import_env": self.import_env,
                 "socket": str(self.path), "started": self.started, "requests": self.requests,
-                "cpu": round(self.cpu, 4), "idle_minutes": self.idle / 60.0,
+                "cpu": round(self.cpu, 4), "preload_cpu": round(self.preload_cpu, 4),
+                "idle_minutes": self.idle / 60.0,
                 "busy": self.running is not None}
 
     def _handshake(self, conn) -> None:
