@@ -288,9 +288,9 @@ def _run_remote(sock: socket.socket, argv: list) -> int | None:
 
 
 # ------------------------------------------------------------------ start, stop, status (client)
-def _ask(op: str, timeout: float = CONNECT_TIMEOUT) -> dict | None:
+def _ask(op: str, timeout: float = CONNECT_TIMEOUT, path: Path | None = None) -> dict | None:
     """Send ``op`` (status, stop) to the worker; its JSON answer, None when none runs."""
-    path = socket_path()
+    path = socket_path() if path is None else path
     if not path.exists():
         return None
     try:
@@ -501,6 +501,8 @@ class Worker:
 
         self.path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
         os.chmod(self.path.parent, 0o700)
+        if _ask("status", path=self.path) is not None:  # another worker answers there (two started at once)
+            return
         listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
         try:
             os.unlink(self.path)
