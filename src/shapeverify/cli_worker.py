@@ -88,7 +88,7 @@ def socket_dir() -> Path:
     """The directory of the worker's socket: ``$SHAPEVERIFY_WORKER_DIR``, else
     ``$XDG_RUNTIME_DIR/shapeverify``, else ``~/.cache/shapeverify`` (made with mode 0700)."""
     if os.environ.get(DIR_ENV):
-        return Path(os.environ[DIR_ENV])
+        return Path(os.path.abspath(os.environ[DIR_ENV]))  # the worker runs in /
     runtime = os.environ.get("XDG_RUNTIME_DIR")
     if runtime and os.path.isdir(runtime):
         return Path(runtime) / "shapeverify"
