@@ -116,7 +116,8 @@ def _json(path: Path) -> dict:
 CASES = {
     "info of a STEP file": (["info", "panel.step"], None, 0),
     "info of a prepared model": (["info", "panel.svm"], None, 0),
-    "inspect, pass": (["inspect", "panel.svm", "clean.ply", "--tolerance", "0.2"], "r.json", 0),
+    "inspect, pass": (["inspect", "panel.svm", "clean.ply", "--tolerance", "0.2",
+                       "--colored", "c.ply"], "r.json", 0),
     "inspect, fail": (["inspect", "panel.svm", "dented.ply", "--tolerance", "0.2"], "r.json", 1),
     "inspect, unreadable scan": (["inspect", "panel.svm", "broken.ply", "--tolerance", "0.2"],
                                  None, 2),
@@ -143,13 +144,17 @@ def test_worker_answers_byte_identical_to_in_process(files, worker, tmp_path):
             if out_file:
                 data = _json(files / out_file)
                 (files / out_file).unlink()
+            if "--colored" in argv:                  # a file without timings: byte for byte
+                colored = files / argv[argv.index("--colored") + 1]
+                data = (data, colored.read_bytes())
+                colored.unlink()
             got[how] = (res.returncode, res.stdout, _timeless(res.stderr), data)
         local, remote = got["in-process"], got["worker"]
         assert local[0] == code, f"{name}: {local[2].decode()[-1500:]}"
         assert remote[0] == local[0], name
         assert remote[1] == local[1], name          # stdout, byte for byte
         assert remote[2] == local[2], (name, local[2].decode(), remote[2].decode())
-        assert remote[3] == local[3], name          # the JSON report
+        assert remote[3] == local[3], name          # the JSON report (less timings), the PLY
     cpu = [json.loads(line)["worker_cpu"] for line in log.read_text().splitlines()]
     assert len(cpu) == len(CASES) and all(c > 0 for c in cpu)
 
