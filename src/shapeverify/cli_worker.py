@@ -36,9 +36,7 @@ the standard library: it runs before ``shapeverify.cli`` (typer, rich) or numpy 
 from __future__ import annotations
 
 import hashlib
-import json
 import os
-import socket
 import struct
 import sys
 from pathlib import Path
@@ -150,11 +148,13 @@ def _connect(path: Path, timeout: float = CONNECT_TIMEOUT) -> socket.socket | No
     try:
         st = os.stat(path)
     except OSError:
-        return None
+        return None   # no worker: the usual case, decided without importing socket or json
     if st.st_uid != os.getuid() or st.st_mode & 0o077:
         _note(f"{path} is not this user's private socket; ignoring the worker, running in this "
               "process")
         return None
+    import socket
+
     sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
     sock.settimeout(timeout)
     try:
@@ -233,6 +233,8 @@ def try_worker(argv: list) -> int | None:
 
 
 def _run_remote(sock: socket.socket, argv: list) -> int | None:
+    import json
+
     try:
         _send(sock, b"R", json.dumps(_request(argv)).encode())
         kind, payload = _recv(sock)            # queued, or stale
@@ -290,6 +292,9 @@ def _run_remote(sock: socket.socket, argv: list) -> int | None:
 # ------------------------------------------------------------------ start, stop, status (client)
 def _ask(op: str, timeout: float = CONNECT_TIMEOUT, path: Path | None = None) -> dict | None:
     """Send ``op`` (status, stop) to the worker; its JSON answer, None when none runs."""
+    import json
+    import socket
+
     path = socket_path() if path is None else path
     if not path.exists():
         return None
@@ -497,6 +502,8 @@ class Worker:
 
     # ------------------------------------------------------------------ serving
     def serve(self) -> None:
+        import socket
+
         import signal
         import threading
 
@@ -537,6 +544,8 @@ class Worker:
         self.queue.put(None)
 
     def _loop(self) -> None:
+        import socket
+
         import queue
         import time
 
@@ -579,6 +588,8 @@ class Worker:
             threading.Thread(target=self._handshake, args=(conn,), daemon=True).start()
 
     def _peer_uid(self, conn) -> int | None:
+        import socket
+
         try:
             creds = conn.getsockopt(socket.SOL_SOCKET, socket.SO_PEERCRED,
                                     struct.calcsize("3i"))
@@ -594,6 +605,8 @@ class Worker:
                 "busy": self.running is not None}
 
     def _handshake(self, conn) -> None:
+        import json
+
         uid = self._peer_uid(conn)
         if uid is not None and uid != os.getuid():
             conn.close()
@@ -648,6 +661,8 @@ class Worker:
                 _thread.interrupt_main()
 
     def _serve_one(self, conn, req: dict) -> None:
+        import json
+
         import threading
 
         try:
