@@ -750,43 +750,63 @@ class Worker:
 KEEP_MODELS = 4
 
 
-def _keep_prepared_models() -> None:
-    """Keep the last :data:`KEEP_MODELS` prepared models (.svm) in memory, as ``shapeverify
-    serve`` does: a command that names the same file, unchanged (same device, inode, size,
-    mtime and ctime), gets the model already loaded, with the structures it built lazily
-    (the exact closest-point refinement, the coverage samples).  The commands reach
-    ``load_prepared`` through ``shapeverify.nearest`` at call time, so wrapping it there
-    covers ``inspect`` and ``info``."""
+def _stat_key(path, *extra):
+    """What identifies an unchanged file: its real path, device, inode, size, mtime and ctime
+    (ctime changes on every write, even one that restores the mtime); None if it cannot be had."""
+    try:
+        st = os.stat(path)
+        key = (os.path.realpath(path), st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns,
+               st.st_ctime_ns, *extra)
+        hash(key)
+        return key
+    except (OSError, TypeError, ValueError):
+        return None
+
+
+def _remembering(fn, keep: int):
+    """``fn(path, ...)`` remembered for the last ``keep`` unchanged files (:func:`_stat_key`)."""
     import collections
     import functools
 
-    import shapeverify.nearest as nearest
-
-    load = nearest.load_prepared
-    if getattr(load, "_worker_cache", None) is not None:
-        return
     cache: collections.OrderedDict = collections.OrderedDict()
 
-    @functools.wraps(load)
-    def load_prepared(path, *args, **kwargs):
-        try:
-            st = os.stat(path)
-            key = (os.path.realpath(path), st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns,
-                   st.st_ctime_ns, args, tuple(sorted(kwargs.items())))
-            hash(key)
-        except (OSError, TypeError):
-            return load(path, *args, **kwargs)
+    @functools.wraps(fn)
+    def remembered(path, *args, **kwargs):
+        key = _stat_key(path, args, tuple(sorted(kwargs.items())))
+        if key is None:
+            return fn(path, *args, **kwargs)
         if key in cache:
             cache.move_to_end(key)
             return cache[key]
-        prep = load(path, *args, **kwargs)
-        cache[key] = prep
-        while len(cache) > KEEP_MODELS:
+        value = fn(path, *args, **kwargs)
+        cache[key] = value
+        while len(cache) > keep:
             cache.popitem(last=False)
-        return prep
+        return value
 
-    load_prepared._worker_cache = cache
-    nearest.load_prepared = load_prepared
+    remembered._worker_cache = cache
+    return remembered
+
+
+def _keep_prepared_models() -> None:
+    """Keep the last :data:`KEEP_MODELS` prepared models (.svm) in memory, as ``shapeverify
+    serve`` does: a command that names the same file, unchanged, gets the model already
+    loaded, with the structures it built lazily (the exact closest-point refinement, the
+    coverage samples), and the file's SHA-256 (the reports' ``model_sha256``; ``info``'s
+    summary cache key of a CAD file) without reading the file again.  The commands reach ``load_prepared`` through ``shapeverify.nearest`` and
+    ``file_hash`` through ``shapeverify.pipeline`` at call time, so wrapping them there covers
+    ``inspect``, ``info`` and ``history --model``."""
+    import shapeverify.nearest as nearest
+    import shapeverify.pipeline as pipeline
+
+    if getattr(nearest.load_prepared, "_worker_cache", None) is None:
+        nearest.load_prepared = _remembering(nearest.load_prepared, KEEP_MODELS)
+    if getattr(pipeline.file_hash, "_worker_cache", None) is None:
+        pipeline.file_hash = _remembering(pipeline.file_hash, 64)
+    import shapeverify.cad.summary as summary   # info's cache key: the CAD file's hash
+
+    if getattr(summary._file_hash, "_worker_cache", None) is None:
+        summary._file_hash = _remembering(summary._file_hash, 64)
 
 
 def _report_uncaught(exc: BaseException) -> None:
