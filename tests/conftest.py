@@ -17,9 +17,13 @@ SHARED_DATA = Path(__file__).resolve().parents[1].parent / "shared" / "data"
 @pytest.fixture(scope="session", autouse=True)
 def _summary_cache(tmp_path_factory):
     """``info``'s summary cache (shapeverify.cad.summary) in a temporary folder, not the user's:
-    no test writes to ~/.cache, and none sees entries of earlier runs."""
+    no test writes to ~/.cache, and none sees entries of earlier runs.  No command a test starts
+    goes to a resident worker (``SHAPEVERIFY_NO_WORKER=1``)."""
     mp = pytest.MonkeyPatch()
     mp.setenv("SHAPEVERIFY_CACHE_DIR", str(tmp_path_factory.mktemp("summary-cache")))
+    # the commands the tests start run in their own process, not in a resident worker the user
+    # may have running (shapeverify worker start): a test of the worker sets its own
+    mp.setenv("SHAPEVERIFY_NO_WORKER", "1")
     yield
     mp.undo()
 

@@ -569,6 +569,43 @@ def fit(
         out.print(f"{k}: {v}")
 
 
+@app.command()
+def worker(
+    action: str = typer.Argument(..., help="start | stop | status"),
+    idle: float = typer.Option(30.0, "--idle", help="start: stop the worker after this many minutes without a command"),
+):
+    """A resident worker that keeps the libraries and kernels loaded, so later commands answer
+    in a fraction of the time (opt-in; SHAPEVERIFY_NO_WORKER=1 ignores it).
+
+    Exit code of status: 0 a worker runs, 1 none does.
+    """
+    from shapeverify import cli_worker
+
+    if action == "start":
+        with _stage("Starting the worker", watch=False):
+            st = _guard(cli_worker.start, idle)
+        what = "already running" if st.get("already") else "started"
+        out.print(f"worker {what}: pid {st['pid']}, socket {st['socket']}; stop it with "
+                  "`shapeverify worker stop`")
+    elif action == "stop":
+        st = cli_worker.stop()
+        out.print("no worker running" if st is None else
+                  f"worker stopped (pid {st['pid']}, {st['requests']} commands served, "
+                  f"{st['cpu']:.2f} s CPU)")
+    elif action == "status":
+        st = cli_worker.status()
+        if st is None:
+            out.print(f"no worker running (socket {cli_worker.socket_path()})")
+            raise typer.Exit(1)
+        current = st["key"] == cli_worker.version_key()
+        out.print(f"worker running: pid {st['pid']}, socket {st['socket']}, "
+                  f"{st['requests']} commands served, {st['cpu']:.2f} s CPU, "
+                  f"{'busy' if st['busy'] else 'idle'}"
+                  + ("" if current else "; STALE (another version: commands run in-process)"))
+    else:
+        _fail(f"worker {action}: unknown action; one of start, stop, status")
+
+
 # the commands of the optical chain and of the front ends live in their own modules
 from .cli_frontends import register_commands as _register_frontends  # noqa: E402 (serve, batch)
 from .cli_optics import register_commands as _register_optics  # noqa: E402  (measure, calibrate)

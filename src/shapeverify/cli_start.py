@@ -5,7 +5,9 @@ imports OpenCASCADE, about 1.2 s); importing typer and rich and parsing the comm
 ~0.2 s, so the importer is started before that: :func:`main` (the ``shapeverify`` command and
 ``python -m shapeverify``) calls :func:`early_importer` before it imports the command line
 (``cli._GuardedGroup.main`` calls it too, for ``python -m shapeverify.cli`` and tests; a second
-call finds the importer running).  Nothing here imports numpy, OCP or numba.
+call finds the importer running).  Before that, :func:`main` hands the command to the resident
+worker when one runs (``shapeverify worker start``, :mod:`shapeverify.cli_worker`).  Nothing
+here imports numpy, OCP or numba.
 """
 
 from __future__ import annotations
@@ -19,8 +21,15 @@ CAD_SUFFIXES = (".step", ".stp", ".igs", ".iges")
 
 
 def main() -> int | None:
-    """The ``shapeverify`` command: start the importer if the command will need it, then run the
-    command line (exit codes in :mod:`shapeverify.cli`)."""
+    """The ``shapeverify`` command: hand it to the resident worker if one of this installation
+    and version runs (:mod:`shapeverify.cli_worker`, standard library only up to here); else
+    start the importer if the command will need it, then run the command line in this process
+    (exit codes in :mod:`shapeverify.cli`)."""
+    from shapeverify.cli_worker import try_worker
+
+    code = try_worker(sys.argv[1:])
+    if code is not None:
+        return code
     early_importer(sys.argv[1:])
     from shapeverify.cli import main as run
 

@@ -1,0 +1,850 @@
+"""A resident worker for the command line (issue 32 item 7): ``shapeverify worker start|stop|status``.
+
+A Python that runs an inspection pays about 1.5 s of CPU before the inspection's own 0.2 s:
+numpy, numba and its first use (its lowering registries and ``scipy.linalg``), scipy.spatial,
+typer and pydantic, and loading numba's cached kernels.  The worker pays that once: it is a
+background process that has imported the command line and the pipeline; each later
+``shapeverify ...`` (the client) finds it on a Unix-domain socket, sends its argv, working
+directory, environment and umask, and copies back what the command writes to stdout and stderr
+and its exit code.  The worker runs one request at a time through the same typer app as the
+command line in-process (:data:`shapeverify.cli.app`), so the answers are the same.
+
+Opt-in: only a worker started by ``shapeverify worker start`` (or, with ``SHAPEVERIFY_WORKER=1``,
+by the first command, which itself still runs in-process) is used.  ``SHAPEVERIFY_NO_WORKER=1``
+makes every command run in-process.  The worker ends by ``shapeverify worker stop``, after
+``--idle`` minutes without a request (default 30), or when the installed sources change.
+
+Safety: the socket lives in a directory only the user can enter (``$XDG_RUNTIME_DIR/shapeverify``
+or ``~/.cache/shapeverify``; ``SHAPEVERIFY_WORKER_DIR`` overrides it), has mode 0600, and the
+worker serves only its own user (``SO_PEERCRED``).  Its name depends on the installation (the
+package's directory and the Python), and every request carries the client's version key (the
+package version and the size and mtime of every source file) and the environment variables
+read at import (``NUMBA_*``, ``OMP_*``, ``OPENBLAS_*``, ``MKL_*``, ``PYTHONPATH`` ...): a
+worker of another version or environment answers "stale" and the client runs the command
+itself, with one line on stderr.  So does a dead worker (the socket refuses), or one that dies
+during the command (the command is run again in-process).  Ctrl-C on the client cancels the
+request in the worker (``KeyboardInterrupt`` there, as in-process), which stays up.
+
+CPU: the worker measures each request's CPU (its own, its threads' and its children's) and
+sends it with the exit code; with ``SHAPEVERIFY_WORKER_CPU_LOG=FILE`` the client appends it to
+FILE (one JSON line per command), so a benchmark counts client + worker CPU.
+
+The client side (:func:`try_worker`, :func:`version_key`, :func:`socket_path`) imports only
+the standard library: it runs before ``shapeverify.cli`` (typer, rich) or numpy is imported.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import os
+import struct
+import sys
+from pathlib import Path
+
+__all__ = ["try_worker", "socket_path", "version_key", "start", "stop", "status", "serve",
+           "NO_WORKER_ENV", "AUTO_START_ENV", "CPU_LOG_ENV", "DIR_ENV", "LOCAL_COMMANDS"]
+
+NO_WORKER_ENV = "SHAPEVERIFY_NO_WORKER"
+AUTO_START_ENV = "SHAPEVERIFY_WORKER"
+CPU_LOG_ENV = "SHAPEVERIFY_WORKER_CPU_LOG"
+DIR_ENV = "SHAPEVERIFY_WORKER_DIR"
+#: commands that always run in-process: servers and Dask clusters run long and start their own
+#: processes; ``worker`` manages the worker
+LOCAL_COMMANDS = frozenset({"serve", "batch", "worker"})
+#: environment read when the worker's libraries are imported: a request must match the worker's
+_IMPORT_ENV_PREFIXES = ("NUMBA_", "OMP_", "OPENBLAS_", "MKL_")
+_IMPORT_ENV_NAMES = ("PYTHONPATH", "PYTHONHOME", "PYTHONWARNINGS", "PYTHONOPTIMIZE",
+                     "PYTHONHASHSEED", "PYTHONIOENCODING", "PYTHONUTF8", "PYTHONSAFEPATH")
+_PACKAGE = Path(__file__).resolve().parent
+_HEAD = struct.Struct(">cI")
+CONNECT_TIMEOUT = 2.0       # a live worker accepts at once, even while it runs a request
+CANCEL_GRACE = 5.0          # after Ctrl-C: how long the client waits for the worker to stop
+
+
+# ------------------------------------------------------------------------------------ framing
+def _send(sock: socket.socket, kind: bytes, payload: bytes = b"") -> None:
+    sock.sendall(_HEAD.pack(kind, len(payload)) + payload)
+
+
+def _recv_exact(sock: socket.socket, n: int) -> bytes:
+    buf = bytearray()
+    while len(buf) < n:
+        chunk = sock.recv(n - len(buf))
+        if not chunk:
+            raise ConnectionError("the worker closed the connection")
+        buf += chunk
+    return bytes(buf)
+
+
+def _recv(sock: socket.socket) -> tuple[bytes, bytes]:
+    kind, n = _HEAD.unpack(_recv_exact(sock, _HEAD.size))
+    return kind, _recv_exact(sock, n)
+
+
+# ---------------------------------------------------------------------- where and which worker
+def socket_dir() -> Path:
+    """The directory of the worker's socket: ``$SHAPEVERIFY_WORKER_DIR``, else
+    ``$XDG_RUNTIME_DIR/shapeverify``, else ``~/.cache/shapeverify`` (made with mode 0700)."""
+    if os.environ.get(DIR_ENV):
+        return Path(os.path.abspath(os.environ[DIR_ENV]))  # the worker runs in /
+    runtime = os.environ.get("XDG_RUNTIME_DIR")
+    if runtime and os.path.isdir(runtime):
+        return Path(runtime) / "shapeverify"
+    return Path(os.path.expanduser("~")) / ".cache" / "shapeverify"
+
+
+def socket_path() -> Path:
+    """The socket of the worker of this installation (package directory and Python) and user."""
+    tag = hashlib.sha256(f"{_PACKAGE}\0{sys.executable}".encode()).hexdigest()[:12]
+    return socket_dir() / f"worker-{os.getuid()}-{tag}.sock"
+
+
+def _sources_digest() -> str:
+    """Size and mtime of every file of the installed package (not numba's or Python's caches)."""
+    h = hashlib.sha256()
+    stack = [str(_PACKAGE)]
+    while stack:
+        top = stack.pop()
+        with os.scandir(top) as it:
+            entries = sorted(it, key=lambda e: e.name)
+        for e in entries:
+            if e.is_dir(follow_symlinks=False):
+                if e.name != "__pycache__":
+                    stack.append(e.path)
+            elif not e.name.endswith((".pyc", ".nbi", ".nbc")):
+                st = e.stat()
+                h.update(f"{e.path}\0{st.st_size}\0{st.st_mtime_ns}\n".encode())
+    return h.hexdigest()[:16]
+
+
+def version_key() -> str:
+    """The package version, the sources' digest and the Python: a worker answers only clients
+    whose key equals its own (taken when it started)."""
+    from shapeverify import __version__
+
+    return f"{__version__}:{_sources_digest()}:{sys.executable}"
+
+
+def import_env(env) -> dict:
+    """The environment variables read when numpy, numba and the package are imported (with the
+    default :mod:`shapeverify.cli` gives OpenBLAS's threads before numpy is imported)."""
+    got = {k: v for k, v in env.items()
+           if k.startswith(_IMPORT_ENV_PREFIXES) or k in _IMPORT_ENV_NAMES}
+    got.setdefault("OPENBLAS_NUM_THREADS", "1")
+    return got
+
+
+def _note(text: str) -> None:
+    try:
+        sys.stderr.write(f"note: {text}\n")
+        sys.stderr.flush()
+    except OSError:
+        pass
+
+
+def _connect(path: Path, timeout: float = CONNECT_TIMEOUT) -> socket.socket | None:
+    """A connection to the worker at ``path``; None (a note said why) when it is not safe or
+    not answering; a refused socket file (its worker died) is removed."""
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None   # no worker: the usual case, decided without importing socket or json
+    if st.st_uid != os.getuid() or st.st_mode & 0o077:
+        _note(f"{path} is not this user's private socket; ignoring the worker, running in this "
+              "process")
+        return None
+    import socket
+
+    sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    sock.settimeout(timeout)
+    try:
+        sock.connect(str(path))
+    except OSError as exc:
+        sock.close()
+        _note(f"the shapeverify worker does not answer ({exc.strerror or exc}); running in this "
+              "process (start a new one: shapeverify worker start)")
+        try:
+            os.unlink(path)  # nobody listens on it: the worker died
+        except OSError:
+            pass
+        return None
+    return sock
+
+
+# ---------------------------------------------------------------------------------- the client
+def _command(argv: list) -> str | None:
+    return next((a for a in argv if not a.startswith("-")), None)
+
+
+def _terminal_size() -> tuple[int, int] | None:
+    for fd in (0, 1, 2):  # rich's order (Console.size)
+        try:
+            return tuple(os.get_terminal_size(fd))
+        except (OSError, ValueError):
+            continue
+    return None
+
+
+def _request(argv: list) -> dict:
+    env = dict(os.environ)
+    size = _terminal_size()
+    if size is not None:  # the worker's descriptors are no terminal: tell it this one's size
+        env.setdefault("COLUMNS", str(size[0]))
+        env.setdefault("LINES", str(size[1]))
+    umask = os.umask(0o022)
+    os.umask(umask)
+    streams = [getattr(sys, s) for s in ("stdout", "stderr")]
+    return {"op": "run", "key": version_key(), "argv": list(argv), "cwd": os.getcwd(),
+            "env": env, "umask": umask,
+            "tty": [bool(getattr(s, "isatty", lambda: False)()) for s in streams],
+            "encoding": [getattr(s, "encoding", None) or "utf-8" for s in streams],
+            "errors": [getattr(s, "errors", None) or "strict" for s in streams]}
+
+
+def _write(stream, data: bytes) -> None:
+    buf = getattr(stream, "buffer", None)
+    stream.flush()
+    if buf is not None:
+        buf.write(data)
+        buf.flush()
+    else:  # a replaced stream (tests): text
+        stream.write(data.decode(getattr(stream, "encoding", None) or "utf-8", "replace"))
+        stream.flush()
+
+
+def try_worker(argv: list) -> int | None:
+    """Run ``shapeverify ARGV`` in the resident worker, if one of this installation, user and
+    version listens; returns the exit code, or None when the caller must run it in-process
+    (no worker, ``SHAPEVERIFY_NO_WORKER=1``, a command that runs locally, a stale or dead worker:
+    the last two with one note on stderr)."""
+    if os.environ.get(NO_WORKER_ENV, "") not in ("", "0"):
+        return None
+    command = _command(argv)
+    if command is None or command in LOCAL_COMMANDS:
+        return None
+    path = socket_path()
+    sock = _connect(path)
+    if sock is None:
+        if os.environ.get(AUTO_START_ENV, "") not in ("", "0") and not path.exists():
+            _spawn(path)  # for the next command; this one runs in-process
+        return None
+    with sock:
+        return _run_remote(sock, argv)
+
+
+def _run_remote(sock: socket.socket, argv: list) -> int | None:
+    import json
+
+    try:
+        _send(sock, b"R", json.dumps(_request(argv)).encode())
+        kind, payload = _recv(sock)            # queued, or stale
+        if kind != b"Q":
+            _note(f"{payload.decode(errors='replace')}; running in this process")
+            return None
+        sock.settimeout(None)                  # the worker is alive: wait for our turn
+        kind, payload = _recv(sock)
+        if kind != b"A":
+            _note(f"{payload.decode(errors='replace')}; running in this process")
+            return None
+    except (OSError, ConnectionError, ValueError, struct.error) as exc:
+        _note(f"the shapeverify worker failed before the command ran ({exc}); running in this "
+              "process")
+        return None
+    except KeyboardInterrupt:   # before the command started: nothing ran
+        return 130
+    cancelled = False
+    wrote = False
+    while True:
+        try:
+            kind, payload = _recv(sock)
+        except KeyboardInterrupt:
+            if cancelled:  # a second Ctrl-C: leave at once
+                return 130
+            cancelled = True
+            try:
+                _send(sock, b"C")
+                sock.settimeout(CANCEL_GRACE)
+            except OSError:
+                return 130
+            continue
+        except (OSError, ConnectionError, struct.error) as exc:
+            if cancelled:
+                return 130
+            _note(f"the shapeverify worker stopped during the command ({exc}); running it again "
+                  "in this process" + (" (the output above is from the interrupted run)"
+                                       if wrote else ""))
+            return None
+        if kind == b"O":
+            _write(sys.stdout, payload)
+            wrote = True
+        elif kind == b"E":
+            _write(sys.stderr, payload)
+        elif kind == b"X":
+            done = json.loads(payload)
+            log = os.environ.get(CPU_LOG_ENV)
+            if log:
+                with open(log, "a") as f:
+                    f.write(json.dumps({"argv": list(argv), "worker_cpu": done["cpu"],
+                                        "code": done["code"]}) + "\n")
+            return int(done["code"])
+
+
+# ------------------------------------------------------------------ start, stop, status (client)
+def _ask(op: str, timeout: float = CONNECT_TIMEOUT, path: Path | None = None) -> dict | None:
+    """Send ``op`` (status, stop) to the worker; its JSON answer, None when none runs."""
+    import json
+    import socket
+
+    path = socket_path() if path is None else path
+    if not path.exists():
+        return None
+    try:
+        st = os.stat(path)
+    except OSError:
+        return None
+    if st.st_uid != os.getuid() or st.st_mode & 0o077:
+        return None
+    sock = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+    sock.settimeout(timeout)
+    try:
+        with sock:
+            sock.connect(str(path))
+            _send(sock, b"R", json.dumps({"op": op}).encode())
+            kind, payload = _recv(sock)
+            return json.loads(payload) if kind == b"I" else None
+    except (OSError, ConnectionError, ValueError, struct.error):
+        return None
+
+
+def status() -> dict | None:
+    """The running worker's state (pid, version key, requests served, CPU), or None."""
+    return _ask("status")
+
+
+def _spawn(path: Path, idle_minutes: float = 30.0):
+    import subprocess
+
+    path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
+    os.chmod(path.parent, 0o700)
+    log = open(path.with_suffix(".log"), "ab")
+    try:
+        return subprocess.Popen(
+            [sys.executable, "-m", "shapeverify.cli_worker", "serve", str(path),
+             str(idle_minutes)],
+            stdin=subprocess.DEVNULL, stdout=log, stderr=log, start_new_session=True,
+            env={k: v for k, v in os.environ.items() if k != AUTO_START_ENV},
+            cwd="/")
+    finally:
+        log.close()
+
+
+def start(idle_minutes: float = 30.0, wait: float = 300.0) -> dict:
+    """Start the worker (a stale one is stopped first) and wait until it answers; its status."""
+    import time
+
+    path = socket_path()
+    now = status()
+    if now is not None:
+        if now.get("key") == version_key() and now.get("import_env") == import_env(os.environ):
+            return {**now, "already": True}
+        stop()
+    proc = _spawn(path, idle_minutes)
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < wait:
+        got = status()
+        if got is not None and got.get("pid") == proc.pid:
+            return got
+        if proc.poll() is not None:
+            raise RuntimeError(f"the worker exited with code {proc.returncode}; see "
+                               f"{path.with_suffix('.log')}")
+        time.sleep(0.05)
+    proc.kill()
+    raise RuntimeError(f"the worker did not answer within {wait:.0f} s; see "
+                       f"{path.with_suffix('.log')}")
+
+
+def stop(wait: float = 30.0) -> dict | None:
+    """Stop the worker (after the request it runs, if any) and wait for its process to end;
+    its last status, None when none ran."""
+    import time
+
+    got = _ask("stop")
+    if got is None:
+        return None
+    pid, t0 = got["pid"], time.monotonic()
+    while time.monotonic() - t0 < wait:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return got
+        if _zombie(pid):
+            return got
+        time.sleep(0.02)
+    import signal
+
+    os.kill(pid, signal.SIGKILL)
+    return got
+
+
+def _zombie(pid: int) -> bool:
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] == "Z"
+    except (OSError, IndexError):
+        return False
+
+
+# --------------------------------------------------------------------------------- the worker
+def _children_cpu() -> float:
+    """CPU seconds of this process's live children (the CAD importer), from /proc (Linux)."""
+    total, tick = 0.0, os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+    try:
+        tasks = os.listdir("/proc/self/task")
+    except OSError:
+        return 0.0
+    for t in tasks:
+        try:
+            with open(f"/proc/self/task/{t}/children") as f:
+                kids = f.read().split()
+        except OSError:
+            continue
+        for pid in kids:
+            try:
+                with open(f"/proc/{pid}/stat") as f:
+                    fields = f.read().rsplit(")", 1)[1].split()
+                total += (int(fields[11]) + int(fields[12])) / tick
+            except (OSError, IndexError, ValueError):
+                continue
+    return total
+
+
+def _cpu() -> float:
+    import resource
+
+    s, c = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return s.ru_utime + s.ru_stime + c.ru_utime + c.ru_stime + _children_cpu()
+
+
+class _Raw:
+    """The binary stream under a request's ``sys.stdout``/``sys.stderr``: frames to the client."""
+
+    def __init__(self, sock, kind: bytes, tty: bool):
+        import io
+
+        class Raw(io.RawIOBase):
+            def writable(self):
+                return True
+
+            def isatty(self):
+                return tty
+
+            def write(self, b):
+                if len(b):
+                    _send(sock, kind, bytes(b))
+                return len(b)
+
+        self.raw = Raw()
+
+
+def _stream(sock, kind: bytes, tty: bool, encoding: str, errors: str):
+    import io
+
+    return io.TextIOWrapper(io.BufferedWriter(_Raw(sock, kind, tty).raw), encoding=encoding,
+                            errors=errors, line_buffering=True, write_through=True)
+
+
+class Worker:
+    """The resident process: listens on ``path``, runs one command at a time."""
+
+    def __init__(self, path: Path, idle_minutes: float):
+        import threading
+        import time
+
+        self.path, self.idle = Path(path), float(idle_minutes) * 60.0
+        self.key, self.import_env = version_key(), import_env(os.environ)
+        self.started, self.requests, self.cpu, self.preload_cpu = time.time(), 0, 0.0, 0.0
+        self.queue = __import__("queue").Queue()
+        self.stopping = threading.Event()
+        self.lock = threading.Lock()
+        self.running = None   # the connection whose request runs now
+        self.pid = os.getpid()
+
+    # ------------------------------------------------------------------ preparation
+    def preload(self) -> None:
+        """Import the command line and the pipeline and use numba once (its registries and
+        ``scipy.linalg``), so that a request pays only its own work."""
+        import contextlib
+        import io
+        import logging
+        import warnings
+
+        sink = io.StringIO()
+        with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
+            import typer.main
+
+            from shapeverify import cli, cli_common  # noqa: F401
+            import shapeverify.inspection  # noqa: F401
+            import shapeverify.nearest  # noqa: F401
+            import shapeverify.options  # noqa: F401
+            import shapeverify.pipeline  # noqa: F401
+            import shapeverify.registration  # noqa: F401
+            import scipy.spatial  # noqa: F401
+            # the click command typer builds from the app on every call (~0.05 s): built once
+            self.command = typer.main.get_command(cli.app)
+        _keep_prepared_models()
+        import gc
+
+        gc.collect()
+        gc.freeze()  # the libraries' objects: later collections need not walk them again
+        self.preload_cpu = _cpu()
+        self.filters = list(warnings.filters)
+        self.logging_level = logging.getLogger().level
+
+    # ------------------------------------------------------------------ serving
+    def serve(self) -> None:
+        import socket
+
+        import signal
+        import threading
+
+        self.path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
+        os.chmod(self.path.parent, 0o700)
+        if _ask("status", path=self.path) is not None:  # another worker answers there (two started at once)
+            return
+        listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        try:
+            os.unlink(self.path)
+        except FileNotFoundError:
+            pass
+        old = os.umask(0o177)
+        try:
+            listener.bind(str(self.path))
+        finally:
+            os.umask(old)
+        os.chmod(self.path, 0o600)
+        self.inode = os.stat(self.path).st_ino
+        listener.listen(16)
+        signal.signal(signal.SIGTERM, lambda *_: self._stop_now())
+        # a cancel arrives as a frame and is raised by _thread.interrupt_main, which needs
+        # Python's own SIGINT handler (the worker has no terminal: its own session)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        threading.Thread(target=self._accept, args=(listener,), daemon=True).start()
+        try:
+            self._loop()
+        finally:
+            listener.close()
+            try:
+                if os.stat(self.path).st_ino == self.inode:
+                    os.unlink(self.path)
+            except OSError:
+                pass
+
+    def _stop_now(self) -> None:
+        self.stopping.set()
+        self.queue.put(None)
+
+    def _loop(self) -> None:
+        import socket
+
+        import queue
+        import time
+
+        last = time.monotonic()
+        while not self.stopping.is_set():
+            try:
+                item = self.queue.get(timeout=max(0.1, self.idle - (time.monotonic() - last)))
+            except queue.Empty:
+                if time.monotonic() - last >= self.idle:
+                    break
+                continue
+            except KeyboardInterrupt:   # a late cancel of a request already done
+                continue
+            if item is None:
+                continue
+            conn, req = item
+            try:
+                self._serve_one(conn, req)
+            except KeyboardInterrupt:
+                pass
+            except Exception:  # noqa: BLE001 - the worker must outlive a broken connection
+                import traceback
+                traceback.print_exc()
+            finally:
+                try:
+                    conn.shutdown(socket.SHUT_RDWR)  # ends the request's watcher thread
+                except OSError:
+                    pass
+                conn.close()
+                last = time.monotonic()
+
+    def _accept(self, listener) -> None:
+        import threading
+
+        while True:
+            try:
+                conn, _ = listener.accept()
+            except OSError:
+                return
+            threading.Thread(target=self._handshake, args=(conn,), daemon=True).start()
+
+    def _peer_uid(self, conn) -> int | None:
+        import socket
+
+        try:
+            creds = conn.getsockopt(socket.SOL_SOCKET, socket.SO_PEERCRED,
+                                    struct.calcsize("3i"))
+            return struct.unpack("3i", creds)[1]
+        except (OSError, AttributeError):
+            return None
+
+    def _state(self) -> dict:
+        return {"pid": self.pid, "key": self.key, "import_env": self.import_env,
+                "socket": str(self.path), "started": self.started, "requests": self.requests,
+                "cpu": round(self.cpu, 4), "preload_cpu": round(self.preload_cpu, 4),
+                "idle_minutes": self.idle / 60.0,
+                "busy": self.running is not None}
+
+    def _handshake(self, conn) -> None:
+        import json
+
+        uid = self._peer_uid(conn)
+        if uid is not None and uid != os.getuid():
+            conn.close()
+            return
+        try:
+            conn.settimeout(10.0)
+            kind, payload = _recv(conn)
+            req = json.loads(payload)
+            op = req.get("op")
+            if op == "status":
+                _send(conn, b"I", json.dumps(self._state()).encode())
+                conn.close()
+                return
+            if op == "stop":
+                _send(conn, b"I", json.dumps(self._state()).encode())
+                conn.close()
+                self._stop_now()
+                return
+            if req.get("key") != self.key:
+                stale = req.get("key", "").rsplit(":", 1)[0] != self.key.rsplit(":", 1)[0]
+                _send(conn, b"S", b"the shapeverify worker runs another version of shapeverify "
+                                  b"(started before an update); it stops now")
+                conn.close()
+                if stale:
+                    self._stop_now()
+                return
+            if import_env(req.get("env", {})) != self.import_env:
+                _send(conn, b"S", b"the shapeverify worker was started with other NUMBA_/OMP_/"
+                                  b"PYTHON* environment variables")
+                conn.close()
+                return
+            conn.settimeout(None)
+            _send(conn, b"Q", b"")
+            self.queue.put((conn, req))
+        except (OSError, ConnectionError, ValueError, struct.error):
+            conn.close()
+
+    def _watch(self, conn) -> None:
+        """Cancel the running request when its client sends C or goes away."""
+        import _thread
+
+        try:
+            while True:
+                kind, _ = _recv(conn)
+                if kind == b"C":
+                    break
+        except (OSError, ConnectionError, struct.error):
+            pass
+        with self.lock:
+            if self.running is conn:
+                self.running = None
+                _thread.interrupt_main()
+
+    def _serve_one(self, conn, req: dict) -> None:
+        import json
+
+        import threading
+
+        try:
+            os.stat(req["cwd"])
+        except OSError as exc:
+            _send(conn, b"S", f"the worker cannot enter {req['cwd']} ({exc})".encode())
+            return
+        _send(conn, b"A", b"")
+        with self.lock:
+            self.running = conn
+        threading.Thread(target=self._watch, args=(conn,), daemon=True).start()
+        cpu0 = _cpu()
+        try:
+            code = self._run(conn, req)
+        finally:
+            with self.lock:
+                self.running = None
+        cpu = _cpu() - cpu0
+        self.requests += 1
+        self.cpu += cpu
+        try:
+            _send(conn, b"X", json.dumps({"code": code, "cpu": cpu}).encode())
+        except OSError:
+            pass
+
+    def _run(self, conn, req: dict) -> int | None:
+        """Run one command as ``shapeverify ARGV`` would in-process; its exit code."""
+        import logging
+        import warnings
+
+        from shapeverify import cli_common
+
+        saved = (os.getcwd(), dict(os.environ), sys.argv, sys.stdin, sys.stdout, sys.stderr)
+        umask = os.umask(int(req.get("umask", 0o022)))
+        out = _stream(conn, b"O", req["tty"][0], req["encoding"][0], req["errors"][0])
+        err = _stream(conn, b"E", req["tty"][1], req["encoding"][1], req["errors"][1])
+        try:
+            os.chdir(req["cwd"])
+            os.environ.clear()
+            os.environ.update(req["env"])
+            sys.argv = ["shapeverify", *req["argv"]]
+            sys.stdin = open(os.devnull)
+            sys.stdout, sys.stderr = out, err
+            # what a fresh process starts with: no log handlers, the start's warning filters,
+            # consoles made for this client's terminal and environment
+            root = logging.getLogger()
+            for h in list(root.handlers):
+                root.removeHandler(h)
+            root.setLevel(self.logging_level)
+            logging.captureWarnings(False)
+            logging.getLogger("py.warnings").setLevel(logging.NOTSET)
+            warnings.filters[:] = self.filters
+            warnings._filters_mutated()
+            warnings.onceregistry.clear()
+            cli_common.console.__init__(stderr=True)
+            cli_common.out.__init__()
+            try:
+                self.command.main(args=list(req["argv"]), prog_name="shapeverify")
+                code = 0
+            except SystemExit as exc:
+                code = _exit_code(exc.code)
+            except KeyboardInterrupt:
+                code = 130
+            except BaseException as exc:  # noqa: BLE001 - as the interpreter would report it
+                _report_uncaught(exc)
+                code = 1
+            for s in (out, err):
+                try:
+                    s.flush()
+                except (OSError, ValueError):
+                    pass
+            return code
+        finally:
+            sys.stdin.close()
+            sys.argv, sys.stdin, sys.stdout, sys.stderr = saved[2:]
+            cli_common.console.__init__(stderr=True)
+            cli_common.out.__init__()
+            os.environ.clear()
+            os.environ.update(saved[1])
+            os.umask(umask)
+            os.chdir(saved[0])
+
+
+#: prepared models the worker keeps (the most recently used)
+KEEP_MODELS = 4
+
+
+def _stat_key(path, *extra):
+    """What identifies an unchanged file: its real path, device, inode, size, mtime and ctime
+    (ctime changes on every write, even one that restores the mtime); None if it cannot be had."""
+    try:
+        st = os.stat(path)
+        key = (os.path.realpath(path), st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns,
+               st.st_ctime_ns, *extra)
+        hash(key)
+        return key
+    except (OSError, TypeError, ValueError):
+        return None
+
+
+def _remembering(fn, keep: int):
+    """``fn(path, ...)`` remembered for the last ``keep`` unchanged files (:func:`_stat_key`)."""
+    import collections
+    import functools
+
+    cache: collections.OrderedDict = collections.OrderedDict()
+
+    @functools.wraps(fn)
+    def remembered(path, *args, **kwargs):
+        key = _stat_key(path, args, tuple(sorted(kwargs.items())))
+        if key is None:
+            return fn(path, *args, **kwargs)
+        if key in cache:
+            cache.move_to_end(key)
+            return cache[key]
+        value = fn(path, *args, **kwargs)
+        cache[key] = value
+        while len(cache) > keep:
+            cache.popitem(last=False)
+        return value
+
+    remembered._worker_cache = cache
+    return remembered
+
+
+def _keep_prepared_models() -> None:
+    """Keep the last :data:`KEEP_MODELS` prepared models (.svm) in memory, as ``shapeverify
+    serve`` does: a command that names the same file, unchanged, gets the model already
+    loaded, with the structures it built lazily (the exact closest-point refinement, the
+    coverage samples), and the file's SHA-256 (the reports' ``model_sha256``; ``info``'s
+    summary cache key of a CAD file) without reading the file again.  The commands reach ``load_prepared`` through ``shapeverify.nearest`` and
+    ``file_hash`` through ``shapeverify.pipeline`` at call time, so wrapping them there covers
+    ``inspect``, ``info`` and ``history --model``."""
+    import shapeverify.nearest as nearest
+    import shapeverify.pipeline as pipeline
+
+    if getattr(nearest.load_prepared, "_worker_cache", None) is None:
+        nearest.load_prepared = _remembering(nearest.load_prepared, KEEP_MODELS)
+    if getattr(pipeline.file_hash, "_worker_cache", None) is None:
+        pipeline.file_hash = _remembering(pipeline.file_hash, 64)
+    import shapeverify.cad.summary as summary   # info's cache key: the CAD file's hash
+
+    if getattr(summary._file_hash, "_worker_cache", None) is None:
+        summary._file_hash = _remembering(summary._file_hash, 64)
+
+
+def _report_uncaught(exc: BaseException) -> None:
+    """Print an exception that escaped the command as ``shapeverify`` in-process would: typer's
+    ``Typer.__call__`` marks it and its ``except_hook`` prints it at interpreter exit."""
+    try:
+        import typer.main as tm
+
+        from shapeverify.cli import app
+
+        setattr(exc, tm._typer_developer_exception_attr_name, tm.DeveloperExceptionConfig(
+            pretty_exceptions_enable=app.pretty_exceptions_enable,
+            pretty_exceptions_show_locals=app.pretty_exceptions_show_locals,
+            pretty_exceptions_short=app.pretty_exceptions_short))
+        hook = tm.except_hook
+    except (AttributeError, ImportError, TypeError):
+        hook = sys.excepthook
+    hook(type(exc), exc, exc.__traceback__)
+
+
+def _exit_code(code) -> int:
+    if code is None:
+        return 0
+    if isinstance(code, int):
+        return code
+    sys.stderr.write(f"{code}\n")
+    return 1
+
+
+def serve(path: Path, idle_minutes: float = 30.0) -> None:
+    """The worker process: preload, then serve until stopped or idle."""
+    w = Worker(path, idle_minutes)
+    w.preload()
+    w.serve()
+
+
+if __name__ == "__main__":  # python -m shapeverify.cli_worker serve PATH [IDLE_MINUTES]
+    if len(sys.argv) >= 3 and sys.argv[1] == "serve":
+        serve(Path(sys.argv[2]), float(sys.argv[3]) if len(sys.argv) > 3 else 30.0)
+    else:
+        sys.exit("usage: python -m shapeverify.cli_worker serve SOCKET [IDLE_MINUTES]")

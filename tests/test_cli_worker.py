@@ -1,0 +1,252 @@
+"""The resident worker (issue 32 item 7, ``shapeverify worker``): a command handed to it gives
+the same stdout, files and exit code as the command run in-process, and a stale or dead worker
+never changes an answer (the client runs the command itself, with one note on stderr).
+
+Every command runs as a user runs it: ``python -m shapeverify ...`` in a fresh process (the
+console entry point, where the client lives).  ``SHAPEVERIFY_WORKER_CPU_LOG`` proves that a
+command did go to the worker (the client logs the worker's CPU), so no test passes because of a
+silent fallback.  The worker's socket is in a temporary directory of its own, and the fixture
+always stops the worker and checks that its process is gone.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+PACKAGE = ROOT / "src" / "shapeverify"
+
+
+def _env(sock_dir: Path, cache: Path, **extra) -> dict:
+    env = {k: v for k, v in os.environ.items()
+           if not k.startswith("SHAPEVERIFY_") or k == "SHAPEVERIFY_CACHE_DIR"}
+    env.update(SHAPEVERIFY_WORKER_DIR=str(sock_dir), SHAPEVERIFY_CACHE_DIR=str(cache),
+               COLUMNS="100", PYTHONPATH=os.pathsep.join(
+                   [str(ROOT / "src")] + [p for p in os.environ.get("PYTHONPATH", "").split(
+                       os.pathsep) if p]))
+    env.update(extra)
+    return env
+
+
+def _sv(args, cwd: Path, env: dict, timeout: float = 300) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "shapeverify", *map(str, args)], cwd=cwd,
+                          env=env, capture_output=True, timeout=timeout)
+
+
+def _alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    try:
+        with open(f"/proc/{pid}/stat") as f:
+            return f.read().rsplit(")", 1)[1].split()[0] != "Z"
+    except OSError:
+        return True
+
+
+@pytest.fixture(scope="module")
+def files(tmp_path_factory):
+    """The example panel as STEP and .svm, a clean scan (passes) and a dented one (fails), a
+    scan file that is not a point cloud."""
+    from shapeverify.cad.examples import example_part_step
+    from shapeverify.cad.load import load_model
+    from shapeverify.io.points import write_ply
+    from shapeverify.nearest import prepare
+    from shapeverify.simulate import virtual_scan
+
+    d = tmp_path_factory.mktemp("worker")
+    step = example_part_step(d / "panel.step")
+    model = load_model(step)
+    prepare(model).save(d / "panel.svm")
+    for name, dents in (("clean", ()), ("dented", [(0.5, 20.0)])):
+        sim = virtual_scan(model, pixel=4.0, noise=0.02, outlier_fraction=0.02, dents=dents,
+                           motion=(1.0, 2.0), rng=5)
+        write_ply(d / f"{name}.ply", sim.scan)
+    (d / "broken.ply").write_text("ply\nformat ascii 1.0\nelement vertex 3\nend_header\n1 2\n")
+    return d
+
+
+@pytest.fixture
+def worker(files):
+    """A running worker in its own socket directory; always stopped, its process checked gone."""
+    sock = Path(tempfile.mkdtemp(prefix="svw-", dir="/tmp"))  # short: a socket path <= 107 bytes
+    env = _env(sock, files / "cache")
+    pid = None
+    try:
+        res = _sv(["worker", "start"], files, env)
+        assert res.returncode == 0, res.stderr.decode()[-2000:]
+        pid = int(re.search(rb"pid (\d+)", res.stdout).group(1))
+        yield {"env": env, "pid": pid, "sock": sock}
+    finally:
+        _sv(["worker", "stop"], files, env, timeout=60)
+        if pid is not None:
+            t0 = time.monotonic()
+            while _alive(pid) and time.monotonic() - t0 < 30:
+                time.sleep(0.05)
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+                pytest.fail(f"worker {pid} still ran after `shapeverify worker stop`")
+        assert not list(sock.glob("*.sock")), "the worker left its socket behind"
+        shutil.rmtree(sock, ignore_errors=True)
+
+
+def _timeless(stderr: bytes) -> bytes:
+    """stderr without the stage lines' durations, e.g. "(0.27 s)"."""
+    return re.sub(rb" \(\d+\.\d\d s\)", b"", stderr)
+
+
+def _json(path: Path) -> dict:
+    data = json.loads(path.read_text())
+    data.pop("timings", None)  # seconds measured: differ run to run, in-process too
+    return data
+
+
+CASES = {
+    "info of a STEP file": (["info", "panel.step"], None, 0),
+    "info of a prepared model": (["info", "panel.svm"], None, 0),
+    "inspect, pass": (["inspect", "panel.svm", "clean.ply", "--tolerance", "0.2",
+                       "--colored", "c.ply"], "r.json", 0),
+    "inspect, fail": (["inspect", "panel.svm", "dented.ply", "--tolerance", "0.2"], "r.json", 1),
+    "inspect, unreadable scan": (["inspect", "panel.svm", "broken.ply", "--tolerance", "0.2"],
+                                 None, 2),
+    "inspect, missing scan": (["inspect", "panel.svm", "nothere.ply"], None, 2),
+    "unknown option": (["inspect", "panel.svm", "clean.ply", "--no-such-option"], None, 2),
+}
+
+
+@pytest.mark.slow
+def test_worker_answers_byte_identical_to_in_process(files, worker, tmp_path):
+    log = tmp_path / "cpu.log"
+    env_worker = {**worker["env"], "SHAPEVERIFY_WORKER_CPU_LOG": str(log)}
+    env_local = {**env_worker, "SHAPEVERIFY_NO_WORKER": "1"}
+    for name, (args, out_file, code) in CASES.items():
+        got = {}
+        for how, env in (("in-process", env_local), ("worker", env_worker)):
+            n_before = len(log.read_text().splitlines()) if log.exists() else 0
+            argv = args + (["--json", out_file] if out_file else [])
+            res = _sv(argv, files, env)
+            n_after = len(log.read_text().splitlines()) if log.exists() else 0
+            assert n_after - n_before == (1 if how == "worker" else 0), \
+                f"{name}: ran {'in-process' if how == 'worker' else 'in the worker'}"
+            data = None
+            if out_file:
+                data = _json(files / out_file)
+                (files / out_file).unlink()
+            if "--colored" in argv:                  # a file without timings: byte for byte
+                colored = files / argv[argv.index("--colored") + 1]
+                data = (data, colored.read_bytes())
+                colored.unlink()
+            got[how] = (res.returncode, res.stdout, _timeless(res.stderr), data)
+        local, remote = got["in-process"], got["worker"]
+        assert local[0] == code, f"{name}: {local[2].decode()[-1500:]}"
+        assert remote[0] == local[0], name
+        assert remote[1] == local[1], name          # stdout, byte for byte
+        assert remote[2] == local[2], (name, local[2].decode(), remote[2].decode())
+        assert remote[3] == local[3], name          # the JSON report (less timings), the PLY
+    cpu = [json.loads(line)["worker_cpu"] for line in log.read_text().splitlines()]
+    assert len(cpu) == len(CASES) and all(c > 0 for c in cpu)
+
+
+def test_stale_worker_falls_back_in_process_and_stops(files, worker, tmp_path):
+    # an update of the installed package: the sources' digest changes; the worker answers
+    # "stale", the client runs the command itself (same answer), and the stale worker stops
+    probe = PACKAGE / "_worker_stale_probe.txt"
+    env = worker["env"]
+    local = _sv(["info", "panel.svm"], files, {**env, "SHAPEVERIFY_NO_WORKER": "1"})
+    try:
+        probe.write_text("a changed installation\n")
+        res = _sv(["info", "panel.svm"], files, env)
+    finally:
+        probe.unlink()
+    assert res.returncode == local.returncode == 0
+    assert res.stdout == local.stdout
+    notes = [line for line in res.stderr.decode().splitlines() if "worker" in line]
+    assert len(notes) == 1 and "another version" in notes[0] and "in this process" in notes[0]
+    t0 = time.monotonic()
+    while _alive(worker["pid"]) and time.monotonic() - t0 < 30:
+        time.sleep(0.05)
+    assert not _alive(worker["pid"]), "a stale worker must stop"
+
+
+def test_other_import_environment_runs_in_process(files, worker):
+    # NUMBA_* are read when numba is imported: a worker started without it cannot honour it
+    res = _sv(["info", "panel.svm"], files, {**worker["env"], "NUMBA_OPT": "2"})
+    assert res.returncode == 0 and b"model points" in res.stdout
+    assert b"other NUMBA_/OMP_/PYTHON* environment" in res.stderr
+    assert _alive(worker["pid"])  # the worker itself is fine for its own environment
+
+
+def test_dead_worker_socket_falls_back_and_is_removed(files, tmp_path):
+    import socket as socketlib
+
+    sock_dir = Path(tempfile.mkdtemp(prefix="svw-", dir="/tmp"))
+    try:
+        env = _env(sock_dir, files / "cache")
+        path = Path(subprocess.run(
+            [sys.executable, "-c", "from shapeverify.cli_worker import socket_path; "
+                                   "print(socket_path())"],
+            env=env, capture_output=True, text=True, check=True).stdout.strip())
+        s = socketlib.socket(socketlib.AF_UNIX)
+        s.bind(str(path))              # a socket file nobody listens on: its worker was killed
+        s.close()
+        os.chmod(path, 0o600)
+        local = _sv(["info", "panel.svm"], files, {**env, "SHAPEVERIFY_NO_WORKER": "1"})
+        res = _sv(["info", "panel.svm"], files, env)
+        assert res.returncode == local.returncode == 0 and res.stdout == local.stdout
+        notes = [ln for ln in res.stderr.decode().splitlines() if "worker" in ln]
+        assert len(notes) == 1 and "does not answer" in notes[0]
+        assert not path.exists()
+    finally:
+        shutil.rmtree(sock_dir, ignore_errors=True)
+
+
+def test_worker_start_status_stop_leave_nothing_behind(files, worker):
+    env = worker["env"]
+    st = _sv(["worker", "status"], files, env)
+    assert st.returncode == 0 and f"pid {worker['pid']}".encode() in st.stdout
+    sock = next(worker["sock"].glob("*.sock"))
+    assert (sock.stat().st_mode & 0o777) == 0o600
+    assert (worker["sock"].stat().st_mode & 0o777) == 0o700
+    again = _sv(["worker", "start"], files, env)
+    assert again.returncode == 0 and b"already running" in again.stdout
+    stop = _sv(["worker", "stop"], files, env)
+    assert stop.returncode == 0 and b"worker stopped" in stop.stdout
+    assert not _alive(worker["pid"]) and not sock.exists()
+    st = _sv(["worker", "status"], files, env)
+    assert st.returncode == 1 and b"no worker running" in st.stdout
+
+
+@pytest.mark.slow
+def test_ctrl_c_on_the_client_cancels_and_the_worker_serves_on(files, worker, tmp_path):
+    env = worker["env"]
+    proc = subprocess.Popen([sys.executable, "-m", "shapeverify", "inspect", "panel.svm",
+                             "clean.ply", "--tolerance", "0.2"], cwd=files, env=env,
+                            stdout=subprocess.PIPE, stderr=subprocess.PIPE)
+    # wait until the worker runs it, then Ctrl-C the client
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < 60:
+        st = _sv(["worker", "status"], files, env)
+        if b"busy" in st.stdout or proc.poll() is not None:
+            break
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+    out, err = proc.communicate(timeout=60)
+    # cancelled: exit code 130, as in-process; or, on a slow machine, the command had already
+    # finished with its verdict (0)
+    assert proc.returncode in (0, 130), err.decode()[-2000:]
+    assert _alive(worker["pid"])
+    after = _sv(["info", "panel.svm"], files, env)
+    assert after.returncode == 0 and b"model points" in after.stdout
+    assert b"worker" not in after.stderr
