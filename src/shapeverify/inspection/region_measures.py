@@ -78,12 +78,7 @@ def out_area(tree, ev_idx, points, normals, g, q, spacing):
     for lo in range(0, q.size, CHUNK):
         qq = q[lo:lo + CHUNK]
         p = points[qq]
-        lists = tree.query_ball_point(p, reach)
-        k = max(1, max(len(x) for x in lists))
-        nb = np.full((qq.size, k), -1, np.int64)
-        for i, x in enumerate(lists):
-            s = np.sort(ev_idx[x])                  # in scan order: independent of the tree
-            nb[i, :s.size] = s
+        nb = _neighbour_table(tree, ev_idx, p, reach)   # in scan order: independent of the tree
         ok = (nb >= 0) & (nb != qq[:, None])
         D = points[np.maximum(nb, 0)] - p[:, None, :]
         e1, e2 = _basis(normals[qq])
@@ -102,6 +97,38 @@ def out_area(tree, ev_idx, points, normals, g, q, spacing):
         part[lo:lo + qq.size] = pa
         cell[lo:lo + qq.size] = c
     return part, cell
+
+
+def _neighbour_table(tree, ev_idx, p, radius):
+    """(len(p), k) int64: the scan indices ``ev_idx[j]`` of the tree's points within ``radius``
+    of each row of ``p``, ascending along each row, padded with -1 (k: the most found, at least 1)."""
+    lists = tree.query_ball_point(p, radius)
+    lens = np.fromiter((len(x) for x in lists), np.int64, len(lists))
+    k = max(1, int(lens.max(initial=0)))
+    nb = np.full((p.shape[0], k), -1, np.int64)
+    if lens.sum() == 0:
+        return nb
+    flat = ev_idx[np.concatenate([np.asarray(x, np.int64) for x in lists])]
+    row = np.repeat(np.arange(p.shape[0]), lens)
+    order = np.lexsort((flat, row))
+    col = np.arange(flat.size) - np.repeat(np.cumsum(lens) - lens, lens)
+    nb[row, col] = flat[order]
+    return nb
+
+
+def nanmedian_rows(a: np.ndarray) -> np.ndarray:
+    """``np.nanmedian(a, axis=1)`` of a (m, k) array, bit for bit (the mean of the two middle
+    values of each row's sorted non-NaN values, NaN for an all-NaN row), without the masked
+    arrays numpy uses for short rows (ten times slower)."""
+    srt = np.sort(a, axis=1)                       # NaN sorts last
+    c = a.shape[1] - np.count_nonzero(np.isnan(a), axis=1)
+    h = c // 2
+    lo = np.where(c % 2 == 1, h, h - 1)
+    rows = np.arange(a.shape[0])
+    with np.errstate(invalid="ignore"):
+        med = (srt[rows, np.maximum(lo, 0)] + srt[rows, np.minimum(h, a.shape[1] - 1)]) / 2.0
+    med[c == 0] = np.nan
+    return med
 
 
 def _slopes(x, y, r3, ok, g_nb, g0, radius):
@@ -136,8 +163,7 @@ def _slopes(x, y, r3, ok, g_nb, g0, radius):
             break
         res = G - (sol[:, :1] + sol[:, 1:2] * X + sol[:, 2:3] * Y)
         r = np.where(W > 0, np.abs(res), np.nan)
-        with np.errstate(invalid="ignore"):
-            sig = 1.4826 * np.nanmedian(r, axis=1)
+        sig = 1.4826 * nanmedian_rows(r)
         keep = (W > 0) & (np.abs(res) <= 3.0 * sig[:, None] + 1e-12 * (np.abs(G).max() + 1.0))
         keep[:, 0] = True                                # the point itself stays
         W = keep.astype(np.float64)
