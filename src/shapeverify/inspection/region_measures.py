@@ -280,3 +280,80 @@ def local_noise(tree, ev_idx, values, center, radius) -> float:
     p, v = tree.data[i], values[ev_idx[i]]
     _, j = cKDTree(p).query(p, k=2)
     return float(1.4826 * np.median(np.abs(v - v[j[:, 1]])) / np.sqrt(2.0))
+
+
+#: The in-tolerance surface seen at a point: it lies in a Delaunay triangle of the deep-in-tolerance
+#: points whose circumradius is at most ``SEEN_ALPHA`` of their spacing (an alpha shape).
+SEEN_ALPHA = 1.25
+#: ... their spacing taken at most this many times the scan's (the two sides of a thin wall halve
+#: the area per point the scan's spacing is measured as).
+SEEN_SPARSEST = np.sqrt(2.0)
+#: Most core points of a component tested; the window around them, in spacings.
+SEEN_SAMPLE = 64
+SEEN_WINDOW = 4.0
+
+
+def _circumradii(P, simplices):
+    a, b, c = P[simplices[:, 0]], P[simplices[:, 1]], P[simplices[:, 2]]
+    la = np.linalg.norm(b - c, axis=1)
+    lb = np.linalg.norm(a - c, axis=1)
+    lc = np.linalg.norm(a - b, axis=1)
+    area = 0.5 * np.abs((b[:, 0] - a[:, 0]) * (c[:, 1] - a[:, 1])
+                        - (b[:, 1] - a[:, 1]) * (c[:, 0] - a[:, 0]))
+    return la * lb * lc / np.maximum(4.0 * area, 1e-300), area
+
+
+def seen_under(tree, ev_idx, values, normals, points, core, above, lo_lim, hi_lim,
+               spacing) -> float:
+    """Share of the core points ``core`` (scan indices of one component, all on one side:
+    ``above``) under or over which the part's in-tolerance surface is seen.
+
+    The surface seen is the alpha shape of the evaluated points deep inside the tolerance
+    (``|d|`` at most half the limit on the component's side) on the same side of the part
+    (normal within 60 degrees of the component's), in the tangent plane of the component: the
+    Delaunay triangles whose circumradius is at most ``SEEN_ALPHA`` times the spacing of those
+    points (``sqrt(2 x`` their mean triangle area``)``, triangles of up to twice the median
+    circumradius; so the test holds for random, lattice, row and doubled sampling and on thin
+    walls, whose two sides halve the scan's area per point), that spacing at most
+    ``SEEN_SPARSEST`` times the scan's.  A real defect replaces the
+    surface: inside it the triangles span the hole (a pit 2 spacings across: a circumradius of
+    about 2 spacings), and only points within a fraction of a spacing of its rim are covered;
+    a scratch 2 spacings wide, about 1.4 spacings.  A reflection or a ghost lying over good
+    surface, however sparse, has the surface's ordinary triangles around each of its points.
+    At most ``SEEN_SAMPLE`` core points are tested (evenly spread over their order).
+    """
+    from scipy.spatial import Delaunay, QhullError
+
+    core = np.asarray(core)
+    if core.size == 0:
+        return 0.0
+    sample = core[np.linspace(0, core.size - 1, min(core.size, SEEN_SAMPLE)).astype(np.int64)]
+    n = normals[sample].sum(axis=0)
+    if not np.linalg.norm(n) > 0:
+        return 0.0
+    n = n / np.linalg.norm(n)
+    lists = tree.query_ball_point(points[sample], SEEN_WINDOW * spacing)
+    w = np.unique(np.concatenate([np.asarray(x, np.int64) for x in lists]))
+    gi = ev_idx[w]
+    lim = np.abs(hi_lim[gi] if above else lo_lim[gi])
+    deep = gi[(np.abs(values[gi]) <= 0.5 * lim) & (normals[gi] @ n > 0.5)]
+    if deep.size < 8:
+        return 0.0
+    e1, e2 = _basis(n[None])
+    centre = points[sample].mean(axis=0)
+    Q = points[deep] - centre
+    Q2 = np.column_stack([Q @ e1[0], Q @ e2[0]])
+    try:
+        tri = Delaunay(Q2)
+    except (QhullError, ValueError):
+        return 0.0                                   # all on a line: no surface around
+    R, area = _circumradii(Q2, tri.simplices)
+    ordinary = R <= 2.0 * np.median(R)
+    # their spacing, but no sparser than a surface sampled at the scan's density (both sides of a
+    # thin wall count in ``spacing``): points inside a shallow dent that noise brings deep into
+    # the tolerance are no surface
+    s_deep = min(np.sqrt(2.0 * area[ordinary].mean()), SEEN_SPARSEST * spacing)
+    X = points[sample] - centre
+    at = tri.find_simplex(np.column_stack([X @ e1[0], X @ e2[0]]))
+    covered = (at >= 0) & (R[np.maximum(at, 0)] <= SEEN_ALPHA * s_deep)
+    return float(np.mean(covered))

@@ -62,7 +62,7 @@ from .._arrays import bounds
 from ._cluster_kernels import component_labels
 from ._grid_kernels import any_within, kernel_array, kernel_sums, mark_within, nearest_other
 from .region_measures import (CELL_BOUND, MAX_PEAK_RADIUS, fitted_peak, local_noise,
-                              nanmedian_rows, out_area)
+                              nanmedian_rows, out_area, seen_under)
 
 logger = logging.getLogger(__name__)
 
@@ -91,6 +91,9 @@ LAYER_SHARE = 0.25
 #: points between these distances, in spacings, from its core points: the surface alone).
 LAYER_DENSITY = 1.4
 LAYER_RING = (3.0, 6.0)
+#: ... or at least this share of its core points lie where the in-tolerance surface is seen
+#: under (or over) them (:func:`.region_measures.seen_under`).
+SEEN_SHARE = 0.5
 #: Registration weight below which a point counts as rejected by the robust registration.
 LOW_WEIGHT = 1e-3
 #: Widest neighbourhood of an out-of-tolerance point looked at, in spacings (the quadratic peak
@@ -360,6 +363,12 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
         if keep.size:
             layer = _over_measured_surface(tree, ev_idx, values, pc, core_med, core_up, labels,
                                            keep, lo_lim[core], hi_lim[core], spacing)
+            for k, c in enumerate(keep):
+                if not layer[k]:
+                    at = labels == c
+                    layer[k] = seen_under(tree, ev_idx, values, normals, points, core[at],
+                                          bool(core_up[at][0]), lo_lim, hi_lim,
+                                          spacing) >= SEEN_SHARE
             n_layer_comp = keep[layer]
             keep = keep[~layer]
         if keep.size:
