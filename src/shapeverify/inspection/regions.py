@@ -22,7 +22,11 @@ from the statistics, never failing the part).  Scattered bad points among good o
 outliers, dust, spikes, noise) are never core.  Nor is a dense layer *over* in-tolerance measured
 surface a defect (a reflection, multipath ghost or misplaced second view of a good part: the
 part's surface is seen under it, :func:`_over_measured_surface`; a real defect replaces the
-surface): its points are outliers too (``Outliers.n_layer``).
+surface): its points are outliers too (``Outliers.n_layer``).  The surface is seen under (or
+over) a component when half of its core points or more lie inside ordinary triangles of the
+deep-in-tolerance points around (:func:`.region_measures.seen_under`, an alpha shape: a sparse
+reflection crossing a blade crowded into a 6-point "region" with the blade's good surface all
+around and between its points), or when it is dense and two-layered (:func:`_over_measured_surface`).
 
 For each region:
 
