@@ -293,6 +293,11 @@ SEEN_SAMPLE = 64
 SEEN_WINDOW = 4.0
 
 
+def _dot(a, v):
+    """``a @ v`` for (n, 3) ``a`` and (3,) ``v``, without BLAS."""
+    return a[:, 0] * v[0] + a[:, 1] * v[1] + a[:, 2] * v[2]
+
+
 def _circumradii(P, simplices):
     a, b, c = P[simplices[:, 0]], P[simplices[:, 1]], P[simplices[:, 2]]
     la = np.linalg.norm(b - c, axis=1)
@@ -336,13 +341,14 @@ def seen_under(tree, ev_idx, values, normals, points, core, above, lo_lim, hi_li
     w = np.unique(np.concatenate([np.asarray(x, np.int64) for x in lists]))
     gi = ev_idx[w]
     lim = np.abs(hi_lim[gi] if above else lo_lim[gi])
-    deep = gi[(np.abs(values[gi]) <= 0.5 * lim) & (normals[gi] @ n > 0.5)]
+    # (sums of products, not a BLAS product: OpenBLAS threads for a few thousand rows and spins)
+    deep = gi[(np.abs(values[gi]) <= 0.5 * lim) & (_dot(normals[gi], n) > 0.5)]
     if deep.size < 8:
         return 0.0
     e1, e2 = _basis(n[None])
     centre = points[sample].mean(axis=0)
     Q = points[deep] - centre
-    Q2 = np.column_stack([Q @ e1[0], Q @ e2[0]])
+    Q2 = np.column_stack([_dot(Q, e1[0]), _dot(Q, e2[0])])
     try:
         tri = Delaunay(Q2)
     except (QhullError, ValueError):
@@ -354,6 +360,6 @@ def seen_under(tree, ev_idx, values, normals, points, core, above, lo_lim, hi_li
     # the tolerance are no surface
     s_deep = min(np.sqrt(2.0 * area[ordinary].mean()), SEEN_SPARSEST * spacing)
     X = points[sample] - centre
-    at = tri.find_simplex(np.column_stack([X @ e1[0], X @ e2[0]]))
+    at = tri.find_simplex(np.column_stack([_dot(X, e1[0]), _dot(X, e2[0])]))
     covered = (at >= 0) & (R[np.maximum(at, 0)] <= SEEN_ALPHA * s_deep)
     return float(np.mean(covered))
