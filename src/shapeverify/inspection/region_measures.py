@@ -298,6 +298,22 @@ def _dot(a, v):
     return a[:, 0] * v[0] + a[:, 1] * v[1] + a[:, 2] * v[2]
 
 
+def _containing(P, simplices, X):
+    """Index of a triangle ``P[simplices]`` that holds each point ``X`` (2-D), -1 for none: by
+    the signs of the three edge functions (``Delaunay.find_simplex`` computes LAPACK transforms
+    of every triangle, and OpenBLAS's threads spin after them)."""
+    a, b, c = P[simplices[:, 0]], P[simplices[:, 1]], P[simplices[:, 2]]
+
+    def edge(u, v):
+        return ((v[:, 0] - u[:, 0])[None] * (X[:, 1:2] - u[:, 1][None])
+                - (v[:, 1] - u[:, 1])[None] * (X[:, 0:1] - u[:, 0][None]))
+
+    e = np.stack([edge(a, b), edge(b, c), edge(c, a)])
+    tol = 1e-12 * float(np.ptp(P, axis=0).max()) ** 2      # a point on an edge is in both
+    inside = np.all(e >= -tol, axis=0) | np.all(e <= tol, axis=0)
+    return np.where(inside.any(axis=1), np.argmax(inside, axis=1), -1)
+
+
 def _circumradii(P, simplices):
     a, b, c = P[simplices[:, 0]], P[simplices[:, 1]], P[simplices[:, 2]]
     la = np.linalg.norm(b - c, axis=1)
@@ -311,7 +327,8 @@ def _circumradii(P, simplices):
 def seen_under(tree, ev_idx, values, normals, points, core, above, lo_lim, hi_lim,
                spacing) -> float:
     """Share of the core points ``core`` (scan indices of one component, all on one side:
-    ``above``) under or over which the part's in-tolerance surface is seen.
+    ``above``) that are out of tolerance and under or over which the part's in-tolerance
+    surface is seen.
 
     The surface seen is the alpha shape of the evaluated points deep inside the tolerance
     (``|d|`` at most half the limit on the component's side) on the same side of the part
@@ -330,6 +347,8 @@ def seen_under(tree, ev_idx, values, normals, points, core, above, lo_lim, hi_li
     from scipy.spatial import Delaunay, QhullError
 
     core = np.asarray(core)
+    # its own out-of-tolerance points (a core point in tolerance is measured surface itself)
+    core = core[values[core] > hi_lim[core]] if above else core[values[core] < lo_lim[core]]
     if core.size == 0:
         return 0.0
     sample = core[np.linspace(0, core.size - 1, min(core.size, SEEN_SAMPLE)).astype(np.int64)]
@@ -360,6 +379,6 @@ def seen_under(tree, ev_idx, values, normals, points, core, above, lo_lim, hi_li
     # the tolerance are no surface
     s_deep = min(np.sqrt(2.0 * area[ordinary].mean()), SEEN_SPARSEST * spacing)
     X = points[sample] - centre
-    at = tri.find_simplex(np.column_stack([_dot(X, e1[0]), _dot(X, e2[0])]))
+    at = _containing(Q2, tri.simplices, np.column_stack([_dot(X, e1[0]), _dot(X, e2[0])]))
     covered = (at >= 0) & (R[np.maximum(at, 0)] <= SEEN_ALPHA * s_deep)
     return float(np.mean(covered))
