@@ -18,6 +18,7 @@ centre and its spread over the seeds (in spacings; a curved part's centroid, a m
 the surface, lies inside it).
 
 Run:  PYTHONPATH=src .venv/bin/python benchmarks/check_region_matrix.py [--seeds 2] [--parts cube panel hammer]
+[--dump regions.json] (``--dump``: every scan's regions as JSON, to compare two versions' answers)
 """
 from __future__ import annotations
 
@@ -70,7 +71,7 @@ def load(name, cache: Path):
     return prep, V, T[ok], F[ok]
 
 
-def run(names, seeds, cache):
+def run(names, seeds, cache, dump=None):
     import independent_scans as ind
     from shapeverify.inspection import inspect_registered
 
@@ -99,6 +100,12 @@ def run(names, seeds, cache):
                     res = inspect_registered(prep, P, identity(), tolerance=tol)
                     dt = time.perf_counter() - t0
                     regs = [r for r in res.regions if r.kind == "deviation"]
+                    if dump is not None:
+                        dump.append({"part": name, "sampler": sampler, "ratio": ratio, "seed": seed,
+                                     "verdict": res.verdict,
+                                     "outliers": res.outliers.to_dict() if res.outliers is not None else None,
+                                     "regions": [dict(r.to_dict(), indices=[int(i) for i in r.indices])
+                                                 for r in res.regions]})
                     other = len(res.regions) - len(regs)
                     if regs:
                         r = regs[0]
@@ -147,9 +154,15 @@ def main():
     ap.add_argument("--parts", nargs="*", default=list(PARTS))
     ap.add_argument("--seeds", type=int, default=2)
     ap.add_argument("--cache", type=Path, default=Path("/tmp/region_matrix"))
+    ap.add_argument("--dump", type=Path, default=None,
+                    help="write every scan's regions (and outlier counts) to this JSON file")
     args = ap.parse_args()
     args.cache.mkdir(parents=True, exist_ok=True)
-    summary(run(args.parts, args.seeds, args.cache))
+    dump = [] if args.dump is not None else None
+    summary(run(args.parts, args.seeds, args.cache, dump))
+    if dump is not None:
+        import json
+        args.dump.write_text(json.dumps(dump, indent=1))
 
 
 if __name__ == "__main__":

@@ -200,3 +200,44 @@ def mark_within(ref, q, r, out):
                     dz = pts[j, 2] - z
                     if dx * dx + dy * dy + dz * dz < r2:
                         out[order[j]] = True
+
+
+@njit(cache=True, nogil=True)
+def kernel_sums(ref, q, radius, out):
+    """``out[i]`` = the sum of ``(1 - (d / radius)^2)^2`` over the rows of ``ref`` at distance
+    ``d <= radius`` from ``q[i]``, added in order of increasing ``d`` (the order that makes the
+    sum independent of how the points are stored).
+
+    ref : (n, 3) float64, n >= 1; q : (m, 3) float64; radius : float > 0; out : (m,) float64,
+    written.
+    """
+    lo, dims, h, start, order, pts = _grid(ref, radius * (1.0 + MARGIN))
+    ny, nz = dims[1], dims[2]
+    r2 = radius * radius
+    buf = np.empty(64)
+    for i in range(q.shape[0]):
+        x, y, z = q[i, 0], q[i, 1], q[i, 2]
+        x0, x1, y0, y1, z0, z1 = _block(x, y, z, lo, dims, h)
+        n = 0
+        for ix in range(x0, x1 + 1):
+            for iy in range(y0, y1 + 1):
+                base = (ix * ny + iy) * nz
+                for j in range(start[base + z0], start[base + z1 + 1] if z1 >= z0 else 0):
+                    dx = x - pts[j, 0]
+                    dy = y - pts[j, 1]
+                    dz = z - pts[j, 2]
+                    d2 = dx * dx + dy * dy + dz * dz
+                    if d2 <= r2:
+                        if n == buf.shape[0]:
+                            bigger = np.empty(2 * n)
+                            bigger[:n] = buf
+                            buf = bigger
+                        buf[n] = np.sqrt(d2)
+                        n += 1
+        d = np.sort(buf[:n])
+        s = 0.0
+        for k in range(n):
+            t = d[k] / radius
+            u = 1.0 - t * t
+            s += u * u
+        out[i] = s

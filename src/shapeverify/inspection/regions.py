@@ -22,7 +22,11 @@ from the statistics, never failing the part).  Scattered bad points among good o
 outliers, dust, spikes, noise) are never core.  Nor is a dense layer *over* in-tolerance measured
 surface a defect (a reflection, multipath ghost or misplaced second view of a good part: the
 part's surface is seen under it, :func:`_over_measured_surface`; a real defect replaces the
-surface): its points are outliers too (``Outliers.n_layer``).
+surface): its points are outliers too (``Outliers.n_layer``).  The surface is seen under (or
+over) a component when half of its core points or more lie inside ordinary triangles of the
+deep-in-tolerance points around (:func:`.region_measures.seen_under`, an alpha shape: a sparse
+reflection crossing a blade crowded into a 6-point "region" with the blade's good surface all
+around and between its points), or when it is dense and two-layered (:func:`_over_measured_surface`).
 
 For each region:
 
@@ -60,8 +64,9 @@ from shapeverify._lazy import cKDTree
 
 from .._arrays import bounds
 from ._cluster_kernels import component_labels
-from ._grid_kernels import kernel_array, mark_within, nearest_other
-from .region_measures import CELL_BOUND, MAX_PEAK_RADIUS, fitted_peak, local_noise, out_area
+from ._grid_kernels import any_within, kernel_array, kernel_sums, mark_within, nearest_other
+from .region_measures import (CELL_BOUND, MAX_PEAK_RADIUS, fitted_peak, local_noise,
+                              nanmedian_rows, out_area, seen_under)
 
 logger = logging.getLogger(__name__)
 
@@ -90,6 +95,9 @@ LAYER_SHARE = 0.25
 #: points between these distances, in spacings, from its core points: the surface alone).
 LAYER_DENSITY = 1.4
 LAYER_RING = (3.0, 6.0)
+#: ... or at least this share of its core points lie where the in-tolerance surface is seen
+#: under (or over) them (:func:`.region_measures.seen_under`).
+SEEN_SHARE = 0.5
 #: Registration weight below which a point counts as rejected by the robust registration.
 LOW_WEIGHT = 1e-3
 #: Widest neighbourhood of an out-of-tolerance point looked at, in spacings (the quadratic peak
@@ -321,8 +329,16 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
     # The candidates: evaluated points within the median's radius of an out-of-tolerance point
     # (a point farther off has no out-of-tolerance neighbour: its median cannot be beyond).
     p_out = points[out_idx]
-    d1, _ = cKDTree(p_out).query(tree.data, k=1, distance_upper_bound=MEDIAN_RADIUS * spacing)
-    near = np.isfinite(d1)
+    uniform = _uniform_limits(values, ev_idx, out_idx, lo_lim, hi_lim)
+    d1, _ = cKDTree(p_out).query(tree.data, k=2 if uniform else 1,
+                                 distance_upper_bound=MEDIAN_RADIUS * spacing)
+    d1 = d1.reshape(tree.data.shape[0], -1)
+    near = np.isfinite(d1[:, 0])
+    if uniform and out_idx.size >= 2:
+        # a median of 3 or more values lies beyond a limit only when 2 of them do: an
+        # in-tolerance point with a single out-of-tolerance point around cannot be core (the same
+        # answers without the medians of the points around isolated outliers)
+        near &= np.isfinite(d1[:, 1]) | ~within[ev_idx]
     cand = np.sort(ev_idx[near])
     med = neighbourhood_median(tree, ev_idx, values, points[cand], MEDIAN_RADIUS * spacing)
     with np.errstate(invalid="ignore"):
@@ -351,6 +367,12 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
         if keep.size:
             layer = _over_measured_surface(tree, ev_idx, values, pc, core_med, core_up, labels,
                                            keep, lo_lim[core], hi_lim[core], spacing)
+            for k, c in enumerate(keep):
+                if not layer[k]:
+                    at = labels == c
+                    layer[k] = seen_under(tree, ev_idx, values, normals, points, core[at],
+                                          bool(core_up[at][0]), lo_lim, hi_lim,
+                                          spacing) >= SEEN_SHARE
             n_layer_comp = keep[layer]
             keep = keep[~layer]
         if keep.size:
@@ -384,6 +406,17 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
     logger.debug("regions: %d out-of-tolerance points -> %d regions, %d outliers (spacing %.3g mm)",
                  out_idx.size, len(regions), outliers.n, spacing)
     return regions, outliers, float(spacing)
+
+
+def _uniform_limits(values, ev_idx, out_idx, lo_lim, hi_lim) -> bool:
+    """Whether every evaluated point has the same limits and the out-of-tolerance points
+    ``out_idx`` are exactly those beyond them."""
+    lo, hi = lo_lim[ev_idx], hi_lim[ev_idx]
+    if ev_idx.size == 0 or lo.min() != lo.max() or hi.min() != hi.max():
+        return False
+    v = values[ev_idx]
+    beyond = np.flatnonzero((v > hi[0]) | (v < lo[0]))
+    return beyond.size == out_idx.size and bool(np.array_equal(ev_idx[beyond], out_idx))
 
 
 def _over_measured_surface(tree, ev_idx, values, pc, med, up, labels, comps, lo, hi,
@@ -455,10 +488,9 @@ def area_per_point(tree: cKDTree, p: np.ndarray, radius: float) -> np.ndarray:
     300-390 mm^2 on the same scan written once, twice, or twice 0.02 mm apart).  The point
     itself counts half (a lattice point has itself in its disc, a random sample one more).
     """
-    m = cKDTree(p).sparse_distance_matrix(tree, radius, output_type="ndarray")
-    m = m[np.lexsort((m["v"], m["i"]))]     # summed in an order that does not depend on the tree
-    w = (1.0 - (m["v"] / radius) ** 2) ** 2
-    s = np.bincount(m["i"], weights=w, minlength=p.shape[0])
+    s = np.empty(p.shape[0])
+    if p.shape[0]:
+        kernel_sums(kernel_array(tree.data), kernel_array(p), float(radius), s)
     s -= 0.5
     return (np.pi * radius ** 2 / 3.0) / np.maximum(s, 0.5)
 
@@ -467,8 +499,17 @@ def _neighbourhood_tree(points, out_idx, ev_idx, ev_pts, reach):
     """``(ev_idx[near], tree of ev_pts[near])``: the evaluated points within ``reach`` of an
     out-of-tolerance point (a little more: the grid test is strict, the ball queries are not)."""
     near = np.empty(ev_pts.shape[0], bool)
-    mark_within(kernel_array(ev_pts), kernel_array(points[out_idx]),
-                float(reach) * (1.0 + 1e-6), near)
+    ev_k, out_k = kernel_array(ev_pts), kernel_array(points[out_idx])
+    r = float(reach) * (1.0 + 1e-6)
+    lo, hi = bounds(ev_k)
+    o_lo, o_hi = bounds(out_k)
+    box = np.prod(np.maximum(hi - lo, r)) if ev_k.shape[0] else 0.0
+    if np.prod(np.maximum(np.minimum(o_hi + r, hi) - np.maximum(o_lo - r, lo), r)) < 0.25 * box:
+        # out-of-tolerance points in a corner of the scan (a dent): a grid of them asked by
+        # every evaluated point, without sorting all evaluated points into a grid
+        any_within(out_k, ev_k, r, near)
+    else:             # spread over the scan (outliers): each marks the evaluated points around it
+        mark_within(ev_k, out_k, r, near)
     keep = np.flatnonzero(near)
     return ev_idx[keep], cKDTree(ev_pts[keep], balanced_tree=False, compact_nodes=False)
 
@@ -493,22 +534,10 @@ def neighbourhood_median(tree, ev_idx, values, p, radius, k: int = 9) -> np.ndar
     j = j.reshape(len(p), kk)
     ok = np.isfinite(d)
     v = np.where(ok, values[ev_idx[np.minimum(j, ev_idx.size - 1)]], np.nan)
-    return _nanmedian_rows(np.where(ok.sum(axis=1, keepdims=True) >= 3, v, v[:, :1]))
+    return nanmedian_rows(np.where(ok.sum(axis=1, keepdims=True) >= 3, v, v[:, :1]))
 
 
-def _nanmedian_rows(a: np.ndarray) -> np.ndarray:
-    """``np.nanmedian(a, axis=1)`` of a (m, k) array, bit for bit (the mean of the two middle
-    values of each row's sorted non-NaN values, NaN for an all-NaN row), without the masked
-    arrays numpy uses for short rows (ten times slower)."""
-    srt = np.sort(a, axis=1)                       # NaN sorts last
-    c = a.shape[1] - np.count_nonzero(np.isnan(a), axis=1)
-    h = c // 2
-    lo = np.where(c % 2 == 1, h, h - 1)
-    rows = np.arange(a.shape[0])
-    with np.errstate(invalid="ignore"):
-        med = (srt[rows, np.maximum(lo, 0)] + srt[rows, np.minimum(h, a.shape[1] - 1)]) / 2.0
-    med[c == 0] = np.nan
-    return med
+_nanmedian_rows = nanmedian_rows      # its earlier name (tests/test_inspect_fast_paths.py)
 
 
 def _low_weight(weights, idx):
