@@ -10,7 +10,8 @@ what the plan format can express:
 PMI                                        plan entry
 =========================================  ===============================================
 datum reference frame (plane, hole axis)   ``alignment: {type: datums, ...}`` (the DRF most
-                                           tolerances use that the plan can build)
+                                           tolerances use that the plan can build; a hole or
+                                           boss datum is its cylinder face, fitted whole)
 Flatness of one planar face                ``flatness`` (``feature: face:N``)
 ProfileOfSurface without datums            ``surface_profile`` with ``datum: false``
 ProfileOfSurface in the plan's DRF         ``surface_profile`` (``datum: true``)
@@ -18,6 +19,10 @@ Position (cylindrical zone, no material    ``hole`` ``position: {tol}``, one per
 modifier) of holes, in the plan's DRF      tolerance (a pattern gives one entry per hole)
 Size_Diameter with ± limits                ``hole`` ``diameter`` (a hole) or ``cylinder``
                                            ``diameter`` (a boss)
+Location_LinearDistance with ± limits      ``distance`` (:mod:`.pmi_dimensions`)
+between two parallel planar faces
+Location_Angular with ± limits between     ``angle``
+two planar faces
 =========================================  ===============================================
 
 A hole is named as ``shapeverify info --features`` names it (``hole:k``: the inner trim loop
@@ -230,6 +235,11 @@ def _datum_ref(d: dict, ctx) -> tuple[str | None, str]:
     groups, other = _cylinders(ctx.feats, ctx.model, faces)
     if not groups and len(other) == 1 and ctx.feats[other[0]].kind == "plane":
         return f"face:{other[0]}", ""
+    if len(groups) == 1 and not other and len(groups[0][0]) == 1:
+        # the datum feature is the hole's (or boss's) cylindrical surface: its axis is fitted
+        # on all of it (:mod:`.datums`), not on the rim of one end (a rim of 20 scan points at
+        # 1 mm spacing puts the axis 0.2 mm off and lets the frame fail as a bad fit)
+        return f"face:{groups[0][0][0]}", ""
     if len(groups) == 1 and not other and groups[0][4] == _HOLE_SIDE:
         h = _hole_of(ctx.feats, groups[0], ctx.size)
         if h is not None:
@@ -325,8 +335,9 @@ def _alignment(ctx, datums: dict):
     for key, _ in sorted(use.items(), key=lambda kv: (-kv[1], kv[0])):
         if len(key) < 2 or len(set(key)) != len(key) or any(k not in refs for k in key):
             continue
-        if not refs[key[0]].startswith("face:"):
-            continue
+        r0 = refs[key[0]]
+        if not r0.startswith("face:") or ctx.feats[int(r0[5:])].kind != "plane":
+            continue          # the alignment's primary datum is a plane
         al = {"type": "datums", "primary": refs[key[0]], "secondary": refs[key[1]]}
         if len(key) > 2:
             al["tertiary"] = refs[key[2]]
@@ -525,6 +536,10 @@ def _position(item, ctx, faces, src) -> tuple[list, str]:
 
 def _dimension(item, ctx) -> tuple[list, str]:
     t = item["type"]
+    if t in ("Location_LinearDistance", "Location_Angular"):
+        from .pmi_dimensions import between_entries
+
+        return between_entries(item, ctx, _src(item), ctx.name)
     if t != "Size_Diameter":
         if t in ("DimensionPresentation", "CommonLabel"):
             return [], f"{t}: a presentation without a semantic value"
