@@ -18,7 +18,9 @@ ProfileOfSurface in the plan's DRF         ``surface_profile`` (``datum: true``)
 Position (cylindrical zone, no material    ``hole`` ``position: {tol}``, one per hole of the
 modifier) of holes, in the plan's DRF      tolerance (a pattern gives one entry per hole)
 Size_Diameter with ± limits                ``hole`` ``diameter`` (a hole) or ``cylinder``
-                                           ``diameter`` (a boss)
+                                           ``diameter`` (a boss); a drawn nominal that
+                                           differs from the CAD's shifts the limits (the
+                                           drawing's sizes, as deviations from the CAD)
 Location_LinearDistance with ± limits      ``distance`` (:mod:`.pmi_dimensions`)
 between two parallel planar faces
 Location_Angular with ± limits between     ``angle``
@@ -556,22 +558,31 @@ def _dimension(item, ctx) -> tuple[list, str]:
         return [], "it controls faces that are not cylinders"
     out = []
     for g in groups:
-        if abs(g[3] - item["nominal"]) > 1e-3 * item["nominal"] + 1e-6:
+        # the plan's diameter limits are deviations from the CAD's diameter: a drawing whose
+        # nominal differs from the model's (FTC 08: 6.0452 drawn, 6.0325 modelled) keeps its
+        # own size limits, shifted by the difference -- when the model lies within them
+        shift = float(item["nominal"]) - g[3]
+        if abs(shift) <= 1e-3 * item["nominal"] + 1e-6:
+            shift = 0.0
+        elif not item["lower"] <= -shift <= item["upper"]:
             return [], (f"the nominal \u2300{item['nominal']:g} differs from the CAD cylinder's "
-                        f"\u2300{g[3]:.4f}")
-        tol = {"lower": _mm(item["lower"]), "upper": _mm(item["upper"])}
+                        f"\u2300{g[3]:.4f} by more than its limits")
+        tol = {"lower": _mm(item["lower"] + shift), "upper": _mm(item["upper"] + shift)}
+        src = _src(item)
+        if shift:
+            src["cad_diameter"] = _mm(g[3])
         if g[4] == _HOLE_SIDE:
             h = _hole_of(ctx.feats, g, ctx.size)
             if h is None:
                 return [], f"no hole of `info --features` on the axis of face:{g[0][0]}"
             out.append({"name": ctx.name(f"{item['id']}_diameter_{h.id.replace(':', '')}"),
-                        "type": "hole", "feature": h.id, "diameter": tol, "pmi": _src(item)})
+                        "type": "hole", "feature": h.id, "diameter": tol, "pmi": src})
         else:
             if len(g[0]) > 1:
                 return [], (f"a boss of {len(g[0])} faces; the plan's cylinder is one face")
             out.append({"name": ctx.name(f"{item['id']}_diameter_face{g[0][0]}"),
                         "type": "cylinder", "feature": f"face:{g[0][0]}", "diameter": tol,
-                        "pmi": _src(item)})
+                        "pmi": src})
     return out, ""
 
 
