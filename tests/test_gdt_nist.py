@@ -71,7 +71,12 @@ def _fails(res):
 def test_ftc08_perfect_scan_fails_no_characteristic(ftc08):
     res = _run(ftc08, ftc08["P"])
     assert not _fails(res), {n: (res[n].measured, res[n].upper) for n in _fails(res)}
-    assert sum(c.verdict == "pass" for c in res.values()) >= len(res) - 4
+    # 'undecided' only where the scan itself sits at the limit: GT14 (noise extremes) and hole
+    # diameters (the tessellation's chords shrink the holes by about 0.013 mm)
+    open_ = {n for n, c in res.items() if c.verdict != "pass"}
+    diameters = {n for n, c in res.items() if c.type == "hole" and "diameter" in c.upper}
+    assert open_ <= {"GT14_profile"} | diameters, open_
+    assert len(open_) <= 6, open_
 
 
 @pytest.mark.slow

@@ -85,7 +85,12 @@ def _on(ctx: EvalContext, faces) -> np.ndarray:
             from .features import _dense_loop
 
             face = ctx.prep.model.faces[int(f)]
-            rim = np.concatenate([face.evaluate(_dense_loop(lp, 8)) for lp in face.loops])
+            # a trim loop's vertices may lie a rounding error outside the surface's domain
+            # (FTC 06: v = -5e-6 on [1.8e-8, 38.6]): clipped onto it
+            (u0, u1), (v0, v1) = face.surface.domain
+            rim = np.concatenate([face.evaluate(np.column_stack([
+                np.clip(q[:, 0], u0, u1), np.clip(q[:, 1], v0, v1)]))
+                for q in (_dense_loop(lp, 8) for lp in face.loops)])
             ctx.cache[key] = cKDTree(rim)
         sel = m & (S.face == f)
         if sel.any():
