@@ -487,3 +487,27 @@ def test_angularity_and_parallelism_use_the_cad_orientation_in_the_drf(gdt_ctx):
     T = np.asarray(got["PAR_B"].details["drf"]["T"])
     X = ctx.S.X[_on(ctx, [1])] @ T[:3, :3].T + T[:3, 3]
     assert got["PAR_B"].measured == pytest.approx(np.ptp(X[:, 0]), abs=TOL)
+
+
+@pytest.mark.parametrize("n", [20, 56])
+def test_position_u_of_a_mating_circle_covers_a_monte_carlo_of_its_value(n):
+    """FTC 08's hole moved 0.3 mm read 'undecided' (0.622 against 0.508, U 0.121 = 2 z_n sigma):
+    the centre of a mating circle does not move by its extremes' common shift.  A Monte Carlo
+    of the largest inscribed circle of n noisy points (offset 0.3 mm, value 0.6): the U of
+    :func:`mating_centre_u` covers >= 95 % of the value's errors and is at most 1.5 x their
+    95.45 % quantile (not the 2.5-3 x of 2 z_n sigma)."""
+    from shapeverify.characteristics.gdt import mating_centre_u
+    from shapeverify.characteristics.support import extreme_quantile
+
+    rng = np.random.default_rng(n)
+    err = []
+    for _ in range(400):
+        t = rng.uniform(0, 2 * np.pi, n)
+        r = 2.9 + rng.normal(0, 0.02, n)
+        xy = np.column_stack([r * np.cos(t) + 0.3, r * np.sin(t)])
+        _, c, _ = circles_zone(xy, np.zeros(2), "inscribed")
+        err.append(2 * np.linalg.norm(c) - 0.6)
+    q = float(np.quantile(np.abs(err), 0.9545))
+    U = mating_centre_u(n, 0.02, 2.0)
+    assert np.mean(np.abs(err) <= U) >= 0.95
+    assert U <= 1.5 * q < 2 * extreme_quantile(n, 2.0) * 0.02

@@ -2,19 +2,21 @@
 good"): OpenCASCADE's tessellation of the STEP file, points uniform by area at 1 mm, 0.02 mm
 Gaussian noise along the triangles' normals, a rigid motion (``tests/independent_scans.py``).
 
-* a perfect part fails no characteristic;
-* the wall of hole face 70 moved 0.3 mm sideways puts that hole's position (GT21, the
-  ⌀0.508 MMC segment) out of its zone ('fail', or 'undecided' within U of the limit) and
-  fails nothing else;
+* a perfect part fails no characteristic, and the plan's own D|B|C alignment converges (its
+  datum holes B and C are their whole cylinder walls: fitted on the rims of one end, 19
+  points, they put the frame 0.2 mm off and called hole B a bad fit, every characteristic
+  'undecided');
+* the wall of hole face 70 moved 0.3 mm sideways fails that hole's position (GT21, the
+  ⌀0.508 MMC segment: about 0.62 against 0.508 with U about 0.06, the centre of a mating
+  circle moving only with the difference of its extremes) and nothing else;
 * face 4 tilted 0.2 degrees fails its parallelism tolerances (GT7, GT8) and nothing that does
   not control face 4.
 
-The plan's alignment is replaced by a free best fit: every GD&T characteristic of this plan
-fits its own datum reference frame (:mod:`shapeverify.characteristics.drf`); the generated
-``datums`` alignment (D|B|C through :mod:`shapeverify.characteristics.datums`) currently calls
-its datum hole B untrustworthy on such a scan, which would make every characteristic
-'undecided' (reported to the lead).  The characteristics of type ``hole`` (the plan's own
-alignment) are left out of the checks for the same reason.
+The plan runs as ``shapeverify plan`` writes it: its ``datums`` alignment and every
+characteristic.  Three characteristics of the perfect scan stay 'undecided' for reasons of
+the scan itself: GT14 (profile 0.127 of 344 points with 0.02 mm noise: the extremes alone
+make 0.145) and two hole diameters (the tessellation's chords make the scanned holes about
+0.013 mm smaller, within U of the lower limit -0.0254).
 """
 from __future__ import annotations
 
@@ -40,10 +42,8 @@ def ftc08(shared_data):
         pytest.skip(f"{path} not present (NIST MBE PMI test model)")
     model = load_model(path)
     r = pmi_plan(path, model=model)
-    data = dict(r.data)
-    data["alignment"] = {"type": "best_fit"}
-    data["characteristics"] = [c for c in data["characteristics"] if c["type"] != "hole"]
-    plan = load_plan(data)
+    assert r.data["alignment"]["type"] == "datums"
+    plan = load_plan(r.data)
     m = getattr(model, "model", model)
     prep = prepare(model, spacing=1.0)
     V, T, F = tessellate(read_shape(path), 0.01)
@@ -59,6 +59,7 @@ def _run(d, P):
 
     M = d["M"]
     res = evaluate_plan(d["prep"], P @ M[:3, :3].T + M[:3, 3], d["plan"], init=np.linalg.inv(M))
+    assert res.alignment.details["converged"], res.alignment.details.get("reason")
     return {c.name: c for c in res.characteristics}
 
 
@@ -70,25 +71,30 @@ def _fails(res):
 def test_ftc08_perfect_scan_fails_no_characteristic(ftc08):
     res = _run(ftc08, ftc08["P"])
     assert not _fails(res), {n: (res[n].measured, res[n].upper) for n in _fails(res)}
-    assert sum(c.verdict == "pass" for c in res.values()) >= len(res) - 3
+    # 'undecided' only where the scan itself sits at the limit: GT14 (noise extremes) and hole
+    # diameters (the tessellation's chords shrink the holes by about 0.013 mm)
+    open_ = {n for n, c in res.items() if c.verdict != "pass"}
+    diameters = {n for n, c in res.items() if c.type == "hole" and "diameter" in c.upper}
+    assert open_ <= {"GT14_profile"} | diameters, open_
+    assert len(open_) <= 6, open_
 
 
 @pytest.mark.slow
 def test_ftc08_hole_moved_0p3_mm_fails_exactly_its_position(ftc08):
     """Hole face 70 moved 0.3 mm: its position (twice the offset, about 0.6 mm, + the
-    datums' noise) leaves the 0.508 zone; with U about 0.12 mm (a 3 mm deep hole of 20 scan
-    points) the verdict is 'fail' or, within U of the limit, 'undecided' -- never 'pass';
-    the 1.27 segment (GT20) passes, and nothing else fails."""
+    datums' noise) leaves the 0.508 zone by more than its U (about 0.06 mm: a 3 mm deep hole
+    of 20 scan points, :func:`shapeverify.characteristics.gdt.mating_centre_u`); the 1.27
+    segment (GT20) passes, and nothing else fails."""
     h = ftc08["feats"][70]
     e = np.cross(h.axis, [1.0, 0.0, 0.0])
     e /= np.linalg.norm(e)
     P = ftc08["P"].copy()
     P[ftc08["face"] == 70] += 0.3 * e
     res = _run(ftc08, P)
-    assert _fails(res) <= {"GT21_position"}
+    assert _fails(res) == {"GT21_position"}
     r = res["GT21_position"]
-    assert r.verdict in ("fail", "undecided")
-    assert r.measured - r.upper > 0 and r.measured == pytest.approx(0.6, abs=0.1)
+    assert r.measured - r.upper > r.uncertainty
+    assert r.measured == pytest.approx(0.6, abs=0.1)
     assert res["GT20_position"].verdict == "pass"
 
 

@@ -161,6 +161,37 @@ def test_plan_from_pmi_ties_ctc01_diameters_to_the_holes_of_that_diameter(shared
                         for c in flat)
 
 
+@pytest.mark.slow
+def test_plan_from_pmi_checks_distances_angles_and_drawn_diameters_with_the_drawings_limits(
+        shared_data, nist_plans):
+    """Issue 28 item 3 (size): FTC 06's linear distances between two planes become ``distance``
+    entries and CTC 01's 60 degree angle an ``angle`` entry, each with the dimension's nominal
+    and limits; FTC 08's diameters drawn 6.0452 on holes modelled 6.0325 keep the drawing's
+    limits as deviations from the CAD diameter (were unsupported)."""
+    got = {}
+    for name in (NIST[0], NIST[2], NIST[3]):
+        _file(shared_data, name)
+        got[name] = load_plan(nist_plans[name][3])
+    dist = {c.pmi.id: c for c in got[NIST[2]].characteristics if c.type == "distance"}
+    assert set(dist) == {"DIM35", "DIM43", "DIM44", "DIM47", "DIM48"}
+    for c in dist.values():
+        assert (c.lower, c.upper) == (c.pmi.model_extra["lower"], c.pmi.model_extra["upper"])
+        assert c.nominal == pytest.approx(c.pmi.model_extra["nominal"], abs=1e-9)
+    why = {u.pmi.id: u.reason for u in got[NIST[2]].unsupported}
+    assert "14.2875" in why["DIM40"] and "edges" in why["DIM49"]
+    ang = [c for c in got[NIST[0]].characteristics if c.type == "angle"]
+    assert [(c.pmi.id, c.nominal, c.lower, c.upper) for c in ang] == [("DIM3", 60.0, -0.5, 0.5)]
+    drawn = [c for c in got[NIST[3]].characteristics
+             if c.type == "hole" and c.pmi.id in ("DIM8", "DIM9", "DIM10")]
+    assert {c.pmi.id for c in drawn} == {"DIM8", "DIM9", "DIM10"}     # one per hole
+    for c in drawn:
+        x = c.pmi.model_extra
+        shift = x["nominal"] - x["cad_diameter"]
+        assert x["cad_diameter"] == pytest.approx(6.0325, abs=1e-6)
+        assert c.diameter.lower == pytest.approx(x["lower"] + shift, abs=1e-9)
+        assert c.diameter.upper == pytest.approx(x["upper"] + shift, abs=1e-9)
+
+
 def test_plan_schema_takes_pmi_sources_and_unsupported_items():
     text = """
 units: mm

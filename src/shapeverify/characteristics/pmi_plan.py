@@ -10,14 +10,21 @@ what the plan format can express:
 PMI                                        plan entry
 =========================================  ===============================================
 datum reference frame (plane, hole axis)   ``alignment: {type: datums, ...}`` (the DRF most
-                                           tolerances use that the plan can build)
+                                           tolerances use that the plan can build; a hole or
+                                           boss datum is its cylinder face, fitted whole)
 Flatness of one planar face                ``flatness`` (``feature: face:N``)
 ProfileOfSurface without datums            ``surface_profile`` with ``datum: false``
 ProfileOfSurface in the plan's DRF         ``surface_profile`` (``datum: true``)
 Position (cylindrical zone, no material    ``hole`` ``position: {tol}``, one per hole of the
 modifier) of holes, in the plan's DRF      tolerance (a pattern gives one entry per hole)
 Size_Diameter with ± limits                ``hole`` ``diameter`` (a hole) or ``cylinder``
-                                           ``diameter`` (a boss)
+                                           ``diameter`` (a boss); a drawn nominal that
+                                           differs from the CAD's shifts the limits (the
+                                           drawing's sizes, as deviations from the CAD)
+Location_LinearDistance with ± limits      ``distance`` (:mod:`.pmi_dimensions`)
+between two parallel planar faces
+Location_Angular with ± limits between     ``angle``
+two planar faces
 =========================================  ===============================================
 
 A hole is named as ``shapeverify info --features`` names it (``hole:k``: the inner trim loop
@@ -230,6 +237,11 @@ def _datum_ref(d: dict, ctx) -> tuple[str | None, str]:
     groups, other = _cylinders(ctx.feats, ctx.model, faces)
     if not groups and len(other) == 1 and ctx.feats[other[0]].kind == "plane":
         return f"face:{other[0]}", ""
+    if len(groups) == 1 and not other and len(groups[0][0]) == 1:
+        # the datum feature is the hole's (or boss's) cylindrical surface: its axis is fitted
+        # on all of it (:mod:`.datums`), not on the rim of one end (a rim of 20 scan points at
+        # 1 mm spacing puts the axis 0.2 mm off and lets the frame fail as a bad fit)
+        return f"face:{groups[0][0][0]}", ""
     if len(groups) == 1 and not other and groups[0][4] == _HOLE_SIDE:
         h = _hole_of(ctx.feats, groups[0], ctx.size)
         if h is not None:
@@ -325,8 +337,9 @@ def _alignment(ctx, datums: dict):
     for key, _ in sorted(use.items(), key=lambda kv: (-kv[1], kv[0])):
         if len(key) < 2 or len(set(key)) != len(key) or any(k not in refs for k in key):
             continue
-        if not refs[key[0]].startswith("face:"):
-            continue
+        r0 = refs[key[0]]
+        if not r0.startswith("face:") or ctx.feats[int(r0[5:])].kind != "plane":
+            continue          # the alignment's primary datum is a plane
         al = {"type": "datums", "primary": refs[key[0]], "secondary": refs[key[1]]}
         if len(key) > 2:
             al["tertiary"] = refs[key[2]]
@@ -525,6 +538,10 @@ def _position(item, ctx, faces, src) -> tuple[list, str]:
 
 def _dimension(item, ctx) -> tuple[list, str]:
     t = item["type"]
+    if t in ("Location_LinearDistance", "Location_Angular"):
+        from .pmi_dimensions import between_entries
+
+        return between_entries(item, ctx, _src(item), ctx.name)
     if t != "Size_Diameter":
         if t in ("DimensionPresentation", "CommonLabel"):
             return [], f"{t}: a presentation without a semantic value"
@@ -541,22 +558,31 @@ def _dimension(item, ctx) -> tuple[list, str]:
         return [], "it controls faces that are not cylinders"
     out = []
     for g in groups:
-        if abs(g[3] - item["nominal"]) > 1e-3 * item["nominal"] + 1e-6:
+        # the plan's diameter limits are deviations from the CAD's diameter: a drawing whose
+        # nominal differs from the model's (FTC 08: 6.0452 drawn, 6.0325 modelled) keeps its
+        # own size limits, shifted by the difference -- when the model lies within them
+        shift = float(item["nominal"]) - g[3]
+        if abs(shift) <= 1e-3 * item["nominal"] + 1e-6:
+            shift = 0.0
+        elif not item["lower"] <= -shift <= item["upper"]:
             return [], (f"the nominal \u2300{item['nominal']:g} differs from the CAD cylinder's "
-                        f"\u2300{g[3]:.4f}")
-        tol = {"lower": _mm(item["lower"]), "upper": _mm(item["upper"])}
+                        f"\u2300{g[3]:.4f} by more than its limits")
+        tol = {"lower": _mm(item["lower"] + shift), "upper": _mm(item["upper"] + shift)}
+        src = _src(item)
+        if shift:
+            src["cad_diameter"] = _mm(g[3])
         if g[4] == _HOLE_SIDE:
             h = _hole_of(ctx.feats, g, ctx.size)
             if h is None:
                 return [], f"no hole of `info --features` on the axis of face:{g[0][0]}"
             out.append({"name": ctx.name(f"{item['id']}_diameter_{h.id.replace(':', '')}"),
-                        "type": "hole", "feature": h.id, "diameter": tol, "pmi": _src(item)})
+                        "type": "hole", "feature": h.id, "diameter": tol, "pmi": src})
         else:
             if len(g[0]) > 1:
                 return [], (f"a boss of {len(g[0])} faces; the plan's cylinder is one face")
             out.append({"name": ctx.name(f"{item['id']}_diameter_face{g[0][0]}"),
                         "type": "cylinder", "feature": f"face:{g[0][0]}", "diameter": tol,
-                        "pmi": _src(item)})
+                        "pmi": src})
     return out, ""
 
 

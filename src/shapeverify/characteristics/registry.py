@@ -81,6 +81,10 @@ TYPES: tuple[CharacteristicType, ...] = (
     CharacteristicType("total_runout", schema.TotalRunout, "gdt:eval_runout", True,
                        "total runout", "⌰"),
     CharacteristicType("width", schema.Width, "gdt:eval_width", False, "size (width)"),
+    CharacteristicType("distance", schema.Distance, "gdt_size:eval_distance", False,
+                       "distance (planes)"),
+    CharacteristicType("angle", schema.Angle, "gdt_size:eval_angle", False,
+                       "angle (planes)"),
 )
 
 _BY_NAME = {t.name: t for t in TYPES}

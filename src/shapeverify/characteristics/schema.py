@@ -13,7 +13,8 @@ from pydantic import BaseModel, ConfigDict, Field, model_validator
 __all__ = ["Tol", "PmiSource", "Unsupported", "Vec3", "FeatureId", "FeatureRef", "Hole",
            "SurfaceProfile", "Flatness", "Cylinder", "CheckPoint", "DatumSpec", "Straightness",
            "Circularity", "Cylindricity", "Parallelism", "Perpendicularity", "Angularity",
-           "Position", "CircularRunout", "TotalRunout", "Width", "SizeLimits"]
+           "Position", "CircularRunout", "TotalRunout", "Width", "SizeLimits", "Distance",
+           "Angle"]
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 FeatureId = Annotated[str, Field(pattern=r"^(hole|face|cylinder|plane):\d+$")]
@@ -315,3 +316,34 @@ class Width(_Char):
             raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
         return self
 
+
+class _TwoPlanes(_Char):
+    """A dimension between two planar faces (``faces``: two) with limits of deviation
+    ``lower < upper`` from ``nominal`` (default: the CAD's) (:mod:`.gdt_size`)."""
+
+    faces: Annotated[list[Union[FeatureId, int, str]], Field(min_length=2, max_length=2)]
+    lower: float
+    upper: float
+
+    @model_validator(mode="after")
+    def _order(self):
+        if not self.lower < self.upper:
+            raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
+        return self
+
+
+class Distance(_TwoPlanes):
+    """The distance (mm) between two parallel planar faces, either facing (a step or a
+    width), between their least-squares planes."""
+
+    type: Literal["distance"]
+    nominal: Optional[float] = Field(default=None, gt=0)
+
+
+class Angle(_TwoPlanes):
+    """The angle (degrees) between two planar faces' least-squares planes; ``nominal``
+    (degrees, default the CAD's angle between the outward normals) may be that angle or its
+    supplement (the drawing's side)."""
+
+    type: Literal["angle"]
+    nominal: Optional[float] = Field(default=None, gt=0, lt=180)
