@@ -56,7 +56,7 @@ def synthetic_result(entry, fraction: float = 0.4) -> CharacteristicResult:
         return CharacteristicResult(entry.name, t, 0.0, v, v, 0.0, float(tol), U,
                                     zone_decide(t, v, 0.0, float(tol), U), details)
     lo, hi = _size_limits(entry)
-    nominal = 0.0 if t == "check_point" else 25.0
+    nominal = 0.0 if t == "check_point" else (getattr(entry, "nominal", None) or 25.0)
     dev = fraction * hi if hi else fraction * lo
     return CharacteristicResult(entry.name, t, nominal, nominal + dev, dev, lo, hi, U,
                                 decide(dev, lo, hi, U), {})

@@ -255,10 +255,11 @@ def test_bundled_panel_with_two_holes_meets_the_position_and_diameter_targets(tm
 
 
 def test_pdf_report_has_its_pages_and_renders(result, prep, tmp_path):
-    from shapeverify.characteristics.pdf import write_pdf_report
+    from shapeverify.characteristics.pdf import ReportLabels, write_pdf_report
 
-    out = write_pdf_report(result, tmp_path / "r.pdf", prep, part="B-1", scan_file="scan.ply", max_points=5000,
-                           model_file="bracket", date="2026-12-01T12:00:00Z")
+    out = write_pdf_report(result, tmp_path / "r.pdf", prep, max_points=5000,
+                           labels=ReportLabels(part="B-1", scan_file="scan.ply",
+                                               model_file="bracket", date="2026-12-01T12:00:00Z"))
     data = out.read_bytes()
     assert data.startswith(b"%PDF")
     assert len(re.findall(rb"/Type\s*/Page[^s]", data)) == 3

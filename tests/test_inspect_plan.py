@@ -89,7 +89,7 @@ def test_pdf_without_a_plan_draws_the_inspections_own_pose_and_deviations(panel,
     import shutil
 
     from shapeverify.characteristics import alignment as al
-    from shapeverify.characteristics.pdf import write_pdf_report
+    from shapeverify.characteristics.pdf import ReportLabels, write_pdf_report
     from shapeverify.inspection.plan_link import plan_result_of
 
     prep, _ = panel
@@ -117,8 +117,8 @@ def test_pdf_without_a_plan_draws_the_inspections_own_pose_and_deviations(panel,
     both = ev.evaluated & dev.evaluated
     assert both.sum() > 0.95 * dev.evaluated.sum()
     np.testing.assert_allclose(ev.deviations[both], dev.values[both], atol=1e-9)
-    out = write_pdf_report(pr, tmp_path / "free.pdf", prep, part="P-2", scan_file="scan.ply",
-                           tolerance=0.2, date="2026-12-01")
+    out = write_pdf_report(pr, tmp_path / "free.pdf", prep, tolerance=0.2,
+                           labels=ReportLabels(part="P-2", scan_file="scan.ply", date="2026-12-01"))
     assert out.read_bytes()[:5] == b"%PDF-"
     if shutil.which("pdftoppm"):
         subprocess.run(["pdftoppm", "-png", "-r", "40", str(out), str(tmp_path / "page")],

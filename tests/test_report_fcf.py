@@ -60,6 +60,10 @@ ROWS = {
                       "datums": ["A", "B"]}, "⌰|0.08|A|B"),
     "width": ({"type": "width", "faces": ["face:5", "face:6"], "lower": -0.1, "upper": 0.2},
               "25.000 +0.2/−0.1"),
+    "distance": ({"type": "distance", "faces": ["face:5", "face:6"], "nominal": 25.0,
+                  "lower": -0.1, "upper": 0.2}, "25.000 +0.2/−0.1"),
+    "angle": ({"type": "angle", "faces": ["face:4", "face:5"], "nominal": 60.0, "lower": -0.5,
+               "upper": 0.5}, "60.000° +0.5°/−0.5°"),
 }
 DATUMS = {k: {"faces": ["face:1"]} for k in "ABC"}
 
@@ -249,7 +253,7 @@ def test_pdf_and_run_chart_need_no_glyph_the_font_lacks(tmp_path):
     frame) must not ask the font for them (matplotlib warns "Glyph ... missing")."""
     import warnings
 
-    from shapeverify.characteristics.pdf import write_pdf_report
+    from shapeverify.characteristics.pdf import ReportLabels, write_pdf_report
     from shapeverify.characteristics.spc import plot_run_chart
 
     pr = synthetic_plan_result(PLANS / "nist_ctc_02.yaml")
@@ -261,8 +265,8 @@ def test_pdf_and_run_chart_need_no_glyph_the_font_lacks(tmp_path):
     assert "Ⓛ" in rows[0]["fcf"] and "⌖" in rows[0]["fcf"]
     with warnings.catch_warnings():
         warnings.filterwarnings("error", message=".*missing from font.*")
-        out = write_pdf_report(pr, tmp_path / "r.pdf", part="CTC 02", date="2026-12-06",
-                               max_points=200)
+        out = write_pdf_report(pr, tmp_path / "r.pdf", max_points=200,
+                               labels=ReportLabels(part="CTC 02", date="2026-12-06"))
         plot_run_chart(rows, tmp_path / "run.png")
     data = out.read_bytes()
     assert data.startswith(b"%PDF") and len(data) > 20_000

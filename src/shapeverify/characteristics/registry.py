@@ -43,6 +43,7 @@ class CharacteristicType:
     symbol : str         the feature control frame's symbol (ISO 1101 / ASME Y14.5, Unicode),
                          "Ø" for a diameter, "" for a linear size or a point
                          (:mod:`shapeverify.report.fcf`)
+    unit : str           the unit of its nominal and limits: "mm", or "deg" for an angle
     """
 
     name: str
@@ -51,6 +52,7 @@ class CharacteristicType:
     one_sided: bool
     label: str
     symbol: str = ""
+    unit: str = "mm"
 
 
 TYPES: tuple[CharacteristicType, ...] = (
@@ -84,7 +86,7 @@ TYPES: tuple[CharacteristicType, ...] = (
     CharacteristicType("distance", schema.Distance, "gdt_size:eval_distance", False,
                        "distance (planes)"),
     CharacteristicType("angle", schema.Angle, "gdt_size:eval_angle", False,
-                       "angle (planes)"),
+                       "angle (planes)", unit="deg"),
 )
 
 _BY_NAME = {t.name: t for t in TYPES}

@@ -191,15 +191,15 @@ def _nominal(v: float) -> str:
     return f"{v:.3f}" if abs(v - round(v, 3)) < 5e-7 else f"{v:.4f}"
 
 
-def _limits(lower: float, upper: float) -> str:
-    """``+0.05/−0.05`` (a zero limit as ``0``; U+2212 minus).
+def _limits(lower: float, upper: float, unit: str = "") -> str:
+    """``+0.05/−0.05`` (a zero limit as ``0``; U+2212 minus; ``unit`` after each number).
 
-    >>> _limits(-0.05, 0.05), _limits(0.0, 0.2), _limits(-0.2, 0.0)
-    ('+0.05/−0.05', '+0.2/0', '0/−0.2')
+    >>> _limits(-0.05, 0.05), _limits(0.0, 0.2), _limits(-0.2, 0.0), _limits(-0.5, 0.5, "°")
+    ('+0.05/−0.05', '+0.2/0', '0/−0.2', '+0.5°/−0.5°')
     """
     def one(x):
         s = _num(x)
-        return "0" if s == "0" else (f"+{s}" if x > 0 else "−" + s.lstrip("-"))
+        return "0" if s == "0" else (f"+{s}{unit}" if x > 0 else "−" + s.lstrip("-") + unit)
     return f"{one(upper)}/{one(lower)}"
 
 
@@ -308,7 +308,8 @@ def _tolerance_frame(symbol, entry, result, part=None, tol=None) -> Frame:
     return Frame(symbol, tuple(comps), datums, tuple(notes), part, True)
 
 
-def _size_frame(symbol, entry, result, part=None) -> Frame:
+def _size_frame(symbol, entry, result, part=None, unit="") -> Frame:
+    """A size's frame: the nominal and its limits (``unit``: "°" after an angle's numbers)."""
     pmi = _pmi(entry)
     nom, lo, hi = (_get(result, k) for k in ("nominal", "lower", "upper"))
     if part is not None:
@@ -329,9 +330,9 @@ def _size_frame(symbol, entry, result, part=None) -> Frame:
         nom = pmi["nominal"]                             # the drawing's size
     text = symbol
     if nom is not None and float(nom) != 0.0:
-        text += _nominal(nom)
+        text += _nominal(nom) + unit
     if lo is not None and hi is not None:
-        text += (" " if text else "") + _limits(float(lo), float(hi))
+        text += (" " if text else "") + _limits(float(lo), float(hi), unit)
     return Frame(symbol, ((("text", text or "–"),),), (), (), part)
 
 
@@ -402,7 +403,8 @@ def frames(result, entry=None) -> tuple:
             sym = registry.label(str(ctype))
     if sym in SYMBOLS or str(ctype) in registry.one_sided_types():
         return (_tolerance_frame(sym, entry, result),)
-    return (_size_frame(sym, entry, result),)
+    deg = str(ctype) in _type_names() and registry.by_name(str(ctype)).unit == "deg"
+    return (_size_frame(sym, entry, result, unit="°" if deg else ""),)
 
 
 def fcf_text(result, entry=None, part: str | None = None) -> str:
