@@ -1,0 +1,475 @@
+"""The resident worker process of the command line (``shapeverify worker start``): it imports
+the command line and the pipeline once, then runs the commands that clients
+(:mod:`shapeverify.cli_worker`) send over its Unix-domain socket, one at a time, through the
+same typer app as in-process; the protocol, the version key and the client are in
+:mod:`shapeverify.cli_worker`.
+
+Started as ``python -m shapeverify.cli_worker_server SOCKET [IDLE_MINUTES]`` by
+:func:`shapeverify.cli_worker.start`.
+"""
+
+from __future__ import annotations
+
+import os
+import struct
+import sys
+from pathlib import Path
+
+from shapeverify.cli_worker import _ask, _recv, _send, import_env, version_key
+
+__all__ = ["Worker", "serve", "KEEP_MODELS"]
+
+
+def _children_cpu() -> float:
+    """CPU seconds of this process's live children (the CAD importer), from /proc (Linux)."""
+    total, tick = 0.0, os.sysconf("SC_CLK_TCK") if hasattr(os, "sysconf") else 100
+    try:
+        tasks = os.listdir("/proc/self/task")
+    except OSError:
+        return 0.0
+    for t in tasks:
+        try:
+            with open(f"/proc/self/task/{t}/children") as f:
+                kids = f.read().split()
+        except OSError:
+            continue
+        for pid in kids:
+            try:
+                with open(f"/proc/{pid}/stat") as f:
+                    fields = f.read().rsplit(")", 1)[1].split()
+                total += (int(fields[11]) + int(fields[12])) / tick
+            except (OSError, IndexError, ValueError):
+                continue
+    return total
+
+
+def _cpu() -> float:
+    import resource
+
+    s, c = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
+    return s.ru_utime + s.ru_stime + c.ru_utime + c.ru_stime + _children_cpu()
+
+
+class _Raw:
+    """The binary stream under a request's ``sys.stdout``/``sys.stderr``: frames to the client."""
+
+    def __init__(self, sock, kind: bytes, tty: bool):
+        import io
+
+        class Raw(io.RawIOBase):
+            def writable(self):
+                return True
+
+            def isatty(self):
+                return tty
+
+            def write(self, b):
+                if len(b):
+                    _send(sock, kind, bytes(b))
+                return len(b)
+
+        self.raw = Raw()
+
+
+def _stream(sock, kind: bytes, tty: bool, encoding: str, errors: str):
+    import io
+
+    return io.TextIOWrapper(io.BufferedWriter(_Raw(sock, kind, tty).raw), encoding=encoding,
+                            errors=errors, line_buffering=True, write_through=True)
+
+
+class Worker:
+    """The resident process: listens on ``path``, runs one command at a time."""
+
+    def __init__(self, path: Path, idle_minutes: float):
+        import threading
+        import time
+
+        self.path, self.idle = Path(path), float(idle_minutes) * 60.0
+        self.key, self.import_env = version_key(), import_env(os.environ)
+        self.started, self.requests, self.cpu, self.preload_cpu = time.time(), 0, 0.0, 0.0
+        self.queue = __import__("queue").Queue()
+        self.stopping = threading.Event()
+        self.lock = threading.Lock()
+        self.running = None   # the connection whose request runs now
+        self.pid = os.getpid()
+
+    # ------------------------------------------------------------------ preparation
+    def preload(self) -> None:
+        """Import the command line and the pipeline and use numba once (its registries and
+        ``scipy.linalg``), so that a request pays only its own work."""
+        import contextlib
+        import io
+        import logging
+        import warnings
+
+        sink = io.StringIO()
+        with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
+            import typer.main
+
+            from shapeverify import cli, cli_common  # noqa: F401
+            import shapeverify.inspection  # noqa: F401
+            import shapeverify.nearest  # noqa: F401
+            import shapeverify.options  # noqa: F401
+            import shapeverify.pipeline  # noqa: F401
+            import shapeverify.registration  # noqa: F401
+            import scipy.spatial  # noqa: F401
+            # the click command typer builds from the app on every call (~0.05 s): built once
+            self.command = typer.main.get_command(cli.app)
+        _keep_prepared_models()
+        import gc
+
+        gc.collect()
+        gc.freeze()  # the libraries' objects: later collections need not walk them again
+        self.preload_cpu = _cpu()
+        self.filters = list(warnings.filters)
+        self.logging_level = logging.getLogger().level
+
+    # ------------------------------------------------------------------ serving
+    def serve(self) -> None:
+        import socket
+
+        import signal
+        import threading
+
+        self.path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
+        os.chmod(self.path.parent, 0o700)
+        if _ask("status", path=self.path) is not None:  # another worker answers there (two started at once)
+            return
+        listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        try:
+            os.unlink(self.path)
+        except FileNotFoundError:
+            pass
+        old = os.umask(0o177)
+        try:
+            listener.bind(str(self.path))
+        finally:
+            os.umask(old)
+        os.chmod(self.path, 0o600)
+        self.inode = os.stat(self.path).st_ino
+        listener.listen(16)
+        signal.signal(signal.SIGTERM, lambda *_: self._stop_now())
+        # a cancel arrives as a frame and is raised by _thread.interrupt_main, which needs
+        # Python's own SIGINT handler (the worker has no terminal: its own session)
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        threading.Thread(target=self._accept, args=(listener,), daemon=True).start()
+        try:
+            self._loop()
+        finally:
+            listener.close()
+            try:
+                if os.stat(self.path).st_ino == self.inode:
+                    os.unlink(self.path)
+            except OSError:
+                pass
+
+    def _stop_now(self) -> None:
+        self.stopping.set()
+        self.queue.put(None)
+
+    def _loop(self) -> None:
+        import socket
+
+        import queue
+        import time
+
+        last = time.monotonic()
+        while not self.stopping.is_set():
+            try:
+                item = self.queue.get(timeout=max(0.1, self.idle - (time.monotonic() - last)))
+            except queue.Empty:
+                if time.monotonic() - last >= self.idle:
+                    break
+                continue
+            except KeyboardInterrupt:   # a late cancel of a request already done
+                continue
+            if item is None:
+                continue
+            conn, req = item
+            try:
+                self._serve_one(conn, req)
+            except KeyboardInterrupt:
+                pass
+            except Exception:  # noqa: BLE001 - the worker must outlive a broken connection
+                import traceback
+                traceback.print_exc()
+            finally:
+                try:
+                    conn.shutdown(socket.SHUT_RDWR)  # ends the request's watcher thread
+                except OSError:
+                    pass
+                conn.close()
+                last = time.monotonic()
+
+    def _accept(self, listener) -> None:
+        import threading
+
+        while True:
+            try:
+                conn, _ = listener.accept()
+            except OSError:
+                return
+            threading.Thread(target=self._handshake, args=(conn,), daemon=True).start()
+
+    def _peer_uid(self, conn) -> int | None:
+        import socket
+
+        try:
+            creds = conn.getsockopt(socket.SOL_SOCKET, socket.SO_PEERCRED,
+                                    struct.calcsize("3i"))
+            return struct.unpack("3i", creds)[1]
+        except (OSError, AttributeError):
+            return None
+
+    def _state(self) -> dict:
+        return {"pid": self.pid, "key": self.key, "import_env": self.import_env,
+                "socket": str(self.path), "started": self.started, "requests": self.requests,
+                "cpu": round(self.cpu, 4), "preload_cpu": round(self.preload_cpu, 4),
+                "idle_minutes": self.idle / 60.0,
+                "busy": self.running is not None}
+
+    def _handshake(self, conn) -> None:
+        import json
+
+        uid = self._peer_uid(conn)
+        if uid is not None and uid != os.getuid():
+            conn.close()
+            return
+        try:
+            conn.settimeout(10.0)
+            kind, payload = _recv(conn)
+            req = json.loads(payload)
+            op = req.get("op")
+            if op == "status":
+                _send(conn, b"I", json.dumps(self._state()).encode())
+                conn.close()
+                return
+            if op == "stop":
+                _send(conn, b"I", json.dumps(self._state()).encode())
+                conn.close()
+                self._stop_now()
+                return
+            if req.get("key") != self.key:
+                stale = req.get("key", "").rsplit(":", 1)[0] != self.key.rsplit(":", 1)[0]
+                _send(conn, b"S", b"the shapeverify worker runs another version of shapeverify "
+                                  b"(started before an update); it stops now")
+                conn.close()
+                if stale:
+                    self._stop_now()
+                return
+            if import_env(req.get("env", {})) != self.import_env:
+                _send(conn, b"S", b"the shapeverify worker was started with other NUMBA_/OMP_/"
+                                  b"PYTHON* environment variables")
+                conn.close()
+                return
+            conn.settimeout(None)
+            _send(conn, b"Q", b"")
+            self.queue.put((conn, req))
+        except (OSError, ConnectionError, ValueError, struct.error):
+            conn.close()
+
+    def _watch(self, conn) -> None:
+        """Cancel the running request when its client sends C or goes away."""
+        import _thread
+
+        try:
+            while True:
+                kind, _ = _recv(conn)
+                if kind == b"C":
+                    break
+        except (OSError, ConnectionError, struct.error):
+            pass
+        with self.lock:
+            if self.running is conn:
+                self.running = None
+                _thread.interrupt_main()
+
+    def _serve_one(self, conn, req: dict) -> None:
+        import json
+
+        import threading
+
+        try:
+            os.stat(req["cwd"])
+        except OSError as exc:
+            _send(conn, b"S", f"the worker cannot enter {req['cwd']} ({exc})".encode())
+            return
+        _send(conn, b"A", b"")
+        with self.lock:
+            self.running = conn
+        threading.Thread(target=self._watch, args=(conn,), daemon=True).start()
+        cpu0 = _cpu()
+        try:
+            code = self._run(conn, req)
+        finally:
+            with self.lock:
+                self.running = None
+        cpu = _cpu() - cpu0
+        self.requests += 1
+        self.cpu += cpu
+        try:
+            _send(conn, b"X", json.dumps({"code": code, "cpu": cpu}).encode())
+        except OSError:
+            pass
+
+    def _run(self, conn, req: dict) -> int | None:
+        """Run one command as ``shapeverify ARGV`` would in-process; its exit code."""
+        import logging
+        import warnings
+
+        from shapeverify import cli_common
+
+        saved = (os.getcwd(), dict(os.environ), sys.argv, sys.stdin, sys.stdout, sys.stderr)
+        umask = os.umask(int(req.get("umask", 0o022)))
+        out = _stream(conn, b"O", req["tty"][0], req["encoding"][0], req["errors"][0])
+        err = _stream(conn, b"E", req["tty"][1], req["encoding"][1], req["errors"][1])
+        try:
+            os.chdir(req["cwd"])
+            os.environ.clear()
+            os.environ.update(req["env"])
+            sys.argv = ["shapeverify", *req["argv"]]
+            sys.stdin = open(os.devnull)
+            sys.stdout, sys.stderr = out, err
+            # what a fresh process starts with: no log handlers, the start's warning filters,
+            # consoles made for this client's terminal and environment
+            root = logging.getLogger()
+            for h in list(root.handlers):
+                root.removeHandler(h)
+            root.setLevel(self.logging_level)
+            logging.captureWarnings(False)
+            logging.getLogger("py.warnings").setLevel(logging.NOTSET)
+            warnings.filters[:] = self.filters
+            warnings._filters_mutated()
+            warnings.onceregistry.clear()
+            cli_common.console.__init__(stderr=True)
+            cli_common.out.__init__()
+            try:
+                self.command.main(args=list(req["argv"]), prog_name="shapeverify")
+                code = 0
+            except SystemExit as exc:
+                code = _exit_code(exc.code)
+            except KeyboardInterrupt:
+                code = 130
+            except BaseException as exc:  # noqa: BLE001 - as the interpreter would report it
+                _report_uncaught(exc)
+                code = 1
+            for s in (out, err):
+                try:
+                    s.flush()
+                except (OSError, ValueError):
+                    pass
+            return code
+        finally:
+            sys.stdin.close()
+            sys.argv, sys.stdin, sys.stdout, sys.stderr = saved[2:]
+            cli_common.console.__init__(stderr=True)
+            cli_common.out.__init__()
+            os.environ.clear()
+            os.environ.update(saved[1])
+            os.umask(umask)
+            os.chdir(saved[0])
+
+
+#: prepared models the worker keeps (the most recently used)
+KEEP_MODELS = 4
+
+
+def _stat_key(path, *extra):
+    """What identifies an unchanged file: its real path, device, inode, size, mtime and ctime
+    (ctime changes on every write, even one that restores the mtime); None if it cannot be had."""
+    try:
+        st = os.stat(path)
+        key = (os.path.realpath(path), st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns,
+               st.st_ctime_ns, *extra)
+        hash(key)
+        return key
+    except (OSError, TypeError, ValueError):
+        return None
+
+
+def _remembering(fn, keep: int):
+    """``fn(path, ...)`` remembered for the last ``keep`` unchanged files (:func:`_stat_key`)."""
+    import collections
+    import functools
+
+    cache: collections.OrderedDict = collections.OrderedDict()
+
+    @functools.wraps(fn)
+    def remembered(path, *args, **kwargs):
+        key = _stat_key(path, args, tuple(sorted(kwargs.items())))
+        if key is None:
+            return fn(path, *args, **kwargs)
+        if key in cache:
+            cache.move_to_end(key)
+            return cache[key]
+        value = fn(path, *args, **kwargs)
+        cache[key] = value
+        while len(cache) > keep:
+            cache.popitem(last=False)
+        return value
+
+    remembered._worker_cache = cache
+    return remembered
+
+
+def _keep_prepared_models() -> None:
+    """Keep the last :data:`KEEP_MODELS` prepared models (.svm) in memory, as ``shapeverify
+    serve`` does: a command that names the same file, unchanged, gets the model already
+    loaded, with the structures it built lazily (the exact closest-point refinement, the
+    coverage samples), and the file's SHA-256 (the reports' ``model_sha256``; ``info``'s
+    summary cache key of a CAD file) without reading the file again.  The commands reach ``load_prepared`` through ``shapeverify.nearest`` and
+    ``file_hash`` through ``shapeverify.pipeline`` at call time, so wrapping them there covers
+    ``inspect``, ``info`` and ``history --model``."""
+    import shapeverify.nearest as nearest
+    import shapeverify.pipeline as pipeline
+
+    if getattr(nearest.load_prepared, "_worker_cache", None) is None:
+        nearest.load_prepared = _remembering(nearest.load_prepared, KEEP_MODELS)
+    if getattr(pipeline.file_hash, "_worker_cache", None) is None:
+        pipeline.file_hash = _remembering(pipeline.file_hash, 64)
+    import shapeverify.cad.summary as summary   # info's cache key: the CAD file's hash
+
+    if getattr(summary._file_hash, "_worker_cache", None) is None:
+        summary._file_hash = _remembering(summary._file_hash, 64)
+
+
+def _report_uncaught(exc: BaseException) -> None:
+    """Print an exception that escaped the command as ``shapeverify`` in-process would: typer's
+    ``Typer.__call__`` marks it and its ``except_hook`` prints it at interpreter exit."""
+    try:
+        import typer.main as tm
+
+        from shapeverify.cli import app
+
+        setattr(exc, tm._typer_developer_exception_attr_name, tm.DeveloperExceptionConfig(
+            pretty_exceptions_enable=app.pretty_exceptions_enable,
+            pretty_exceptions_show_locals=app.pretty_exceptions_show_locals,
+            pretty_exceptions_short=app.pretty_exceptions_short))
+        hook = tm.except_hook
+    except (AttributeError, ImportError, TypeError):
+        hook = sys.excepthook
+    hook(type(exc), exc, exc.__traceback__)
+
+
+def _exit_code(code) -> int:
+    if code is None:
+        return 0
+    if isinstance(code, int):
+        return code
+    sys.stderr.write(f"{code}\n")
+    return 1
+
+
+def serve(path: Path, idle_minutes: float = 30.0) -> None:
+    """The worker process: preload, then serve until stopped or idle."""
+    w = Worker(path, idle_minutes)
+    w.preload()
+    w.serve()
+
+
+if __name__ == "__main__":  # python -m shapeverify.cli_worker_server SOCKET [IDLE_MINUTES]
+    if len(sys.argv) >= 2:
+        serve(Path(sys.argv[1]), float(sys.argv[2]) if len(sys.argv) > 2 else 30.0)
+    else:
+        sys.exit("usage: python -m shapeverify.cli_worker_server SOCKET [IDLE_MINUTES]")
