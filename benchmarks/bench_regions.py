@@ -88,11 +88,12 @@ def make(folder: Path):
 
 
 def call(f):
-    from shapeverify.inspection.regions import find_regions
+    from shapeverify.inspection.regions import RegionSearch, find_regions
 
     return find_regions(f["points"], f["values"], f["evaluated"], f["within"], f["face"],
-                        f["normals"], None, min_points=int(f["min_points"]),
-                        spacing=float(f["spacing"]), limits=(f["lo"], f["hi"]))
+                        f["normals"], None, limits=(f["lo"], f["hi"]),
+                        search=RegionSearch(min_points=int(f["min_points"]),
+                                            spacing=float(f["spacing"])))
 
 
 def digest(regions, outliers) -> str:

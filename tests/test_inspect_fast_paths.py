@@ -72,7 +72,7 @@ def test_regions_from_the_neighbourhood_tree_equal_those_from_the_whole_tree():
     ones only; the regions, outliers and spacing are those the whole tree gives."""
     from scipy.spatial import cKDTree
 
-    from shapeverify.inspection import find_regions
+    from shapeverify.inspection.regions import RegionSearch, find_regions
 
     rng = np.random.default_rng(8)
     x, y = np.meshgrid(np.arange(0, 120, 0.7), np.arange(0, 80, 0.7))
@@ -92,9 +92,10 @@ def test_regions_from_the_neighbourhood_tree_equal_those_from_the_whole_tree():
     limits = (np.full(x.size, -0.2), np.full(x.size, 0.2))
     whole = cKDTree(pts[ev])
     for spacing in (None, 0.7):
-        a = find_regions(pts, vals, ev, within, face, normals, spacing=spacing, limits=limits)
-        b = find_regions(pts, vals, ev, within, face, normals, spacing=spacing, limits=limits,
-                         tree=whole)
+        a = find_regions(pts, vals, ev, within, face, normals, limits=limits,
+                         search=RegionSearch(spacing=spacing))
+        b = find_regions(pts, vals, ev, within, face, normals, limits=limits,
+                         search=RegionSearch(spacing=spacing, tree=whole))
         assert len(a[0]) == len(b[0]) == 3 and a[2] == b[2]
         np.testing.assert_array_equal(a[1].indices, b[1].indices)
         for ra, rb in zip(a[0], b[0]):
@@ -148,7 +149,7 @@ def test_an_inspection_gives_what_the_plain_tree_computations_give():
 
     import shapeverify as sv
     from shapeverify.cad.examples import wavy_panel
-    from shapeverify.inspection import find_regions
+    from shapeverify.inspection.regions import RegionSearch, find_regions
     from shapeverify.inspection.regions import median_spacing, surface_spacing
     from shapeverify.simulate import virtual_scan
 
@@ -173,8 +174,8 @@ def test_an_inspection_gives_what_the_plain_tree_computations_give():
     within = res.tolerance.within(dev.values, dev.face)
     regions, outliers, _ = find_regions(dev.foot_points, dev.values, ev, within, dev.face,
                                         dev.normals, res.registration.weights,
-                                        spacing=res.spacing, limits=res.tolerance.limits(dev.face),
-                                        tree=tree)
+                                        limits=res.tolerance.limits(dev.face),
+                                        search=RegionSearch(spacing=res.spacing, tree=tree))
     mine = [r for r in res.regions if r.kind == "deviation"]
     assert res.verdict == "fail" and len(mine) == len(regions) >= 1
     for a, b in zip(mine, regions):

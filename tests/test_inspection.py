@@ -21,6 +21,7 @@ from shapeverify.inspection import (
     EVALUATED, ON_BOUNDARY, TOO_FAR, InspectionResult, Tolerance, check_scan, decide, deviations,
     find_regions, inspect, inspect_registered, per_face_statistics, statistics,
 )
+from shapeverify.inspection.regions import RegionSearch
 
 
 # ----------------------------------------------------------------------------- stand-ins
@@ -214,7 +215,7 @@ def test_small_clusters_are_outliers_and_opposite_sides_are_not_merged():
     within = np.abs(v) <= 0.2
     regions, outliers, spacing = find_regions(
         pts, v, np.ones(x.size, bool), within, np.zeros(x.size, np.int32),
-        np.tile([0, 0, 1.0], (x.size, 1)), weights=None, min_points=5)
+        np.tile([0, 0, 1.0], (x.size, 1)), weights=None, search=RegionSearch(min_points=5))
     # the spacing is the area per point (surface_spacing), a few % off on a 20 mm patch's edges
     assert spacing == pytest.approx(0.5, rel=0.05)
     assert sorted(outliers.indices.tolist()) == sorted(three)

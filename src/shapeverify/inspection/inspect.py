@@ -22,7 +22,7 @@ from .deviations import _deviations
 from .material import beside_surface, find_material, floating_surfaces
 from .missing import find_missing
 from .plan_link import PlanPose, with_characteristics
-from .regions import MIN_POINTS, find_regions, surface_spacing
+from .regions import MIN_POINTS, RegionSearch, find_regions, surface_spacing
 from .result import InspectionResult
 from .verdict import (MIN_INLIER_FRACTION, Tolerance, decide, per_face_statistics,
                       statistics)
@@ -422,9 +422,10 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
     weights = getattr(reg, "weights", None)
     if weights is not None and np.shape(weights) != (scan.shape[0],):
         weights = None
-    regions, outliers, _ = find_regions(dev.foot_points, dev.values, ev, within, dev.face,
-                                        dev.normals, weights, min_points=opts.min_region_points,
-                                        spacing=spacing, limits=tol.limits(dev.face))
+    regions, outliers, _ = find_regions(
+        dev.foot_points, dev.values, ev, within, dev.face, dev.normals, weights,
+        limits=tol.limits(dev.face),
+        search=RegionSearch(min_points=opts.min_region_points, spacing=spacing))
     beside = beside_surface(dev)                    # material and floating surfaces share it
     material = find_material(dev, spacing, tol.upper, beside=beside)
     # CAD surface the scan sees through (issue 33 row 3): regions of kind "missing"

@@ -63,6 +63,7 @@ import numpy as np
 from shapeverify._lazy import cKDTree
 
 from .._arrays import bounds
+from .._renamed import grouped_keywords
 from ._cluster_kernels import component_labels
 from ._grid_kernels import any_within, kernel_array, kernel_sums, mark_within, nearest_other
 from .region_measures import (CELL_BOUND, MAX_PEAK_RADIUS, fitted_peak, local_noise,
@@ -70,7 +71,7 @@ from .region_measures import (CELL_BOUND, MAX_PEAK_RADIUS, fitted_peak, local_no
 
 logger = logging.getLogger(__name__)
 
-__all__ = ["DefectRegion", "Outliers", "find_regions", "median_spacing", "surface_spacing", "MIN_POINTS",
+__all__ = ["DefectRegion", "Outliers", "RegionSearch", "find_regions", "median_spacing", "surface_spacing", "MIN_POINTS",
            "LINK_FACTOR", "neighbourhood_median"]
 
 #: Default smallest number of points of a defect region.
@@ -259,10 +260,35 @@ def surface_spacing(points: np.ndarray, seed: int = 0) -> float:
     return float(np.sqrt(area_per_sub * m / n))
 
 
+@dataclass(frozen=True)
+class RegionSearch:
+    """How :func:`find_regions` searches (its ``search=``): the smallest region, and what the
+    caller already knows of the scan's neighbourhoods.
+
+    Attributes
+    ----------
+    min_points : int
+        Smallest region, as a surface area of ``min_points`` points at the scan's spacing
+        (``min_points x spacing^2``): a doubled exposure needs the same area, not twice the points.
+    spacing : float, optional
+        The scan's spacing as area per point (mm, :func:`surface_spacing`); estimated from the
+        evaluated points if None.
+    tree : scipy.spatial.cKDTree, optional
+        A tree of ``points[evaluated]`` the caller already built.  Otherwise one is built of
+        only the evaluated points near an out-of-tolerance point: every neighbourhood looked
+        at lies there, so the answers are those of the whole tree.
+    """
+
+    min_points: int = MIN_POINTS
+    spacing: float | None = None
+    tree: cKDTree | None = None
+
+
+@grouped_keywords("search", RegionSearch)
 def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
                  within: np.ndarray, face: np.ndarray, normals: np.ndarray,
-                 weights: np.ndarray | None = None, min_points: int = MIN_POINTS,
-                 spacing: float | None = None, limits=None, tree: cKDTree | None = None):
+                 weights: np.ndarray | None = None, limits=None,
+                 search: RegionSearch = RegionSearch()):
     """Cluster out-of-tolerance points into defect regions and measurement outliers.
 
     Parameters
@@ -279,20 +305,13 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
         Outward CAD normals at the foot points.
     weights : (N,) float64, optional
         Registration weights; points with weight < 1e-3 are flagged in :class:`Outliers`.
-    min_points : int
-        Smallest region, as a surface area of ``min_points`` points at the scan's spacing
-        (``min_points x spacing^2``): a doubled exposure needs the same area, not twice the points.
-    spacing : float, optional
-        The scan's spacing as area per point (mm, :func:`surface_spacing`); estimated from the
-        evaluated points if None.
     limits : ((N,) float64, (N,) float64), optional
         Per-point lower and upper limits (mm), e.g. from :meth:`Tolerance.limits`; they decide
         which points are core points and the severity. None: just inside the smallest
         out-of-tolerance deviation on each side.
-    tree : scipy.spatial.cKDTree, optional
-        A tree of ``points[evaluated]`` the caller already built.  Otherwise one is built here
-        of only the evaluated points near an out-of-tolerance point: every neighbourhood looked
-        at lies there, so the answers are those of the whole tree.
+    search : RegionSearch
+        ``min_points``, ``spacing`` and ``tree`` (see :class:`RegionSearch`); the loose
+        keywords of these names still work, with a DeprecationWarning.
 
     Returns
     -------
@@ -302,6 +321,7 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
     spacing : float
         The point spacing used (NaN if it could not be estimated and was not needed).
     """
+    min_points, spacing, tree = search.min_points, search.spacing, search.tree
     out_idx = np.flatnonzero(evaluated & ~within)
     no_outliers = Outliers(np.zeros(0, np.int64), np.zeros(0, bool))
     if out_idx.size == 0:
