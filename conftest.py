@@ -20,6 +20,13 @@ from pathlib import Path
 import pytest
 
 _SRC = Path(__file__).resolve().parent / "src"
+
+# The command line's Rich consoles are made at import and fix their width from COLUMNS/LINES
+# when these are set (pytest-xdist's workers have COLUMNS=80): the tests that give a CliRunner
+# its own COLUMNS would then get 80 columns and numbers cut to "…".  Without them, the width is
+# read at each print, as in one pytest process.
+for _name in ("COLUMNS", "LINES"):
+    os.environ.pop(_name, None)
 #: top-level import name -> the extra that provides it
 _OPTIONAL = {"fastapi": "service", "starlette": "service", "uvicorn": "service",
              "httptools": "service", "uvloop": "service", "distributed": "batch", "dask": "batch"}
