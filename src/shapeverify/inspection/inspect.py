@@ -131,10 +131,10 @@ def inspect(prep, scan, tolerance=None, evaluation_distance: float | None = None
 
     >>> import shapeverify as sv
     >>> from shapeverify.cad.examples import wavy_panel
-    >>> from shapeverify.simulate import virtual_scan
+    >>> from shapeverify.simulate import ScanEffects, virtual_scan
     >>> prep = sv.prepare(wavy_panel(), spacing=2.0)
-    >>> scan = virtual_scan(prep, pixel=2.0, noise=0.02, motion=(2.0, 3.0), dents=[(0.5, 15.0)],
-    ...                     rng=1).scan
+    >>> scan = virtual_scan(prep, pixel=2.0, noise=0.02, motion=(2.0, 3.0),
+    ...                     effects=ScanEffects(dents=[(0.5, 15.0)]), rng=1).scan
     >>> res = inspect(prep, scan, tolerance=0.2)
     >>> str(res.verdict), res.rule
     ('fail', 'regions')
