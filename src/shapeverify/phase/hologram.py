@@ -343,13 +343,6 @@ def dual_wavelength_depth(h1, h2, lambda1: float, lambda2: float, reference_dept
     ValueError
         Bad images, shapes that differ, or bad parameters (see :func:`reconstruct`).
     """
-    carrier1 = reconstruction.carrier1
-    carrier2 = reconstruction.carrier2
-    radius = reconstruction.radius
-    distance = reconstruction.distance
-    pixel_pitch = reconstruction.pixel_pitch
-    window = reconstruction.window
-    same_reference_angle = reconstruction.same_reference_angle
     from .regularised import unwrap_data, unwrap_with_reference
     from .wrap import TWO_PI
 
