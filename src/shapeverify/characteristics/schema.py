@@ -301,35 +301,26 @@ class TotalRunout(_Runout):
     type: Literal["total_runout"]
 
 
-class Width(_Char):
+class _TwoPlanes(_Char):
+    """A dimension between two planar faces (``faces``: two) with limits of deviation
+    ``lower < upper`` from its nominal (the CAD's, or the type's ``nominal``)."""
+
+    faces: Annotated[list[Union[FeatureId, int, str]], Field(min_length=2, max_length=2)]
+    lower: float
+    upper: float
+
+    @model_validator(mode="after")
+    def _order(self):
+        if not self.lower < self.upper:
+            raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
+        return self
+
+
+class Width(_TwoPlanes):
     """Size: the distance between two opposite parallel planar faces (``faces``: two)
     within ``lower``/``upper`` of the CAD's distance (two-point sizes, ISO 14405-1)."""
 
     type: Literal["width"]
-    faces: Annotated[list[Union[FeatureId, int, str]], Field(min_length=2, max_length=2)]
-    lower: float
-    upper: float
-
-    @model_validator(mode="after")
-    def _order(self):
-        if not self.lower < self.upper:
-            raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
-        return self
-
-
-class _TwoPlanes(_Char):
-    """A dimension between two planar faces (``faces``: two) with limits of deviation
-    ``lower < upper`` from ``nominal`` (default: the CAD's) (:mod:`.gdt_size`)."""
-
-    faces: Annotated[list[Union[FeatureId, int, str]], Field(min_length=2, max_length=2)]
-    lower: float
-    upper: float
-
-    @model_validator(mode="after")
-    def _order(self):
-        if not self.lower < self.upper:
-            raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
-        return self
 
 
 class Distance(_TwoPlanes):
