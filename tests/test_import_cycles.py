@@ -12,13 +12,13 @@ everything that re-exports): the cycles through a package's re-exports;
 than one folder (the package's top-level modules count as the folder ``.``), each as one
 shortest cycle through it.
 
-Without the packages' runs there is no cycle between folders left.  With them, one strongly
-connected component is left (:data:`LEFT_THROUGH_INIT`, may only shrink): the characteristics
-evaluate on the inspection's building blocks (``inspection.checks``, ``.deviations``,
-``.regions``, ``._grid_kernels``) while ``inspection.inspect`` runs a plan's characteristics and
-``options`` loads plans; breaking it means moving those building blocks out of the
-``inspection`` package.  Run this file as a script to print the current lists:
-``python tests/test_import_cycles.py``.
+Neither graph has a cycle between folders.  The last one through the packages' runs
+(characteristics.evaluate -> ``inspection/__init__`` -> inspection.inspect -> characteristics)
+was broken by moving the building blocks the characteristics evaluate on -- the tolerance, the
+scan checks, the deviation reason codes, the spacing helpers and the grid kernels -- out of the
+``inspection`` package into the leaf package ``shapeverify.measures``; their old import paths
+re-export them (:func:`test_the_moved_names_keep_their_old_import_paths`).  Run this file as a
+script to print the cycles inside one folder: ``python tests/test_import_cycles.py``.
 """
 
 from __future__ import annotations
@@ -27,12 +27,10 @@ import ast
 from collections import deque
 from pathlib import Path
 
+import pytest
+
 PACKAGE = Path(__file__).resolve().parents[1] / "src" / "shapeverify"
-#: the one strongly connected component between folders left through package re-exports
-#: (module docstring); it may only shrink
-LEFT_THROUGH_INIT = frozenset({
-    "characteristics", "characteristics.evaluate", "characteristics.support", "inspection",
-    "inspection.inspect", "inspection.plan_link", "inspection.views", "options"})
+
 
 
 def _modules(root: Path = PACKAGE) -> dict[str, Path]:
@@ -193,17 +191,85 @@ def cross_folder_components(graph) -> list[set[str]]:
     return [set(c) for c in _sccs(graph) if len(c) > 1 and len({folder(m) for m in c}) > 1]
 
 
-def test_no_new_cycle_between_folders_through_package_reexports():
-    """Every cross-folder cycle of the graph with the packages' runs lies inside the one left
-    component (camera <-> phase <-> simulate were broken: the fringe analysis moved to
-    ``camera.fringe_analysis``, the optical demo to ``simulate.stereo_demo``)."""
-    comps = cross_folder_components(import_graph(parents=True))
-    bad = [sorted(c) for c in comps if not c <= LEFT_THROUGH_INIT]
-    assert not bad, ("import cycles between folders through package __init__ re-exports:\n"
-                     + "\n".join(" -> ".join(c) for c in
-                                  cross_folder_cycles(import_graph(parents=True))))
-    # the list only shrinks: every module left is still on such a cycle
-    assert set().union(*comps) == LEFT_THROUGH_INIT, sorted(LEFT_THROUGH_INIT - set().union(*comps))
+def test_no_cycle_between_folders_through_package_reexports():
+    """No cross-folder cycle in the graph with the packages' runs either (camera <-> phase <->
+    simulate were broken: the fringe analysis moved to ``camera.fringe_analysis``, the optical
+    demo to ``simulate.stereo_demo``; characteristics <-> inspection <-> options: the
+    characteristics' building blocks moved to ``measures``)."""
+    g = import_graph(parents=True)
+    assert not cross_folder_components(g), (
+        "import cycles between folders through package __init__ re-exports:\n"
+        + "\n".join(" -> ".join(c) for c in cross_folder_cycles(g)))
+
+
+def test_the_shared_measures_are_a_leaf_package():
+    """``measures`` (what the inspection and the characteristics share) reaches neither of them,
+    with or without the packages' runs: the cycle cannot come back through it."""
+    g = import_graph(parents=True)
+    seen, todo = set(), [m for m in g if m == "measures" or m.startswith("measures.")]
+    while todo:
+        m = todo.pop()
+        if m not in seen:
+            seen.add(m)
+            todo.extend(g[m])
+    assert not {folder(m) for m in seen} & {"inspection", "characteristics", "registration"}, \
+        sorted(seen)
+
+
+#: "old module:name  new module:name" (under shapeverify): the name moved to the leaf package
+#: ``measures`` and the old path gives the very same object
+MOVED = [
+    "inspection:Tolerance measures.tolerance:Tolerance",
+    "inspection.verdict:Tolerance measures.tolerance:Tolerance",
+    "inspection:check_scan measures.checks:check_scan",
+    "inspection:default_evaluation_distance measures.checks:default_evaluation_distance",
+    "inspection.checks:check_scan measures.checks:check_scan",
+    "inspection.checks:default_evaluation_distance measures.checks:default_evaluation_distance",
+    "inspection.checks:MIN_SCAN_POINTS measures.checks:MIN_SCAN_POINTS",
+    "inspection.checks:MAX_COPY_FRACTION measures.checks:MAX_COPY_FRACTION",
+    "inspection.inspect:check_scan measures.checks:check_scan",
+    "inspection.inspect:default_evaluation_distance measures.checks:default_evaluation_distance",
+    "inspection.inspect:MIN_SCAN_POINTS measures.checks:MIN_SCAN_POINTS",
+    "inspection:EVALUATED measures.codes:EVALUATED",
+    "inspection:TOO_FAR measures.codes:TOO_FAR",
+    "inspection:ON_BOUNDARY measures.codes:ON_BOUNDARY",
+    "inspection:OUTSIDE_FACES measures.codes:OUTSIDE_FACES",
+    "inspection.deviations:REASON_NAMES measures.codes:REASON_NAMES",
+    "inspection.regions:median_spacing measures.spacing:median_spacing",
+    "inspection.regions:nearest_distances measures.spacing:nearest_distances",
+    "inspection.regions:neighbourhood_median measures.spacing:neighbourhood_median",
+    "inspection.regions:_nanmedian_rows measures.spacing:nanmedian_rows",
+    "inspection.region_measures:nanmedian_rows measures.spacing:nanmedian_rows",
+    "inspection._grid_kernels:any_within measures._grid_kernels:any_within",
+    "inspection._grid_kernels:mark_within measures._grid_kernels:mark_within",
+    "inspection._grid_kernels:kernel_sums measures._grid_kernels:kernel_sums",
+    "inspection._grid_kernels:nearest_other measures._grid_kernels:nearest_other",
+    "inspection._grid_kernels:kernel_array measures._grid_kernels:kernel_array",
+]
+
+
+@pytest.mark.parametrize("row", MOVED)
+def test_the_moved_names_keep_their_old_import_paths(row):
+    import importlib
+    import inspect
+
+    (old, old_name), (new, new_name) = (x.split(":") for x in row.split())
+    obj = getattr(importlib.import_module(f"shapeverify.{old}"), old_name)
+    assert obj is getattr(importlib.import_module(f"shapeverify.{new}"), new_name), row
+    if inspect.isclass(obj) or inspect.isfunction(obj):
+        assert obj.__module__ == f"shapeverify.{new}", obj
+
+
+def test_a_tolerance_from_the_old_path_is_the_same_class():
+    """Objects built through the old path are instances of the one class (isinstance checks in
+    the inspection, the service and the characteristics keep working)."""
+    from shapeverify.inspection import Tolerance as Old
+    from shapeverify.inspection.checks import default_evaluation_distance
+    from shapeverify.measures.tolerance import Tolerance
+
+    t = Old.symmetric(0.2)
+    assert isinstance(t, Tolerance) and t == Tolerance(-0.2, 0.2)
+    assert default_evaluation_distance(t) == default_evaluation_distance(0.2) == 1.0
 
 
 def test_the_graph_sees_deferred_imports_and_reexports():
@@ -248,7 +314,5 @@ if __name__ == "__main__":
         print(" -> ".join(c))
     for c in within_folder_cycles():
         print("(within one folder) " + ", ".join(c))
-    g = import_graph(parents=True)
-    for c in cross_folder_cycles(g):
-        left = "(left) " if set(c) <= LEFT_THROUGH_INIT else ""
-        print(left + "(through package __init__ re-exports) " + " -> ".join(c))
+    for c in cross_folder_cycles(import_graph(parents=True)):
+        print("(through package __init__ re-exports) " + " -> ".join(c))

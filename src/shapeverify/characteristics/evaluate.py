@@ -239,7 +239,7 @@ class _Scan:
         self.exclude = exclude
         dev = deviations
         if dev is not None and _same_evaluation(dev, scan, T, evaluation_distance):
-            from ..inspection.deviations import ON_BOUNDARY, TOO_FAR
+            from ..measures.codes import ON_BOUNDARY, TOO_FAR
 
             self.X = np.asarray(dev.points_model, np.float64)
             self.d = np.asarray(dev.values, np.float64)
@@ -646,7 +646,7 @@ def evaluate_characteristics(prep, scan, plan, alignment: AlignmentResult, exclu
     (tuple of CharacteristicResult, _Scan, section dict or None)
     """
     plan = load_plan(plan)
-    from ..inspection.checks import default_evaluation_distance
+    from ..measures.checks import default_evaluation_distance
 
     md = float(evaluation_distance or plan.evaluation_distance
                or default_evaluation_distance(_largest_tolerance(plan), prep.model.size))
@@ -733,7 +733,7 @@ def evaluate_plan(prep, scan, plan=None, registration=None, init=None, rng=None,
     >>> abs(h1.measured["diameter"] - 12.0) <= h1.uncertainty["diameter"], h1.verdict
     (True, 'pass')
     """
-    from ..inspection.checks import check_scan
+    from ..measures.checks import check_scan
 
     t0 = time.perf_counter()
     no_plan = plan is None

@@ -107,8 +107,8 @@ def neighbourhood_support(feet, d, ok, alpha: float = ALPHA) -> Support:
     -------
     Support
     """
-    from ..inspection._grid_kernels import kernel_array, mark_within
-    from ..inspection.regions import median_spacing, neighbourhood_median
+    from ..measures._grid_kernels import kernel_array, mark_within
+    from ..measures.spacing import median_spacing, neighbourhood_median
     from scipy.spatial import cKDTree
 
     n = d.shape[0]

@@ -6,6 +6,10 @@ Read in this order: :mod:`.deviations` (scan point -> signed deviation along the
 :mod:`.regions` (connected out-of-tolerance surface vs measurement outliers), :mod:`.material`
 (measured surface where the CAD has none), :mod:`.coverage` (how much was seen), :mod:`.result` and
 :mod:`.inspect` (the whole inspection in one call).
+
+The building blocks the characteristics share with it (the tolerance zone, the scan checks, the
+deviation reason codes, the spacing helpers and grid kernels) live in the leaf package
+:mod:`shapeverify.measures`; the names below re-export them.
 """
 
 from .coverage import MIN_COVERAGE, Coverage, compute_coverage

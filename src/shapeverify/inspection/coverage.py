@@ -27,7 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 from shapeverify._lazy import cKDTree
 
-from ._grid_kernels import any_within, kernel_array
+from ..measures._grid_kernels import any_within, kernel_array
 from .regions import linked_components
 
 __all__ = ["Coverage", "compute_coverage", "seen_faces", "MIN_COVERAGE", "MAX_SAMPLES",

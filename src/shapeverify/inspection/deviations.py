@@ -32,6 +32,7 @@ import numpy as np
 from .._renamed import renamed_keywords
 from .._arrays import check_points
 from .._arrays import readonly as _readonly
+from ..measures.codes import EVALUATED, ON_BOUNDARY, OUTSIDE_FACES, REASON_NAMES, TOO_FAR
 from ..registration.rigid import apply_transform
 
 logger = logging.getLogger(__name__)
@@ -39,10 +40,8 @@ logger = logging.getLogger(__name__)
 __all__ = ["Deviations", "deviations", "EVALUATED", "TOO_FAR", "ON_BOUNDARY", "OUTSIDE_FACES",
            "REASON_NAMES"]
 
-#: Reason codes in :attr:`Deviations.reason`.
-EVALUATED, TOO_FAR, ON_BOUNDARY, OUTSIDE_FACES = 0, 1, 2, 3
-REASON_NAMES = {EVALUATED: "evaluated", TOO_FAR: "too_far", ON_BOUNDARY: "on_boundary",
-                OUTSIDE_FACES: "outside_faces"}
+# The reason codes in :attr:`Deviations.reason` (EVALUATED, TOO_FAR, ON_BOUNDARY, OUTSIDE_FACES,
+# REASON_NAMES) live in the leaf :mod:`shapeverify.measures.codes`; imported above.
 
 
 @dataclass(frozen=True, repr=False, eq=False)

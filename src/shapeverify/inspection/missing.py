@@ -63,7 +63,7 @@ from __future__ import annotations
 import numpy as np
 from shapeverify._lazy import cKDTree
 
-from ._grid_kernels import any_within, kernel_array, mark_within
+from ..measures._grid_kernels import any_within, kernel_array, mark_within
 from .coverage import model_samples
 from .regions import DefectRegion, linked_components
 

@@ -65,9 +65,11 @@ from shapeverify._lazy import cKDTree
 from .._arrays import bounds
 from .._renamed import grouped_keywords
 from ._cluster_kernels import component_labels
-from ._grid_kernels import any_within, kernel_array, kernel_sums, mark_within, nearest_other
-from .region_measures import (CELL_BOUND, MAX_PEAK_RADIUS, fitted_peak, local_noise,
-                              nanmedian_rows, out_area, seen_under)
+from ..measures._grid_kernels import any_within, kernel_array, kernel_sums, mark_within
+from ..measures.spacing import (median_spacing, nanmedian_rows,  # noqa: F401 (re-exported)
+                                nearest_distances, neighbourhood_median)
+from .region_measures import (CELL_BOUND, MAX_PEAK_RADIUS, fitted_peak, local_noise, out_area,
+                              seen_under)
 
 logger = logging.getLogger(__name__)
 
@@ -182,50 +184,6 @@ class Outliers:
 
     def __repr__(self) -> str:
         return f"Outliers(n={self.n}, low_weight={self.n_low_weight}, layer={self.n_layer})"
-
-
-def median_spacing(tree: cKDTree | None, points: np.ndarray, max_samples: int = 1500) -> float:
-    """Median nearest-neighbour distance of ``points`` (evenly subsampled to ``max_samples``).
-
-    ``tree``: a k-d tree of ``points``, or None: the distances are found on a grid
-    (:func:`nearest_distances`, the same numbers without building a tree)."""
-    if points.shape[0] < 2:
-        return float("nan")
-    step = max(1, points.shape[0] // max_samples)
-    if tree is None:
-        d = nearest_distances(points, np.arange(0, points.shape[0], step))
-    else:
-        d, _ = tree.query(points[::step], k=2)
-        d = d[:, 1]
-    d = d[np.isfinite(d) & (d > 0)]
-    return float(np.median(d)) if d.size else float("nan")
-
-
-def nearest_distances(points: np.ndarray, idx: np.ndarray) -> np.ndarray:
-    """Distance (mm) from each ``points[idx]`` to its nearest other point of ``points`` (0 for a
-    duplicate); ``points`` (N, 3) with N >= 2.  Equal to ``cKDTree(points).query(points[idx],
-    k=2)[0][:, 1]``: a grid search (:func:`._grid_kernels.nearest_other`) whose cells start at
-    three times the spacing a surface of the points' extent would have and grow fourfold for
-    the points it leaves undecided (isolated points), until the grid is one cell."""
-    pts = kernel_array(points)
-    idx = kernel_array(idx, np.int64)
-    out = np.empty(idx.shape[0])
-    lo, hi = bounds(pts)
-    ext = np.sort(hi - lo)
-    diag = float(np.linalg.norm(ext))
-    if not diag > 0:
-        return np.zeros(idx.shape[0])
-    area = ext[2] * ext[1] if ext[1] > 0 else ext[2] * ext[2]
-    h = max(3.0 * float(np.sqrt(area / pts.shape[0])), 1e-9 * diag)
-    todo = np.arange(idx.shape[0])
-    while True:
-        part = np.empty(todo.shape[0])
-        nearest_other(pts, idx[todo], h, part)
-        out[todo] = part
-        todo = todo[part < 0]
-        if todo.size == 0:
-            return out
-        h *= 4.0
 
 
 def surface_spacing(points: np.ndarray, seed: int = 0) -> float:
@@ -542,19 +500,6 @@ def linked_components(n: int, pairs: np.ndarray) -> tuple[int, np.ndarray]:
     pairs = kernel_array(np.asarray(pairs).reshape(-1, 2), np.int64)
     # union-find: scipy.sparse.csgraph.connected_components' labels without its set-up cost
     return int(component_labels(int(n), pairs, labels)), labels
-
-
-def neighbourhood_median(tree, ev_idx, values, p, radius, k: int = 9) -> np.ndarray:
-    """Median deviation of the (up to) ``k`` nearest evaluated points within ``radius`` of each
-    row of ``p`` (itself included when ``p`` are evaluated foot points); the point's own nearest
-    value when fewer than 3 neighbours are found."""
-    kk = min(k, ev_idx.size)
-    d, j = tree.query(p, k=kk, distance_upper_bound=radius)
-    d = d.reshape(len(p), kk)
-    j = j.reshape(len(p), kk)
-    ok = np.isfinite(d)
-    v = np.where(ok, values[ev_idx[np.minimum(j, ev_idx.size - 1)]], np.nan)
-    return nanmedian_rows(np.where(ok.sum(axis=1, keepdims=True) >= 3, v, v[:, :1]))
 
 
 _nanmedian_rows = nanmedian_rows      # its earlier name (tests/test_inspect_fast_paths.py)
