@@ -21,7 +21,7 @@ def folder(tmp_path_factory):
     from shapeverify.cad.load import load_model
     from shapeverify.io.points import write_ply
     from shapeverify.nearest import prepare
-    from shapeverify.simulate import virtual_scan
+    from shapeverify.simulate import ScanEffects, virtual_scan
 
     d = tmp_path_factory.mktemp("batch")
     model = load_model(example_part_step(d / "panel.step"))
@@ -31,7 +31,8 @@ def folder(tmp_path_factory):
     scans.mkdir()
     truth = {}
     for i, (name, dents) in enumerate([("a_clean", ()), ("b_clean", ()), ("c_dented", [(0.6, 20.0)])]):
-        sim = virtual_scan(model, pixel=4.0, noise=0.02, dents=dents, motion=(1.5, 2.0), rng=10 + i)
+        sim = virtual_scan(model, pixel=4.0, noise=0.02,
+                           effects=ScanEffects(dents=dents), motion=(1.5, 2.0), rng=10 + i)
         assert 1000 < len(sim.scan) < 8000
         if i == 0:
             np.save(scans / f"{name}.npy", sim.scan)

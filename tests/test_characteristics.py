@@ -21,7 +21,7 @@ from shapeverify.characteristics.spc import (MIN_PARTS, capability, characterist
 from shapeverify.characteristics.zones import decide, minimum_zone_flatness
 from shapeverify.nearest import prepare
 from shapeverify.registration.rigid import invert_transform, make_transform
-from shapeverify.simulate import virtual_scan
+from shapeverify.simulate import ScanEffects, virtual_scan
 
 VIEW = [1.0, 1.0, 1.6]
 PLAN = """units: mm
@@ -62,7 +62,7 @@ def prep():
 @pytest.fixture(scope="module")
 def dented(prep):
     return virtual_scan(prep, view=VIEW, pixel=1.0, noise=0.02, motion=(2.0, 3.0),
-                        dents=[(0.25, 12.0)], rng=11)
+                        effects=ScanEffects(dents=[(0.25, 12.0)]), rng=11)
 
 
 @pytest.fixture(scope="module")

@@ -24,7 +24,7 @@ def panel(tmp_path_factory):
     """The example panel as STEP and prepared .svm, plus a clean and a dented simulated scan."""
     from shapeverify.cad.examples import example_part_step
     from shapeverify.io.points import write_ply
-    from shapeverify.simulate import virtual_scan
+    from shapeverify.simulate import ScanEffects, virtual_scan
 
     d = tmp_path_factory.mktemp("cli")
     step = example_part_step(d / "panel.step")
@@ -34,7 +34,8 @@ def panel(tmp_path_factory):
 
     model = load_model(step)
     for name, dents in (("clean", ()), ("dented", [(0.4, 15.0)])):
-        sim = virtual_scan(model, pixel=2.0, noise=0.02, outlier_fraction=0.03, dents=dents,
+        sim = virtual_scan(model, pixel=2.0, noise=0.02,
+                           effects=ScanEffects(outlier_fraction=0.03, dents=dents),
                            motion=(2.0, 3.0), rng=11)
         write_ply(d / f"{name}.ply", sim.scan)
     return d

@@ -64,14 +64,15 @@ def files(tmp_path_factory):
     from shapeverify.cad.load import load_model
     from shapeverify.io.points import write_ply
     from shapeverify.nearest import prepare
-    from shapeverify.simulate import virtual_scan
+    from shapeverify.simulate import ScanEffects, virtual_scan
 
     d = tmp_path_factory.mktemp("worker")
     step = example_part_step(d / "panel.step")
     model = load_model(step)
     prepare(model).save(d / "panel.svm")
     for name, dents in (("clean", ()), ("dented", [(0.5, 20.0)])):
-        sim = virtual_scan(model, pixel=4.0, noise=0.02, outlier_fraction=0.02, dents=dents,
+        sim = virtual_scan(model, pixel=4.0, noise=0.02,
+                           effects=ScanEffects(outlier_fraction=0.02, dents=dents),
                            motion=(1.0, 2.0), rng=5)
         write_ply(d / f"{name}.ply", sim.scan)
     (d / "broken.ply").write_text("ply\nformat ascii 1.0\nelement vertex 3\nend_header\n1 2\n")

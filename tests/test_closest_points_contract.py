@@ -120,7 +120,7 @@ def test_registration_contract(closest_points, prep):
     """ICP from the identity finds the simulated scan's true pose through each implementation:
     the scan points land within 0.02 mm RMS of where the true pose puts them."""
     from shapeverify.registration import register
-    from shapeverify.simulate import virtual_scan
+    from shapeverify.simulate import ScanEffects, virtual_scan
 
     name, impl = closest_points
     vs = virtual_scan(prep.model, pixel=2.0, noise=0.02, motion=(2.0, 1.5), rng=4)
@@ -141,11 +141,11 @@ def test_inspection_contract(closest_points, prep):
     import warnings
 
     import shapeverify as sv
-    from shapeverify.simulate import virtual_scan
+    from shapeverify.simulate import ScanEffects, virtual_scan
 
     name, impl = closest_points
     vs = virtual_scan(prep.model, pixel=1.0, noise=0.02, motion=(2.0, 1.5),
-                      dents=[(0.5, 12.0)], rng=4)
+                      effects=ScanEffects(dents=[(0.5, 12.0)]), rng=4)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         res = sv.inspect(impl, vs.scan, tolerance=0.2, init=np.eye(4))

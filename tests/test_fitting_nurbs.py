@@ -10,7 +10,7 @@ import pytest
 
 from shapeverify import fitting
 from shapeverify.cad.nurbs import NurbsCurve, NurbsSurface
-from shapeverify.fitting import _odr, curves, surfaces
+from shapeverify.fitting import FitSolver, _odr, curves, surfaces
 
 
 def _known_curve():
@@ -62,7 +62,8 @@ def test_surface_scattered_noise_level():
     sigma = 0.01
     xn = x + sigma * s.normal(uv[:, 0], uv[:, 1]) * rng.normal(size=(800, 1))
     fixed = fitting.fit_surface(xn, degrees=(3, 2), n_ctrl=(5, 4), method="fixed")
-    odr = fitting.fit_surface(xn, degrees=(3, 2), n_ctrl=(5, 4), method="odr", max_iterations=40)
+    odr = fitting.fit_surface(xn, degrees=(3, 2), n_ctrl=(5, 4), method="odr",
+                              solver=FitSolver(max_iterations=40))
     assert odr.rms < fixed.rms
     assert odr.rms < 1.05 * sigma                   # at the noise level (n = 20 of 800 dof)
     # the signed residuals are the added normal noise (up to the orientation of the fitted surface)
@@ -81,8 +82,10 @@ def _noisy_curve(n=400, sigma=0.01, seed=2):
 def test_odr_beats_fixed_and_varpro_agrees():
     x = _noisy_curve()
     fixed = fitting.fit_curve(x, n_ctrl=10, method="fixed")
-    odr = fitting.fit_curve(x, n_ctrl=10, method="odr", rtol=1e-13, max_iterations=300)
-    vp = fitting.fit_curve(x, n_ctrl=10, method="varpro", rtol=1e-13, max_iterations=300)
+    odr = fitting.fit_curve(x, n_ctrl=10, method="odr",
+                            solver=FitSolver(rtol=1e-13, max_iterations=300))
+    vp = fitting.fit_curve(x, n_ctrl=10, method="varpro",
+                           solver=FitSolver(rtol=1e-13, max_iterations=300))
     assert odr.converged and vp.converged
     assert odr.rms < 0.97 * fixed.rms
     # same objective, same optimum
@@ -98,8 +101,9 @@ def test_odr_beats_fixed_and_varpro_agrees():
 @pytest.mark.parametrize("second_order", [True, False])
 def test_orthogonal_residuals_at_convergence(second_order):
     x = _noisy_curve(300, 0.02, seed=3)
-    fit = fitting.fit_curve(x, n_ctrl=8, method="odr", second_order=second_order,
-                            rtol=1e-14, max_iterations=400)
+    fit = fitting.fit_curve(x, n_ctrl=8, method="odr",
+                            solver=FitSolver(second_order=second_order, rtol=1e-14,
+                                             max_iterations=400))
     assert fit.converged
     d = fit.curve.derivatives(fit.params, 1)
     r = x - d[:, 0]
@@ -361,7 +365,8 @@ def test_slide_prior_converges_fast_and_stays_on_the_true_shape():
     x = _noisy_curve(n=3000, sigma=0.01, seed=5)
     fixed = fitting.fit_curve(x, n_ctrl=30, method="fixed")
     fit = fitting.fit_curve(x, n_ctrl=30)
-    plain = fitting.fit_curve(x, n_ctrl=30, slide_stiffness=0.0, max_iterations=150)
+    plain = fitting.fit_curve(x, n_ctrl=30,
+                              solver=FitSolver(slide_stiffness=0.0, max_iterations=150))
     assert fit.converged and fit.iterations <= 15
     assert fit.rms <= fixed.rms
     e_fixed, e_fit, e_plain = (_spiral_truth_distance(f.curve) for f in (fixed, fit, plain))
@@ -377,8 +382,9 @@ def test_slide_prior_is_part_of_the_objective():
     """odr and varpro reach the same optimum of distances + prior; the prior's gradient balances
     the data's (a perturbation of the control points raises the objective)."""
     x = _noisy_curve(n=800, sigma=0.02, seed=6)
-    odr = fitting.fit_curve(x, n_ctrl=12, rtol=1e-14, max_iterations=200)
-    vp = fitting.fit_curve(x, n_ctrl=12, method="varpro", rtol=1e-14, max_iterations=200)
+    odr = fitting.fit_curve(x, n_ctrl=12, solver=FitSolver(rtol=1e-14, max_iterations=200))
+    vp = fitting.fit_curve(x, n_ctrl=12, method="varpro",
+                           solver=FitSolver(rtol=1e-14, max_iterations=200))
     assert odr.converged and vp.converged
     assert abs(odr.history[-1] - vp.history[-1]) < 1e-8 * odr.history[-1]
     np.testing.assert_allclose(odr.curve.control, vp.curve.control, atol=1e-6)
@@ -386,7 +392,7 @@ def test_slide_prior_is_part_of_the_objective():
 
 def test_slide_stiffness_validated():
     with pytest.raises(ValueError, match="slide_stiffness"):
-        fitting.fit_curve(_noisy_curve(100), n_ctrl=6, slide_stiffness=-1.0)
+        fitting.fit_curve(_noisy_curve(100), n_ctrl=6, solver=FitSolver(slide_stiffness=-1.0))
     with pytest.raises(ValueError, match="slide_stiffness"):
         fitting.fit_surface(np.random.default_rng(0).uniform(size=(200, 3)), n_ctrl=(4, 4),
-                            slide_stiffness=float("nan"))
+                            solver=FitSolver(slide_stiffness=float("nan")))

@@ -27,12 +27,13 @@ def wavy(tmp_path_factory):
     from shapeverify.cad.examples import wavy_panel
     from shapeverify.io.points import write_ply
     from shapeverify.nearest import prepare
-    from shapeverify.simulate import virtual_scan
+    from shapeverify.simulate import ScanEffects, virtual_scan
 
     d = tmp_path_factory.mktemp("frontends")
     model = wavy_panel()
     prepare(model, spacing=2.0).save(d / "wavy.svm")
-    sim = virtual_scan(model, pixel=2.5, noise=0.02, dents=[(0.5, 12.0)], motion=(1.0, 1.5), rng=5)
+    sim = virtual_scan(model, pixel=2.5, noise=0.02,
+                       effects=ScanEffects(dents=[(0.5, 12.0)]), motion=(1.0, 1.5), rng=5)
     assert 500 < len(sim.scan) < 5000
     write_ply(d / "scan.ply", sim.scan)
     return d

@@ -7,8 +7,10 @@ from scipy import ndimage
 from shapeverify.phase import depth_per_fringe, synthetic_wavelength
 from shapeverify.phase.hologram import (angular_spectrum, dual_wavelength_depth, find_carrier,
                                         reconstruct)
+from shapeverify.phase.hologram import Reconstruction
 from shapeverify.simulate.hologram import (dual_wavelength_holograms, grooved_plate,
                                            rough_surface, simulate_hologram)
+from shapeverify.simulate.hologram import OffAxis
 
 L1 = 632.8e-6                        # mm
 LAM = 0.4                            # synthetic wavelength: 0.2 mm depth per fringe
@@ -26,7 +28,7 @@ def test_carrier_filtering_recovers_the_object_wave_exactly():
     # a carrier on the FFT grid (44/160, -28/128 cycles/pixel): the filtering is exact
     cx, cy = 44 / 160, -28 / 128
     h = simulate_hologram(depth, L1, heights=rough_surface(depth.shape, 1e-3, rng=4),
-                          carrier=(cx, cy), aperture=0.09)
+                          off_axis=OffAxis(carrier=(cx, cy), aperture=0.09))
     o = reconstruct(h.intensity, carrier=h.carrier)
     assert np.allclose(o, h.field, atol=1e-9)
     c = find_carrier(h.intensity)
@@ -69,15 +71,17 @@ def test_milled_groove_of_paper_v_recovered_within_5_um(distance):
                                        distance=distance, rng=7)
     cad = grooved_plate((256, 256), PITCH, 3.0, 1.0)[0] + 0.03       # nominal, 30 um offset
     res = dual_wavelength_depth(h1.intensity, h2.intensity, L1, L2, reference_depth=cad,
-                                distance=distance, pixel_pitch=PITCH)
+                                reconstruction=Reconstruction(distance=distance,
+                                                              pixel_pitch=PITCH))
     rms, groove_depth, covered = _groove_errors(res, depth, groove)
     assert rms < 5e-3                                                # mm
     assert abs(groove_depth - 1.0) < 5e-3
     assert covered > 0.75
     assert res.synthetic == pytest.approx(LAM)
     # data alone cannot count the five fringes of the groove wall
-    alone = dual_wavelength_depth(h1.intensity, h2.intensity, L1, L2, distance=distance,
-                                  pixel_pitch=PITCH)
+    alone = dual_wavelength_depth(h1.intensity, h2.intensity, L1, L2,
+                                  reconstruction=Reconstruction(distance=distance,
+                                                                pixel_pitch=PITCH))
     assert abs(_groove_errors(alone, depth, groove)[1] - 1.0) > 0.1
 
 
@@ -87,7 +91,7 @@ def test_background_without_surface_and_bad_input():
     h = simulate_hologram(depth, L1)
     assert np.all(np.isfinite(h.intensity))
     with pytest.raises(ValueError, match="overlap the orders"):
-        simulate_hologram(depth, L1, carrier=(0.1, 0.1), aperture=0.1)
+        simulate_hologram(depth, L1, off_axis=OffAxis(carrier=(0.1, 0.1), aperture=0.1))
     with pytest.raises(ValueError, match="NaN everywhere"):
         simulate_hologram(np.full((16, 16), np.nan), L1)
     with pytest.raises(ValueError, match="carrier must be"):

@@ -151,11 +151,12 @@ def test_an_inspection_gives_what_the_plain_tree_computations_give():
     from shapeverify.cad.examples import wavy_panel
     from shapeverify.inspection.regions import RegionSearch, find_regions
     from shapeverify.inspection.regions import median_spacing, surface_spacing
-    from shapeverify.simulate import virtual_scan
+    from shapeverify.simulate import ScanEffects, virtual_scan
 
     prep = sv.prepare(wavy_panel(), spacing=2.0)
-    sim = virtual_scan(prep, pixel=1.2, noise=0.02, outlier_fraction=0.03, blobs=1,
-                       dents=[(0.5, 12.0)], motion=(2.0, 3.0), rng=4)
+    sim = virtual_scan(prep, pixel=1.2, noise=0.02,
+                       effects=ScanEffects(outlier_fraction=0.03, blobs=1,
+                                           dents=[(0.5, 12.0)]), motion=(2.0, 3.0), rng=4)
     res = sv.inspect(prep, sim.scan, tolerance=0.2)
     dev, ev = res.deviations, res.deviations.evaluated
     feet = dev.foot_points[ev]

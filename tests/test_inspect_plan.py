@@ -12,7 +12,7 @@ import pytest
 
 import shapeverify as sv
 from shapeverify.cad.examples import PANEL_HOLE, example_part_step
-from shapeverify.simulate import virtual_scan
+from shapeverify.simulate import ScanEffects, virtual_scan
 
 pytestmark = pytest.mark.slow
 
@@ -36,7 +36,8 @@ def panel(tmp_path_factory):
 
 def test_plan_characteristics_in_the_result_and_json(panel):
     prep, d = panel
-    scan = virtual_scan(prep, pixel=1.0, noise=0.02, outlier_fraction=0.02, motion=(1.0, 2.0), rng=4)
+    scan = virtual_scan(prep, pixel=1.0, noise=0.02,
+                        effects=ScanEffects(outlier_fraction=0.02), motion=(1.0, 2.0), rng=4)
     res = sv.inspect(prep, scan.scan, tolerance=0.2, plan=d / "plan.yaml")
     names = [c.name for c in res.characteristics]
     assert names == ["H1", "SKIN"]
@@ -55,7 +56,8 @@ def test_plan_characteristics_in_the_result_and_json(panel):
 
 def test_failing_characteristic_fails_the_part(panel):
     prep, d = panel
-    scan = virtual_scan(prep, pixel=1.0, noise=0.02, dents=[(0.3, 12.0)], motion=(1.0, 2.0), rng=5)
+    scan = virtual_scan(prep, pixel=1.0, noise=0.02,
+                        effects=ScanEffects(dents=[(0.3, 12.0)]), motion=(1.0, 2.0), rng=5)
     res = sv.inspect(prep, scan.scan, tolerance=0.35, plan=PLAN.replace("tol: 0.4", "tol: 0.3"))
     assert res.verdict == "fail" and res.rule == "characteristics"
     assert "SKIN" in res.reasons[0]
@@ -93,7 +95,8 @@ def test_pdf_without_a_plan_draws_the_inspections_own_pose_and_deviations(panel,
     from shapeverify.inspection.plan_link import plan_result_of
 
     prep, _ = panel
-    scan = virtual_scan(prep, pixel=1.0, noise=0.02, dents=[(0.3, 12.0)], motion=(1.0, 2.0),
+    scan = virtual_scan(prep, pixel=1.0, noise=0.02,
+                        effects=ScanEffects(dents=[(0.3, 12.0)]), motion=(1.0, 2.0),
                         rng=7)
     res = sv.inspect(prep, scan.scan, tolerance=0.2)
 

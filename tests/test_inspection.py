@@ -396,11 +396,13 @@ def _dent_centre(vs):
 
 @pytest.fixture(scope="module")
 def simulated(panel_prep):
-    from shapeverify.simulate import virtual_scan
+    from shapeverify.simulate import ScanEffects, virtual_scan
 
-    common = dict(pixel=0.6, noise=0.02, outlier_fraction=0.01, blobs=1, motion=(3.0, 2.0))
-    dented = virtual_scan(panel_prep, dents=[(0.4, 10.0)], rng=2011, **common)
-    clean = virtual_scan(panel_prep, rng=2011, **common)
+    common = dict(pixel=0.6, noise=0.02, motion=(3.0, 2.0))
+    dented = virtual_scan(panel_prep, rng=2011, **common,
+                          effects=ScanEffects(outlier_fraction=0.01, blobs=1, dents=[(0.4, 10.0)]))
+    clean = virtual_scan(panel_prep, rng=2011, **common,
+                         effects=ScanEffects(outlier_fraction=0.01, blobs=1))
     return dented, clean
 
 

@@ -5,6 +5,7 @@ import pytest
 from scipy import optimize
 
 from shapeverify.phase import (iterate_unwrap, unwrap, unwrap_with_reference, wrap)
+from shapeverify.phase import UnwrapStop
 
 TWO_PI = 2 * np.pi
 
@@ -149,7 +150,8 @@ def test_iterate_unwrap_converges_to_the_pose_and_the_exact_phase():
     # one regularised unwrapping at the wrong pose leaves the strip between the edges wrong
     first = unwrap_with_reference(psi, predict(pose(0.0)))
     assert np.any(np.round((first.phase - true) / TWO_PI) != 0)
-    res = iterate_unwrap(psi, predict, points, register, pose(0.0), max_iterations=10)
+    res = iterate_unwrap(psi, predict, points, register, pose(0.0),
+                         stop=UnwrapStop(max_iterations=10))
     assert res.converged, res.message
     assert 2 <= res.iterations <= 6
     assert abs(res.T_model_scan[0, 3] - t_true) < 0.05

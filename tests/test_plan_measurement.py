@@ -12,7 +12,7 @@ from scipy.optimize import linprog
 
 import shapeverify as sv
 from shapeverify.cad.examples import PANEL_HOLE, example_part_step
-from shapeverify.simulate import virtual_scan
+from shapeverify.simulate import ScanEffects, virtual_scan
 
 pytestmark = pytest.mark.slow
 
@@ -56,7 +56,8 @@ def test_profile_and_flatness_are_their_brute_force_values_on_the_kept_points():
 
     bprep = sv.prepare(bracket(), spacing=1.0)
     sim = virtual_scan(bprep, view=[1.0, 1.0, 1.6], pixel=1.0, noise=0.02,
-                       outlier_fraction=0.03, dents=[(0.3, 8.0)], motion=(2.0, 3.0), rng=3)
+                       effects=ScanEffects(outlier_fraction=0.03, dents=[(0.3, 8.0)]),
+                       motion=(2.0, 3.0), rng=3)
     plan = {"alignment": {"type": "best_fit"}, "characteristics": [
         {"name": "SKIN", "type": "surface_profile", "faces": "all", "tol": 0.1},
         {"name": "FLAT", "type": "flatness", "feature": "face:0", "tol": 0.1}]}
@@ -74,7 +75,8 @@ def test_profile_and_flatness_are_their_brute_force_values_on_the_kept_points():
 
 
 def test_a_good_panel_with_3_percent_outliers_passes_the_plan_as_without_one(prep):
-    sim = virtual_scan(prep.model, pixel=1.0, noise=0.02, outlier_fraction=0.03,
+    sim = virtual_scan(prep.model, pixel=1.0, noise=0.02,
+                       effects=ScanEffects(outlier_fraction=0.03),
                        motion=(1.0, 2.0), rng=4)
     free = sv.inspect(prep, sim.scan, tolerance=0.2)
     res = sv.inspect(prep, sim.scan, tolerance=0.2, plan=PLAN)

@@ -17,7 +17,7 @@ import pytest
 import shapeverify as sv
 from shapeverify.cad.examples import example_part_step
 from shapeverify.inspection import inspect, inspect_registered
-from shapeverify.simulate import virtual_scan
+from shapeverify.simulate import ScanEffects, virtual_scan
 
 import independent_scans as ind
 
@@ -98,9 +98,10 @@ def demo(tmp_path_factory):
     """The demo's panel and its simulated dented scans (``shapeverify.demo``), 0.4 and 1.0 mm."""
     model = sv.load_model(example_part_step(tmp_path_factory.mktemp("demo") / "panel.step"))
     prep = sv.prepare(model)
-    scans = {d: virtual_scan(model, pixel=1.2, noise=0.02, shadows=1, blobs=1,
-                             outlier_fraction=0.05, dents=[(d, 15.0)], motion=(4.0, 8.0),
-                             rng=2011).scan for d in (0.4, 1.0)}
+    scans = {d: virtual_scan(model, pixel=1.2, noise=0.02,
+                             effects=ScanEffects(shadows=1, blobs=1, outlier_fraction=0.05,
+                                                 dents=[(d, 15.0)]),
+                             motion=(4.0, 8.0), rng=2011).scan for d in (0.4, 1.0)}
     return prep, scans
 
 

@@ -18,7 +18,7 @@ from shapeverify.registration.rigid import (
     compose_step, fisher_information, make_transform, point_to_plane_system, pose_covariance,
     pose_error, rodrigues, rotation_vector, solve_step, weighted_rigid_fit,
 )
-from shapeverify.simulate import BLOB, INLIER, OUTLIER, random_motion, virtual_scan
+from shapeverify.simulate import BLOB, INLIER, OUTLIER, ScanEffects, random_motion, virtual_scan
 
 from shapeverify.nearest import prepare
 
@@ -42,13 +42,13 @@ def panel_prep(panel):
     return _prepare(panel, spacing=1.0)
 
 
-def _issue_scan(model, seed, **kw):
+def _issue_scan(model, seed):
     """The scan of issue 4 "How good": ~14 % outliers incl. a blob, a 0.4 mm dent, a shadow,
     depth noise 0.02 mm, start 6 deg and 12 mm off."""
-    args = dict(pixel=1.4, noise=0.02, shadows=1, blobs=1, blob_radius=20.0,
-                outlier_fraction=0.11, dents=[(0.4, 12.0)], motion=(6.0, 12.0), rng=seed)
-    args.update(kw)
-    return virtual_scan(model, **args)
+    effects = ScanEffects(shadows=1, blobs=1, blob_radius=20.0, outlier_fraction=0.11,
+                          dents=[(0.4, 12.0)])
+    return virtual_scan(model, pixel=1.4, noise=0.02, effects=effects, motion=(6.0, 12.0),
+                        rng=seed)
 
 
 def _plain_face(ctrl, deg=(1, 1)):
@@ -227,7 +227,8 @@ def test_random_rigid_transforms_are_recovered(panel, panel_prep, rotvec, angle,
     c = np.array([150.0, 100.0, 8.0])
     R = rodrigues(np.radians(angle) * axis)
     M = make_transform(R, c - R @ c + np.asarray(trans))  # model -> scan
-    vs = virtual_scan(panel, pixel=4.0, noise=0.01, outlier_fraction=0.05, motion=M, rng=seed)
+    vs = virtual_scan(panel, pixel=4.0, noise=0.01,
+                      effects=ScanEffects(outlier_fraction=0.05), motion=M, rng=seed)
     reg = register(vs.scan, panel_prep, rng=seed)
     acc = vs.accuracy(reg.T_model_scan)
     assert np.linalg.det(reg.R) == pytest.approx(1.0, abs=1e-12)
@@ -237,7 +238,8 @@ def test_random_rigid_transforms_are_recovered(panel, panel_prep, rotvec, angle,
 
 @pytest.mark.parametrize("fraction", [0.0, 0.1, 0.2, 0.3, 0.4])
 def test_outlier_fractions(panel, panel_prep, fraction):
-    vs = virtual_scan(panel, pixel=2.5, noise=0.02, outlier_fraction=fraction, motion=(6.0, 12.0),
+    vs = virtual_scan(panel, pixel=2.5, noise=0.02,
+                      effects=ScanEffects(outlier_fraction=fraction), motion=(6.0, 12.0),
                       rng=11)
     reg = register(vs.scan, panel_prep, rng=0)
     acc = vs.accuracy(reg.T_model_scan)
@@ -246,7 +248,8 @@ def test_outlier_fractions(panel, panel_prep, fraction):
 
 
 def test_partial_overlap_scan_covers_part_of_the_model(panel, panel_prep):
-    vs = virtual_scan(panel, pixel=1.5, noise=0.02, outlier_fraction=0.05, motion=(5.0, 10.0),
+    vs = virtual_scan(panel, pixel=1.5, noise=0.02,
+                      effects=ScanEffects(outlier_fraction=0.05), motion=(5.0, 10.0),
                       rng=12)
     keep = np.linalg.norm(vs.points[:, :2] - [90.0, 70.0], axis=1) < 70.0   # ~25 % of the panel
     assert 0.15 < keep.mean() < 0.35
@@ -303,7 +306,8 @@ def wavy():
 def test_every_method_and_loss(wavy, method, loss):
     model, prep = wavy
     of = 0.0 if loss == "l2" else 0.08
-    vs = virtual_scan(model, pixel=4.0, noise=0.02, outlier_fraction=of, motion=(3.0, 5.0),
+    vs = virtual_scan(model, pixel=4.0, noise=0.02,
+                      effects=ScanEffects(outlier_fraction=of), motion=(3.0, 5.0),
                       rng=14)
     reg = register(vs.scan, prep, method=method, loss=loss, rng=0, max_iterations=300)
     acc = vs.accuracy(reg.T_model_scan)
@@ -317,7 +321,8 @@ def test_point_then_plane_strategy_of_section_522(wavy):
     """Thesis Section 5.2.2: point-to-point steps far from the solution, point-to-plane near it --
     as accurate as point-to-plane throughout, in a handful of final iterations."""
     model, prep = wavy
-    vs = virtual_scan(model, pixel=4.0, noise=0.02, outlier_fraction=0.05, motion=(6.0, 12.0),
+    vs = virtual_scan(model, pixel=4.0, noise=0.02,
+                      effects=ScanEffects(outlier_fraction=0.05), motion=(6.0, 12.0),
                       rng=3)
     both = register(vs.scan, prep, method="point-then-plane", rng=0)
     plane = register(vs.scan, prep, method="point-to-plane", rng=0)
@@ -344,7 +349,8 @@ def test_point_to_point_is_honest_where_it_crawls(panel, panel_prep):
 
 
 def test_fixed_scale_and_convergence_honesty(panel, panel_prep):
-    vs = virtual_scan(panel, pixel=4.0, noise=0.02, outlier_fraction=0.1, motion=(6.0, 12.0),
+    vs = virtual_scan(panel, pixel=4.0, noise=0.02,
+                      effects=ScanEffects(outlier_fraction=0.1), motion=(6.0, 12.0),
                       rng=15)
     reg = register(vs.scan, panel_prep, scale=0.02, rng=0)
     assert reg.scale == 0.02 and reg.converged
@@ -431,7 +437,8 @@ def test_cylindrical_scan_reports_two_undetermined_directions():
 # ------------------------------------------------------------------------------ init
 @pytest.mark.slow
 def test_principal_axes_alignment_from_any_orientation(panel, panel_prep):
-    vs = virtual_scan(panel, pixel=4.0, noise=0.02, outlier_fraction=0.05, motion=(150.0, 200.0),
+    vs = virtual_scan(panel, pixel=4.0, noise=0.02,
+                      effects=ScanEffects(outlier_fraction=0.05), motion=(150.0, 200.0),
                       rng=19)
     ia = principal_axes_alignment(vs.scan, panel_prep, rng=0)
     coarse = vs.accuracy(ia.T_model_scan)

@@ -20,7 +20,7 @@ from shapeverify.registration import register
 from shapeverify.registration.global_search import global_alignment
 from shapeverify.registration.initial import read_init
 from shapeverify.registration.rigid import make_transform, rodrigues
-from shapeverify.simulate import virtual_scan
+from shapeverify.simulate import ScanEffects, virtual_scan
 
 UNIT = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
 
@@ -57,7 +57,8 @@ def _digest(reg) -> str:
 # ------------------------------------------------------------------------------ determinism
 def test_register_is_bit_identical_on_repeated_calls_and_rng_none_is_the_fixed_seed(panel,
                                                                                      panel_prep):
-    vs = virtual_scan(panel, pixel=3.0, noise=0.02, outlier_fraction=0.1, motion=(6.0, 12.0),
+    vs = virtual_scan(panel, pixel=3.0, noise=0.02,
+                      effects=ScanEffects(outlier_fraction=0.1), motion=(6.0, 12.0),
                       rng=3)
     a = register(vs.scan, panel_prep)
     b = register(vs.scan, panel_prep)
@@ -111,7 +112,7 @@ def test_register_is_bit_identical_across_processes(tmp_path):
 @pytest.mark.slow  # over 4 s of CPU: out of `make test-fast` (issue 32)
 @pytest.mark.parametrize("seed", [0, 1, 2])
 def test_scan_in_a_far_sensor_frame_is_found_with_no_start(panel, panel_prep, seed):
-    vs = virtual_scan(panel, pixel=2.5, noise=0.03, outlier_fraction=0.05,
+    vs = virtual_scan(panel, pixel=2.5, noise=0.03, effects=ScanEffects(outlier_fraction=0.05),
                       motion=_sensor_motion(seed), rng=seed)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -131,7 +132,7 @@ def test_identity_is_kept_when_the_scan_overlaps_the_model(panel, panel_prep):
 
 
 def test_global_alignment_alone_lands_in_the_basin(panel, panel_prep):
-    vs = virtual_scan(panel, pixel=2.0, noise=0.03, outlier_fraction=0.05,
+    vs = virtual_scan(panel, pixel=2.0, noise=0.03, effects=ScanEffects(outlier_fraction=0.05),
                       motion=_sensor_motion(11), rng=11)
     ga = global_alignment(vs.scan, panel_prep)
     acc = vs.accuracy(ga.T_model_scan)

@@ -11,7 +11,7 @@ from shapeverify.cad.model import Face, Model
 from shapeverify.cad.nurbs import NurbsSurface, _CIRCLE_KNOTS, _CIRCLE_W, _CIRCLE_XY
 from shapeverify.nearest import prepare
 from shapeverify.registration import DegenerateGeometryWarning, _irls, register
-from shapeverify.simulate import random_motion, virtual_scan
+from shapeverify.simulate import ScanEffects, random_motion, virtual_scan
 
 #: (r, z) profile of a turned part (mm): bore 10, flange 40 x 30, shaft 25, chamfer to 20
 PROFILE = np.array([[10, 0], [40, 0], [40, 30], [25, 30], [25, 70], [20, 75], [10, 75]], float)
@@ -101,7 +101,8 @@ def test_turned_part_in_the_sensor_frame_lands_in_the_right_basin(turned, seed):
     T[:3, :3] = Rotation.random(random_state=seed).as_matrix()
     T[:3, 3] = rng.uniform(-800.0, 800.0, 3)
     view = rng.normal(size=3)
-    a = virtual_scan(model, view=view, pixel=1.0, noise=0.02, motion=T, outlier_fraction=0.02,
+    a = virtual_scan(model, view=view, pixel=1.0, noise=0.02, motion=T,
+                     effects=ScanEffects(outlier_fraction=0.02),
                      rng=seed)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -133,7 +134,7 @@ def test_turned_part_with_many_outliers_still_shows_its_axis(turned, seed):
     T[:3, :3] = Rotation.random(random_state=seed).as_matrix()
     T[:3, 3] = rng.uniform(-800.0, 800.0, 3)
     a = virtual_scan(model, view=rng.normal(size=3), pixel=0.5, noise=0.05, motion=T,
-                     outlier_fraction=0.10, rng=seed)
+                     effects=ScanEffects(outlier_fraction=0.10), rng=seed)
     X = a.scan[_revolution._dense_voxels(a.scan, 120.0 / _revolution.VOXELS)]
     axis, _, miss = _revolution.axis_of_normals(
         X, _normals(X, cKDTree(X), _revolution.NEIGHBOURS), _revolution.NEAR * 120.0)
@@ -193,7 +194,7 @@ def test_mesh_of_a_turned_part_converges_with_its_spin_named():
     M[:3, :3] = Rotation.random(random_state=7).as_matrix()
     M[:3, 3] = [300.0, -600.0, 450.0]
     a = virtual_scan(turned_part(), view=(1.0, 0.3, 0.4), pixel=1.0, noise=0.2, motion=M,
-                     outlier_fraction=0.05, rng=7)
+                     effects=ScanEffects(outlier_fraction=0.05), rng=7)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         reg = register(a.scan, prep)
@@ -222,7 +223,8 @@ def _keyway_view(model, seed):
     T = np.eye(4)
     T[:3, :3] = Rotation.random(random_state=seed).as_matrix()
     T[:3, 3] = rng.uniform(-600.0, 600.0, 3)
-    return virtual_scan(model, view=view, pixel=0.5, noise=0.05, motion=T, outlier_fraction=0.03,
+    return virtual_scan(model, view=view, pixel=0.5, noise=0.05, motion=T,
+                        effects=ScanEffects(outlier_fraction=0.03),
                         rng=seed)
 
 

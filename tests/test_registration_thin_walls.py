@@ -12,7 +12,7 @@ from shapeverify.cad.nurbs import NurbsSurface
 from shapeverify.nearest import prepare
 from shapeverify.registration import RegistrationOptions, register
 from shapeverify.registration.rigid import make_transform, rodrigues
-from shapeverify.simulate import virtual_scan
+from shapeverify.simulate import ScanEffects, virtual_scan
 
 UNIT = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
 H, HALF, R1, R2 = 8.0, 1.0, 10.0, 38.0     # fin height, half thickness, radii (mm)
@@ -59,7 +59,7 @@ def test_thin_walls_seen_from_one_side_end_in_the_right_minimum(finned, monkeypa
     view = np.array([0.45, 0.45, 0.77])
     wrong_without_probe = 0
     vs = virtual_scan(model, view=view / np.linalg.norm(view), pixel=0.7, noise=0.02,
-                      outlier_fraction=0.1, rng=0)
+                      effects=ScanEffects(outlier_fraction=0.1), rng=0)
     # starts spun past one wall thickness (2 mm at r ~ 24 mm: 4.8 deg) and by less
     for seed, deg in enumerate([-6.0, -2.0]):
         start = _spun_start(vs, deg)

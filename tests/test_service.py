@@ -51,14 +51,15 @@ def panel(tmp_path_factory):
     from shapeverify.cad.examples import example_part_step
     from shapeverify.cad.load import load_model
     from shapeverify.nearest import prepare
-    from shapeverify.simulate import virtual_scan
+    from shapeverify.simulate import ScanEffects, virtual_scan
 
     d = tmp_path_factory.mktemp("service")
     model = load_model(example_part_step(d / "panel.step"))
     prepare(model, spacing=1.5).save(d / "panel.svm")
     scans = {}
     for name, pixel, dents in (("clean", 2.0, ()), ("dented", 2.0, [(0.4, 15.0)]), ("small", 4.0, ())):
-        sim = virtual_scan(model, pixel=pixel, noise=0.02, outlier_fraction=0.03, dents=dents,
+        sim = virtual_scan(model, pixel=pixel, noise=0.02,
+                           effects=ScanEffects(outlier_fraction=0.03, dents=dents),
                            motion=(2.0, 3.0), rng=7)
         scans[name] = _npy(sim.scan)
     return d, scans

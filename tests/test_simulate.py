@@ -5,7 +5,7 @@ import pytest
 from shapeverify.cad.model import Face, Model
 from shapeverify.cad.nurbs import NurbsSurface, sphere
 from shapeverify.registration.rigid import apply_transform, rotation_vector
-from shapeverify.simulate import BLOB, DENT, INLIER, OUTLIER, virtual_scan
+from shapeverify.simulate import BLOB, DENT, INLIER, OUTLIER, ScanEffects, virtual_scan
 
 UNIT = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
 
@@ -52,7 +52,7 @@ def test_depth_noise_is_along_the_rays(plane):
 def test_sphere_occlusion_and_grazing(ball):
     """Only the front cap within max_incidence of the rays is seen; points are on the sphere."""
     vs = virtual_scan(ball, view=(0, 0, 1), distance=400, pixel=1.5, noise=0.0,
-                      max_incidence=60.0, rng=2)
+                      effects=ScanEffects(max_incidence=60.0), rng=2)
     r = np.linalg.norm(vs.scan, axis=1)
     np.testing.assert_allclose(r, 50.0, atol=1e-7)
     np.testing.assert_allclose(vs.normals, vs.scan / 50.0, atol=1e-7)
@@ -76,9 +76,10 @@ def test_zbuffer_agrees_with_exact_ray_casting(ball):
 
 
 def test_defects_and_labels(plane):
-    vs = virtual_scan(plane, view=(0, 0, 1), pixel=1.0, noise=0.0, shadows=1, shadow_radius=15,
-                      blobs=1, blob_radius=10, blob_height=2.0, outlier_fraction=0.1,
-                      outlier_range=5.0, dents=[(0.4, 12.0)], rng=4)
+    vs = virtual_scan(plane, view=(0, 0, 1), pixel=1.0, noise=0.0,
+                      effects=ScanEffects(shadows=1, shadow_radius=15, blobs=1, blob_radius=10,
+                                          blob_height=2.0, outlier_fraction=0.1,
+                                          outlier_range=5.0, dents=[(0.4, 12.0)]), rng=4)
     c = vs.counts()
     n = len(vs)
     assert c["outlier"] == round(0.1 * n)
@@ -124,14 +125,16 @@ def test_rigid_motion_and_truth(plane):
 
 
 def test_reproducible_and_bad_input(plane):
-    a = virtual_scan(plane, view=(0, 0, 1), pixel=4.0, outlier_fraction=0.2, motion=(3, 3), rng=7)
-    b = virtual_scan(plane, view=(0, 0, 1), pixel=4.0, outlier_fraction=0.2, motion=(3, 3), rng=7)
+    a = virtual_scan(plane, view=(0, 0, 1), pixel=4.0,
+                     effects=ScanEffects(outlier_fraction=0.2), motion=(3, 3), rng=7)
+    b = virtual_scan(plane, view=(0, 0, 1), pixel=4.0,
+                     effects=ScanEffects(outlier_fraction=0.2), motion=(3, 3), rng=7)
     np.testing.assert_array_equal(a.scan, b.scan)
     np.testing.assert_array_equal(a.labels, b.labels)
     with pytest.raises(ValueError, match="noise"):
         virtual_scan(plane, noise=-1)
     with pytest.raises(ValueError, match="outlier_fraction"):
-        virtual_scan(plane, outlier_fraction=1.0)
+        virtual_scan(plane, effects=ScanEffects(outlier_fraction=1.0))
     with pytest.raises(ValueError, match="motion"):
         virtual_scan(plane, motion=(1, 2, 3))
     with pytest.raises(ValueError, match="no camera ray"):

@@ -7,6 +7,7 @@ pytest.importorskip("cv2")
 
 from shapeverify.camera.rig import Rig, look_at_rig, save_rig  # noqa: E402
 from shapeverify.camera.stereo import measure  # noqa: E402
+from shapeverify.camera.stereo import StereoMatching  # noqa: E402
 from shapeverify.simulate.fringes import demo_scene, fringe_images  # noqa: E402
 
 
@@ -104,7 +105,8 @@ def test_measure_rejects_bad_input(scene):
     with pytest.raises(ValueError, match="method must be"):
         measure(imgs.rig, imgs.left, imgs.right, method="n-step")
     with pytest.raises(ValueError, match="depth_range"):
-        measure(imgs.rig, imgs.left, imgs.right, depth_range=(300.0, 100.0))
+        measure(imgs.rig, imgs.left, imgs.right,
+                matching=StereoMatching(depth_range=(300.0, 100.0)))
     with pytest.raises(ValueError, match="T_left_model must be a finite"):
         measure(imgs.rig, imgs.left, imgs.right, model=model, T_left_model=np.eye(3))
     with pytest.raises(ValueError, match="pass model= too"):

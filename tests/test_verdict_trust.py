@@ -18,7 +18,7 @@ import pytest
 import shapeverify as sv
 from shapeverify.cad.examples import PANEL_HOLE, example_part_step
 from shapeverify.inspection import default_evaluation_distance
-from shapeverify.simulate import DENT, virtual_scan
+from shapeverify.simulate import DENT, ScanEffects, virtual_scan
 
 pytestmark = pytest.mark.slow
 
@@ -35,7 +35,8 @@ def panel(tmp_path_factory):
 @pytest.fixture(scope="module")
 def good(panel):
     model, prep, _ = panel
-    return virtual_scan(prep, pixel=1.5, noise=0.02, shadows=1, motion=(1.0, 2.0), rng=5)
+    return virtual_scan(prep, pixel=1.5, noise=0.02,
+                        effects=ScanEffects(shadows=1), motion=(1.0, 2.0), rng=5)
 
 
 def _inspect(prep, scan, **kw):
@@ -96,8 +97,9 @@ def test_uniform_outliers_as_many_as_scan_points_do_not_fail(panel, good):
 
 def test_reflection_blob_does_not_come_before_the_dent(panel):
     prep = panel[1]
-    sim = virtual_scan(prep, pixel=1.0, noise=0.02, blobs=1, outlier_fraction=0.05,
-                       dents=[(0.4, 15.0)], motion=(2.0, 4.0), rng=2011)
+    sim = virtual_scan(prep, pixel=1.0, noise=0.02,
+                       effects=ScanEffects(blobs=1, outlier_fraction=0.05,
+                                           dents=[(0.4, 15.0)]), motion=(2.0, 4.0), rng=2011)
     res = _inspect(prep, sim.scan)
     assert res.verdict == "fail"
     first = res.regions[0]
@@ -109,8 +111,9 @@ def test_reflection_blob_does_not_come_before_the_dent(panel):
 
 def test_region_extremes_lie_outside_the_tolerance_with_one_sign(panel):
     prep = panel[1]
-    sim = virtual_scan(prep, pixel=1.0, noise=0.02, outlier_fraction=0.1,
-                       dents=[(0.4, 15.0), (-0.5, 10.0)], motion=(1.0, 2.0), rng=3)
+    sim = virtual_scan(prep, pixel=1.0, noise=0.02,
+                       effects=ScanEffects(outlier_fraction=0.1, dents=[(0.4, 15.0), (-0.5, 10.0)]),
+                       motion=(1.0, 2.0), rng=3)
     res = _inspect(prep, sim.scan)
     assert len(res.regions) >= 2
     for r in res.regions:
@@ -208,8 +211,8 @@ def test_small_part_dent_ranked_before_edge_outliers(shared_data):
     and became region 1 ahead of a 10 µm dent. The default is now capped at 5 % of the size."""
     model = sv.load_model(shared_data / "cad" / "wavy-cube.stp")
     prep = sv.prepare(model, spacing=0.01)
-    sim = virtual_scan(model, pixel=0.015, noise=0.0002, outlier_fraction=0.05,
-                       dents=[(0.01, 0.3)], rng=2)
+    sim = virtual_scan(model, pixel=0.015, noise=0.0002,
+                       effects=ScanEffects(outlier_fraction=0.05, dents=[(0.01, 0.3)]), rng=2)
     res = sv.inspect(prep, sim.scan, tolerance=0.002)
     assert res.deviations.evaluation_distance == pytest.approx(0.05 * model.size)
     assert res.verdict == "fail"
@@ -224,4 +227,4 @@ def test_virtual_scan_too_coarse_pixel_is_a_clear_error(shared_data):
     numpy's 'Eigenvalues did not converge'."""
     model = sv.load_model(shared_data / "cad" / "wavy-cube.stp")
     with pytest.raises(ValueError, match="too coarse"):
-        virtual_scan(model, pixel=1.0, dents=[(0.01, 0.3)], rng=2)
+        virtual_scan(model, pixel=1.0, effects=ScanEffects(dents=[(0.01, 0.3)]), rng=2)

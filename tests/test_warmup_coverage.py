@@ -84,12 +84,13 @@ def _inputs(d: Path) -> dict:
     from shapeverify.cad.examples import PANEL_HOLE, example_part_step
     from shapeverify.cad.load import load_model
     from shapeverify.phase import wrap
-    from shapeverify.simulate import virtual_scan
+    from shapeverify.simulate import ScanEffects, virtual_scan
     from shapeverify.simulate.hologram import dual_wavelength_holograms, grooved_plate
 
     step = example_part_step(d / "part.step")
-    scan = virtual_scan(load_model(step), pixel=2.5, noise=0.03, outlier_fraction=0.02,
-                        dents=[(0.5, 12.0)], motion=(2.0, 3.0), rng=77).scan
+    scan = virtual_scan(load_model(step), pixel=2.5, noise=0.03,
+                        effects=ScanEffects(outlier_fraction=0.02,
+                                            dents=[(0.5, 12.0)]), motion=(2.0, 3.0), rng=77).scan
     np.savetxt(d / "scan.xyz", scan.astype(np.float32), fmt="%.5f")      # a text scan
     x, y, _ = PANEL_HOLE
     (d / "plan.yaml").write_text(PLAN.format(x=x, y=y).replace("tol: 0.4", "tol: 0.5"))
