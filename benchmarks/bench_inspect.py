@@ -52,7 +52,7 @@ STAGES = [
     ("  pose covariance", "shapeverify/registration/rigid.py", "pose_covariance"),
     ("deviations", "shapeverify/inspection/deviations.py", "_deviations"),
     ("  exact closest points", "shapeverify/nearest/prepared.py", "_closest_exact"),
-    ("spacing (grid)", "shapeverify/inspection/regions.py", "median_spacing"),
+    ("spacing (grid)", "shapeverify/measures/spacing.py", "median_spacing"),
     ("regions (out-of-tolerance clusters)", "shapeverify/inspection/regions.py", "find_regions"),
     ("material", "shapeverify/inspection/material.py", "find_material"),
     ("floating surfaces", "shapeverify/inspection/material.py", "floating_surfaces"),
