@@ -118,3 +118,44 @@ def test_history_frame_with_brackets_is_shown_as_written(tmp_path):
     text = _show(_history(tmp_path, plan, n=2), "Q")
     assert "∥|0.1[Odd_Modifier]|A" in text
     assert "\\[" not in text
+
+
+def test_history_listing_shows_each_characteristic_with_its_frame(tmp_path):
+    plan = _plan({"name": "POS1", "type": "position", "features": ["hole:1"], "tol": 0.25,
+                  "datums": ["A", "B", "C"], "material": "M",
+                  "size": {"lower": -0.1, "upper": 0.1}},
+                 {"name": "H1", "type": "hole", "feature": "hole:1",
+                  "diameter": {"lower": -0.05, "upper": 0.05}, "position": {"tol": 0.5}},
+                 {"name": "ANG", "type": "angle", "faces": ["face:4", "face:5"],
+                  "nominal": 60.0, "lower": -0.5, "upper": 0.5})
+    db = _history(tmp_path, plan, n=4)
+    store_characteristics(db, synthetic_plan_result(plan, fraction=1.5), part="SN-9")
+    r = runner.invoke(app, ["history", "--db", str(db)],
+                      env={"COLUMNS": "220", "TERMINAL_WIDTH": "220"})
+    assert r.exit_code == 0, r.output
+    rows = {line.split("│")[1].strip(): [c.strip() for c in line.split("│")[2:-1]]
+            for line in r.output.splitlines() if line.startswith("│ ") and "│" in line[2:]}
+    assert rows["POS1"] == ["position", "⌖|Ø0.25Ⓜ|A|B|C", "5", "≤ 0.25 mm", "fail"]
+    assert rows["H1.diameter"] == ["hole diameter", "Ø10.000 +0.05/−0.05", "5",
+                                   "-0.05 .. +0.05 mm", "fail"]
+    assert rows["H1.position"][:4] == ["hole position", "⌖|Ø0.5", "5", "≤ 0.5 mm"]
+    assert rows["ANG"][1:4] == ["60.000° +0.5°/−0.5°", "5", "-0.5 .. +0.5 °"]
+    # --part: that part's values only
+    r = runner.invoke(app, ["history", "--db", str(db), "--part", "SN-9"],
+                      env={"COLUMNS": "220", "TERMINAL_WIDTH": "220"})
+    assert any(line.startswith("│ POS1 ") and "│ 1 " in line for line in r.output.splitlines())
+
+
+def test_history_listing_leaves_a_history_without_characteristics_unchanged(tmp_path):
+    import sqlite3
+
+    from shapeverify.report.history import HistoryDB
+
+    db = tmp_path / "plain.sqlite"
+    HistoryDB(db).close()
+    r = runner.invoke(app, ["history", "--db", str(db)])
+    assert r.exit_code == 0, r.output
+    assert "Characteristics" not in r.output
+    with sqlite3.connect(db) as con:
+        tables = {t for (t,) in con.execute("SELECT name FROM sqlite_master WHERE type='table'")}
+    assert "characteristics" not in tables
