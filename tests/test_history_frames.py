@@ -114,9 +114,9 @@ def test_history_frame_with_brackets_is_shown_as_written(tmp_path):
     it as markup and drop it."""
     plan = _plan({"name": "Q", "type": "parallelism", "faces": ["face:3"], "tol": 0.1,
                   "datums": ["A"], "pmi": {"kind": "geometric_tolerance", "type": "Parallelism",
-                                           "modifiers": ["Odd_Modifier"]}})
+                                           "modifiers": ["odd_modifier"]}})
     text = _show(_history(tmp_path, plan, n=2), "Q")
-    assert "∥|0.1[Odd_Modifier]|A" in text
+    assert "∥|0.1[odd_modifier]|A" in text
     assert "\\[" not in text
 
 
@@ -159,3 +159,26 @@ def test_history_listing_leaves_a_history_without_characteristics_unchanged(tmp_
     with sqlite3.connect(db) as con:
         tables = {t for (t,) in con.execute("SELECT name FROM sqlite_master WHERE type='table'")}
     assert "characteristics" not in tables
+
+
+def test_inspect_table_shows_a_bracketed_modifier_as_written(monkeypatch):
+    """The inspect table's frame column is plain text (cli_text.Table): escaping it as markup
+    as well showed ``\\[odd_modifier]`` (a hand-written plan's lower-case name)."""
+    import io
+    from types import SimpleNamespace
+
+    from rich.console import Console
+
+    from shapeverify import cli
+
+    plan = _plan({"name": "Q", "type": "parallelism", "faces": ["face:3"], "tol": 0.1,
+                  "datums": ["A"], "pmi": {"kind": "geometric_tolerance", "type": "Parallelism",
+                                           "modifiers": ["odd_modifier"]}})
+    pr = synthetic_plan_result(plan)
+    d = {"verdict": "pass", "reasons": [], "characteristics": [pr.characteristics[0].to_dict()]}
+    buf = io.StringIO()
+    monkeypatch.setattr(cli, "out", Console(file=buf, width=220))
+    cli._print_result(SimpleNamespace(verdict="pass", to_dict=lambda: d,
+                                      plan=SimpleNamespace(plan=plan)))
+    text = buf.getvalue()
+    assert "∥|0.1[odd_modifier]|A" in text and "\\[" not in text

@@ -401,7 +401,7 @@ def _print_result(result) -> None:
             ct.add_column(col)
         for c in chars:
             ct.add_row(str(c.get("name")), str(c.get("type")),
-                       escape(fcf_text(c, entries.get(c.get("name")))),
+                       fcf_text(c, entries.get(c.get("name"))),
                        _fmt_value(c.get("measured")),
                        _fmt_value(c.get("deviation"), signed=True),
                        format_limits(c.get("lower"), c.get("upper")),
