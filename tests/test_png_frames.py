@@ -207,3 +207,18 @@ def test_a_long_plan_lists_what_fits_and_counts_the_rest():
     assert left == 0
     assert {e[1].name for c in cols for e in c if e[0] == "row"} == \
         {c.name for c in pr.characteristics}
+
+
+def test_a_long_plan_of_holes_counts_each_hole_once():
+    """A hole takes two lines (size, position): one cut between them is listed, not counted."""
+    from shapeverify.characteristics.plan import load_plan
+
+    plan = load_plan({"characteristics": [
+        {"name": f"H{i}", "type": "hole", "feature": "hole:1", "diameter": {"tol": 0.05},
+         "position": {"tol": 0.5}} for i in range(40)]})
+    pr = synthetic_plan_result(plan)
+    cols, left = panel_columns(panel_entries(
+        type("R", (), {"characteristics": pr.characteristics, "plan": pr})()))
+    listed = {e[1].name for c in cols for e in c if e[0] == "row"}
+    assert left > 0 and len(listed) + left == 40
+    assert all(len(c) <= MAX_PER_COLUMN for c in cols)

@@ -88,7 +88,8 @@ def panel_columns(entries, max_columns: int = MAX_COLUMNS,
     # the last line says how many characteristics are not listed
     while last and (len(last) >= max_per_column or last[-1][0] == "head"):
         rest.insert(0, last.pop())
-    left = {id(e[1]) for e in rest if e[0] == "row"}
+    shown = {id(e[1]) for c in cols for e in c if e[0] == "row"}
+    left = {id(e[1]) for e in rest if e[0] == "row"} - shown    # a hole half shown is shown
     last.append(("more", len(left)))
     return cols, len(left)
 
