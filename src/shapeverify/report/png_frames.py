@@ -29,6 +29,7 @@ MIN_FRAME_FONT = 5.5
 MAX_COLUMNS = 3
 MAX_PER_COLUMN = 18
 _GAP = 14.0             # points between columns
+_MAX_COLUMN = 330.0     # points: a column's widest
 _FIELDS = (0.34, 0.44, 0.22)        # name, frame, value + verdict: fractions of a column
 _VERDICT_COLOURS = {"pass": "#1b7f3b", "fail": "#b3261e", "undecided": "#a15c00"}
 
@@ -156,7 +157,7 @@ def draw_panel(fig, result, x0: float, y_top: float, width: float) -> list:
              "reference frame; measured values in mm (° for angles), verdicts ISO 14253-1",
              fontsize=9.5, weight="bold")
     _cut(fig, t, w)
-    cw = (w - _GAP * (len(cols) - 1)) / len(cols)
+    cw = min(_MAX_COLUMN, (w - _GAP * (len(cols) - 1)) / len(cols))   # fields kept together
     nw, fw, vw = (f * cw for f in _FIELDS)
     for j, col in enumerate(cols):
         cx = left + j * (cw + _GAP)
