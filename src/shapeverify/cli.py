@@ -401,7 +401,7 @@ def _print_result(result) -> None:
             ct.add_column(col)
         for c in chars:
             ct.add_row(str(c.get("name")), str(c.get("type")),
-                       escape(fcf_text(c, entries.get(c.get("name")))),
+                       fcf_text(c, entries.get(c.get("name"))),
                        _fmt_value(c.get("measured")),
                        _fmt_value(c.get("deviation"), signed=True),
                        format_limits(c.get("lower"), c.get("upper")),
@@ -462,6 +462,7 @@ def history(
                   f(r.get("min"), known and r["min"] < lo), f(r.get("max"), known and r["max"] > hi),
                   f(r.get("max_abs")).plain.lstrip("+"), lim, str(r.get("n_regions") or 0))
     out.print(t)
+    _print_characteristic_listing(db, part, rows if model is not None else None)
     shown = sorted({str(r.get("model_hash")) for r in rows})
     if len(shown) > 1:
         out.print(f"{len(shown)} models in these records; one chart per model: add --model "
@@ -476,6 +477,28 @@ def history(
                       f"{len(chart)} of {len(rows)} records); choose another with --model")
         _guard(plot_trend, chart, plot)
         out.print(f"trend chart: {plot}")
+
+
+def _print_characteristic_listing(db: Path, part, rows=None) -> None:
+    """The characteristic series of the history (plan inspections): each with its feature
+    control frame, its number of values, its latest limits and verdict; ``rows``: only the
+    values of these inspections (``--model``)."""
+    from shapeverify.report.history_fcf import characteristic_listing
+
+    ids = None if rows is None else {r["id"] for r in rows}
+    series = _guard(characteristic_listing, db, part, ids)
+    if not series:
+        return
+    t = Table(title=f"Characteristics ({len(series)} series; history --characteristic NAME "
+                    "for one's Cp/Cpk)")
+    for col in ("characteristic", "type", "frame", "values", "limits", "latest verdict"):
+        t.add_column(col)
+    for c in series:
+        lo, hi, unit = c["lower"], c["upper"], c["unit"]
+        lim = ("-" if hi is None else f"≤ {hi:.4g} {unit}" if lo is None else
+               f"{lo:+.4g} .. {hi:+.4g} {unit}")
+        t.add_row(c["name"], str(c["type"]), c["frame"], str(c["n"]), lim, str(c["verdict"]))
+    out.print(t)
 
 
 def _history_rows(db: Path, part, limit: int, model=None) -> tuple:

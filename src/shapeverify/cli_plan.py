@@ -76,19 +76,32 @@ def print_characteristic_history(db: Path, characteristic: str, part: Optional[s
         rows = characteristic_rows(db, characteristic, part=part, limit=limit)
     except KeyError as exc:
         _fail(str(exc.args[0]))
-    t = Table(title=f"{characteristic}: {len(rows)} values (mm)")
-    for col in ("series", "n", "mean", "Cp", "Cpk", "Pp", "Ppk", "note"):
+    from shapeverify.report.history_fcf import frame_header, series_frames, series_unit
+
+    frames = series_frames(rows)
+    units = {name: series_unit([r for r in rows if r["name"] == name]) for name in frames}
+    shown = "mm" if set(units.values()) <= {"mm"} else ", ".join(sorted(set(units.values())))
+    out.print(Text(frame_header(characteristic, rows)))
+    t = Table(title=f"{characteristic}: {len(rows)} values [{shown}]")
+    for col in ("series", "frame", "n", "mean", "Cp", "Cpk", "Pp", "Ppk", "note"):
         t.add_column(col)
     for name in sorted({r["name"] for r in rows}):
         rs = [r for r in rows if r["name"] == name]
+        fs = frames.get(name) or []
+        frame = fs[-1] if fs else "–"
+        changed = (f"frame changed during the history (was {'; '.join(fs[:-1])})"
+                   if len(fs) > 1 else "")
         vals = [r["value"] for r in rs if r["value"] is not None]
         if len(vals) < 2:
-            t.add_row(name, str(len(vals)), "-", "-", "-", "-", "-", "fewer than 2 values")
+            t.add_row(name, frame, str(len(vals)), "-", "-", "-", "-", "-",
+                      "; ".join(x for x in ("fewer than 2 values", changed) if x))
             continue
         cap = capability(vals, rs[-1]["lower"], rs[-1]["upper"])
         f = (lambda v: "-" if v is None else f"{v:.2f}")
-        t.add_row(name, str(cap.n), f"{cap.mean:+.4f}", f(cap.cp), f(cap.cpk), f(cap.pp),
-                  f(cap.ppk), Text(cap.message, style="yellow") if cap.too_few else "")
+        note = "; ".join(x for x in (cap.message if cap.too_few else "", changed) if x)
+        t.add_row(name, frame, str(cap.n), f"{cap.mean:+.4f} {units[name]}", f(cap.cp),
+                  f(cap.cpk), f(cap.pp), f(cap.ppk),
+                  Text(note, style="yellow") if note else "")
     out.print(t)
     if plot is not None:
         plot_run_chart(rows, plot)

@@ -2,7 +2,9 @@
 
 Verdict banner with its reasons, two views of the scan points coloured by deviation (the colour
 scale of every report, :mod:`shapeverify.report.colours`: ``RdBu_r`` centred at 0, clipped at
-``2 x`` the tolerance), the histogram with the tolerance limits and the key statistics.  Drawn with matplotlib's Agg canvas
+``2 x`` the tolerance), the histogram with the tolerance limits and the key statistics; with a
+plan, its characteristics under them, each with its feature control frame, grouped by datum
+reference frame (:mod:`shapeverify.report.png_frames`).  Drawn with matplotlib's Agg canvas
 directly (no pyplot, no global backend state), so it works headless and in threads.
 """
 
@@ -18,6 +20,7 @@ from .._random import generator
 from ..verdict_table import verdict_style
 from .colours import CMAP, color_limit
 from .ply import check_scan_length
+from .png_frames import draw_panel, panel_height
 from .quantities import area_text, length_text
 
 logger = logging.getLogger(__name__)
@@ -134,10 +137,15 @@ def summary_figure(result, scan=None, *, max_points: int = 20_000, dpi: int = 11
     cad_pts = cov.points if cov is not None else np.zeros((0, 3))
     cad_seen = cov.covered if cov is not None else np.zeros(0, bool)
 
-    fig = Figure(figsize=(12, 8.6), dpi=dpi)
+    # with a plan: the characteristics panel under the histogram (the page grows by its
+    # height; the views, histogram and banner keep their size)
+    panel = panel_height(result)
+    H = _HEIGHT + panel + (_PANEL_GAP if panel else 0.0)
+    fig = Figure(figsize=(12, H), dpi=dpi)
     FigureCanvasAgg(fig)
     gs = fig.add_gridspec(3, 3, height_ratios=[0.5, 2.4, 1.5], width_ratios=[1, 1, 0.75],
-                          hspace=0.3, wspace=0.18, left=0.06, right=0.98, top=0.97, bottom=0.07)
+                          hspace=0.3, wspace=0.18, left=0.06, right=0.98,
+                          top=1 - 0.03 * _HEIGHT / H, bottom=(0.07 * _HEIGHT + H - _HEIGHT) / H)
     colour = verdict_style(result.verdict).colour
     ax = fig.add_subplot(gs[0, :])
     ax.set_axis_off()
@@ -263,13 +271,17 @@ def summary_figure(result, scan=None, *, max_points: int = 20_000, dpi: int = 11
     text += f"\nmeasurement outliers: {result.outliers.n:,}"
     fits.append((at.text(0.0, 1.0, text, family="monospace", fontsize=9, va="top",
                          transform=at.transAxes), (0.0, None, None, 1.0), fig))
-    _fit_texts(fig, fits)
+    _fit_texts(fig, fits, floor=(panel + 0.05 + _PANEL_GAP / 2) * fig.dpi if panel else 0.0)
+    if panel:
+        draw_panel(fig, result, 0.06 * 12, panel + 0.05, (0.98 - 0.06) * 12)
     for a2, origin, R in to_label:
         _label_regions(a2, result.regions, origin, R)
     return fig
 
 
 _MIN_FONT = 7.0
+_HEIGHT = 8.6                # inches: the page without the characteristics panel
+_PANEL_GAP = 0.15            # inches between the histogram's label and the panel
 _PAD = 0.006                 # of the figure's width: room kept free at its right-hand edge
 
 
@@ -280,27 +292,28 @@ def _decimals(tol) -> int:
     return int(max(4, 2 - np.floor(np.log10(lim))))
 
 
-def _box_pixels(fig, text, box, owner):
+def _box_pixels(fig, text, box, owner, floor: float = 0.0):
     """``box`` (x0, y0, x1, y1; None: the figure's edge) as display pixels: fractions of the
     axes ``owner``, or of the text's own axes clipped to the figure when ``owner`` is the
-    figure."""
+    figure (its lower edge then ``floor`` pixels: above the characteristics panel)."""
     W, H = fig.bbox.width, fig.bbox.height
     if owner is fig:
         ab = text.axes.bbox
         x0 = ab.x0 + box[0] * ab.width if box[0] is not None else 0.0
         y1 = ab.y0 + box[3] * ab.height if box[3] is not None else H
-        return x0, 0.0, W * (1 - _PAD), min(y1 + 1.0, H)
+        return x0, floor, W * (1 - _PAD), min(y1 + 1.0, H)
     ab = owner.bbox
     return (ab.x0 + box[0] * ab.width, ab.y0 + box[1] * ab.height,
             ab.x0 + box[2] * ab.width, ab.y0 + box[3] * ab.height)
 
 
-def _fit_texts(fig, fits) -> None:
+def _fit_texts(fig, fits, floor: float = 0.0) -> None:
     """Shrink (to :data:`_MIN_FONT`) and then cut with "…" each text until its drawn extent
-    (``get_window_extent``) lies inside its box."""
+    (``get_window_extent``) lies inside its box (``floor``: pixels from the figure's bottom
+    that the texts of the right-hand column leave free)."""
     renderer = fig.canvas.get_renderer()
     for text, box, owner in fits:
-        x0, y0, x1, y1 = _box_pixels(fig, text, box, owner)
+        x0, y0, x1, y1 = _box_pixels(fig, text, box, owner, floor)
 
         def fits_now():
             bb = text.get_window_extent(renderer)
