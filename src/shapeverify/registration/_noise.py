@@ -32,12 +32,13 @@ Examples
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from itertools import combinations
 
 import numpy as np
 from shapeverify._lazy import cKDTree
 
-__all__ = ["scan_noise"]
+__all__ = ["scan_noise", "NoiseEstimate", "noise_of"]
 
 #: scan points whose scatter is measured
 POINTS = 1000
@@ -192,6 +193,34 @@ def _frame(X):
     t1 /= np.linalg.norm(t1, axis=1, keepdims=True)
     t2 = np.cross(n, t1)
     return h, np.einsum("mki,mi->mk", X, t1), np.einsum("mki,mi->mk", X, t2), w.astype(np.float64)
+
+
+@dataclass(frozen=True)
+class NoiseEstimate:
+    """A scan's noise as :func:`noise_of` measured it, and on which points: every ``step``-th
+    of the ``n`` points it was given (what another caller checks before it reuses ``sigma``
+    for the same points; the noise does not change when the points move rigidly)."""
+
+    sigma: float
+    n: int
+    step: int
+
+    def reusable_for(self, n: int, most: int) -> bool:
+        """Whether :func:`noise_of` of ``n`` points (the same points, in the same order) with
+        at most ``most`` measured would measure the same subsample."""
+        return self.n == n and self.step == _step(n, most)
+
+
+def _step(n: int, most: int) -> int:
+    return max(1, n // most)
+
+
+def noise_of(P, most: int) -> NoiseEstimate:
+    """:func:`scan_noise` of every ``max(1, n // most)``-th of the points P (n, 3), with the
+    subsample it measured."""
+    n = np.shape(P)[0]
+    step = _step(n, most)
+    return NoiseEstimate(scan_noise(P[::step]), n, step)
 
 
 def scan_noise(P) -> float:
