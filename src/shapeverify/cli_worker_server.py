@@ -92,6 +92,7 @@ class Worker:
         self.stopping = threading.Event()
         self.lock = threading.Lock()
         self.running = None   # the connection whose request runs now
+        self.interruptible = False   # a cancel may interrupt: the command itself runs
         self.pid = os.getpid()
 
     # ------------------------------------------------------------------ preparation
@@ -150,9 +151,10 @@ class Worker:
         self.inode = os.stat(self.path).st_ino
         listener.listen(16)
         signal.signal(signal.SIGTERM, lambda *_: self._stop_now())
-        # a cancel arrives as a frame and is raised by _thread.interrupt_main, which needs
-        # Python's own SIGINT handler (the worker has no terminal: its own session)
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+        # a cancel arrives as a frame and is raised by _thread.interrupt_main, which calls
+        # this Python SIGINT handler in the main thread (the worker has no terminal: its own
+        # session); it raises only while the command itself runs (_command)
+        signal.signal(signal.SIGINT, self._on_interrupt)
         threading.Thread(target=self._accept, args=(listener,), daemon=True).start()
         try:
             self._loop()
@@ -163,6 +165,24 @@ class Worker:
                     os.unlink(self.path)
             except OSError:
                 pass
+
+    def _on_interrupt(self, signum, frame) -> None:
+        """KeyboardInterrupt in the running command; nothing once it has ended.
+
+        The handler runs at the main thread's next bytecode after ``interrupt_main`` (later
+        while a compiled kernel runs), which can be after the command returned: raised then,
+        in the serving loop's clean-up, it once ended the worker (seen with a 0.3 s
+        inspection cancelled as it finished)."""
+        if self.interruptible:
+            raise KeyboardInterrupt
+
+    def _command(self, argv: list) -> None:
+        """The command line's ``main`` on ``argv``, the one span a cancel interrupts."""
+        try:
+            self.interruptible = True
+            self.command.main(args=argv, prog_name="shapeverify")
+        finally:
+            self.interruptible = False
 
     def _stop_now(self) -> None:
         self.stopping.set()
@@ -345,7 +365,7 @@ class Worker:
             cli_common.console.__init__(stderr=True)
             cli_common.out.__init__()
             try:
-                self.command.main(args=list(req["argv"]), prog_name="shapeverify")
+                self._command(list(req["argv"]))
                 code = 0
             except SystemExit as exc:
                 code = _exit_code(exc.code)
@@ -375,63 +395,18 @@ class Worker:
 KEEP_MODELS = 4
 
 
-def _stat_key(path, *extra):
-    """What identifies an unchanged file: its real path, device, inode, size, mtime and ctime
-    (ctime changes on every write, even one that restores the mtime); None if it cannot be had."""
-    try:
-        st = os.stat(path)
-        key = (os.path.realpath(path), st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns,
-               st.st_ctime_ns, *extra)
-        hash(key)
-        return key
-    except (OSError, TypeError, ValueError):
-        return None
-
-
-def _remembering(fn, keep: int):
-    """``fn(path, ...)`` remembered for the last ``keep`` unchanged files (:func:`_stat_key`)."""
-    import collections
-    import functools
-
-    cache: collections.OrderedDict = collections.OrderedDict()
-
-    @functools.wraps(fn)
-    def remembered(path, *args, **kwargs):
-        key = _stat_key(path, args, tuple(sorted(kwargs.items())))
-        if key is None:
-            return fn(path, *args, **kwargs)
-        if key in cache:
-            cache.move_to_end(key)
-            return cache[key]
-        value = fn(path, *args, **kwargs)
-        cache[key] = value
-        while len(cache) > keep:
-            cache.popitem(last=False)
-        return value
-
-    remembered._worker_cache = cache
-    return remembered
-
-
 def _keep_prepared_models() -> None:
     """Keep the last :data:`KEEP_MODELS` prepared models (.svm) in memory, as ``shapeverify
     serve`` does: a command that names the same file, unchanged, gets the model already
     loaded, with the structures it built lazily (the exact closest-point refinement, the
     coverage samples), and the file's SHA-256 (the reports' ``model_sha256``; ``info``'s
-    summary cache key of a CAD file) without reading the file again.  The commands reach ``load_prepared`` through ``shapeverify.nearest`` and
-    ``file_hash`` through ``shapeverify.pipeline`` at call time, so wrapping them there covers
-    ``inspect``, ``info`` and ``history --model``."""
-    import shapeverify.nearest as nearest
-    import shapeverify.pipeline as pipeline
+    summary cache key of a CAD file) without reading the file again
+    (:mod:`shapeverify._file_memo`, which ``load_prepared``, ``pipeline.file_hash`` and the
+    CAD summary consult; off in any other process)."""
+    from shapeverify import _file_memo
 
-    if getattr(nearest.load_prepared, "_worker_cache", None) is None:
-        nearest.load_prepared = _remembering(nearest.load_prepared, KEEP_MODELS)
-    if getattr(pipeline.file_hash, "_worker_cache", None) is None:
-        pipeline.file_hash = _remembering(pipeline.file_hash, 64)
-    import shapeverify.cad.summary as summary   # info's cache key: the CAD file's hash
-
-    if getattr(summary._file_hash, "_worker_cache", None) is None:
-        summary._file_hash = _remembering(summary._file_hash, 64)
+    _file_memo.PREPARED_MODELS.keep = KEEP_MODELS
+    _file_memo.enable()
 
 
 def _report_uncaught(exc: BaseException) -> None:
