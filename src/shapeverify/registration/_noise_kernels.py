@@ -78,6 +78,19 @@ def _argsort_small(x, out):
 
 
 @njit(cache=True, nogil=True)
+def _sort_small(x, out):
+    """out = x sorted (insertion sort: short arrays)."""
+    n = x.shape[0]
+    for a in range(n):
+        xv = x[a]
+        b = a - 1
+        while b >= 0 and out[b] > xv:
+            out[b + 1] = out[b]
+            b -= 1
+        out[b + 1] = xv
+
+
+@njit(cache=True, nogil=True)
 def _flat3(X, win, flat):
     """Whether the points X[win] (equal weights) span a plane: the middle eigenvalue of their
     scatter at least ``flat`` x the largest."""
@@ -153,8 +166,11 @@ def _flat2(u, v, w, flat):
 
 
 @njit(cache=True, nogil=True)
-def _frame(X, triples, seed, qmin, flat, h, u, v, w):
-    """One centre's frame (``_noise._frame`` of the first version): fills h, u, v, w (K,)."""
+def _frame(X, triples, seed, qmin, flat, h, u, v, w, nc, good, H, Hs, best, jbest, win):
+    """One centre's frame (``_noise._frame`` of the first version): fills h, u, v, w (K,).
+
+    The other arrays are work space: nc (t + 1, 3), good (t + 1,), H and Hs (t + 1, K),
+    best (t + 1,), jbest (t + 1,) int, win (K,) int."""
     K = X.shape[0]
     S = np.zeros((3, 3))
     for k in range(K):
@@ -163,8 +179,6 @@ def _frame(X, triples, seed, qmin, flat, h, u, v, w):
                 S[a, b] += X[k, a] * X[k, b]
     _, V = np.linalg.eigh(S)
     nt = triples.shape[0]
-    nc = np.empty((nt + 1, 3))
-    good = np.empty(nt + 1, np.bool_)
     nc[0, 0], nc[0, 1], nc[0, 2] = V[0, 0], V[1, 0], V[2, 0]
     good[0] = True
     for t in range(nt):
@@ -183,10 +197,6 @@ def _frame(X, triples, seed, qmin, flat, h, u, v, w):
         nc[c, 0] /= nn
         nc[c, 1] /= nn
         nc[c, 2] /= nn
-    H = np.empty((nc_n, K))
-    order = np.empty((nc_n, K), np.int64)
-    best = np.empty(nc_n)
-    jbest = np.empty(nc_n, np.int64)
     for c in range(nc_n):
         for k in range(K):
             H[c, k] = X[k, 0] * nc[c, 0] + X[k, 1] * nc[c, 1] + X[k, 2] * nc[c, 2]
@@ -194,30 +204,40 @@ def _frame(X, triples, seed, qmin, flat, h, u, v, w):
             best[c] = np.inf
             jbest[c] = 0
             continue
-        _argsort_small(H[c], order[c])
+        _sort_small(H[c], Hs[c])        # the heights in order: the windows of SEED of them
         jb = 0
         wb = np.inf
         for j in range(K - seed + 1):
-            wd = H[c, order[c, j + seed - 1]] - H[c, order[c, j]]
+            wd = Hs[c, j + seed - 1] - Hs[c, j]
             if wd < wb:
                 wb = wd
                 jb = j
         best[c] = wb
         jbest[c] = jb
-    # the narrowest good candidate whose seed spans a plane (first of equals)
-    cand = np.argsort(best, kind="mergesort")
+    # the narrowest good candidate whose seed spans a plane (first of equals), tried in order
     chosen = -1
-    for i in range(nc_n):
-        c = cand[i]
-        if not good[c] or not np.isfinite(best[c]):
-            continue
-        if _flat3(X, order[c, jbest[c]:jbest[c] + seed], flat):
+    floor = -np.inf                     # (best, index) of the last one tried
+    floor_c = -1
+    while True:
+        c = -1
+        for i in range(nc_n):
+            if not good[i] or not np.isfinite(best[i]):
+                continue
+            if best[i] < floor or (best[i] == floor and i <= floor_c):
+                continue                # tried already
+            if c < 0 or best[i] < best[c]:
+                c = i
+        if c < 0:
+            break
+        _argsort_small(H[c], win)
+        if _flat3(X, win[jbest[c]:jbest[c] + seed], flat):
             chosen = c
             break
+        floor, floor_c = best[c], c
     found = chosen >= 0
     c = chosen if found else 0
-    lo = H[c, order[c, jbest[c]]]
-    hi = H[c, order[c, jbest[c] + seed - 1]]
+    lo = Hs[c, jbest[c]]
+    hi = Hs[c, jbest[c] + seed - 1]
     pad = hi - lo
     for k in range(K):
         h[k] = H[c, k]
@@ -364,8 +384,16 @@ def centres(X, full, triples, seed, qmin, flat, rounds, sep, max_leverage, miss)
     v = np.empty(K)
     w = np.empty(K)
     A = np.empty((K, 6))
+    nc_n = triples.shape[0] + 1
+    nc = np.empty((nc_n, 3))
+    good = np.empty(nc_n, np.bool_)
+    H = np.empty((nc_n, K))
+    Hs = np.empty((nc_n, K))
+    best = np.empty(nc_n)
+    jbest = np.empty(nc_n, np.int64)
+    win = np.empty(K, np.int64)
     for i in range(m):
-        _frame(X[i], triples, seed, qmin, flat, h, u, v, w)
+        _frame(X[i], triples, seed, qmin, flat, h, u, v, w, nc, good, H, Hs, best, jbest, win)
         for k in range(K):
             A[k, 0] = u[k] * u[k]
             A[k, 1] = u[k] * v[k]
