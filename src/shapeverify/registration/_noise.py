@@ -20,6 +20,13 @@ of it: counted twice, a point's own noise pulls the quadric onto it.  A point it
 quadric misses by more than :data:`MISS` of that sheet's scatter (an outlier, a wall's rim
 where no quadric holds) tells nothing about the noise and is left out.
 
+The per-point work (the copies' test, the seed plane, the sheets, the point's residual and
+leverage) runs compiled, one point at a time (:mod:`._noise_kernels`: 0.09 s for the 1,000
+points of a 30,000-point scan, against 0.30 s for the vectorised numpy it replaced, with the
+same numbers to round-off).  :func:`noise_of` keeps which subsample it measured
+(:class:`NoiseEstimate`): the registration's estimate travels on ``Registration.noise`` and the
+inspection reuses it where it would measure the same points.
+
 Examples
 --------
 >>> import numpy as np
