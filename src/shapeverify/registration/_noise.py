@@ -98,7 +98,7 @@ def _neighbours(P, idx):
     # independent noise read half their noise)
     seq = np.concatenate([np.zeros((len(idx), 1), np.int64),
                           1 + np.argsort(nb[:, 1:], axis=1, kind="stable")], axis=1)
-    order, full = _noise_kernels.copies(Q, seq, delta ** 2, K)
+    order, full = _noise_kernels.copies(Q, np.ascontiguousarray(d), seq, delta ** 2, K)
     return np.take_along_axis(Q, order[..., None], 1), full
 
 

@@ -16,11 +16,15 @@ _SQRT3 = np.sqrt(3.0)
 
 
 @njit(cache=True, nogil=True)
-def copies(Q, seq, delta2, K):
+def copies(Q, d, seq, delta2, K):
     """The neighbours kept after the copies' test, in index order, K per centre.
 
-    Q : (m, kk, 3) neighbours about their centre (the centre itself first); seq : (m, kk) the
-    order they are visited in (the file's order; 0 first); delta2 : (m,) squared copy distance.
+    Q : (m, kk, 3) neighbours about their centre (the centre itself first), d : (m, kk) their
+    distances from it, ascending; seq : (m, kk) the order they are visited in (the file's
+    order; 0 first); delta2 : (m,) squared copy distance.  Only neighbours whose distances
+    from the centre differ by about delta or less can be within delta of each other (the
+    triangle inequality, with a margin far above the round-off), so each is compared with
+    the kept ones of that run of distances alone.
     Returns ``order`` (m, K) int64 (the first K kept, then -- where fewer than K are kept --
     the others in index order, as a stable argsort of "not selected") and ``full`` (m,) bool.
     """
@@ -37,12 +41,21 @@ def copies(Q, seq, delta2, K):
         for j in range(1, kk):
             c = seq[i, j]
             near = False
-            for b in range(kk):
-                if keep[b]:
-                    dot = Q[i, c, 0] * Q[i, b, 0] + Q[i, c, 1] * Q[i, b, 1] + Q[i, c, 2] * Q[i, b, 2]
-                    if q2[c] + q2[b] - 2.0 * dot <= delta2[i]:
-                        near = True
+            for step in (-1, 1):        # outwards from c, while the distances allow
+                b = c + step
+                while 0 <= b < kk:
+                    gap = d[i, c] - d[i, b]
+                    if gap * gap > delta2[i] + 1e-12 * (q2[c] + q2[b]):
                         break
+                    if keep[b]:
+                        dot = (Q[i, c, 0] * Q[i, b, 0] + Q[i, c, 1] * Q[i, b, 1]
+                               + Q[i, c, 2] * Q[i, b, 2])
+                        if q2[c] + q2[b] - 2.0 * dot <= delta2[i]:
+                            near = True
+                            break
+                    b += step
+                if near:
+                    break
             keep[c] = not near
         keep[0] = False
         n_sel = 0
