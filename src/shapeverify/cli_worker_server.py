@@ -93,6 +93,7 @@ class Worker:
         self.lock = threading.Lock()
         self.running = None   # the connection whose request runs now
         self.interruptible = False   # a cancel may interrupt: the command itself runs
+        self.cancelled = False       # the running request's client cancelled it
         self.pid = os.getpid()
 
     # ------------------------------------------------------------------ preparation
@@ -167,13 +168,17 @@ class Worker:
                 pass
 
     def _on_interrupt(self, signum, frame) -> None:
-        """KeyboardInterrupt in the running command; nothing once it has ended.
+        """KeyboardInterrupt in the cancelled command, at a line of the package's own code.
 
-        The handler runs at the main thread's next bytecode after ``interrupt_main`` (later
-        while a compiled kernel runs), which can be after the command returned: raised then,
-        in the serving loop's clean-up, it once ended the worker (seen with a 0.3 s
-        inspection cancelled as it finished)."""
-        if self.interruptible:
+        The handler runs at the main thread's next bytecode after ``interrupt_main``, which
+        can be Python code that a compiled kernel or a C extension called back (numba's
+        dispatcher, numpy, scipy): raised there, the exception reached the kernel's caller as
+        "returned a result with an exception set" (exit 2 instead of 130) and once crashed the
+        worker (a segmentation fault in ``scan_noise``'s kernel, seen after its compiled
+        version made the inspection mostly numba).  Elsewhere it does nothing and the watcher
+        (:meth:`_watch`) asks again 20 ms later; after the command ended, nothing at all."""
+        if (self.interruptible and self.cancelled and frame is not None
+                and frame.f_code.co_filename.startswith(_PACKAGE_DIR)):
             raise KeyboardInterrupt
 
     def _command(self, argv: list) -> None:
@@ -300,10 +305,20 @@ class Worker:
                     break
         except (OSError, ConnectionError, struct.error):
             pass
+        import time
+
         with self.lock:
-            if self.running is conn:
-                self.running = None
+            if self.running is not conn:
+                return
+            self.running = None
+            self.cancelled = True
+        # until the command ends: _on_interrupt raises once it is in the package's own code
+        while True:
+            with self.lock:
+                if not self.cancelled:
+                    return
                 _thread.interrupt_main()
+            time.sleep(0.02)
 
     def _serve_one(self, conn, req: dict) -> None:
         import json
@@ -318,6 +333,7 @@ class Worker:
         _send(conn, b"A", b"")
         with self.lock:
             self.running = conn
+            self.cancelled = False
         threading.Thread(target=self._watch, args=(conn,), daemon=True).start()
         cpu0 = _cpu()
         try:
@@ -325,6 +341,7 @@ class Worker:
         finally:
             with self.lock:
                 self.running = None
+                self.cancelled = False
         cpu = _cpu() - cpu0
         self.requests += 1
         self.cpu += cpu
@@ -390,6 +407,9 @@ class Worker:
             os.umask(umask)
             os.chdir(saved[0])
 
+
+#: the package's source directory: a cancel interrupts the command only in its own code
+_PACKAGE_DIR = os.path.dirname(os.path.abspath(__file__))
 
 #: prepared models the worker keeps (the most recently used)
 KEEP_MODELS = 4
