@@ -251,3 +251,36 @@ def test_ctrl_c_on_the_client_cancels_and_the_worker_serves_on(files, worker, tm
     after = _sv(["info", "panel.svm"], files, env)
     assert after.returncode == 0 and b"model points" in after.stdout
     assert b"worker" not in after.stderr
+
+
+def test_file_memo_keeps_a_prepared_model_and_a_hash_only_while_enabled_and_unchanged(tmp_path):
+    """The worker's memory of files (``shapeverify._file_memo``, which replaced its wrapping of
+    ``load_prepared`` and the file hashes): off by default; on, an unchanged file gives what
+    it gave before, a rewritten one is read again, and bytes are never remembered."""
+    import hashlib
+
+    from shapeverify import _file_memo
+    from shapeverify.cad.examples import wavy_panel
+    from shapeverify.nearest import load_prepared, prepare
+    from shapeverify.pipeline import file_hash
+
+    path = tmp_path / "m.svm"
+    prepare(wavy_panel(), spacing=4.0).save(path)
+    try:
+        assert not _file_memo.PREPARED_MODELS.enabled
+        assert load_prepared(path) is not load_prepared(path)        # off: read every time
+        _file_memo.enable()
+        a = load_prepared(path)
+        assert load_prepared(path) is a and load_prepared(str(path)) is a
+        assert load_prepared(path.read_bytes()) is not a
+        h = file_hash(path)
+        assert h == hashlib.sha256(path.read_bytes()).hexdigest() == file_hash(str(path))
+        prepare(wavy_panel(), spacing=6.0).save(path)                 # rewritten
+        b = load_prepared(path)
+        assert b is not a and b.n_points != a.n_points
+        assert file_hash(path) == hashlib.sha256(path.read_bytes()).hexdigest() != h
+        _file_memo.clear()
+        assert load_prepared(path) is not b
+    finally:
+        _file_memo.disable()
+    assert load_prepared(path) is not load_prepared(path)

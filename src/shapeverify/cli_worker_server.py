@@ -92,6 +92,8 @@ class Worker:
         self.stopping = threading.Event()
         self.lock = threading.Lock()
         self.running = None   # the connection whose request runs now
+        self.interruptible = False   # a cancel may interrupt: the command itself runs
+        self.cancelled = False       # the running request's client cancelled it
         self.pid = os.getpid()
 
     # ------------------------------------------------------------------ preparation
@@ -150,9 +152,10 @@ class Worker:
         self.inode = os.stat(self.path).st_ino
         listener.listen(16)
         signal.signal(signal.SIGTERM, lambda *_: self._stop_now())
-        # a cancel arrives as a frame and is raised by _thread.interrupt_main, which needs
-        # Python's own SIGINT handler (the worker has no terminal: its own session)
-        signal.signal(signal.SIGINT, signal.default_int_handler)
+        # a cancel arrives as a frame and is raised by _thread.interrupt_main, which calls
+        # this Python SIGINT handler in the main thread (the worker has no terminal: its own
+        # session); it raises only while the command itself runs (_command)
+        signal.signal(signal.SIGINT, self._on_interrupt)
         threading.Thread(target=self._accept, args=(listener,), daemon=True).start()
         try:
             self._loop()
@@ -163,6 +166,28 @@ class Worker:
                     os.unlink(self.path)
             except OSError:
                 pass
+
+    def _on_interrupt(self, signum, frame) -> None:
+        """KeyboardInterrupt in the cancelled command, at a line of the package's own code.
+
+        The handler runs at the main thread's next bytecode after ``interrupt_main``, which
+        can be Python code that a compiled kernel or a C extension called back (numba's
+        dispatcher, numpy, scipy): raised there, the exception reached the kernel's caller as
+        "returned a result with an exception set" (exit 2 instead of 130) and once crashed the
+        worker (a segmentation fault in ``scan_noise``'s kernel, seen after its compiled
+        version made the inspection mostly numba).  Elsewhere it does nothing and the watcher
+        (:meth:`_watch`) asks again 20 ms later; after the command ended, nothing at all."""
+        if (self.interruptible and self.cancelled and frame is not None
+                and frame.f_code.co_filename.startswith(_PACKAGE_DIR)):
+            raise KeyboardInterrupt
+
+    def _command(self, argv: list) -> None:
+        """The command line's ``main`` on ``argv``, the one span a cancel interrupts."""
+        try:
+            self.interruptible = True
+            self.command.main(args=argv, prog_name="shapeverify")
+        finally:
+            self.interruptible = False
 
     def _stop_now(self) -> None:
         self.stopping.set()
@@ -280,10 +305,20 @@ class Worker:
                     break
         except (OSError, ConnectionError, struct.error):
             pass
+        import time
+
         with self.lock:
-            if self.running is conn:
-                self.running = None
+            if self.running is not conn:
+                return
+            self.running = None
+            self.cancelled = True
+        # until the command ends: _on_interrupt raises once it is in the package's own code
+        while True:
+            with self.lock:
+                if not self.cancelled:
+                    return
                 _thread.interrupt_main()
+            time.sleep(0.02)
 
     def _serve_one(self, conn, req: dict) -> None:
         import json
@@ -298,6 +333,7 @@ class Worker:
         _send(conn, b"A", b"")
         with self.lock:
             self.running = conn
+            self.cancelled = False
         threading.Thread(target=self._watch, args=(conn,), daemon=True).start()
         cpu0 = _cpu()
         try:
@@ -305,6 +341,7 @@ class Worker:
         finally:
             with self.lock:
                 self.running = None
+                self.cancelled = False
         cpu = _cpu() - cpu0
         self.requests += 1
         self.cpu += cpu
@@ -345,7 +382,7 @@ class Worker:
             cli_common.console.__init__(stderr=True)
             cli_common.out.__init__()
             try:
-                self.command.main(args=list(req["argv"]), prog_name="shapeverify")
+                self._command(list(req["argv"]))
                 code = 0
             except SystemExit as exc:
                 code = _exit_code(exc.code)
@@ -371,46 +408,11 @@ class Worker:
             os.chdir(saved[0])
 
 
+#: the package's source directory: a cancel interrupts the command only in its own code
+_PACKAGE_DIR = os.path.dirname(os.path.abspath(__file__))
+
 #: prepared models the worker keeps (the most recently used)
 KEEP_MODELS = 4
-
-
-def _stat_key(path, *extra):
-    """What identifies an unchanged file: its real path, device, inode, size, mtime and ctime
-    (ctime changes on every write, even one that restores the mtime); None if it cannot be had."""
-    try:
-        st = os.stat(path)
-        key = (os.path.realpath(path), st.st_dev, st.st_ino, st.st_size, st.st_mtime_ns,
-               st.st_ctime_ns, *extra)
-        hash(key)
-        return key
-    except (OSError, TypeError, ValueError):
-        return None
-
-
-def _remembering(fn, keep: int):
-    """``fn(path, ...)`` remembered for the last ``keep`` unchanged files (:func:`_stat_key`)."""
-    import collections
-    import functools
-
-    cache: collections.OrderedDict = collections.OrderedDict()
-
-    @functools.wraps(fn)
-    def remembered(path, *args, **kwargs):
-        key = _stat_key(path, args, tuple(sorted(kwargs.items())))
-        if key is None:
-            return fn(path, *args, **kwargs)
-        if key in cache:
-            cache.move_to_end(key)
-            return cache[key]
-        value = fn(path, *args, **kwargs)
-        cache[key] = value
-        while len(cache) > keep:
-            cache.popitem(last=False)
-        return value
-
-    remembered._worker_cache = cache
-    return remembered
 
 
 def _keep_prepared_models() -> None:
@@ -418,20 +420,13 @@ def _keep_prepared_models() -> None:
     serve`` does: a command that names the same file, unchanged, gets the model already
     loaded, with the structures it built lazily (the exact closest-point refinement, the
     coverage samples), and the file's SHA-256 (the reports' ``model_sha256``; ``info``'s
-    summary cache key of a CAD file) without reading the file again.  The commands reach ``load_prepared`` through ``shapeverify.nearest`` and
-    ``file_hash`` through ``shapeverify.pipeline`` at call time, so wrapping them there covers
-    ``inspect``, ``info`` and ``history --model``."""
-    import shapeverify.nearest as nearest
-    import shapeverify.pipeline as pipeline
+    summary cache key of a CAD file) without reading the file again
+    (:mod:`shapeverify._file_memo`, which ``load_prepared``, ``pipeline.file_hash`` and the
+    CAD summary consult; off in any other process)."""
+    from shapeverify import _file_memo
 
-    if getattr(nearest.load_prepared, "_worker_cache", None) is None:
-        nearest.load_prepared = _remembering(nearest.load_prepared, KEEP_MODELS)
-    if getattr(pipeline.file_hash, "_worker_cache", None) is None:
-        pipeline.file_hash = _remembering(pipeline.file_hash, 64)
-    import shapeverify.cad.summary as summary   # info's cache key: the CAD file's hash
-
-    if getattr(summary._file_hash, "_worker_cache", None) is None:
-        summary._file_hash = _remembering(summary._file_hash, 64)
+    _file_memo.PREPARED_MODELS.keep = KEEP_MODELS
+    _file_memo.enable()
 
 
 def _report_uncaught(exc: BaseException) -> None:

@@ -33,7 +33,14 @@ def _no_stage(name: str) -> ContextManager:
 
 
 def file_hash(path: str | Path) -> str:
-    """SHA-256 of a file's bytes (hex), used to tie history records to the exact model file."""
+    """SHA-256 of a file's bytes (hex), used to tie history records to the exact model file
+    (remembered for an unchanged file where :mod:`shapeverify._file_memo` is enabled)."""
+    from shapeverify._file_memo import FILE_HASHES
+
+    return FILE_HASHES.call(_sha256, path)
+
+
+def _sha256(path) -> str:
     h = hashlib.sha256()
     with open(path, "rb") as fh:
         for block in iter(lambda: fh.read(1 << 20), b""):

@@ -166,6 +166,14 @@ def _code_stamp() -> str:
 
 
 def _file_hash(path: Path) -> str:
+    """The file's SHA-256 (hex; remembered for an unchanged file where
+    :mod:`shapeverify._file_memo` is enabled)."""
+    from shapeverify._file_memo import FILE_HASHES
+
+    return FILE_HASHES.call(_sha256, path)
+
+
+def _sha256(path) -> str:
     h = hashlib.sha256()
     with open(path, "rb") as f:
         for block in iter(lambda: f.read(1 << 20), b""):

@@ -454,7 +454,7 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
         stats = dataclasses.replace(
             stats, in_tolerance_fraction=1.0 - np.count_nonzero(out_ev) / n_ev, n_above=n_hi,
             n_below=int(np.count_nonzero(out_ev)) - n_hi, outlier_fraction=outliers.n / n_ev)
-    noise = _noise(dev, ev)
+    noise = _noise(dev, ev, getattr(reg, "noise", None))
     if v.size and f.min() == f.max():           # one face: its statistics are the overall ones
         per_face_stats = {int(f[0]): stats}
     else:
@@ -499,9 +499,20 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
 NOISE_POINTS = 50_000
 
 
-def _noise(dev, ev) -> float:
-    """The scan's own noise sigma (mm) from its evaluated points (NaN when too few)."""
-    from ..registration._noise import scan_noise
+def _noise(dev, ev, known=None) -> float:
+    """The scan's own noise sigma (mm) from its evaluated points (NaN when too few).
 
+    ``known``: the noise the registration measured (``Registration.noise``, a
+    :class:`~shapeverify.registration._noise.NoiseEstimate`), reused when every scan point is
+    evaluated and it measured the same subsample: the evaluated points are then the
+    registered scan's points moved rigidly, which leaves their scatter about local quadrics as
+    it was (to round-off).  Else (some points not evaluated, a given pose, a registration
+    without it) measured here."""
+    from ..registration._noise import NoiseEstimate, scan_noise
+
+    n = int(np.count_nonzero(ev))
+    if isinstance(known, NoiseEstimate) and n == ev.shape[0] and known.reusable_for(
+            n, NOISE_POINTS):
+        return float(known.sigma)
     P = dev.points_model[ev]
     return float(scan_noise(P[::max(1, P.shape[0] // NOISE_POINTS)]))

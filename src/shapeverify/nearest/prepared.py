@@ -528,7 +528,8 @@ def load_prepared(source) -> Prepared:
     """Read a ``.svm`` file written by :meth:`Prepared.save`.
 
     ``source`` is a path, the file's bytes, or a binary file object (e.g. a model shipped to
-    a batch worker in memory).
+    a batch worker in memory).  Where :mod:`shapeverify._file_memo` is enabled (the command
+    line's resident worker), an unchanged file read before gives the model read then.
 
     Raises
     ------
@@ -539,6 +540,13 @@ def load_prepared(source) -> Prepared:
         CRC check) or truncated, an unsupported version, or inconsistent arrays.  The message
         names the file and says to run ``shapeverify prepare`` again.
     """
+    from shapeverify._file_memo import PREPARED_MODELS
+
+    return PREPARED_MODELS.call(_read_prepared, source)
+
+
+def _read_prepared(source) -> Prepared:
+    """:func:`load_prepared`, read every time."""
     from shapeverify.cad.persist import DAMAGED_FILE_ERRORS, damage_text
     from shapeverify.errors import EmptyModelError, ModelFileError
 

@@ -25,7 +25,7 @@ from typing import NamedTuple
 import numpy as np
 
 from . import _basin, _irls, _restart
-from ._noise import scan_noise
+from ._noise import NoiseEstimate, noise_of
 from ._pose_warnings import (WARN_REJECTED_INFO, WARN_RUNNER_UP, _rejected_information,
                              close_runner_up, pose_warnings)
 from .losses import Loss, get_loss
@@ -84,7 +84,7 @@ class Context:
     coarse: StageSettings
     final: StageSettings
     tau: float                      # the global search's fit distance (mm)
-    noise: float                    # the scan's noise (mm, :func:`._noise.scan_noise`)
+    noise_estimate: NoiseEstimate   # the scan's noise (:func:`._noise.noise_of`)
 
     @property
     def scan(self) -> np.ndarray:
@@ -101,6 +101,11 @@ class Context:
     @property
     def rng(self) -> np.random.Generator:
         return self.request.rng
+
+    @property
+    def noise(self) -> float:
+        """The scan's noise sigma (mm, :func:`._noise.scan_noise`)."""
+        return self.noise_estimate.sigma
 
 
 class Fit(NamedTuple):
@@ -160,7 +165,7 @@ def setup(req: Request) -> Context:
                           req.rtol, overlap=True)
     from .global_search import fit_distance
     return Context(req, T0, how, radius, reach, S, coarse, final, fit_distance(prep),
-                   scan_noise(P[::max(1, n // NOISE_POINTS)]))
+                   noise_of(P, NOISE_POINTS))
 
 
 def _state(T, st=None) -> _irls.State:

@@ -131,6 +131,10 @@ class Registration:
         given (symmetric copies, or the true pose when this one is a copy), else ().  Where
         this pose fails the part, :func:`shapeverify.inspect` registers from each and passes
         the part at one that fits alike and puts every point within tolerance.
+    noise : NoiseEstimate or None
+        The scan's own noise that the registration measured (its yardstick of a wrong minimum,
+        :func:`shapeverify.registration._noise.noise_of`) and the subsample it measured it on;
+        the inspection reuses it where it would measure the same points.
     """
 
     T_model_scan: np.ndarray
@@ -150,6 +154,7 @@ class Registration:
     warnings: tuple = ()
     init: str = "given"
     alternatives: tuple = ()
+    noise: object = None
 
     @property
     def R(self) -> np.ndarray:
@@ -340,7 +345,7 @@ def register(scan, prep, init: "InitName | InitMode | np.ndarray | None" = None,
     fit = _stages.retry_from_start(ctx, fit, placed)    # final stage from the start itself
     fit = _stages.restart_about_axis(ctx, fit, placed)  # spins about a near-symmetry axis
     quality = _stages.uncertainty(ctx, fit, placed)     # covariance, undetermined, warnings
-    return _result(req, fit, placed, quality)
+    return _result(req, fit, placed, quality, ctx.noise_estimate)
 
 
 def _request(scan, prep, init, method, loss, scale, max_iterations, rtol, rng,
@@ -370,7 +375,7 @@ def _request(scan, prep, init, method, loss, scale, max_iterations, rtol, rng,
                            tolerance, rng, options)
 
 
-def _result(req, fit, placed, quality) -> Registration:
+def _result(req, fit, placed, quality, noise=None) -> Registration:
     """The Registration of the final fit; warns once when directions are undetermined."""
     st, ev, undet = fit.state, fit.ev, quality.undetermined
     msg = (f"converged in {st.iterations} iterations" if fit.converged else
@@ -393,4 +398,4 @@ def _result(req, fit, placed, quality) -> Registration:
                         history=tuple(st.history), scale=ev.sigma, message=msg,
                         undetermined=desc, method=req.method.value, loss=req.loss.name,
                         undetermined_directions=undet, warnings=quality.warnings,
-                        init=placed.how, alternatives=quality.alternatives)
+                        init=placed.how, alternatives=quality.alternatives, noise=noise)
