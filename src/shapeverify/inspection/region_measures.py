@@ -382,3 +382,87 @@ def seen_under(tree, ev_idx, values, normals, points, core, above, lo_lim, hi_li
     at = _containing(Q2, tri.simplices, np.column_stack([_dot(X, e1[0]), _dot(X, e2[0])]))
     covered = (at >= 0) & (R[np.maximum(at, 0)] <= SEEN_ALPHA * s_deep)
     return float(np.mean(covered))
+
+
+#: The surface is seen around a point when its ``SEEN_K``-th nearest deep-in-tolerance point (of
+#: the same side of the part) is no farther than the ``SEEN_QUANTILE`` quantile of that distance
+#: among the deep points themselves.
+SEEN_K = 3
+SEEN_QUANTILE = 0.75
+#: Normals within this cosine count as the same side of the part (60 degrees).
+SEEN_SAME_SIDE = 0.5
+#: The reference distances are those of the deep points between ``SEEN_INNER`` and
+#: ``SEEN_WINDOW`` spacings from the component's points; their neighbours are looked for
+#: ``SEEN_REACH`` spacings farther.
+SEEN_INNER = 2.0
+SEEN_REACH = 1.5
+
+
+def _kth_same_side(dtree, deep_n, p, p_n, k, skip_self):
+    """Distance from each ``p`` to its ``k``-th nearest point of ``dtree`` whose normal
+    ``deep_n`` is within 60 degrees of ``p_n`` (inf when there are fewer)."""
+    kk = min(dtree.n, 4 * k + 4 + int(skip_self))
+    d, j = dtree.query(p, k=kk)
+    d, j = d.reshape(len(p), kk), j.reshape(len(p), kk)
+    jj = np.minimum(j, dtree.n - 1)
+    ok = np.isfinite(d) & (np.einsum("ijk,ik->ij", deep_n[jj], p_n) > SEEN_SAME_SIDE)
+    if skip_self:
+        ok[:, 0] = False                                  # the point itself (distance 0)
+    rank = np.cumsum(ok, axis=1)
+    hit = ok & (rank == k)
+    return np.where(hit.any(axis=1), d[np.arange(len(p)), np.argmax(hit, axis=1)], np.inf)
+
+
+def seen_around(tree, ev_idx, values, normals, points, members, above, lo_lim, hi_lim,
+                spacing) -> float:
+    """Share of a component's out-of-tolerance points ``members`` (scan indices, all on one
+    side: ``above``) among which the part's in-tolerance surface is measured as densely as it is
+    among its own points.
+
+    A reflection, ghost or misplaced second view lies over good surface: the surface is sampled
+    *under* it, independently of where the layer's points fall, so the distance from a layer
+    point to its ``SEEN_K``-th nearest deep-in-tolerance point (``|d|`` at most half the limit;
+    on the same side of the part: normal within 60 degrees of the point's own, which keeps the
+    test on a curved face, at an edge and on both sides of a thin blade) is distributed like
+    that distance among the deep points themselves (for a random sample exactly so): about
+    ``SEEN_QUANTILE`` of the layer's points are within that quantile of it.  A real defect
+    replaces the surface: the deep points lie beyond its rim and the band where ``|d|`` climbs
+    from half the limit to the limit, so a point inside it is farther from its ``SEEN_K``-th
+    deep point than a deep point is (a point at a rim of random samples sees a half plane: about
+    0.3 of them are within the quantile, the interior none).  The reference is the local
+    sampling itself (any density, random, lattice or rows, a doubled exposure): no spacing is
+    assumed.  The test takes the component's out-of-tolerance points, not its core points: a
+    layer point close to the surface's own points has an in-tolerance neighbourhood median, so
+    the core points of a layer are those in the surface's sampling holes.  At most
+    ``SEEN_SAMPLE`` points are tested (evenly spread over their order).
+    """
+    members = np.asarray(members)
+    members = members[values[members] > hi_lim[members]] if above else \
+        members[values[members] < lo_lim[members]]
+    if members.size == 0:
+        return 0.0
+    sample = members[np.linspace(0, members.size - 1,
+                                 min(members.size, SEEN_SAMPLE)).astype(np.int64)]
+    lists = tree.query_ball_point(points[sample], (SEEN_WINDOW + SEEN_REACH) * spacing)
+    w = np.unique(np.concatenate([np.asarray(x, np.int64) for x in lists]))
+    gi = ev_idx[w]
+    lim = np.abs(hi_lim[gi] if above else lo_lim[gi])
+    deep = gi[np.abs(values[gi]) <= 0.5 * lim]
+    if deep.size < 2 * SEEN_K + 2:
+        return 0.0
+    dtree = cKDTree(points[deep])
+    # the reference: the surface around the component, between SEEN_INNER and SEEN_WINDOW
+    # spacings from its points (the deep points at a defect's rim have lost the neighbours
+    # inside it: their distances are larger; beyond the window a point's neighbours are cut off)
+    r, _ = cKDTree(points[members]).query(points[deep], k=1,
+                                          distance_upper_bound=SEEN_WINDOW * spacing)
+    ring = deep[np.isfinite(r) & (r >= SEEN_INNER * spacing)]
+    if ring.size < SEEN_K + 1:
+        return 0.0
+    own = _kth_same_side(dtree, normals[deep], points[ring], normals[ring], SEEN_K, True)
+    own = own[np.isfinite(own)]
+    if own.size < SEEN_K + 1:
+        return 0.0
+    ref = float(np.quantile(own, SEEN_QUANTILE))
+    at = _kth_same_side(dtree, normals[deep], points[sample], normals[sample], SEEN_K, False)
+    return float(np.mean(at <= ref))

@@ -67,7 +67,7 @@ from .._renamed import grouped_keywords
 from ._cluster_kernels import component_labels
 from ._grid_kernels import any_within, kernel_array, kernel_sums, mark_within, nearest_other
 from .region_measures import (CELL_BOUND, MAX_PEAK_RADIUS, fitted_peak, local_noise,
-                              nanmedian_rows, out_area, seen_under)
+                              nanmedian_rows, out_area, seen_around, seen_under)
 
 logger = logging.getLogger(__name__)
 
@@ -390,9 +390,16 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
             for k, c in enumerate(keep):
                 if not layer[k]:
                     at = labels == c
+                    up_c = bool(core_up[at][0])
                     layer[k] = seen_under(tree, ev_idx, values, normals, points, core[at],
-                                          bool(core_up[at][0]), lo_lim, hi_lim,
-                                          spacing) >= SEEN_SHARE
+                                          up_c, lo_lim, hi_lim, spacing) >= SEEN_SHARE
+                if not layer[k]:
+                    # its out-of-tolerance points (those the region would hold)
+                    side = out_idx[(values[out_idx] > 0) == up_c]
+                    d, _ = cKDTree(pc[at]).query(points[side], k=1, distance_upper_bound=link)
+                    layer[k] = seen_around(tree, ev_idx, values, normals, points,
+                                           side[np.isfinite(d)], up_c, lo_lim, hi_lim,
+                                           spacing) >= SEEN_SHARE
             n_layer_comp = keep[layer]
             keep = keep[~layer]
         if keep.size:
