@@ -101,19 +101,21 @@ def out_area(tree, ev_idx, points, normals, g, q, spacing):
 
 def _neighbour_table(tree, ev_idx, p, radius):
     """(len(p), k) int64: the scan indices ``ev_idx[j]`` of the tree's points within ``radius``
-    of each row of ``p``, ascending along each row, padded with -1 (k: the most found, at least 1)."""
-    lists = tree.query_ball_point(p, radius)
-    lens = np.fromiter((len(x) for x in lists), np.int64, len(lists))
-    k = max(1, int(lens.max(initial=0)))
+    of each row of ``p``, ascending along each row, padded with -1 (k: the most found, at least 1).
+
+    One padded k-nearest query (the same points as ``query_ball_point``: distance <= radius)
+    sorted by row: no Python lists of neighbours."""
+    lens = tree.query_ball_point(p, radius, return_length=True)
+    k = max(1, int(np.max(lens, initial=0)))
     nb = np.full((p.shape[0], k), -1, np.int64)
-    if lens.sum() == 0:
+    if p.shape[0] == 0 or int(np.sum(lens)) == 0:
         return nb
-    flat = ev_idx[np.concatenate([np.asarray(x, np.int64) for x in lists])]
-    row = np.repeat(np.arange(p.shape[0]), lens)
-    order = np.lexsort((flat, row))
-    col = np.arange(flat.size) - np.repeat(np.cumsum(lens) - lens, lens)
-    nb[row, col] = flat[order]
-    return nb
+    d, j = tree.query(p, k=k, distance_upper_bound=np.nextafter(radius, np.inf))
+    d, j = d.reshape(p.shape[0], k), j.reshape(p.shape[0], k)
+    big = np.iinfo(np.int64).max
+    v = np.where(d <= radius, ev_idx[np.minimum(j, ev_idx.size - 1)], big)
+    v.sort(axis=1)
+    return np.where(v == big, -1, v)
 
 
 def nanmedian_rows(a: np.ndarray) -> np.ndarray:
@@ -396,6 +398,8 @@ SEEN_SAME_SIDE = 0.5
 #: ``SEEN_REACH`` spacings farther.
 SEEN_INNER = 2.0
 SEEN_REACH = 1.5
+#: Most reference points (evenly spread over their order).
+SEEN_RING = 256
 
 
 def _kth_same_side(dtree, deep_n, p, p_n, k, skip_self):
@@ -459,6 +463,7 @@ def seen_around(tree, ev_idx, values, normals, points, members, above, lo_lim, h
     ring = deep[np.isfinite(r) & (r >= SEEN_INNER * spacing)]
     if ring.size < SEEN_K + 1:
         return 0.0
+    ring = ring[np.linspace(0, ring.size - 1, min(ring.size, SEEN_RING)).astype(np.int64)]
     own = _kth_same_side(dtree, normals[deep], points[ring], normals[ring], SEEN_K, True)
     own = own[np.isfinite(own)]
     if own.size < SEEN_K + 1:

@@ -65,7 +65,8 @@ from shapeverify._lazy import cKDTree
 from .._arrays import bounds
 from .._renamed import grouped_keywords
 from ._cluster_kernels import component_labels
-from ._grid_kernels import any_within, kernel_array, kernel_sums, mark_within, nearest_other
+from ._grid_kernels import (any_within, count_within, kernel_array, kernel_sums, mark_within,
+                            nearest_other)
 from .region_measures import (CELL_BOUND, MAX_PEAK_RADIUS, fitted_peak, local_noise,
                               nanmedian_rows, out_area, seen_around, seen_under)
 
@@ -350,15 +351,15 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
     # (a point farther off has no out-of-tolerance neighbour: its median cannot be beyond).
     p_out = points[out_idx]
     uniform = _uniform_limits(values, ev_idx, out_idx, lo_lim, hi_lim)
-    d1, _ = cKDTree(p_out).query(tree.data, k=2 if uniform else 1,
-                                 distance_upper_bound=MEDIAN_RADIUS * spacing)
-    d1 = d1.reshape(tree.data.shape[0], -1)
-    near = np.isfinite(d1[:, 0])
+    n_out = np.empty(tree.data.shape[0], np.int64)         # (a grid: no tree of p_out)
+    count_within(kernel_array(p_out), kernel_array(tree.data), float(MEDIAN_RADIUS * spacing),
+                 2 if uniform else 1, n_out)
+    near = n_out >= 1
     if uniform and out_idx.size >= 2:
         # a median of 3 or more values lies beyond a limit only when 2 of them do: an
         # in-tolerance point with a single out-of-tolerance point around cannot be core (the same
         # answers without the medians of the points around isolated outliers)
-        near &= np.isfinite(d1[:, 1]) | ~within[ev_idx]
+        near &= (n_out >= 2) | ~within[ev_idx]
     cand = np.sort(ev_idx[near])
     med = neighbourhood_median(tree, ev_idx, values, points[cand], MEDIAN_RADIUS * spacing)
     with np.errstate(invalid="ignore"):
