@@ -398,8 +398,22 @@ SEEN_SAME_SIDE = 0.5
 #: ``SEEN_REACH`` spacings farther.
 SEEN_INNER = 2.0
 SEEN_REACH = 1.5
-#: Most reference points (evenly spread over their order).
+#: Most reference points (evenly spread over their order), and fewest.
 SEEN_RING = 256
+SEEN_MIN_RING = 16
+#: The reference surface is taken no sparser than this many times the scan's spacing: a guard
+#: against a reference of a few scattered points (the normal case reads 1-1.4 x the scan's
+#: spacing: a thin wall's two sides halve the area per point the spacing is measured as, and a
+#: random sample's local density varies; a degenerate one 3 x or more).
+SEEN_RING_SPARSEST = 2.0
+
+
+def _poisson_kth(k, q) -> float:
+    """The ``q`` quantile of the distance to the ``k``-th nearest point of a random (Poisson)
+    sample of one point per unit area (``pi r^2`` is Gamma(k) distributed)."""
+    from scipy.special import gammaincinv
+
+    return float(np.sqrt(gammaincinv(k, q) / np.pi))
 
 
 def _kth_same_side(dtree, deep_n, p, p_n, k, skip_self):
@@ -466,8 +480,12 @@ def seen_around(tree, ev_idx, values, normals, points, members, above, lo_lim, h
     ring = ring[np.linspace(0, ring.size - 1, min(ring.size, SEEN_RING)).astype(np.int64)]
     own = _kth_same_side(dtree, normals[deep], points[ring], normals[ring], SEEN_K, True)
     own = own[np.isfinite(own)]
-    if own.size < SEEN_K + 1:
-        return 0.0
-    ref = float(np.quantile(own, SEEN_QUANTILE))
+    if own.size < SEEN_MIN_RING:
+        return 0.0                  # no surface sampled around: nothing says it is seen under
+    # no farther than that distance on a random sample SEEN_RING_SPARSEST times sparser than
+    # the scan (a few deep points scattered around a large defect are no surface: 8 of them 3-5
+    # spacings outside a dent 30 spacings across once made it a 'layer')
+    ref = min(float(np.quantile(own, SEEN_QUANTILE)), _poisson_kth(SEEN_K, SEEN_QUANTILE)
+              * SEEN_RING_SPARSEST * spacing)
     at = _kth_same_side(dtree, normals[deep], points[sample], normals[sample], SEEN_K, False)
     return float(np.mean(at <= ref))
