@@ -26,7 +26,10 @@ surface): its points are outliers too (``Outliers.n_layer``).  The surface is se
 over) a component when half of its core points or more lie inside ordinary triangles of the
 deep-in-tolerance points around (:func:`.region_measures.seen_under`, an alpha shape: a sparse
 reflection crossing a blade crowded into a 6-point "region" with the blade's good surface all
-around and between its points), or when it is dense and two-layered (:func:`_over_measured_surface`).
+around and between its points), or when it is dense and two-layered (:func:`_over_measured_surface`),
+or when half of its out-of-tolerance points have the in-tolerance surface around them as densely
+as the surface's own points have it (:func:`.region_measures.seen_around`: a layer's core points
+are those in the sampling holes of the surface under it, so the test takes all its points).
 
 For each region:
 
