@@ -60,8 +60,11 @@ def _capture(prep, P, T, tol, out: Path):
     finally:
         mod.find_regions = orig
     a, k = cap["a"], cap["k"]
+    search = k.get("search")         # RegionSearch since a35b7a6; loose keywords before
+    min_points = search.min_points if search is not None else k["min_points"]
+    spacing = search.spacing if search is not None else k["spacing"]
     np.savez(out, points=a[0], values=a[1], evaluated=a[2], within=a[3], face=a[4], normals=a[5],
-             min_points=k["min_points"], spacing=k["spacing"], lo=k["limits"][0], hi=k["limits"][1])
+             min_points=min_points, spacing=spacing, lo=k["limits"][0], hi=k["limits"][1])
 
 
 def make(folder: Path):
@@ -88,12 +91,15 @@ def make(folder: Path):
 
 
 def call(f):
-    from shapeverify.inspection.regions import RegionSearch, find_regions
+    from shapeverify.inspection import regions
 
-    return find_regions(f["points"], f["values"], f["evaluated"], f["within"], f["face"],
-                        f["normals"], None, limits=(f["lo"], f["hi"]),
-                        search=RegionSearch(min_points=int(f["min_points"]),
-                                            spacing=float(f["spacing"])))
+    args = (f["points"], f["values"], f["evaluated"], f["within"], f["face"], f["normals"], None)
+    if not hasattr(regions, "RegionSearch"):             # versions before a35b7a6
+        return regions.find_regions(*args, limits=(f["lo"], f["hi"]),
+                                    min_points=int(f["min_points"]), spacing=float(f["spacing"]))
+    return regions.find_regions(*args, limits=(f["lo"], f["hi"]),
+                                search=regions.RegionSearch(min_points=int(f["min_points"]),
+                                                            spacing=float(f["spacing"])))
 
 
 def digest(regions, outliers) -> str:

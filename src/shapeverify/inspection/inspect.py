@@ -427,7 +427,7 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
         limits=tol.limits(dev.face),
         search=RegionSearch(min_points=opts.min_region_points, spacing=spacing))
     beside = beside_surface(dev)                    # material and floating surfaces share it
-    material = find_material(dev, spacing, tol.upper, beside=beside)
+    material = find_material(dev, spacing, tol.upper, beside=beside, outliers=outliers.indices)
     # CAD surface the scan sees through (issue 33 row 3): regions of kind "missing"
     missing = find_missing(prep, dev, spacing, within, tol, faces=opts.faces) \
         if opts.missing else []

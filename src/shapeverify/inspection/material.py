@@ -23,8 +23,10 @@ The rule (all distances in mm, ``s`` = the scan's spacing on the part as area pe
    smooth kernel within ``DENSE_RADIUS x s``, is at most ``SPARSE_AREA x s^2``: a surface sampled
    like the part, not scattered outliers), and
    **joins the part without a step**, attached along a rim (at least 3 and a tenth of its points
-   within ``ATTACH_RADIUS x s`` of an evaluated scan point: a sheet beside an edge touching the
-   part at a point or two is a reflection); its points within ``LINK_FACTOR x s`` of an
+   within ``ATTACH_RADIUS x s`` of an evaluated scan point that is not a measurement outlier:
+   a sheet beside an edge touching the part at a point or two is a reflection, and so is a
+   sheet whose only neighbours are its own out-of-tolerance points that reach within the
+   evaluation distance of a face); its points within ``LINK_FACTOR x s`` of an
    evaluated scan point continue that point's surface (median slope ``|offset along the CAD normal| / |offset
    along the surface|`` at most ``MAX_JOIN_SLOPE``, about 30 degrees).  Material that was never
    removed continues the part; a surface floating over it with a step at its rim -- a
@@ -65,7 +67,8 @@ MAX_NORMAL_SHARE = 0.5
 
 
 def find_material(dev, spacing: float, upper_limit: float,
-                  min_points: int = MIN_MATERIAL_POINTS, *, beside=None) -> list[DefectRegion]:
+                  min_points: int = MIN_MATERIAL_POINTS, *, beside=None,
+                  outliers=None) -> list[DefectRegion]:
     """Material regions of an inspection (see the module docstring).
 
     Parameters
@@ -79,6 +82,9 @@ def find_material(dev, spacing: float, upper_limit: float,
         Fewest too-far points of a region.
     beside : ((N,) bool, (N,) float64), optional
         :func:`beside_surface` of ``dev``, when the caller has it (it is computed otherwise).
+    outliers : (k,) int, optional
+        Scan indices of the evaluated points that are measurement outliers
+        (:class:`.regions.Outliers` ``.indices``): material does not join the part through them.
 
     Returns
     -------
@@ -106,7 +112,16 @@ def find_material(dev, spacing: float, upper_limit: float,
     comps = np.flatnonzero(n_far >= min_points)
     if comps.size == 0:
         return []
-    ev_idx = np.flatnonzero(dev.evaluated)
+    # the part's measured surface: evaluated points that are not measurement outliers (a
+    # reflection's sheet reaching within the evaluation distance of a face is evaluated, out of
+    # tolerance and outliers; its part beyond the evaluation distance is attached to that
+    # part of itself, not to the part)
+    part = dev.evaluated.copy()
+    if outliers is not None:
+        part[np.asarray(outliers, np.int64)] = False
+    ev_idx = np.flatnonzero(part)
+    if ev_idx.size == 0:
+        return []
     ev_tree = cKDTree(dev.points_model[ev_idx])
     r_area = 2.0 * spacing
     out = []

@@ -102,19 +102,21 @@ def out_area(tree, ev_idx, points, normals, g, q, spacing):
 
 def _neighbour_table(tree, ev_idx, p, radius):
     """(len(p), k) int64: the scan indices ``ev_idx[j]`` of the tree's points within ``radius``
-    of each row of ``p``, ascending along each row, padded with -1 (k: the most found, at least 1)."""
-    lists = tree.query_ball_point(p, radius)
-    lens = np.fromiter((len(x) for x in lists), np.int64, len(lists))
-    k = max(1, int(lens.max(initial=0)))
+    of each row of ``p``, ascending along each row, padded with -1 (k: the most found, at least 1).
+
+    One padded k-nearest query (the same points as ``query_ball_point``: distance <= radius)
+    sorted by row: no Python lists of neighbours."""
+    lens = tree.query_ball_point(p, radius, return_length=True)
+    k = max(1, int(np.max(lens, initial=0)))
     nb = np.full((p.shape[0], k), -1, np.int64)
-    if lens.sum() == 0:
+    if p.shape[0] == 0 or int(np.sum(lens)) == 0:
         return nb
-    flat = ev_idx[np.concatenate([np.asarray(x, np.int64) for x in lists])]
-    row = np.repeat(np.arange(p.shape[0]), lens)
-    order = np.lexsort((flat, row))
-    col = np.arange(flat.size) - np.repeat(np.cumsum(lens) - lens, lens)
-    nb[row, col] = flat[order]
-    return nb
+    d, j = tree.query(p, k=k, distance_upper_bound=np.nextafter(radius, np.inf))
+    d, j = d.reshape(p.shape[0], k), j.reshape(p.shape[0], k)
+    big = np.iinfo(np.int64).max
+    v = np.where(d <= radius, ev_idx[np.minimum(j, ev_idx.size - 1)], big)
+    v.sort(axis=1)
+    return np.where(v == big, -1, v)
 
 
 def _slopes(x, y, r3, ok, g_nb, g0, radius):
@@ -368,3 +370,108 @@ def seen_under(tree, ev_idx, values, normals, points, core, above, lo_lim, hi_li
     at = _containing(Q2, tri.simplices, np.column_stack([_dot(X, e1[0]), _dot(X, e2[0])]))
     covered = (at >= 0) & (R[np.maximum(at, 0)] <= SEEN_ALPHA * s_deep)
     return float(np.mean(covered))
+
+
+#: The surface is seen around a point when its ``SEEN_K``-th nearest deep-in-tolerance point (of
+#: the same side of the part) is no farther than the ``SEEN_QUANTILE`` quantile of that distance
+#: among the deep points themselves.
+SEEN_K = 3
+SEEN_QUANTILE = 0.75
+#: Normals within this cosine count as the same side of the part (60 degrees).
+SEEN_SAME_SIDE = 0.5
+#: The reference distances are those of the deep points between ``SEEN_INNER`` and
+#: ``SEEN_WINDOW`` spacings from the component's points; their neighbours are looked for
+#: ``SEEN_REACH`` spacings farther.
+SEEN_INNER = 2.0
+SEEN_REACH = 1.5
+#: Most reference points (evenly spread over their order), and fewest.
+SEEN_RING = 256
+SEEN_MIN_RING = 16
+#: The reference surface is taken no sparser than this many times the scan's spacing: a guard
+#: against a reference of a few scattered points (the normal case reads 1-1.4 x the scan's
+#: spacing: a thin wall's two sides halve the area per point the spacing is measured as, and a
+#: random sample's local density varies; a degenerate one 3 x or more).
+SEEN_RING_SPARSEST = 2.0
+
+
+def _poisson_kth(k, q) -> float:
+    """The ``q`` quantile of the distance to the ``k``-th nearest point of a random (Poisson)
+    sample of one point per unit area (``pi r^2`` is Gamma(k) distributed)."""
+    from scipy.special import gammaincinv
+
+    return float(np.sqrt(gammaincinv(k, q) / np.pi))
+
+
+def _kth_same_side(dtree, deep_n, p, p_n, k, skip_self):
+    """Distance from each ``p`` to its ``k``-th nearest point of ``dtree`` whose normal
+    ``deep_n`` is within 60 degrees of ``p_n`` (inf when there are fewer)."""
+    kk = min(dtree.n, 4 * k + 4 + int(skip_self))
+    d, j = dtree.query(p, k=kk)
+    d, j = d.reshape(len(p), kk), j.reshape(len(p), kk)
+    jj = np.minimum(j, dtree.n - 1)
+    ok = np.isfinite(d) & (np.einsum("ijk,ik->ij", deep_n[jj], p_n) > SEEN_SAME_SIDE)
+    if skip_self:
+        ok[:, 0] = False                                  # the point itself (distance 0)
+    rank = np.cumsum(ok, axis=1)
+    hit = ok & (rank == k)
+    return np.where(hit.any(axis=1), d[np.arange(len(p)), np.argmax(hit, axis=1)], np.inf)
+
+
+def seen_around(tree, ev_idx, values, normals, points, members, above, lo_lim, hi_lim,
+                spacing) -> float:
+    """Share of a component's out-of-tolerance points ``members`` (scan indices, all on one
+    side: ``above``) among which the part's in-tolerance surface is measured as densely as it is
+    among its own points.
+
+    A reflection, ghost or misplaced second view lies over good surface: the surface is sampled
+    *under* it, independently of where the layer's points fall, so the distance from a layer
+    point to its ``SEEN_K``-th nearest deep-in-tolerance point (``|d|`` at most half the limit;
+    on the same side of the part: normal within 60 degrees of the point's own, which keeps the
+    test on a curved face, at an edge and on both sides of a thin blade) is distributed like
+    that distance among the deep points themselves (for a random sample exactly so): about
+    ``SEEN_QUANTILE`` of the layer's points are within that quantile of it.  A real defect
+    replaces the surface: the deep points lie beyond its rim and the band where ``|d|`` climbs
+    from half the limit to the limit, so a point inside it is farther from its ``SEEN_K``-th
+    deep point than a deep point is (a point at a rim of random samples sees a half plane: about
+    0.3 of them are within the quantile, the interior none).  The reference is the local
+    sampling itself (any density, random, lattice or rows, a doubled exposure): no spacing is
+    assumed.  The test takes the component's out-of-tolerance points, not its core points: a
+    layer point close to the surface's own points has an in-tolerance neighbourhood median, so
+    the core points of a layer are those in the surface's sampling holes.  At most
+    ``SEEN_SAMPLE`` points are tested (evenly spread over their order).
+    """
+    members = np.asarray(members)
+    members = members[values[members] > hi_lim[members]] if above else \
+        members[values[members] < lo_lim[members]]
+    if members.size == 0:
+        return 0.0
+    sample = members[np.linspace(0, members.size - 1,
+                                 min(members.size, SEEN_SAMPLE)).astype(np.int64)]
+    lists = tree.query_ball_point(points[sample], (SEEN_WINDOW + SEEN_REACH) * spacing)
+    w = np.unique(np.concatenate([np.asarray(x, np.int64) for x in lists]))
+    gi = ev_idx[w]
+    lim = np.abs(hi_lim[gi] if above else lo_lim[gi])
+    deep = gi[np.abs(values[gi]) <= 0.5 * lim]
+    if deep.size < 2 * SEEN_K + 2:
+        return 0.0
+    dtree = cKDTree(points[deep])
+    # the reference: the surface around the component, between SEEN_INNER and SEEN_WINDOW
+    # spacings from its points (the deep points at a defect's rim have lost the neighbours
+    # inside it: their distances are larger; beyond the window a point's neighbours are cut off)
+    r, _ = cKDTree(points[members]).query(points[deep], k=1,
+                                          distance_upper_bound=SEEN_WINDOW * spacing)
+    ring = deep[np.isfinite(r) & (r >= SEEN_INNER * spacing)]
+    if ring.size < SEEN_K + 1:
+        return 0.0
+    ring = ring[np.linspace(0, ring.size - 1, min(ring.size, SEEN_RING)).astype(np.int64)]
+    own = _kth_same_side(dtree, normals[deep], points[ring], normals[ring], SEEN_K, True)
+    own = own[np.isfinite(own)]
+    if own.size < SEEN_MIN_RING:
+        return 0.0                  # no surface sampled around: nothing says it is seen under
+    # no farther than that distance on a random sample SEEN_RING_SPARSEST times sparser than
+    # the scan (a few deep points scattered around a large defect are no surface: 8 of them 3-5
+    # spacings outside a dent 30 spacings across once made it a 'layer')
+    ref = min(float(np.quantile(own, SEEN_QUANTILE)), _poisson_kth(SEEN_K, SEEN_QUANTILE)
+              * SEEN_RING_SPARSEST * spacing)
+    at = _kth_same_side(dtree, normals[deep], points[sample], normals[sample], SEEN_K, False)
+    return float(np.mean(at <= ref))

@@ -26,7 +26,10 @@ surface): its points are outliers too (``Outliers.n_layer``).  The surface is se
 over) a component when half of its core points or more lie inside ordinary triangles of the
 deep-in-tolerance points around (:func:`.region_measures.seen_under`, an alpha shape: a sparse
 reflection crossing a blade crowded into a 6-point "region" with the blade's good surface all
-around and between its points), or when it is dense and two-layered (:func:`_over_measured_surface`).
+around and between its points), or when it is dense and two-layered (:func:`_over_measured_surface`),
+or when half of its out-of-tolerance points have the in-tolerance surface around them as densely
+as the surface's own points have it (:func:`.region_measures.seen_around`: a layer's core points
+are those in the sampling holes of the surface under it, so the test takes all its points).
 
 For each region:
 
@@ -65,11 +68,12 @@ from shapeverify._lazy import cKDTree
 from .._arrays import bounds
 from .._renamed import grouped_keywords
 from ._cluster_kernels import component_labels
-from ..measures._grid_kernels import any_within, kernel_array, kernel_sums, mark_within
+from ..measures._grid_kernels import (any_within, count_within, kernel_array, kernel_sums,
+                                      mark_within, nearest_other)
 from ..measures.spacing import (median_spacing, nanmedian_rows,  # noqa: F401 (re-exported)
                                 nearest_distances, neighbourhood_median)
 from .region_measures import (CELL_BOUND, MAX_PEAK_RADIUS, fitted_peak, local_noise, out_area,
-                              seen_under)
+                              seen_around, seen_under)
 
 logger = logging.getLogger(__name__)
 
@@ -308,15 +312,15 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
     # (a point farther off has no out-of-tolerance neighbour: its median cannot be beyond).
     p_out = points[out_idx]
     uniform = _uniform_limits(values, ev_idx, out_idx, lo_lim, hi_lim)
-    d1, _ = cKDTree(p_out).query(tree.data, k=2 if uniform else 1,
-                                 distance_upper_bound=MEDIAN_RADIUS * spacing)
-    d1 = d1.reshape(tree.data.shape[0], -1)
-    near = np.isfinite(d1[:, 0])
+    n_out = np.empty(tree.data.shape[0], np.int64)         # (a grid: no tree of p_out)
+    count_within(kernel_array(p_out), kernel_array(tree.data), float(MEDIAN_RADIUS * spacing),
+                 2 if uniform else 1, n_out)
+    near = n_out >= 1
     if uniform and out_idx.size >= 2:
         # a median of 3 or more values lies beyond a limit only when 2 of them do: an
         # in-tolerance point with a single out-of-tolerance point around cannot be core (the same
         # answers without the medians of the points around isolated outliers)
-        near &= np.isfinite(d1[:, 1]) | ~within[ev_idx]
+        near &= (n_out >= 2) | ~within[ev_idx]
     cand = np.sort(ev_idx[near])
     med = neighbourhood_median(tree, ev_idx, values, points[cand], MEDIAN_RADIUS * spacing)
     with np.errstate(invalid="ignore"):
@@ -348,9 +352,16 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
             for k, c in enumerate(keep):
                 if not layer[k]:
                     at = labels == c
+                    up_c = bool(core_up[at][0])
                     layer[k] = seen_under(tree, ev_idx, values, normals, points, core[at],
-                                          bool(core_up[at][0]), lo_lim, hi_lim,
-                                          spacing) >= SEEN_SHARE
+                                          up_c, lo_lim, hi_lim, spacing) >= SEEN_SHARE
+                if not layer[k]:
+                    # its out-of-tolerance points (those the region would hold)
+                    side = out_idx[(values[out_idx] > 0) == up_c]
+                    d, _ = cKDTree(pc[at]).query(points[side], k=1, distance_upper_bound=link)
+                    layer[k] = seen_around(tree, ev_idx, values, normals, points,
+                                           side[np.isfinite(d)], up_c, lo_lim, hi_lim,
+                                           spacing) >= SEEN_SHARE
             n_layer_comp = keep[layer]
             keep = keep[~layer]
         if keep.size:

@@ -241,3 +241,37 @@ def kernel_sums(ref, q, radius, out):
             u = 1.0 - t * t
             s += u * u
         out[i] = s
+
+
+@njit(cache=True, nogil=True)
+def count_within(ref, q, r, cap, out):
+    """``out[i]`` = how many rows of ``ref`` are closer than ``r`` to ``q[i]`` (strictly),
+    counted up to ``cap``: ``out[i] >= k`` (k <= cap) is ``np.isfinite(cKDTree(ref).query(q,
+    k=k, distance_upper_bound=r)[0][:, k - 1])``.
+
+    ref : (n, 3) float64, n >= 1; q : (m, 3) float64; r : float > 0; cap : int >= 1;
+    out : (m,) int64, written.
+    """
+    lo, dims, h, start, order, pts = _grid(ref, r * (1.0 + MARGIN))
+    ny, nz = dims[1], dims[2]
+    r2 = r * r
+    for i in range(q.shape[0]):
+        x, y, z = q[i, 0], q[i, 1], q[i, 2]
+        x0, x1, y0, y1, z0, z1 = _block(x, y, z, lo, dims, h)
+        n = 0
+        for ix in range(x0, x1 + 1):
+            for iy in range(y0, y1 + 1):
+                base = (ix * ny + iy) * nz
+                for j in range(start[base + z0], start[base + z1 + 1] if z1 >= z0 else 0):
+                    dx = x - pts[j, 0]
+                    dy = y - pts[j, 1]
+                    dz = z - pts[j, 2]
+                    if dx * dx + dy * dy + dz * dz < r2:
+                        n += 1
+                        if n >= cap:
+                            break
+                if n >= cap:
+                    break
+            if n >= cap:
+                break
+        out[i] = n
