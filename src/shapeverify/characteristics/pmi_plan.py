@@ -186,6 +186,9 @@ def _mm(x: float) -> float:
 
 def _src(item: dict) -> dict:
     out = {"kind": item["kind"], "type": item["type"], "id": item["id"]}
+    for key in ("attached", "attached2"):       # faces found from the edges it points at
+        if item.get(key):
+            out[key] = item[key]
     if item["kind"] == "geometric_tolerance":
         out["value"] = item["value"]
         if item["value_type"] != "None":
@@ -355,6 +358,8 @@ def _faces_ok(item, ctx, key="faces"):
     if any(f is None for f in faces):
         return None, "a face it names could not be imported (see the import's warnings)"
     if not faces:
+        if item.get("edge_reason"):
+            return None, item["edge_reason"]
         what = f"{item['other'][0]}s" if item.get("other") else "no shape"
         return None, f"it is attached to {what}, not to faces"
     return faces, ""
