@@ -64,6 +64,8 @@ ROWS = {
                   "lower": -0.1, "upper": 0.2}, "25.000 +0.2/−0.1"),
     "angle": ({"type": "angle", "faces": ["face:4", "face:5"], "nominal": 60.0, "lower": -0.5,
                "upper": 0.5}, "60.000° +0.5°/−0.5°"),
+    "line_profile": ({"type": "line_profile", "faces": ["face:3"], "tol": 0.25,
+                      "normal": [1.0, 0.0, 0.0], "datums": ["A", "B", "C"]}, "⌒|0.25|A|B|C"),
 }
 DATUMS = {k: {"faces": ["face:1"]} for k in "ABC"}
 

@@ -87,6 +87,8 @@ TYPES: tuple[CharacteristicType, ...] = (
                        "distance (planes)"),
     CharacteristicType("angle", schema.Angle, "gdt_size:eval_angle", False,
                        "angle (planes)", unit="deg"),
+    CharacteristicType("line_profile", schema.LineProfile, "profile_line:eval_line_profile",
+                       True, "profile of a line", "⌒"),
 )
 
 _BY_NAME = {t.name: t for t in TYPES}

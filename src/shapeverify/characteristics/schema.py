@@ -14,7 +14,7 @@ __all__ = ["Tol", "PmiSource", "Unsupported", "Vec3", "FeatureId", "FeatureRef",
            "SurfaceProfile", "Flatness", "Cylinder", "CheckPoint", "DatumSpec", "Straightness",
            "Circularity", "Cylindricity", "Parallelism", "Perpendicularity", "Angularity",
            "Position", "CircularRunout", "TotalRunout", "Width", "SizeLimits", "Distance",
-           "Angle"]
+           "Angle", "LineProfile"]
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 FeatureId = Annotated[str, Field(pattern=r"^(hole|face|cylinder|plane):\d+$")]
@@ -284,6 +284,28 @@ class Position(_Char):
         if self.material is not None and self.size is None:
             raise ValueError(f"material {self.material} needs size: {{lower, upper}} (the "
                              "diameter's limits of deviation) for the bonus tolerance")
+        return self
+
+
+class LineProfile(_Char):
+    """Profile of a line (:mod:`.profile_line`): the line elements of ``faces`` in sections
+    normal to ``normal`` (at ``sections`` mm along it, or ``count`` evenly spaced), each
+    sampled by the points within ``slab`` mm of its plane, within a zone of width ``tol``;
+    in the datum reference frame ``datums`` (none: the plan's alignment)."""
+
+    type: Literal["line_profile"]
+    faces: FaceList
+    tol: float = Field(gt=0)
+    normal: Vec3
+    sections: Optional[Annotated[list[float], Field(min_length=1)]] = None
+    count: int = Field(default=10, ge=1)
+    slab: float = Field(default=0.5, gt=0)
+    datums: Optional[DrfRef] = None
+
+    @model_validator(mode="after")
+    def _normal(self):
+        if not sum(x * x for x in self.normal) > 0:
+            raise ValueError("normal must be a non-zero vector (the section planes' normal)")
         return self
 
 
