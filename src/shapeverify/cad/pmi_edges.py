@@ -140,7 +140,44 @@ def edge_record(edge, index, edge_faces, faces) -> dict:
         from OCP.BRep import BRep_Tool
 
         rec["on_faces"] = _faces_on(e, faces, max(1e-4, 10 * BRep_Tool.Tolerance_s(e)))
+        if rec["on_faces"]:
+            n = _section_normal(np.asarray(rec["points"]), faces[rec["on_faces"][0]])
+            if n is not None:
+                rec["section_normal"] = n.tolist()
     return rec
+
+
+def _section_normal(P: np.ndarray, face):
+    """The normal of the plane that holds the points of a line drawn on ``face`` and the face's
+    normal at its middle (the section of a profile of a line), or None when the points are
+    not on one straight line or the line runs along the normal."""
+    from OCP.BRep import BRep_Tool
+    from OCP.GeomAPI import GeomAPI_ProjectPointOnSurf
+    from OCP.GeomLProp import GeomLProp_SLProps
+    from OCP.gp import gp_Pnt
+
+    t = P[-1] - P[0]
+    L = float(np.linalg.norm(t))
+    if L == 0.0:
+        return None
+    t = t / L
+    q = P - P[0]
+    if float(np.linalg.norm(q - np.outer(q @ t, t), axis=1).max()) > 1e-6 * max(L, 1.0):
+        return None
+    surf = BRep_Tool.Surface_s(face)
+    mid = P[len(P) // 2]
+    proj = GeomAPI_ProjectPointOnSurf(gp_Pnt(*map(float, mid)), surf)
+    if proj.NbPoints() == 0:
+        return None
+    u, v = proj.LowerDistanceParameters()
+    props = GeomLProp_SLProps(surf, u, v, 1, 1e-9)
+    if not props.IsNormalDefined():
+        return None
+    fn = np.array(props.Normal().Coord())
+    n = np.cross(t, fn)
+    if float(np.linalg.norm(n)) < 1e-6:
+        return None
+    return n / np.linalg.norm(n)
 
 
 def _cylinder_wall(start: int, cyl, faces, edge_faces, index) -> list:

@@ -399,6 +399,10 @@ def _drf_reason(item, drf, why) -> str:
 def _tolerance(item, ctx, drf, why) -> tuple[list, str]:
     """(plan characteristics, '') or ([], reason)."""
     t = item["type"]
+    if t == "ProfileOfLine":
+        from .pmi_profile_line import line_profile_entries
+
+        return line_profile_entries(item, ctx, drf, why, _src(item))
     faces, reason = _faces_ok(item, ctx)
     if faces is None:
         return [], reason
