@@ -66,6 +66,8 @@ ROWS = {
                "upper": 0.5}, "60.000° +0.5°/−0.5°"),
     "line_profile": ({"type": "line_profile", "faces": ["face:3"], "tol": 0.25,
                       "normal": [1.0, 0.0, 0.0], "datums": ["A", "B", "C"]}, "⌒|0.25|A|B|C"),
+    "position_zone": ({"type": "position_zone", "faces": ["face:3", "face:4"], "tol": 0.635,
+                       "zone": "sphere", "datums": ["A", "B"]}, "⌖|SØ0.635|A|B"),
 }
 DATUMS = {k: {"faces": ["face:1"]} for k in "ABC"}
 

@@ -89,6 +89,9 @@ TYPES: tuple[CharacteristicType, ...] = (
                        "angle (planes)", unit="deg"),
     CharacteristicType("line_profile", schema.LineProfile, "profile_line:eval_line_profile",
                        True, "profile of a line", "⌒"),
+    CharacteristicType("position_zone", schema.PositionZone,
+                       "position_zones:eval_position_zone", True, "position (planes, sphere)",
+                       "⌖"),
 )
 
 _BY_NAME = {t.name: t for t in TYPES}

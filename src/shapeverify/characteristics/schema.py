@@ -14,7 +14,7 @@ __all__ = ["Tol", "PmiSource", "Unsupported", "Vec3", "FeatureId", "FeatureRef",
            "SurfaceProfile", "Flatness", "Cylinder", "CheckPoint", "DatumSpec", "Straightness",
            "Circularity", "Cylindricity", "Parallelism", "Perpendicularity", "Angularity",
            "Position", "CircularRunout", "TotalRunout", "Width", "SizeLimits", "Distance",
-           "Angle", "LineProfile"]
+           "Angle", "LineProfile", "PositionZone"]
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 FeatureId = Annotated[str, Field(pattern=r"^(hole|face|cylinder|plane):\d+$")]
@@ -307,6 +307,19 @@ class LineProfile(_Char):
         if not sum(x * x for x in self.normal) > 0:
             raise ValueError("normal must be a non-zero vector (the section planes' normal)")
         return self
+
+
+class PositionZone(_Char):
+    """Position in a zone of two parallel planes (``zone: planes``: the centre plane of the
+    width feature whose opposite planar sides are ``faces``) or a sphere (``zone: sphere``:
+    the centre of the sphere of ``faces``), of width/diameter ``tol``, in the datum reference
+    frame ``datums`` (none: the plan's alignment); :mod:`.position_zones`."""
+
+    type: Literal["position_zone"]
+    faces: FaceList
+    tol: float = Field(gt=0)
+    zone: Literal["planes", "sphere"]
+    datums: Optional[DrfRef] = None
 
 
 class _Runout(_Gdt):

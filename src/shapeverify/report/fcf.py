@@ -268,7 +268,7 @@ def _tolerance_frame(symbol, entry, result, part=None, tol=None) -> Frame:
                     or _default_zone(part or _get(entry, "type") or _get(result, "type"))).lower()
     if zone_kind in ("diameter",):
         zone.append(("text", "Ø"))
-    elif zone_kind in ("sphericaldiameter", "spherical_diameter"):
+    elif zone_kind in ("sphericaldiameter", "spherical_diameter", "sphere"):
         zone.append(("text", "SØ"))
     zone.append(("text", "–" if tol is None else _num(tol)))
     tokens, notes = [], []
