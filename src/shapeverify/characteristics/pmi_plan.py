@@ -439,6 +439,10 @@ def _tolerance(item, ctx, drf, why) -> tuple[list, str]:
     if t in ("Parallelism", "Perpendicularity", "Angularity"):
         return _orientation(item, ctx, faces, src)
     if t == "Position":
+        if item["value_type"] in ("None", "SphericalDiameter"):
+            from .pmi_positions import position_zone_entries
+
+            return position_zone_entries(item, ctx, faces, src)
         if item["material"] or (item["value_type"] == "Diameter"
                                 and item["zone_modifier"] == "None"
                                 and _drf_reason(item, drf, why)):
