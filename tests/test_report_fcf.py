@@ -68,6 +68,9 @@ ROWS = {
                       "normal": [1.0, 0.0, 0.0], "datums": ["A", "B", "C"]}, "⌒|0.25|A|B|C"),
     "position_zone": ({"type": "position_zone", "faces": ["face:3", "face:4"], "tol": 0.635,
                        "zone": "sphere", "datums": ["A", "B"]}, "⌖|SØ0.635|A|B"),
+    "feature_size": ({"type": "feature_size", "faces": ["face:3"], "shape": "sphere",
+                      "size": "radius", "lower": -0.508, "upper": 0.508, "nominal": 12.7},
+                     "SR12.700 +0.508/−0.508"),
 }
 DATUMS = {k: {"faces": ["face:1"]} for k in "ABC"}
 

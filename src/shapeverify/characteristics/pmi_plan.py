@@ -555,7 +555,15 @@ def _dimension(item, ctx) -> tuple[list, str]:
         from .pmi_dimensions import between_entries
 
         return between_entries(item, ctx, _src(item), ctx.name)
+    if t in ("Size_Radius", "Size_SphericalDiameter", "Size_SphericalRadius"):
+        from .pmi_sizes import size_entries
+
+        return size_entries(item, ctx, _src(item))
     if t != "Size_Diameter":
+        if t == "Location_None":
+            from .pmi_sizes import LOCATION_NONE_REASON
+
+            return [], LOCATION_NONE_REASON
         if t in ("DimensionPresentation", "CommonLabel"):
             return [], f"{t}: a presentation without a semantic value"
         return [], f"no plan characteristic for the dimension {t} yet (issue 28 item 3)"

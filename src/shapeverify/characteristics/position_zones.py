@@ -92,7 +92,6 @@ def eval_position_zone(c, ctx):
     """position_zone (module docstring)."""
     from .alignment import face_indices
     from .evaluate import _not_measured
-    from .features import model_features
     from .gdt import _datum_offsets, _frame_points, _result
     from .support import extreme_quantile
 
@@ -104,10 +103,7 @@ def eval_position_zone(c, ctx):
     F = np.asarray(ctx.S.face)[m]
     Ud = 2.0 * _datum_offsets(drf, ctx)
     if c.zone == "planes":
-        key = ("features",)
-        if key not in ctx.cache:
-            ctx.cache[key] = model_features(ctx.prep.model)
-        A, B, u, true, width, slot = width_sides(ctx.cache[key], fl)
+        A, B, u, true, width, slot = width_sides(ctx.feats, fl)
         inA, inB = np.isin(F, A), np.isin(F, B)
         if inA.sum() < 3 or inB.sum() < 3:
             return _not_measured(c, f"fewer than 3 scan points on a side (faces {A}: "

@@ -92,6 +92,8 @@ TYPES: tuple[CharacteristicType, ...] = (
     CharacteristicType("position_zone", schema.PositionZone,
                        "position_zones:eval_position_zone", True, "position (planes, sphere)",
                        "⌖"),
+    CharacteristicType("feature_size", schema.FeatureSize, "size_features:eval_feature_size",
+                       False, "size (radius, sphere)"),
 )
 
 _BY_NAME = {t.name: t for t in TYPES}

@@ -14,7 +14,8 @@ __all__ = ["Tol", "PmiSource", "Unsupported", "Vec3", "FeatureId", "FeatureRef",
            "SurfaceProfile", "Flatness", "Cylinder", "CheckPoint", "DatumSpec", "Straightness",
            "Circularity", "Cylindricity", "Parallelism", "Perpendicularity", "Angularity",
            "Position", "CircularRunout", "TotalRunout", "Width", "SizeLimits", "Distance",
-           "Angle", "LineProfile", "PositionZone"]
+           "Angle", "LineProfile", "PositionZone",
+           "FeatureSize"]
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 FeatureId = Annotated[str, Field(pattern=r"^(hole|face|cylinder|plane):\d+$")]
@@ -320,6 +321,26 @@ class PositionZone(_Char):
     tol: float = Field(gt=0)
     zone: Literal["planes", "sphere"]
     datums: Optional[DrfRef] = None
+
+
+class FeatureSize(_Char):
+    """Size (radius or diameter, ``size``) of a cylinder (coaxial faces of one radius) or a
+    sphere (``shape``) against ``lower``/``upper`` limits of deviation (mm) from the CAD's
+    size (``nominal``: the drawing's, for the report); :mod:`.size_features`."""
+
+    type: Literal["feature_size"]
+    faces: FaceList
+    shape: Literal["cylinder", "sphere"]
+    size: Literal["radius", "diameter"]
+    lower: float
+    upper: float
+    nominal: Optional[float] = Field(default=None, gt=0)
+
+    @model_validator(mode="after")
+    def _order(self):
+        if not self.lower < self.upper:
+            raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
+        return self
 
 
 class _Runout(_Gdt):
