@@ -121,3 +121,24 @@ def test_slot_side_moved_and_ball_moved_fail_their_positions_by_the_shift(slot_b
     assert s.measured == pytest.approx(0.4, abs=0.03)           # 2 x 0.2
     assert b.measured == pytest.approx(0.6, abs=0.03)           # 2 x 0.3
     assert abs(s.details["centre_offset"]) == pytest.approx(0.2, abs=0.015)
+
+
+def test_ball_size_passes_perfect_and_fails_grown_by_0_3_in_radius(slot_ball):
+    """feature_size (FTC 06 Size_SphericalDiameter) on the same part: SØ12 ±0.2."""
+    from shapeverify.characteristics import evaluate_plan
+
+    prep, feats, sides, ball, pts = slot_ball
+    P, N, F = np.asarray(pts.points), np.asarray(pts.normals), np.asarray(pts.face)
+    plan = {"alignment": {"type": "best_fit"}, "characteristics": [
+        {"name": "SD", "type": "feature_size", "faces": [f"face:{f}" for f in ball],
+         "shape": "sphere", "size": "diameter", "lower": -0.2, "upper": 0.2}]}
+    rng = np.random.default_rng(6)
+    X = P + rng.normal(0, 0.005, len(P))[:, None] * N
+    ok = evaluate_plan(prep, X, plan)["SD"]
+    assert ok.verdict == "pass" and ok.nominal == pytest.approx(12.0, abs=1e-6)
+    assert abs(ok.deviation) < 0.01
+    c = np.array([12.0, 20.0, 20.0])
+    on = np.isin(F, ball)
+    X[on] += 0.3 * (X[on] - c) / np.linalg.norm(X[on] - c, axis=1)[:, None]
+    bad = evaluate_plan(prep, X, plan)["SD"]
+    assert bad.verdict == "fail" and bad.deviation == pytest.approx(0.6, abs=0.02)
