@@ -431,3 +431,25 @@ def test_a_characteristic_not_measured_still_shows_the_drawings_frame():
     assert F.fcf_text(unmeasured(width), width) == "+0.2/−0.1"
     cyl = _entry("cylinder")
     assert F.fcf_text(unmeasured(cyl), cyl) == "Ø +0.05/−0.05"
+
+
+def test_history_characteristic_table_shows_the_feature_control_frame(tmp_path):
+    """``history --characteristic`` prints the series' latest frame (issue 28 item 4)."""
+    from types import SimpleNamespace
+
+    from typer.testing import CliRunner
+
+    from shapeverify.characteristics.spc import store_characteristics
+    from shapeverify.cli import app
+
+    plan = load_plan({"datums": DATUMS, "characteristics": [
+        {"name": "LP", **ROWS["line_profile"][0]}]})
+    db = tmp_path / "h.sqlite"
+    for i, fr in enumerate((0.2, 0.4, 0.3)):
+        chars = tuple(synthetic_result(c, fr) for c in plan.characteristics)
+        store_characteristics(db, SimpleNamespace(characteristics=chars, plan=plan),
+                              part=f"P{i}", time=f"2026-12-01T10:0{i}:00")
+    r = CliRunner().invoke(app, ["history", "--db", str(db), "--characteristic", "LP"],
+                           env={"COLUMNS": "200"})
+    assert r.exit_code == 0, r.output
+    assert ROWS["line_profile"][1] in r.output

@@ -77,18 +77,20 @@ def print_characteristic_history(db: Path, characteristic: str, part: Optional[s
     except KeyError as exc:
         _fail(str(exc.args[0]))
     t = Table(title=f"{characteristic}: {len(rows)} values (mm)")
-    for col in ("series", "n", "mean", "Cp", "Cpk", "Pp", "Ppk", "note"):
+    for col in ("series", "frame", "n", "mean", "Cp", "Cpk", "Pp", "Ppk", "note"):
         t.add_column(col)
     for name in sorted({r["name"] for r in rows}):
         rs = [r for r in rows if r["name"] == name]
         vals = [r["value"] for r in rs if r["value"] is not None]
+        frame = Text(rs[-1].get("fcf") or "-")     # the latest feature control frame (issue 28)
         if len(vals) < 2:
-            t.add_row(name, str(len(vals)), "-", "-", "-", "-", "-", "fewer than 2 values")
+            t.add_row(name, frame, str(len(vals)), "-", "-", "-", "-", "-",
+                      "fewer than 2 values")
             continue
         cap = capability(vals, rs[-1]["lower"], rs[-1]["upper"])
         f = (lambda v: "-" if v is None else f"{v:.2f}")
-        t.add_row(name, str(cap.n), f"{cap.mean:+.4f}", f(cap.cp), f(cap.cpk), f(cap.pp),
-                  f(cap.ppk), Text(cap.message, style="yellow") if cap.too_few else "")
+        t.add_row(name, frame, str(cap.n), f"{cap.mean:+.4f}", f(cap.cp), f(cap.cpk),
+                  f(cap.pp), f(cap.ppk), Text(cap.message, style="yellow") if cap.too_few else "")
     out.print(t)
     if plot is not None:
         plot_run_chart(rows, plot)
