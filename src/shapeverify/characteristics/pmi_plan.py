@@ -25,7 +25,17 @@ Location_LinearDistance with ± limits      ``distance`` (:mod:`.pmi_dimensions`
 between two parallel planar faces
 Location_Angular with ± limits between     ``angle``
 two planar faces
+Position without ⌀ on a slot's / tab's two ``position_zone`` ``zone: planes``
+sides; with S⌀ on spheres                  (``zone: sphere``, one per sphere)
+                                           (:mod:`.pmi_positions`)
+ProfileOfLine at a line drawn on a face    ``line_profile`` (:mod:`.pmi_profile_line`)
+Size_Radius, Size_SphericalDiameter,       ``feature_size`` (:mod:`.pmi_sizes`)
+Size_SphericalRadius with ± limits
 =========================================  ===============================================
+
+An item attached to an edge rather than a face (NIST CTC 02: a hole's rim circle) is mapped to
+the feature the edge bounds by the PMI reader (:mod:`shapeverify.cad.pmi_edges`); its entry's
+``pmi.attached`` says so.
 
 A hole is named as ``shapeverify info --features`` names it (``hole:k``: the inner trim loop
 on the cylinder's axis, with its diameter).  Every entry carries ``pmi: {kind, type, id, ...}``;
@@ -34,10 +44,10 @@ item the plan does not check is listed in ``unsupported`` with the reason, so ea
 tolerance of the file appears exactly once: in ``characteristics`` or in ``unsupported``.
 
 Not expressed yet (each such item says why in ``unsupported``): orientation, runout, form
-other than flatness, profile of a line, location dimensions; positions with a material
+other than flatness, location dimensions other than between two planes; positions with a material
 modifier (no bonus tolerance), a zone without a diameter symbol, or datum modifiers;
 tolerances in a datum reference frame other than the plan's one alignment; datums set up from
-datum targets, from edges, or from several faces (a width's centre plane, a pattern); datum
+datum targets, from edges that bound no cylinder, or from several faces (a width's centre plane, a pattern); datum
 features that OpenCASCADE's XCAF reader leaves without a shape (NIST CTC 01's B and C, which
 the file ties to their faces by ``ITEM_IDENTIFIED_REPRESENTATION_USAGE``).
 
