@@ -64,6 +64,13 @@ ROWS = {
                   "lower": -0.1, "upper": 0.2}, "25.000 +0.2/−0.1"),
     "angle": ({"type": "angle", "faces": ["face:4", "face:5"], "nominal": 60.0, "lower": -0.5,
                "upper": 0.5}, "60.000° +0.5°/−0.5°"),
+    "line_profile": ({"type": "line_profile", "faces": ["face:3"], "tol": 0.25,
+                      "normal": [1.0, 0.0, 0.0], "datums": ["A", "B", "C"]}, "⌒|0.25|A|B|C"),
+    "position_zone": ({"type": "position_zone", "faces": ["face:3", "face:4"], "tol": 0.635,
+                       "zone": "sphere", "datums": ["A", "B"]}, "⌖|SØ0.635|A|B"),
+    "feature_size": ({"type": "feature_size", "faces": ["face:3"], "shape": "sphere",
+                      "size": "radius", "lower": -0.508, "upper": 0.508, "nominal": 12.7},
+                     "SR12.700 +0.508/−0.508"),
 }
 DATUMS = {k: {"faces": ["face:1"]} for k in "ABC"}
 
@@ -424,3 +431,25 @@ def test_a_characteristic_not_measured_still_shows_the_drawings_frame():
     assert F.fcf_text(unmeasured(width), width) == "+0.2/−0.1"
     cyl = _entry("cylinder")
     assert F.fcf_text(unmeasured(cyl), cyl) == "Ø +0.05/−0.05"
+
+
+def test_history_characteristic_table_shows_the_feature_control_frame(tmp_path):
+    """``history --characteristic`` prints the series' latest frame (issue 28 item 4)."""
+    from types import SimpleNamespace
+
+    from typer.testing import CliRunner
+
+    from shapeverify.characteristics.spc import store_characteristics
+    from shapeverify.cli import app
+
+    plan = load_plan({"datums": DATUMS, "characteristics": [
+        {"name": "LP", **ROWS["line_profile"][0]}]})
+    db = tmp_path / "h.sqlite"
+    for i, fr in enumerate((0.2, 0.4, 0.3)):
+        chars = tuple(synthetic_result(c, fr) for c in plan.characteristics)
+        store_characteristics(db, SimpleNamespace(characteristics=chars, plan=plan),
+                              part=f"P{i}", time=f"2026-12-01T10:0{i}:00")
+    r = CliRunner().invoke(app, ["history", "--db", str(db), "--characteristic", "LP"],
+                           env={"COLUMNS": "200"})
+    assert r.exit_code == 0, r.output
+    assert ROWS["line_profile"][1] in r.output

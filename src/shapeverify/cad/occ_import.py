@@ -241,13 +241,50 @@ def _to_bspline_face(face, index: int, path: Path):
     surf = BRep_Tool.Surface_s(face)
     if isinstance(surf, Geom_BSplineSurface):
         return face, surf, None
-    conv = BRepBuilderAPI_NurbsConvert(face, True)
-    work = TopoDS.Face(conv.Shape())
+    try:
+        conv = BRepBuilderAPI_NurbsConvert(face, True)
+        work = TopoDS.Face(conv.Shape())
+    except Exception as exc:  # noqa: BLE001 - OpenCASCADE raises Standard_Failure & co.
+        basis = _trimmed_bspline_basis(surf)
+        if basis is None:
+            raise
+        # NIST CTC02 faces 35 and 361: a Geom_RectangularTrimmedSurface over a U-periodic
+        # B-spline, trimmed from u = -1.8e-15 (a hair before the period's start);
+        # BRepBuilderAPI_NurbsConvert raises Standard_OutOfRange (NCollection_Array1::at) on it.
+        # The trimmed surface shares its basis's parametrisation, so the face's own pcurves
+        # and the basis B-spline describe the face exactly, without a conversion.
+        logger.info("%s: face %d: BRepBuilderAPI_NurbsConvert failed (%s: %s); using the "
+                    "B-spline basis of its trimmed surface", path, index,
+                    type(exc).__name__, exc)
+        return face, basis, None
     surf = BRep_Tool.Surface_s(work)
     if not isinstance(surf, Geom_BSplineSurface):
         raise CADImportError(f"{path}: face {index} ({type(surf).__name__}) could not be "
                              "converted to a B-spline surface")
     return work, surf, conv
+
+
+def _trimmed_bspline_basis(surf):
+    """The Geom_BSplineSurface under a (nested) Geom_RectangularTrimmedSurface, cut to the trim's
+    range where that range lies strictly inside a non-periodic direction, else None."""
+    from OCP.Geom import Geom_BSplineSurface, Geom_RectangularTrimmedSurface
+
+    trims = []
+    while isinstance(surf, Geom_RectangularTrimmedSurface):
+        trims.append(surf.Bounds())
+        surf = surf.BasisSurface()
+    if not trims or not isinstance(surf, Geom_BSplineSurface):
+        return None
+    basis = surf.Copy()
+    u0, u1, v0, v1 = basis.Bounds()
+    a0, a1, b0, b1 = trims[-1]
+    tol_u, tol_v = 1e-9 * max(1.0, u1 - u0), 1e-9 * max(1.0, v1 - v0)
+    cut_u = not basis.IsUPeriodic() and (a0 > u0 + tol_u or a1 < u1 - tol_u)
+    cut_v = not basis.IsVPeriodic() and (b0 > v0 + tol_v or b1 < v1 - tol_v)
+    if cut_u or cut_v:
+        basis.Segment(max(a0, u0) if cut_u else u0, min(a1, u1) if cut_u else u1,
+                      max(b0, v0) if cut_v else v0, min(b1, v1) if cut_v else v1)
+    return basis
 
 
 def _nurbs_surface(surf, face) -> NurbsSurface:

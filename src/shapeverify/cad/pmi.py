@@ -190,6 +190,51 @@ def _faces_of(labels, index: _FaceIndex) -> tuple[list, list]:
     return faces, other
 
 
+def _edges_of(labels) -> list:
+    """The edges among the shapes of reference labels."""
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.XCAFDoc import XCAFDoc_ShapeTool
+
+    out = []
+    for lab in labels:
+        s = XCAFDoc_ShapeTool.GetShape_s(lab)
+        if s is not None and not s.IsNull() and s.ShapeType() == TopAbs_EDGE:
+            out.append(s)
+    return out
+
+
+class _Edges:
+    """Edge references of PMI items -> the faces of the feature they bound
+    (:mod:`shapeverify.cad.pmi_edges`)."""
+
+    def __init__(self, shape, faces, index):
+        from ._occ_loops import _edge_face_map
+
+        self.faces, self.index = faces, index
+        self.map = _edge_face_map(shape)
+
+    def resolve(self, item: dict, labels, key: str = "faces") -> None:
+        """Edges of ``labels`` on ``item``: ``edges`` (records), and when ``item[key]`` is empty
+        either the bounded feature's faces in ``item[key]`` with ``attached`` (how), or
+        ``edge_reason`` (why not)."""
+        from .pmi_edges import edge_feature, edge_record
+
+        edges = _edges_of(labels)
+        if not edges:
+            return
+        recs = [edge_record(e, self.index, self.map, self.faces) for e in edges]
+        item["edges" if key == "faces" else "edges2"] = recs
+        if item[key]:
+            return
+        fs, how, why = edge_feature(recs, self.faces, self.map, self.index)
+        suffix = "" if key == "faces" else "2"
+        if fs:
+            item[key] = fs
+            item["attached" + suffix] = how
+        else:
+            item["edge_reason" + suffix] = why
+
+
 def _vertices(face) -> list:
     from OCP.BRep import BRep_Tool
     from OCP.TopAbs import TopAbs_VERTEX
@@ -253,6 +298,7 @@ def read_pmi_here(path) -> dict:
     doc, shape = _open(path)
     faces = _shape_faces(path, "step", shape)
     index = _FaceIndex(faces)
+    edges = _Edges(shape, faces, index)
     tool = XCAFDoc_DocumentTool.DimTolTool_s(doc.Main())
 
     # datums: one entry per letter (OpenCASCADE writes a datum label per use)
@@ -273,6 +319,13 @@ def read_pmi_here(path) -> dict:
                                  "number": int(o.GetDatumTargetNumber()), "faces": fs,
                                  "other": other})
         else:
+            if not fs:                  # a datum feature named by its edge (a hole's rim)
+                probe = {"faces": []}
+                edges.resolve(probe, first)
+                fs = probe["faces"]
+                for key in ("attached", "edge_reason"):
+                    if probe.get(key):
+                        d[key] = probe[key]
             d["faces"].extend(f for f in fs if f not in d["faces"])
             d["other"].extend(other)
     datum_list = []
@@ -319,6 +372,7 @@ def read_pmi_here(path) -> dict:
             "modifiers": [_enum_name(m, "XCAFDimTolObjects_GeomToleranceModif_")
                           for m in _seq(o.GetModifiers())],
             "datums": drf, "faces": fs, "other": other})
+        edges.resolve(tolerances[-1], first)
 
     dimensions = []
     for k, lab in enumerate(_labels(tool.GetDimensionLabels), start=1):
@@ -344,6 +398,8 @@ def read_pmi_here(path) -> dict:
             item["upper"] = float(o.GetUpperBound()) - item["nominal"]
         elif o.IsDimWithClassOfTolerance():
             item["class_of_tolerance"] = True
+        edges.resolve(item, first)
+        edges.resolve(item, second, "faces2")
         dimensions.append(item)
 
     used = set()

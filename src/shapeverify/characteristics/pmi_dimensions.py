@@ -22,6 +22,10 @@ def _planes(item, ctx) -> tuple[list | None, str]:
             return None, "a face it names could not be imported (see the import's warnings)"
         sides.append(faces)
     if not sides[0] or not sides[1]:
+        why = item.get("edge_reason" if not sides[0] else "edge_reason2")
+        if why:
+            which = "first" if not sides[0] else "second"
+            return None, f"it is not between two faces (its {which} side: {why})"
         what = f"{item['other'][0]}s" if item.get("other") else "nothing"
         return None, (f"it is not between two faces (its {'first' if not sides[0] else 'second'} "
                       f"side is attached to {what})")

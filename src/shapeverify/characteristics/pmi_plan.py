@@ -25,7 +25,17 @@ Location_LinearDistance with ± limits      ``distance`` (:mod:`.pmi_dimensions`
 between two parallel planar faces
 Location_Angular with ± limits between     ``angle``
 two planar faces
+Position without ⌀ on a slot's / tab's two ``position_zone`` ``zone: planes``
+sides; with S⌀ on spheres                  (``zone: sphere``, one per sphere)
+                                           (:mod:`.pmi_positions`)
+ProfileOfLine at a line drawn on a face    ``line_profile`` (:mod:`.pmi_profile_line`)
+Size_Radius, Size_SphericalDiameter,       ``feature_size`` (:mod:`.pmi_sizes`)
+Size_SphericalRadius with ± limits
 =========================================  ===============================================
+
+An item attached to an edge rather than a face (NIST CTC 02: a hole's rim circle) is mapped to
+the feature the edge bounds by the PMI reader (:mod:`shapeverify.cad.pmi_edges`); its entry's
+``pmi.attached`` says so.
 
 A hole is named as ``shapeverify info --features`` names it (``hole:k``: the inner trim loop
 on the cylinder's axis, with its diameter).  Every entry carries ``pmi: {kind, type, id, ...}``;
@@ -34,10 +44,10 @@ item the plan does not check is listed in ``unsupported`` with the reason, so ea
 tolerance of the file appears exactly once: in ``characteristics`` or in ``unsupported``.
 
 Not expressed yet (each such item says why in ``unsupported``): orientation, runout, form
-other than flatness, profile of a line, location dimensions; positions with a material
+other than flatness, location dimensions other than between two planes; positions with a material
 modifier (no bonus tolerance), a zone without a diameter symbol, or datum modifiers;
 tolerances in a datum reference frame other than the plan's one alignment; datums set up from
-datum targets, from edges, or from several faces (a width's centre plane, a pattern); datum
+datum targets, from edges that bound no cylinder, or from several faces (a width's centre plane, a pattern); datum
 features that OpenCASCADE's XCAF reader leaves without a shape (NIST CTC 01's B and C, which
 the file ties to their faces by ``ITEM_IDENTIFIED_REPRESENTATION_USAGE``).
 
@@ -186,6 +196,9 @@ def _mm(x: float) -> float:
 
 def _src(item: dict) -> dict:
     out = {"kind": item["kind"], "type": item["type"], "id": item["id"]}
+    for key in ("attached", "attached2"):       # faces found from the edges it points at
+        if item.get(key):
+            out[key] = item[key]
     if item["kind"] == "geometric_tolerance":
         out["value"] = item["value"]
         if item["value_type"] != "None":
@@ -355,6 +368,8 @@ def _faces_ok(item, ctx, key="faces"):
     if any(f is None for f in faces):
         return None, "a face it names could not be imported (see the import's warnings)"
     if not faces:
+        if item.get("edge_reason"):
+            return None, item["edge_reason"]
         what = f"{item['other'][0]}s" if item.get("other") else "no shape"
         return None, f"it is attached to {what}, not to faces"
     return faces, ""
@@ -394,6 +409,10 @@ def _drf_reason(item, drf, why) -> str:
 def _tolerance(item, ctx, drf, why) -> tuple[list, str]:
     """(plan characteristics, '') or ([], reason)."""
     t = item["type"]
+    if t == "ProfileOfLine":
+        from .pmi_profile_line import line_profile_entries
+
+        return line_profile_entries(item, ctx, drf, why, _src(item))
     faces, reason = _faces_ok(item, ctx)
     if faces is None:
         return [], reason
@@ -430,6 +449,10 @@ def _tolerance(item, ctx, drf, why) -> tuple[list, str]:
     if t in ("Parallelism", "Perpendicularity", "Angularity"):
         return _orientation(item, ctx, faces, src)
     if t == "Position":
+        if item["value_type"] in ("None", "SphericalDiameter"):
+            from .pmi_positions import position_zone_entries
+
+            return position_zone_entries(item, ctx, faces, src)
         if item["material"] or (item["value_type"] == "Diameter"
                                 and item["zone_modifier"] == "None"
                                 and _drf_reason(item, drf, why)):
@@ -542,7 +565,15 @@ def _dimension(item, ctx) -> tuple[list, str]:
         from .pmi_dimensions import between_entries
 
         return between_entries(item, ctx, _src(item), ctx.name)
+    if t in ("Size_Radius", "Size_SphericalDiameter", "Size_SphericalRadius"):
+        from .pmi_sizes import size_entries
+
+        return size_entries(item, ctx, _src(item))
     if t != "Size_Diameter":
+        if t == "Location_None":
+            from .pmi_sizes import LOCATION_NONE_REASON
+
+            return [], LOCATION_NONE_REASON
         if t in ("DimensionPresentation", "CommonLabel"):
             return [], f"{t}: a presentation without a semantic value"
         return [], f"no plan characteristic for the dimension {t} yet (issue 28 item 3)"

@@ -87,6 +87,13 @@ TYPES: tuple[CharacteristicType, ...] = (
                        "distance (planes)"),
     CharacteristicType("angle", schema.Angle, "gdt_size:eval_angle", False,
                        "angle (planes)", unit="deg"),
+    CharacteristicType("line_profile", schema.LineProfile, "profile_line:eval_line_profile",
+                       True, "profile of a line", "⌒"),
+    CharacteristicType("position_zone", schema.PositionZone,
+                       "position_zones:eval_position_zone", True, "position (planes, sphere)",
+                       "⌖"),
+    CharacteristicType("feature_size", schema.FeatureSize, "size_features:eval_feature_size",
+                       False, "size (radius, sphere)"),
 )
 
 _BY_NAME = {t.name: t for t in TYPES}

@@ -14,7 +14,8 @@ __all__ = ["Tol", "PmiSource", "Unsupported", "Vec3", "FeatureId", "FeatureRef",
            "SurfaceProfile", "Flatness", "Cylinder", "CheckPoint", "DatumSpec", "Straightness",
            "Circularity", "Cylindricity", "Parallelism", "Perpendicularity", "Angularity",
            "Position", "CircularRunout", "TotalRunout", "Width", "SizeLimits", "Distance",
-           "Angle"]
+           "Angle", "LineProfile", "PositionZone",
+           "FeatureSize"]
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 FeatureId = Annotated[str, Field(pattern=r"^(hole|face|cylinder|plane):\d+$")]
@@ -284,6 +285,61 @@ class Position(_Char):
         if self.material is not None and self.size is None:
             raise ValueError(f"material {self.material} needs size: {{lower, upper}} (the "
                              "diameter's limits of deviation) for the bonus tolerance")
+        return self
+
+
+class LineProfile(_Char):
+    """Profile of a line (:mod:`.profile_line`): the line elements of ``faces`` in sections
+    normal to ``normal`` (at ``sections`` mm along it, or ``count`` evenly spaced), each
+    sampled by the points within ``slab`` mm of its plane, within a zone of width ``tol``;
+    in the datum reference frame ``datums`` (none: the plan's alignment)."""
+
+    type: Literal["line_profile"]
+    faces: FaceList
+    tol: float = Field(gt=0)
+    normal: Vec3
+    sections: Optional[Annotated[list[float], Field(min_length=1)]] = None
+    count: int = Field(default=10, ge=1)
+    slab: float = Field(default=0.5, gt=0)
+    datums: Optional[DrfRef] = None
+
+    @model_validator(mode="after")
+    def _normal(self):
+        if not sum(x * x for x in self.normal) > 0:
+            raise ValueError("normal must be a non-zero vector (the section planes' normal)")
+        return self
+
+
+class PositionZone(_Char):
+    """Position in a zone of two parallel planes (``zone: planes``: the centre plane of the
+    width feature whose opposite planar sides are ``faces``) or a sphere (``zone: sphere``:
+    the centre of the sphere of ``faces``), of width/diameter ``tol``, in the datum reference
+    frame ``datums`` (none: the plan's alignment); :mod:`.position_zones`."""
+
+    type: Literal["position_zone"]
+    faces: FaceList
+    tol: float = Field(gt=0)
+    zone: Literal["planes", "sphere"]
+    datums: Optional[DrfRef] = None
+
+
+class FeatureSize(_Char):
+    """Size (radius or diameter, ``size``) of a cylinder (coaxial faces of one radius) or a
+    sphere (``shape``) against ``lower``/``upper`` limits of deviation (mm) from the CAD's
+    size (``nominal``: the drawing's, for the report); :mod:`.size_features`."""
+
+    type: Literal["feature_size"]
+    faces: FaceList
+    shape: Literal["cylinder", "sphere"]
+    size: Literal["radius", "diameter"]
+    lower: float
+    upper: float
+    nominal: Optional[float] = Field(default=None, gt=0)
+
+    @model_validator(mode="after")
+    def _order(self):
+        if not self.lower < self.upper:
+            raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
         return self
 
 

@@ -268,7 +268,7 @@ def _tolerance_frame(symbol, entry, result, part=None, tol=None) -> Frame:
                     or _default_zone(part or _get(entry, "type") or _get(result, "type"))).lower()
     if zone_kind in ("diameter",):
         zone.append(("text", "Ø"))
-    elif zone_kind in ("sphericaldiameter", "spherical_diameter"):
+    elif zone_kind in ("sphericaldiameter", "spherical_diameter", "sphere"):
         zone.append(("text", "SØ"))
     zone.append(("text", "–" if tol is None else _num(tol)))
     tokens, notes = [], []
@@ -404,6 +404,9 @@ def frames(result, entry=None) -> tuple:
     if sym in SYMBOLS or str(ctype) in registry.one_sided_types():
         return (_tolerance_frame(sym, entry, result),)
     deg = str(ctype) in _type_names() and registry.by_name(str(ctype)).unit == "deg"
+    if str(ctype) == "feature_size" and entry is not None:     # R, Ø, SR, SØ from the entry
+        sym = ("S" if _get(entry, "shape") == "sphere" else "") + \
+            SIZE_SYMBOLS.get(str(_get(entry, "size")), "")
     return (_size_frame(sym, entry, result, unit="°" if deg else ""),)
 
 
