@@ -9,8 +9,8 @@ source file of the imported ``shapeverify`` package and the versions of numpy, s
 and OCP: a change to the code or the libraries makes a new entry, never a stale answer.  The
 cached objects are what :meth:`Model.save` / :meth:`Prepared.save` write and ``load_model`` /
 ``load_prepared`` read back bitwise (``tests/test_persist.py``).  Directory:
-``$SHAPEVERIFY_TEST_CACHE/shapeverify-test-cache/models`` (default: the system's temporary
-folder); delete it to start afresh.
+``$SHAPEVERIFY_TEST_CACHE/shapeverify-test-cache/models/<code key>`` (default: the system's
+temporary folder); delete it to start afresh.
 """
 
 from __future__ import annotations
@@ -25,10 +25,28 @@ import tempfile
 from pathlib import Path
 
 
+#: an entry folder of other code (another checkout, an older commit) unused this long is removed
+STALE_S = 2 * 86400
+
+
 def cache_root() -> Path:
-    base = os.environ.get("SHAPEVERIFY_TEST_CACHE") or tempfile.gettempdir()
-    d = Path(base) / "shapeverify-test-cache" / "models"
+    """The folder of this code version's entries (``models/<code key>``); the folders of other
+    code versions not used for :data:`STALE_S` are removed, so the cache does not grow without
+    end as the code changes."""
+    import shutil
+    import time
+
+    base = Path(os.environ.get("SHAPEVERIFY_TEST_CACHE") or tempfile.gettempdir())
+    top = base / "shapeverify-test-cache" / "models"
+    d = top / code_key()[:20]
     d.mkdir(parents=True, exist_ok=True)
+    os.utime(d)
+    for other in top.iterdir():
+        try:
+            if other != d and other.is_dir() and time.time() - other.stat().st_mtime > STALE_S:
+                shutil.rmtree(other, ignore_errors=True)
+        except OSError:
+            pass
     return d
 
 
