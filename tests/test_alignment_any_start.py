@@ -35,11 +35,12 @@ def _rigid(rng, shift):
 
 @pytest.fixture(scope="module")
 def panel(tmp_path_factory):
-    import shapeverify as sv
     from shapeverify.cad.examples import example_part_step
 
     path = example_part_step(tmp_path_factory.mktemp("panel") / "panel.step")
-    prep = sv.prepare(sv.load_model(path), spacing=1.0)
+    from model_cache import cached_prepared
+
+    prep = cached_prepared(path, spacing=1.0)  # built once per run (tests/model_cache.py)
     V, T, _ = isc.tessellate(isc.read_shape(path), 0.005)
     rng = np.random.default_rng(11)
     P = isc.scan(V, T, "random", 1.0, rng, noise=0.02)

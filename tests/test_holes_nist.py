@@ -95,20 +95,39 @@ def grid_scan(V, T, spacing, axis, centre, half, rng):
     A, e_1, e_2, nrm = A[front], e_1[front], e_2[front], nrm[front]
     pvec = np.cross(D, e_2)
     det = np.einsum("ij,ij->i", e_1, pvec)
+    # Only a triangle whose shadow on the raster's plane covers a ray can be hit by it: the
+    # (ray, triangle) pairs are those of the rays inside each triangle's bounding box in (g1, g2)
+    # (widened by 1e-6 mm), and the Moller-Trumbore test and the first hit (smallest t, then the
+    # lowest triangle index, as argmin over all triangles) are taken over those pairs only.
+    # Same hits as testing every ray against every front triangle, ~10x less CPU.
+    corners = (A, A + e_1, A + e_2)
+    cu = np.stack([(c - centre) @ g1 for c in corners], axis=1)
+    cv = np.stack([(c - centre) @ g2 for c in corners], axis=1)
+    i0 = np.ceil((cu.min(axis=1) - 1e-6 - s[0]) / spacing).astype(np.int64).clip(0, len(s))
+    i1 = np.floor((cu.max(axis=1) + 1e-6 - s[0]) / spacing).astype(np.int64).clip(-1, len(s) - 1)
+    j0 = np.ceil((cv.min(axis=1) - 1e-6 - s[0]) / spacing).astype(np.int64).clip(0, len(s))
+    j1 = np.floor((cv.max(axis=1) + 1e-6 - s[0]) / spacing).astype(np.int64).clip(-1, len(s) - 1)
+    # (a ray's index is off by one where s[k] is within rounding of a bbox edge: the 1e-6 mm
+    # widening is far above that, so a ray on the edge is in the pair list either way)
+    ni, nj = np.maximum(i1 - i0 + 1, 0), np.maximum(j1 - j0 + 1, 0)
+    tri = np.repeat(np.arange(len(A)), ni * nj)
+    k = np.arange(tri.size) - np.repeat(np.cumsum(ni * nj) - ni * nj, ni * nj)
+    ri = i0[tri] + k % ni[tri]
+    rj = j0[tri] + k // ni[tri]
+    ray = rj * len(s) + ri                       # gu varies along the rows of meshgrid
+    tv = O[ray] - A[tri]
+    u = np.einsum("ij,ij->i", tv, pvec[tri]) / det[tri]
+    q = np.cross(tv, e_1[tri])
+    v = (q @ D) / det[tri]
+    t = np.einsum("ij,ij->i", q, e_2[tri]) / det[tri]
+    ok = (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
+    ray, tri, t = ray[ok], tri[ok], t[ok]
+    first = np.lexsort((tri, t, ray))
+    keep = first[np.r_[True, ray[first][1:] != ray[first][:-1]]]
     hits = np.full(len(O), np.inf)
     which = np.zeros(len(O), np.int64)
-    for lo in range(0, len(O), 2000):
-        o = O[lo:lo + 2000]
-        tv = o[:, None, :] - A[None]
-        u = np.einsum("kij,ij->ki", tv, pvec) / det
-        q = np.cross(tv, e_1[None])
-        v = (q @ D) / det
-        t = np.einsum("kij,ij->ki", q, e_2) / det
-        ok = (u >= 0) & (v >= 0) & (u + v <= 1) & (t > 0)
-        t = np.where(ok, t, np.inf)
-        j = np.argmin(t, axis=1)
-        hits[lo:lo + 2000] = t[np.arange(len(o)), j]
-        which[lo:lo + 2000] = j
+    hits[ray[keep]] = t[keep]
+    which[ray[keep]] = tri[keep]
     m = np.isfinite(hits)
     X = O[m] + hits[m, None] * D + rng.normal(0, NOISE, m.sum())[:, None] * nrm[which[m]]
     return X[rng.permutation(len(X))]

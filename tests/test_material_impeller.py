@@ -13,9 +13,7 @@ the noise: those are the mesh's deviations, not the part's.
 """
 from __future__ import annotations
 
-import os
 import types
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -27,7 +25,6 @@ pytestmark = pytest.mark.slow
 
 #: tolerance, noise, bump height and radius (mm); the impeller is 125 mm across
 TOL, NOISE, BUMP, BUMP_RADIUS = 0.15, 0.02, 0.5, 5.0
-_CACHE = Path(os.environ.get("SHAPEVERIFY_TEST_CACHE", "/tmp")) / "shapeverify-test-cache"
 
 
 def _identity():
@@ -39,22 +36,12 @@ def _identity():
 @pytest.fixture(scope="module")
 def impeller(shared_data):
     """(prepared impeller (default prepare, cached), its tessellation V, T, F)."""
-    import shapeverify as sv
+    from model_cache import cached_prepared
 
     path = shared_data / "cad" / "impeller.igs"
-    _CACHE.mkdir(parents=True, exist_ok=True)
-    svm = _CACHE / f"impeller-default-{int(path.stat().st_mtime)}.svm"
-    prep = None
-    if svm.is_file():
-        try:
-            prep = sv.load_prepared(svm)
-        except (ValueError, OSError):
-            prep = None
-    if prep is None:
-        prep = sv.prepare(sv.load_model(path))
-        tmp = svm.with_suffix(f".{os.getpid()}.tmp")
-        prep.save(tmp)
-        os.replace(tmp, svm)
+    # built once per code version (tests/model_cache.py: keyed by the file's and the sources'
+    # hashes; the cache here was keyed by the file's mtime alone and outlived code changes)
+    prep = cached_prepared(path)
     V, T, F = ind.tessellate(ind.read_shape(path), 1e-4 * prep.model.size)
     area = 0.5 * np.linalg.norm(np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]]), axis=1)
     ok = np.isfinite(area) & (area > 0)

@@ -294,10 +294,12 @@ def test_wavy_cube_exact_against_ocp(shared_data):
 @pytest.mark.shared
 @pytest.mark.slow
 def test_impeller_exact_against_ocp(shared_data):
-    from shapeverify.cad.load import load_model
+    from model_cache import cached_prepared
 
-    model = load_model(shared_data / "cad" / "impeller.igs")
-    prep = prepare(model, spacing=0.5, reach=3.0)
+    # the same preparation as test_nearest_exact's impeller_prep: built once per run
+    # (tests/model_cache.py; bitwise what prepare(load_model(path), ...) gives)
+    prep = cached_prepared(shared_data / "cad" / "impeller.igs", spacing=0.5, reach=3.0)
+    model = prep.model
     _against_ocp(model, prep, 300, 1.5, np.random.default_rng(7), 1e-8)
 
 

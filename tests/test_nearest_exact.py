@@ -7,7 +7,6 @@ and OpenCASCADE's ``BRepExtrema_DistShapeShape`` on the impeller's original face
 
 from __future__ import annotations
 
-import os
 from pathlib import Path
 
 import numpy as np
@@ -15,7 +14,7 @@ import pytest
 
 from shapeverify.cad.model import Face, Model
 from shapeverify.cad.nurbs import NurbsSurface, cylinder
-from shapeverify.nearest import load_prepared, prepare
+from shapeverify.nearest import prepare
 from shapeverify.nearest._exact_kernels import newton_face
 
 RECT = np.array([[0.0, 0.0], [1.0, 0.0], [1.0, 1.0], [0.0, 1.0]])
@@ -206,9 +205,6 @@ def test_wavy_panel_against_brute_force():
 
 
 # -------------------------------------------------------------- impeller vs OCP
-_CACHE = Path(os.environ.get("SHAPEVERIFY_TEST_CACHE", "/tmp")) / "shapeverify-test-cache"
-
-
 def _ocp_faces(path):
     from OCP.BRepBndLib import BRepBndLib
     from OCP.Bnd import Bnd_Box
@@ -239,19 +235,11 @@ def impeller_prep(shared_data):
     path = shared_data / "cad" / "impeller.igs"
     if not path.is_file():
         pytest.skip("impeller.igs not in ../shared/data/cad")
-    _CACHE.mkdir(parents=True, exist_ok=True)
-    svm = _CACHE / f"impeller-0.5-{int(path.stat().st_mtime)}.svm"
-    if svm.is_file():
-        try:
-            return load_prepared(svm), path
-        except (ValueError, OSError):
-            pass
-    from shapeverify.cad.load import load_model
+    from model_cache import cached_prepared
 
-    prep = prepare(load_model(path), spacing=0.5, reach=3.0)
-    tmp = svm.with_suffix(f".{os.getpid()}.tmp")
-    prep.save(tmp)
-    os.replace(tmp, svm)
+    # imported once per run and code version (tests/model_cache.py; the cache here was keyed
+    # by the file's mtime alone and outlived code changes)
+    prep = cached_prepared(path, spacing=0.5, reach=3.0)
     return prep, path
 
 

@@ -27,7 +27,9 @@ PLAN = {"alignment": {"type": "best_fit"}, "characteristics": [
 @pytest.fixture(scope="module")
 def prep(tmp_path_factory):
     d = tmp_path_factory.mktemp("panel")
-    return sv.prepare(sv.load_model(example_part_step(d / "panel.step")), spacing=1.0)
+    from model_cache import cached_prepared
+
+    return cached_prepared(example_part_step(d / "panel.step"), spacing=1.0)  # built once per run (tests/model_cache.py)
 
 
 def _lp_minimum_zone(P, n):

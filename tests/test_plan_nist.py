@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import shapeverify as sv
+from model_cache import cached_prepared
 from shapeverify.characteristics import align, evaluate_plan
 from shapeverify.registration.rigid import pose_error
 
@@ -84,7 +85,7 @@ def _scan(V, T, n, noise, rng):
 @pytest.fixture(scope="module")
 def ctc01(shared_data):
     path = shared_data / CTC01
-    prep = sv.prepare(sv.load_model(path), spacing=4.0)
+    prep = cached_prepared(path, spacing=4.0)   # built once per run (tests/model_cache.py)
     V, T = _occ_mesh(path)
     scan, T_true = _scan(V, T, 150_000, 0.02, 7)
     return prep, scan, T_true

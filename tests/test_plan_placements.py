@@ -20,7 +20,9 @@ pytestmark = pytest.mark.slow
 @pytest.fixture(scope="module")
 def plate(tmp_path_factory):
     path = chamfered_plate_step(tmp_path_factory.mktemp("plate") / "plate.step")
-    prep = sv.prepare(sv.load_model(path), spacing=1.0)
+    from model_cache import cached_prepared
+
+    prep = cached_prepared(path, spacing=1.0)  # built once per run (tests/model_cache.py)
     V, T = _occ_mesh(path)
     scan, T_true = _scan(V, T, 30_000, 0.02, 3)
     return prep, scan, T_true

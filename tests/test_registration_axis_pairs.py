@@ -43,10 +43,10 @@ def test_a_true_point_pair_gives_the_true_pose():
 
 @pytest.fixture(scope="module")
 def impeller(shared_data):
-    from shapeverify.cad.load import load_model
-    from shapeverify.nearest import prepare
+    from model_cache import cached_prepared
 
-    return prepare(load_model(shared_data / "cad" / "impeller.igs"), spacing=1.0)
+    # (imported and prepared once per suite run: tests/model_cache.py)
+    return cached_prepared(shared_data / "cad" / "impeller.igs", spacing=1.0)
 
 
 @pytest.mark.slow

@@ -12,6 +12,7 @@ import pytest
 import shapeverify as sv
 from shapeverify.registration.rigid import pose_error
 
+from model_cache import cached_prepared
 from test_plan_nist import CTC01, _occ_mesh, _scan
 
 pytestmark = [pytest.mark.slow, pytest.mark.shared]
@@ -20,7 +21,8 @@ pytestmark = [pytest.mark.slow, pytest.mark.shared]
 @pytest.fixture(scope="module")
 def ctc01(shared_data):
     path = shared_data / CTC01
-    return sv.prepare(sv.load_model(path), spacing=4.0), _occ_mesh(path)
+    # the same part and spacing as test_plan_nist: prepared once per run (tests/model_cache.py)
+    return cached_prepared(path, spacing=4.0), _occ_mesh(path)
 
 
 @pytest.mark.parametrize("seed", [1, 3])   # seed 1: flipped with no warning; 3: 50 mm off too

@@ -55,12 +55,12 @@ def test_spin_about_the_axis_keeps_the_centre_and_turns_by_the_angle():
 
 @pytest.fixture(scope="module")
 def impeller(shared_data):
-    from shapeverify.cad.load import load_model
-    from shapeverify.nearest import prepare
+    from model_cache import cached_prepared
 
     # a coarse preparation (1 mm, ~29k model points, 2 s) keeps the test short; the lock
     # from 6 deg / 12 mm is the same as at the default 0.25 mm
-    return prepare(load_model(shared_data / "cad" / "impeller.igs"), spacing=1.0)
+    # (imported and prepared once per suite run: tests/model_cache.py)
+    return cached_prepared(shared_data / "cad" / "impeller.igs", spacing=1.0)
 
 
 def _register(scan, prep, restart, monkeypatch, **kw):

@@ -25,12 +25,13 @@ RUNS = 20
 
 @pytest.fixture(scope="module")
 def panel(tmp_path_factory):
-    import shapeverify as sv
     from shapeverify.cad.examples import example_part_step
     from shapeverify.characteristics.features import model_features
 
     path = example_part_step(tmp_path_factory.mktemp("panel") / "panel.step")
-    prep = sv.prepare(sv.load_model(path), spacing=1.0)
+    from model_cache import cached_prepared
+
+    prep = cached_prepared(path, spacing=1.0)  # built once per run (tests/model_cache.py)
     V, T, _ = isc.tessellate(isc.read_shape(path), 0.005)
     f = [g for g in model_features(prep.model) if g.kind == "hole"][0]
     near = np.linalg.norm(V[T].mean(axis=1)[:, :2] - f.center[:2], axis=1) < 0.5 * f.diameter + 30

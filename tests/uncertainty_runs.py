@@ -51,11 +51,12 @@ class Panel:
     name = "panel"
 
     def __init__(self, workdir):
-        import shapeverify as sv
         from shapeverify.cad.examples import PANEL_HOLE, example_part_step
 
         path = example_part_step(workdir / "panel.step")
-        self.prep = sv.prepare(sv.load_model(path), spacing=1.0)
+        from model_cache import cached_prepared
+
+        self.prep = cached_prepared(path, spacing=1.0)  # built once per run (tests/model_cache.py)
         shape = isc.read_shape(path)
         self.V, self.T, self.F = isc.tessellate(shape, 0.005)
         x, y, r = PANEL_HOLE
@@ -90,12 +91,13 @@ class PanelHole:
     name = "panelhole"
 
     def __init__(self, workdir):
-        import shapeverify as sv
         from shapeverify.cad.examples import example_part_step
         from shapeverify.characteristics.features import model_features
 
         path = example_part_step(workdir / "panel.step")
-        self.prep = sv.prepare(sv.load_model(path), spacing=1.0)
+        from model_cache import cached_prepared
+
+        self.prep = cached_prepared(path, spacing=1.0)  # built once per run (tests/model_cache.py)
         V, T, _ = isc.tessellate(isc.read_shape(path), 0.005)
         f = [g for g in model_features(self.prep.model) if g.kind == "hole"][0]
         near = np.linalg.norm(V[T].mean(axis=1)[:, :2] - f.center[:2], axis=1) < \
@@ -163,11 +165,12 @@ class Plate:
     name = "plate"
 
     def __init__(self, workdir):
-        import shapeverify as sv
         from shapeverify.cad.examples import chamfered_plate_step
 
         path = chamfered_plate_step(workdir / "plate.step")
-        self.prep = sv.prepare(sv.load_model(path), spacing=1.0)
+        from model_cache import cached_prepared
+
+        self.prep = cached_prepared(path, spacing=1.0)  # built once per run (tests/model_cache.py)
         self.V, self.T, self.F = isc.tessellate(isc.read_shape(path), 0.005)
         self.plan = {"alignment": {"type": "best_fit"}, "characteristics": [
             {"name": "FLAT", "type": "flatness", "feature": "face:2", "tol": 0.2},

@@ -1,0 +1,136 @@
+"""An on-disk cache of the CAD models and prepared models the tests read from ``../shared/data``,
+so that a part imported (``load_model``: the impeller is 9 s of CPU in the importer) or prepared
+in several test modules is built once per suite run and loaded (0.03-0.05 s) by the others,
+also across pytest-xdist's worker processes (a file lock per entry: the second worker waits
+for the first one's file instead of building it again).
+
+An entry's key is the SHA-256 of the model file's bytes, the arguments, the SHA-256 of every
+source file of the imported ``shapeverify`` package and the versions of numpy, scipy, numba
+and OCP: a change to the code or the libraries makes a new entry, never a stale answer.  The
+cached objects are what :meth:`Model.save` / :meth:`Prepared.save` write and ``load_model`` /
+``load_prepared`` read back bitwise (``tests/test_persist.py``).  Directory:
+``$SHAPEVERIFY_TEST_CACHE/shapeverify-test-cache/models/<code key>`` (default: the system's
+temporary folder); delete it to start afresh.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import fcntl
+import functools
+import hashlib
+import json
+import os
+import tempfile
+from pathlib import Path
+
+
+#: an entry folder of other code (another checkout, an older commit) unused this long is removed
+STALE_S = 2 * 86400
+
+
+def cache_root() -> Path:
+    """The folder of this code version's entries (``models/<code key>``); the folders of other
+    code versions not used for :data:`STALE_S` are removed, so the cache does not grow without
+    end as the code changes."""
+    import shutil
+    import time
+
+    base = Path(os.environ.get("SHAPEVERIFY_TEST_CACHE") or tempfile.gettempdir())
+    top = base / "shapeverify-test-cache" / "models"
+    d = top / code_key()[:20]
+    d.mkdir(parents=True, exist_ok=True)
+    os.utime(d)
+    for other in top.iterdir():
+        try:
+            if other != d and other.is_dir() and time.time() - other.stat().st_mtime > STALE_S:
+                shutil.rmtree(other, ignore_errors=True)
+        except OSError:
+            pass
+    return d
+
+
+@functools.lru_cache(maxsize=1)
+def code_key() -> str:
+    """SHA-256 of the shapeverify sources in use and the numeric libraries' versions."""
+    import numba
+    import numpy
+    import scipy
+
+    import shapeverify
+
+    h = hashlib.sha256()
+    root = Path(shapeverify.__file__).resolve().parent
+    for p in sorted(root.rglob("*.py")):
+        h.update(str(p.relative_to(root)).encode() + b"\0" + p.read_bytes() + b"\0")
+    try:
+        from importlib.metadata import version
+        ocp = version("cadquery-ocp-novtk")
+    except Exception:  # noqa: BLE001 - another OCP distribution: its module file stands in
+        import OCP
+        ocp = str(getattr(OCP, "__file__", ""))
+    h.update(json.dumps([numpy.__version__, scipy.__version__, numba.__version__, ocp]).encode())
+    return h.hexdigest()
+
+
+@functools.lru_cache(maxsize=None)
+def _file_key(path: str, size: int, mtime_ns: int) -> str:
+    return hashlib.sha256(Path(path).read_bytes()).hexdigest()
+
+
+def _entry(path, what: str, args: dict, suffix: str) -> Path:
+    p = Path(path).resolve()
+    st = p.stat()
+    key = hashlib.sha256(json.dumps([what, _file_key(str(p), st.st_size, st.st_mtime_ns),
+                                     sorted(args.items()), code_key()]).encode()).hexdigest()
+    return cache_root() / f"{p.stem}-{what}-{key[:24]}{suffix}"
+
+
+@contextlib.contextmanager
+def _locked(entry: Path):
+    with open(entry.with_suffix(entry.suffix + ".lock"), "a") as fh:
+        fcntl.flock(fh, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(fh, fcntl.LOCK_UN)
+
+
+def _cached(entry: Path, build, save, load):
+    with _locked(entry):
+        if entry.is_file():
+            try:
+                return load(entry)
+            except (ValueError, OSError):       # a damaged entry: built again below
+                entry.unlink(missing_ok=True)
+        obj = build()
+        tmp = entry.with_suffix(f".{os.getpid()}{entry.suffix}")
+        save(obj, tmp)
+        os.replace(tmp, entry)
+        return obj
+
+
+def _named(model, path):
+    """The model as if read from ``path`` (an entry may have been made from an equal file at
+    another path, e.g. the example panel written to another temporary folder)."""
+    object.__setattr__(model, "source", str(path))
+    return model
+
+
+def cached_model(path):
+    """``shapeverify.load_model(path)`` of a CAD file, imported once per code version."""
+    from shapeverify.cad.load import load_model
+
+    return _named(_cached(_entry(path, "model", {}, ".svmodel"), lambda: load_model(path),
+                          lambda m, p: m.save(p), load_model), path)
+
+
+def cached_prepared(path, **kwargs):
+    """``shapeverify.prepare(load_model(path), **kwargs)``, built once per code version."""
+    from shapeverify.nearest import load_prepared, prepare
+
+    prep = _cached(_entry(path, "prepared", kwargs, ".svm"),
+                   lambda: prepare(cached_model(path), **kwargs),
+                   lambda prep, p: prep.save(p), load_prepared)
+    _named(prep.model, path)
+    return prep

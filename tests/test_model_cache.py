@@ -1,0 +1,56 @@
+"""tests/model_cache.py (the suite's on-disk cache of imported and prepared shared parts) gives
+bitwise what ``prepare(load_model(path))`` gives, from a fresh entry and from a stored one, and
+never a stale entry: the key changes with the file's bytes, the arguments and the code."""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+
+import model_cache
+from shapeverify.cad.examples import example_part_step
+from shapeverify.cad.load import load_model
+from shapeverify.nearest import prepare
+
+
+def _arrays(prep, path):
+    """The saved arrays; the model's file name (``source``) is compared on its own."""
+    prep.save(path)
+    with np.load(path) as z:
+        out = {k: z[k] for k in z.files if k != "meta"}
+    meta = json.loads(bytes(out.pop("model_meta")).decode())
+    meta.pop("source")
+    out["model_meta"] = np.frombuffer(json.dumps(meta, sort_keys=True).encode(), np.uint8)
+    return out
+
+
+def test_cached_prepared_is_bitwise_the_direct_preparation(tmp_path, monkeypatch):
+    monkeypatch.setenv("SHAPEVERIFY_TEST_CACHE", str(tmp_path / "cache"))
+    step = example_part_step(tmp_path / "panel.step")
+    direct = _arrays(prepare(load_model(step), spacing=6.0), tmp_path / "direct.svm")
+    built = model_cache.cached_prepared(step, spacing=6.0)              # made and stored
+    assert built.model.source == str(step)
+    (tmp_path / "copy").mkdir()
+    again = example_part_step(tmp_path / "copy" / "panel.step")         # the same bytes
+    stored = model_cache.cached_prepared(again, spacing=6.0)            # read back
+    assert stored.model.source == str(again)
+    for prep, name in ((built, "built"), (stored, "stored")):
+        got = _arrays(prep, tmp_path / f"{name}.svm")
+        assert got.keys() == direct.keys()
+        bad = [k for k in direct if not np.array_equal(got[k], direct[k], equal_nan=True)]
+        assert not bad, (name, bad)
+    entries = sorted(p.name for p in (tmp_path / "cache").rglob("*.sv*") if "lock" not in p.name)
+    assert len(entries) == 2, entries                # one model, one preparation
+
+
+def test_cache_key_changes_with_the_bytes_the_arguments_and_the_code(tmp_path, monkeypatch):
+    monkeypatch.setenv("SHAPEVERIFY_TEST_CACHE", str(tmp_path / "cache"))
+    a = example_part_step(tmp_path / "a.step")
+    b = example_part_step(tmp_path / "b.step", holes=())
+    key = model_cache._entry(a, "prepared", {"spacing": 1.0}, ".svm")
+    assert key == model_cache._entry(a, "prepared", {"spacing": 1.0}, ".svm")
+    assert key != model_cache._entry(b, "prepared", {"spacing": 1.0}, ".svm")
+    assert key != model_cache._entry(a, "prepared", {"spacing": 2.0}, ".svm")
+    monkeypatch.setattr(model_cache, "code_key", lambda: "other sources")
+    assert key != model_cache._entry(a, "prepared", {"spacing": 1.0}, ".svm")
