@@ -15,7 +15,8 @@ walks the document's ``XCAFDoc_DimTolTool`` (``GetDatumLabels``, ``GetGeomTolera
   limits of deviation ``lower``/``upper`` (mm; OpenCASCADE gives the lower deviation as its
   magnitude, so ``lower = -GetLowerTolValue()``), qualifier, modifiers, or a range;
 * a **datum** (one entry per letter; OpenCASCADE writes one datum label per use in a datum
-  reference frame): letter, the faces of its datum feature, its datum targets.
+  reference frame): letter, the faces of its datum feature, its datum targets (type, number,
+  faces, and ``at``/``direction``/``xdirection``/``length``/``width``: :func:`_target_params`).
 
 Every item is tied to the faces it controls by **shape identity**: the faces of
 ``GetRefShapeLabel`` (a solid or shell stands for its faces) are looked up with ``IsSame``
@@ -205,6 +206,21 @@ def _vertices(face) -> list:
     return pts
 
 
+def _target_params(o) -> dict:
+    """A datum target's placement and size (mm): ``at`` (the axis' location: the point of a
+    point target, the centre of a circle, the middle of a line), ``direction`` (its main
+    direction: a line target's direction, a circle's normal), ``xdirection``, ``length``
+    (a line's length, a circle's diameter, a rectangle's length) and ``width``; ``{}`` when
+    the file gives no parameters (``HasDatumTargetParams``)."""
+    if not o.HasDatumTargetParams():
+        return {}
+    ax = o.GetDatumTargetAxis()
+    loc, d, x = ax.Location(), ax.Direction(), ax.XDirection()
+    return {"at": [loc.X(), loc.Y(), loc.Z()], "direction": [d.X(), d.Y(), d.Z()],
+            "xdirection": [x.X(), x.Y(), x.Z()], "length": float(o.GetDatumTargetLength()),
+            "width": float(o.GetDatumTargetWidth())}
+
+
 def _unique_drf(drf: list) -> list:
     """The datum reference frame in order, one entry per (letter, order): a datum set up from
     several datum targets (A1, A2, A3) comes as one label per target."""
@@ -271,7 +287,7 @@ def read_pmi_here(path) -> dict:
         if o.IsDatumTarget():
             d["targets"].append({"type": _enum_name(o.GetDatumTargetType()),
                                  "number": int(o.GetDatumTargetNumber()), "faces": fs,
-                                 "other": other})
+                                 "other": other, **_target_params(o)})
         else:
             d["faces"].extend(f for f in fs if f not in d["faces"])
             d["other"].extend(other)

@@ -107,6 +107,11 @@ EDGE = 2.0
 # ------------------------------------------------------------------------------ DRF
 def _datum_feature(name, spec, ctx: EvalContext) -> DatumFeature:
     S, feats = ctx.S, ctx.feats
+    if spec.targets is not None or spec.kind == "pattern":
+        from .datum_targets import pattern_feature, targets_feature
+
+        return (targets_feature if spec.targets is not None else pattern_feature)(
+            name, spec, ctx)
     if spec.at is not None:
         at = np.asarray(spec.at, float)
         foot = ctx.prep.closest(at[None], exact=True)

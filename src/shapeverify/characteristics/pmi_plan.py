@@ -262,6 +262,10 @@ def _planes_coplanar(ctx, faces) -> bool:
 
 def _datum_spec(d: dict, ctx) -> tuple[dict | None, str]:
     """(the plan's ``datums`` entry of a PMI datum, '') or (None, why not) (:mod:`.drf`)."""
+    if d["targets"] and not d["faces"]:
+        from .pmi_datums import targets_spec
+
+        return targets_spec(d, ctx, _src(d))
     faces, why = _datum_faces(d, ctx, "the target positions are not read from the file")
     if faces is None:
         return None, why
@@ -273,8 +277,7 @@ def _datum_spec(d: dict, ctx) -> tuple[dict | None, str]:
         groups, _ = _cylinders(ctx.feats, ctx.model, faces)
         if len(groups) == 1:
             return {"faces": [f"face:{f}" for f in faces], "kind": "axis", "pmi": src}, ""
-        return None, (f"datum {d['name']} is a pattern of {len(groups)} cylinders (a pattern "
-                      "datum is not fitted yet)")
+        return {"faces": [f"face:{f}" for f in faces], "kind": "pattern", "pmi": src}, ""
     if kinds == {"plane"}:
         f0 = ctx.feats[faces[0]]
         one = [f for f in faces if ctx.feats[f].axis @ f0.axis > 0]
@@ -296,10 +299,13 @@ def _item_drf(item, ctx) -> tuple[list | None, str]:
         return None, f"datum modifiers ({'; '.join(mods)}) are not applied"
     orders = [d["order"] for d in ds]
     if len(set(orders)) != len(orders):
-        return None, ("a common datum (two datums of the same precedence: "
-                      f"{'-'.join(d['name'] for d in ds if orders.count(d['order']) > 1)}) "
-                      "is not fitted yet")
-    names = [d["name"] for d in sorted(ds, key=lambda d: d["order"])]
+        from .pmi_datums import common_datums
+
+        names, why = common_datums(ds, ctx)
+        if names is None:
+            return None, why
+    else:
+        names = [d["name"] for d in sorted(ds, key=lambda d: d["order"])]
     for n in names:
         if n not in ctx.datum_specs:
             return None, ctx.datum_why.get(n, f"datum {n} is not in the file")
@@ -663,13 +669,14 @@ def pmi_plan(path, *, model=None, pmi=None, timeout: float | None = 600.0) -> Pm
             unsupported.append({"pmi": _src(item), "reason": reason})
         rows.append(_row(item, ctx, entries, reason))
     table = {n: ctx.datum_specs[n] for n in sorted(ctx.used_datums)}
+    common = {p for n in table for p in n.split("-")}
     for name, d in datums.items():
-        if name in used or name in table:
+        if name in used or name in table or name in common:
             rows.append(_row(d, ctx, [{"name": "alignment" if name in used else "datums"}], ""))
             continue
-        reason = why.get(name) or (f"datum {name} is not in the plan's alignment (the plan "
-                                   f"aligns on one datum reference frame: "
-                                   f"{'|'.join(drf) if drf else 'best fit'})")
+        reason = (ctx.datum_why.get(name) if d["targets"] else None) or why.get(name) or (
+            f"datum {name} is not in the plan's alignment (the plan aligns on one datum "
+            f"reference frame: {'|'.join(drf) if drf else 'best fit'})")
         unsupported.append({"pmi": _src(d), "reason": reason})
         rows.append(_row(d, ctx, [], reason))
     data = {"units": "mm", "part": path.name, "alignment": alignment,

@@ -11,7 +11,8 @@ from typing import Annotated, Literal, Optional, Union
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 __all__ = ["Tol", "PmiSource", "Unsupported", "Vec3", "FeatureId", "FeatureRef", "Hole",
-           "SurfaceProfile", "Flatness", "Cylinder", "CheckPoint", "DatumSpec", "Straightness",
+           "DatumTargetSpec", "SurfaceProfile", "Flatness", "Cylinder", "CheckPoint", "DatumSpec",
+           "Straightness",
            "Circularity", "Cylindricity", "Parallelism", "Perpendicularity", "Angularity",
            "Position", "CircularRunout", "TotalRunout", "Width", "SizeLimits", "Distance",
            "Angle"]
@@ -161,24 +162,62 @@ class CheckPoint(_Char, Tol):
 FaceList = Annotated[list[Union[FeatureId, int, str]], Field(min_length=1)]
 
 
+class DatumTargetSpec(_Strict):
+    """One datum target of a datum (ASME Y14.5 / ISO 5459, :mod:`.datum_targets`): ``point``
+    (a contact at ``at`` on ``face``), ``line`` (a line contact through ``at`` along
+    ``direction``, ``length`` long), ``circle`` (a circular area of diameter ``length`` centred
+    at ``at``, ``direction`` its normal) or ``rectangle`` (``length`` along ``xdirection``,
+    ``width`` across)."""
+
+    type: Literal["point", "line", "circle", "rectangle"]
+    at: Vec3
+    face: Union[FeatureId, int, str]
+    direction: Optional[Vec3] = None
+    xdirection: Optional[Vec3] = None
+    length: float = Field(default=0.0, ge=0)
+    width: float = Field(default=0.0, ge=0)
+
+    @model_validator(mode="after")
+    def _sized(self):
+        if self.type != "point" and not self.length > 0:
+            raise ValueError(f"a {self.type} datum target needs its length (> 0; a circle's "
+                             "diameter)")
+        if self.type == "rectangle" and not self.width > 0:
+            raise ValueError("a rectangle datum target needs its width (> 0)")
+        if self.type in ("line", "circle", "rectangle") and self.direction is None:
+            raise ValueError(f"a {self.type} datum target needs its direction (a line's "
+                             "direction, an area's normal)")
+        return self
+
+
 class DatumSpec(_Strict):
     """A datum feature of the plan's ``datums`` table (see :mod:`.drf`).
 
     ``faces``: the faces of the datum feature (one plane, or the cylinder faces of a hole or
     boss, or coplanar faces, or with ``kind: midplane`` the two opposite faces of a width); ``at`` with ``kind: point``: a point datum (target) on the
-    surface.  ``kind`` (default: from the faces' CAD geometry): ``plane``, ``axis``, ``point``.
+    surface; ``targets``: datum targets (:class:`DatumTargetSpec`, the datum set up from
+    the scan at each target, :mod:`.datum_targets`).  ``kind`` (default: from the faces' CAD
+    geometry): ``plane``, ``axis``, ``point``, ``midplane``, ``pattern`` (the axes of several
+    cylinders fitted together at their CAD positions: a pattern of holes or bosses as one datum,
+    or a common axis of coaxial ones), ``targets``.
     """
 
     faces: Optional[FaceList] = None
     at: Optional[Vec3] = None
-    kind: Optional[Literal["plane", "midplane", "axis", "point"]] = None
+    targets: Optional[Annotated[list[DatumTargetSpec], Field(min_length=1)]] = None
+    kind: Optional[Literal["plane", "midplane", "axis", "point", "pattern", "targets"]] = None
     pmi: Optional[PmiSource] = None
 
     @model_validator(mode="after")
     def _what(self):
-        if (self.faces is None) == (self.at is None):
-            raise ValueError("a datum takes faces: [...] (a datum feature) or at: [x, y, z] "
-                             "(a point)")
+        if sum(x is not None for x in (self.faces, self.at, self.targets)) != 1:
+            raise ValueError("a datum takes faces: [...] (a datum feature), at: [x, y, z] "
+                             "(a point) or targets: [...] (datum targets)")
+        if (self.kind == "targets") != (self.targets is not None) and self.kind is not None:
+            raise ValueError("kind: targets goes with targets: [...] (and only with it)")
+        if self.kind == "pattern" and self.faces is None:
+            raise ValueError("a pattern datum takes faces: [...] (the cylinder faces of its "
+                             "features)")
         if self.at is not None and self.kind not in (None, "point"):
             raise ValueError("a datum given by at: [x, y, z] is a point (kind: point)")
         return self
