@@ -109,6 +109,9 @@ class DRF:
     free: list
     free_basis: np.ndarray
     iterations: int
+    #: per datum, the small motions (6, k) it constrained (the directions the datums before
+    #: it left free and it fixed): where a datum feature shift (MMB/LMB) may move the frame
+    constrained: tuple = ()
 
     def apply(self, X) -> np.ndarray:
         """Points (N, 3) of the model frame in the DRF's frame."""
@@ -352,7 +355,7 @@ def fit_drf(features, size: float = 100.0, max_iterations: int = 8) -> DRF:
     for it in range(1, max_iterations + 1):
         xi = np.zeros(6)
         N = np.eye(6)
-        fits = []
+        fits, cons = [], []
         for f in feats:
             X = f.points @ T[:3, :3].T + T[:3, 3] if len(f.points) else f.points
             if f.points2 is not None:
@@ -361,11 +364,13 @@ def fit_drf(features, size: float = 100.0, max_iterations: int = 8) -> DRF:
             fits.append(fit)
             A = G @ Sc @ N
             if A.size == 0 or N.shape[1] == 0:
+                cons.append(np.zeros((6, 0)))
                 continue
             y = np.linalg.lstsq(A, r - G @ Sc @ xi, rcond=None)[0]
             xi = xi + N @ y
             _, s, vt = np.linalg.svd(A, full_matrices=True)
             rank = int(np.sum(s > 1e-9 * max(1.0, s.max() if s.size else 1.0)))
+            cons.append(Sc @ N @ vt[:rank].T)
             N = N @ vt[rank:].T
         step = Sc @ xi
         T = rigid_exp(step) @ T
@@ -373,4 +378,4 @@ def fit_drf(features, size: float = 100.0, max_iterations: int = 8) -> DRF:
             break
     free_basis = Sc @ N
     return DRF(tuple(f.name for f in feats), T, tuple(fits), _describe(N, 1 / L),
-               free_basis, it)
+               free_basis, it, tuple(cons))

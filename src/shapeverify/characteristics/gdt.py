@@ -235,6 +235,11 @@ def eval_surface_profile(c, ctx: EvalContext):
         return _not_measured(c, "no scan points on the profile's faces")
     cl = ctx.prep.closest(X, exact=True)
     d = np.asarray(cl.distances, float)
+    shift = None
+    if getattr(c, "datum_modifiers", None):       # MMB/LMB: the best pose within the shift
+        from .datum_shift import profile_with_shift
+
+        d, shift = profile_with_shift(c, ctx, X, drf, d, np.asarray(cl.normals, float))
     d = d[np.isfinite(d)]
     i = int(np.argmax(np.abs(d)))
     value = 2.0 * float(abs(d[i]))
@@ -246,7 +251,8 @@ def eval_surface_profile(c, ctx: EvalContext):
     return _result(c, ctx, value, U, {"n": int(d.size), "min": float(d.min()),
                                       "max": float(d.max()), "noise": ctx.S.noise,
                                       "extreme_quantile": zq, "faces": fl or "all",
-                                      "excluded": ctx.S.excluded(fl)},
+                                      "excluded": ctx.S.excluded(fl),
+                                      **({"datum_shift": shift} if shift else {})},
                    drf, 0.0, hi)
 
 

@@ -89,3 +89,41 @@ def common_datums(ds: list, ctx) -> tuple[list | None, str]:
                         "name": joined}}
         names.append(joined)
     return names, ""
+
+
+_MATERIAL = {"MaximumMaterialRequirement": "M", "LeastMaterialRequirement": "L"}
+
+
+def datum_modifiers(item: dict, ctx) -> tuple[dict | None, str]:
+    """({datum letter: 'M' | 'L'} of a tolerance's DRF, '') or (None, why not): each modified
+    datum must be a single hole or boss axis with a toleranced diameter (``Size_Diameter``
+    with limits on its faces), whose limits are then put into its ``datums`` entry
+    (``size``: the MMB/LMB, :mod:`.datum_shift`)."""
+    from .pmi_plan import _mm
+
+    out = {}
+    pmi_datums = {d["name"]: d for d in ctx.pmi["datums"]}
+    for d in item["datums"]:
+        if not d["modifiers"]:
+            continue
+        other = [m for m in d["modifiers"] if m not in _MATERIAL]
+        mats = {_MATERIAL[m] for m in d["modifiers"] if m in _MATERIAL}
+        if other or len(mats) != 1:
+            return None, f"datum modifiers of {d['name']} ({', '.join(d['modifiers'])}) are not applied"
+        spec = ctx.datum_specs.get(d["name"])
+        if spec is None:
+            return None, ctx.datum_why.get(d["name"], f"datum {d['name']} is not in the file")
+        if spec.get("kind") != "axis":
+            return None, (f"datum {d['name']} at {'MMB' if 'M' in mats else 'LMB'} is a "
+                          f"{spec.get('kind')} datum; its shift is applied to one hole or "
+                          "boss axis only")
+        want = set(pmi_datums[d["name"]]["faces"])
+        size = next((x for x in ctx.pmi["dimensions"] if x["type"] == "Size_Diameter"
+                     and x["lower"] is not None and want and want <= set(x["faces"])), None)
+        if size is None:
+            return None, (f"datum {d['name']} at {'MMB' if 'M' in mats else 'LMB'}: no "
+                          "toleranced diameter (Size_Diameter) on its faces for its boundary")
+        spec["size"] = {"nominal": _mm(size["nominal"]), "lower": _mm(size["lower"]),
+                        "upper": _mm(size["upper"])}
+        out[d["name"]] = mats.pop()
+    return out, ""

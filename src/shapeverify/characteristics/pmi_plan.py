@@ -291,10 +291,21 @@ def _datum_spec(d: dict, ctx) -> tuple[dict | None, str]:
                   f"({', '.join(sorted(kinds))}); datum features are planes or axes")
 
 
-def _item_drf(item, ctx) -> tuple[list | None, str]:
-    """(datum letters of the item's DRF, '') when every datum can be fitted, else (None, why)."""
+def _item_drf(item, ctx, shift_ok: bool = False) -> tuple[list | None, str]:
+    """(datum letters of the item's DRF, '') when every datum can be fitted, else (None, why).
+    ``shift_ok``: the caller applies MMB/LMB datum modifiers (:mod:`.pmi_datums`)."""
     ds = item["datums"]
     mods = [f"{d['name']} {', '.join(d['modifiers'])}" for d in ds if d["modifiers"]]
+    if mods and shift_ok and len({d["order"] for d in ds}) == len(ds):
+        from .pmi_datums import datum_modifiers
+
+        dm, why = datum_modifiers(item, ctx)
+        if dm is None:
+            return None, why
+        mods = []
+    elif mods and shift_ok:
+        return None, (f"datum modifiers ({'; '.join(mods)}) of a common datum are not applied "
+                      "(a datum feature shift of single hole or boss axes only)")
     if mods:
         return None, f"datum modifiers ({'; '.join(mods)}) are not applied"
     orders = [d["order"] for d in ds]
@@ -424,12 +435,17 @@ def _tolerance(item, ctx, drf, why) -> tuple[list, str]:
         if item["datums"]:
             r = _drf_reason(item, drf, why)
             if r:            # not the plan's alignment: in its own DRF (.drf)
-                names, r2 = _item_drf(item, ctx)
+                names, r2 = _item_drf(item, ctx, shift_ok=True)
                 if names is None:
                     return [], r2
-                return [{"name": ctx.name(f"{item['id']}_profile"), "type": "surface_profile",
+                entry = {"name": ctx.name(f"{item['id']}_profile"), "type": "surface_profile",
                          "faces": [f"face:{f}" for f in faces], "tol": item["value"],
-                         "datums": names, "pmi": src}], ""
+                         "datums": names, "pmi": src}
+                dm = {d["name"]: "M" if "MaximumMaterialRequirement" in d["modifiers"] else "L"
+                      for d in item["datums"] if d["modifiers"]}
+                if dm:
+                    entry["datum_modifiers"] = dm
+                return [entry], ""
         return [{"name": ctx.name(f"{item['id']}_profile"), "type": "surface_profile",
                  "faces": [f"face:{f}" for f in faces], "tol": item["value"],
                  "datum": bool(item["datums"]), "pmi": src}], ""

@@ -11,7 +11,7 @@ from typing import Annotated, Literal, Optional, Union
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 __all__ = ["Tol", "PmiSource", "Unsupported", "Vec3", "FeatureId", "FeatureRef", "Hole",
-           "DatumTargetSpec", "SurfaceProfile", "Flatness", "Cylinder", "CheckPoint", "DatumSpec",
+           "DatumTargetSpec", "DatumSize", "SurfaceProfile", "Flatness", "Cylinder", "CheckPoint", "DatumSpec",
            "Straightness",
            "Circularity", "Cylindricity", "Parallelism", "Perpendicularity", "Angularity",
            "Position", "CircularRunout", "TotalRunout", "Width", "SizeLimits", "Distance",
@@ -117,12 +117,20 @@ class SurfaceProfile(_Char, Tol):
     #: located in this datum reference frame of the plan's ``datums`` (fitted, :mod:`.drf`)
     #: instead of the plan's alignment
     datums: Optional[DrfRef] = None
+    #: datums of ``datums`` referenced at MMB (``M``) or LMB (``L``): the frame may shift
+    #: within what the datum feature's departure from that boundary allows, and the profile
+    #: is evaluated at the best pose within it (:mod:`.datum_shift`)
+    datum_modifiers: Optional[dict[str, Literal["M", "L"]]] = None
 
     @model_validator(mode="after")
     def _drf(self):
         if self.datums is not None and not self.datum:
             raise ValueError("datums and datum: false contradict each other (a profile "
                              "without datums floats)")
+        extra = sorted(set(self.datum_modifiers or ()) - set(self.datums or ()))
+        if extra:
+            raise ValueError(f"datum_modifiers name datums {extra} that are not in datums "
+                             f"{self.datums or []}")
         return self
 
 
@@ -190,6 +198,21 @@ class DatumTargetSpec(_Strict):
         return self
 
 
+class DatumSize(_Strict):
+    """The size limits of a datum feature of size (a hole's or boss's diameter, mm): its
+    maximum/least material boundary for a datum referenced at MMB/LMB (:mod:`.datum_shift`)."""
+
+    nominal: float = Field(gt=0)
+    lower: float
+    upper: float
+
+    @model_validator(mode="after")
+    def _order(self):
+        if not self.lower < self.upper:
+            raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
+        return self
+
+
 class DatumSpec(_Strict):
     """A datum feature of the plan's ``datums`` table (see :mod:`.drf`).
 
@@ -206,6 +229,9 @@ class DatumSpec(_Strict):
     at: Optional[Vec3] = None
     targets: Optional[Annotated[list[DatumTargetSpec], Field(min_length=1)]] = None
     kind: Optional[Literal["plane", "midplane", "axis", "point", "pattern", "targets"]] = None
+    #: a hole's or boss's diameter limits (needed when a characteristic references the datum
+    #: at MMB or LMB: ``datum_modifiers``)
+    size: Optional[DatumSize] = None
     pmi: Optional[PmiSource] = None
 
     @model_validator(mode="after")
