@@ -35,11 +35,12 @@ tolerance of the file appears exactly once: in ``characteristics`` or in ``unsup
 
 Not expressed yet (each such item says why in ``unsupported``): orientation, runout, form
 other than flatness, profile of a line, location dimensions; positions with a material
-modifier (no bonus tolerance), a zone without a diameter symbol, or datum modifiers;
-tolerances in a datum reference frame other than the plan's one alignment; datums set up from
-datum targets, from edges, or from several faces (a width's centre plane, a pattern); datum
-features that OpenCASCADE's XCAF reader leaves without a shape (NIST CTC 01's B and C, which
-the file ties to their faces by ``ITEM_IDENTIFIED_REPRESENTATION_USAGE``).
+modifier (no bonus tolerance), a zone without a diameter symbol; datum modifiers other than
+MMB/LMB of single hole or boss axes in a profile's DRF (:mod:`.pmi_datums`); datum targets
+attached to edges; datums on edges; datum features that OpenCASCADE's XCAF reader leaves
+without a shape (NIST CTC 01's B and C, which the file ties to their faces by
+``ITEM_IDENTIFIED_REPRESENTATION_USAGE``).  Datums set up from datum targets, patterns of
+cylinders and common datums (``E-F``) are in the ``datums`` table (:mod:`.pmi_datums`).
 
 Example (needs the NIST test model)::
 
