@@ -233,7 +233,7 @@ def _unique_drf(drf: list) -> list:
 
 # ------------------------------------------------------------------------------ the read
 def _open(path: Path):
-    """(document, shape) of a STEP file read with GD&T (and names) on."""
+    """(document, shape, reader) of a STEP file read with GD&T (and names) on."""
     from OCP.IFSelect import IFSelect_RetDone
     from OCP.STEPCAFControl import STEPCAFControl_Controller, STEPCAFControl_Reader
     from OCP.TCollection import TCollection_ExtendedString
@@ -254,7 +254,57 @@ def _open(path: Path):
     shape = caf.Reader().OneShape()
     if shape is None or shape.IsNull():
         raise CADImportError(f"{path}: the STEP file holds no shape to attach PMI to")
-    return doc, shape
+    return doc, shape, caf
+
+
+def _unattached(caf, names) -> dict:
+    """{datum letter: how the STEP file attaches the datum} for datums that OpenCASCADE's
+    XCAF reader leaves without a shape, read from the STEP entities: the shape aspect its
+    ``SHAPE_ASPECT_RELATIONSHIP`` names (a ``PLACED_DATUM_TARGET_FEATURE`` of a type the
+    reader does not read, or a datum feature tied to the geometry by an
+    ``ITEM_IDENTIFIED_REPRESENTATION_USAGE`` whose item the reader does not resolve)."""
+    from OCP.StepAP242 import StepAP242_ItemIdentifiedRepresentationUsage
+    from OCP.StepDimTol import StepDimTol_Datum, StepDimTol_DatumTarget
+    from OCP.StepRepr import StepRepr_ShapeAspectRelationship
+
+    model = caf.Reader().WS().Model()
+    # the entities stay referenced in ``ents``, so OCP hands back the same Python object for
+    # the same entity (``Interface_InterfaceModel::Number`` answers 0 through OCP)
+    ents = [model.Value(i) for i in range(1, model.NbEntities() + 1)]
+    iiru = {}
+    for e in ents:
+        if isinstance(e, StepAP242_ItemIdentifiedRepresentationUsage):
+            d = e.Definition().Value() if e.Definition() is not None else None
+            if d is not None:
+                iiru.setdefault(id(d), []).append(e)
+
+    def label(x) -> str:
+        n = x.Name().ToCString() if x.Name() is not None else ""
+        return f"{type(x).__name__.split('_', 1)[-1]} {n!r}" if n else type(x).__name__
+
+    out = {}
+    for e in ents:
+        if not isinstance(e, StepRepr_ShapeAspectRelationship):
+            continue
+        b, a = e.RelatedShapeAspect(), e.RelatingShapeAspect()
+        if not isinstance(b, StepDimTol_Datum) or a is None:
+            continue
+        name = b.Identification().ToCString()
+        if name not in names or name in out:
+            continue
+        if isinstance(a, StepDimTol_DatumTarget):
+            desc = a.Description().ToCString() if a.Description() is not None else ""
+            out[name] = (f"the file sets it up from the datum target {label(a)} of type "
+                         f"{desc!r}, which OpenCASCADE's XCAF reader does not read (it reads "
+                         "point, line, rectangle, circle and area targets)")
+        elif id(a) in iiru:
+            out[name] = (f"the file ties its datum feature {label(a)} to faces by an "
+                         "ITEM_IDENTIFIED_REPRESENTATION_USAGE whose item (a "
+                         "SET_REPRESENTATION_ITEM) OpenCASCADE's XCAF reader does not resolve")
+        else:
+            out[name] = (f"its datum feature {label(a)} is tied to no geometry in the file (no "
+                         "GEOMETRIC_ITEM_SPECIFIC_USAGE or ITEM_IDENTIFIED_REPRESENTATION_USAGE)")
+    return out
 
 
 def read_pmi_here(path) -> dict:
@@ -266,7 +316,7 @@ def read_pmi_here(path) -> dict:
 
     path = Path(path)
     _init_ocp()
-    doc, shape = _open(path)
+    doc, shape, caf = _open(path)
     faces = _shape_faces(path, "step", shape)
     index = _FaceIndex(faces)
     tool = XCAFDoc_DocumentTool.DimTolTool_s(doc.Main())
@@ -304,6 +354,18 @@ def read_pmi_here(path) -> dict:
             d["type"] = "DatumTarget"
         d["id"] = f"DATUM_{name or k}"
         datum_list.append(d)
+    bare = {d["name"] for d in datum_list if not d["faces"] and not d["other"]
+            and not d["targets"]}
+    if bare:
+        try:
+            why = _unattached(caf, bare)
+        except Exception as e:          # the reason is a diagnosis; the read stands without it
+            logger.warning("%s: could not read how datums %s are attached: %s", path.name,
+                           sorted(bare), e)
+            why = {}
+        for d in datum_list:
+            if d["name"] in why:
+                d["unattached"] = why[d["name"]]
 
     tolerances = []
     for k, lab in enumerate(_labels(tool.GetGeomToleranceLabels), start=1):

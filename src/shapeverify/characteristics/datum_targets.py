@@ -8,12 +8,13 @@ circular or rectangular pad).  The datum is the geometry the simulators, held at
 scan points around it:
 
 * **point target** at ``p0`` on a face with CAD normal ``n``: the least-squares plane of the
-  scan points within :data:`POINT_RADIUS` of ``p0`` (a small neighbourhood of the surface),
+  scan points of that face within :data:`POINT_RADIUS` of ``p0`` (2.5 scan spacings when
+  that is more: a small neighbourhood of the surface),
   cut by the simulator's line ``p0 + s n``: the contact is ``p0 + s n``
   (:func:`point_contact`).  It fixes one degree of freedom: the part's position along ``n``
   at ``p0``.
 * **line target** through ``p0`` along ``u``, ``L`` long: the scan points within
-  :data:`LINE_RADIUS` of the segment; their deviations along ``n`` fitted by a straight line
+  :data:`LINE_RADIUS` (1.5 scan spacings when more) of the segment; their deviations along ``n`` fitted by a straight line
   in the parameter along ``u`` (least squares); the contacts are its values at the two ends
   (:func:`line_contact`).  It fixes two degrees of freedom: the position along ``n`` and the
   rotation about ``u x n``.
@@ -170,17 +171,29 @@ def targets_feature(name, spec, ctx):
     for t in spec.targets:
         at = np.asarray(t.at, float)
         fc = int(face_indices(ctx.prep.model, [t.face])[0])
-        foot = ctx.prep.closest(at[None], exact=True)
-        n = np.asarray(foot.normals[0], float)
-        on = _on(ctx, [fc])
+        # the normal of the target's own face (a target at an edge has its closest CAD
+        # point on either face)
+        if ctx.feats[fc].kind == "plane":
+            n = np.asarray(ctx.feats[fc].axis, float)
+        else:
+            foot = ctx.prep.closest(at[None], exact=True)
+            if int(foot.face[0]) != fc:
+                raise ValueError(f"datum {name}: the target at {np.round(at, 4).tolist()} is "
+                                 f"not on its face face:{fc} (closest: face:{int(foot.face[0])})")
+            n = np.asarray(foot.normals[0], float)
+        # the target's face only, edges included (a target may sit near an edge; a point of
+        # the neighbouring face has its foot there, not on this face)
+        on = S.on([fc])
+        sp = float(getattr(S.support, "spacing", 0.0) or 0.0)
         if t.type == "point":
-            sel = on & (np.linalg.norm(S.feet - at, axis=1) <= POINT_RADIUS)
+            sel = on & (np.linalg.norm(S.feet - at, axis=1) <= max(POINT_RADIUS, 2.5 * sp))
             u, length = None, 0.0
         else:
             u = np.asarray(t.direction, float) / np.linalg.norm(t.direction)
             q = S.feet - at
             tt = np.clip(q @ u, -0.5 * t.length, 0.5 * t.length)
-            sel = on & (np.linalg.norm(q - tt[:, None] * u, axis=1) <= LINE_RADIUS)
+            sel = on & (np.linalg.norm(q - tt[:, None] * u, axis=1)
+                        <= max(LINE_RADIUS, 1.5 * sp))
             length = float(t.length)
         k0 = sum(len(p) for p in pts)
         pts.append(S.X[sel])

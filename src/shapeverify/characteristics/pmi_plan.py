@@ -223,7 +223,8 @@ def _datum_faces(d: dict, ctx, targets_why: str) -> tuple[list | None, str]:
         if d["other"]:
             return None, f"datum {d['name']} is attached to {d['other'][0]}s, not faces"
         return None, (f"datum {d['name']} is not attached to any face in the file (as "
-                      "OpenCASCADE's XCAF reader reads it)")
+                      "OpenCASCADE's XCAF reader reads it)"
+                      + (f": {d['unattached']}" if d.get("unattached") else ""))
     faces = [ctx.fmap.get(f) for f in d["faces"]]
     if any(f is None for f in faces):
         return None, f"a face of datum {d['name']} could not be imported"
