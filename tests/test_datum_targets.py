@@ -40,6 +40,16 @@ def test_point_target_contact_is_the_neighbourhood_plane_on_the_target_normal():
     assert point_contact(Y, p0, [0, 0, 1]) == pytest.approx(-0.3, abs=1e-12)
 
 
+def test_point_target_leaves_out_points_behind_a_thin_wall():
+    """Points of the other side of a 2.7 mm wall (their own face missing from the model, so
+    their closest CAD point is on the target's face) do not move the contact."""
+    rng = np.random.default_rng(11)
+    p0 = np.array([0.0, 0.0, 0.0])
+    X = _patch(rng, p0, [0, 0, 1], k=40, off=0.05)
+    back = _patch(rng, p0, [0, 0, 1], k=12, off=-2.7)
+    assert point_contact(np.vstack([X, back]), p0, [0, 0, 1]) == pytest.approx(0.05, abs=1e-12)
+
+
 def test_point_target_without_enough_points_names_the_target():
     with pytest.raises(ValueError, match=r"2 scan points near the datum target at \[1.0"):
         point_contact(np.zeros((2, 3)), [1.0, 2.0, 3.0], [0, 0, 1])

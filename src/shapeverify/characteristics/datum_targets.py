@@ -9,7 +9,8 @@ scan points around it:
 
 * **point target** at ``p0`` on a face with CAD normal ``n``: the least-squares plane of the
   scan points of that face within :data:`POINT_RADIUS` of ``p0`` (2.5 scan spacings when
-  that is more: a small neighbourhood of the surface),
+  that is more: a small neighbourhood of the surface; less those more than
+  :data:`SURFACE_BAND` or 5 robust sigmas from the median height: not on that surface),
   cut by the simulator's line ``p0 + s n``: the contact is ``p0 + s n``
   (:func:`point_contact`).  It fixes one degree of freedom: the part's position along ``n``
   at ``p0``.
@@ -41,13 +42,17 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["POINT_RADIUS", "LINE_RADIUS", "point_contact", "line_contact", "in_area",
+__all__ = ["POINT_RADIUS", "LINE_RADIUS", "SURFACE_BAND", "point_contact", "line_contact", "in_area",
            "targets_feature", "pattern_feature"]
 
 #: scan points within this distance (mm) of a point target make its neighbourhood plane
 POINT_RADIUS = 2.0
 #: scan points within this distance (mm) of a line target's segment make its contact line
 LINE_RADIUS = 1.0
+#: of a point target's neighbours, those farther than this (mm; or 5 robust sigmas) from
+#: their median height along the target's normal are not on its surface: a point behind a thin
+#: wall whose closest CAD point is on the target's face (its own face missing from the model)
+SURFACE_BAND = 0.5
 
 
 def point_contact(X, p0, n) -> float:
@@ -78,6 +83,13 @@ def point_contact_plane(X, p0, n) -> tuple[float, np.ndarray]:
     if X.shape[0] < 3:
         raise ValueError(f"{X.shape[0]} scan points near the datum target at "
                          f"{np.round(p0, 4).tolist()} (a plane needs 3; is it scanned?)")
+    h = (X - p0) @ n
+    med = float(np.median(h))
+    mad = 1.4826 * float(np.median(np.abs(h - med)))
+    X = X[np.abs(h - med) <= max(SURFACE_BAND, 5.0 * mad)]
+    if X.shape[0] < 3:
+        raise ValueError(f"{X.shape[0]} scan points near the datum target at "
+                         f"{np.round(p0, 4).tolist()} lie on its surface (a plane needs 3)")
     c = X.mean(axis=0)
     _, s, vt = np.linalg.svd(X - c, full_matrices=False)
     if s[1] <= 1e-9 * max(s[0], 1e-12):
