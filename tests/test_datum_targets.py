@@ -95,7 +95,8 @@ def test_321_point_targets_undo_the_rigid_motion_of_a_perfect_part():
 
 def test_four_point_secondary_is_least_squares_in_its_free_directions():
     """A: 3 points (exact); B: 4 points on y=0 with two of them 0.1 mm proud: B removes ty and
-    rz as the least squares of its 4 contacts; against scipy over (ty, rz)."""
+    rz as the least squares of its 4 contacts; against scipy over (ty, rz).  (Noisy pads:
+    B's rows keep to ty and rz, so C still fixes tx.)"""
     rng = np.random.default_rng(4)
     Bp = np.array([[10, 0, 20], [40, 0, 20], [70, 0, 20], [90, 0, 20]], float)
     bumps = np.array([0.1, 0.0, 0.1, -0.05])        # along -y (outward)
@@ -119,9 +120,11 @@ def test_four_point_secondary_is_least_squares_in_its_free_directions():
 
     ref = least_squares(resid, [0.0, 0.0], xtol=1e-15, ftol=1e-15).x
     got = drf.T
-    assert np.arctan2(got[1, 0], got[0, 0]) == pytest.approx(ref[0], abs=1e-9)
+    # the DRF's rows move each contact along its CAD normal (first order in the 1.2 mrad
+    # turn: 4e-9 rad, 4e-7 mm over the 90 mm pad spread)
+    assert np.arctan2(got[1, 0], got[0, 0]) == pytest.approx(ref[0], abs=1e-8)
     # the translation at the origin along y
-    assert got[1, 3] == pytest.approx(ref[1], abs=1e-9)
+    assert got[1, 3] == pytest.approx(ref[1], abs=1e-6)
 
 
 def _hole(rng, c, r=3.0, h=10.0, k=400, shift=(0.0, 0.0)):

@@ -253,20 +253,21 @@ def _fit_targets(f: DatumFeature, X):
     for kind, p0, n, idx, u, length in f.contacts:
         p0, n = np.asarray(p0, float), np.asarray(n, float)
         try:
+            # the rows use the CAD normal n, not the scanned surface's: a noisy measured normal
+            # would give a datum's rows small components in directions it does not control
+            # (four B points on +/-x faces would also fix y) and the rank decisions would take
+            # them; the fixed point is the least squares of the contacts to first order
             if kind == "point":
-                # the contact moves with the part along the surface's measured normal m: a
-                # small motion moves it by (omega x pm + t).m / (m.n) along n
-                s, m = point_contact_plane(X[idx], p0, n)
-                ends = [(p0, s, m)]
+                ends = [(p0, point_contact_plane(X[idx], p0, n)[0])]
             else:
                 h = 0.5 * length * np.asarray(u, float)
                 s1, s2 = line_contact(X[idx], p0, u, n, length)
-                ends = [(p0 - h, s1, n), (p0 + h, s2, n)]
+                ends = [(p0 - h, s1), (p0 + h, s2)]
         except ValueError as e:
             raise ValueError(f"datum {f.name}: {e}") from None
-        for q0, s, m in ends:
+        for q0, s in ends:
             pm = q0 + s * n
-            rows.append(np.r_[np.cross(pm, m), m] / (m @ n))
+            rows.append(np.r_[np.cross(pm, n), n])
             rhs.append(-s)
             pms.append(pm)
             s_all.append(s)
