@@ -176,3 +176,34 @@ def test_pattern_datum_with_one_hole_off_is_the_least_squares_pattern():
     T = drf.T
     assert np.arctan2(T[1, 0], T[0, 0]) == pytest.approx(ref[0], abs=2e-6)
     np.testing.assert_allclose(T[:2, 3], ref[1:], atol=2e-5)
+
+
+def test_noisy_pads_on_opposite_faces_leave_the_last_direction_to_the_tertiary():
+    """CTC 02's set-up: A 3 points on z, B 4 points on the two opposite x faces of a width, C 1
+    point on y, every pad with 0.02 mm noise: B fixes x and the turn about z only, C fixes y
+    (rows along the CAD normals: the pads' noisy normals must not give B a say in y)."""
+    rng = np.random.default_rng(12)
+    M = rigid_exp([0.002, -0.001, 0.003, 0.3, 0.2, -0.1])
+    pads = {"A": [([20, 10, 0], [0, 0, -1]), ([80, 10, 0], [0, 0, -1]), ([50, 50, 0], [0, 0, -1])],
+            "B": [([0, 10, 20], [-1, 0, 0]), ([0, 50, 20], [-1, 0, 0]),
+                  ([100, 10, 20], [1, 0, 0]), ([100, 50, 20], [1, 0, 0])],
+            "C": [([50, 0, 20], [0, -1, 0])]}
+    feats = []
+    for name, pts in pads.items():
+        X, contacts = [], []
+        for p, n in pts:
+            P = _patch(rng, p, n, r=2.5, k=30, noise=0.02) @ M[:3, :3].T + M[:3, 3]
+            contacts.append(("point", np.array(p, float), np.array(n, float),
+                             np.arange(sum(map(len, X)), sum(map(len, X)) + len(P)), None, 0.0))
+            X.append(P)
+        feats.append(DatumFeature(name, "targets", np.mean([p for p, _ in pts], axis=0),
+                                  np.array(pts[0][1], float), np.concatenate(X),
+                                  contacts=tuple(contacts)))
+    drf = fit_drf(feats, size=100.0)
+    assert drf.free == []
+    D = drf.T @ M                      # the identity up to the pads' noise
+    np.testing.assert_allclose(D[:3, :3], np.eye(3), atol=2e-3)
+    assert np.abs(D[:3, 3]).max() < 0.05
+    # C alone decides y: its contact sits on its nominal place
+    c = drf.apply(feats[2].points)
+    assert abs(np.median(c[:, 1])) < 0.03
