@@ -9,7 +9,8 @@ Each run evaluates only the characteristics under test (the plan's own alignment
 * CTC 02: datums A (3 point targets), B (4), C (1) -> GT6-GT9 profiles in A|B|C; datum K (a
   circular area target of diameter 85) -> GT3 perpendicularity.  The scan covers the faces
   those need (datum features, targets, toleranced faces), at 1 mm: a perfect part passes them;
-  face 205 moved 0.6 mm fails GT9 (0.75) only; face 202 tilted 0.3 degrees fails GT3 only.
+  face 205 moved 0.6 mm fails GT9 (0.75) only; face 202 tilted 0.6 degrees fails GT3 only
+  (0.3 degrees: undecided).
 * FTC 08: common datum E-F (two holes of the pattern) -> GT10 profile in D|E-F; a perfect part
   passes; both holes moved 0.35 mm move the frame (the profile grows by about 0.7 mm); the
   profile's faces moved 0.6 mm fail it.  GT17 (D|K(M)|L(M)): with
@@ -149,8 +150,20 @@ def test_ctc02_face_moved_fails_its_profile_and_face_tilted_its_perpendicularity
     P = _tilt(P, d["face"] == f3, a3 / np.linalg.norm(a3), 0.3)
     res = _run(d, P)
     v = _verdicts(res)
-    assert v["GT9_profile"] == "fail" and v["GT3_perpendicularity"] == "fail", v
-    assert {n for n, x in v.items() if x == "fail"} == {"GT9_profile", "GT3_perpendicularity"}
+    # 0.3 degrees leaves GT3 (0.25) within its uncertainty: no longer a pass
+    assert v["GT9_profile"] == "fail" and v["GT3_perpendicularity"] != "pass", v
+    assert {n for n, x in v.items() if x == "fail"} == {"GT9_profile"}
+
+
+def test_ctc02_face_tilted_0p6_degrees_fails_its_perpendicularity_to_k(ctc02):
+    d = ctc02
+    f3 = d["inv"][202]
+    a3 = np.cross(d["feats"][202].axis, [0.0, 1.0, 0.0])
+    if np.linalg.norm(a3) < 0.1:
+        a3 = np.cross(d["feats"][202].axis, [1.0, 0.0, 0.0])
+    P = _tilt(d["P"], d["face"] == f3, a3 / np.linalg.norm(a3), 0.6)
+    v = _verdicts(_run(d, P))
+    assert {n for n, x in v.items() if x == "fail"} == {"GT3_perpendicularity"}, v
 
 
 # ------------------------------------------------------------------------------ FTC 08
