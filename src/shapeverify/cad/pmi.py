@@ -15,7 +15,8 @@ walks the document's ``XCAFDoc_DimTolTool`` (``GetDatumLabels``, ``GetGeomTolera
   limits of deviation ``lower``/``upper`` (mm; OpenCASCADE gives the lower deviation as its
   magnitude, so ``lower = -GetLowerTolValue()``), qualifier, modifiers, or a range;
 * a **datum** (one entry per letter; OpenCASCADE writes one datum label per use in a datum
-  reference frame): letter, the faces of its datum feature, its datum targets.
+  reference frame): letter, the faces of its datum feature, its datum targets (type, number,
+  faces, and ``at``/``direction``/``xdirection``/``length``/``width``: :func:`_target_params`).
 
 Every item is tied to the faces it controls by **shape identity**: the faces of
 ``GetRefShapeLabel`` (a solid or shell stands for its faces) are looked up with ``IsSame``
@@ -250,6 +251,21 @@ def _vertices(face) -> list:
     return pts
 
 
+def _target_params(o) -> dict:
+    """A datum target's placement and size (mm): ``at`` (the axis' location: the point of a
+    point target, the centre of a circle, the middle of a line), ``direction`` (its main
+    direction: a line target's direction, a circle's normal), ``xdirection``, ``length``
+    (a line's length, a circle's diameter, a rectangle's length) and ``width``; ``{}`` when
+    the file gives no parameters (``HasDatumTargetParams``)."""
+    if not o.HasDatumTargetParams():
+        return {}
+    ax = o.GetDatumTargetAxis()
+    loc, d, x = ax.Location(), ax.Direction(), ax.XDirection()
+    return {"at": [loc.X(), loc.Y(), loc.Z()], "direction": [d.X(), d.Y(), d.Z()],
+            "xdirection": [x.X(), x.Y(), x.Z()], "length": float(o.GetDatumTargetLength()),
+            "width": float(o.GetDatumTargetWidth())}
+
+
 def _unique_drf(drf: list) -> list:
     """The datum reference frame in order, one entry per (letter, order): a datum set up from
     several datum targets (A1, A2, A3) comes as one label per target."""
@@ -262,7 +278,7 @@ def _unique_drf(drf: list) -> list:
 
 # ------------------------------------------------------------------------------ the read
 def _open(path: Path):
-    """(document, shape) of a STEP file read with GD&T (and names) on."""
+    """(document, shape, reader) of a STEP file read with GD&T (and names) on."""
     from OCP.IFSelect import IFSelect_RetDone
     from OCP.STEPCAFControl import STEPCAFControl_Controller, STEPCAFControl_Reader
     from OCP.TCollection import TCollection_ExtendedString
@@ -283,7 +299,57 @@ def _open(path: Path):
     shape = caf.Reader().OneShape()
     if shape is None or shape.IsNull():
         raise CADImportError(f"{path}: the STEP file holds no shape to attach PMI to")
-    return doc, shape
+    return doc, shape, caf
+
+
+def _unattached(caf, names) -> dict:
+    """{datum letter: how the STEP file attaches the datum} for datums that OpenCASCADE's
+    XCAF reader leaves without a shape, read from the STEP entities: the shape aspect its
+    ``SHAPE_ASPECT_RELATIONSHIP`` names (a ``PLACED_DATUM_TARGET_FEATURE`` of a type the
+    reader does not read, or a datum feature tied to the geometry by an
+    ``ITEM_IDENTIFIED_REPRESENTATION_USAGE`` whose item the reader does not resolve)."""
+    from OCP.StepAP242 import StepAP242_ItemIdentifiedRepresentationUsage
+    from OCP.StepDimTol import StepDimTol_Datum, StepDimTol_DatumTarget
+    from OCP.StepRepr import StepRepr_ShapeAspectRelationship
+
+    model = caf.Reader().WS().Model()
+    # the entities stay referenced in ``ents``, so OCP hands back the same Python object for
+    # the same entity (``Interface_InterfaceModel::Number`` answers 0 through OCP)
+    ents = [model.Value(i) for i in range(1, model.NbEntities() + 1)]
+    iiru = {}
+    for e in ents:
+        if isinstance(e, StepAP242_ItemIdentifiedRepresentationUsage):
+            d = e.Definition().Value() if e.Definition() is not None else None
+            if d is not None:
+                iiru.setdefault(id(d), []).append(e)
+
+    def label(x) -> str:
+        n = x.Name().ToCString() if x.Name() is not None else ""
+        return f"{type(x).__name__.split('_', 1)[-1]} {n!r}" if n else type(x).__name__
+
+    out = {}
+    for e in ents:
+        if not isinstance(e, StepRepr_ShapeAspectRelationship):
+            continue
+        b, a = e.RelatedShapeAspect(), e.RelatingShapeAspect()
+        if not isinstance(b, StepDimTol_Datum) or a is None:
+            continue
+        name = b.Identification().ToCString()
+        if name not in names or name in out:
+            continue
+        if isinstance(a, StepDimTol_DatumTarget):
+            desc = a.Description().ToCString() if a.Description() is not None else ""
+            out[name] = (f"the file sets it up from the datum target {label(a)} of type "
+                         f"{desc!r}, which OpenCASCADE's XCAF reader does not read (it reads "
+                         "point, line, rectangle, circle and area targets)")
+        elif id(a) in iiru:
+            out[name] = (f"the file ties its datum feature {label(a)} to faces by an "
+                         "ITEM_IDENTIFIED_REPRESENTATION_USAGE whose item (a "
+                         "SET_REPRESENTATION_ITEM) OpenCASCADE's XCAF reader does not resolve")
+        else:
+            out[name] = (f"its datum feature {label(a)} is tied to no geometry in the file (no "
+                         "GEOMETRIC_ITEM_SPECIFIC_USAGE or ITEM_IDENTIFIED_REPRESENTATION_USAGE)")
+    return out
 
 
 def read_pmi_here(path) -> dict:
@@ -295,7 +361,7 @@ def read_pmi_here(path) -> dict:
 
     path = Path(path)
     _init_ocp()
-    doc, shape = _open(path)
+    doc, shape, caf = _open(path)
     faces = _shape_faces(path, "step", shape)
     index = _FaceIndex(faces)
     edges = _Edges(shape, faces, index)
@@ -317,7 +383,7 @@ def read_pmi_here(path) -> dict:
         if o.IsDatumTarget():
             d["targets"].append({"type": _enum_name(o.GetDatumTargetType()),
                                  "number": int(o.GetDatumTargetNumber()), "faces": fs,
-                                 "other": other})
+                                 "other": other, **_target_params(o)})
         else:
             if not fs:                  # a datum feature named by its edge (a hole's rim)
                 probe = {"faces": []}
@@ -341,6 +407,18 @@ def read_pmi_here(path) -> dict:
             d["type"] = "DatumTarget"
         d["id"] = f"DATUM_{name or k}"
         datum_list.append(d)
+    bare = {d["name"] for d in datum_list if not d["faces"] and not d["other"]
+            and not d["targets"]}
+    if bare:
+        try:
+            why = _unattached(caf, bare)
+        except Exception as e:          # the reason is a diagnosis; the read stands without it
+            logger.warning("%s: could not read how datums %s are attached: %s", path.name,
+                           sorted(bare), e)
+            why = {}
+        for d in datum_list:
+            if d["name"] in why:
+                d["unattached"] = why[d["name"]]
 
     tolerances = []
     for k, lab in enumerate(_labels(tool.GetGeomToleranceLabels), start=1):

@@ -19,6 +19,8 @@ Datum features and the fit each gets (the *association criteria*)
   enclosing a tab, the farthest pair inside a slot).
 * **point** (``at``, a datum target point): the surface point at ``at``: ``at`` moved along the
   CAD normal by the mean deviation of the scan points within 2 mm.
+* **targets** (a datum set up from point and line datum targets) and **pattern** (several
+  cylinders as one datum: a pattern of holes, a common axis ``E-F``): :mod:`.datum_targets`.
 
 Each datum gives linear equations in the small rigid correction ``xi = (omega, t)`` that moves
 its measured geometry onto its nominal one (a plane: its normal, 2 equations, and its offset,
@@ -65,6 +67,11 @@ class DatumFeature:
     deviations: np.ndarray | None = field(default=None, repr=False)
     #: 'midplane': the points of the opposite face (outward normal -direction)
     points2: np.ndarray | None = field(default=None, repr=False)
+    #: 'targets': the contacts, each (kind 'point' | 'line', p0, n, indices into ``points``,
+    #: line direction u or None, line length) (:mod:`.datum_targets`)
+    contacts: tuple | None = field(default=None, repr=False)
+    #: 'pattern': the features, each (p0, axis, indices into ``points``, hole)
+    groups: tuple | None = field(default=None, repr=False)
 
 
 @dataclass(frozen=True)
@@ -102,6 +109,9 @@ class DRF:
     free: list
     free_basis: np.ndarray
     iterations: int
+    #: per datum, the small motions (6, k) it constrained (the directions the datums before
+    #: it left free and it fixed): where a datum feature shift (MMB/LMB) may move the frame
+    constrained: tuple = ()
 
     def apply(self, X) -> np.ndarray:
         """Points (N, 3) of the model frame in the DRF's frame."""
@@ -227,8 +237,72 @@ def _fit(f: DatumFeature, X, N):
         rows.append(np.r_[np.cross(pm, d0), d0])
         rhs.append(d0 @ (p0 - pm))
         return fit, np.array(rows), np.array(rhs)
-    raise ValueError(f"datum {f.name}: unknown kind {f.kind!r} (plane, midplane, axis or "
-                     "point)")
+    if f.kind == "targets":
+        return _fit_targets(f, X)
+    if f.kind == "pattern":
+        return _fit_pattern(f, X, N)
+    raise ValueError(f"datum {f.name}: unknown kind {f.kind!r} (plane, midplane, axis, "
+                     "point, targets or pattern)")
+
+
+def _fit_targets(f: DatumFeature, X):
+    """A datum of point and line targets: one row per contact (:mod:`.datum_targets`)."""
+    from .datum_targets import line_contact, point_contact_plane
+
+    rows, rhs, pms, s_all = [], [], [], []
+    for kind, p0, n, idx, u, length in f.contacts:
+        p0, n = np.asarray(p0, float), np.asarray(n, float)
+        try:
+            # the rows use the CAD normal n, not the scanned surface's: a noisy measured normal
+            # would give a datum's rows small components in directions it does not control
+            # (four B points on +/-x faces would also fix y) and the rank decisions would take
+            # them; the fixed point is the least squares of the contacts to first order
+            if kind == "point":
+                ends = [(p0, point_contact_plane(X[idx], p0, n)[0])]
+            else:
+                h = 0.5 * length * np.asarray(u, float)
+                s1, s2 = line_contact(X[idx], p0, u, n, length)
+                ends = [(p0 - h, s1), (p0 + h, s2)]
+        except ValueError as e:
+            raise ValueError(f"datum {f.name}: {e}") from None
+        for q0, s in ends:
+            pm = q0 + s * n
+            rows.append(np.r_[np.cross(pm, n), n])
+            rhs.append(-s)
+            pms.append(pm)
+            s_all.append(s)
+    pm = np.mean(pms, axis=0)
+    fit = DatumFit(f.name, "targets", f"{len(f.contacts)} datum target contacts (point: the "
+                   "neighbourhood plane's point on the target's normal; line: the deviations' "
+                   "line at its ends)", pm, np.asarray(f.direction, float), len(X),
+                   float(np.ptp(s_all)))
+    return fit, np.array(rows), np.array(rhs)
+
+
+def _fit_pattern(f: DatumFeature, X, N):
+    """A pattern of axes (or a common axis) as one datum: each axis fitted as an 'axis'
+    datum; 2 rows (across its nominal direction) at each of its ends, so that all rows are
+    lengths and the least squares is of the axes' ends' distances from their true positions
+    (:mod:`.datum_targets`)."""
+    rows, rhs, forms, cs = [], [], [], []
+    for k, (p0, d0, idx, hole) in enumerate(f.groups):
+        p0, d0 = np.asarray(p0, float), np.asarray(d0, float) / np.linalg.norm(d0)
+        g = DatumFeature(f"{f.name}[{k + 1}]", "axis", p0, d0, X[idx], hole=hole)
+        fit, _, _ = _fit(g, X[idx], N)
+        c, a = fit.point, fit.direction
+        h = (X[idx] - c) @ a
+        for e in (c + h.min() * a, c + h.max() * a):
+            nom = p0 + ((e - p0) @ d0) * d0
+            for b in tangent_basis(d0):
+                rows.append(np.r_[np.cross(e, b), b])
+                rhs.append(b @ (nom - e))
+        forms.append(fit.form)
+        cs.append(c)
+    d0 = np.asarray(f.direction, float)
+    fit = DatumFit(f.name, "pattern", f"{len(f.groups)} axes (each its mating cylinder's) "
+                   "fitted together at their CAD positions (least squares)",
+                   np.mean(cs, axis=0), d0 / np.linalg.norm(d0), len(X), float(max(forms)))
+    return fit, np.array(rows), np.array(rhs)
 
 
 def _with_points2(f, X2):
@@ -282,7 +356,7 @@ def fit_drf(features, size: float = 100.0, max_iterations: int = 8) -> DRF:
     for it in range(1, max_iterations + 1):
         xi = np.zeros(6)
         N = np.eye(6)
-        fits = []
+        fits, cons = [], []
         for f in feats:
             X = f.points @ T[:3, :3].T + T[:3, 3] if len(f.points) else f.points
             if f.points2 is not None:
@@ -291,11 +365,13 @@ def fit_drf(features, size: float = 100.0, max_iterations: int = 8) -> DRF:
             fits.append(fit)
             A = G @ Sc @ N
             if A.size == 0 or N.shape[1] == 0:
+                cons.append(np.zeros((6, 0)))
                 continue
             y = np.linalg.lstsq(A, r - G @ Sc @ xi, rcond=None)[0]
             xi = xi + N @ y
             _, s, vt = np.linalg.svd(A, full_matrices=True)
             rank = int(np.sum(s > 1e-9 * max(1.0, s.max() if s.size else 1.0)))
+            cons.append(Sc @ N @ vt[:rank].T)
             N = N @ vt[rank:].T
         step = Sc @ xi
         T = rigid_exp(step) @ T
@@ -303,4 +379,4 @@ def fit_drf(features, size: float = 100.0, max_iterations: int = 8) -> DRF:
             break
     free_basis = Sc @ N
     return DRF(tuple(f.name for f in feats), T, tuple(fits), _describe(N, 1 / L),
-               free_basis, it)
+               free_basis, it, tuple(cons))

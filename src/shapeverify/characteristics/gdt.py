@@ -107,6 +107,11 @@ EDGE = 2.0
 # ------------------------------------------------------------------------------ DRF
 def _datum_feature(name, spec, ctx: EvalContext) -> DatumFeature:
     S, feats = ctx.S, ctx.feats
+    if spec.targets is not None or spec.kind == "pattern":
+        from .datum_targets import pattern_feature, targets_feature
+
+        return (targets_feature if spec.targets is not None else pattern_feature)(
+            name, spec, ctx)
     if spec.at is not None:
         at = np.asarray(spec.at, float)
         foot = ctx.prep.closest(at[None], exact=True)
@@ -230,6 +235,11 @@ def eval_surface_profile(c, ctx: EvalContext):
         return _not_measured(c, "no scan points on the profile's faces")
     cl = ctx.prep.closest(X, exact=True)
     d = np.asarray(cl.distances, float)
+    shift = None
+    if getattr(c, "datum_modifiers", None):       # MMB/LMB: the best pose within the shift
+        from .datum_shift import profile_with_shift
+
+        d, shift = profile_with_shift(c, ctx, X, drf, d, np.asarray(cl.normals, float))
     d = d[np.isfinite(d)]
     i = int(np.argmax(np.abs(d)))
     value = 2.0 * float(abs(d[i]))
@@ -241,7 +251,8 @@ def eval_surface_profile(c, ctx: EvalContext):
     return _result(c, ctx, value, U, {"n": int(d.size), "min": float(d.min()),
                                       "max": float(d.max()), "noise": ctx.S.noise,
                                       "extreme_quantile": zq, "faces": fl or "all",
-                                      "excluded": ctx.S.excluded(fl)},
+                                      "excluded": ctx.S.excluded(fl),
+                                      **({"datum_shift": shift} if shift else {})},
                    drf, 0.0, hi)
 
 

@@ -45,11 +45,12 @@ tolerance of the file appears exactly once: in ``characteristics`` or in ``unsup
 
 Not expressed yet (each such item says why in ``unsupported``): orientation, runout, form
 other than flatness, location dimensions other than between two planes; positions with a material
-modifier (no bonus tolerance), a zone without a diameter symbol, or datum modifiers;
-tolerances in a datum reference frame other than the plan's one alignment; datums set up from
-datum targets, from edges that bound no cylinder, or from several faces (a width's centre plane, a pattern); datum
-features that OpenCASCADE's XCAF reader leaves without a shape (NIST CTC 01's B and C, which
-the file ties to their faces by ``ITEM_IDENTIFIED_REPRESENTATION_USAGE``).
+modifier (no bonus tolerance); datum modifiers other than MMB/LMB of single hole or boss axes in
+a profile's DRF (:mod:`.pmi_datums`); datum targets attached to edges; datums on edges that bound
+no cylinder; datum features that OpenCASCADE's XCAF reader leaves without a shape (NIST CTC 01's
+B and C, which the file ties to their faces by ``ITEM_IDENTIFIED_REPRESENTATION_USAGE``).
+Datums set up from datum targets, patterns of cylinders and common datums (``E-F``) are in the
+``datums`` table (:mod:`.pmi_datums`).
 
 Example (needs the NIST test model)::
 
@@ -235,7 +236,8 @@ def _datum_faces(d: dict, ctx, targets_why: str) -> tuple[list | None, str]:
         if d["other"]:
             return None, f"datum {d['name']} is attached to {d['other'][0]}s, not faces"
         return None, (f"datum {d['name']} is not attached to any face in the file (as "
-                      "OpenCASCADE's XCAF reader reads it)")
+                      "OpenCASCADE's XCAF reader reads it)"
+                      + (f": {d['unattached']}" if d.get("unattached") else ""))
     faces = [ctx.fmap.get(f) for f in d["faces"]]
     if any(f is None for f in faces):
         return None, f"a face of datum {d['name']} could not be imported"
@@ -275,6 +277,10 @@ def _planes_coplanar(ctx, faces) -> bool:
 
 def _datum_spec(d: dict, ctx) -> tuple[dict | None, str]:
     """(the plan's ``datums`` entry of a PMI datum, '') or (None, why not) (:mod:`.drf`)."""
+    if d["targets"] and not d["faces"]:
+        from .pmi_datums import targets_spec
+
+        return targets_spec(d, ctx, _src(d))
     faces, why = _datum_faces(d, ctx, "the target positions are not read from the file")
     if faces is None:
         return None, why
@@ -286,8 +292,7 @@ def _datum_spec(d: dict, ctx) -> tuple[dict | None, str]:
         groups, _ = _cylinders(ctx.feats, ctx.model, faces)
         if len(groups) == 1:
             return {"faces": [f"face:{f}" for f in faces], "kind": "axis", "pmi": src}, ""
-        return None, (f"datum {d['name']} is a pattern of {len(groups)} cylinders (a pattern "
-                      "datum is not fitted yet)")
+        return {"faces": [f"face:{f}" for f in faces], "kind": "pattern", "pmi": src}, ""
     if kinds == {"plane"}:
         f0 = ctx.feats[faces[0]]
         one = [f for f in faces if ctx.feats[f].axis @ f0.axis > 0]
@@ -301,18 +306,32 @@ def _datum_spec(d: dict, ctx) -> tuple[dict | None, str]:
                   f"({', '.join(sorted(kinds))}); datum features are planes or axes")
 
 
-def _item_drf(item, ctx) -> tuple[list | None, str]:
-    """(datum letters of the item's DRF, '') when every datum can be fitted, else (None, why)."""
+def _item_drf(item, ctx, shift_ok: bool = False) -> tuple[list | None, str]:
+    """(datum letters of the item's DRF, '') when every datum can be fitted, else (None, why).
+    ``shift_ok``: the caller applies MMB/LMB datum modifiers (:mod:`.pmi_datums`)."""
     ds = item["datums"]
     mods = [f"{d['name']} {', '.join(d['modifiers'])}" for d in ds if d["modifiers"]]
+    if mods and shift_ok and len({d["order"] for d in ds}) == len(ds):
+        from .pmi_datums import datum_modifiers
+
+        dm, why = datum_modifiers(item, ctx)
+        if dm is None:
+            return None, why
+        mods = []
+    elif mods and shift_ok:
+        return None, (f"datum modifiers ({'; '.join(mods)}) of a common datum are not applied "
+                      "(a datum feature shift of single hole or boss axes only)")
     if mods:
         return None, f"datum modifiers ({'; '.join(mods)}) are not applied"
     orders = [d["order"] for d in ds]
     if len(set(orders)) != len(orders):
-        return None, ("a common datum (two datums of the same precedence: "
-                      f"{'-'.join(d['name'] for d in ds if orders.count(d['order']) > 1)}) "
-                      "is not fitted yet")
-    names = [d["name"] for d in sorted(ds, key=lambda d: d["order"])]
+        from .pmi_datums import common_datums
+
+        names, why = common_datums(ds, ctx)
+        if names is None:
+            return None, why
+    else:
+        names = [d["name"] for d in sorted(ds, key=lambda d: d["order"])]
     for n in names:
         if n not in ctx.datum_specs:
             return None, ctx.datum_why.get(n, f"datum {n} is not in the file")
@@ -437,12 +456,17 @@ def _tolerance(item, ctx, drf, why) -> tuple[list, str]:
         if item["datums"]:
             r = _drf_reason(item, drf, why)
             if r:            # not the plan's alignment: in its own DRF (.drf)
-                names, r2 = _item_drf(item, ctx)
+                names, r2 = _item_drf(item, ctx, shift_ok=True)
                 if names is None:
                     return [], r2
-                return [{"name": ctx.name(f"{item['id']}_profile"), "type": "surface_profile",
+                entry = {"name": ctx.name(f"{item['id']}_profile"), "type": "surface_profile",
                          "faces": [f"face:{f}" for f in faces], "tol": item["value"],
-                         "datums": names, "pmi": src}], ""
+                         "datums": names, "pmi": src}
+                dm = {d["name"]: "M" if "MaximumMaterialRequirement" in d["modifiers"] else "L"
+                      for d in item["datums"] if d["modifiers"]}
+                if dm:
+                    entry["datum_modifiers"] = dm
+                return [entry], ""
         return [{"name": ctx.name(f"{item['id']}_profile"), "type": "surface_profile",
                  "faces": [f"face:{f}" for f in faces], "tol": item["value"],
                  "datum": bool(item["datums"]), "pmi": src}], ""
@@ -694,13 +718,14 @@ def pmi_plan(path, *, model=None, pmi=None, timeout: float | None = 600.0) -> Pm
             unsupported.append({"pmi": _src(item), "reason": reason})
         rows.append(_row(item, ctx, entries, reason))
     table = {n: ctx.datum_specs[n] for n in sorted(ctx.used_datums)}
+    common = {p for n in table for p in n.split("-")}
     for name, d in datums.items():
-        if name in used or name in table:
+        if name in used or name in table or name in common:
             rows.append(_row(d, ctx, [{"name": "alignment" if name in used else "datums"}], ""))
             continue
-        reason = why.get(name) or (f"datum {name} is not in the plan's alignment (the plan "
-                                   f"aligns on one datum reference frame: "
-                                   f"{'|'.join(drf) if drf else 'best fit'})")
+        reason = (ctx.datum_why.get(name) if d["targets"] else None) or why.get(name) or (
+            f"datum {name} is not in the plan's alignment (the plan aligns on one datum "
+            f"reference frame: {'|'.join(drf) if drf else 'best fit'})")
         unsupported.append({"pmi": _src(d), "reason": reason})
         rows.append(_row(d, ctx, [], reason))
     data = {"units": "mm", "part": path.name, "alignment": alignment,

@@ -11,7 +11,8 @@ from typing import Annotated, Literal, Optional, Union
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
 __all__ = ["Tol", "PmiSource", "Unsupported", "Vec3", "FeatureId", "FeatureRef", "Hole",
-           "SurfaceProfile", "Flatness", "Cylinder", "CheckPoint", "DatumSpec", "Straightness",
+           "DatumTargetSpec", "DatumSize", "SurfaceProfile", "Flatness", "Cylinder", "CheckPoint", "DatumSpec",
+           "Straightness",
            "Circularity", "Cylindricity", "Parallelism", "Perpendicularity", "Angularity",
            "Position", "CircularRunout", "TotalRunout", "Width", "SizeLimits", "Distance",
            "Angle", "LineProfile", "PositionZone",
@@ -117,12 +118,20 @@ class SurfaceProfile(_Char, Tol):
     #: located in this datum reference frame of the plan's ``datums`` (fitted, :mod:`.drf`)
     #: instead of the plan's alignment
     datums: Optional[DrfRef] = None
+    #: datums of ``datums`` referenced at MMB (``M``) or LMB (``L``): the frame may shift
+    #: within what the datum feature's departure from that boundary allows, and the profile
+    #: is evaluated at the best pose within it (:mod:`.datum_shift`)
+    datum_modifiers: Optional[dict[str, Literal["M", "L"]]] = None
 
     @model_validator(mode="after")
     def _drf(self):
         if self.datums is not None and not self.datum:
             raise ValueError("datums and datum: false contradict each other (a profile "
                              "without datums floats)")
+        extra = sorted(set(self.datum_modifiers or ()) - set(self.datums or ()))
+        if extra:
+            raise ValueError(f"datum_modifiers name datums {extra} that are not in datums "
+                             f"{self.datums or []}")
         return self
 
 
@@ -162,24 +171,80 @@ class CheckPoint(_Char, Tol):
 FaceList = Annotated[list[Union[FeatureId, int, str]], Field(min_length=1)]
 
 
+class DatumTargetSpec(_Strict):
+    """One datum target of a datum (ASME Y14.5 / ISO 5459, :mod:`.datum_targets`): ``point``
+    (a contact at ``at`` on ``face``), ``line`` (a line contact through ``at`` along
+    ``direction``, ``length`` long), ``circle`` (a circular area of diameter ``length`` centred
+    at ``at``, ``direction`` its normal) or ``rectangle`` (``length`` along ``xdirection``,
+    ``width`` across)."""
+
+    type: Literal["point", "line", "circle", "rectangle"]
+    at: Vec3
+    face: Union[FeatureId, int, str]
+    direction: Optional[Vec3] = None
+    xdirection: Optional[Vec3] = None
+    length: float = Field(default=0.0, ge=0)
+    width: float = Field(default=0.0, ge=0)
+
+    @model_validator(mode="after")
+    def _sized(self):
+        if self.type != "point" and not self.length > 0:
+            raise ValueError(f"a {self.type} datum target needs its length (> 0; a circle's "
+                             "diameter)")
+        if self.type == "rectangle" and not self.width > 0:
+            raise ValueError("a rectangle datum target needs its width (> 0)")
+        if self.type in ("line", "circle", "rectangle") and self.direction is None:
+            raise ValueError(f"a {self.type} datum target needs its direction (a line's "
+                             "direction, an area's normal)")
+        return self
+
+
+class DatumSize(_Strict):
+    """The size limits of a datum feature of size (a hole's or boss's diameter, mm): its
+    maximum/least material boundary for a datum referenced at MMB/LMB (:mod:`.datum_shift`)."""
+
+    nominal: float = Field(gt=0)
+    lower: float
+    upper: float
+
+    @model_validator(mode="after")
+    def _order(self):
+        if not self.lower < self.upper:
+            raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
+        return self
+
+
 class DatumSpec(_Strict):
     """A datum feature of the plan's ``datums`` table (see :mod:`.drf`).
 
     ``faces``: the faces of the datum feature (one plane, or the cylinder faces of a hole or
     boss, or coplanar faces, or with ``kind: midplane`` the two opposite faces of a width); ``at`` with ``kind: point``: a point datum (target) on the
-    surface.  ``kind`` (default: from the faces' CAD geometry): ``plane``, ``axis``, ``point``.
+    surface; ``targets``: datum targets (:class:`DatumTargetSpec`, the datum set up from
+    the scan at each target, :mod:`.datum_targets`).  ``kind`` (default: from the faces' CAD
+    geometry): ``plane``, ``axis``, ``point``, ``midplane``, ``pattern`` (the axes of several
+    cylinders fitted together at their CAD positions: a pattern of holes or bosses as one datum,
+    or a common axis of coaxial ones), ``targets``.
     """
 
     faces: Optional[FaceList] = None
     at: Optional[Vec3] = None
-    kind: Optional[Literal["plane", "midplane", "axis", "point"]] = None
+    targets: Optional[Annotated[list[DatumTargetSpec], Field(min_length=1)]] = None
+    kind: Optional[Literal["plane", "midplane", "axis", "point", "pattern", "targets"]] = None
+    #: a hole's or boss's diameter limits (needed when a characteristic references the datum
+    #: at MMB or LMB: ``datum_modifiers``)
+    size: Optional[DatumSize] = None
     pmi: Optional[PmiSource] = None
 
     @model_validator(mode="after")
     def _what(self):
-        if (self.faces is None) == (self.at is None):
-            raise ValueError("a datum takes faces: [...] (a datum feature) or at: [x, y, z] "
-                             "(a point)")
+        if sum(x is not None for x in (self.faces, self.at, self.targets)) != 1:
+            raise ValueError("a datum takes faces: [...] (a datum feature), at: [x, y, z] "
+                             "(a point) or targets: [...] (datum targets)")
+        if (self.kind == "targets") != (self.targets is not None) and self.kind is not None:
+            raise ValueError("kind: targets goes with targets: [...] (and only with it)")
+        if self.kind == "pattern" and self.faces is None:
+            raise ValueError("a pattern datum takes faces: [...] (the cylinder faces of its "
+                             "features)")
         if self.at is not None and self.kind not in (None, "point"):
             raise ValueError("a datum given by at: [x, y, z] is a point (kind: point)")
         return self

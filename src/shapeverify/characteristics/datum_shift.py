@@ -1,0 +1,179 @@
+"""Datum feature shift: a datum feature of size referenced at its maximum or least material
+boundary (MMB ``M`` / LMB ``L``; ASME Y14.5-2018 section 7.11.7, ISO 5459 / ISO 2692 "MMR
+applied to a datum").
+
+The datum feature simulator of an MMB hole is a fixed pin of the hole's MMB diameter (its
+smallest size limit), of an MMB boss a fixed ring of its largest size limit; at LMB the
+boundaries are the least material ones (a hole's largest, a boss's smallest size).  A real
+feature that departs from that boundary can move on the simulator: the datum reference frame
+may shift by that much, and the characteristic is met if it is met in some pose within the
+shift.
+
+How it is evaluated here
+------------------------
+* **The allowed shift** of datum k: its axis (fitted by :mod:`.drf`, sitting on the nominal
+  one in the DRF) may move across its direction by up to ``r_k``, at both ends of the feature
+  (so a primary axis may also tilt): a hole at MMB ``r = r_mate - D_MMB / 2`` (``r_mate`` the
+  radius of the largest inscribed cylinder about the fitted axis: the smallest radial distance
+  of its points); a boss at MMB ``r = D_MMB / 2 - r_mate`` (the largest); a hole at LMB ``r =
+  D_LMB / 2 - r_out`` (the largest radial distance: the hole must stay inside the LMB
+  cylinder); a boss at LMB ``r = r_in - D_LMB / 2``.  A negative ``r`` (the feature violates
+  its boundary) allows no shift and is reported.  The disc of radius ``r`` about the fitted
+  axis is a conservative stand-in for the set of simulator positions (it lies inside it).
+* **Which motions**: only the degrees of freedom the shifted datum constrained in the DRF
+  (:attr:`.drf.DRF.constrained`); higher-precedence datums at RMB stay as fitted.
+* **The best pose** (:func:`best_profile_shift`): the motion ``xi = (omega, t)`` in that
+  subspace minimising the profile's largest ``|deviation|``, each deviation changing to first
+  order by ``n . (omega x x + t)`` (the CAD normal at the point's foot); each shift disc is
+  replaced by its inscribed regular 64-gon (conservative: ``1 - cos(pi/64) = 0.12 %`` of the
+  radius lost), which makes it a linear programme (scipy's HiGHS).  The caller then moves the
+  points by that motion and takes their deviations again from the CAD (exact closest points).
+
+Lengths in mm.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["POLYGON", "shift_allowance", "best_profile_shift", "motion_of", "profile_with_shift"]
+
+#: sides of the regular polygon inscribed in each shift disc
+POLYGON = 64
+
+
+def shift_allowance(points, point, axis, hole: bool, material: str, size) -> tuple[float, dict]:
+    """(radius the datum axis may shift, details) of a datum feature of size.
+
+    Parameters
+    ----------
+    points : (m, 3)   the datum feature's scan points (in the DRF's frame)
+    point, axis       its fitted axis (in the DRF: the nominal one)
+    hole : bool       a hole (True) or a boss
+    material : 'M' or 'L'
+    size              nominal, lower, upper (mm) of its diameter (an object with attributes)
+    """
+    X = np.asarray(points, float)
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    q = X - np.asarray(point, float)
+    rad = np.linalg.norm(q - np.outer(q @ a, a), axis=1)
+    r_in, r_out = float(rad.min()), float(rad.max())
+    lo, hi = size.nominal + size.lower, size.nominal + size.upper
+    if material == "M":
+        bound = lo if hole else hi
+        r = r_in - bound / 2 if hole else bound / 2 - r_out
+        what = "MMB"
+    elif material == "L":
+        bound = hi if hole else lo
+        r = bound / 2 - r_out if hole else r_in - bound / 2
+        what = "LMB"
+    else:
+        raise ValueError(f"datum modifier {material!r}: M (MMB) or L (LMB)")
+    det = {"boundary": what, "boundary_diameter": bound, "r_in": r_in, "r_out": r_out,
+           "shift_radius": max(r, 0.0)}
+    if r < 0:
+        det["violates_boundary"] = -r
+    return max(r, 0.0), det
+
+
+def _skew_rows(e) -> np.ndarray:
+    """(3, 6): the displacement of the point e under the small motion (omega, t)."""
+    e = np.asarray(e, float)
+    K = np.array([[0, e[2], -e[1]], [-e[2], 0, e[0]], [e[1], -e[0], 0]])   # omega x e = K omega
+    return np.hstack([K, np.eye(3)])
+
+
+def motion_of(S, y) -> np.ndarray:
+    """The small motion (6,) ``S y``."""
+    return np.asarray(S, float) @ np.asarray(y, float)
+
+
+def best_profile_shift(X, normals, d, S, datums, polygon: int = POLYGON):
+    """The motion within the datum shifts that minimises ``max |d_i + n_i . (omega x x_i +
+    t)|`` (see the module docstring).
+
+    Parameters
+    ----------
+    X, normals : (N, 3)   the profile's points and the CAD normals at their feet
+    d : (N,)              their signed deviations
+    S : (6, m)            the motions the shifted datums constrained
+    datums : list of (ends (k, 3), axis (3,), r)
+                          each shifted datum: points of its axis where the shift is bounded,
+                          its direction and its shift radius
+
+    Returns
+    -------
+    (value: the linearised min of max |d'|, xi (6,), y (m,))
+    """
+    from scipy.optimize import linprog
+
+    X, Nn, d = (np.asarray(v, float) for v in (X, normals, d))
+    S = np.asarray(S, float)
+    m = S.shape[1]
+    if m == 0 or all(float(r) <= 0 for _, _, r in datums):
+        return float(np.abs(d).max()), np.zeros(6), np.zeros(m)
+    G = np.hstack([np.cross(X, Nn), Nn]) @ S                   # d' = d + G y
+    one = np.ones((len(d), 1))
+    A = [np.hstack([G, -one]), np.hstack([-G, -one])]
+    b = [-d, d]
+    ang = 2 * np.pi * (np.arange(polygon) + 0.5) / polygon
+    for ends, axis, r in datums:
+        a = np.asarray(axis, float) / np.linalg.norm(axis)
+        e1 = np.cross(a, np.eye(3)[int(np.argmin(np.abs(a)))])
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(a, e1)
+        U = np.outer(np.cos(ang), e1) + np.outer(np.sin(ang), e2)     # (polygon, 3)
+        for e in np.atleast_2d(ends):
+            A.append(np.hstack([U @ _skew_rows(e) @ S, np.zeros((polygon, 1))]))
+            b.append(np.full(polygon, max(float(r), 0.0) * np.cos(np.pi / polygon)))
+    c = np.r_[np.zeros(m), 1.0]
+    res = linprog(c, A_ub=np.vstack(A), b_ub=np.concatenate(b),
+                  bounds=[(None, None)] * m + [(0, None)], method="highs")
+    if res.status != 0:
+        raise ValueError(f"the datum shift optimisation failed: {res.message}")
+    y = res.x[:m]
+    return float(res.x[m]), S @ y, y
+
+
+def profile_with_shift(c, ctx, X, drf, d, normals):
+    """(deviations of the profile's points ``X`` (DRF frame) at the best pose within the
+    shifts of ``c.datum_modifiers``, details) -- the motion from :func:`best_profile_shift`,
+    the deviations then taken again from the CAD (exact closest points); the original ones if
+    those are no better (the linearisation never makes a part worse).
+
+    Raises
+    ------
+    ValueError
+        A modified datum is not a hole or boss axis, or the plan gives it no size limits.
+    """
+    from .drf import rigid_exp
+    from .gdt import _datum_feature
+
+    S_parts, datums, det = [], [], {}
+    for name, mat in sorted(c.datum_modifiers.items()):
+        k = drf.names.index(name)
+        spec, fit = ctx.plan.datums[name], drf.datums[k]
+        what = "MMB" if mat == "M" else "LMB"
+        if fit.kind != "axis":
+            raise ValueError(f"{c.name}: datum {name} at {what} is a {fit.kind}; a datum "
+                             "feature shift is applied to hole and boss axes only")
+        if spec.size is None:
+            raise ValueError(f"{c.name}: datum {name} at {what} needs its size limits (give "
+                             f"datums: {{{name}: {{size: {{nominal, lower, upper}}}}}})")
+        feat = _datum_feature(name, spec, ctx)
+        P = drf.apply(feat.points)
+        r, dd = shift_allowance(P, fit.point, fit.direction, feat.hole, mat, spec.size)
+        h = (P - fit.point) @ fit.direction
+        ends = fit.point + np.outer([h.min(), h.max()], fit.direction)
+        datums.append((ends, fit.direction, r))
+        S_parts.append(drf.constrained[k])
+        det[name] = dd
+    S = np.hstack(S_parts)
+    ok = np.isfinite(d)
+    lin, xi, _ = best_profile_shift(X[ok], normals[ok], d[ok], S, datums)
+    T = rigid_exp(xi)
+    d2 = np.asarray(ctx.prep.closest(X @ T[:3, :3].T + T[:3, 3], exact=True).distances, float)
+    better = np.nanmax(np.abs(d2)) < np.nanmax(np.abs(d))
+    out = {"datums": det, "motion": xi.tolist(), "linearised_max": lin,
+           "max_before": float(np.nanmax(np.abs(d))), "max_after": float(np.nanmax(np.abs(d2))),
+           "applied": bool(better)}
+    return (d2 if better else d), out

@@ -1,0 +1,260 @@
+"""Datums set up from datum targets (ASME Y14.5-2018 section 7.24, ISO 5459 section 7) and
+from several features at once (a pattern of holes as one datum, a common axis).
+
+A datum target is a place on the datum feature where the simulator touches the part: a point
+(a spherical-ended pin), a line (the edge of a knife or the side of a pin) or a small area (a
+circular or rectangular pad).  The datum is the geometry the simulators, held at their basic
+(CAD) locations, establish from those contacts.  On a scan each contact is measured from the
+scan points around it:
+
+* **point target** at ``p0`` on a face with CAD normal ``n``: the least-squares plane of the
+  scan points of that face within :data:`POINT_RADIUS` of ``p0`` (2.5 scan spacings when
+  that is more: a small neighbourhood of the surface; less those more than
+  :data:`SURFACE_BAND` or 5 robust sigmas from the median height: not on that surface),
+  cut by the simulator's line ``p0 + s n``: the contact is ``p0 + s n``
+  (:func:`point_contact`).  It fixes one degree of freedom: the part's position along ``n``
+  at ``p0``.
+* **line target** through ``p0`` along ``u``, ``L`` long: the scan points within
+  :data:`LINE_RADIUS` (1.5 scan spacings when more) of the segment; their deviations along ``n`` fitted by a straight line
+  in the parameter along ``u`` (least squares); the contacts are its values at the two ends
+  (:func:`line_contact`).  It fixes two degrees of freedom: the position along ``n`` and the
+  rotation about ``u x n``.
+* **area target** (circle of diameter ``L``, rectangle ``L x W``) on a plane: the datum plane
+  is the tangent plane (:mod:`.drf`, as for a whole planar datum feature) of the scan points
+  inside the area.
+
+A datum of several point and line targets gives one equation per contact; :func:`.drf.fit_drf`
+solves them in the degrees of freedom the datums before it left free (least squares when there
+are more contacts than those: e.g. four points of a secondary datum in three free directions).
+
+A **pattern datum** (several cylinders as one datum feature, ASME Y14.5 section 7.18) and a
+**common datum** (two coaxial cylinders, ``E-F``): each cylinder's axis is fitted as for a
+single axis datum (its mating cylinder: largest inscribed for a hole, smallest circumscribed
+for a boss); the datum is the pattern of those axes held at their CAD positions relative to
+one another, placed by least squares on all of them (4 equations per axis: its direction and
+its position).  This is the least-squares fit of the pattern, not the simultaneous mating of
+a rigid pattern of simulators the standard describes (which can differ by the features' form
+errors, here of the order of the scan noise).
+
+Lengths in mm.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+__all__ = ["POINT_RADIUS", "LINE_RADIUS", "SURFACE_BAND", "point_contact", "line_contact", "in_area",
+           "targets_feature", "pattern_feature"]
+
+#: scan points within this distance (mm) of a point target make its neighbourhood plane
+POINT_RADIUS = 2.0
+#: scan points within this distance (mm) of a line target's segment make its contact line
+LINE_RADIUS = 1.0
+#: of a point target's neighbours, those farther than this (mm; or 5 robust sigmas) from
+#: their median height along the target's normal are not on its surface: a point behind a thin
+#: wall whose closest CAD point is on the target's face (its own face missing from the model)
+SURFACE_BAND = 0.5
+
+
+def point_contact(X, p0, n) -> float:
+    """Where the simulator of a point target at ``p0`` (direction ``n``) meets the scanned
+    surface (see :func:`point_contact_plane`)."""
+    return point_contact_plane(X, p0, n)[0]
+
+
+def point_contact_plane(X, p0, n) -> tuple[float, np.ndarray]:
+    """``(s, m)``: where the simulator of a point target at ``p0`` (direction ``n``) meets the
+    scanned surface, ``p0 + s n`` on the least-squares plane of the points ``X``, and that
+    plane's unit normal ``m`` (turned towards ``n``).
+
+    Parameters
+    ----------
+    X : (m, 3) array
+        Scan points of the target's neighbourhood (m >= 3, not on one line).
+    p0, n : (3,) arrays
+        The target's point and the CAD surface's unit normal there.
+
+    Raises
+    ------
+    ValueError
+        Fewer than 3 points, points on a line, or a plane parallel to ``n``.
+    """
+    X = np.asarray(X, np.float64)
+    p0, n = np.asarray(p0, float), np.asarray(n, float)
+    if X.shape[0] < 3:
+        raise ValueError(f"{X.shape[0]} scan points near the datum target at "
+                         f"{np.round(p0, 4).tolist()} (a plane needs 3; is it scanned?)")
+    h = (X - p0) @ n
+    med = float(np.median(h))
+    mad = 1.4826 * float(np.median(np.abs(h - med)))
+    X = X[np.abs(h - med) <= max(SURFACE_BAND, 5.0 * mad)]
+    if X.shape[0] < 3:
+        raise ValueError(f"{X.shape[0]} scan points near the datum target at "
+                         f"{np.round(p0, 4).tolist()} lie on its surface (a plane needs 3)")
+    c = X.mean(axis=0)
+    _, s, vt = np.linalg.svd(X - c, full_matrices=False)
+    if s[1] <= 1e-9 * max(s[0], 1e-12):
+        raise ValueError(f"the scan points near the datum target at {np.round(p0, 4).tolist()} "
+                         "lie on a line; no plane through them")
+    m = vt[2]
+    den = float(m @ n)
+    if abs(den) < 0.5:
+        raise ValueError(f"the scanned surface at the datum target {np.round(p0, 4).tolist()} "
+                         f"is {np.degrees(np.arccos(min(1.0, abs(den)))):.0f} degrees off its "
+                         "CAD normal")
+    m = m if den > 0 else -m
+    return float(m @ (c - p0)) / abs(den), m
+
+
+def line_contact(X, p0, u, n, length) -> tuple[float, float]:
+    """The contacts of a line target at its two ends ``p0 -/+ length/2 u``: the deviations of
+    ``X`` along ``n`` fitted by ``a + b t`` (t the parameter along ``u``), at ``t = -/+ L/2``.
+
+    Raises
+    ------
+    ValueError
+        Fewer than 3 points or all of them at one place along the line.
+    """
+    X = np.asarray(X, np.float64)
+    p0, u, n = (np.asarray(v, float) for v in (p0, u, n))
+    if X.shape[0] < 3:
+        raise ValueError(f"{X.shape[0]} scan points along the line datum target at "
+                         f"{np.round(p0, 4).tolist()} (need 3; is it scanned?)")
+    t = (X - p0) @ u
+    if np.ptp(t) < 0.1 * length:
+        raise ValueError(f"the scan points along the line datum target at "
+                         f"{np.round(p0, 4).tolist()} cover {np.ptp(t):.3g} of its "
+                         f"{length:g} mm")
+    A = np.column_stack([np.ones_like(t), t])
+    a, b = np.linalg.lstsq(A, (X - p0) @ n, rcond=None)[0]
+    h = 0.5 * float(length)
+    return float(a - b * h), float(a + b * h)
+
+
+def in_area(X, target) -> np.ndarray:
+    """Mask of the points ``X`` inside an area target (``type`` circle: within ``length/2``
+    of ``at`` across ``direction``; rectangle: ``length`` along ``xdirection``, ``width``
+    across), measured in the target's plane."""
+    X = np.asarray(X, np.float64)
+    c = np.asarray(target.at, float)
+    n = np.asarray(target.direction, float)
+    n = n / np.linalg.norm(n)
+    q = X - c
+    q = q - np.outer(q @ n, n)
+    if target.type == "circle":
+        return np.linalg.norm(q, axis=1) <= 0.5 * target.length
+    if target.type == "rectangle":
+        x = np.asarray(target.xdirection if target.xdirection is not None else
+                       np.cross(n, np.eye(3)[int(np.argmin(np.abs(n)))]), float)
+        x = x - (x @ n) * n
+        x /= np.linalg.norm(x)
+        y = np.cross(n, x)
+        return (np.abs(q @ x) <= 0.5 * target.length) & (np.abs(q @ y) <= 0.5 * target.width)
+    raise ValueError(f"a {target.type} datum target is not an area")
+
+
+# ------------------------------------------------------------------------------ datum features
+def targets_feature(name, spec, ctx):
+    """The :class:`.drf.DatumFeature` of a datum set up from datum targets (``spec.targets``)
+    on a scan (:class:`.evaluate.EvalContext`): point and line targets make a 'targets'
+    feature of contacts; area targets (all on one plane) a 'plane' feature of the points
+    inside them.  Raises ValueError (naming the datum) for a mix of areas and points/lines."""
+    from .alignment import face_indices
+    from .drf import DatumFeature
+    from .gdt import _on
+
+    S = ctx.S
+    areas = [t for t in spec.targets if t.type in ("circle", "rectangle")]
+    if areas and len(areas) != len(spec.targets):
+        raise ValueError(f"datum {name}: area targets mixed with point/line targets; a datum "
+                         "is set up from areas alone or from points and lines alone")
+    if areas:
+        fidx = sorted({int(face_indices(ctx.prep.model, [t.face])[0]) for t in areas})
+        if {ctx.feats[i].kind for i in fidx} != {"plane"}:
+            raise ValueError(f"datum {name}: its area targets lie on faces {fidx} that are not "
+                             "all planes")
+        m = _on(ctx, fidx)
+        keep = np.zeros(len(S.X), bool)
+        for t in areas:
+            keep |= in_area(S.feet, t)
+        f = ctx.feats[fidx[0]]
+        return DatumFeature(name, "plane", np.asarray(areas[0].at, float), f.axis,
+                            S.X[m & keep])
+    pts, contacts = [], []
+    for t in spec.targets:
+        at = np.asarray(t.at, float)
+        fc = int(face_indices(ctx.prep.model, [t.face])[0])
+        # the normal of the target's own face (a target at an edge has its closest CAD
+        # point on either face)
+        if ctx.feats[fc].kind == "plane":
+            n = np.asarray(ctx.feats[fc].axis, float)
+        else:
+            foot = ctx.prep.closest(at[None], exact=True)
+            if int(foot.face[0]) != fc:
+                raise ValueError(f"datum {name}: the target at {np.round(at, 4).tolist()} is "
+                                 f"not on its face face:{fc} (closest: face:{int(foot.face[0])})")
+            n = np.asarray(foot.normals[0], float)
+        # the target's face only, edges included (a target may sit near an edge; a point of
+        # the neighbouring face has its foot there, not on this face)
+        on = S.on([fc])
+        sp = float(getattr(S.support, "spacing", 0.0) or 0.0)
+        if t.type == "point":
+            sel = on & (np.linalg.norm(S.feet - at, axis=1) <= max(POINT_RADIUS, 2.5 * sp))
+            u, length = None, 0.0
+        else:
+            u = np.asarray(t.direction, float) / np.linalg.norm(t.direction)
+            q = S.feet - at
+            tt = np.clip(q @ u, -0.5 * t.length, 0.5 * t.length)
+            sel = on & (np.linalg.norm(q - tt[:, None] * u, axis=1)
+                        <= max(LINE_RADIUS, 1.5 * sp))
+            length = float(t.length)
+        k0 = sum(len(p) for p in pts)
+        pts.append(S.X[sel])
+        contacts.append((t.type, at, n, np.arange(k0, k0 + int(sel.sum())), u, length))
+    X = np.concatenate(pts) if pts else np.zeros((0, 3))
+    nbar = np.mean([c[2] for c in contacts], axis=0)
+    if np.linalg.norm(nbar) < 1e-9:
+        nbar = contacts[0][2]
+    return DatumFeature(name, "targets", np.mean([c[1] for c in contacts], axis=0),
+                        nbar / np.linalg.norm(nbar), X, contacts=tuple(contacts))
+
+
+def pattern_feature(name, spec, ctx):
+    """The 'pattern' :class:`.drf.DatumFeature` of several cylinders (``spec.faces``: their
+    faces; coaxial faces make one cylinder): each cylinder's points and CAD axis."""
+    from .alignment import face_indices
+    from .drf import DatumFeature
+    from .gdt import _cylinder_points, _on
+
+    S, feats = ctx.S, ctx.feats
+    fidx = face_indices(ctx.prep.model, spec.faces).tolist()
+    if {feats[i].kind for i in fidx} != {"cylinder"}:
+        raise ValueError(f"datum {name}: a pattern datum is of cylinder faces; faces "
+                         f"{spec.faces} are {sorted({feats[i].kind for i in fidx})}")
+    groups: list = []
+    for i in fidx:
+        f = feats[i]
+        for g in groups:
+            q = f.center - g[0].center
+            if (np.linalg.norm(np.cross(f.axis, g[0].axis)) < 1e-4
+                    and np.linalg.norm(q - (q @ g[0].axis) * g[0].axis) < 1e-4 * f.diameter
+                    + 1e-6 and abs(f.diameter - g[0].diameter) < 1e-4 * f.diameter + 1e-6):
+                g[1].append(i)
+                break
+        else:
+            groups.append((f, [i]))
+    pts, out = [], []
+    k0 = 0
+    for f, faces in groups:
+        m = _on(ctx, faces)
+        X = S.X[m]
+        q = X - f.center
+        radial = q - np.outer(q @ f.axis, f.axis)
+        hole = float(np.sum(S.normals[m] * radial)) < 0 if len(X) else True
+        X, _ = _cylinder_points(X, f)
+        pts.append(X)
+        out.append((f.center, f.axis, np.arange(k0, k0 + len(X)), hole))
+        k0 += len(X)
+    axes = np.array([f.axis if f.axis @ groups[0][0].axis > 0 else -f.axis
+                     for f, _ in groups])
+    return DatumFeature(name, "pattern", np.mean([f.center for f, _ in groups], axis=0),
+                        axes.mean(axis=0), np.concatenate(pts), groups=tuple(out))
