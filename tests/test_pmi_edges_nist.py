@@ -70,10 +70,11 @@ def test_profile_of_a_line_drawn_on_face_0_sections_across_the_line(ctc02):
     item = next(it for it in ctc02["pmi"]["tolerances"] if it["id"] == "GT18")
     (rec,) = item["edges"]
     assert rec["curve"] == "Line" and rec["faces"] == [] and rec["on_faces"] == [0]
-    # its datums A|B|C are set up from datum targets (not fitted yet): unsupported with that
-    (u,) = [u for u in ctc02["plan"].data["unsupported"] if u["pmi"]["id"] == "GT18"]
-    assert "datum A" in u["reason"]
-    # without them, the entry: face 0, sections parallel to the plane of the line
+    # its datums A|B|C are set up from datum targets: the plan's entry is on face 0, with them
+    (with_drf,) = _entries(ctc02["plan"], "GT18")
+    assert with_drf["type"] == "line_profile" and with_drf["faces"] == ["face:0"]
+    assert with_drf.get("datums") == ["A", "B", "C"]
+    # without the datums, the same entry: sections parallel to the plane of the line
     pmi = dict(ctc02["pmi"])
     pmi["tolerances"] = [{**it, "datums": []} if it["id"] == "GT18" else it
                          for it in pmi["tolerances"]]
