@@ -286,6 +286,24 @@ def _wall_candidates(P, c0, a, r0, deviations, normals):
     return np.flatnonzero(m)
 
 
+def _surface_inside(P, c0, a, r0, deviations, normals, h):
+    """How many scan points lie on a CAD surface *inside* the hole's circle, near its face and
+    inclined to the axis (a countersink's cone, a chamfer, a fillet: the loop is then the rim of
+    that surface, not of an opening).  A blind hole's floor (normal along the axis) and points
+    far from the CAD do not count.  0 without the CAD's closest points."""
+    if deviations is None or normals is None:
+        return 0
+    d = np.asarray(deviations, np.float64)
+    n = np.asarray(normals, np.float64)
+    ok = np.isfinite(d) & (np.abs(np.where(np.isfinite(d), d, 0.0)) <= max(0.5, 0.05 * r0))
+    q = P[ok] - d[ok, None] * n[ok]
+    rel = q - c0
+    t = rel @ a
+    rq = np.linalg.norm(rel - np.outer(t, a), axis=1)
+    inside = (rq < r0 - max(2.0 * h, 0.02 * r0)) & (np.abs(t) <= r0) & (np.abs(n[ok] @ a) < 0.985)
+    return int(np.count_nonzero(inside))
+
+
 def _contiguous_from_top(idx, t, gap):
     """The points of ``idx`` down the axis from the face (t <= a little) up to the first gap
     wider than ``gap`` along the axis (another hole on the same axis stays out)."""
@@ -438,6 +456,16 @@ def measure_hole(points, center, axis, diameter: float, spacing: float | None = 
         walls = _contiguous_from_top(cand, hgt, max(3.0 * h0, 1.0))
         if walls.size >= _MIN_WALL and _cover_deg(xy[walls]) >= _WALL_COVER:
             wall_fit = _fit_wall(P[walls], c0, a, r0)
+    if wall_fit is None:
+        n_in = _surface_inside(P, c0, a, r0, deviations, normals, h0)
+        if n_in >= _MIN_WALL:
+            raise ValueError(
+                f"the circular edge at {np.round(c0, 3).tolist()} (diameter {diameter:.4g} mm) is "
+                f"the rim of a countersink, chamfer or fillet, not of an opening: {n_in} scan "
+                "points lie on the CAD surface inside it, inclined to the axis, so the scan does "
+                "not stop at this edge and its diameter cannot be read from where the points "
+                "stop; measure the hole's cylindrical wall instead (its own hole or cylinder "
+                "feature in 'shapeverify info --features')")
     reach0 = 2.0 * r0 + 12.0 * h0
     slab = np.abs(hgt) < max(r0, 5.0)
     if cand is not None and cand.size:
