@@ -3,8 +3,8 @@ by datum reference frame as the HTML and PDF reports, without a glyph its font l
 clipping.
 
 The inspection is real (``test_report_layout._inspected``: a 300 mm plane with a dent); its
-characteristics are the synthetic evaluation of the NIST FTC 06 plan (``tests/data/pmi_plans``,
-42 characteristics in 7 DRF groups), so the frames are the drawing's.  What is checked is read
+characteristics are the synthetic evaluation of a NIST FTC 06 plan
+(``tests/data/pmi_plans/png_ftc_06_42.yaml``, 42 characteristics in 7 DRF groups), so the frames are the drawing's.  What is checked is read
 back from the figure: its texts and the artists of each frame (gid ``png-fcf:NAME:i``), placed
 by matplotlib's renderer.
 """
@@ -28,7 +28,7 @@ PLANS = Path(__file__).parent / "data" / "pmi_plans"
 @pytest.fixture(scope="module")
 def drawn():
     res, scan = _inspected(300.0, "SN-0042")
-    pr = synthetic_plan_result(PLANS / "nist_ftc_06.yaml")
+    pr = synthetic_plan_result(PLANS / "png_ftc_06_42.yaml")
     res = dataclasses.replace(res, characteristics=pr.characteristics, plan=pr)
     fig = summary_figure(res, scan)
     fig.canvas.draw()
@@ -187,7 +187,7 @@ def test_png_summary_without_a_plan_has_no_characteristics_panel(drawn):
 def test_a_long_plan_lists_what_fits_and_counts_the_rest():
     """More characteristics than the panel holds: the last line counts the ones left out,
     and every characteristic is either listed or counted (never lost silently)."""
-    pr = synthetic_plan_result(PLANS / "nist_ftc_06.yaml")
+    pr = synthetic_plan_result(PLANS / "png_ftc_06_42.yaml")
     many = tuple(dataclasses.replace(c, name=f"{c.name}_{k}") for k in range(3)
                  for c in pr.characteristics)
     res = type("R", (), {"characteristics": many,
