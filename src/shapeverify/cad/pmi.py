@@ -352,6 +352,30 @@ def _unattached(caf, names) -> dict:
     return out
 
 
+def _attach_by_usage(caf, path, names, index, datum_list) -> set:
+    """The datums of ``names`` attached here to the faces their ITEM_IDENTIFIED_REPRESENTATION_
+    USAGE names (:mod:`.pmi_iiru`): ``faces`` and ``attached`` set, or ``unattached`` (why
+    the usage did not resolve)."""
+    from .pmi_iiru import resolve_datums
+
+    try:
+        got = resolve_datums(caf, path, names, index)
+    except Exception as e:      # a diagnosis beyond XCAF; the read stands without it
+        logger.warning("%s: could not follow the usages of datums %s: %s", path.name,
+                       sorted(names), e)
+        return set()
+    done = set()
+    for d in datum_list:
+        faces, how = got.get(d["name"], (None, ""))
+        if faces:
+            d["faces"], d["attached"] = list(faces), how
+            done.add(d["name"])
+        elif how:
+            d["unattached"] = how
+            done.add(d["name"])
+    return done
+
+
 def read_pmi_here(path) -> dict:
     """:func:`read_pmi` in this process (what the importer child runs)."""
     from OCP.XCAFDoc import (XCAFDoc_Datum, XCAFDoc_Dimension, XCAFDoc_DimTolTool,
@@ -409,6 +433,8 @@ def read_pmi_here(path) -> dict:
         datum_list.append(d)
     bare = {d["name"] for d in datum_list if not d["faces"] and not d["other"]
             and not d["targets"]}
+    if bare:
+        bare -= _attach_by_usage(caf, path, bare, index, datum_list)
     if bare:
         try:
             why = _unattached(caf, bare)
