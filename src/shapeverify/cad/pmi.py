@@ -354,8 +354,8 @@ def _unattached(caf, names) -> dict:
 
 def _attach_by_usage(caf, path, names, index, datum_list) -> set:
     """The datums of ``names`` attached here to the faces their ITEM_IDENTIFIED_REPRESENTATION_
-    USAGE names (:mod:`.pmi_iiru`): ``faces`` and ``attached`` set, or ``unattached`` (why
-    the usage did not resolve)."""
+    USAGE names (:mod:`.pmi_iiru`): ``faces`` and ``attached`` set, or ``usage_reason`` (why
+    the usage did not resolve; added to ``unattached``)."""
     from .pmi_iiru import resolve_datums
 
     try:
@@ -371,8 +371,7 @@ def _attach_by_usage(caf, path, names, index, datum_list) -> set:
             d["faces"], d["attached"] = list(faces), how
             done.add(d["name"])
         elif how:
-            d["unattached"] = how
-            done.add(d["name"])
+            d["usage_reason"] = how
     return done
 
 
@@ -443,8 +442,9 @@ def read_pmi_here(path) -> dict:
                            sorted(bare), e)
             why = {}
         for d in datum_list:
-            if d["name"] in why:
-                d["unattached"] = why[d["name"]]
+            parts = [x for x in (why.get(d["name"]), d.pop("usage_reason", None)) if x]
+            if parts:
+                d["unattached"] = "; ".join(parts)
 
     tolerances = []
     for k, lab in enumerate(_labels(tool.GetGeomToleranceLabels), start=1):
