@@ -24,6 +24,10 @@ Every item is tied to the faces it controls by **shape identity**: the faces of
 in ``TopExp_Explorer`` order -- the enumeration of :mod:`shapeverify.cad.occ_import`
 (``_shape_faces``), from which the model's face numbers come.  Each referenced face also gets
 its vertices (mm), so that the caller can check the numbering against the imported model.
+A datum that XCAF leaves without a shape because the file ties it to its faces by an
+``ITEM_IDENTIFIED_REPRESENTATION_USAGE`` whose item the reader does not read (a
+``SET_REPRESENTATION_ITEM``) is attached from the STEP entities (:mod:`.pmi_iiru`; ``attached``
+says so); one that cannot be attached keeps ``unattached``, the reason.
 
 The read runs in the project's importer child process (:mod:`shapeverify.cad.occ_worker`), so
 that a crash of OpenCASCADE on a damaged file raises :class:`~shapeverify.errors.CADImportError`
