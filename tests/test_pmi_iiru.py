@@ -132,3 +132,24 @@ def test_usage_parameters_skip_strings_and_comments(tmp_path):
                   b"#3=ITEM_IDENTIFIED_REPRESENTATION_USAGE('',$,#36,#643,(#1,#2);\n"
                   b"ENDSEC;\n")
     assert _usage_records(p) == [(1, 35, [854, 853]), (2, 34, [861])]
+
+
+def test_a_usage_whose_item_is_not_a_face_of_the_model_keeps_the_datum_unattached_with_why(
+        shared_data, tmp_path):
+    from shapeverify.cad.pmi import read_pmi
+
+    src = shared_data.joinpath(*CTC01)
+    if not src.exists():
+        pytest.skip(f"{src} not present (NIST MBE PMI test model)")
+    text = src.read_bytes()
+    old = b"SET_REPRESENTATION_ITEM((#854,#853))"
+    assert text.count(old) == 1
+    # datum B's usage names one of its faces and the cylindrical surface under the other
+    bad = tmp_path / "ctc01_b_on_a_surface.stp"
+    bad.write_bytes(text.replace(old, b"SET_REPRESENTATION_ITEM((#854,#3553))"))
+    datums = {d["name"]: d for d in read_pmi(bad)["datums"]}
+    b = datums["B"]
+    assert b["faces"] == [] and "attached" not in b
+    assert "ITEM_IDENTIFIED_REPRESENTATION_USAGE" in b["unattached"]   # the file's structure
+    assert "CylindricalSurface" in b["unattached"], b["unattached"]    # the item that failed
+    assert len(datums["C"]["faces"]) == 2                              # C still resolves

@@ -217,8 +217,8 @@ def resolve_datums(caf, path, names, index) -> dict:
                 faces.extend(f for f in fs if f not in faces)
         what = ", ".join(sorted({_label(u).split(" ", 1)[0] for u in us}))
         if bad or not faces:
-            out[n] = (None, f"the file ties it to the geometry by {what} whose items do not "
-                            f"all resolve to faces of the model: {'; '.join(bad[:3])}")
+            out[n] = (None, f"followed from the STEP entities, not every item of its {what} "
+                            f"is a face of the model: {'; '.join(bad[:3])}")
         else:
             out[n] = (faces, f"{what} of its datum feature ({len(faces)} faces, resolved "
                              "from the STEP entities)")
