@@ -278,8 +278,9 @@ def test_ftc06_pattern_datum_f_frames_the_position_of_four_holes(ftc06):
 
 
 # ------------------------------------------------------------------------------ reasons
+# (NIST CTC 01's datums B and C, tied by ITEM_IDENTIFIED_REPRESENTATION_USAGE, are attached
+# now: tests/test_pmi_iiru.py)
 @pytest.mark.parametrize("name,letters,what", [
-    ("nist_ctc_01_asme1_ap242-e1.stp", "BC", "ITEM_IDENTIFIED_REPRESENTATION_USAGE"),
     ("nist_ftc_06_asme1_ap242-e1.stp", "GH", "'circular curve'"),
 ])
 def test_unattached_datums_say_how_the_file_attaches_them(shared_data, name, letters, what):

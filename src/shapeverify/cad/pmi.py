@@ -24,6 +24,10 @@ Every item is tied to the faces it controls by **shape identity**: the faces of
 in ``TopExp_Explorer`` order -- the enumeration of :mod:`shapeverify.cad.occ_import`
 (``_shape_faces``), from which the model's face numbers come.  Each referenced face also gets
 its vertices (mm), so that the caller can check the numbering against the imported model.
+A datum that XCAF leaves without a shape because the file ties it to its faces by an
+``ITEM_IDENTIFIED_REPRESENTATION_USAGE`` whose item the reader does not read (a
+``SET_REPRESENTATION_ITEM``) is attached from the STEP entities (:mod:`.pmi_iiru`; ``attached``
+says so); one that cannot be attached keeps ``unattached``, the reason.
 
 The read runs in the project's importer child process (:mod:`shapeverify.cad.occ_worker`), so
 that a crash of OpenCASCADE on a damaged file raises :class:`~shapeverify.errors.CADImportError`
@@ -352,6 +356,29 @@ def _unattached(caf, names) -> dict:
     return out
 
 
+def _attach_by_usage(caf, path, names, index, datum_list) -> set:
+    """The datums of ``names`` attached here to the faces their ITEM_IDENTIFIED_REPRESENTATION_
+    USAGE names (:mod:`.pmi_iiru`): ``faces`` and ``attached`` set, or ``usage_reason`` (why
+    the usage did not resolve; added to ``unattached``)."""
+    from .pmi_iiru import resolve_datums
+
+    try:
+        got = resolve_datums(caf, path, names, index)
+    except Exception as e:      # a diagnosis beyond XCAF; the read stands without it
+        logger.warning("%s: could not follow the usages of datums %s: %s", path.name,
+                       sorted(names), e)
+        return set()
+    done = set()
+    for d in datum_list:
+        faces, how = got.get(d["name"], (None, ""))
+        if faces:
+            d["faces"], d["attached"] = list(faces), how
+            done.add(d["name"])
+        elif how:
+            d["usage_reason"] = how
+    return done
+
+
 def read_pmi_here(path) -> dict:
     """:func:`read_pmi` in this process (what the importer child runs)."""
     from OCP.XCAFDoc import (XCAFDoc_Datum, XCAFDoc_Dimension, XCAFDoc_DimTolTool,
@@ -410,6 +437,8 @@ def read_pmi_here(path) -> dict:
     bare = {d["name"] for d in datum_list if not d["faces"] and not d["other"]
             and not d["targets"]}
     if bare:
+        bare -= _attach_by_usage(caf, path, bare, index, datum_list)
+    if bare:
         try:
             why = _unattached(caf, bare)
         except Exception as e:          # the reason is a diagnosis; the read stands without it
@@ -417,8 +446,9 @@ def read_pmi_here(path) -> dict:
                            sorted(bare), e)
             why = {}
         for d in datum_list:
-            if d["name"] in why:
-                d["unattached"] = why[d["name"]]
+            parts = [x for x in (why.get(d["name"]), d.pop("usage_reason", None)) if x]
+            if parts:
+                d["unattached"] = "; ".join(parts)
 
     tolerances = []
     for k, lab in enumerate(_labels(tool.GetGeomToleranceLabels), start=1):

@@ -47,8 +47,9 @@ Not expressed yet (each such item says why in ``unsupported``): orientation, run
 other than flatness, location dimensions other than between two planes; positions with a material
 modifier (no bonus tolerance); datum modifiers other than MMB/LMB of single hole or boss axes in
 a profile's DRF (:mod:`.pmi_datums`); datum targets attached to edges; datums on edges that bound
-no cylinder; datum features that OpenCASCADE's XCAF reader leaves without a shape (NIST CTC 01's
-B and C, which the file ties to their faces by ``ITEM_IDENTIFIED_REPRESENTATION_USAGE``).
+no cylinder; datum features left without faces (datums that the file ties to faces by an
+``ITEM_IDENTIFIED_REPRESENTATION_USAGE`` that XCAF does not resolve, NIST CTC 01's B and C, are
+attached by :mod:`shapeverify.cad.pmi_iiru`).
 Datums set up from datum targets, patterns of cylinders and common datums (``E-F``) are in the
 ``datums`` table (:mod:`.pmi_datums`).
 

@@ -1,0 +1,225 @@
+"""Datum features that a STEP file ties to its faces by an ``ITEM_IDENTIFIED_REPRESENTATION_USAGE``
+(IIRU) that OpenCASCADE's XCAF reader does not resolve, for :mod:`shapeverify.cad.pmi`.
+
+NIST CTC 01 (CATIA) writes datum B as::
+
+    #35=DATUM_FEATURE('Simple Datum.2',$,#4269,.T.);
+    #196=SHAPE_ASPECT_RELATIONSHIP('',$,#35,#38);          (#38: DATUM(...,'B'))
+    #28=ITEM_IDENTIFIED_REPRESENTATION_USAGE('',$,#35,#643,SET_REPRESENTATION_ITEM((#854,#853)));
+
+OpenCASCADE's STEP reader reads the typed parameter ``SET_REPRESENTATION_ITEM((...))`` of the
+IIRU as one unreadable item (``IdentifiedItemValue`` is null), so XCAF leaves the datum without a
+shape.  :func:`resolve_datums` follows the entities itself:
+
+1. the shape aspects of a datum: the ``DATUM``, the datum feature its
+   ``SHAPE_ASPECT_RELATIONSHIP`` names, and the components of a composite shape aspect among
+   them (entities as OpenCASCADE read them);
+2. the IIRUs (and ``GEOMETRIC_ITEM_SPECIFIC_USAGE``, its subtype) whose ``definition`` is one of
+   those aspects: their items as OpenCASCADE read them, and -- where it could not -- the entity
+   references of the item parameter read from the file's text (:func:`_usage_records`: strings
+   and comments skipped), each reference looked up as an entity by its label
+   (``XSControl_WorkSession::NumberFromLabel``);
+3. each item entity to the shape the transfer made of it (``STEPConstruct::FindShape`` on the
+   reader's ``Transfer_TransientProcess``), and that shape to the model's face numbers by shape
+   identity (``_FaceIndex``, never by file order).
+
+A datum is attached only when every item resolves to faces; otherwise it keeps a reason that
+says which part did not resolve.
+"""
+from __future__ import annotations
+
+import re
+
+__all__ = ["resolve_datums"]
+
+_USAGE = re.compile(rb"#(\d+)\s*=\s*(ITEM_IDENTIFIED_REPRESENTATION_USAGE|"
+                    rb"GEOMETRIC_ITEM_SPECIFIC_USAGE)\s*\(")
+_REF = re.compile(r"#(\d+)")
+
+
+def _params(text: bytes, start: int) -> list[str] | None:
+    """The top-level parameters of a STEP record whose ``(`` is at ``start - 1`` (strings and
+    comments skipped); None when the record does not close."""
+    out, depth, cur, i, n = [], 1, bytearray(), start, len(text)
+    while i < n:
+        c = text[i]
+        if c == 0x27:                                   # a string: copied, '' is a quote
+            j = i + 1
+            while j < n:
+                if text[j] == 0x27:
+                    if j + 1 < n and text[j + 1] == 0x27:
+                        j += 2
+                        continue
+                    break
+                j += 1
+            cur += text[i:j + 1]
+            i = j + 1
+            continue
+        if c == 0x2F and text[i + 1:i + 2] == b"*":      # a comment
+            j = text.find(b"*/", i + 2)
+            i = n if j < 0 else j + 2
+            continue
+        if c == 0x28:
+            depth += 1
+        elif c == 0x29:
+            depth -= 1
+            if depth == 0:
+                out.append(cur.decode("latin-1").strip())
+                return out
+        elif c == 0x2C and depth == 1:
+            out.append(cur.decode("latin-1").strip())
+            cur = bytearray()
+            i += 1
+            continue
+        elif c == 0x3B:                                  # ';' outside a string: no close
+            return None
+        cur.append(c)
+        i += 1
+    return None
+
+
+def _refs(param: str) -> list[int]:
+    """Entity references of a parameter, strings removed."""
+    return [int(x) for x in _REF.findall(re.sub(r"'(?:[^']|'')*'", "", param))]
+
+
+def _usage_records(path) -> list[tuple[int, int, list[int]]]:
+    """(label, definition label, item labels) of every IIRU / GISU record of a STEP file."""
+    with open(path, "rb") as fh:
+        text = fh.read()
+    out = []
+    for m in _USAGE.finditer(text):
+        ps = _params(text, m.end())
+        if ps is None or len(ps) != 5:
+            continue
+        d = _refs(ps[2])
+        if len(d) == 1:
+            out.append((int(m.group(1)), d[0], _refs(ps[4])))
+    return out
+
+
+def _label(x) -> str:
+    n = x.Name().ToCString() if hasattr(x, "Name") and x.Name() is not None else ""
+    t = type(x).__name__.split("_", 1)[-1]
+    return f"{t} {n!r}" if n else t
+
+
+def resolve_datums(caf, path, names, index) -> dict:
+    """{datum letter: (faces, how)} for the datums ``names`` that the file ties to faces by
+    IIRUs, or (None, why not) when it does but they do not resolve to faces of the model.
+
+    Parameters
+    ----------
+    caf : STEPCAFControl_Reader
+        The reader that transferred the file (its work session, model and transfer process).
+    path : Path
+        The STEP file (its text holds the IIRU items OpenCASCADE could not read).
+    names : set of str
+        Datum letters XCAF left without a shape.
+    index : shapeverify.cad.pmi._FaceIndex
+        The model's faces by identity.
+
+    Returns
+    -------
+    dict
+        Datums not tied by any IIRU are left out.
+    """
+    from OCP.STEPConstruct import STEPConstruct
+    from OCP.StepAP242 import (StepAP242_DraughtingModelItemAssociation,
+                               StepAP242_ItemIdentifiedRepresentationUsage)
+    from OCP.StepDimTol import StepDimTol_Datum
+    from OCP.StepRepr import StepRepr_CompositeShapeAspect, StepRepr_ShapeAspectRelationship
+
+    ws = caf.Reader().WS()
+    model, tp = ws.Model(), ws.TransferReader().TransientProcess()
+    # kept referenced, so OCP hands back the same Python object for the same entity
+    ents = [model.Value(i) for i in range(1, model.NbEntities() + 1)]
+    number = {id(e): i for i, e in enumerate(ents, start=1)}
+
+    def entity(label: int):
+        k = ws.NumberFromLabel(f"#{label}")
+        return ents[k - 1] if 0 < k <= len(ents) else None
+
+    # 1. the shape aspects of each datum letter
+    rels = [e for e in ents if isinstance(e, StepRepr_ShapeAspectRelationship)]
+    aspects: dict = {}
+    for e in ents:
+        if isinstance(e, StepDimTol_Datum) and e.Identification() is not None:
+            n = e.Identification().ToCString()
+            if n in names:
+                aspects.setdefault(n, []).append(e)
+    for n, found in aspects.items():
+        for r in rels:                    # the datum feature: SAR(relating feature, related datum)
+            a, b = r.RelatingShapeAspect(), r.RelatedShapeAspect()
+            if a is not None and b is not None and any(b is x for x in found) \
+                    and not any(a is x for x in found):
+                found.append(a)
+        k = 0
+        while k < len(found) and len(found) < 1000:     # components of composite aspects
+            c = found[k]
+            k += 1
+            if not isinstance(c, StepRepr_CompositeShapeAspect):
+                continue
+            for r in rels:
+                a, b = r.RelatingShapeAspect(), r.RelatedShapeAspect()
+                if a is c and b is not None and not isinstance(b, StepDimTol_Datum) \
+                        and not any(b is x for x in found):
+                    found.append(b)
+
+    # 2. the usages of those aspects
+    usages: dict = {}                   # aspect model number -> [usage entity]
+    for e in ents:
+        if isinstance(e, StepAP242_ItemIdentifiedRepresentationUsage) and not isinstance(
+                e, StepAP242_DraughtingModelItemAssociation):    # (a link to presentation)
+            d = e.Definition().Value() if e.Definition() is not None else None
+            if d is not None and id(d) in number:
+                usages.setdefault(number[id(d)], []).append(e)
+    wanted = {number[id(a)] for fs in aspects.values() for a in fs if id(a) in number}
+    if not wanted & set(usages):
+        return {}
+    text_items: dict = {}               # usage model number -> item entities from the text
+    for lab, dlab, items in _usage_records(path):
+        d, u = entity(dlab), entity(lab)
+        if d is None or u is None or number.get(id(d)) not in wanted:
+            continue
+        text_items[number[id(u)]] = [(i, entity(i)) for i in items]
+
+    # 3. items -> shapes -> face numbers
+    out = {}
+    for n, found in aspects.items():
+        us = [u for a in found for u in usages.get(number.get(id(a)), [])]
+        if not us:
+            continue
+        faces, bad = [], []
+        for u in us:
+            items = [u.IdentifiedItemValue(j) for j in range(1, u.NbIdentifiedItem() + 1)]
+            if any(x is None for x in items) or not items:
+                got = text_items.get(number[id(u)])
+                if not got:
+                    bad.append(f"the item of {_label(u)} (read neither by OpenCASCADE nor "
+                               "from the file's text)")
+                    continue
+                items = []
+                for lab, x in got:
+                    if x is None:
+                        bad.append(f"#{lab} (no such entity)")
+                    else:
+                        items.append(x)
+            for x in items:
+                s = STEPConstruct.FindShape_s(tp, x)
+                if s is None or s.IsNull():
+                    bad.append(f"{_label(x)} (no shape was made of it)")
+                    continue
+                fs, other = index.of(s)
+                if not fs:
+                    bad.append(f"{_label(x)} (a shape of {other[0] if other else 'no face'} "
+                               "of the model)")
+                faces.extend(f for f in fs if f not in faces)
+        what = ", ".join(sorted({_label(u).split(" ", 1)[0] for u in us}))
+        if bad or not faces:
+            out[n] = (None, f"followed from the STEP entities, not every item of its {what} "
+                            f"is a face of the model: {'; '.join(bad[:3])}")
+        else:
+            out[n] = (faces, f"{what} of its datum feature ({len(faces)} faces, resolved "
+                             "from the STEP entities)")
+    return out
