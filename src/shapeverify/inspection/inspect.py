@@ -427,7 +427,12 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
         limits=tol.limits(dev.face),
         search=RegionSearch(min_points=opts.min_region_points, spacing=spacing))
     beside = beside_surface(dev)                    # material and floating surfaces share it
-    material = find_material(dev, spacing, tol.upper, beside=beside, outliers=outliers.indices)
+    # material joins the part on its outer side: a measurement outlier inside the part (a
+    # reflection copied into a blade) carries no material above it; one above the surface can
+    # (the ramp up to a corner that the CAD chamfers and the part does not)
+    o = np.asarray(outliers.indices, np.int64)
+    material = find_material(dev, spacing, tol.upper, beside=beside,
+                             outliers=o[dev.values[o] < 0])
     # CAD surface the scan sees through (issue 33 row 3): regions of kind "missing"
     missing = find_missing(prep, dev, spacing, within, tol, faces=opts.faces) \
         if opts.missing else []
