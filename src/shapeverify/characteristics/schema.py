@@ -199,19 +199,27 @@ class DatumTargetSpec(_Strict):
         return self
 
 
-class DatumSize(_Strict):
-    """The size limits of a datum feature of size (a hole's or boss's diameter, mm): its
-    maximum/least material boundary for a datum referenced at MMB/LMB (:mod:`.datum_shift`)."""
+class SizeLimits(_Strict):
+    """Limits of a feature of size's deviation from nominal (mm): ``lower < upper``;
+    ``nominal``: the drawing's size (default: the CAD's diameter)."""
 
-    nominal: float = Field(gt=0)
     lower: float
     upper: float
+    nominal: Optional[float] = Field(default=None, gt=0)
 
     @model_validator(mode="after")
     def _order(self):
         if not self.lower < self.upper:
             raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
         return self
+
+
+class DatumSize(SizeLimits):
+    """The size limits of a datum feature of size (a hole's or boss's diameter, mm): its
+    maximum/least material boundary for a datum referenced at MMB/LMB (:mod:`.datum_shift`);
+    ``nominal`` is required."""
+
+    nominal: float = Field(gt=0)
 
 
 class DatumSpec(_Strict):
@@ -276,21 +284,6 @@ class Circularity(_Form):
 
 class Cylindricity(_Form):
     type: Literal["cylindricity"]
-
-
-class SizeLimits(_Strict):
-    """Limits of a feature of size's deviation from nominal (mm): ``lower < upper``;
-    ``nominal``: the drawing's size (default: the CAD's diameter)."""
-
-    lower: float
-    upper: float
-    nominal: Optional[float] = Field(default=None, gt=0)
-
-    @model_validator(mode="after")
-    def _order(self):
-        if not self.lower < self.upper:
-            raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
-        return self
 
 
 class _Oriented(_Gdt):
