@@ -500,6 +500,7 @@ def _rim_notes(hm, verdicts, lower, upper, U) -> list:
 
 def _cylinder(c, S: _Scan, feats, k):
     from ..fitting import fit_cylinder
+    from .size_features import radius_uncertainty
 
     f = _face_feature(c, feats, S, "cylinder")
     m = S.on([f.face])
@@ -509,23 +510,7 @@ def _cylinder(c, S: _Scan, feats, k):
     cy = fit_cylinder(P, loss="tukey", axis=f.axis)
     a = cy.axis
     # linearised covariance of the radius (axis point in the plane, tilt, radius)
-    q = P - cy.point
-    h = q @ a
-    radial = q - np.outer(h, a)
-    rn = np.linalg.norm(radial, axis=1)
-    u_dir = radial / np.where(rn > 0, rn, 1.0)[:, None]
-    e1, e2 = plane_basis(a)
-    J = np.column_stack([-(u_dir @ e1), -(u_dir @ e2), -(u_dir @ e1) * h, -(u_dir @ e2) * h,
-                         -np.ones(len(P))])
-    w = cy.weights
-    r = cy.residuals
-    Jw = J * w[:, None]
-    try:
-        Hinv = np.linalg.inv(Jw.T @ J)
-        Jb = J * (w * r)[:, None]
-        u_R = float(np.sqrt(max((Hinv @ (Jb.T @ Jb) @ Hinv)[4, 4], 0.0)))
-    except np.linalg.LinAlgError:
-        u_R = float("inf")
+    u_R = radius_uncertainty(P, cy.point, a, cy.residuals, cy.weights)
     meas = 2.0 * cy.radius
     dev = meas - f.diameter
     lo, hi = c.diameter.limits()
