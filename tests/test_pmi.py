@@ -262,3 +262,32 @@ def test_pmi_face_whose_vertices_are_not_on_the_model_face_is_an_error(example_s
     pmi["n_faces"] = 2
     with pytest.raises(CADImportError, match="2 faces"):
         pmi_plan(example_step, pmi=pmi)
+
+
+def test_info_pmi_shows_unsupported_reasons_without_markup_and_angularity_in_mm():
+    """CTC 03's table printed "[yellow]unsupported:[/yellow]" literally (its cells are plain
+    text) and GT2's angularity zone as "1.016°" (the zone is a length)."""
+    import io
+    from types import SimpleNamespace
+
+    from rich.console import Console
+
+    from shapeverify.cli_plan import pmi_table
+
+    rows = [dict(id="GT2", kind="geometric_tolerance", type="Angularity", value=1.016,
+                 datums="A", faces=["face:110"], entries=["GT2_angularity"]),
+            dict(id="GT10", kind="geometric_tolerance", type="Position", value=0.762,
+                 datums="D|B|C", faces=["face:41"], entries=[],
+                 reason="faces [41, 40] are cylinder"),
+            dict(id="DIM3", kind="dimension", type="Location_Angular", value=30.0,
+                 limits=(-0.5, 0.5), faces=["face:2"], entries=["DIM3_angle"])]
+    res = SimpleNamespace(rows=rows, plan=SimpleNamespace(
+        alignment=SimpleNamespace(type="best_fit")))
+    c = Console(width=250, file=io.StringIO())
+    c.print(pmi_table("part.stp", res))
+    text = c.file.getvalue()
+    assert "[yellow]" not in text and "unsupported: faces [41, 40] are cylinder" in text
+    gt2 = next(ln for ln in text.splitlines() if "GT2 " in ln)
+    assert "1.016 " in gt2 and "°" not in gt2
+    dim3 = next(ln for ln in text.splitlines() if "DIM3" in ln)
+    assert "30°" in dim3 and "-0.5° / +0.5°" in dim3

@@ -142,13 +142,22 @@ def write_pmi_plan(model_path: Path, output: Optional[Path]) -> None:
 
 def print_pmi(model_path: Path, m=None) -> None:
     """``shapeverify info PART.stp --pmi``: the semantic PMI and what the plan makes of it."""
-    from rich.markup import escape
-
     from shapeverify.cli_common import out
 
-    res = _pmi_plan(model_path, m)
+    out.print(pmi_table(model_path.name, _pmi_plan(model_path, m)))
+
+
+def pmi_table(name: str, res) -> Table:
+    """The table ``info --pmi`` prints: one row per PMI item of ``res`` (a PMI plan result:
+    ``rows`` and ``plan.alignment``), with the plan entries made of it or why none.
+
+    Cells are plain text (a reason such as "faces [41, 40]" shows as written); an angle
+    dimension's values are in degrees, every other value (an angularity's zone too) in mm.
+    """
+    from rich.text import Text
+
     al = res.plan.alignment
-    t = Table(title=f"{model_path.name} PMI (alignment: {al.type}"
+    t = Table(title=f"{name} PMI (alignment: {al.type}"
                     + (f" {al.primary}|{al.secondary}" + (f"|{al.tertiary}" if al.tertiary else "")
                        if al.type == "datums" else "") + ")")
     for col in ("id", "kind", "type", "value (mm)", "limits (mm)", "datums / targets",
@@ -158,12 +167,12 @@ def print_pmi(model_path: Path, m=None) -> None:
         faces = ", ".join(r["faces"][:6]) + (f" (+{len(r['faces']) - 6})"
                                             if len(r["faces"]) > 6 else "")
         lim = r.get("limits")
-        plan = ", ".join(r["entries"]) if r["entries"] else "[yellow]unsupported:[/yellow] " \
-            + escape(r["reason"])
-        deg = "\u00b0" if "Angular" in r["type"] else ""  # an angle: degrees, not mm
+        plan = (", ".join(r["entries"]) if r["entries"]
+                else Text.assemble(("unsupported: ", "yellow"), r["reason"]))
+        deg = "\u00b0" if r["kind"] == "dimension" and "Angular" in r["type"] else ""
         t.add_row(r["id"], r["kind"].replace("geometric_tolerance", "tolerance"), r["type"],
                   "-" if r.get("value") is None else f"{r['value']:g}{deg}",
                   "-" if not lim else f"{lim[0]:+g}{deg} / {lim[1]:+g}{deg}",
-                  escape(r.get("datums") or ", ".join(r.get("targets", [])) or "-"),
-                  escape(", ".join(r.get("modifiers", [])) or "-"), escape(faces or "-"), plan)
-    out.print(t)
+                  r.get("datums") or ", ".join(r.get("targets", [])) or "-",
+                  ", ".join(r.get("modifiers", [])) or "-", faces or "-", plan)
+    return t
