@@ -71,32 +71,49 @@ __all__ = ["eval_surface_profile", "eval_orientation", "eval_position", "eval_ru
 def _on(ctx: EvalContext, faces) -> np.ndarray:
     """The kept points of ``faces`` whose closest CAD point lies inside the face, at least
     ``EDGE`` spacings (and 0.5 mm) from its edges: a point of a neighbouring surface beyond an
-    edge (the plate at the foot of a moved boss) is not the face's."""
+    edge (the plate at the foot of a moved boss) is not the face's.  On a face narrower than
+    twice that band (the wall of a hole through a 1.9 mm sheet: NIST CTC 03's datums B and C)
+    the band is a quarter of the face's width, so its middle half is kept."""
     S = ctx.S
     m = S.on(faces)
     sp = float(getattr(S.support, "spacing", 0.0) or 0.0)
     e = max(EDGE * sp, 0.5)
     out = m.copy()
     for f in (np.unique(S.face[m]) if faces is None else faces):
-        key = ("edge", int(f))
-        if key not in ctx.cache:
-            from scipy.spatial import cKDTree
-
-            from .features import _dense_loop
-
-            face = ctx.prep.model.faces[int(f)]
-            # a trim loop's vertices may lie a rounding error outside the surface's domain
-            # (FTC 06: v = -5e-6 on [1.8e-8, 38.6]): clipped onto it
-            (u0, u1), (v0, v1) = face.surface.domain
-            rim = np.concatenate([face.evaluate(np.column_stack([
-                np.clip(q[:, 0], u0, u1), np.clip(q[:, 1], v0, v1)]))
-                for q in (_dense_loop(lp, 8) for lp in face.loops)])
-            ctx.cache[key] = cKDTree(rim)
         sel = m & (S.face == f)
         if sel.any():
-            d, _ = ctx.cache[key].query(S.feet[sel])
-            out[np.flatnonzero(sel)[d < e]] = False
+            tree, inradius = _rim(ctx, int(f))
+            d, _ = tree.query(S.feet[sel])
+            out[np.flatnonzero(sel)[d < min(e, 0.5 * inradius)]] = False
     return out
+
+
+def _rim(ctx: EvalContext, f: int):
+    """(kd-tree of face ``f``'s trim loops in 3D, the face's inradius: the largest distance
+    of a point of the face from its loops, on a 48 x 48 grid of its domain; inf when no grid
+    point falls inside), cached."""
+    key = ("edge", f)
+    if key not in ctx.cache:
+        from scipy.spatial import cKDTree
+
+        from .features import _dense_loop
+
+        face = ctx.prep.model.faces[f]
+        # a trim loop's vertices may lie a rounding error outside the surface's domain
+        # (FTC 06: v = -5e-6 on [1.8e-8, 38.6]): clipped onto it
+        (u0, u1), (v0, v1) = face.surface.domain
+        rim = np.concatenate([face.evaluate(np.column_stack([
+            np.clip(q[:, 0], u0, u1), np.clip(q[:, 1], v0, v1)]))
+            for q in (_dense_loop(lp, 8) for lp in face.loops)])
+        tree = cKDTree(rim)
+        (a0, a1), (b0, b1) = face.uv_bounds
+        g = np.linspace(0.0, 1.0, 50)[1:-1]
+        uv = np.column_stack([np.repeat(a0 + g * (a1 - a0), g.size),
+                              np.tile(b0 + g * (b1 - b0), g.size)])
+        uv = uv[face.contains(uv)]
+        inradius = float(tree.query(face.evaluate(uv))[0].max()) if len(uv) else np.inf
+        ctx.cache[key] = (tree, inradius)
+    return ctx.cache[key]
 
 
 #: points whose closest CAD point is nearer than this many scan spacings to the face's edge
@@ -283,6 +300,24 @@ def _axis_ends(X, feat, hole: bool):
     return ends, mating, least, a, how
 
 
+def _lsq_axis_ends(X, feat, rim):
+    """(end points (2, 3), axis, how) of the least-squares (Tukey) cylinder's axis between
+    the planes normal to the CAD axis that bound the feature's faces (their edges ``rim``):
+    the axis of a feature too short for a mating fit's tilt, to which the zone applies end to
+    end."""
+    from ..fitting import fit_cylinder
+
+    cy = fit_cylinder(X, loss="tukey", axis=feat.axis)
+    n = np.asarray(feat.axis, float)
+    a = np.asarray(cy.axis, float)
+    a = a if a @ n > 0 else -a
+    p = np.asarray(cy.point, float)
+    h = (np.asarray(rim, float) - p) @ n          # the feature's extent along the CAD axis
+    ends = np.stack([p + (hk / (a @ n)) * a for hk in (h.min(), h.max())])
+    return (ends, a, "least-squares cylinder over the feature's length (a short feature: a "
+                     "mating fit does not fix its tilt)")
+
+
 def _cylinder_points(X, feat):
     """The points of a cylinder feature less the gross outliers of a robust fit: a residual
     from the Tukey least-squares cylinder (:func:`shapeverify.fitting.fit_cylinder`) more than
@@ -376,6 +411,12 @@ def eval_orientation(c, ctx: EvalContext):
         hole = _is_hole(X, ctx.S.normals[m], f)
         X, _ = _cylinder_points(X, f)
         ends, mating, _, a, how = _axis_ends(X, f, hole)
+        if "CAD direction" in how:
+            # a short hole's mating fit keeps the CAD direction: its orientation would read 0
+            # by construction (NIST CTC 03's GT11 on a hole through a 1.9 mm sheet); the
+            # least-squares cylinder's axis is defined by all the points
+            rim = np.concatenate([_rim(ctx, int(i))[0].data for i in fidx])
+            ends, a, how = _lsq_axis_ends(X, f, rim)
         B = tangent_basis(f.axis)
         e2 = (ends[1] - ends[0]) @ B.T
         value = float(np.linalg.norm(e2))

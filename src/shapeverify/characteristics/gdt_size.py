@@ -97,20 +97,44 @@ def _tilt_sd(P, n, noise) -> np.ndarray:
     return np.array(out)
 
 
-def _two_planes(c, ctx: EvalContext, what: str):
-    """(faces, features, points of face 1, of face 2) or a 'not measured' result."""
+def _side(ctx: EvalContext, ref, c, what: str) -> list[int]:
+    """The model faces of one side of a two-plane dimension: a face, or several coplanar
+    planar faces (a list, or a CAD name that several faces carry) taken as one plane."""
     from .alignment import face_indices
+
+    fl = face_indices(ctx.prep.model, ref if isinstance(ref, list) else [ref]).tolist()
+    feats = [ctx.feats[i] for i in fl]
+    if any(f.kind != "plane" for f in feats):
+        raise ValueError(f"{c.name}: {what} needs planar faces, got {ref} "
+                         f"({[f.kind for f in feats]})")
+    a = feats[0]
+    size = max(float(ctx.prep.model.size), 1.0)
+    for f in feats[1:]:
+        if abs(abs(f.axis @ a.axis) - 1.0) > 1e-6 or abs((f.center - a.center) @ a.axis) \
+                > 1e-6 * size + 1e-6:
+            raise ValueError(f"{c.name}: the faces {ref} of one side of the {what} are not "
+                             "coplanar in the CAD; name one plane per side")
+    return fl
+
+
+def _two_planes(c, ctx: EvalContext, what: str):
+    """(sides: two lists of model faces, points of side 1, of side 2) or a 'not measured'
+    result.  A side is one planar face or several coplanar ones (fitted as one plane)."""
     from .gdt import _on
 
-    fidx = face_indices(ctx.prep.model, c.faces).tolist()
-    if len(fidx) != 2 or any(ctx.feats[i].kind != "plane" for i in fidx):
-        raise ValueError(f"{c.name}: {what} needs two planar faces, got {c.faces} "
-                         f"({[ctx.feats[i].kind for i in fidx]})")
-    P1, P2 = ctx.S.X[_on(ctx, [fidx[0]])], ctx.S.X[_on(ctx, [fidx[1]])]
+    if len(c.faces) != 2:
+        raise ValueError(f"{c.name}: {what} needs two sides, got {c.faces}")
+    sides = [_side(ctx, ref, c, what) for ref in c.faces]
+    P1, P2 = ctx.S.X[_on(ctx, sides[0])], ctx.S.X[_on(ctx, sides[1])]
     if len(P1) < 3 or len(P2) < 3:
-        return fidx, None, _not_measured(c, f"fewer than 3 scan points on a face of the {what} "
-                                            f"({len(P1)}, {len(P2)})")
-    return fidx, (P1, P2), None
+        return sides, None, _not_measured(c, f"fewer than 3 scan points on a side of the "
+                                             f"{what} ({len(P1)}, {len(P2)})")
+    return sides, (P1, P2), None
+
+
+def _flat(sides):
+    """Two sides as before sides existed: [face 1, face 2] when each is one face."""
+    return [s[0] if len(s) == 1 else s for s in sides]
 
 
 def _dim_result(c, nominal, value, U, details):
@@ -124,7 +148,7 @@ def eval_distance(c, ctx: EvalContext):
     fidx, pts, bad = _two_planes(c, ctx, "distance")
     if bad is not None:
         return bad
-    f1, f2 = ctx.feats[fidx[0]], ctx.feats[fidx[1]]
+    f1, f2 = ctx.feats[fidx[0][0]], ctx.feats[fidx[1][0]]
     if abs(abs(f1.axis @ f2.axis) - 1.0) > 1e-6:
         raise ValueError(f"{c.name}: faces {c.faces} are not parallel in the CAD "
                          f"({_cad_angle(f1.axis, f2.axis):.4f} deg apart); a distance is "
@@ -135,7 +159,7 @@ def eval_distance(c, ctx: EvalContext):
     value = plane_distance(P1, P2)
     U = ctx.k * float(ctx.S.noise) * float(np.sqrt(1.0 / len(P1) + 1.0 / len(P2)))
     return _dim_result(c, nominal, value, U,
-                       {"faces": fidx, "n": [len(P1), len(P2)], "cad_distance": cad,
+                       {"faces": _flat(fidx), "n": [len(P1), len(P2)], "cad_distance": cad,
                         "noise": ctx.S.noise,
                         "definition": "mean distance between the least-squares planes"})
 
@@ -145,7 +169,7 @@ def eval_angle(c, ctx: EvalContext):
     fidx, pts, bad = _two_planes(c, ctx, "angle")
     if bad is not None:
         return bad
-    f1, f2 = ctx.feats[fidx[0]], ctx.feats[fidx[1]]
+    f1, f2 = ctx.feats[fidx[0][0]], ctx.feats[fidx[1][0]]
     cad = _cad_angle(f1.axis, f2.axis)
     nominal = float(c.nominal) if c.nominal is not None else cad
     sup = _supplement(f1.axis, f2.axis, nominal)
@@ -163,6 +187,6 @@ def eval_angle(c, ctx: EvalContext):
                     for P, n in ((P1, n1), (P2, n2))))
     U = ctx.k * float(np.degrees(s))
     return _dim_result(c, nominal, value, U,
-                       {"faces": fidx, "n": [len(P1), len(P2)], "cad_angle": cad,
+                       {"faces": _flat(fidx), "n": [len(P1), len(P2)], "cad_angle": cad,
                         "supplement": bool(sup), "noise": ctx.S.noise, "unit": "deg",
                         "definition": "angle between the least-squares planes"})

@@ -1,12 +1,14 @@
 """Plan entries of the PMI dimensions between two features (:mod:`.pmi_plan`): a
 ``Location_LinearDistance`` between two parallel planar faces becomes a ``distance``, a
 ``Location_Angular`` between two planar faces an ``angle`` (:mod:`.gdt_size`), each with the
-dimension's nominal and ± limits.  Anything else stays unsupported, with the reason."""
+dimension's nominal and ± limits; a ``Size_Thickness`` on planar faces that lie in two
+parallel planes (NIST CTC 03: one face against four coplanar ones) a ``distance`` between the
+two planes.  Anything else stays unsupported, with the reason."""
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["between_entries"]
+__all__ = ["between_entries", "thickness_entries"]
 
 
 def _mm(x: float) -> float:
@@ -70,3 +72,53 @@ def between_entries(item, ctx, src: dict, name) -> tuple[list, str]:
     if not 0.0 < nom < 180.0:
         return [], f"an angle of {nom:g} deg between planes (0 to 180 exclusive are measured)"
     return [{"name": name(f"{item['id']}_angle"), "type": "angle", **entry}], ""
+
+
+def _plane_groups(faces, feats, size: float) -> list[list[int]]:
+    """``faces`` (planar) grouped by the plane they lie in (parallel, same offset)."""
+    groups: list[list[int]] = []
+    for f in faces:
+        a = feats[f]
+        for g in groups:
+            b = feats[g[0]]
+            if abs(abs(a.axis @ b.axis) - 1.0) <= 1e-6 and \
+                    abs((a.center - b.center) @ b.axis) <= 1e-6 * size + 1e-6:
+                g.append(f)
+                break
+        else:
+            groups.append([f])
+    return groups
+
+
+def thickness_entries(item, ctx, src: dict, name) -> tuple[list, str]:
+    """(plan entries, '') or ([], reason) of a ``Size_Thickness`` dimension: its planar faces
+    must lie in exactly two parallel planes, ``nominal`` apart; the entry is a ``distance``
+    whose two sides are those planes (each a face or the list of its coplanar faces)."""
+    if item["lower"] is None or not item["lower"] < item["upper"]:
+        return [], "Size_Thickness without \u00b1 limits (a basic or reference dimension)"
+    if item["modifiers"]:
+        return [], f"dimension modifiers {', '.join(item['modifiers'])}"
+    faces = [ctx.fmap.get(f) for f in list(item.get("faces", [])) + list(item.get("faces2", []))]
+    if not faces or any(f is None for f in faces):
+        return [], "a face it names could not be imported (see the import's warnings)"
+    faces = list(dict.fromkeys(faces))
+    kinds = sorted({ctx.feats[f].kind for f in faces})
+    if kinds != ["plane"]:
+        return [], (f"a thickness on {', '.join(kinds)} faces (the plan measures a thickness "
+                    "between two planes)")
+    size = max(float(ctx.model.size), 1.0)
+    groups = _plane_groups(faces, ctx.feats, size)
+    if len(groups) != 2:
+        return [], (f"its {len(faces)} planar faces lie in {len(groups)} planes, not in two "
+                    "parallel planes")
+    a, b = ctx.feats[groups[0][0]], ctx.feats[groups[1][0]]
+    if abs(abs(a.axis @ b.axis) - 1.0) > 1e-6:
+        return [], "a thickness between planes that are not parallel"
+    nom = float(item["nominal"])
+    cad = float(abs((b.center - a.center) @ a.axis))
+    if abs(cad - nom) > 1e-4 * max(nom, 1.0) + 1e-6:
+        return [], f"the nominal thickness {nom:g} differs from the CAD planes' {cad:.4f} mm"
+    sides = [f"face:{g[0]}" if len(g) == 1 else [f"face:{f}" for f in g] for g in groups]
+    return [{"name": name(f"{item['id']}_thickness"), "type": "distance", "faces": sides,
+             "lower": _mm(item["lower"]), "upper": _mm(item["upper"]), "nominal": _mm(nom),
+             "pmi": src}], ""

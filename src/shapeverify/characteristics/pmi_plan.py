@@ -31,6 +31,8 @@ sides; with S⌀ on spheres                  (``zone: sphere``, one per sphere)
 ProfileOfLine at a line drawn on a face    ``line_profile`` (:mod:`.pmi_profile_line`)
 Size_Radius, Size_SphericalDiameter,       ``feature_size`` (:mod:`.pmi_sizes`)
 Size_SphericalRadius with ± limits
+Size_Thickness with ± limits on planar      ``distance`` between the two planes (a side of
+faces in two parallel planes                several coplanar faces is one plane)
 =========================================  ===============================================
 
 An item attached to an edge rather than a face (NIST CTC 02: a hole's rim circle) is mapped to
@@ -590,6 +592,10 @@ def _dimension(item, ctx) -> tuple[list, str]:
         from .pmi_dimensions import between_entries
 
         return between_entries(item, ctx, _src(item), ctx.name)
+    if t == "Size_Thickness":
+        from .pmi_dimensions import thickness_entries
+
+        return thickness_entries(item, ctx, _src(item), ctx.name)
     if t in ("Size_Radius", "Size_SphericalDiameter", "Size_SphericalRadius"):
         from .pmi_sizes import size_entries
 

@@ -438,10 +438,14 @@ class Width(_TwoPlanes):
 
 
 class Distance(_TwoPlanes):
-    """The distance (mm) between two parallel planar faces, either facing (a step or a
-    width), between their least-squares planes."""
+    """The distance (mm) between two parallel planar sides, either facing (a step or a
+    width), between their least-squares planes.  A side is a face, or a list of coplanar
+    planar faces fitted as one plane (``faces: [face:68, [face:70, face:72]]``: a thickness
+    to a face split in four)."""
 
     type: Literal["distance"]
+    faces: Annotated[list[Union[FeatureId, int, str, list[Union[FeatureId, int, str]]]],
+                     Field(min_length=2, max_length=2)]
     nominal: Optional[float] = Field(default=None, gt=0)
 
 
