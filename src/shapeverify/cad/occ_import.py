@@ -126,12 +126,19 @@ def _check_iges_terminated(p: Path) -> None:
                              "Terminate section); is it truncated or corrupt?")
 
 
-def _step_unit(reader) -> tuple[str, float]:
+def _step_unit(reader, path=None) -> tuple[str, float]:
     from OCP.collections import Sequence_TCollection_AsciiString as Seq
 
     lengths, angles, solids = Seq(), Seq(), Seq()
     reader.FileUnits(lengths, angles, solids)
     names = sorted({lengths.Value(i).ToCString() for i in range(1, lengths.Length() + 1)})
+    if path is not None and (not names or names == [""]):
+        # OpenCASCADE names no unit for some complex unit entities (NIST CTC 05's inch)
+        from .step_units import length_unit_of_file
+
+        found = length_unit_of_file(path)
+        if found is not None:
+            return found
     if not names:
         logger.warning("STEP file declares no length unit; assuming mm")
         return "mm", 1.0
@@ -208,7 +215,7 @@ def _read_shape_with(path: Path, fmt: str, names: bool):
     n_roots = reader.NbRootsForTransfer()
     if n_roots == 0:
         raise EmptyModelError(f"{path}: the {fmt.upper()} file holds no shapes")
-    unit, scale = _step_unit(reader) if fmt == "step" else _iges_unit(reader)
+    unit, scale = _step_unit(reader, path) if fmt == "step" else _iges_unit(reader)
     if caf is not None:
         try:
             reader = step_names.transfer(caf, doc)

@@ -110,7 +110,8 @@ def _face_map(pmi: dict, model) -> dict:
 
     The model leaves out faces it could not convert (``model.skipped_faces``: ``face i: ...``);
     the others keep their order.  Every vertex of every face the PMI names must lie within
-    ``max(0.01 mm, 1e-5 x size)`` of that model face's boundary."""
+    ``max(0.01 mm, 1e-5 x size)`` of that model face's boundary, or lie less than half as far
+    from it as from any other face's (a file whose trimming curves sit off its edges)."""
     n = int(pmi["n_faces"])
     skipped = set()
     for s in getattr(model, "skipped_faces", ()) or ():
@@ -125,23 +126,45 @@ def _face_map(pmi: dict, model) -> dict:
             "model's face numbers")
     fmap = {e: k for k, e in enumerate(kept)}
     tol = max(0.01, 1e-5 * float(model.size))
+    rims: dict = {}
     for e, verts in pmi["face_vertices"].items():
         e = int(e)
         if e not in fmap or not verts:
             continue
-        face = model.faces[fmap[e]]
-        (u0, u1), (v0, v1) = face.surface.domain
-        rim = np.concatenate([face.evaluate(np.column_stack([np.clip(lp[:, 0], u0, u1),
-                                                             np.clip(lp[:, 1], v0, v1)]))
-                              for lp in face.loops])
         V = np.asarray(verts, np.float64)
-        d = np.sqrt(((V[:, None, :] - rim[None, :, :]) ** 2).sum(-1)).min(axis=1)
-        if d.max() > tol:
+        d = _off_rim(V, _rim_of(model, fmap[e], rims))
+        if d <= tol:
+            continue
+        # a file whose trimming curves sit off its edges (NIST CTC 05: three B-spline faces,
+        # 0.24-0.36 mm) still matches when no other face's boundary is as near
+        others = [(_off_rim(V, _rim_of(model, k, rims)), k) for k in range(len(model.faces))
+                  if k != fmap[e]]
+        best, k = min(others) if others else (np.inf, -1)
+        if not d < 0.5 * best:
             raise CADImportError(
                 f"{pmi['source']}: PMI face {e} does not match model face {fmap[e]} (a vertex "
-                f"{d.max():.3g} mm off its boundary); the face numbering of the PMI reader and "
-                "of the import differ")
+                f"{d:.3g} mm off its boundary; model face {k}: {best:.3g} mm); the face "
+                "numbering of the PMI reader and of the import differ")
+        logger.info("%s: PMI face %d lies %.3g mm off model face %d's trimming loops (the "
+                    "next face: %.3g mm); taken as that face", pmi["source"], e, d, fmap[e], best)
     return fmap
+
+
+def _rim_of(model, k: int, cache: dict) -> np.ndarray:
+    """Face k's trimming loops evaluated in 3D (cached in ``cache``)."""
+    if k not in cache:
+        face = model.faces[k]
+        (u0, u1), (v0, v1) = face.surface.domain
+        cache[k] = np.concatenate([face.evaluate(np.column_stack([
+            np.clip(lp[:, 0], u0, u1), np.clip(lp[:, 1], v0, v1)])) for lp in face.loops])
+    return cache[k]
+
+
+def _off_rim(V, rim) -> float:
+    """The largest distance of the points V from their nearest rim point."""
+    from scipy.spatial import cKDTree
+
+    return float(cKDTree(rim).query(V)[0].max())
 
 
 def _side(model, i: int, c, a) -> str:
