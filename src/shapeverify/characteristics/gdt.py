@@ -520,26 +520,94 @@ def mating_centre_u(n: int, noise: float, k: float) -> float:
 
 # ------------------------------------------------------------------------------ runout
 def eval_runout(c, ctx: EvalContext):
-    """circular_runout / total_runout about the DRF's primary axis."""
+    """circular_runout / total_runout about the DRF's datum axis (a hole's or boss's, or the
+    common axis of coaxial ones, ``A-B``), as a dial indicator reads it normal to the surface:
+    the range of the points' signed distances from the CAD surface (in the DRF frame), over
+    each circle (points whose CAD feet share a cell of the meridian plane, a tenth of the
+    face's extent) -- its maximum -- and over all points.  On a cylinder that is the radial
+    range, on a face square to the axis the axial range; every face must be a surface of
+    revolution about the datum axis."""
     fidx = _faces(c, ctx)
     X, m, drf = _frame_points(c, ctx, fidx)
-    ax = next((d for d in drf.datums if d.kind == "axis"), None)
-    if ax is None:
-        raise ValueError(f"{c.name}: runout needs an axis datum (a hole or boss); "
-                         f"{'|'.join(c.datums)} has none")
-    spec = ctx.plan.datums[ax.name]
-    nom = _datum_feature(ax.name, spec, ctx)       # its nominal axis (the DRF puts it there)
+    nom = None                          # the datum axis's nominal (the DRF puts it there)
+    for d in drf.datums:
+        if d.kind in ("axis", "pattern"):
+            f = _datum_feature(d.name, ctx.plan.datums[d.name], ctx)
+            if d.kind == "axis" or _coaxial(f):
+                nom = f
+                break
+    if nom is None:
+        raise ValueError(f"{c.name}: runout needs an axis datum (a hole or boss, or coaxial "
+                         f"ones); {'|'.join(c.datums)} has none")
+    p0 = np.asarray(nom.point, float)
+    a0 = np.asarray(nom.direction, float) / np.linalg.norm(nom.direction)
+    for i in fidx:
+        _check_revolution(c, ctx.feats[i], p0, a0, float(ctx.prep.model.size))
     if X.shape[0] < 5:
         return _not_measured(c, f"only {X.shape[0]} scan points on faces {fidx}")
     if ctx.feats[fidx[0]].kind == "cylinder":
         X, _ = _cylinder_points(X, ctx.feats[fidx[0]])
-    circ, total = runout(X, nom.point, nom.direction)
+    foot = ctx.prep.closest(X, exact=True)
+    d = np.asarray(foot.distances, float)
+    q = np.asarray(foot.points, float) - p0
+    h = q @ a0
+    r = np.linalg.norm(q - np.outer(h, a0), axis=1)
+    total = float(d.max() - d.min())
+    w = max(float(np.ptp(h)), float(np.ptp(r))) / 10.0 + 1e-9
+    cell = np.floor(h / w).astype(np.int64) * 1_000_003 + np.floor(r / w).astype(np.int64)
+    circ = 0.0
+    for k in np.unique(cell):
+        dk = d[cell == k]
+        if dk.size >= 2:
+            circ = max(circ, float(dk.max() - dk.min()))
     value = circ if c.type == "circular_runout" else total
     zq = extreme_quantile(X.shape[0], ctx.k)
-    return _result(c, ctx, value, 2.0 * zq * ctx.S.noise,
+    # the datum axis's own noise: a mating cylinder rests on extreme points near its ends
+    # (the Gumbel spread of _datum_part), tilting it over the datum's length; the indicator
+    # reads that tilt times the face's distance from the datum, on both sides of the axis
+    hd = (np.asarray(nom.points, float) - p0) @ a0
+    lever = float(np.linalg.norm(q, axis=1).max())
+    Ud = 0.0
+    if hd.size > 2 and np.ptp(hd) > 0:
+        sd = np.sqrt(2.0) * (np.pi / np.sqrt(6.0)) * ctx.S.noise / np.sqrt(
+            2.0 * np.log(hd.size))
+        Ud = 2.0 * ctx.k * sd * lever / float(np.ptp(hd))
+    return _result(c, ctx, value, float(np.hypot(2.0 * zq * ctx.S.noise, Ud)),
                    {"faces": fidx, "n": int(X.shape[0]), "circular": circ, "total": total,
-                    "axis_point": nom.point.tolist(), "axis": nom.direction.tolist(),
+                    "axis_point": p0.tolist(), "axis": a0.tolist(),
+                    "definition": "range of the normal deviations from the CAD surface of "
+                                  "revolution, per circle and overall",
+                    "u_datum_axis": Ud,
                     "noise": ctx.S.noise, "excluded": ctx.S.excluded(fidx)}, drf)
+
+
+def _coaxial(d) -> bool:
+    """A pattern datum whose cylinders share one axis (a common datum axis A-B)."""
+    groups = getattr(d, "groups", None) or ()
+    if not groups:
+        return False
+    c0, a0 = np.asarray(groups[0][0], float), np.asarray(groups[0][1], float)
+    for c, a, *_ in groups[1:]:
+        q = np.asarray(c, float) - c0
+        if np.linalg.norm(np.cross(a, a0)) > 1e-6 or np.linalg.norm(q - (q @ a0) * a0) > 1e-4:
+            return False
+    return True
+
+
+def _check_revolution(c, f, p0, a0, size: float) -> None:
+    """A runout's face is a surface of revolution about the datum axis (p0, a0)."""
+    tol = 1e-6 * max(size, 1.0) + 1e-6
+    if f.kind == "plane":
+        ok = abs(abs(f.axis @ a0) - 1.0) < 1e-6
+    elif f.kind in ("cylinder", "cone"):
+        q = f.center - p0
+        ok = (np.linalg.norm(np.cross(f.axis, a0)) < 1e-6
+              and np.linalg.norm(q - (q @ a0) * a0) < tol)
+    else:
+        ok = True          # a torus, sphere or free-form face: taken as the drawing says
+    if not ok:
+        raise ValueError(f"{c.name}: face {f.id} ({f.kind}) is not a surface of revolution "
+                         "about the datum axis; runout measures such surfaces")
 
 
 # ------------------------------------------------------------------------------ form

@@ -110,8 +110,9 @@ def _face_map(pmi: dict, model) -> dict:
 
     The model leaves out faces it could not convert (``model.skipped_faces``: ``face i: ...``);
     the others keep their order.  Every vertex of every face the PMI names must lie within
-    ``max(0.01 mm, 1e-5 x size)`` of that model face's boundary, or lie less than half as far
-    from it as from any other face's (a file whose trimming curves sit off its edges)."""
+    ``max(0.01 mm, 1e-5 x size)`` of that model face's boundary, or (a file whose trimming
+    curves sit off its edges) within ``1e-3 x size`` and less than half as far from it as
+    from any other face's."""
     n = int(pmi["n_faces"])
     skipped = set()
     for s in getattr(model, "skipped_faces", ()) or ():
@@ -140,7 +141,7 @@ def _face_map(pmi: dict, model) -> dict:
         others = [(_off_rim(V, _rim_of(model, k, rims)), k) for k in range(len(model.faces))
                   if k != fmap[e]]
         best, k = min(others) if others else (np.inf, -1)
-        if not d < 0.5 * best:
+        if not (d < 0.5 * best and d <= max(1e-3 * float(model.size), 10 * tol)):
             raise CADImportError(
                 f"{pmi['source']}: PMI face {e} does not match model face {fmap[e]} (a vertex "
                 f"{d:.3g} mm off its boundary; model face {k}: {best:.3g} mm); the face "
@@ -532,7 +533,58 @@ def _tolerance(item, ctx, drf, why) -> tuple[list, str]:
                         "type": "hole", "feature": h.id, "position": {"tol": item["value"]},
                         "pmi": src})
         return out, ""
+    if t in _FORMS or t in _RUNOUTS:
+        return _form_or_runout(item, ctx, faces, src)
+    if t in ("Concentricity", "Symmetry"):
+        return [], (f"{t} (ASME Y14.5-2009: the median points of opposed elements) is not "
+                    "measured; a coaxiality or symmetry drawn as a position tolerance is")
     return [], f"no plan characteristic for {t} yet (issue 28 item 3)"
+
+
+#: PMI form tolerances -> plan types, and the face kinds each applies to
+_FORMS = {"CircularityOrRoundness": ("circularity", {"cylinder"}),
+          "Cylindricity": ("cylindricity", {"cylinder"}),
+          "Straightness": ("straightness", {"cylinder", "plane"})}
+#: PMI runout tolerances -> plan types
+_RUNOUTS = {"CircularRunout": "circular_runout", "TotalRunout": "total_runout"}
+
+
+def _form_or_runout(item, ctx, faces, src) -> tuple[list, str]:
+    """Circularity, cylindricity, straightness (a cylinder's axis with ⌀, a plane's line
+    elements without) and circular / total runout about the item's datum axis."""
+    t = item["type"]
+    if item["zone_modifier"] != "None":
+        return [], f"a {item['zone_modifier']} zone modifier"
+    extra = [m for m in item["modifiers"] if m != "Free_State"] + \
+        ([f"material {item['material']}"] if item["material"] else [])
+    if extra:
+        return [], f"modifiers {', '.join(extra)} are not applied by the plan"
+    kinds = {ctx.feats[f].kind for f in faces}
+    kind, allowed = _FORMS.get(t, (_RUNOUTS.get(t), None))
+    entry = {"name": ctx.name(f"{item['id']}_{kind}"), "type": kind,
+             "faces": [f"face:{f}" for f in faces], "tol": item["value"], "pmi": src}
+    if t in _RUNOUTS:
+        if not item["datums"]:
+            return [], "a runout without a datum axis"
+        names, r = _item_drf(item, ctx)
+        if names is None:
+            return [], r or "no datum reference frame"
+        return [{**entry, "datums": names}], ""
+    if item["datums"]:
+        return [], f"a form tolerance ({t}) with datums {_drf_key(item)}"
+    if not kinds <= allowed or len(kinds) != 1:
+        return [], f"{t} of {sorted(kinds)} faces (the plan's {kind} takes {sorted(allowed)})"
+    if "cylinder" in kinds:
+        groups, _ = _cylinders(ctx.feats, ctx.model, faces)
+        if len(groups) != 1:
+            return [], f"{t} of {len(groups)} cylinders under one tolerance"
+    if kind == "straightness":
+        zone = "diameter" if item["value_type"] == "Diameter" else "lines"
+        if (zone == "diameter") != (kinds == {"cylinder"}):
+            return [], (f"straightness of a {kinds.pop()} with a "
+                        f"{'⌀' if zone == 'diameter' else 'two-line'} zone")
+        entry["zone"] = zone
+    return [entry], ""
 
 
 def _size_of(item, ctx, faces) -> tuple[dict | None, str]:
