@@ -11,6 +11,11 @@ cached objects are what :meth:`Model.save` / :meth:`Prepared.save` write and ``l
 ``load_prepared`` read back bitwise (``tests/test_persist.py``).  Directory:
 ``$SHAPEVERIFY_TEST_CACHE/shapeverify-test-cache/models/<code key>`` (default: the system's
 temporary folder); delete it to start afresh.
+
+Besides models and preparations: the semantic PMI a STEP file holds (:func:`cached_pmi`, what
+``read_pmi`` returned, pickled) and arrays a test helper computes from a file, e.g.
+OpenCASCADE's tessellation of it (:func:`cached_arrays`; the helper's own source files are
+part of that key, so an edit of the helper makes a new entry).
 """
 
 from __future__ import annotations
@@ -78,11 +83,17 @@ def _file_key(path: str, size: int, mtime_ns: int) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def _entry(path, what: str, args: dict, suffix: str) -> Path:
+def _entry(path, what: str, args: dict, suffix: str, code=()) -> Path:
     p = Path(path).resolve()
     st = p.stat()
+    extra = []
+    for f in code:                      # test helpers' source files (cached_arrays)
+        f = Path(f).resolve()
+        fs = f.stat()
+        extra.append(_file_key(str(f), fs.st_size, fs.st_mtime_ns))
     key = hashlib.sha256(json.dumps([what, _file_key(str(p), st.st_size, st.st_mtime_ns),
-                                     sorted(args.items()), code_key()]).encode()).hexdigest()
+                                     sorted(args.items()), code_key()] + extra).encode()
+                         ).hexdigest()
     return cache_root() / f"{p.stem}-{what}-{key[:24]}{suffix}"
 
 
@@ -134,3 +145,50 @@ def cached_prepared(path, **kwargs):
                    lambda prep, p: prep.save(p), load_prepared)
     _named(prep.model, path)
     return prep
+
+
+def cached_pmi(path):
+    """``shapeverify.cad.pmi.read_pmi(path)`` of a STEP file, read once per code version (the
+    dict pickled as it came back from the importer)."""
+    import pickle
+
+    from shapeverify.cad.pmi import read_pmi
+
+    def save(obj, p):
+        with open(p, "wb") as fh:
+            pickle.dump(obj, fh, protocol=pickle.HIGHEST_PROTOCOL)
+
+    def load(p):
+        with open(p, "rb") as fh:
+            try:
+                return pickle.load(fh)
+            except (pickle.UnpicklingError, EOFError) as e:
+                raise ValueError(f"{p}: damaged entry") from e
+
+    pmi = _cached(_entry(path, "pmi", {}, ".pkl"), lambda: read_pmi(path), save, load)
+    pmi["source"] = str(Path(path))
+    return pmi
+
+
+def cached_arrays(path, what: str, build, *, code=(), **kwargs):
+    """``build(path, **kwargs)``: a tuple of numpy arrays computed from the file ``path`` (e.g.
+    OpenCASCADE's tessellation of it), computed once per code version and read back bitwise.
+    ``what`` names the computation; ``code`` lists the source files of ``build`` (their bytes
+    are part of the key)."""
+    import numpy as np
+
+    def save(arrays, p):
+        with open(p, "wb") as fh:
+            np.savez(fh, *arrays)
+
+    def load(p):
+        import zipfile
+
+        try:
+            with np.load(p, allow_pickle=False) as z:
+                return tuple(z[f"arr_{i}"] for i in range(len(z.files)))
+        except zipfile.BadZipFile as e:
+            raise ValueError(f"{p}: damaged entry") from e
+
+    return _cached(_entry(path, what, kwargs, ".npz", code),
+                   lambda: tuple(np.asarray(a) for a in build(path, **kwargs)), save, load)
