@@ -32,13 +32,16 @@ demo: $(STAMP)
 # the whole suite (slow tests included), after `make browser` (Chromium for the HTML report's
 # browser test, or a note that it will be skipped).  pytest-xdist runs one worker per core
 # (WORKERS=0 runs it in this one process); each test file stays on one worker (--dist loadfile), so
-# a file's module fixtures (a NIST part imported and prepared) are built once
+# a file's module fixtures (a NIST part imported and prepared) are built once.  Files go out in
+# collection order (--no-loadscope-reorder; xdist's default hands out the files with the most
+# tests first), which conftest.py starts with the longest files (LONG_FILES), so the run does
+# not end on one worker finishing a long NIST file alone
 test: $(STAMP) browser
-	$(BIN)/python -m pytest -q -n $(WORKERS) --dist loadfile
+	$(BIN)/python -m pytest -q -n $(WORKERS) --dist loadfile --no-loadscope-reorder
 
 # the quick tests only: no test marked slow, no browser, no real data (README: how long)
 test-fast: $(STAMP)
-	$(BIN)/python -m pytest -q -n $(WORKERS) --dist loadfile -m "not slow and not shared"
+	$(BIN)/python -m pytest -q -n $(WORKERS) --dist loadfile --no-loadscope-reorder -m "not slow and not shared"
 
 # The browser test of the HTML report (tests/test_report_browser.py) runs headless Chromium, and
 # only Chromium (Debian package `chromium`, without its recommended packages: 25 packages, about
