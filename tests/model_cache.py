@@ -29,6 +29,12 @@ import os
 import tempfile
 from pathlib import Path
 
+# the library's own functions, bound when this module is first imported: a test may put
+# load_model_stand_in / read_pmi_stand_in in their place (e.g. for a command it runs in-process),
+# and the entries must still be built by the real ones
+from shapeverify.cad.load import load_model as _load_model
+from shapeverify.cad.pmi import read_pmi as _read_pmi
+
 
 #: an entry folder of other code (another checkout, an older commit) unused this long is removed
 STALE_S = 2 * 86400
@@ -130,10 +136,8 @@ def _named(model, path):
 
 def cached_model(path):
     """``shapeverify.load_model(path)`` of a CAD file, imported once per code version."""
-    from shapeverify.cad.load import load_model
-
-    return _named(_cached(_entry(path, "model", {}, ".svmodel"), lambda: load_model(path),
-                          lambda m, p: m.save(p), load_model), path)
+    return _named(_cached(_entry(path, "model", {}, ".svmodel"), lambda: _load_model(path),
+                          lambda m, p: m.save(p), _load_model), path)
 
 
 def cached_prepared(path, **kwargs):
@@ -152,8 +156,6 @@ def cached_pmi(path):
     dict pickled as it came back from the importer)."""
     import pickle
 
-    from shapeverify.cad.pmi import read_pmi
-
     def save(obj, p):
         with open(p, "wb") as fh:
             pickle.dump(obj, fh, protocol=pickle.HIGHEST_PROTOCOL)
@@ -165,7 +167,7 @@ def cached_pmi(path):
             except (pickle.UnpicklingError, EOFError) as e:
                 raise ValueError(f"{p}: damaged entry") from e
 
-    pmi = _cached(_entry(path, "pmi", {}, ".pkl"), lambda: read_pmi(path), save, load)
+    pmi = _cached(_entry(path, "pmi", {}, ".pkl"), lambda: _read_pmi(path), save, load)
     pmi["source"] = str(Path(path))
     return pmi
 
@@ -192,3 +194,16 @@ def cached_arrays(path, what: str, build, *, code=(), **kwargs):
 
     return _cached(_entry(path, what, kwargs, ".npz", code),
                    lambda: tuple(np.asarray(a) for a in build(path, **kwargs)), save, load)
+
+
+def load_model_stand_in(path):
+    """What a test puts in place of ``shapeverify.cad.load.load_model`` to have a command it
+    runs in-process read CAD files through :func:`cached_model` (other files: the real one)."""
+    from shapeverify.cad.load import _CAD
+
+    return cached_model(path) if Path(path).suffix.lower() in _CAD else _load_model(path)
+
+
+def read_pmi_stand_in(path, **kwargs):
+    """What a test puts in place of ``shapeverify.cad.pmi.read_pmi``: :func:`cached_pmi`."""
+    return cached_pmi(path)
