@@ -84,14 +84,24 @@ def _doctest_in_tmpdir(request, tmp_path, doctest_namespace):
 
 
 #: Test files that take minutes (the warm-up on a fresh numba cache, NIST parts imported and
-#: prepared, the README's examples): collected first, so that under ``make test`` (pytest-xdist,
-#: ``--dist loadfile``, files handed out in collection order) they start at once on the workers
-#: instead of last, where one of them would leave the other cores idle at the end.  The order of
-#: the rest is unchanged; in one process the order makes no difference to the results.
-LONG_FILES = ("test_warmup_coverage.py", "test_pmi.py", "test_features_nist.py", "test_readme.py",
-              "test_gdt_nist.py", "test_material_impeller.py", "test_holes_nist.py",
-              "test_plan_nist.py", "test_registration_random_pose.py",
-              "test_alignment_any_start.py", "test_plan_placements.py", "test_fuzz_cad.py")
+#: prepared, the README's examples), about longest first: collected first, so that under ``make
+#: test`` (pytest-xdist, ``--dist loadfile --no-loadscope-reorder``: whole files handed out in
+#: collection order) they start at once on the workers instead of last, where one of them would
+#: leave the other cores idle at the end.  (Without ``--no-loadscope-reorder`` xdist hands out
+#: the files with the most tests first, whatever this order, and these files have few tests.)
+#: The order of the rest is unchanged; in one process the order makes no difference to the
+#: results.
+LONG_FILES = ("test_warmup_coverage.py", "test_datum_targets_nist.py", "test_nearest_exact.py",
+              "test_features_nist.py", "test_pmi.py", "test_plan_nist.py", "test_holes_nist.py",
+              "test_material_impeller.py", "test_gdt_nist.py", "test_readme.py",
+              "test_fuzz_cad.py", "test_pmi_edges_nist.py", "test_position_size_nist.py",
+              "test_svm_integrity.py", "test_import_trimmed_periodic.py",
+              "test_stereo_measure.py", "test_registration_restart.py",
+              "test_registration_random_pose.py", "test_alignment_any_start.py",
+              "test_plan_placements.py", "test_characteristics.py", "test_fuzz_readers.py",
+              "test_views_several.py", "test_registration_symmetric.py",
+              "test_registration_global.py", "test_cli_worker.py", "test_cli_batch_quiet.py",
+              "test_cloud_reference.py", "test_io_scanners.py")
 
 
 def pytest_collection_modifyitems(session, config, items):

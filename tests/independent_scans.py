@@ -63,6 +63,20 @@ def tessellate(shape, deflection: float):
     return np.vstack(V), np.vstack(T), np.concatenate(F)
 
 
+def _file_tessellation(path, deflection: float):
+    return tessellate(read_shape(path), deflection)
+
+
+def file_tessellation(path, deflection: float):
+    """``tessellate(read_shape(path), deflection)``, computed once per suite run and read back
+    bitwise by the other tests and pytest-xdist workers (``tests/model_cache.py``; this file's
+    source is part of the key)."""
+    from model_cache import cached_arrays
+
+    return cached_arrays(path, "tessellation", _file_tessellation, code=(__file__,),
+                         deflection=float(deflection))
+
+
 def on_surface(shape, P, N, tri_face, t):
     """``(P, N)`` moved onto the exact CAD faces: each point (drawn on triangle ``t`` of face
     ``tri_face[t]``) projected on its face's surface (``GeomAPI_ProjectPointOnSurf``), with the

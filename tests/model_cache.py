@@ -11,6 +11,11 @@ cached objects are what :meth:`Model.save` / :meth:`Prepared.save` write and ``l
 ``load_prepared`` read back bitwise (``tests/test_persist.py``).  Directory:
 ``$SHAPEVERIFY_TEST_CACHE/shapeverify-test-cache/models/<code key>`` (default: the system's
 temporary folder); delete it to start afresh.
+
+Besides models and preparations: the semantic PMI a STEP file holds (:func:`cached_pmi`, what
+``read_pmi`` returned, pickled) and arrays a test helper computes from a file, e.g.
+OpenCASCADE's tessellation of it (:func:`cached_arrays`; the helper's own source files are
+part of that key, so an edit of the helper makes a new entry).
 """
 
 from __future__ import annotations
@@ -23,6 +28,12 @@ import json
 import os
 import tempfile
 from pathlib import Path
+
+# the library's own functions, bound when this module is first imported: a test may put
+# load_model_stand_in / read_pmi_stand_in in their place (e.g. for a command it runs in-process),
+# and the entries must still be built by the real ones
+from shapeverify.cad.load import load_model as _load_model
+from shapeverify.cad.pmi import read_pmi as _read_pmi
 
 
 #: an entry folder of other code (another checkout, an older commit) unused this long is removed
@@ -78,11 +89,17 @@ def _file_key(path: str, size: int, mtime_ns: int) -> str:
     return hashlib.sha256(Path(path).read_bytes()).hexdigest()
 
 
-def _entry(path, what: str, args: dict, suffix: str) -> Path:
+def _entry(path, what: str, args: dict, suffix: str, code=()) -> Path:
     p = Path(path).resolve()
     st = p.stat()
+    extra = []
+    for f in code:                      # test helpers' source files (cached_arrays)
+        f = Path(f).resolve()
+        fs = f.stat()
+        extra.append(_file_key(str(f), fs.st_size, fs.st_mtime_ns))
     key = hashlib.sha256(json.dumps([what, _file_key(str(p), st.st_size, st.st_mtime_ns),
-                                     sorted(args.items()), code_key()]).encode()).hexdigest()
+                                     sorted(args.items()), code_key()] + extra).encode()
+                         ).hexdigest()
     return cache_root() / f"{p.stem}-{what}-{key[:24]}{suffix}"
 
 
@@ -119,10 +136,8 @@ def _named(model, path):
 
 def cached_model(path):
     """``shapeverify.load_model(path)`` of a CAD file, imported once per code version."""
-    from shapeverify.cad.load import load_model
-
-    return _named(_cached(_entry(path, "model", {}, ".svmodel"), lambda: load_model(path),
-                          lambda m, p: m.save(p), load_model), path)
+    return _named(_cached(_entry(path, "model", {}, ".svmodel"), lambda: _load_model(path),
+                          lambda m, p: m.save(p), _load_model), path)
 
 
 def cached_prepared(path, **kwargs):
@@ -134,3 +149,61 @@ def cached_prepared(path, **kwargs):
                    lambda prep, p: prep.save(p), load_prepared)
     _named(prep.model, path)
     return prep
+
+
+def cached_pmi(path):
+    """``shapeverify.cad.pmi.read_pmi(path)`` of a STEP file, read once per code version (the
+    dict pickled as it came back from the importer)."""
+    import pickle
+
+    def save(obj, p):
+        with open(p, "wb") as fh:
+            pickle.dump(obj, fh, protocol=pickle.HIGHEST_PROTOCOL)
+
+    def load(p):
+        with open(p, "rb") as fh:
+            try:
+                return pickle.load(fh)
+            except (pickle.UnpicklingError, EOFError) as e:
+                raise ValueError(f"{p}: damaged entry") from e
+
+    pmi = _cached(_entry(path, "pmi", {}, ".pkl"), lambda: _read_pmi(path), save, load)
+    pmi["source"] = str(Path(path))
+    return pmi
+
+
+def cached_arrays(path, what: str, build, *, code=(), **kwargs):
+    """``build(path, **kwargs)``: a tuple of numpy arrays computed from the file ``path`` (e.g.
+    OpenCASCADE's tessellation of it), computed once per code version and read back bitwise.
+    ``what`` names the computation; ``code`` lists the source files of ``build`` (their bytes
+    are part of the key)."""
+    import numpy as np
+
+    def save(arrays, p):
+        with open(p, "wb") as fh:
+            np.savez(fh, *arrays)
+
+    def load(p):
+        import zipfile
+
+        try:
+            with np.load(p, allow_pickle=False) as z:
+                return tuple(z[f"arr_{i}"] for i in range(len(z.files)))
+        except zipfile.BadZipFile as e:
+            raise ValueError(f"{p}: damaged entry") from e
+
+    return _cached(_entry(path, what, kwargs, ".npz", code),
+                   lambda: tuple(np.asarray(a) for a in build(path, **kwargs)), save, load)
+
+
+def load_model_stand_in(path):
+    """What a test puts in place of ``shapeverify.cad.load.load_model`` to have a command it
+    runs in-process read CAD files through :func:`cached_model` (other files: the real one)."""
+    from shapeverify.cad.load import _CAD
+
+    return cached_model(path) if Path(path).suffix.lower() in _CAD else _load_model(path)
+
+
+def read_pmi_stand_in(path, **kwargs):
+    """What a test puts in place of ``shapeverify.cad.pmi.read_pmi``: :func:`cached_pmi`."""
+    return cached_pmi(path)

@@ -34,10 +34,10 @@ def _ocp_first_hits(shape, origins, dirs, tol=1e-7):
 @pytest.mark.slow
 @pytest.mark.parametrize("name,n", [("wavy-cube.stp", 300), ("hammer.iges", 300), ("impeller.igs", 300)])
 def test_rays_agree_with_ocp(shared_data, name, n):
-    from shapeverify.cad.load import load_model
+    from model_cache import cached_model
 
     path = shared_data / "cad" / name
-    model = load_model(path)
+    model = cached_model(path)      # load_model's, once per suite run (tests/model_cache.py)
     assert model.scale_to_mm == 1.0  # the three files are in mm, so OCP's coordinates are ours
     lo, hi = model.bounds
     c, size = (lo + hi) / 2, np.linalg.norm(hi - lo)

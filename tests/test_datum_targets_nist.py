@@ -36,24 +36,29 @@ def _gt_unsupported(data) -> int:
 def _setup(shared_data, name, keep, faces=None, spacing=1.0):
     """(plan of the characteristics of PMI ids ``keep``, prepared model, scan points, their
     triangles' face (PMI numbering), the plan data, the model's features, fmap)."""
-    from independent_scans import random_points, read_shape, tessellate
+    from independent_scans import file_tessellation, random_points
+    from model_cache import cached_model, cached_pmi, cached_prepared
 
-    from shapeverify.cad.load import load_model
+    from shapeverify.cad.completeness import is_incomplete
     from shapeverify.characteristics.features import model_features
     from shapeverify.characteristics.plan import load_plan
     from shapeverify.characteristics.pmi_plan import _face_map, pmi_plan
-    from shapeverify.nearest import prepare
 
     path = shared_data.joinpath(*NIST, name)
     if not path.exists():
         pytest.skip(f"{path} not present (NIST MBE PMI test model)")
-    model = load_model(path)
-    r = pmi_plan(path, model=model)
+    # the import, PMI, preparation and tessellation are built once per suite run and shared
+    # with the other NIST modules (tests/model_cache.py: bitwise what load_model, read_pmi,
+    # prepare and tessellate give)
+    model = cached_model(path)
+    r = pmi_plan(path, model=model, pmi=cached_pmi(path))
     data = dict(r.data)
     data["characteristics"] = [c for c in data["characteristics"] if c["pmi"]["id"] in keep]
     m = getattr(model, "model", model)
-    prep = prepare(model, spacing=spacing, allow_incomplete=True)
-    V, T, F = tessellate(read_shape(path), 0.01)
+    # (allow_incomplete changes nothing for a complete model: then the other modules' entry)
+    prep = cached_prepared(path, spacing=spacing,
+                           **({"allow_incomplete": True} if is_incomplete(model) else {}))
+    V, T, F = file_tessellation(path, 0.01)
     if faces is not None:
         T, F = T[np.isin(F, list(faces))], F[np.isin(F, list(faces))]
     rng = np.random.default_rng(0)
@@ -97,12 +102,12 @@ CTC02_KEEP = ("GT3", "GT6", "GT7", "GT8", "GT9")
 
 @pytest.fixture(scope="module")
 def ctc02(shared_data):
-    from shapeverify.cad.pmi import read_pmi
+    from model_cache import cached_pmi
 
     path = shared_data.joinpath(*NIST, CTC02)
     if not path.exists():
         pytest.skip(f"{path} not present")
-    pmi = read_pmi(path)
+    pmi = cached_pmi(path)
     by_id = {t["id"]: t for t in pmi["tolerances"]}
     faces = set()
     for d in pmi["datums"]:       # every datum: the plan's alignment (D|E|F) and the DRFs
@@ -292,12 +297,12 @@ def test_ftc06_pattern_datum_f_frames_the_position_of_four_holes(ftc06):
     ("nist_ftc_06_asme1_ap242-e1.stp", "GH", "'circular curve'"),
 ])
 def test_unattached_datums_say_how_the_file_attaches_them(shared_data, name, letters, what):
-    from shapeverify.cad.pmi import read_pmi
+    from model_cache import cached_pmi
 
     path = shared_data.joinpath(*NIST, name)
     if not path.exists():
         pytest.skip(f"{path} not present")
-    pmi = read_pmi(path)
+    pmi = cached_pmi(path)
     got = {d["name"]: d.get("unattached", "") for d in pmi["datums"]}
     for L in letters:
         assert what in got[L], got[L]

@@ -150,10 +150,12 @@ def _same(h, p, a, dia, tol=TOL):
 
 
 def _check_file(path):
-    from shapeverify.cad.occ_import import read_cad
+    from model_cache import cached_model
+
     from shapeverify.characteristics.features import model_features
 
-    model = read_cad(path, isolated=False)
+    # load_model's import, built once per suite run for every NIST module (tests/model_cache.py)
+    model = cached_model(path)
     holes = [f for f in model_features(model) if f.kind == "hole"]
     loops, walls = occ_holes(path)
     problems = []
@@ -187,13 +189,19 @@ def test_nist_holes_equal_opencascades_circular_loops_and_concave_cylinders(shar
 
 
 @pytest.mark.slow
-def test_info_features_exits_0_on_every_nist_file_and_lists_notes(shared_data, tmp_path):
+def test_info_features_exits_0_on_every_nist_file_and_lists_notes(shared_data, tmp_path,
+                                                                   monkeypatch):
     import json
 
+    from model_cache import load_model_stand_in
     from typer.testing import CliRunner
 
+    import shapeverify.cad.load
     from shapeverify.cli import app
 
+    # the command's import is load_model's, read from the suite's cache (tests/model_cache.py:
+    # bitwise the same model; the other tests here and the NIST modules import the same files)
+    monkeypatch.setattr(shapeverify.cad.load, "load_model", load_model_stand_in)
     for name in NIST:
         out = tmp_path / (name + ".json")
         res = CliRunner().invoke(app, ["info", str(shared_data / "cad" / "nist" / name),

@@ -151,15 +151,18 @@ def errors(prep, feat, hm):
 
 @pytest.fixture(scope="module")
 def ctc01(shared_data):
-    import shapeverify as sv
-    from shapeverify.cad.occ_import import read_cad
+    from model_cache import cached_arrays, cached_prepared
+
     from shapeverify.characteristics.features import model_features
 
     path = shared_data / "cad" / "nist" / FILE
-    model = read_cad(path, isolated=False)
+    # the import, preparation and this file's fine tessellation (0.002 mm) are built once per
+    # suite run, shared with the other CTC 01 modules (tests/model_cache.py: bitwise what
+    # load_model, prepare and tessellation() give)
+    prep = cached_prepared(path)
+    model = prep.model
     feats = {f.id: f for f in model_features(model)}
-    prep = sv.prepare(model)
-    V, T = tessellation(path)
+    V, T = cached_arrays(path, "holes-tessellation", tessellation, code=(__file__,))
     regions = {h: _region(V, T, feats[h].center, feats[h].diameter + 25.0) for h in HOLES}
     return prep, feats, V, regions
 

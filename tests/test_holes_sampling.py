@@ -26,7 +26,10 @@ def _sheet(kind, h, rng, centre):
 
 
 @pytest.mark.parametrize("kind", ["random", "grid", "aniso"])
-@pytest.mark.parametrize("h", [0.3, 1.0, 2.0])
+# spacings 0.3 and 1.0: 5-23 s each (measured at a load of 3, 2026-12-06): slow, out of `make
+# test-fast` (issue 32); 2.0 stays quick
+@pytest.mark.parametrize("h", [pytest.param(0.3, marks=pytest.mark.slow),
+                               pytest.param(1.0, marks=pytest.mark.slow), 2.0])
 def test_edge_point_diameter_has_no_sampling_bias(kind, h):
     """Pins: the edge points' offset was a lattice model (0.54 of a grid spacing): random
     sampling read +0.2 (0.3 mm) to +1.9 mm (2 mm) too large in diameter."""

@@ -65,8 +65,11 @@ def test_ctc02_imports_all_487_faces_with_faces_35_and_361_sampled_by_their_area
     from OCP.BRepGProp import BRepGProp
     from OCP.GProp import GProp_GProps
 
+    from model_cache import cached_model
+
     path = shared_data / "cad/nist/nist_ctc_02_asme1_ap242-e1.stp"
-    model = oi.read_cad(path, isolated=False)
+    # load_model's import, built once per suite run for every CTC 02 module (tests/model_cache.py)
+    model = cached_model(path)
     assert len(model.faces) == model.n_faces_in_file == 487
     assert model.skipped_faces == ()
     shape = oi._read_shape_named(path, "step")[0]

@@ -128,12 +128,16 @@ def test_row2_wavy_cube_with_a_dangling_face(shared_data, tmp_path):
     broken, ref, n = _drop_face(src, tmp_path / "cube-missing.stp", which=1)
     s = read_summary(broken)
     assert (s.faces, s.faces_in_file) == (n - 1, n) and ref in s.missing[0]
+    model = sv.load_model(broken)           # (imported once: prepare does not change it)
     with pytest.raises(IncompleteModelError, match=ref):
-        sv.prepare(sv.load_model(broken))
-    prep = sv.prepare(sv.load_model(broken), allow_incomplete=True)
+        sv.prepare(model)
+    prep = sv.prepare(model, allow_incomplete=True)
     assert len(prep.model.faces) == n - 1
-    # the undamaged file prepares as before
-    assert len(sv.prepare(sv.load_model(src)).model.faces) == n
+    # the undamaged file prepares as before (prepare(load_model(src)), once per suite run:
+    # tests/model_cache.py, shared with test_regions_independent)
+    from model_cache import cached_prepared
+
+    assert len(cached_prepared(src).model.faces) == n
 
 
 def test_row2_open_seams_of_a_solid_are_reported(plate, tmp_path):

@@ -42,7 +42,8 @@ def impeller(shared_data):
     # built once per code version (tests/model_cache.py: keyed by the file's and the sources'
     # hashes; the cache here was keyed by the file's mtime alone and outlived code changes)
     prep = cached_prepared(path)
-    V, T, F = ind.tessellate(ind.read_shape(path), 1e-4 * prep.model.size)
+    # (once per suite run: test_impeller_reflection_regions uses this fixture too)
+    V, T, F = ind.file_tessellation(path, 1e-4 * prep.model.size)
     area = 0.5 * np.linalg.norm(np.cross(V[T[:, 1]] - V[T[:, 0]], V[T[:, 2]] - V[T[:, 0]]), axis=1)
     ok = np.isfinite(area) & (area > 0)
     return prep, V, T[ok], F[ok]

@@ -5,6 +5,7 @@ never a stale entry: the key changes with the file's bytes, the arguments and th
 from __future__ import annotations
 
 import json
+from pathlib import Path
 
 import numpy as np
 
@@ -54,3 +55,34 @@ def test_cache_key_changes_with_the_bytes_the_arguments_and_the_code(tmp_path, m
     assert key != model_cache._entry(a, "prepared", {"spacing": 2.0}, ".svm")
     monkeypatch.setattr(model_cache, "code_key", lambda: "other sources")
     assert key != model_cache._entry(a, "prepared", {"spacing": 1.0}, ".svm")
+
+
+def test_cached_pmi_and_arrays_are_what_their_builders_give_and_keyed_by_the_helper(
+        tmp_path, monkeypatch):
+    """``cached_pmi`` is ``read_pmi``'s dict; ``cached_arrays`` gives the builder's arrays bitwise,
+    from a fresh entry and a stored one, and a new entry when the helper's source changes."""
+    from shapeverify.cad.pmi import read_pmi
+
+    monkeypatch.setenv("SHAPEVERIFY_TEST_CACHE", str(tmp_path / "cache"))
+    step = example_part_step(tmp_path / "panel.step")
+    direct = read_pmi(step)
+    assert model_cache.cached_pmi(step) == direct            # built
+    assert model_cache.cached_pmi(step) == direct            # read back
+    calls = []
+
+    def build(path, scale):
+        calls.append(path)
+        rng = np.random.default_rng(len(Path(path).read_bytes()))
+        return rng.normal(size=(5, 3)) * scale, np.arange(7, dtype=np.int32)
+
+    helper = tmp_path / "helper.py"
+    helper.write_text("# v1\n")
+    want = build(step, scale=2.5)
+    for _ in range(2):
+        got = model_cache.cached_arrays(step, "demo", build, code=(helper,), scale=2.5)
+        assert len(got) == 2 and all(np.array_equal(g, w) and g.dtype == w.dtype
+                                     for g, w in zip(got, want))
+    assert len(calls) == 2                    # the direct call and the first cached one
+    helper.write_text("# v2, another helper\n")
+    model_cache.cached_arrays(step, "demo", build, code=(helper,), scale=2.5)
+    assert len(calls) == 3

@@ -60,6 +60,14 @@ def _occ_mesh(path):
     return np.concatenate(V), np.concatenate(T)
 
 
+def occ_mesh(path):
+    """:func:`_occ_mesh`, computed once per suite run for the modules that scan CTC 01
+    (tests/model_cache.py; this file's source is part of the key)."""
+    from model_cache import cached_arrays
+
+    return cached_arrays(path, "occ-mesh", _occ_mesh, code=(__file__,))
+
+
 def _scan(V, T, n, noise, rng):
     """n points uniform by area on the triangles, Gaussian noise along the triangle normal,
     then a random rigid pose: (scan, T_model_scan)."""
@@ -86,7 +94,7 @@ def _scan(V, T, n, noise, rng):
 def ctc01(shared_data):
     path = shared_data / CTC01
     prep = cached_prepared(path, spacing=4.0)   # built once per run (tests/model_cache.py)
-    V, T = _occ_mesh(path)
+    V, T = occ_mesh(path)
     scan, T_true = _scan(V, T, 150_000, 0.02, 7)
     return prep, scan, T_true
 

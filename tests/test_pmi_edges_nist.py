@@ -14,14 +14,15 @@ pytestmark = [pytest.mark.slow, pytest.mark.shared]
 
 @pytest.fixture(scope="module")
 def ctc02(shared_data):
-    from shapeverify.cad.load import load_model
-    from shapeverify.cad.pmi import read_pmi
+    from model_cache import cached_model, cached_pmi
+
     from shapeverify.characteristics.features import model_features
     from shapeverify.characteristics.pmi_plan import pmi_plan
 
     path = shared_data / "cad" / "nist" / NAME
-    model = load_model(path)
-    pmi = read_pmi(path)
+    # load_model and read_pmi, once per suite run for every NIST module (tests/model_cache.py)
+    model = cached_model(path)
+    pmi = cached_pmi(path)
     r = pmi_plan(path, model=model, pmi=pmi)
     m = getattr(model, "model", model)
     return dict(path=path, model=model, pmi=pmi, plan=r, feats=model_features(m))

@@ -63,12 +63,12 @@ def _cylinders_of_datums(path) -> dict:
 
 @pytest.fixture(scope="module")
 def ctc01_pmi(shared_data):
-    from shapeverify.cad.pmi import read_pmi
+    from model_cache import cached_pmi
 
     path = shared_data.joinpath(*CTC01)
     if not path.exists():
         pytest.skip(f"{path} not present (NIST MBE PMI test model)")
-    return path, read_pmi(path)
+    return path, cached_pmi(path)       # read_pmi's, once per suite run (tests/model_cache.py)
 
 
 def test_ctc01_datums_b_and_c_are_attached_to_the_faces_their_iiru_names(ctc01_pmi):
@@ -102,10 +102,17 @@ def test_ctc01_datums_b_and_c_are_attached_to_the_faces_their_iiru_names(ctc01_p
 
 @pytest.mark.slow
 def test_ctc01_plan_supports_the_tolerances_on_datums_b_and_c_and_lists_each_once(
-        shared_data, ctc01_pmi):
+        shared_data, ctc01_pmi, monkeypatch):
+    from model_cache import load_model_stand_in, read_pmi_stand_in
+
+    import shapeverify.cad.load
+    import shapeverify.cad.pmi
     from shapeverify.characteristics import plan_from_pmi
 
     path, pmi = ctc01_pmi
+    # the file's import and PMI from the suite's cache (bitwise load_model's and read_pmi's)
+    monkeypatch.setattr(shapeverify.cad.load, "load_model", load_model_stand_in)
+    monkeypatch.setattr(shapeverify.cad.pmi, "read_pmi", read_pmi_stand_in)
     plan = plan_from_pmi(path)
     chars = {c.pmi.id for c in plan.characteristics if c.pmi is not None}
     unsupported = Counter(u.pmi.id for u in plan.unsupported)

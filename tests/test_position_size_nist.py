@@ -17,22 +17,23 @@ pytestmark = [pytest.mark.slow, pytest.mark.shared]
 
 @pytest.fixture(scope="module")
 def ftc06(shared_data):
-    from independent_scans import random_points, read_shape, tessellate
+    from independent_scans import file_tessellation, random_points
+    from model_cache import cached_model, cached_pmi, cached_prepared
 
-    from shapeverify.cad.load import load_model
     from shapeverify.characteristics.drf import rigid_exp
     from shapeverify.characteristics.plan import load_plan
     from shapeverify.characteristics.pmi_plan import pmi_plan
-    from shapeverify.nearest import prepare
 
     path = shared_data / "cad" / "nist" / NAME
-    model = load_model(path)
-    r = pmi_plan(path, model=model)
+    # import, PMI, preparation and tessellation: once per suite run for every NIST module
+    # (tests/model_cache.py: bitwise what load_model, read_pmi, prepare, tessellate give)
+    model = cached_model(path)
+    r = pmi_plan(path, model=model, pmi=cached_pmi(path))
     data = dict(r.data)
     data["characteristics"] = [c for c in r.data["characteristics"] if c["pmi"]["id"] in IDS]
     plan = load_plan(data)
-    prep = prepare(model, spacing=1.0)
-    V, T, F = tessellate(read_shape(path), 0.01)
+    prep = cached_prepared(path, spacing=1.0)
+    V, T, F = file_tessellation(path, 0.01)
     rng = np.random.default_rng(0)
     P, N, t = random_points(V, T, 1.0, rng, with_triangles=True)
     P = P + rng.normal(0.0, 0.02, len(P))[:, None] * N

@@ -35,9 +35,11 @@ def _identity():
 
 @pytest.fixture(scope="module")
 def cube(shared_data):
+    from model_cache import cached_prepared
+
     path = shared_data / "cad" / "wavy-cube.stp"
-    model = sv.load_model(path)
-    prep = sv.prepare(model)
+    prep = cached_prepared(path)    # prepare(load_model(path)), once per run (tests/model_cache.py)
+    model = prep.model
     V, T, F = ind.tessellate(ind.read_shape(path), 2e-4 * model.size)
     center = ind.dent_site(V, T, F, RADIUS)
     area = ind.true_area(V, T, center, DEPTH, RADIUS, TOL, np.random.default_rng(0))

@@ -13,7 +13,7 @@ import shapeverify as sv
 from shapeverify.registration.rigid import pose_error
 
 from model_cache import cached_prepared
-from test_plan_nist import CTC01, _occ_mesh, _scan
+from test_plan_nist import CTC01, _scan, occ_mesh
 
 pytestmark = [pytest.mark.slow, pytest.mark.shared]
 
@@ -22,7 +22,7 @@ pytestmark = [pytest.mark.slow, pytest.mark.shared]
 def ctc01(shared_data):
     path = shared_data / CTC01
     # the same part and spacing as test_plan_nist: prepared once per run (tests/model_cache.py)
-    return cached_prepared(path, spacing=4.0), _occ_mesh(path)
+    return cached_prepared(path, spacing=4.0), occ_mesh(path)
 
 
 @pytest.mark.parametrize("seed", [1, 3])   # seed 1: flipped with no warning; 3: 50 mm off too

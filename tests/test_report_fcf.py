@@ -395,11 +395,19 @@ def test_history_written_before_the_frames_gets_the_column(tmp_path):
 
 # ------------------------------------------------------------------ from the STEP file (slow)
 @pytest.mark.slow
-def test_plan_read_from_the_step_file_renders_every_frame(shared_data):
+def test_plan_read_from_the_step_file_renders_every_frame(shared_data, monkeypatch):
     """``plan_from_pmi`` of NIST FTC 08 afresh: every characteristic's frame in the PDF table,
     each tolerance with the PMI's own datums."""
+    from model_cache import load_model_stand_in, read_pmi_stand_in
+
+    import shapeverify.cad.load
+    import shapeverify.cad.pmi
     from shapeverify.characteristics import plan_from_pmi
 
+    # its import and PMI from the suite's cache (tests/model_cache.py: bitwise what load_model
+    # and read_pmi give; the NIST modules read the same file); the plan is made afresh
+    monkeypatch.setattr(shapeverify.cad.load, "load_model", load_model_stand_in)
+    monkeypatch.setattr(shapeverify.cad.pmi, "read_pmi", read_pmi_stand_in)
     step = shared_data / "cad" / "nist" / "nist_ftc_08_asme1_ap242-e1.stp"
     plan = plan_from_pmi(step)
     pr = synthetic_plan_result(plan)

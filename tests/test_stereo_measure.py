@@ -57,9 +57,16 @@ def test_measured_points_lie_on_the_true_surface(scene):
     assert imgs.truth["left"]["dent"].any()  # the dent is in view and measured like the rest
 
 
-def test_points_near_a_reflection_are_dropped_or_flagged(scene):
+@pytest.fixture(scope="module")
+def default_scan(scene):
+    """``measure`` of the scene with the default settings (two tests use it: computed once)."""
+    _, imgs = scene
+    return measure(imgs.rig, imgs.left, imgs.right)
+
+
+def test_points_near_a_reflection_are_dropped_or_flagged(scene, default_scan):
     model, imgs = scene
-    scan = measure(imgs.rig, imgs.left, imgs.right)
+    scan = default_scan
     ev = evaluate(imgs, scan)
     assert imgs.truth["left"]["saturated"].any()
     bad = ev["err"] > 0.1
@@ -113,7 +120,7 @@ def test_measure_rejects_bad_input(scene):
         measure(imgs.rig, imgs.left, imgs.right, T_left_model=np.eye(4))
 
 
-def test_cli_measure_writes_the_library_scan(scene, tmp_path):
+def test_cli_measure_writes_the_library_scan(scene, default_scan, tmp_path):
     import cv2
     from typer.testing import CliRunner
 
@@ -128,7 +135,7 @@ def test_cli_measure_writes_the_library_scan(scene, tmp_path):
                                    str(tmp_path / "right.tif"), "-o", str(tmp_path / "scan.ply")])
     assert res.exit_code == 0, res.output
     pts = read_points(tmp_path / "scan.ply")
-    ref = measure(imgs.rig, imgs.left, imgs.right)
+    ref = default_scan
     assert len(pts) == len(ref.points)
     np.testing.assert_allclose(pts, ref.points, atol=1e-4)
     bad = CliRunner().invoke(app, ["measure", str(tmp_path / "rig.json"), str(tmp_path / "left.png"),

@@ -22,7 +22,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 import shapeverify as sv
-from independent_scans import random_points, read_shape, tessellate
+from independent_scans import file_tessellation, random_points
+from model_cache import cached_prepared
 
 pytestmark = pytest.mark.slow
 
@@ -62,12 +63,12 @@ def visible(P, N, view, cell, dense):
 def nist(shared_data):
     """(prepared part, the surface sample P, N and the 6 views' masks of it)."""
     path = shared_data / NIST
-    V, T, _ = tessellate(read_shape(path), 0.05)
+    V, T, _ = file_tessellation(path, 0.05)     # once per suite run (tests/model_cache.py)
     rng = np.random.default_rng(0)
     dense, _ = random_points(V, T, 2.0, rng)
     P, N = random_points(V, T, 4.0, rng)
     masks = [visible(P, N, d, 4.0, dense) for d in DIRECTIONS]
-    return sv.prepare(sv.load_model(path)), P, N, masks
+    return cached_prepared(path), P, N, masks      # prepare(load_model(path)), once per run
 
 
 def _views(P, N, masks, seed, dent=None):
