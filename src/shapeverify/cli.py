@@ -25,6 +25,7 @@ from rich.markup import escape
 from typer.core import TyperGroup
 
 from shapeverify.cli_errors import clean, size_note
+from shapeverify.cli_params import install as _install_plain_params
 from shapeverify.cli_common import (EVALUATION_DISTANCE as _EVALUATION_DISTANCE,  # noqa: F401
                                     EXIT_ERROR, EXIT_FAIL, EXIT_INCOMPLETE, EXIT_PASS,
                                     FACES as _FACES, INIT as _INIT, LOWER as _LOWER,
@@ -78,6 +79,8 @@ class _GuardedGroup(TyperGroup):
         except Exception as exc:  # noqa: BLE001 - the last line of defence
             _internal_error(exc, bool(ctx.meta.get(_VERBOSE_KEY)))
 
+
+_install_plain_params()  # option values converted without pydantic when plain (cli_params)
 
 app = typer.Typer(
     cls=_GuardedGroup,
