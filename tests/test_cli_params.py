@@ -3,6 +3,7 @@ the same errors as typer's pydantic conversion (issue 32 item 7: ``shapeverify.c
 
 from __future__ import annotations
 
+import os
 import subprocess
 import sys
 from pathlib import Path
@@ -107,13 +108,42 @@ def test_a_command_gives_the_same_answers_and_errors_as_without_the_fast_path(mo
     assert got[1].exit_code == 2 and "Invalid value" in got[1].output
 
 
-def test_info_of_a_cached_file_imports_no_pydantic(tmp_path):
-    """``shapeverify info`` of a prepared-model-free, cached-summary path parses its options
-    without pydantic (the 0.15-0.3 s it cost each command)."""
-    code = ("import sys; from typer.testing import CliRunner; from shapeverify.cli import app; "
-            "r = CliRunner().invoke(app, ['info', sys.argv[1]]); "
-            "print('pydantic' in sys.modules, r.exit_code)")
-    missing = tmp_path / "none.step"
-    out = subprocess.run([sys.executable, "-c", code, str(missing)], capture_output=True,
-                         text=True, check=True).stdout.split()
-    assert out == ["False", "2"], out
+def test_info_of_a_cached_file_imports_neither_pydantic_nor_numpy(example_step):
+    """``shapeverify info`` of a STEP file whose summary is cached parses its options without
+    pydantic and writes its table without numpy (together 0.2-0.3 s of CPU per command)."""
+    env = {**os.environ, "COLUMNS": "120"}
+    first = subprocess.run([sys.executable, "-m", "shapeverify", "info", str(example_step)],
+                           capture_output=True, text=True, env=env, timeout=600)
+    assert first.returncode == 0, first.stderr[-2000:]
+    code = ("import sys; from shapeverify.cli_start import main\n"
+            "sys.argv = ['shapeverify', 'info', sys.argv[1]]\n"
+            "try:\n    main()\nexcept SystemExit as e:\n    code = e.code\n"
+            "print('IMPORTED', 'pydantic' in sys.modules, 'numpy' in sys.modules, code)")
+    again = subprocess.run([sys.executable, "-c", code, str(example_step)], capture_output=True,
+                           text=True, env=env, timeout=600)
+    table, _, flags = again.stdout.rpartition("IMPORTED")
+    assert flags.split() == ["False", "False", "0"], again.stdout + again.stderr[-2000:]
+    assert table.strip() == first.stdout.strip()    # the same table, bounding box included
+    assert "[mm]" in table and "300." in table
+
+
+def test_info_bounding_box_is_written_as_numpy_writes_it_without_numpy():
+    """``info``'s bounding box: ``cli_text.coordinates`` equals ``np.array2string(np.round(v,
+    2) + 0.0, precision=2, suppress_small=True)`` -- the text it replaced -- on many vectors."""
+    import numpy as np
+
+    from shapeverify.cli_text import coordinates
+
+    rng = np.random.default_rng(32)
+    cases = [(0.0, 0.0, -3.0), (300.0, 200.0, 16.03), (-0.001, 0.004, -0.005),
+             (0.005, 0.015, 0.025), (1e-9, -1e-9, 0.0), (99999999.99, 1.0, 2.0),
+             (1e8, 0.0, 1.0), (float("nan"), 1.0, 2.0), (float("inf"), -1.0, 0.5),
+             (-12.345, 0.125, 7.0), (1.005, 2.675, -0.135)]
+    for scale in (1e-3, 1e-1, 1.0, 1e2, 1e4, 1e6, 1e7):
+        cases += [tuple(rng.normal(0, scale, 3)) for _ in range(60)]
+        cases += [tuple(np.round(rng.normal(0, scale, 3), 2)) for _ in range(20)]
+    for v in cases:
+        want = np.array2string(np.round(np.asarray(v), 2) + 0.0, precision=2,
+                               suppress_small=True)
+        assert coordinates(v) == want, v
+        assert coordinates(list(v)) == want, v
