@@ -471,7 +471,7 @@ def main() -> None:
         lines.append(row(r))
     later = auto["later"]
     lines.append(f"| `shapeverify inspect` with `SHAPEVERIFY_WORKER=auto`, commands 3..{len(later) + 1} "
-                 f"(client + worker CPU; the 2nd loads the kernels: {later[0]:.2f} s) | "
+                 f"(client + worker CPU; the 2nd reads the model and loads the kernels: {later[0]:.2f} s) | "
                  f"{auto['median']:.2f} | {min(later[1:] or later):.2f}-"
                  f"{max(later[1:] or later):.2f} | {peer['median'] / auto['median']:.2f} | "
                  f"{auto['load']:.1f} |")
@@ -496,7 +496,7 @@ def main() -> None:
         f"cost {auto['client']:.2f} s itself (run in its own process) + {auto['preload']:.2f} s "
         f"the worker's start in the background = **{auto['first']:.2f} s**; the commands after "
         "it, client + worker each: " + ", ".join(f"{x:.2f}" for x in later) + " s (the 2nd "
-        "loads the kernels).  Its note on stderr: "
+        "reads the model, which the worker then keeps, and loads the kernels).  Its note on stderr: "
         + ("; ".join(f"`{n}`" for n in auto["note"]) or "(none)") + ".",
         "",
         f"Answers: ours {verdict}, {dev.get('n', '?')} evaluated points, std "
