@@ -19,13 +19,20 @@ time is the fair figure, wall time also counts waiting for a core):
   the client appends to ``SHAPEVERIFY_WORKER_CPU_LOG``), so the row counts all the CPU the
   command costs.  The worker's start (imports, numba's first use: once per session) is reported
   apart;
-* **ours in-process** (``SHAPEVERIFY_NO_WORKER=1``): the cold command line, each run a fresh
+* **ours plain** (``SHAPEVERIFY_NO_WORKER=1``): the command a new user runs, each run a fresh
   Python that imports everything and loads the kernels;
+* **ours with the worker the first command starts** (``SHAPEVERIFY_WORKER=auto``): the first
+  command's CPU (its own, in-process, plus the worker's start in the background, which the
+  worker reports), then each later command's (client + worker);
 * for reference: the same inspection as a Python script calling the library (what the command
   line costs on top of it), ``shapeverify info`` of a STEP file whose summary is cached (goal 0.3 s), and
   the floor of any process that runs a numba kernel: ``import numpy, numba`` and one call of a
   cached one-line kernel (numba's first use imports its lowering registries and
-  ``scipy.linalg``).
+  ``scipy.linalg``);
+* where the plain command's CPU goes: the steps of ``python -m shapeverify inspect`` done one by
+  one in one process (``cli_breakdown.py``, written next to the inputs), with the CPU numba
+  spends loading the command's cached kernels (``numba.core.caching.Cache.load_overload``
+  timed) and their number.
 
 Goals: ``inspect`` <= 0.6 s CPU, ``info`` (cached) <= 0.3 s, Open3D / ours >= 3.
 
@@ -149,6 +156,76 @@ step("second inspection (the computation alone)")
 print(json.dumps(steps))
 '''
 
+CLI_BREAKDOWN = r"""
+import contextlib, io, json, os, sys, time
+os.environ.setdefault("SHAPEVERIFY_NO_WORKER", "1")
+cpu = time.process_time
+steps, t = [], cpu()
+
+
+def step(name):
+    global t
+    now = cpu()
+    steps.append((name, now - t))
+    t = now
+
+
+import shapeverify.cli as cli
+step("import the command line (shapeverify.cli: typer, rich)")
+import numpy
+step("import numpy")
+import numba
+step("import numba")
+
+
+@numba.njit(cache=True)
+def total(x):
+    return x.sum()
+
+
+total(numpy.ones(3))
+step("numba's first use (its lowering registries; scipy.linalg through numba's BLAS check)")
+import scipy.spatial
+step("import scipy.spatial (the k-d trees of the scan's noise, coverage and regions)")
+from numba.core import caching
+
+loads = {"n": 0, "cpu": 0.0}
+load_overload = caching.Cache.load_overload
+
+
+def timed(self, sig, target_context):
+    t0 = cpu()
+    got = load_overload(self, sig, target_context)
+    loads["cpu"] += cpu() - t0
+    loads["n"] += got is not None
+    return got
+
+
+caching.Cache.load_overload = timed
+
+
+def run():
+    with contextlib.redirect_stdout(io.StringIO()), contextlib.redirect_stderr(io.StringIO()):
+        try:
+            cli.app(sys.argv[1:], standalone_mode=False)
+        except SystemExit:
+            pass
+
+
+t0 = cpu()
+run()
+first = cpu() - t0
+t0 = cpu()
+run()
+second = cpu() - t0
+steps.append(("the command, less its kernels' loading: shapeverify's modules, typer's conversion, "
+              "the model, the scan, the inspection, the JSON report", first - loads["cpu"]))
+steps.append((f"loading the {loads['n']} cached numba kernels it calls (unpickle + link)",
+              loads["cpu"]))
+steps.append(("(the same command again in this process: the work alone)", second))
+print(json.dumps(steps))
+"""
+
 NUMBA_FLOOR = r'''
 import numpy as np
 import numba
@@ -201,11 +278,13 @@ def make_inputs(work: Path, env: dict) -> dict:
                                       ("scan", "scan.ply"), ("model", "model.ply"),
                                       ("o3d", "open3d_inspect.py"), ("floor", "numba_floor.py"),
                                       ("lib", "library_inspect.py"),
-                                      ("breakdown", "breakdown.py"))}
+                                      ("breakdown", "breakdown.py"),
+                                      ("cli_breakdown", "cli_breakdown.py"))}
     paths["o3d"].write_text(OPEN3D_SCRIPT)
     paths["floor"].write_text(NUMBA_FLOOR)
     paths["lib"].write_text(LIBRARY)
     paths["breakdown"].write_text(BREAKDOWN)
+    paths["cli_breakdown"].write_text(CLI_BREAKDOWN)
     if all(paths[k].is_file() for k in ("step", "svm", "scan", "model")):
         return paths
     code = f"""
@@ -247,6 +326,52 @@ def _shown(argv: list, work: Path) -> str:
     return text.replace(sys.executable, "python").replace(str(work) + os.sep, "")
 
 
+def _wait_for_worker(env: dict, timeout: float = 300.0) -> dict:
+    """The status of the worker a command started in the background (its preload done)."""
+    import time
+
+    code = ("import json; from shapeverify.cli_worker import status; "
+            "print(json.dumps(status()))")
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        got = json.loads(subprocess.run([sys.executable, "-c", code], env=env,
+                                        capture_output=True, text=True, check=True).stdout)
+        if got is not None:
+            return got
+        time.sleep(0.2)
+    raise RuntimeError("the worker the first command started does not answer")
+
+
+def _stop_worker(env: dict, work: Path) -> None:
+    subprocess.run([sys.executable, "-m", "shapeverify", "worker", "stop"], cwd=work, env=env,
+                   capture_output=True, timeout=120)
+
+
+def measure_auto(argv: list, work: Path, env: dict, n: int) -> dict:
+    """The worker started by the first command (``SHAPEVERIFY_WORKER=auto``, in a socket
+    directory of its own): the first command's CPU (itself, run in-process, plus the worker's
+    start in the background), then commands 2..n+1 (client + the worker's CPU for each)."""
+    aenv = {k: v for k, v in env.items() if k not in ("SHAPEVERIFY_NO_WORKER", CPU_LOG)}
+    aenv.update(SHAPEVERIFY_WORKER="auto", SHAPEVERIFY_WORKER_DIR=str(work / "sock_auto"))
+    _stop_worker(aenv, work)
+    load = os.getloadavg()[0]
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    proc = subprocess.run(argv, cwd=work, env=aenv, stdout=subprocess.DEVNULL,
+                          stderr=subprocess.PIPE, text=True)
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    client = (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
+    note = [ln for ln in proc.stderr.splitlines() if "worker" in ln]
+    try:
+        st = _wait_for_worker(aenv)
+        lenv = {**aenv, CPU_LOG: str(work / "auto_cpu.jsonl")}
+        later = [cpu_of(argv, work, lenv) for _ in range(n)]
+    finally:
+        _stop_worker(aenv, work)
+    return {"client": client, "preload": st["preload_cpu"], "first": client + st["preload_cpu"],
+            "later": later, "median": statistics.median(later[1:] or later),
+            "note": note, "load": (load + os.getloadavg()[0]) / 2}
+
+
 def main() -> None:
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeat", type=int, default=5)
@@ -266,50 +391,50 @@ def main() -> None:
                     "--tolerance", "0.2", "--json", work / "r.json"]
     info_argv = [py, "-m", "shapeverify", "info", paths["step"]]
     cold = {**env, "SHAPEVERIFY_NO_WORKER": "1"}
-    ours = measure("shapeverify inspect in-process (prepared model, 30,000 points, JSON report; "
-                   "SHAPEVERIFY_NO_WORKER=1)", inspect_argv, work, cold, args.repeat)
+    ours = measure("plain `shapeverify inspect` (no worker; SHAPEVERIFY_NO_WORKER=1): prepared "
+                   "model, 30,000 points, JSON report", inspect_argv, work, cold, args.repeat)
+    ours_json = json.loads((work / "r.json").read_text())
+    info = measure("plain `shapeverify info` (no worker): STEP file, summary cached", info_argv,
+                   work, cold, args.repeat)
     # the resident worker, in a socket directory of this run's own; always stopped
-    wenv = {**env, "SHAPEVERIFY_WORKER_DIR": str(work / "sock"),
+    wenv = {**env, "SHAPEVERIFY_WORKER": "0", "SHAPEVERIFY_WORKER_DIR": str(work / "sock"),
             CPU_LOG: str(work / "worker_cpu.jsonl")}
     started = cpu_of([py, "-m", "shapeverify", "worker", "start"], work,
                      {k: v for k, v in wenv.items() if k != CPU_LOG})
     try:
-        status = json.loads(subprocess.run(
-            [py, "-c", "import json; from shapeverify.cli_worker import status; "
-                       "print(json.dumps(status()))"], env=wenv, capture_output=True, text=True,
-            check=True).stdout)
-        warm = measure("shapeverify inspect with the worker running (client + worker CPU)",
+        status = _wait_for_worker(wenv)
+        warm = measure("`shapeverify inspect` with the worker running (client + worker CPU)",
                        inspect_argv, work, wenv, args.repeat)
         warm_json = json.loads((work / "r.json").read_text())
-        info_warm = measure("shapeverify info (STEP file, summary cached) with the worker "
-                            "(client + worker CPU)", info_argv, work, wenv, args.repeat)
+        info_warm = measure("`shapeverify info` with the worker running (client + worker CPU)",
+                            info_argv, work, wenv, args.repeat)
     finally:
-        subprocess.run([py, "-m", "shapeverify", "worker", "stop"], cwd=work, env=wenv,
-                       capture_output=True, timeout=120)
+        _stop_worker(wenv, work)
     worker_start = started + status["preload_cpu"]
+    auto = measure_auto(inspect_argv, work, env, args.repeat + 1)
     peer = measure("Open3D script (ICP point-to-plane + signed distances + JSON report)",
                    [py, paths["o3d"], paths["scan"], paths["model"], work / "o3d.json", "0.2"],
                    work, env, args.repeat)
     lib = measure("the same inspection through the library (a Python script, no command line)",
                   [py, paths["lib"], paths["svm"], paths["scan"], work / "lib.json"], work, env,
                   args.repeat)
-    info = measure("shapeverify info in-process (STEP file, summary cached)", info_argv, work,
-                   cold, args.repeat)
     floor = measure("floor: import numpy, numba + one cached kernel",
                     [py, paths["floor"]], work, env, args.repeat)
     bare = measure("floor: python -c pass", [py, "-c", "pass"], work, env, args.repeat)
-    runs = [json.loads(subprocess.run([py, paths["breakdown"], paths["svm"], paths["scan"]],
-                                      cwd=work, env=env, capture_output=True, text=True,
-                                      check=True).stdout.splitlines()[-1])
-            for _ in range(args.repeat)]
-    breakdown = [(name, statistics.median(r[i][1] for r in runs))
-                 for i, (name, _) in enumerate(runs[0])]
+
+    def median_steps(script, *argv):
+        runs = [json.loads(subprocess.run([py, paths[script], *map(str, argv)], cwd=work,
+                                          env=cold, capture_output=True, text=True,
+                                          check=True).stdout.splitlines()[-1])
+                for _ in range(args.repeat)]
+        return [(name, statistics.median(r[i][1] for r in runs))
+                for i, (name, _) in enumerate(runs[0])]
+
+    cli_steps = median_steps("cli_breakdown", "inspect", paths["svm"], paths["scan"],
+                             "--tolerance", "0.2", "--json", work / "r_bd.json")
+    breakdown = median_steps("breakdown", paths["svm"], paths["scan"])
     load_end = os.getloadavg()
 
-    ratio = peer["median"] / ours["median"]
-    ratio_warm = peer["median"] / warm["median"]
-    ratio_min = peer["min"] / warm["min"]
-    ours_json = json.loads((work / "r.json").read_text())
     same = ({k: v for k, v in ours_json.items() if k != "timings"}
             == {k: v for k, v in warm_json.items() if k != "timings"})
     peer_json = json.loads((work / "o3d.json").read_text())
@@ -329,41 +454,68 @@ def main() -> None:
         "run higher under load).",
         "",
         "Each row: a fresh process started by the benchmark, CPU = user + system of it and its "
-        "waited-for children (`getrusage(RUSAGE_CHILDREN)`), with the worker plus the CPU the "
+        "waited-for children (`getrusage(RUSAGE_CHILDREN)`), with a worker plus the CPU the "
         f"worker reports for the request; median and range of {args.repeat} runs after one "
-        "untimed run.",
+        "untimed run; Open3D / ours = the Open3D script's median over the row's.",
         "",
-        "| command | CPU median [s] | range [s] | load (1 min) |",
-        "|---|---:|---:|---:|",
+        "| command | CPU median [s] | range [s] | Open3D / ours | load (1 min) |",
+        "|---|---:|---:|---:|---:|",
     ]
-    for r in (warm, ours, peer, lib, info_warm, info, floor, bare):
-        lines.append(f"| {r['label']}: `{_shown(r['argv'], work)}` | {r['median']:.2f} | "
-                     f"{r['min']:.2f}-{r['max']:.2f} | {r['load']:.1f} |")
+
+    def row(r, ratio=True):
+        ratio = f"{peer['median'] / r['median']:.2f}" if ratio and r is not peer else ""
+        return (f"| {r['label']}: `{_shown(r['argv'], work)}` | {r['median']:.2f} | "
+                f"{r['min']:.2f}-{r['max']:.2f} | {ratio} | {r['load']:.1f} |")
+
+    for r in (ours, warm, peer, lib):
+        lines.append(row(r))
+    later = auto["later"]
+    lines.append(f"| `shapeverify inspect` with `SHAPEVERIFY_WORKER=auto`, commands 3..{len(later) + 1} "
+                 f"(client + worker CPU; the 2nd reads the model and loads the kernels: {later[0]:.2f} s) | "
+                 f"{auto['median']:.2f} | {min(later[1:] or later):.2f}-"
+                 f"{max(later[1:] or later):.2f} | {peer['median'] / auto['median']:.2f} | "
+                 f"{auto['load']:.1f} |")
+    for r in (info, info_warm, floor, bare):
+        lines.append(row(r, ratio=False))
+
     def goal(value, limit):
         return f"{'met' if value <= limit else 'NOT met'}, {value:.2f} s"
 
     lines += [
         "",
-        f"The worker's start (`shapeverify worker start`: the command {started:.2f} s + the "
-        f"worker's imports and numba's first use {status['preload_cpu']:.2f} s) took "
-        f"{worker_start:.2f} s CPU, once per session; the first command after it also loads the "
-        "kernels it uses (the untimed run).",
+        f"Open3D / ours: **{peer['median'] / ours['median']:.2f} plain**, "
+        f"{peer['median'] / warm['median']:.2f} with the worker (goal >= 3).  Goals: inspect "
+        f"<= 0.6 s ({goal(ours['median'], 0.6)} plain; {goal(warm['median'], 0.6)} with the "
+        f"worker), info (cached) <= 0.3 s ({goal(info['median'], 0.3)} plain; "
+        f"{goal(info_warm['median'], 0.3)} with the worker).  The worker's JSON report equals "
+        f"the plain one (less `timings`): {'yes' if same else 'NO'}.",
         "",
-        f"Ratio Open3D / ours: **{ratio_warm:.2f} with the worker** (medians; "
-        f"{ratio_min:.2f} of the fastest runs), {ratio:.2f} in-process (goal >= 3).  Goals: inspect <= 0.6 s ({goal(warm['median'], 0.6)} with the worker; "
-        f"{goal(ours['median'], 0.6)} in-process), info (cached) <= 0.3 s "
-        f"({goal(info_warm['median'], 0.3)} with the worker; {goal(info['median'], 0.3)} "
-        f"in-process).  The worker's JSON report equals the in-process one (less `timings`): "
-        f"{'yes' if same else 'NO'}.",
+        f"The worker's start: `shapeverify worker start` {started:.2f} s + the worker's imports "
+        f"and numba's first use {status['preload_cpu']:.2f} s = {worker_start:.2f} s CPU, once "
+        "per session.  Started by the first command (`SHAPEVERIFY_WORKER=auto`): that command "
+        f"cost {auto['client']:.2f} s itself (run in its own process) + {auto['preload']:.2f} s "
+        f"the worker's start in the background = **{auto['first']:.2f} s**; the commands after "
+        "it, client + worker each: " + ", ".join(f"{x:.2f}" for x in later) + " s (the 2nd "
+        "reads the model, which the worker then keeps, and loads the kernels).  Its note on stderr: "
+        + ("; ".join(f"`{n}`" for n in auto["note"]) or "(none)") + ".",
         "",
         f"Answers: ours {verdict}, {dev.get('n', '?')} evaluated points, std "
         f"{dev.get('std', float('nan')):.4f} mm, min {dev.get('min', float('nan')):+.3f}, max "
-        f"{dev.get('max', float('nan')):+.3f} mm; Open3D: fitness {peer_json['fitness']:.3f}, {peer_json['n']} matched points, "
-        f"std {peer_json['std']:.4f} mm, min {peer_json['min']:+.3f}, max {peer_json['max']:+.3f} "
-        f"mm (no outlier rule: its verdict is {peer_json['verdict']}).",
+        f"{dev.get('max', float('nan')):+.3f} mm; Open3D: fitness {peer_json['fitness']:.3f}, "
+        f"{peer_json['n']} matched points, std {peer_json['std']:.4f} mm, min "
+        f"{peer_json['min']:+.3f}, max {peer_json['max']:+.3f} mm (no outlier rule: its verdict "
+        f"is {peer_json['verdict']}).",
+        "",
+        "Where the plain command's CPU goes (one Python process doing the steps in order, as "
+        "`python -m shapeverify inspect` does them, CPU of each step, median of "
+        f"{args.repeat} runs):",
+        "",
+        "| step | CPU [s] |",
+        "|---|---:|",
     ]
-    lines += ["", "Where the library's process spends its CPU (one Python process doing the steps in "
-              f"order, CPU of each step, median of {args.repeat} runs):", "",
+    lines += [f"| {name} | {sec:.2f} |" for name, sec in cli_steps]
+    lines.append(f"| total (less the repeat) | {sum(sec for _, sec in cli_steps[:-1]):.2f} |")
+    lines += ["", "The library's process (the same inspection as a script, twice):", "",
               "| step | CPU [s] |", "|---|---:|"]
     lines += [f"| {name} | {sec:.2f} |" for name, sec in breakdown]
     lines.append(f"| total | {sum(sec for _, sec in breakdown):.2f} |")

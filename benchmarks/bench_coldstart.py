@@ -57,6 +57,7 @@ def _env(cache: Path, summaries: Path | None = None) -> dict:
     env.pop("PYTHONDONTWRITEBYTECODE", None)
     env["PYTHONPATH"] = os.pathsep.join([str(ROOT / "src")] + [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p])
     env.setdefault("COLUMNS", "120")
+    env["SHAPEVERIFY_NO_WORKER"] = "1"  # cold starts: never a resident worker (cli_worker)
     return env
 
 

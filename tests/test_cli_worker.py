@@ -31,7 +31,10 @@ PACKAGE = ROOT / "src" / "shapeverify"
 def _env(sock_dir: Path, cache: Path, **extra) -> dict:
     env = {k: v for k, v in os.environ.items()
            if not k.startswith("SHAPEVERIFY_") or k == "SHAPEVERIFY_CACHE_DIR"}
-    env.update(SHAPEVERIFY_WORKER_DIR=str(sock_dir), SHAPEVERIFY_CACHE_DIR=str(cache),
+    # no worker starts by itself (SHAPEVERIFY_WORKER=auto by default): a test that wants one
+    # starts it, or sets SHAPEVERIFY_WORKER itself
+    env.update(SHAPEVERIFY_WORKER="0", SHAPEVERIFY_WORKER_DIR=str(sock_dir),
+               SHAPEVERIFY_CACHE_DIR=str(cache),
                COLUMNS="100", PYTHONPATH=os.pathsep.join(
                    [str(ROOT / "src")] + [p for p in os.environ.get("PYTHONPATH", "").split(
                        os.pathsep) if p]))
@@ -284,3 +287,80 @@ def test_file_memo_keeps_a_prepared_model_and_a_hash_only_while_enabled_and_unch
     finally:
         _file_memo.disable()
     assert load_prepared(path) is not load_prepared(path)
+
+
+def _status(env: dict, files: Path, wait: float) -> int | None:
+    """The pid of the worker answering in ``env``'s socket directory within ``wait`` s."""
+    t0 = time.monotonic()
+    while True:
+        st = _sv(["worker", "status"], files, env)
+        m = re.search(rb"pid (\d+)", st.stdout)
+        if m:
+            return int(m.group(1))
+        if time.monotonic() - t0 > wait:
+            return None
+        time.sleep(0.2)
+
+
+def test_first_command_starts_the_worker_by_default_and_says_so_once(files, tmp_path):
+    """SHAPEVERIFY_WORKER unset (``auto``, the default): the first command runs in its own
+    process and starts the worker, with one note on stderr naming how to stop it and how to keep
+    it from starting; the next command runs in the worker, with the same output, and no note."""
+    from shapeverify.cli_worker import DEFAULT_MODE
+
+    if DEFAULT_MODE != "auto":
+        pytest.skip("the worker does not start by itself in this version (DEFAULT_MODE)")
+    sock = Path(tempfile.mkdtemp(prefix="svw-", dir="/tmp"))
+    env = _env(sock, files / "cache")
+    del env["SHAPEVERIFY_WORKER"]
+    log = tmp_path / "cpu.log"
+    pid = None
+    try:
+        first = _sv(["info", "panel.svm"], files, env)
+        assert first.returncode == 0, first.stderr.decode()[-2000:]
+        notes = [ln for ln in first.stderr.decode().splitlines() if "worker" in ln]
+        assert len(notes) == 1, notes
+        assert ("started the shapeverify worker" in notes[0]
+                and "shapeverify worker stop" in notes[0] and "SHAPEVERIFY_WORKER=0" in notes[0])
+        pid = _status(env, files, wait=240)
+        assert pid is not None, "the first command started no worker"
+        second = _sv(["info", "panel.svm"], files, {**env, "SHAPEVERIFY_WORKER_CPU_LOG": str(log)})
+        assert second.returncode == 0
+        assert len(log.read_text().splitlines()) == 1, "the second command ran in-process"
+        assert second.stdout == first.stdout
+        assert b"worker" not in second.stderr
+        assert not list(sock.glob("*.starting")), "the start's claim was left behind"
+    finally:
+        _sv(["worker", "stop"], files, env, timeout=60)
+        if pid is not None:
+            t0 = time.monotonic()
+            while _alive(pid) and time.monotonic() - t0 < 30:
+                time.sleep(0.05)
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+                pytest.fail(f"worker {pid} still ran after `shapeverify worker stop`")
+        shutil.rmtree(sock, ignore_errors=True)
+
+
+@pytest.mark.parametrize("setting", [{"SHAPEVERIFY_WORKER": "0"},
+                                     {"SHAPEVERIFY_NO_WORKER": "1", "SHAPEVERIFY_WORKER": "auto"}])
+def test_worker_off_or_no_worker_starts_none_and_says_nothing(files, setting):
+    """``SHAPEVERIFY_WORKER=0`` (and ``SHAPEVERIFY_NO_WORKER=1``, which the tests set in
+    conftest) never start a worker: no note, nothing in the socket directory."""
+    sock = Path(tempfile.mkdtemp(prefix="svw-", dir="/tmp"))
+    try:
+        res = _sv(["info", "panel.svm"], files, {**_env(sock, files / "cache"), **setting})
+        assert res.returncode == 0 and b"model points" in res.stdout
+        assert b"worker" not in res.stderr
+        time.sleep(1.0)
+        assert list(sock.iterdir()) == []
+    finally:
+        shutil.rmtree(sock, ignore_errors=True)
+
+
+def test_the_test_session_starts_no_worker():
+    """conftest sets SHAPEVERIFY_NO_WORKER=1: a command a test starts with the test's
+    environment never starts a worker, whatever SHAPEVERIFY_WORKER says."""
+    from shapeverify.cli_worker import NO_WORKER_ENV
+
+    assert os.environ.get(NO_WORKER_ENV) == "1"

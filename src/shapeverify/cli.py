@@ -25,6 +25,7 @@ from rich.markup import escape
 from typer.core import TyperGroup
 
 from shapeverify.cli_errors import clean, size_note
+from shapeverify.cli_params import install as _install_plain_params
 from shapeverify.cli_common import (EVALUATION_DISTANCE as _EVALUATION_DISTANCE,  # noqa: F401
                                     EXIT_ERROR, EXIT_FAIL, EXIT_INCOMPLETE, EXIT_PASS,
                                     FACES as _FACES, INIT as _INIT, LOWER as _LOWER,
@@ -42,7 +43,7 @@ from shapeverify.cli_common import stage as _stage
 from shapeverify.cli_start import CAD_SUFFIXES as _CAD_SUFFIXES
 from shapeverify.cli_start import early_importer as _early_importer
 from shapeverify.cli_start import is_prepared as _is_prepared
-from shapeverify.cli_text import Table, format_limits, readable_help, sig3
+from shapeverify.cli_text import Table, coordinates, format_limits, readable_help, sig3
 from shapeverify.io.formats import scan_help  # the scan format registry (no numpy)
 from shapeverify.verdict_table import VERDICT_TABLE, verdict_style  # a leaf: no numpy
 
@@ -78,6 +79,8 @@ class _GuardedGroup(TyperGroup):
         except Exception as exc:  # noqa: BLE001 - the last line of defence
             _internal_error(exc, bool(ctx.meta.get(_VERBOSE_KEY)))
 
+
+_install_plain_params()  # option values converted without pydantic when plain (cli_params)
 
 app = typer.Typer(
     cls=_GuardedGroup,
@@ -191,12 +194,9 @@ def plan(model: Path = typer.Argument(..., help="STEP AP242 file with semantic P
 def model_summary_table(m, title: str) -> Table:
     """The summary table of a :class:`~shapeverify.cad.model.Model` or of its
     :class:`~shapeverify.cad.summary.ModelSummary`."""
-    import numpy as np
-
     from shapeverify.cad.summary import ModelSummary, summarize
 
     s = m if isinstance(m, ModelSummary) else summarize(m)
-    lo, hi = np.round(s.lo, 2) + 0.0, np.round(s.hi, 2) + 0.0   # + 0.0: no "-0." shown
     t = Table(title=title, show_header=False)
     t.add_row("kind", s.kind)
     t.add_row("faces", str(s.faces) if not s.missing else  # issue 33 row 2
@@ -207,8 +207,8 @@ def model_summary_table(m, title: str) -> Table:
     if s.vertices is not None:
         t.add_row("vertices", f"{s.vertices:,}")
     t.add_row("file unit", f"{s.unit} (x{s.scale_to_mm:g} to mm)")
-    t.add_row("bounding box [mm]", f"{np.array2string(lo, precision=2, suppress_small=True)} .. "
-                                   f"{np.array2string(hi, precision=2, suppress_small=True)}")
+    # rounded to 0.01 mm, written as numpy writes arrays, without numpy (cli_text.coordinates)
+    t.add_row("bounding box [mm]", f"{coordinates(s.lo)} .. {coordinates(s.hi)}")
     t.add_row("size (diagonal) [mm]", f"{s.size:.3f}")
     return t
 
@@ -598,7 +598,8 @@ def worker(
     idle: float = typer.Option(30.0, "--idle", help="start: stop the worker after this many minutes without a command"),
 ):
     """A resident worker that keeps the libraries and kernels loaded, so later commands answer
-    in a fraction of the time (opt-in; SHAPEVERIFY_NO_WORKER=1 ignores it).
+    in a fraction of the time (the first command starts it unless SHAPEVERIFY_WORKER=0;
+    SHAPEVERIFY_NO_WORKER=1 ignores it).
 
     Exit code of status: 0 a worker runs, 1 none does.
     """

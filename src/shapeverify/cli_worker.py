@@ -9,9 +9,13 @@ directory, environment and umask, and copies back what the command writes to std
 and its exit code.  The worker runs one request at a time through the same typer app as the
 command line in-process (:data:`shapeverify.cli.app`), so the answers are the same.
 
-Opt-in: only a worker started by ``shapeverify worker start`` (or, with ``SHAPEVERIFY_WORKER=1``,
-by the first command, which itself still runs in-process) is used.  ``SHAPEVERIFY_NO_WORKER=1``
-makes every command run in-process.  The worker ends by ``shapeverify worker stop``, after
+Started by the first command, as Gradle's daemon is (``SHAPEVERIFY_WORKER``, default
+:data:`DEFAULT_MODE` ``auto``): a command that finds no worker runs in its own process as before
+and starts one in the background for the commands after it, saying so in one line on stderr
+(with how to stop it: ``shapeverify worker stop``, and to keep it from starting:
+``SHAPEVERIFY_WORKER=0``).  With ``SHAPEVERIFY_WORKER=0`` only a worker started by
+``shapeverify worker start`` is used.  ``SHAPEVERIFY_NO_WORKER=1`` makes every command run
+in-process (the tests set it: ``tests/conftest.py``).  The worker ends by ``shapeverify worker stop``, after
 ``--idle`` minutes without a request (default 30), or when the installed sources change.
 
 Safety: the socket lives in a directory only the user can enter (``$XDG_RUNTIME_DIR/shapeverify``
@@ -44,10 +48,17 @@ import sys
 from pathlib import Path
 
 __all__ = ["try_worker", "socket_path", "version_key", "start", "stop", "status",
-           "NO_WORKER_ENV", "AUTO_START_ENV", "CPU_LOG_ENV", "DIR_ENV", "LOCAL_COMMANDS"]
+           "NO_WORKER_ENV", "AUTO_START_ENV", "CPU_LOG_ENV", "DIR_ENV", "LOCAL_COMMANDS",
+           "DEFAULT_MODE", "auto_start"]
 
 NO_WORKER_ENV = "SHAPEVERIFY_NO_WORKER"
 AUTO_START_ENV = "SHAPEVERIFY_WORKER"
+#: ``SHAPEVERIFY_WORKER`` when unset: ``auto`` (the first command starts the worker in the
+#: background) or ``0`` (only ``shapeverify worker start`` starts one) -- the one switch
+DEFAULT_MODE = "auto"
+_OFF = ("0", "off", "no", "false", "never")
+#: a start claimed by another command less than this long ago is left to it (seconds)
+START_CLAIM_SECONDS = 120.0
 CPU_LOG_ENV = "SHAPEVERIFY_WORKER_CPU_LOG"
 DIR_ENV = "SHAPEVERIFY_WORKER_DIR"
 #: commands that always run in-process: servers and Dask clusters run long and start their own
@@ -227,11 +238,51 @@ def try_worker(argv: list) -> int | None:
     path = socket_path()
     sock = _connect(path)
     if sock is None:
-        if os.environ.get(AUTO_START_ENV, "") not in ("", "0") and not path.exists():
-            _spawn(path)  # for the next command; this one runs in-process
+        if auto_start() and not path.exists() and _claim_start(path):
+            try:
+                _spawn(path)  # for the next command; this one runs in-process
+            except OSError as exc:
+                _note(f"could not start the shapeverify worker ({exc}); commands run in their "
+                      "own process")
+            else:
+                _note("started the shapeverify worker in the background (1-2 s of CPU, "
+                      "once) so that the next commands start at once; it ends after 30 idle "
+                      "minutes. Stop it: shapeverify worker stop; never start it: "
+                      f"{AUTO_START_ENV}=0")
         return None
     with sock:
         return _run_remote(sock, argv)
+
+
+def auto_start() -> bool:
+    """Whether a command that finds no worker starts one (``SHAPEVERIFY_WORKER``, default
+    :data:`DEFAULT_MODE`)."""
+    mode = os.environ.get(AUTO_START_ENV, "").strip().lower() or DEFAULT_MODE
+    return mode not in _OFF
+
+
+def _claim_start(path: Path) -> bool:
+    """Claim the worker's start (a file next to the socket, created exclusively): False when
+    another command claimed it less than :data:`START_CLAIM_SECONDS` ago (its worker is still
+    importing), so that commands started together start one worker."""
+    import time
+
+    claim = path.with_suffix(".starting")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
+        os.chmod(path.parent, 0o700)
+        if time.time() - os.stat(claim).st_mtime < START_CLAIM_SECONDS:
+            return False
+        os.unlink(claim)
+    except FileNotFoundError:
+        pass
+    except OSError:
+        return False
+    try:
+        os.close(os.open(claim, os.O_CREAT | os.O_EXCL | os.O_WRONLY, 0o600))
+    except OSError:
+        return False
+    return True
 
 
 def _run_remote(sock: socket.socket, argv: list) -> int | None:
@@ -334,7 +385,9 @@ def _spawn(path: Path, idle_minutes: float = 30.0):
             [sys.executable, "-m", "shapeverify.cli_worker_server", str(path),
              str(idle_minutes)],
             stdin=subprocess.DEVNULL, stdout=log, stderr=log, start_new_session=True,
-            env={k: v for k, v in os.environ.items() if k != AUTO_START_ENV},
+            # what the worker runs never starts another worker
+            env={**{k: v for k, v in os.environ.items() if k != AUTO_START_ENV},
+                 AUTO_START_ENV: "0"},
             cwd="/")
     finally:
         log.close()

@@ -151,6 +151,10 @@ class Worker:
         os.chmod(self.path, 0o600)
         self.inode = os.stat(self.path).st_ino
         listener.listen(16)
+        try:  # the start a command claimed (cli_worker._claim_start) is done
+            os.unlink(self.path.with_suffix(".starting"))
+        except OSError:
+            pass
         signal.signal(signal.SIGTERM, lambda *_: self._stop_now())
         # a cancel arrives as a frame and is raised by _thread.interrupt_main, which calls
         # this Python SIGINT handler in the main thread (the worker has no terminal: its own
