@@ -169,17 +169,21 @@ def beside_surface(dev):
 
 
 def floating_surfaces(dev, spacing: float, min_points: int = 3 * MIN_MATERIAL_POINTS, *,
-                      beside=None) -> list[dict]:
+                      beside=None, exclude=None) -> list[dict]:
     """Dense clusters of too-far points *above* the CAD faces (offset along the normal).
 
     Returns ``[{"n", "centroid", "faces", "height": [min, max]}]`` (mm, model frame), largest
     first: a reflection, a foreign object, or a deviation beyond the evaluation distance.
-    ``beside``: :func:`beside_surface` of ``dev`` if the caller has it.
+    ``beside``: :func:`beside_surface` of ``dev`` if the caller has it; ``exclude``: scan
+    indices left out (the points a region holds, :func:`.beyond.join_beyond`).
     """
     if not (np.isfinite(spacing) and spacing > 0):
         return []
     beside, dist = beside_surface(dev) if beside is None else beside
-    idx = np.flatnonzero((dev.reason == TOO_FAR) & ~beside & np.isfinite(dist))
+    free = (dev.reason == TOO_FAR) & ~beside & np.isfinite(dist)
+    if exclude is not None and len(exclude):
+        free[np.asarray(exclude, np.int64)] = False
+    idx = np.flatnonzero(free)
     if idx.size < min_points:
         return []
     p = dev.points_model[idx]
