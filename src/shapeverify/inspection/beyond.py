@@ -19,10 +19,11 @@ the evaluation distance joined to it by a dense, smooth surface that replaces th
    at least ``min_points`` points, ``DEGREE_SHARE`` of them with 2 linked neighbours (not
    scattered outliers), thin (the median ratio of the smallest to the largest principal axis of
    its points' ``FLAT_K`` nearest neighbours at most ``MAX_THICKNESS``: a sheet, not a cloud), and
-   it must **replace** the part's surface: at most ``SEEN_SHARE`` of its points have an
-   in-tolerance evaluated point within ``SEEN_RADIUS x s`` of their foot point.  A reflection,
-   ghost or second view lies over good surface that is measured under it (a random sample leaves
-   a disc of one spacing empty with probability ``exp(-pi)``); a bump or a dent does not;
+   it must **replace** the part's surface: at most ``SEEN_SHARE`` of its points have the
+   in-tolerance evaluated surface around their foot point (at least ``SEEN_FULL`` of a full disc's
+   points within ``SEEN_RADIUS x s``).  A reflection, ghost or second view lies over good surface
+   that is measured under it; a bump, a dent or an object lying on the part hides it (only the
+   points at its rim, walls included, see a half disc);
 3. a joined component and every region it touches (on one side) are one region, with the
    measurement outliers on that side within the link of its points (the flank's points that
    were too few to be a region); it is measured like any region (:func:`.regions._describe`) with
@@ -59,10 +60,13 @@ FLAT_K = 10
 MAX_THICKNESS = 0.35
 #: Most points of a component that the thickness and the seen-under tests look at.
 SAMPLE = 256
-#: The part's surface is seen under a point when an in-tolerance evaluated foot point lies within
-#: this many spacings of its foot point; a component seen under more than ``SEEN_SHARE`` of its
-#: points lies over the part (a reflection), it does not replace it.
-SEEN_RADIUS = 1.0
+#: The part's surface is seen under a point when the in-tolerance evaluated foot points within
+#: ``SEEN_RADIUS`` spacings of its foot point number at least ``SEEN_FULL`` of a full disc's
+#: (``pi SEEN_RADIUS^2``; a random sample reaches it with probability 0.93, a point at the rim of
+#: a defect, with a half disc of surface around it, 0.3); a component seen under more than
+#: ``SEEN_SHARE`` of its points lies over the part (a reflection), it does not replace it.
+SEEN_RADIUS = 2.0
+SEEN_FULL = 0.6
 SEEN_SHARE = 0.5
 
 
@@ -183,7 +187,7 @@ def _replaces_surface(sel, cand, P, feet, degree, good_feet, spacing) -> bool:
         g = feet[good_feet]
         g = g[np.all((g >= lo) & (g <= hi), axis=1)]
         if g.shape[0]:
-            d, _ = cKDTree(g).query(f, k=1, distance_upper_bound=r)
-            if np.mean(np.isfinite(d)) > SEEN_SHARE:
+            n = cKDTree(g).query_ball_point(f, r, return_length=True)
+            if np.mean(n >= SEEN_FULL * np.pi * SEEN_RADIUS ** 2) > SEEN_SHARE:
                 return False                               # over measured surface: a reflection
     return True
