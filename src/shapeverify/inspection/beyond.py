@@ -20,8 +20,8 @@ the evaluation distance joined to it by a dense, smooth surface that replaces th
    scattered outliers), thin (the median ratio of the smallest to the largest principal axis of
    its points' ``FLAT_K`` nearest neighbours at most ``MAX_THICKNESS``: a sheet, not a cloud), and
    it must **replace** the part's surface: at most ``SEEN_SHARE`` of its points have the
-   in-tolerance evaluated surface around their foot point (at least ``SEEN_FULL`` of a full disc's
-   points within ``SEEN_RADIUS x s``).  A reflection, ghost or second view lies over good surface
+   in-tolerance evaluated surface around their foot point (at least ``SEEN_FULL`` of the points
+   within ``SEEN_RADIUS x s`` that the surface's own points around the component have there).  A reflection, ghost or second view lies over good surface
    that is measured under it; a bump, a dent or an object lying on the part hides it (only the
    points at its rim, walls included, see a half disc);
 3. a joined component and every region it touches (on one side) are one region, with the
@@ -62,12 +62,16 @@ MAX_THICKNESS = 0.35
 SAMPLE = 256
 #: The part's surface is seen under a point when the in-tolerance evaluated foot points within
 #: ``SEEN_RADIUS`` spacings of its foot point number at least ``SEEN_FULL`` of a full disc's
-#: (``pi SEEN_RADIUS^2``; a random sample reaches it with probability 0.93, a point at the rim of
-#: a defect, with a half disc of surface around it, 0.3); a component seen under more than
-#: ``SEEN_SHARE`` of its points lies over the part (a reflection), it does not replace it.
+#: (the median count around the in-tolerance points near the component, ``SEEN_RING``; a random
+#: sample reaches 60 % of a full disc's 12.6 with probability 0.93, a point at the rim of a defect,
+#: with a half disc of surface around it, 0.3); a component seen under more than ``SEEN_SHARE``
+#: of its points lies over the part (a reflection), it does not replace it.
 SEEN_RADIUS = 2.0
 SEEN_FULL = 0.6
 SEEN_SHARE = 0.5
+#: The full disc's count is that of the in-tolerance points themselves between these distances
+#: (spacings) from the component's foot points (the face as narrow there as under it).
+SEEN_RING = (2.0, 6.0)
 
 
 def join_beyond(dev, regions, outliers, spacing: float, limits, within, beside, weights=None,
@@ -183,11 +187,22 @@ def _replaces_surface(sel, cand, P, feet, degree, good_feet, spacing) -> bool:
     if good_feet.size:
         f = feet[sample]
         r = SEEN_RADIUS * spacing
-        lo, hi = f.min(axis=0) - r, f.max(axis=0) + r
+        reach = SEEN_RING[1] * spacing + r
+        lo, hi = f.min(axis=0) - reach, f.max(axis=0) + reach
         g = feet[good_feet]
         g = g[np.all((g >= lo) & (g <= hi), axis=1)]
         if g.shape[0]:
-            n = cKDTree(g).query_ball_point(f, r, return_length=True)
-            if np.mean(n >= SEEN_FULL * np.pi * SEEN_RADIUS ** 2) > SEEN_SHARE:
+            gtree = cKDTree(g)
+            n_at = gtree.query_ball_point(f, r, return_length=True)
+            # the reference: the surface's own points around the component (as narrow as the face
+            # there: a blade's two edges cut the disc for both)
+            dc, _ = cKDTree(feet[idx]).query(g, k=1, distance_upper_bound=SEEN_RING[1] * spacing)
+            ring = g[np.isfinite(dc) & (dc >= SEEN_RING[0] * spacing)]
+            if ring.shape[0] >= FLAT_K:
+                ring = ring[np.linspace(0, ring.shape[0] - 1, min(ring.shape[0], SAMPLE)).astype(np.int64)]
+                ref = float(np.median(gtree.query_ball_point(ring, r, return_length=True))) - 1.0
+            else:
+                ref = np.pi * SEEN_RADIUS ** 2          # a full disc at the scan's spacing
+            if np.mean(n_at >= SEEN_FULL * ref) > SEEN_SHARE:
                 return False                               # over measured surface: a reflection
     return True
