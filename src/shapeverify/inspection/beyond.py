@@ -69,6 +69,11 @@ SAMPLE = 256
 SEEN_RADIUS = 2.0
 SEEN_FULL = 0.6
 SEEN_SHARE = 0.5
+#: A joined region rises from the part: at the median in-tolerance point beside it (within
+#: ``RISE_RADIUS`` spacings of its foot points) its lowest neighbour in the region is out of
+#: tolerance by at most ``MAX_STEP`` of the way from the limit to the evaluation distance.
+RISE_RADIUS = 1.5
+MAX_STEP = 0.5
 #: The full disc's count is that of the in-tolerance points themselves between these distances
 #: (spacings) from the component's foot points (the face as narrow there as under it).
 SEEN_RING = (2.0, 6.0)
@@ -152,7 +157,9 @@ def join_beyond(dev, regions, outliers, spacing: float, limits, within, beside, 
                                weights, limits=limits,
                                search=RegionSearch(min_points=min_points, spacing=spacing,
                                                    beyond=beyond))
-    new = [r for r in found if r.n_beyond > 0]
+    new = [r for r in found if r.n_beyond > 0 and
+           _rises_from_the_part(r, feet, values, dev.evaluated & within, limits, spacing,
+                                dev.evaluation_distance)]
     if not new:
         return none          # a layer over the part after all (find_regions' rules): as it was
     held = np.zeros(values.shape[0], bool)
@@ -206,3 +213,36 @@ def _replaces_surface(sel, cand, P, feet, degree, good_feet, spacing) -> bool:
             if np.mean(n_at >= SEEN_FULL * ref) > SEEN_SHARE:
                 return False                               # over measured surface: a reflection
     return True
+
+
+def _rises_from_the_part(region, feet, values, good, limits, spacing, evaluation_distance) -> bool:
+    """Does ``region`` (its too-far points evaluated at ``values``) rise from the part's
+    in-tolerance surface (``good``) continuously, or stand on it with a step at its rim?
+
+    A bump, a dent or an object whose walls are seen climbs from the limit: beside the part's
+    in-tolerance points the region's points are just out of tolerance.  A surface lifted off the
+    part with a step at its rim (a reflection blob pushed off along the rays: its rim as far from
+    the CAD as the evaluation distance and the part's surface right beside it) has its lowest
+    points beside the part near the evaluation distance (module docstring, step 3)."""
+    if not np.isfinite(evaluation_distance):
+        return True
+    idx = np.asarray(region.indices, np.int64)
+    above = region.side == "above"
+    lim = np.abs(limits[1][idx] if above else limits[0][idx])
+    excess = np.abs(values[idx]) - lim
+    r = RISE_RADIUS * spacing
+    lo, hi = feet[idx].min(axis=0) - r, feet[idx].max(axis=0) + r
+    g = np.flatnonzero(good)
+    g = g[np.all((feet[g] >= lo) & (feet[g] <= hi), axis=1)]
+    if g.size == 0:
+        return True
+    k = min(8, idx.size)
+    d, j = cKDTree(feet[idx]).query(feet[g], k=k, distance_upper_bound=r)
+    d, j = d.reshape(g.size, k), j.reshape(g.size, k)
+    near = np.isfinite(d)
+    rim = near.any(axis=1)
+    if not rim.any():
+        return True
+    low = np.where(near, excess[np.minimum(j, idx.size - 1)], np.inf).min(axis=1)[rim]
+    band = float(evaluation_distance) - float(np.median(lim))
+    return bool(np.median(low) <= MAX_STEP * band)
