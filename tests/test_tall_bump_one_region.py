@@ -96,3 +96,57 @@ def test_flank_region_alone_keeps_its_numbers_when_nothing_lies_beyond(panel):
     r = res.regions[0]
     assert r.n_beyond == 0 and r.area_beyond == 0.0
     assert abs(r.extreme / 0.6 - 1.0) <= 0.10
+
+
+def _frame(n):
+    e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    return e1, np.cross(n, e1)
+
+
+def test_object_lying_on_the_part_is_one_region_of_its_height(panel):
+    """A 6 x 6 x 3 mm box lying on the panel, its top and walls scanned by area at 1 mm (the
+    panel's points under it hidden): one region whose extreme is the box's height (it was a
+    0.5 mm flank region and a note of a surface floating above the CAD)."""
+    prep, V, T, F = panel
+    rng = np.random.default_rng(2)
+    half, height, spacing = 3.0, 3.0, 1.0
+    P, _ = ind.random_points(V, T, spacing, rng)
+    site = np.array(ind.dent_site(V, T, F, 3 * half))
+    cp = prep.closest(site[None], exact=True)
+    c, n = cp.points[0], cp.normals[0]
+    e1, e2 = _frame(n)
+    off = P - c
+    under = (np.abs(off @ e1) < half) & (np.abs(off @ e2) < half) & (np.abs(off @ n) < 1.0)
+    faces = [(c - half * e1 - half * e2 + height * n, e1, e2, 2 * half, 2 * half)]
+    faces += [(c - half * a - half * b, a, n, 2 * half, height)
+              for a, b in [(e1, e2), (e2, -e1), (-e1, -e2), (-e2, e1)]]
+    box = []
+    for o, a, b, la, lb in faces:
+        m = rng.poisson(la * lb / spacing ** 2)
+        box.append(o + rng.random(m)[:, None] * la * a + rng.random(m)[:, None] * lb * b)
+    P = np.vstack([P[~under]] + box)
+    P = (P + rng.normal(0.0, NOISE, P.shape))[rng.permutation(len(P))]
+    res = inspect_registered(prep, P, _identity(), tolerance=TOL)
+    assert res.verdict == "fail" and len(res.regions) == 1, res.reasons
+    r = res.regions[0]
+    assert r.side == "above" and abs(r.extreme / height - 1.0) <= 0.10, r
+    assert r.n_beyond > 0.9 * np.count_nonzero(~res.deviations.evaluated
+                                                & (np.linalg.norm(P - c, axis=1) < 2 * half))
+    assert not [x for x in res.reasons if "above the CAD" in x], res.reasons
+
+
+def test_surface_lifted_with_a_step_at_its_rim_is_no_region(panel):
+    """A disc of the part's points lifted 1-2 mm along the normal (a reflection blob, as the
+    project's simulator makes them: the surface under it not seen, a 1 mm step at its rim) does
+    not rise from the part: the good part passes, the disc is a note (not evaluated)."""
+    prep, V, T, F = panel
+    rng = np.random.default_rng(9)
+    P, N = ind.random_points(V, T, 0.5, rng)
+    c = np.array(ind.dent_site(V, T, F, 6.0))
+    s = np.linalg.norm(P - c, axis=1) / 5.0
+    lift = np.where(s < 1.0, 2.0 * (1.0 - 0.5 * s ** 2), 0.0)
+    P = P + (lift + rng.normal(0.0, NOISE, len(P)))[:, None] * N
+    res = inspect_registered(prep, P, _identity(), tolerance=0.2)
+    assert res.verdict == "pass" and not res.regions, res.reasons
+    assert [x for x in res.reasons if "above the CAD" in x], res.reasons
