@@ -15,8 +15,10 @@ The rule (all distances in mm, ``s`` = the scan's spacing on the part as area pe
    is on an edge: past a hole's rim, past the outline), and points past a free edge within the
    evaluation distance (``on_boundary``), which bridge a hole's rim.  Points far *above* a face
    (offset along its normal) are not material the CAD lacks but a surface floating over the
-   part -- a reflection, a foreign object, or a bump beyond the evaluation distance; dense such
-   clusters are reported by :func:`floating_surfaces` as notes, and their points stay excluded;
+   part -- a reflection, a foreign object, or a bump beyond the evaluation distance; one that
+   rises from a region's out-of-tolerance flank joins that region (:mod:`.beyond`), the other
+   dense such clusters are reported by :func:`floating_surfaces` as notes, and their points stay
+   excluded;
 2. candidates closer than ``LINK_FACTOR x s`` (in space) are linked; a connected component is a
    material region when it holds at least ``MIN_MATERIAL_POINTS`` too-far points, is **dense**
    (at least 80 % of its points have 2 linked neighbours, and its median area per point, from a
