@@ -14,6 +14,7 @@ from .. import _arrays
 from ..errors import EmptyModelError, RegistrationError, ScanError
 from ..units import unit_hint
 from .ambiguity import resolve
+from .beyond import join_beyond
 # the scan check and the evaluation distance's default live in a leaf (characteristics read them)
 from .checks import (MAX_COPY_FRACTION, MIN_SCAN_POINTS, _bbox_diagonal,  # noqa: F401
                      _unit_message, check_scan, default_evaluation_distance)
@@ -427,6 +428,11 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
         limits=tol.limits(dev.face),
         search=RegionSearch(min_points=opts.min_region_points, spacing=spacing))
     beside = beside_surface(dev)                    # material and floating surfaces share it
+    # a bump taller (a dent deeper) than the evaluation distance: its flank's regions and the
+    # surface beyond that continues them are one region, measured to its true height
+    regions, outliers, joined = join_beyond(dev, regions, outliers, spacing,
+                                            tol.limits(dev.face), within, beside, weights,
+                                            min_points=opts.min_region_points)
     # material joins the part on its outer side: a measurement outlier inside the part (a
     # reflection copied into a blade) carries no material above it; one above the surface can
     # (the ramp up to a corner that the CAD chamfers and the part does not)
@@ -434,7 +440,7 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
     material = find_material(dev, spacing, tol.upper, beside=beside,
                              outliers=o[dev.values[o] < 0])
     # CAD surface the scan sees through (issue 33 row 3): regions of kind "missing"
-    missing = find_missing(prep, dev, spacing, within, tol, faces=opts.faces) \
+    missing = find_missing(prep, dev, spacing, within, tol, faces=opts.faces, seen_also=joined) \
         if opts.missing else []
     regions = sorted(regions + material + missing, key=lambda r: -r.severity)
     timings["regions"] = time.perf_counter() - t0
@@ -483,7 +489,7 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
         notes.append(f"{outliers.n} isolated out-of-tolerance points treated as measurement "
                      f"outliers ({outliers.n_low_weight} rejected by the registration) and left "
                      "out of the statistics")
-    for fs in floating_surfaces(dev, spacing, beside=beside)[:3]:
+    for fs in floating_surfaces(dev, spacing, beside=beside, exclude=joined)[:3]:
         c = fs["centroid"]
         notes.append(f"{fs['n']} scan points form a surface {fs['height'][0]:.2f}-{fs['height'][1]:.2f} mm "
                      f"above the CAD around ({c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f}) mm, beyond the "

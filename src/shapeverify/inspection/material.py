@@ -15,8 +15,10 @@ The rule (all distances in mm, ``s`` = the scan's spacing on the part as area pe
    is on an edge: past a hole's rim, past the outline), and points past a free edge within the
    evaluation distance (``on_boundary``), which bridge a hole's rim.  Points far *above* a face
    (offset along its normal) are not material the CAD lacks but a surface floating over the
-   part -- a reflection, a foreign object, or a bump beyond the evaluation distance; dense such
-   clusters are reported by :func:`floating_surfaces` as notes, and their points stay excluded;
+   part -- a reflection, a foreign object, or a bump beyond the evaluation distance; one that
+   rises from a region's out-of-tolerance flank joins that region (:mod:`.beyond`), the other
+   dense such clusters are reported by :func:`floating_surfaces` as notes, and their points stay
+   excluded;
 2. candidates closer than ``LINK_FACTOR x s`` (in space) are linked; a connected component is a
    material region when it holds at least ``MIN_MATERIAL_POINTS`` too-far points, is **dense**
    (at least 80 % of its points have 2 linked neighbours, and its median area per point, from a
@@ -169,17 +171,21 @@ def beside_surface(dev):
 
 
 def floating_surfaces(dev, spacing: float, min_points: int = 3 * MIN_MATERIAL_POINTS, *,
-                      beside=None) -> list[dict]:
+                      beside=None, exclude=None) -> list[dict]:
     """Dense clusters of too-far points *above* the CAD faces (offset along the normal).
 
     Returns ``[{"n", "centroid", "faces", "height": [min, max]}]`` (mm, model frame), largest
     first: a reflection, a foreign object, or a deviation beyond the evaluation distance.
-    ``beside``: :func:`beside_surface` of ``dev`` if the caller has it.
+    ``beside``: :func:`beside_surface` of ``dev`` if the caller has it; ``exclude``: scan
+    indices left out (the points a region holds, :func:`.beyond.join_beyond`).
     """
     if not (np.isfinite(spacing) and spacing > 0):
         return []
     beside, dist = beside_surface(dev) if beside is None else beside
-    idx = np.flatnonzero((dev.reason == TOO_FAR) & ~beside & np.isfinite(dist))
+    free = (dev.reason == TOO_FAR) & ~beside & np.isfinite(dist)
+    if exclude is not None and len(exclude):
+        free[np.asarray(exclude, np.int64)] = False
+    idx = np.flatnonzero(free)
     if idx.size < min_points:
         return []
     p = dev.points_model[idx]

@@ -98,7 +98,7 @@ BEHIND_LATERAL = 1.5
 
 
 def find_missing(prep, dev, spacing: float, within: np.ndarray, tolerance=None, *,
-                 faces=None) -> list[DefectRegion]:
+                 faces=None, seen_also=None) -> list[DefectRegion]:
     """Missing-material regions of an inspection (see the module docstring).
 
     Parameters
@@ -113,6 +113,10 @@ def find_missing(prep, dev, spacing: float, within: np.ndarray, tolerance=None, 
         For the severity (its lower limit); 1 mm² of hole counts 1 mm³ without it.
     faces : sequence of int, optional
         The inspected faces (None: all).
+    seen_also : (k,) int, optional
+        Scan indices of points not evaluated whose foot points are seen surface all the same:
+        the points of a region beyond the evaluation distance (:mod:`.beyond`: a deep dent's
+        floor is the part's surface, displaced, not a view through it).
 
     Returns
     -------
@@ -133,7 +137,11 @@ def find_missing(prep, dev, spacing: float, within: np.ndarray, tolerance=None, 
     pts, face, a_pt = model_samples(prep, faces, MAX_SAMPLES)
     if pts.shape[0] < 10:
         return []
-    feet = kernel_array(dev.foot_points[ev])
+    on_part = ev
+    if seen_also is not None and len(seen_also):
+        on_part = ev.copy()
+        on_part[np.asarray(seen_also, np.int64)] = True
+    feet = kernel_array(dev.foot_points[on_part])
     r_seen = SEEN_RADIUS * s
     seen = np.empty(pts.shape[0], bool)
     any_within(feet, pts, float(r_seen), seen)

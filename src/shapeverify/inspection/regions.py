@@ -134,6 +134,8 @@ class DefectRegion:
     severity: float = 0.0     # out-of-tolerance volume, mm^3
     kind: str = "deviation"
     extreme_uncertainty: float = float("nan")   # standard uncertainty of ``extreme``, mm
+    n_beyond: int = 0         # of its points, beyond the evaluation distance (:mod:`.beyond`)
+    area_beyond: float = 0.0  # of its area, under those points, mm^2
 
     def to_dict(self) -> dict:
         return {"kind": self.kind, "n": self.n, "area": self.area, "extreme": self.extreme,
@@ -141,7 +143,8 @@ class DefectRegion:
                 "extreme_uncertainty": self.extreme_uncertainty, "severity": self.severity,
                 "centroid": [float(c) for c in self.centroid],
                 "extreme_point": [float(c) for c in self.extreme_point],
-                "faces": [int(f) for f in self.faces], "side": self.side}
+                "faces": [int(f) for f in self.faces], "side": self.side,
+                "n_beyond": self.n_beyond, "area_beyond": self.area_beyond}
 
     def describe(self) -> str:
         """One line for a reason or a label, e.g. 'dent: 120 points, 95.2 mm², -0.412 mm ...'."""
@@ -157,8 +160,11 @@ class DefectRegion:
         faces = ", ".join(str(f) for f in self.faces[:5]) + (" ..." if len(self.faces) > 5 else "")
         dist = (f"up to {self.extreme:.3f} mm from the CAD surface" if self.kind == "material"
                 else f"extreme {self.extreme:+.3f} mm")
+        beyond = (f"; {self.n_beyond} of its points ({self.area_beyond:.1f} mm²) beyond the "
+                  "evaluation distance, measured to the CAD but not in the statistics"
+                  if self.n_beyond else "")
         return (f"{what}: {self.n} points, {self.area:.1f} mm², {dist} at {at} mm"
-                + (f" on face(s) {faces}" if faces else ""))
+                + (f" on face(s) {faces}" if faces else "") + beyond)
 
     def __repr__(self) -> str:
         c = self.centroid
@@ -244,6 +250,9 @@ class RegionSearch:
     min_points: int = MIN_POINTS
     spacing: float | None = None
     tree: cKDTree | None = None
+    #: (N,) bool: points beyond the evaluation distance taken in as evaluated
+    #: (:mod:`.beyond`): counted in the regions' ``n_beyond`` and ``area_beyond``
+    beyond: np.ndarray | None = None
 
 
 @grouped_keywords("search", RegionSearch)
@@ -386,7 +395,7 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
                 member[idx] = True
                 regions.append(_describe(idx, core[sel], core_med[sel], points, values, face,
                                          normals, tree, ev_idx, spacing, lo_lim, hi_lim,
-                                         within))
+                                         within, beyond=search.beyond))
     small = ~member[out_idx]
     outliers = Outliers(out_idx[small], _low_weight(weights, out_idx[small]),
                         _layer_points(points, out_idx[small], values, core, labels, n_layer_comp,
@@ -523,11 +532,13 @@ def _low_weight(weights, idx):
 
 
 def _describe(idx, core, med, points, values, face, normals, tree, ev_idx, spacing,
-              lo_lim, hi_lim, within) -> DefectRegion:
+              lo_lim, hi_lim, within, beyond=None, above=None) -> DefectRegion:
     """Size, area, severity, extreme and position of one region: its out-of-tolerance points
     (scan indices ``idx``) and its core points ``core`` with their neighbourhood medians
-    ``med`` (:mod:`.region_measures` measures the area and the extreme)."""
-    above = bool(med[0] > 0)
+    ``med`` (:mod:`.region_measures` measures the area and the extreme).  ``beyond`` ((N,)
+    bool): the points beyond the evaluation distance (:mod:`.beyond`), counted in ``n_beyond``
+    and ``area_beyond``; ``above``: the region's side (None: the sign of ``med[0]``)."""
+    above = bool(med[0] > 0) if above is None else bool(above)
     v = values[idx]
     r_area = AREA_RADIUS * spacing
     sparse = SPARSE_AREA * spacing ** 2
@@ -571,7 +582,9 @@ def _describe(idx, core, med, points, values, face, normals, tree, ev_idx, spaci
         centroid=centroid, extreme_point=at,
         faces=tuple(int(f) for f in np.unique(face[idx])),
         side="above" if above else "below", indices=idx, severity=severity,
-        extreme_uncertainty=float(uncertainty))
+        extreme_uncertainty=float(uncertainty),
+        n_beyond=0 if beyond is None else int(np.count_nonzero(beyond[idx])),
+        area_beyond=0.0 if beyond is None else float(np.sum(part[beyond[q]])))
 
 
 def _median_uncertainty(tree, ev_idx, values, p, spacing) -> float:
