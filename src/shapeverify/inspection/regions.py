@@ -488,7 +488,8 @@ def _over_measured_surface(tree, ev_idx, values, pc, med, up, labels, comps, lo,
 
 
 def _sheets(points, values, normals, side, link):
-    """``(side, labels)``: the out-of-tolerance points ``side`` (scan indices) linked in space -- at the scan points, ``foot + d x normal`` -- within ``link``."""
+    """``(side, labels)``: the out-of-tolerance points ``side`` (scan indices) linked in
+    space -- at the scan points, ``foot + d x normal`` -- within ``link``."""
     X = points[side] + values[side, None] * normals[side]
     pairs = cKDTree(X).query_pairs(link, output_type="ndarray")
     return side, linked_components(side.size, pairs)[1]
