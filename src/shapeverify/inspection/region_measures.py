@@ -37,7 +37,7 @@ from scipy.spatial import cKDTree
 from ..measures.spacing import nanmedian_rows
 from ._cluster_kernels import cell_areas
 
-__all__ = ["out_area", "fitted_peak", "CELL_BOUND", "SLOPE_RADIUS"]
+__all__ = ["out_area", "fitted_peak", "seen_among", "CELL_BOUND", "SLOPE_RADIUS"]
 
 #: Half size of the square that bounds a point's cell, in spacings.
 CELL_BOUND = 1.5
@@ -475,3 +475,62 @@ def seen_around(tree, ev_idx, values, normals, points, members, above, lo_lim, h
               * SEEN_RING_SPARSEST * spacing)
     at = _kth_same_side(dtree, normals[deep], points[sample], normals[sample], SEEN_K, False)
     return float(np.mean(at <= ref))
+
+
+#: Deep points looked at around a component's points, and the reach of the members around each,
+#: in spacings (``seen_among``).
+AMONG_REACH = 1.5
+
+
+def seen_among(tree, ev_idx, values, normals, points, members, above, lo_lim, hi_lim,
+               spacing) -> int:
+    """How many deep-in-tolerance points (``|d|`` at most half the limit, on the component's side
+    of the part: normal within 60 degrees) lie *among* the out-of-tolerance points ``members``
+    of one component (scan indices, all on one side: ``above``): inside the convex hull, in the
+    point's own tangent plane, of the members within ``AMONG_REACH`` spacings of it (no angular
+    gap of half a turn or more between them).
+
+    A real defect replaces the surface: every point of its own surface inside it is out of
+    tolerance (or in the band where ``|d|`` climbs to the limit), and a deep point lies outside
+    the defect; for a convex defect (a dent, a bump, a pit, a straight scratch) the members
+    within reach of an outside point all lie on one side of it, so the count is 0 whatever the
+    sampling or the defect's size.  A layer (a reflection, a ghost) lies over the surface: the
+    surface's own points are seen among its points, however sparsely the surface is sampled
+    under it (:func:`seen_around` measures that density against the surface around, and a
+    reflection's component sits where the surface under it happens to be sparse)."""
+    members = np.asarray(members)
+    members = members[values[members] > hi_lim[members]] if above else \
+        members[values[members] < lo_lim[members]]
+    if members.size < 3:
+        return 0
+    reach = AMONG_REACH * spacing
+    lists = tree.query_ball_point(points[members], reach)
+    w = np.unique(np.concatenate([np.asarray(x, np.int64) for x in lists]))
+    gi = ev_idx[w]
+    lim = np.abs(hi_lim[gi] if above else lo_lim[gi])
+    deep = gi[np.abs(values[gi]) <= 0.5 * lim]
+    if deep.size == 0:
+        return 0
+    k = min(members.size, 32)
+    d, j = cKDTree(points[members]).query(points[deep], k=k, distance_upper_bound=reach)
+    d, j = d.reshape(deep.size, k), j.reshape(deep.size, k)
+    jj = members[np.minimum(j, members.size - 1)]
+    qn = normals[deep]
+    ok = np.isfinite(d) & (np.einsum("ijk,ik->ij", normals[jj], qn) > SEEN_SAME_SIDE)
+    e1, e2 = _basis(qn)
+    D = points[jj] - points[deep][:, None, :]
+    ang = np.where(ok, np.arctan2(np.einsum("ijk,ik->ij", D, e2), np.einsum("ijk,ik->ij", D, e1)),
+                   np.inf)
+    ang.sort(axis=1)
+    n_ok = ok.sum(axis=1)
+    sel = n_ok >= 3
+    if not sel.any():
+        return 0
+    ang, n_ok = ang[sel], n_ok[sel]
+    # the widest gap between consecutive directions, the wrap-around included
+    k_all = np.arange(ang.shape[1] - 1)[None]
+    gaps = np.where(k_all + 1 < n_ok[:, None],
+                    np.diff(np.where(np.isfinite(ang), ang, 0.0), axis=1), -np.inf)
+    last = np.take_along_axis(ang, (n_ok - 1)[:, None], axis=1)[:, 0]
+    widest = np.maximum(gaps.max(axis=1), ang[:, 0] + 2.0 * np.pi - last)
+    return int(np.count_nonzero(widest < np.pi))

@@ -30,6 +30,15 @@ around and between its points), or when it is dense and two-layered (:func:`_ove
 or when half of its out-of-tolerance points have the in-tolerance surface around them as densely
 as the surface's own points have it (:func:`.region_measures.seen_around`: a layer's core points
 are those in the sampling holes of the surface under it, so the test takes all its points).
+A layer's component sits where the surface under it happens to be sparse (0.4-0.6 of the scan's
+density on the impeller), so two more tests do not ask for the surface's density: deep points
+of the surface lie *among* its points (inside the hull of its points around them, at least
+``AMONG_MIN`` and ``AMONG_SHARE`` of its points, :func:`.region_measures.seen_among`; a real
+defect replaces the surface and holds none, only stray outliers), or the component is a piece
+of a larger sheet -- its out-of-tolerance points linked in space (at the scan points, within
+the link distance, on both sides of the part: a reflection crosses it) to out-of-tolerance points
+outside it -- and the whole sheet is seen around (:func:`_sheet_seen`): the sheet's other
+pieces lie over denser surface.  A real defect's sheet is its own points.
 
 For each region:
 
@@ -73,7 +82,7 @@ from ..measures._grid_kernels import (any_within, count_within, kernel_array, ke
 from ..measures.spacing import (median_spacing, nanmedian_rows,  # noqa: F401 (re-exported)
                                 nearest_distances, neighbourhood_median)
 from .region_measures import (CELL_BOUND, MAX_PEAK_RADIUS, fitted_peak, local_noise, out_area,
-                              seen_around, seen_under)
+                              seen_among, seen_around, seen_under)
 
 logger = logging.getLogger(__name__)
 
@@ -105,6 +114,11 @@ LAYER_RING = (3.0, 6.0)
 #: ... or at least this share of its core points lie where the in-tolerance surface is seen
 #: under (or over) them (:func:`.region_measures.seen_under`).
 SEEN_SHARE = 0.5
+#: ... or at least this many deep-in-tolerance points, and this share of its out-of-tolerance
+#: points, lie among them (:func:`.region_measures.seen_among`; a real defect holds none of its
+#: surface's deep points, only the scan's stray outliers: a few per cent of its points).
+AMONG_MIN = 3
+AMONG_SHARE = 0.1
 #: Registration weight below which a point counts as rejected by the robust registration.
 LOW_WEIGHT = 1e-3
 #: Widest neighbourhood of an out-of-tolerance point looked at, in spacings (the quadratic peak
@@ -358,6 +372,7 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
         if keep.size:
             layer = _over_measured_surface(tree, ev_idx, values, pc, core_med, core_up, labels,
                                            keep, lo_lim[core], hi_lim[core], spacing)
+            sheets = []
             for k, c in enumerate(keep):
                 if not layer[k]:
                     at = labels == c
@@ -368,9 +383,23 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
                     # its out-of-tolerance points (those the region would hold)
                     side = out_idx[(values[out_idx] > 0) == up_c]
                     d, _ = cKDTree(pc[at]).query(points[side], k=1, distance_upper_bound=link)
-                    layer[k] = seen_around(tree, ev_idx, values, normals, points,
-                                           side[np.isfinite(d)], up_c, lo_lim, hi_lim,
-                                           spacing) >= SEEN_SHARE
+                    members = side[np.isfinite(d)]
+                    layer[k] = seen_around(tree, ev_idx, values, normals, points, members, up_c,
+                                           lo_lim, hi_lim, spacing) >= SEEN_SHARE
+                if not layer[k]:
+                    # the surface seen among its points, however sparse there
+                    among = seen_among(tree, ev_idx, values, normals, points, members, up_c,
+                                       lo_lim, hi_lim, spacing)
+                    layer[k] = among >= max(AMONG_MIN, AMONG_SHARE * members.size)
+                if not layer[k]:
+                    # the sheet it is a piece of, judged whole (both sides of the part: a
+                    # reflection crosses it)
+                    if not sheets:
+                        sheets.append(_sheets(points, values, normals, out_idx, link))
+                    sheet = _sheet_of(sheets[0], members)
+                    layer[k] = sheet.size > members.size and _sheet_seen(
+                        tree, ev_idx, values, normals, points, sheet, lo_lim, hi_lim,
+                        spacing) >= SEEN_SHARE
             n_layer_comp = keep[layer]
             keep = keep[~layer]
         if keep.size:
@@ -465,6 +494,34 @@ def _over_measured_surface(tree, ev_idx, values, pc, med, up, labels, comps, lo,
         base = tree.query_ball_point(all_pts[ring], r, return_length=True)
         out[k] = np.median(lens[at]) >= LAYER_DENSITY * np.median(base)
     return out
+
+
+def _sheets(points, values, normals, side, link):
+    """``(side, labels)``: the out-of-tolerance points ``side`` (scan indices) linked in
+    space -- at the scan points, ``foot + d x normal`` -- within ``link``."""
+    X = points[side] + values[side, None] * normals[side]
+    pairs = cKDTree(X).query_pairs(link, output_type="ndarray")
+    return side, linked_components(side.size, pairs)[1]
+
+
+def _sheet_seen(tree, ev_idx, values, normals, points, sheet, lo_lim, hi_lim, spacing) -> float:
+    """:func:`.region_measures.seen_around` of a sheet's out-of-tolerance points, each side of
+    the part on its own, weighted by their numbers."""
+    share, n = 0.0, 0
+    for up in (True, False):
+        part = sheet[(values[sheet] > 0) == up]
+        if part.size:
+            share += part.size * seen_around(tree, ev_idx, values, normals, points, part, up,
+                                             lo_lim, hi_lim, spacing)
+            n += part.size
+    return share / max(n, 1)
+
+
+def _sheet_of(sheets, members):
+    """The out-of-tolerance points of the sheets (:func:`_sheets`) that hold ``members``."""
+    side, labels = sheets
+    at = np.isin(side, members)
+    return side[np.isin(labels, np.unique(labels[at]))]
 
 
 def _layer_points(points, idx, values, core, labels, comps, link) -> int:
