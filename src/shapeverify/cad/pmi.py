@@ -27,7 +27,11 @@ its vertices (mm), so that the caller can check the numbering against the import
 A datum that XCAF leaves without a shape because the file ties it to its faces by an
 ``ITEM_IDENTIFIED_REPRESENTATION_USAGE`` whose item the reader does not read (a
 ``SET_REPRESENTATION_ITEM``) is attached from the STEP entities (:mod:`.pmi_iiru`; ``attached``
-says so); one that cannot be attached keeps ``unattached``, the reason.
+says so); one set up from datum targets of a type XCAF does not read (a ``'circular curve'``,
+NIST FTC 06's G and H) gets them from the STEP entities (:func:`.pmi_iiru.resolve_curve_targets`);
+one that cannot be attached keeps ``unattached``, the reason.  A datum target attached to an
+edge (a line drawn on a face: FTC 06's J and K) keeps the edge's record (``edges``:
+:func:`.pmi_edges.edge_record`, with the face it lies on).
 
 The read runs in the project's importer child process (:mod:`shapeverify.cad.occ_worker`), so
 that a crash of OpenCASCADE on a damaged file raises :class:`~shapeverify.errors.CADImportError`
