@@ -27,7 +27,11 @@ its vertices (mm), so that the caller can check the numbering against the import
 A datum that XCAF leaves without a shape because the file ties it to its faces by an
 ``ITEM_IDENTIFIED_REPRESENTATION_USAGE`` whose item the reader does not read (a
 ``SET_REPRESENTATION_ITEM``) is attached from the STEP entities (:mod:`.pmi_iiru`; ``attached``
-says so); one that cannot be attached keeps ``unattached``, the reason.
+says so); one set up from datum targets of a type XCAF does not read (a ``'circular curve'``,
+NIST FTC 06's G and H) gets them from the STEP entities (:func:`.pmi_iiru.resolve_curve_targets`);
+one that cannot be attached keeps ``unattached``, the reason.  A datum target attached to an
+edge (a line drawn on a face: FTC 06's J and K) keeps the edge's record (``edges``:
+:func:`.pmi_edges.edge_record`, with the face it lies on).
 
 The read runs in the project's importer child process (:mod:`shapeverify.cad.occ_worker`), so
 that a crash of OpenCASCADE on a damaged file raises :class:`~shapeverify.errors.CADImportError`
@@ -379,6 +383,28 @@ def _attach_by_usage(caf, path, names, index, datum_list) -> set:
     return done
 
 
+def _attach_curve_targets(caf, path, names, index, edges, datum_list) -> set:
+    """The datums of ``names`` set up from datum targets XCAF does not read (a 'circular
+    curve'), their targets read here from the STEP entities (:mod:`.pmi_iiru`): ``targets``
+    set and ``type`` DatumTarget; a target that did not resolve keeps ``target_reason``."""
+    from .pmi_iiru import resolve_curve_targets
+
+    try:
+        got = resolve_curve_targets(caf, names, index, edges.map, edges.faces)
+    except Exception as e:      # a diagnosis beyond XCAF; the read stands without it
+        logger.warning("%s: could not follow the datum targets of datums %s: %s", path.name,
+                       sorted(names), e)
+        return set()
+    done = set()
+    for d in datum_list:
+        ts = got.get(d["name"])
+        if ts:
+            d["targets"] = sorted(ts, key=lambda t: t["number"])
+            d["type"] = "DatumTarget"
+            done.add(d["name"])
+    return done
+
+
 def read_pmi_here(path) -> dict:
     """:func:`read_pmi` in this process (what the importer child runs)."""
     from OCP.XCAFDoc import (XCAFDoc_Datum, XCAFDoc_Dimension, XCAFDoc_DimTolTool,
@@ -408,9 +434,15 @@ def read_pmi_here(path) -> dict:
                                      "faces": [], "other": [], "targets": [], "labels": 0})
         d["labels"] += 1
         if o.IsDatumTarget():
-            d["targets"].append({"type": _enum_name(o.GetDatumTargetType()),
-                                 "number": int(o.GetDatumTargetNumber()), "faces": fs,
-                                 "other": other, **_target_params(o)})
+            t = {"type": _enum_name(o.GetDatumTargetType()),
+                 "number": int(o.GetDatumTargetNumber()), "faces": fs, "other": other,
+                 **_target_params(o)}
+            if not fs and "edge" in other:      # a line drawn on a face (NIST FTC 06 J, K)
+                from .pmi_edges import edge_record
+
+                t["edges"] = [edge_record(e, index, edges.map, faces)
+                              for e in _edges_of(first)]
+            d["targets"].append(t)
         else:
             if not fs:                  # a datum feature named by its edge (a hole's rim)
                 probe = {"faces": []}
@@ -438,6 +470,8 @@ def read_pmi_here(path) -> dict:
             and not d["targets"]}
     if bare:
         bare -= _attach_by_usage(caf, path, bare, index, datum_list)
+    if bare:
+        bare -= _attach_curve_targets(caf, path, bare, index, edges, datum_list)
     if bare:
         try:
             why = _unattached(caf, bare)
@@ -516,6 +550,9 @@ def read_pmi_here(path) -> dict:
         used.update(it.get("faces2", ()))
         for t in it.get("targets", ()):
             used.update(t["faces"])
+            used.update(t.get("on_faces", ()))
+            for e in t.get("edges", ()):
+                used.update(e.get("on_faces", ()))
     logger.info("%s: PMI %d datums, %d geometric tolerances, %d dimensions on %d of %d faces",
                 path.name, len(datum_list), len(tolerances), len(dimensions), len(used),
                 len(faces))

@@ -19,7 +19,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["edge_record", "edge_feature"]
+__all__ = ["edge_record", "edge_feature", "circle_of", "faces_along"]
 
 #: relative tolerance of "same radius", "on the axis" (of the radius) and "parallel axes"
 _REL = 1e-4
@@ -86,6 +86,66 @@ def _faces_on(edge, faces, tol: float) -> list:
         if ok:
             out.append(i)
     return out
+
+
+def _point_faces(p, faces, boxes, tol: float) -> list:
+    """Faces (indices) within ``tol`` of the point ``p``."""
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_MakeVertex
+    from OCP.BRepExtrema import BRepExtrema_DistShapeShape
+    from OCP.gp import gp_Pnt
+
+    v = BRepBuilderAPI_MakeVertex(gp_Pnt(*map(float, p))).Vertex()
+    out = []
+    for i, f in enumerate(faces):
+        a, b = boxes[i]
+        if np.any(a - tol > p) or np.any(b + tol < p):
+            continue
+        d = BRepExtrema_DistShapeShape(v, f)
+        if d.IsDone() and d.Value() <= tol:
+            out.append(i)
+    return out
+
+
+def faces_along(edges, faces, n: int = 17, tol: float | None = None) -> tuple[list, list]:
+    """(faces, points on none): the faces that hold the points of ``edges`` (``n`` points of
+    each), each point on at least one of them -- a curve drawn across several faces (a circle
+    around a boss split in two halves) -- and the sample points that lie on no face (within
+    ``tol``: 10 edge tolerances, at least 1e-4 mm)."""
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepBndLib import BRepBndLib
+    from OCP.Bnd import Bnd_Box
+    from OCP.TopoDS import TopoDS
+
+    boxes = []
+    for f in faces:
+        box = Bnd_Box()
+        BRepBndLib.Add_s(f, box)
+        boxes.append((np.array(box.CornerMin().Coord()), np.array(box.CornerMax().Coord())))
+    on, off = [], []
+    for e in edges:
+        e = TopoDS.Edge(e)
+        t = tol if tol is not None else max(1e-4, 10 * BRep_Tool.Tolerance_s(e))
+        for p in _points(e, n):
+            fs = _point_faces(np.asarray(p), faces, boxes, t)
+            if not fs:
+                off.append([round(float(x), 6) for x in p])
+            on.extend(f for f in fs if f not in on)
+    return sorted(on), off
+
+
+def circle_of(records: list) -> tuple[dict | None, str]:
+    """({centre, axis, radius} of edges that are arcs of one circle, '') or (None, why not)."""
+    if not records or any(r["curve"] != "Circle" for r in records):
+        kinds = sorted({r["curve"] for r in records}) or ["no edge"]
+        return None, f"its curve is not a circle ({', '.join(kinds)})"
+    c0, a0, r0 = (np.asarray(records[0]["centre"]), np.asarray(records[0]["axis"]),
+                  float(records[0]["radius"]))
+    for r in records[1:]:
+        if (abs(float(r["radius"]) - r0) > _REL * r0
+                or np.linalg.norm(np.cross(np.asarray(r["axis"]), a0)) > _REL
+                or np.linalg.norm(np.asarray(r["centre"]) - c0) > _REL * r0):
+            return None, "its edges are arcs of different circles"
+    return {"centre": c0.tolist(), "axis": a0.tolist(), "radius": r0}, ""
 
 
 def edge_record(edge, index, edge_faces, faces) -> dict:

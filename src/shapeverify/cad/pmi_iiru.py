@@ -223,3 +223,95 @@ def resolve_datums(caf, path, names, index) -> dict:
             out[n] = (faces, f"{what} of its datum feature ({len(faces)} faces, resolved "
                              "from the STEP entities)")
     return out
+
+
+#: datum target types (``PLACED_DATUM_TARGET_FEATURE.description``) that OpenCASCADE's XCAF
+#: reader does not read and :func:`resolve_curve_targets` follows from the STEP entities
+CURVE_TARGETS = {"circular curve": "CircularCurve"}
+
+
+def resolve_curve_targets(caf, names, index, edge_faces, faces) -> dict:
+    """{datum letter: [target records]} of the datums ``names`` set up from datum targets whose
+    type XCAF does not read (:data:`CURVE_TARGETS`: a ``'circular curve'`` -- a circle along
+    which the simulator touches the part), followed from the STEP entities:
+
+    ``SHAPE_ASPECT_RELATIONSHIP(target, DATUM)`` names the ``PLACED_DATUM_TARGET_FEATURE``;
+    ``FEATURE_FOR_DATUM_TARGET_RELATIONSHIP(feature, target)`` the shape aspect of its geometry;
+    that aspect's ``GEOMETRIC_ITEM_SPECIFIC_USAGE`` the curve (a ``COMPOSITE_CURVE`` of two
+    half circles in NIST FTC 06); the curve's shape is the one the transfer made of it
+    (``STEPConstruct::FindShape``), its edges described by :func:`.pmi_edges.edge_record`.
+
+    Each record: ``type`` (``CircularCurve``), ``number`` (the target's id), ``faces`` ([]),
+    ``other`` (['edge']), ``edges`` (the records), and for a curve whose edges are arcs of one
+    circle ``at`` (its centre), ``direction`` (its axis), ``length`` (its diameter),
+    ``on_faces`` (the faces every point of the circle lies on, :func:`.pmi_edges.faces_along`)
+    and ``attached``; or ``target_reason`` (why not).  Datums not set up from such targets are
+    left out.
+    """
+    from OCP.STEPConstruct import STEPConstruct
+    from OCP.StepAP242 import (StepAP242_DraughtingModelItemAssociation,
+                               StepAP242_ItemIdentifiedRepresentationUsage)
+    from OCP.StepDimTol import StepDimTol_Datum, StepDimTol_PlacedDatumTargetFeature
+    from OCP.StepRepr import (StepRepr_FeatureForDatumTargetRelationship,
+                              StepRepr_ShapeAspectRelationship)
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.TopExp import TopExp_Explorer
+
+    from .pmi_edges import circle_of, edge_record, faces_along
+
+    model, tp = caf.Reader().WS().Model(), caf.Reader().WS().TransferReader().TransientProcess()
+    ents = [model.Value(i) for i in range(1, model.NbEntities() + 1)]
+    rels = [e for e in ents if isinstance(e, StepRepr_ShapeAspectRelationship)]
+    usages = [e for e in ents if isinstance(e, StepAP242_ItemIdentifiedRepresentationUsage)
+              and not isinstance(e, StepAP242_DraughtingModelItemAssociation)]
+    out: dict = {}
+    for r in rels:
+        tgt, dat = r.RelatingShapeAspect(), r.RelatedShapeAspect()
+        if not isinstance(tgt, StepDimTol_PlacedDatumTargetFeature) or \
+                not isinstance(dat, StepDimTol_Datum):
+            continue
+        name = dat.Identification().ToCString() if dat.Identification() is not None else ""
+        desc = tgt.Description().ToCString() if tgt.Description() is not None else ""
+        if name not in names or desc not in CURVE_TARGETS:
+            continue
+        num = tgt.TargetId().ToCString() if tgt.TargetId() is not None else ""
+        rec = {"type": CURVE_TARGETS[desc], "number": int(num) if num.isdigit() else 0,
+               "faces": [], "other": ["edge"]}
+        out.setdefault(name, []).append(rec)
+        feats = [x.RelatingShapeAspect() for x in rels
+                 if isinstance(x, StepRepr_FeatureForDatumTargetRelationship)
+                 and x.RelatedShapeAspect() is tgt]
+        items = [u.IdentifiedItemValue(j) for f in feats for u in usages
+                 if u.Definition() is not None and u.Definition().Value() is f
+                 for j in range(1, u.NbIdentifiedItem() + 1)]
+        edges = []
+        for x in items:
+            s = STEPConstruct.FindShape_s(tp, x) if x is not None else None
+            if s is None or s.IsNull():
+                continue
+            exp = TopExp_Explorer(s, TopAbs_EDGE)
+            while exp.More():
+                edges.append(exp.Current())
+                exp.Next()
+        if not edges:
+            rec["target_reason"] = (f"its {desc} target {_label(tgt)} names no curve the "
+                                    "transfer made a shape of (FEATURE_FOR_DATUM_TARGET_"
+                                    "RELATIONSHIP -> GEOMETRIC_ITEM_SPECIFIC_USAGE)")
+            continue
+        rec["edges"] = [edge_record(e, index, edge_faces, faces) for e in edges]
+        circ, why = circle_of(rec["edges"])
+        if circ is None:
+            rec["target_reason"] = f"its {desc} target {_label(tgt)}: {why}"
+            continue
+        on, off = faces_along(edges, faces)
+        if off:
+            rec["target_reason"] = (f"its {desc} target {_label(tgt)} (circle \u2300"
+                                    f"{2 * circ['radius']:.6g} at {circ['centre']}) does not lie "
+                                    f"on the part's faces (e.g. at {off[0]})")
+            continue
+        rec.update({"at": circ["centre"], "direction": circ["axis"],
+                    "length": 2.0 * circ["radius"], "on_faces": on,
+                    "attached": (f"{desc!r} target {_label(tgt)}: its curve (a circle \u2300"
+                                 f"{2 * circ['radius']:.6g}) on faces "
+                                 f"{', '.join(map(str, on))}, resolved from the STEP entities")})
+    return out

@@ -35,7 +35,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["POLYGON", "shift_allowance", "best_profile_shift", "motion_of", "profile_with_shift"]
+__all__ = ["POLYGON", "Infeasible", "shift_allowance", "best_profile_shift", "motion_of",
+           "profile_with_shift", "pattern_shift_limits"]
 
 #: sides of the regular polygon inscribed in each shift disc
 POLYGON = 64
@@ -75,6 +76,10 @@ def shift_allowance(points, point, axis, hole: bool, material: str, size) -> tup
     return max(r, 0.0), det
 
 
+class Infeasible(ValueError):
+    """The datum features do not fit their simulators at MMB/LMB in any pose."""
+
+
 def _skew_rows(e) -> np.ndarray:
     """(3, 6): the displacement of the point e under the small motion (omega, t)."""
     e = np.asarray(e, float)
@@ -96,9 +101,12 @@ def best_profile_shift(X, normals, d, S, datums, polygon: int = POLYGON):
     X, normals : (N, 3)   the profile's points and the CAD normals at their feet
     d : (N,)              their signed deviations
     S : (6, m)            the motions the shifted datums constrained
-    datums : list of (ends (k, 3), axis (3,), r)
-                          each shifted datum: points of its axis where the shift is bounded,
-                          its direction and its shift radius
+    datums : list of (ends (k, 3), axis (3,), r[, offsets (k, 3)])
+                          each shifted datum feature: points of its axis where the shift is
+                          bounded, its direction, its shift radius, and where the feature's
+                          axis is off its simulator's at those points (a feature of a pattern
+                          datum: the pattern is placed by least squares; default none) --
+                          ``|offset + motion(end)| <= r`` across the axis
 
     Returns
     -------
@@ -109,25 +117,33 @@ def best_profile_shift(X, normals, d, S, datums, polygon: int = POLYGON):
     X, Nn, d = (np.asarray(v, float) for v in (X, normals, d))
     S = np.asarray(S, float)
     m = S.shape[1]
-    if m == 0 or all(float(r) <= 0 for _, _, r in datums):
+    if m == 0 or all(float(x[2]) <= 0 for x in datums):
         return float(np.abs(d).max()), np.zeros(6), np.zeros(m)
     G = np.hstack([np.cross(X, Nn), Nn]) @ S                   # d' = d + G y
     one = np.ones((len(d), 1))
     A = [np.hstack([G, -one]), np.hstack([-G, -one])]
     b = [-d, d]
     ang = 2 * np.pi * (np.arange(polygon) + 0.5) / polygon
-    for ends, axis, r in datums:
+    for item in datums:
+        ends, axis, r = item[:3]
+        ends = np.atleast_2d(np.asarray(ends, float))
+        offs = (np.atleast_2d(np.asarray(item[3], float)) if len(item) > 3
+                else np.zeros_like(ends))
         a = np.asarray(axis, float) / np.linalg.norm(axis)
         e1 = np.cross(a, np.eye(3)[int(np.argmin(np.abs(a)))])
         e1 /= np.linalg.norm(e1)
         e2 = np.cross(a, e1)
         U = np.outer(np.cos(ang), e1) + np.outer(np.sin(ang), e2)     # (polygon, 3)
-        for e in np.atleast_2d(ends):
+        for e, o in zip(ends, offs):
             A.append(np.hstack([U @ _skew_rows(e) @ S, np.zeros((polygon, 1))]))
-            b.append(np.full(polygon, max(float(r), 0.0) * np.cos(np.pi / polygon)))
+            b.append(np.full(polygon, max(float(r), 0.0) * np.cos(np.pi / polygon)) - U @ o)
     c = np.r_[np.zeros(m), 1.0]
     res = linprog(c, A_ub=np.vstack(A), b_ub=np.concatenate(b),
                   bounds=[(None, None)] * m + [(0, None)], method="highs")
+    if res.status == 2:
+        raise Infeasible("no pose of the part fits its datum features on their simulators "
+                         "(a feature is off its place by more than its departure from the "
+                         "boundary allows)")
     if res.status != 0:
         raise ValueError(f"the datum shift optimisation failed: {res.message}")
     y = res.x[:m]
@@ -153,9 +169,16 @@ def profile_with_shift(c, ctx, X, drf, d, normals):
         k = drf.names.index(name)
         spec, fit = ctx.plan.datums[name], drf.datums[k]
         what = "MMB" if mat == "M" else "LMB"
+        if fit.kind == "pattern":
+            got, dd = _pattern_shift(c, name, spec, ctx, drf, k, mat)
+            datums.extend(got)
+            S_parts.append(drf.constrained[k])
+            det[name] = dd
+            continue
         if fit.kind != "axis":
             raise ValueError(f"{c.name}: datum {name} at {what} is a {fit.kind}; a datum "
-                             "feature shift is applied to hole and boss axes only")
+                             "feature shift is applied to hole and boss axes and patterns of "
+                             "them only")
         if spec.size is None:
             raise ValueError(f"{c.name}: datum {name} at {what} needs its size limits (give "
                              f"datums: {{{name}: {{size: {{nominal, lower, upper}}}}}})")
@@ -169,7 +192,11 @@ def profile_with_shift(c, ctx, X, drf, d, normals):
         det[name] = dd
     S = np.hstack(S_parts)
     ok = np.isfinite(d)
-    lin, xi, _ = best_profile_shift(X[ok], normals[ok], d[ok], S, datums)
+    try:
+        lin, xi, _ = best_profile_shift(X[ok], normals[ok], d[ok], S, datums)
+    except Infeasible as e:
+        return d, {"datums": det, "applied": False, "reason": str(e),
+                   "max_before": float(np.nanmax(np.abs(d)))}
     T = rigid_exp(xi)
     d2 = np.asarray(ctx.prep.closest(X @ T[:3, :3].T + T[:3, 3], exact=True).distances, float)
     better = np.nanmax(np.abs(d2)) < np.nanmax(np.abs(d))
@@ -177,3 +204,83 @@ def profile_with_shift(c, ctx, X, drf, d, normals):
            "max_before": float(np.nanmax(np.abs(d))), "max_after": float(np.nanmax(np.abs(d2))),
            "applied": bool(better)}
     return (d2 if better else d), out
+
+
+def pattern_shift_limits(groups, sizes, material: str, N) -> tuple[list, list]:
+    """The shift limits of a pattern (or common) datum referenced at MMB/LMB: the pattern's
+    simulator is rigid -- each feature's boundary (a pin of a hole's MMB diameter ...) at its
+    basic place relative to the others -- so the whole pattern may move (translate and turn)
+    as long as every feature still holds (or stays within) its boundary.
+
+    Parameters
+    ----------
+    groups : list of (p0, d0, points (m, 3), hole)
+        Each feature: its nominal axis (a point, the direction) and its scan points, in the
+        DRF's frame (where the simulators sit on their nominal axes).
+    sizes : list
+        Each feature's size limits (``nominal``, ``lower``, ``upper``).
+    material : 'M' or 'L'
+    N : (6, k)
+        The motions free before the pattern datum (its axes' fits turn only in those, as in
+        :func:`.drf.fit_drf`).
+
+    Returns
+    -------
+    (datums, details): datums for :func:`best_profile_shift` -- per feature (its axis' two
+    ends, its direction, the shift radius, the axis' offsets from the simulator's axis at the
+    ends) -- and per feature :func:`shift_allowance`'s details with its ``offset``.
+    """
+    from .drf import DatumFeature, _fit
+
+    out, det = [], []
+    for k, ((p0, d0, P, hole), size) in enumerate(zip(groups, sizes)):
+        p0 = np.asarray(p0, float)
+        d0 = np.asarray(d0, float) / np.linalg.norm(d0)
+        fit, _, _ = _fit(DatumFeature(f"[{k + 1}]", "axis", p0, d0, P, hole=hole), P, N)
+        c, a = fit.point, fit.direction
+        r, dd = shift_allowance(P, c, a, hole, material, size)
+        h = (P - c) @ a
+        ends = c + np.outer([h.min(), h.max()], a)
+        offs = []
+        for e in ends:
+            q = e - p0
+            offs.append(q - (q @ d0) * d0)        # the axis' end off the simulator's axis
+        offs = np.array(offs)
+        dd["offset"] = float(np.linalg.norm(offs, axis=1).max())
+        out.append((ends, a, r, offs))
+        det.append(dd)
+    return out, det
+
+
+def _pattern_shift(c, name, spec, ctx, drf, k, mat):
+    """(datums for :func:`best_profile_shift`, details) of the pattern datum ``name`` (the
+    k-th of the DRF) at MMB/LMB: its features' sizes from ``spec.size`` (all alike) or
+    ``spec.face_sizes`` (per face)."""
+    from .alignment import face_indices
+    from .datum_targets import pattern_feature
+
+    what = "MMB" if mat == "M" else "LMB"
+    if spec.size is None and spec.face_sizes is None:
+        raise ValueError(f"{c.name}: the pattern datum {name} at {what} needs its features' size "
+                         f"limits (datums: {{{name}: {{size: ...}}}} or face_sizes: [...])")
+    feat = pattern_feature(name, spec, ctx)
+    fidx = face_indices(ctx.prep.model, spec.faces).tolist()
+    groups, sizes = [], []
+    for p0, d0, idx, hole in feat.groups:
+        P = drf.apply(feat.points[idx])
+        if spec.face_sizes is None:
+            size = spec.size
+        else:       # the size of the group's faces: the face nearest its axis' points
+            cyl = [i for i in fidx if abs(abs(np.asarray(ctx.feats[i].axis) @ d0) - 1) < 1e-4
+                   and np.linalg.norm(np.cross(ctx.feats[i].center - p0, d0)) < 1e-4
+                   * ctx.feats[i].diameter + 1e-6]
+            got = {spec.face_sizes[fidx.index(i)] for i in cyl}
+            if len(got) != 1:
+                raise ValueError(f"{c.name}: datum {name}: the faces of one of its features "
+                                 f"have {len(got)} sizes in face_sizes (one each)")
+            size = got.pop()
+        groups.append((p0, d0, P, hole))
+        sizes.append(size)
+    N = np.hstack(list(drf.constrained[k:]) + [drf.free_basis])
+    datums, det = pattern_shift_limits(groups, sizes, mat, N)
+    return datums, {"boundary": what, "features": det}

@@ -42,7 +42,8 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["POINT_RADIUS", "LINE_RADIUS", "SURFACE_BAND", "point_contact", "line_contact", "in_area",
+__all__ = ["POINT_RADIUS", "LINE_RADIUS", "SURFACE_BAND", "point_contact", "line_contact",
+           "circle_contact", "in_area",
            "targets_feature", "pattern_feature"]
 
 #: scan points within this distance (mm) of a point target make its neighbourhood plane
@@ -130,6 +131,56 @@ def line_contact(X, p0, u, n, length) -> tuple[float, float]:
     return float(a - b * h), float(a + b * h)
 
 
+def circle_contact(X, p0, axis, radius, slope, hole: bool) -> np.ndarray:
+    """The centre of a circular line target (a ring of diameter ``2 radius`` about ``p0``,
+    normal ``axis``, touching the part along a circle): the centre of the smallest circle
+    holding the scan points of a boss (the ring closing on it), of the largest circle inside
+    those of a hole (a plug opening in it) -- each point first moved along the surface to the
+    ring's plane: its radius about that centre less ``slope`` times its height above the
+    plane (found by fixed-point iteration; ``slope``: the
+    CAD surface's change of radius with height at the circle, ``-n_axial / n_radial`` of its
+    normal; 0 on a cylinder, ``tan`` of the half angle on a drafted boss).  The ring's
+    plane is held at its basic place (the datums before it fix the height).
+
+    Returns
+    -------
+    (3,) array: the centre, in the ring's plane.
+
+    Raises
+    ------
+    ValueError
+        Fewer than 3 points, or they cover less than :data:`.gdt_zones.MIN_COVERAGE` degrees of
+        the circle.
+    """
+    from .gdt_zones import MIN_COVERAGE, angular_coverage, circles_zone, tangent_basis
+
+    X = np.asarray(X, np.float64)
+    p0 = np.asarray(p0, float)
+    a = np.asarray(axis, float) / np.linalg.norm(axis)
+    if X.shape[0] < 3:
+        raise ValueError(f"{X.shape[0]} scan points along the circular datum target at "
+                         f"{np.round(p0, 4).tolist()} (need 3; is it scanned?)")
+    cover = angular_coverage(X, p0, a)
+    if cover < MIN_COVERAGE:
+        raise ValueError(f"the scan covers {cover:.0f} degrees of the circular datum target at "
+                         f"{np.round(p0, 4).tolist()} (need {MIN_COVERAGE:.0f})")
+    q = X - p0
+    h = q @ a
+    B = tangent_basis(a)
+    xy = q @ B.T
+    c2 = np.zeros(2)
+    for _ in range(20):     # the move to the plane is radial about the centre being found
+        v = xy - c2
+        rho = np.linalg.norm(v, axis=1)
+        moved = c2 + v * ((rho - float(slope) * h) / rho)[:, None]
+        _, c_new, _ = circles_zone(moved, c2, "inscribed" if hole else "circumscribed")
+        step = float(np.linalg.norm(c_new - c2))
+        c2 = c_new
+        if step < 1e-12:
+            break
+    return p0 + c2 @ B
+
+
 def in_area(X, target) -> np.ndarray:
     """Mask of the points ``X`` inside an area target (``type`` circle: within ``length/2``
     of ``at`` across ``direction``; rectangle: ``length`` along ``xdirection``, ``width``
@@ -182,6 +233,13 @@ def targets_feature(name, spec, ctx):
     pts, contacts = [], []
     for t in spec.targets:
         at = np.asarray(t.at, float)
+        if t.type == "circular_line":
+            k0 = sum(len(p) for p in pts)
+            X, extra = _circle_points(name, t, ctx)
+            pts.append(X)
+            contacts.append(("circular_line", at, extra.pop("axis"),
+                             np.arange(k0, k0 + len(X)), None, float(t.length), extra))
+            continue
         fc = int(face_indices(ctx.prep.model, [t.face])[0])
         # the normal of the target's own face (a target at an edge has its closest CAD
         # point on either face)
@@ -216,6 +274,42 @@ def targets_feature(name, spec, ctx):
         nbar = contacts[0][2]
     return DatumFeature(name, "targets", np.mean([c[1] for c in contacts], axis=0),
                         nbar / np.linalg.norm(nbar), X, contacts=tuple(contacts))
+
+
+def _circle_points(name, t, ctx) -> tuple[np.ndarray, dict]:
+    """(scan points, {axis, slope, hole}) of a circular line target: the points of its faces
+    whose feet lie within :data:`LINE_RADIUS` (1.5 scan spacings when more) of the circle; the
+    slope and side from the CAD normals at 16 points of the circle."""
+    from .alignment import face_indices
+    from .gdt_zones import tangent_basis
+
+    S = ctx.S
+    at = np.asarray(t.at, float)
+    a = np.asarray(t.direction, float) / np.linalg.norm(t.direction)
+    R = 0.5 * float(t.length)
+    faces = t.faces if t.faces is not None else [t.face]
+    fidx = [int(i) for i in face_indices(ctx.prep.model, faces)]
+    B = tangent_basis(a)
+    ang = 2 * np.pi * np.arange(16) / 16
+    U = np.outer(np.cos(ang), B[0]) + np.outer(np.sin(ang), B[1])
+    foot = ctx.prep.closest(at + R * U, exact=True)
+    far = np.asarray(foot.distances, float)
+    if np.abs(far).max() > max(1e-3, 1e-6 * R):
+        raise ValueError(f"datum {name}: its circular target (\u2300{2 * R:g} at "
+                         f"{np.round(at, 4).tolist()}) is {np.abs(far).max():.3g} mm off the CAD "
+                         "surface")
+    Nn = np.asarray(foot.normals, float)
+    nr, na = np.sum(Nn * U, axis=1), Nn @ a
+    if np.abs(nr).min() < 0.1:
+        raise ValueError(f"datum {name}: the surface under its circular target is nearly "
+                         "perpendicular to the ring's axis (a ring touches a boss or a hole)")
+    q = S.feet - at
+    h = q @ a
+    rad = np.linalg.norm(q - np.outer(h, a), axis=1)
+    sp = float(getattr(S.support, "spacing", 0.0) or 0.0)
+    sel = S.on(fidx) & (np.hypot(rad - R, h) <= max(LINE_RADIUS, 1.5 * sp))
+    return S.X[sel], {"axis": a, "slope": float(np.mean(-na / nr)),
+                      "hole": bool(np.mean(nr) < 0)}
 
 
 def pattern_feature(name, spec, ctx):

@@ -67,8 +67,9 @@ class DatumFeature:
     deviations: np.ndarray | None = field(default=None, repr=False)
     #: 'midplane': the points of the opposite face (outward normal -direction)
     points2: np.ndarray | None = field(default=None, repr=False)
-    #: 'targets': the contacts, each (kind 'point' | 'line', p0, n, indices into ``points``,
-    #: line direction u or None, line length) (:mod:`.datum_targets`)
+    #: 'targets': the contacts, each (kind 'point' | 'line' | 'circular_line', p0, n, indices
+    #: into ``points``, line direction u or None, line length or circle diameter[, a circle's
+    #: {slope, hole}]) (:mod:`.datum_targets`)
     contacts: tuple | None = field(default=None, repr=False)
     #: 'pattern': the features, each (p0, axis, indices into ``points``, hole)
     groups: tuple | None = field(default=None, repr=False)
@@ -247,11 +248,24 @@ def _fit(f: DatumFeature, X, N):
 
 def _fit_targets(f: DatumFeature, X):
     """A datum of point and line targets: one row per contact (:mod:`.datum_targets`)."""
-    from .datum_targets import line_contact, point_contact_plane
+    from .datum_targets import circle_contact, line_contact, point_contact_plane
 
     rows, rhs, pms, s_all = [], [], [], []
-    for kind, p0, n, idx, u, length in f.contacts:
+    for contact in f.contacts:
+        kind, p0, n, idx, u, length = contact[:6]
         p0, n = np.asarray(p0, float), np.asarray(n, float)
+        if kind == "circular_line":
+            # a ring about the axis n: its centre fixes the two translations across n
+            ex = contact[6]
+            try:
+                cm = circle_contact(X[idx], p0, n, 0.5 * length, ex["slope"], ex["hole"])
+            except ValueError as e:
+                raise ValueError(f"datum {f.name}: {e}") from None
+            for b in tangent_basis(n):
+                rows.append(np.r_[np.cross(cm, b), b])
+                rhs.append(b @ (p0 - cm))
+            pms.append(cm)
+            continue
         try:
             # the rows use the CAD normal n, not the scanned surface's: a noisy measured normal
             # would give a datum's rows small components in directions it does not control
@@ -274,8 +288,9 @@ def _fit_targets(f: DatumFeature, X):
     pm = np.mean(pms, axis=0)
     fit = DatumFit(f.name, "targets", f"{len(f.contacts)} datum target contacts (point: the "
                    "neighbourhood plane's point on the target's normal; line: the deviations' "
-                   "line at its ends)", pm, np.asarray(f.direction, float), len(X),
-                   float(np.ptp(s_all)))
+                   "line at its ends; circular line: the centre of the ring closed on the "
+                   "part)", pm, np.asarray(f.direction, float), len(X),
+                   float(np.ptp(s_all)) if s_all else 0.0)
     return fit, np.array(rows), np.array(rhs)
 
 

@@ -11,17 +11,90 @@
 """
 from __future__ import annotations
 
-_TYPES = {"Point": "point", "Line": "line", "Circle": "circle", "Rectangle": "rectangle"}
+_TYPES = {"Point": "point", "Line": "line", "Circle": "circle", "Rectangle": "rectangle",
+          "CircularCurve": "circular_line"}
+
+
+def _line_on_edge(t: dict, what: str, ctx) -> tuple[dict | None, str, str]:
+    """(target entry, note, '') of a line target attached to an edge drawn on one face (NIST
+    FTC 06 J, K): the line is the edge's -- its middle, direction and length -- on the face it
+    lies on; the note says how the file's target parameters compare; or (None, '', why)."""
+    import numpy as np
+
+    es = t.get("edges") or []
+    if len(es) != 1 or es[0]["curve"] != "Line":
+        return None, "", (f"{what} is attached to {len(es)} edges "
+                          f"({', '.join(e['curve'] for e in es) or 'none read'}), not to one "
+                          "straight edge")
+    e = es[0]
+    on = e.get("on_faces") or []
+    if len(on) != 1:
+        where = (f"between faces {', '.join(map(str, e['faces']))}" if e["faces"] else
+                 f"on {len(on)} faces" if on else "on no face of the part")
+        return None, "", f"{what} is attached to an edge {where}, not drawn on one face"
+    face = ctx.fmap.get(on[0])
+    if face is None:
+        return None, "", f"{what}: its face could not be imported"
+    P = np.asarray(e["points"], float)
+    a, b = P[0], P[-1]
+    L = float(np.linalg.norm(b - a))
+    if not L > 0:
+        return None, "", f"{what}: its edge has no length"
+    u = (b - a) / L
+    entry = {"type": "line", "at": [float(x) for x in 0.5 * (a + b)], "face": f"face:{face}",
+             "direction": [float(x) for x in u], "length": L}
+    notes = []
+    if "at" in t:
+        at = np.asarray(t["at"], float)
+        ends = min(np.linalg.norm(at - a), np.linalg.norm(at - b))
+        along = [k for k in ("direction", "xdirection")
+                 if abs(abs(np.asarray(t[k], float) @ u) - 1) < 1e-6]
+        start = ("starts the line at an end of the edge" if ends < 1e-6 * max(L, 1.0)
+                 else "is off the edge's ends")
+        notes.append(f"the file's placement {start}"
+                     + (f", along its {along[0]}" if along else ", along neither of its axes"))
+        if abs(t["length"] - L) > 1e-6 * L:
+            r = t["length"] / L
+            inch = abs(r - 25.4) < 1e-6 * r
+            notes.append(f"its target length reads {t['length']:.6g} mm, {r:.6g} times the "
+                         "edge's" + (" (the file labels a length in mm as inch)" if inch else ""))
+    note = (f"target {t['number']}: the line of its edge ({L:.6g} mm on face {face}); "
+            + "; ".join(notes))
+    return entry, note, ""
 
 
 def targets_spec(d: dict, ctx, src: dict) -> tuple[dict | None, str]:
-    """(the ``datums`` entry of a datum set up from datum targets, '') or (None, why not)."""
-    out = []
+    """(the ``datums`` entry of a datum set up from datum targets, '') or (None, why not).
+
+    A line target attached to an edge drawn on a face takes the edge's line
+    (:func:`_line_on_edge`); a circular-curve target (read from the STEP entities by
+    :mod:`shapeverify.cad.pmi_iiru`) is a ``circular_line`` on the faces its circle lies on."""
+    out, notes = [], []
     for t in d["targets"]:
         what = f"datum {d['name']}: target {d['name']}{t['number']} ({t['type']})"
         kind = _TYPES.get(t["type"])
         if kind is None:
-            return None, f"{what} is of a type not set up yet (point, line, circle, rectangle)"
+            return None, (f"{what} is of a type not set up yet (point, line, circle, rectangle, "
+                          "circular curve)")
+        if t.get("target_reason"):
+            return None, f"{what}: {t['target_reason']}"
+        if kind == "line" and not t["faces"] and t.get("edges"):
+            e, note, why = _line_on_edge(t, what, ctx)
+            if e is None:
+                return None, why
+            out.append(e)
+            notes.append(note)
+            continue
+        if kind == "circular_line":
+            faces = [ctx.fmap.get(f) for f in t.get("on_faces") or []]
+            if not faces or any(f is None for f in faces):
+                return None, f"{what}: its circle lies on no imported face"
+            out.append({"type": kind, "at": [float(x) for x in t["at"]],
+                        "faces": [f"face:{f}" for f in faces],
+                        "direction": [float(x) for x in t["direction"]],
+                        "length": float(t["length"])})
+            notes.append(f"target {t['number']}: {t['attached']}")
+            continue
         if "at" not in t:
             return None, f"{what}: the file gives no position for it (no target parameters)"
         if len(t["faces"]) != 1:
@@ -48,6 +121,8 @@ def targets_spec(d: dict, ctx, src: dict) -> tuple[dict | None, str]:
     if len(areas) > 1:
         return None, (f"datum {d['name']}: area targets mixed with point/line targets (not set "
                       "up yet)")
+    if notes:
+        src = {**src, "targets_from_geometry": notes}
     return {"targets": out, "kind": "targets", "pmi": src}, ""
 
 
@@ -94,36 +169,61 @@ def common_datums(ds: list, ctx) -> tuple[list | None, str]:
 _MATERIAL = {"MaximumMaterialRequirement": "M", "LeastMaterialRequirement": "L"}
 
 
-def datum_modifiers(item: dict, ctx) -> tuple[dict | None, str]:
-    """({datum letter: 'M' | 'L'} of a tolerance's DRF, '') or (None, why not): each modified
-    datum must be a single hole or boss axis with a toleranced diameter (``Size_Diameter``
-    with limits on its faces), whose limits are then put into its ``datums`` entry
-    (``size``: the MMB/LMB, :mod:`.datum_shift`)."""
+def _diameter(letter: str, ctx) -> dict | None:
+    """The toleranced diameter (Size_Diameter with limits) on every face of a PMI datum."""
     from .pmi_plan import _mm
 
+    want = set(next(d for d in ctx.pmi["datums"] if d["name"] == letter)["faces"])
+    size = next((x for x in ctx.pmi["dimensions"] if x["type"] == "Size_Diameter"
+                 and x["lower"] is not None and want and want <= set(x["faces"])), None)
+    if size is None:
+        return None
+    return {"nominal": _mm(size["nominal"]), "lower": _mm(size["lower"]),
+            "upper": _mm(size["upper"])}
+
+
+def datum_modifiers(item: dict, ctx, names: list) -> tuple[dict | None, str]:
+    """({DRF datum name: 'M' | 'L'} of a tolerance's DRF ``names`` (common datums joined,
+    ``H-J``), '') or (None, why not): each modified datum must be a hole or boss axis, or a
+    pattern / common datum of them (every datum of a common one with the same modifier), each
+    feature with a toleranced diameter (``Size_Diameter`` with limits on its faces), whose
+    limits are then put into its ``datums`` entry (``size``, or ``face_sizes`` for features of
+    different sizes: the MMB/LMB, :mod:`.datum_shift`)."""
     out = {}
-    pmi_datums = {d["name"]: d for d in ctx.pmi["datums"]}
-    for d in item["datums"]:
-        if not d["modifiers"]:
+    for order in sorted({d["order"] for d in item["datums"]}):
+        group = [d for d in item["datums"] if d["order"] == order]
+        if not any(d["modifiers"] for d in group):
             continue
-        other = [m for m in d["modifiers"] if m not in _MATERIAL]
-        mats = {_MATERIAL[m] for m in d["modifiers"] if m in _MATERIAL}
-        if other or len(mats) != 1:
-            return None, f"datum modifiers of {d['name']} ({', '.join(d['modifiers'])}) are not applied"
-        spec = ctx.datum_specs.get(d["name"])
+        label = "-".join(d["name"] for d in group)
+        mods = {tuple(d["modifiers"]) for d in group}
+        flat = [m for d in group for m in d["modifiers"]]
+        other = [m for m in flat if m not in _MATERIAL]
+        mats = {_MATERIAL[m] for m in flat if m in _MATERIAL}
+        if other or len(mats) != 1 or len(mods) != 1:
+            return None, (f"datum modifiers of {label} ({'; '.join(d['name'] + ' ' + ', '.join(d['modifiers']) for d in group)}) are not applied "
+                          "(MMB or LMB, the same on every datum of a common datum)")
+        mat = mats.pop()
+        what = "MMB" if mat == "M" else "LMB"
+        name = label if len(group) > 1 else group[0]["name"]
+        if name not in names:
+            return None, f"datum {label} is not in the frame {'|'.join(names)}"
+        spec = ctx.datum_specs.get(name)
         if spec is None:
-            return None, ctx.datum_why.get(d["name"], f"datum {d['name']} is not in the file")
-        if spec.get("kind") != "axis":
-            return None, (f"datum {d['name']} at {'MMB' if 'M' in mats else 'LMB'} is a "
-                          f"{spec.get('kind')} datum; its shift is applied to one hole or "
-                          "boss axis only")
-        want = set(pmi_datums[d["name"]]["faces"])
-        size = next((x for x in ctx.pmi["dimensions"] if x["type"] == "Size_Diameter"
-                     and x["lower"] is not None and want and want <= set(x["faces"])), None)
-        if size is None:
-            return None, (f"datum {d['name']} at {'MMB' if 'M' in mats else 'LMB'}: no "
-                          "toleranced diameter (Size_Diameter) on its faces for its boundary")
-        spec["size"] = {"nominal": _mm(size["nominal"]), "lower": _mm(size["lower"]),
-                        "upper": _mm(size["upper"])}
-        out[d["name"]] = mats.pop()
+            return None, ctx.datum_why.get(name, f"datum {name} is not in the file")
+        if spec.get("kind") not in ("axis", "pattern"):
+            return None, (f"datum {label} at {what} is a {spec.get('kind')} datum; its shift "
+                          "is applied to hole and boss axes and patterns of them")
+        sizes = {}
+        for d in group:
+            sz = _diameter(d["name"], ctx)
+            if sz is None:
+                return None, (f"datum {d['name']} at {what}: no toleranced diameter "
+                              "(Size_Diameter) on its faces for its boundary")
+            sizes[d["name"]] = sz
+        if len({tuple(sorted(v.items())) for v in sizes.values()}) == 1:
+            spec["size"] = next(iter(sizes.values()))
+        else:       # a common datum of features of different sizes: per face
+            spec["face_sizes"] = [sizes[d["name"]] for d in group
+                                  for _ in ctx.datum_specs[d["name"]]["faces"]]
+        out[name] = mat
     return out, ""

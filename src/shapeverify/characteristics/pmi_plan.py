@@ -47,11 +47,13 @@ tolerance of the file appears exactly once: in ``characteristics`` or in ``unsup
 
 Not expressed yet (each such item says why in ``unsupported``): orientation, runout, form
 other than flatness, location dimensions other than between two planes; positions with a material
-modifier (no bonus tolerance); datum modifiers other than MMB/LMB of single hole or boss axes in
-a profile's DRF (:mod:`.pmi_datums`); datum targets attached to edges; datums on edges that bound
+modifier (no bonus tolerance); datum modifiers other than MMB/LMB of hole or boss axes, patterns
+of them and common datums in a profile's DRF (:mod:`.pmi_datums`); datums on edges that bound
 no cylinder; datum features left without faces (datums that the file ties to faces by an
 ``ITEM_IDENTIFIED_REPRESENTATION_USAGE`` that XCAF does not resolve, NIST CTC 01's B and C, are
-attached by :mod:`shapeverify.cad.pmi_iiru`).
+attached by :mod:`shapeverify.cad.pmi_iiru`).  Line datum targets attached to an edge drawn
+on a face take the edge's line; 'circular curve' targets (read from the STEP entities) are
+``circular_line`` targets (:mod:`.pmi_datums`).
 Datums set up from datum targets, patterns of cylinders and common datums (``E-F``) are in the
 ``datums`` table (:mod:`.pmi_datums`).
 
@@ -335,20 +337,12 @@ def _datum_spec(d: dict, ctx) -> tuple[dict | None, str]:
 
 def _item_drf(item, ctx, shift_ok: bool = False) -> tuple[list | None, str]:
     """(datum letters of the item's DRF, '') when every datum can be fitted, else (None, why).
-    ``shift_ok``: the caller applies MMB/LMB datum modifiers (:mod:`.pmi_datums`)."""
+    ``shift_ok``: the caller applies MMB/LMB datum modifiers (:mod:`.pmi_datums`; they are
+    in ``ctx.last_modifiers``)."""
     ds = item["datums"]
+    ctx.last_modifiers = {}
     mods = [f"{d['name']} {', '.join(d['modifiers'])}" for d in ds if d["modifiers"]]
-    if mods and shift_ok and len({d["order"] for d in ds}) == len(ds):
-        from .pmi_datums import datum_modifiers
-
-        dm, why = datum_modifiers(item, ctx)
-        if dm is None:
-            return None, why
-        mods = []
-    elif mods and shift_ok:
-        return None, (f"datum modifiers ({'; '.join(mods)}) of a common datum are not applied "
-                      "(a datum feature shift of single hole or boss axes only)")
-    if mods:
+    if mods and not shift_ok:
         return None, f"datum modifiers ({'; '.join(mods)}) are not applied"
     orders = [d["order"] for d in ds]
     if len(set(orders)) != len(orders):
@@ -362,6 +356,13 @@ def _item_drf(item, ctx, shift_ok: bool = False) -> tuple[list | None, str]:
     for n in names:
         if n not in ctx.datum_specs:
             return None, ctx.datum_why.get(n, f"datum {n} is not in the file")
+    if mods:
+        from .pmi_datums import datum_modifiers
+
+        dm, why = datum_modifiers(item, ctx, names)
+        if dm is None:
+            return None, why
+        ctx.last_modifiers = dm
     for n in names:
         ctx.used_datums.add(n)
     return names, ""
@@ -376,6 +377,8 @@ class _Ctx:
         self.datum_specs: dict = {}
         self.datum_why: dict = {}
         self.used_datums: set = set()
+        #: the {DRF datum: 'M' | 'L'} of the last :func:`_item_drf` with ``shift_ok``
+        self.last_modifiers: dict = {}
 
     def name(self, base: str) -> str:
         self.names[base] += 1
@@ -489,8 +492,7 @@ def _tolerance(item, ctx, drf, why) -> tuple[list, str]:
                 entry = {"name": ctx.name(f"{item['id']}_profile"), "type": "surface_profile",
                          "faces": [f"face:{f}" for f in faces], "tol": item["value"],
                          "datums": names, "pmi": src}
-                dm = {d["name"]: "M" if "MaximumMaterialRequirement" in d["modifiers"] else "L"
-                      for d in item["datums"] if d["modifiers"]}
+                dm = dict(ctx.last_modifiers)
                 if dm:
                     entry["datum_modifiers"] = dm
                 return [entry], ""
@@ -612,6 +614,15 @@ def _orientation(item, ctx, faces, src) -> tuple[list, str]:
              "pmi": src}
     if kinds == {"plane"} and item["value_type"] == "None":
         if not _planes_coplanar(ctx, faces):
+            f0 = ctx.feats[faces[0]]
+            one = [f for f in faces if ctx.feats[f].axis @ f0.axis > 0]
+            two = [f for f in faces if ctx.feats[f].axis @ f0.axis < 0]
+            if one and two and _planes_coplanar(ctx, one) and _planes_coplanar(ctx, two) and \
+                    abs(ctx.feats[two[0]].axis @ f0.axis + 1) < 1e-6:
+                return [], (f"{t.lower()} of a width (the opposite faces {', '.join(map(str, one + two))}: "
+                            "a feature of size, whose derived median plane the zone controls); "
+                            "the plan's orientation is of surfaces and axes, not of a median "
+                            "plane")
             return [], f"{t.lower()} of {len(faces)} planar faces that are not one plane"
         if item["material"]:
             return [], f"material modifier {item['material']} on a plane"

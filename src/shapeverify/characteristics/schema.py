@@ -176,11 +176,16 @@ class DatumTargetSpec(_Strict):
     (a contact at ``at`` on ``face``), ``line`` (a line contact through ``at`` along
     ``direction``, ``length`` long), ``circle`` (a circular area of diameter ``length`` centred
     at ``at``, ``direction`` its normal) or ``rectangle`` (``length`` along ``xdirection``,
-    ``width`` across)."""
+    ``width`` across) or ``circular_line`` (a ring of diameter ``length`` about ``at``,
+    normal ``direction``, touching the part along a circle: a boss or a hole, maybe drafted,
+    on ``faces``)."""
 
-    type: Literal["point", "line", "circle", "rectangle"]
+    type: Literal["point", "line", "circle", "rectangle", "circular_line"]
     at: Vec3
-    face: Union[FeatureId, int, str]
+    face: Optional[Union[FeatureId, int, str]] = None
+    #: the faces a target drawn across several faces lies on (a circular line around a boss
+    #: split in halves); instead of ``face``
+    faces: Optional[FaceList] = None
     direction: Optional[Vec3] = None
     xdirection: Optional[Vec3] = None
     length: float = Field(default=0.0, ge=0)
@@ -188,12 +193,18 @@ class DatumTargetSpec(_Strict):
 
     @model_validator(mode="after")
     def _sized(self):
+        if (self.face is None) == (self.faces is None):
+            raise ValueError(f"a {self.type} datum target takes face: (the face it lies on) or "
+                             "faces: [...] (several), not both or neither")
+        if self.faces is not None and self.type != "circular_line":
+            raise ValueError(f"a {self.type} datum target lies on one face (face:)")
         if self.type != "point" and not self.length > 0:
             raise ValueError(f"a {self.type} datum target needs its length (> 0; a circle's "
                              "diameter)")
         if self.type == "rectangle" and not self.width > 0:
             raise ValueError("a rectangle datum target needs its width (> 0)")
-        if self.type in ("line", "circle", "rectangle") and self.direction is None:
+        if self.type in ("line", "circle", "rectangle", "circular_line") and \
+                self.direction is None:
             raise ValueError(f"a {self.type} datum target needs its direction (a line's "
                              "direction, an area's normal)")
         return self
@@ -241,6 +252,9 @@ class DatumSpec(_Strict):
     #: a hole's or boss's diameter limits (needed when a characteristic references the datum
     #: at MMB or LMB: ``datum_modifiers``)
     size: Optional[DatumSize] = None
+    #: a pattern or common datum of features of different sizes (``E-F`` of a 5.8 and a 6.1
+    #: hole): the size limits of the feature each of ``faces`` belongs to, in ``faces``' order
+    face_sizes: Optional[list[DatumSize]] = None
     pmi: Optional[PmiSource] = None
 
     @model_validator(mode="after")
@@ -253,6 +267,10 @@ class DatumSpec(_Strict):
         if self.kind == "pattern" and self.faces is None:
             raise ValueError("a pattern datum takes faces: [...] (the cylinder faces of its "
                              "features)")
+        if self.face_sizes is not None and (self.faces is None
+                                            or len(self.face_sizes) != len(self.faces)):
+            raise ValueError("face_sizes gives one size per face of faces: [...] (the size of "
+                             "the feature each face belongs to)")
         if self.at is not None and self.kind not in (None, "point"):
             raise ValueError("a datum given by at: [x, y, z] is a point (kind: point)")
         return self
