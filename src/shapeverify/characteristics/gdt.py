@@ -70,12 +70,13 @@ __all__ = ["eval_surface_profile", "eval_orientation", "eval_position", "eval_ru
 # ------------------------------------------------------------------------------ points
 def _on(ctx: EvalContext, faces) -> np.ndarray:
     """The kept points of ``faces`` whose closest CAD point lies inside the face, at least
-    ``EDGE`` spacings (and 0.5 mm) from its edges: a point of a neighbouring surface beyond an
-    edge (the plate at the foot of a moved boss) is not the face's."""
+    ``EDGE`` spacings (and 0.5 mm) from its edges (:func:`edge_margin`; on a face narrower than
+    twice that, the points farther from its edges than half the farthest one): a point of a
+    neighbouring surface beyond an edge (the plate at the foot of a moved boss, a tilted wall's
+    foot) is not the face's."""
     S = ctx.S
     m = S.on(faces)
-    sp = float(getattr(S.support, "spacing", 0.0) or 0.0)
-    e = max(EDGE * sp, 0.5)
+    e = edge_margin(S)
     out = m.copy()
     for f in (np.unique(S.face[m]) if faces is None else faces):
         key = ("edge", int(f))
@@ -84,24 +85,51 @@ def _on(ctx: EvalContext, faces) -> np.ndarray:
 
             from .features import _dense_loop
 
-            face = ctx.prep.model.faces[int(f)]
-            # a trim loop's vertices may lie a rounding error outside the surface's domain
-            # (FTC 06: v = -5e-6 on [1.8e-8, 38.6]): clipped onto it
-            (u0, u1), (v0, v1) = face.surface.domain
-            rim = np.concatenate([face.evaluate(np.column_stack([
-                np.clip(q[:, 0], u0, u1), np.clip(q[:, 1], v0, v1)]))
-                for q in (_dense_loop(lp, 8) for lp in face.loops)])
-            ctx.cache[key] = cKDTree(rim)
+            ctx.cache[key] = cKDTree(_rim(ctx.prep.model.faces[int(f)], e / 16.0))
         sel = m & (S.face == f)
         if sel.any():
             d, _ = ctx.cache[key].query(S.feet[sel])
-            out[np.flatnonzero(sel)[d < e]] = False
+            # a face narrower than the band (FTC 06's 1.9 mm wide annular step, face:184):
+            # its inner half is kept, not nothing
+            out[np.flatnonzero(sel)[d < min(e, 0.5 * float(d.max()))]] = False
     return out
 
 
 #: points whose closest CAD point is nearer than this many scan spacings to the face's edge
 #: are left out of the GD&T characteristics (:func:`_on`)
 EDGE = 2.0
+
+
+def _rim(face, step: float) -> np.ndarray:
+    """Points along the face's trim loops at most about ``step`` apart in 3-D (a loop's
+    straight segment can be 100 mm long between two vertices: a fixed count per segment left
+    most of a long edge without the band of :func:`_on`)."""
+    from .features import _dense_loop
+
+    # a trim loop's vertices may lie a rounding error outside the surface's domain
+    # (FTC 06: v = -5e-6 on [1.8e-8, 38.6]): clipped onto it
+    (u0, u1), (v0, v1) = face.surface.domain
+
+    def clip(q):
+        return np.column_stack([np.clip(q[:, 0], u0, u1), np.clip(q[:, 1], v0, v1)])
+
+    out = []
+    for lp in face.loops:
+        q = clip(_dense_loop(lp, 8))
+        P = face.evaluate(q)
+        seg = np.linalg.norm(np.roll(P, -1, axis=0) - P, axis=1)
+        n = np.clip(np.ceil(seg / step), 1, 10_000).astype(np.int64)
+        idx = np.repeat(np.arange(len(q)), n)
+        t = (np.arange(idx.size) - np.repeat(np.cumsum(n) - n, n)) / np.repeat(n, n)
+        nq = np.roll(q, -1, axis=0)
+        out.append(face.evaluate(clip(q[idx] * (1 - t[:, None]) + nq[idx] * t[:, None])))
+    return np.concatenate(out)
+
+
+def edge_margin(S) -> float:
+    """The edge band of :func:`_on` (mm): ``EDGE`` scan spacings, at least 0.5 mm."""
+    sp = float(getattr(S.support, "spacing", 0.0) or 0.0)
+    return max(EDGE * sp, 0.5)
 
 
 # ------------------------------------------------------------------------------ DRF
