@@ -12,7 +12,8 @@ each point was drawn on (OpenCASCADE's face index = the model's ``face:i``):
   faces of a width a planes-zone position locates, moved along their normal) translated
   0.3 mm across the hole's axis (the hole moved; its rim's intersection with the surrounding
   face is off by 0.3 mm, nothing else changes);
-* **tilted face**: every point of one planar face that carries an orientation tolerance
+* **tilted face**: every point of one planar face (else: a cylinder, its axis tilted about a
+  line across it through its centroid) that carries an orientation tolerance
   (parallelism / perpendicularity / angularity; a datum feature only when no other face has
   one) rotated 0.2 deg about the face's centroid, about the in-plane axis ``n x a`` (``a`` the
   primary datum's direction: the tilt changes the angle to the datum -- a wall perpendicular
@@ -167,7 +168,8 @@ def datum_direction(data, c, byid):
 
 def tilt_candidates(data, feats, V, T, F):
     """``(characteristic, face, centroid, normal, rotation axis, L tan(tilt) / tol, L)`` of
-    every planar face an orientation tolerance controls: faces no datum uses first, then the
+    every planar or cylindrical face an orientation tolerance controls (a cylinder: its axis
+    tilted, ``L`` its length): faces no datum uses first, then the
     best ratio."""
     byid = {f.id: f for f in feats}
     dat = datum_faces(data)
@@ -177,7 +179,7 @@ def tilt_candidates(data, feats, V, T, F):
             continue
         for i in face_ids(c.get("faces")):
             f = byid.get(f"face:{i}")
-            if f is None or f.kind != "plane":
+            if f is None or f.kind not in ("plane", "cylinder"):
                 continue
             X = V[np.unique(T[F == i])]
             if len(X) < 3:
@@ -185,6 +187,14 @@ def tilt_candidates(data, feats, V, T, F):
             n = np.asarray(f.axis, float)
             c0 = X.mean(axis=0)
             Y = X - c0
+            if f.kind == "cylinder":        # an axis tilted: about a line across it
+                a = datum_direction(data, c, byid)
+                axis = np.cross(n, a) if a is not None and np.linalg.norm(
+                    np.cross(n, a)) > 0.1 else tangent(n)
+                L = float(np.ptp(Y @ n))
+                out.append((c["name"], i, c0, n, axis / np.linalg.norm(axis),
+                            L * np.tan(np.radians(TILT)) / float(c["tol"]), L))
+                continue
             Y -= np.outer(Y @ n, n)
             a = datum_direction(data, c, byid)
             if a is not None and np.linalg.norm(np.cross(n, a)) > 0.1:
