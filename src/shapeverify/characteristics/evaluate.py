@@ -411,7 +411,10 @@ def _face_feature(c, feats, S: _Scan, kind):
     return find_feature(feats, near=c.near, kind=kind)
 
 
-def _flatness(c, S: _Scan, feats, k):
+def _flatness(c, S: _Scan, feats, k, on=None, margin=None):
+    """Minimum-zone flatness of the kept points of the feature's faces; ``on(faces)``: the mask
+    of the points to use (:func:`.gdt._on`: not within the edge band, where a point of a
+    neighbouring surface beyond the edge -- a tilted wall's foot -- is closest to this face)."""
     if getattr(c, "faces", None) is not None:    # coplanar faces, one zone
         fidx = face_indices(S.prep.model, c.faces)
         f = feats[int(fidx[0])]
@@ -421,7 +424,7 @@ def _flatness(c, S: _Scan, feats, k):
         f = _face_feature(c, feats, S, "flatness")
         fidx = np.array([f.face])
     fl = fidx.tolist()
-    m = S.on(fl)
+    m = S.on(fl) if on is None else on(fl)
     if np.count_nonzero(m) < 3:
         return _not_measured(c, f"fewer than 3 scan points on {f.id}")
     P = S.X[m]
@@ -432,7 +435,10 @@ def _flatness(c, S: _Scan, feats, k):
     U = 2.0 * zq * S.noise
     details = {"feature": f.id, "n": int(m.sum()), "normal": n.tolist(),
                "definition": "minimum zone", "noise": S.noise, "extreme_quantile": zq,
-               "excluded": S.excluded(fl)}
+               "excluded": {**S.excluded(fl),
+                            "near_edge": int(np.count_nonzero(S.on(fl) & ~m))}}
+    if margin is not None:
+        details["edge_margin"] = float(margin)
     if len(fl) > 1:
         details["faces"] = fl
     details.update(_lower_bound(S, fl))
@@ -607,7 +613,10 @@ def eval_profile(c, ctx: EvalContext):
 
 
 def eval_flatness(c, ctx: EvalContext):
-    return _flatness(c, ctx.S, ctx.feats, ctx.k)
+    from .gdt import _on, edge_margin
+
+    return _flatness(c, ctx.S, ctx.feats, ctx.k, on=lambda faces: _on(ctx, faces),
+                     margin=edge_margin(ctx.S))
 
 
 def eval_hole(c, ctx: EvalContext):

@@ -70,42 +70,34 @@ __all__ = ["eval_surface_profile", "eval_orientation", "eval_position", "eval_ru
 # ------------------------------------------------------------------------------ points
 def _on(ctx: EvalContext, faces) -> np.ndarray:
     """The kept points of ``faces`` whose closest CAD point lies inside the face, at least
-    ``EDGE`` spacings (and 0.5 mm) from its edges: a point of a neighbouring surface beyond an
-    edge (the plate at the foot of a moved boss) is not the face's.  On a face narrower than
-    twice that band (the wall of a hole through a 1.9 mm sheet: NIST CTC 03's datums B and C)
-    the band is a quarter of the face's width, so its middle half is kept."""
+    ``EDGE`` spacings (and 0.5 mm) from its edges (:func:`edge_margin`): a point of a
+    neighbouring surface beyond an edge (the plate at the foot of a moved boss, a tilted
+    wall's foot) is not the face's.  On a face narrower than twice that band (the wall of a
+    hole through a 1.9 mm sheet: NIST CTC 03's datums B and C; FTC 06's 1.9 mm annular step)
+    the band is half the face's inradius, so its inner half is kept."""
     S = ctx.S
     m = S.on(faces)
-    sp = float(getattr(S.support, "spacing", 0.0) or 0.0)
-    e = max(EDGE * sp, 0.5)
+    e = edge_margin(S)
     out = m.copy()
     for f in (np.unique(S.face[m]) if faces is None else faces):
         sel = m & (S.face == f)
         if sel.any():
-            tree, inradius = _rim(ctx, int(f))
+            tree, inradius = _edge_tree(ctx, int(f))
             d, _ = tree.query(S.feet[sel])
             out[np.flatnonzero(sel)[d < min(e, 0.5 * inradius)]] = False
     return out
 
 
-def _rim(ctx: EvalContext, f: int):
-    """(kd-tree of face ``f``'s trim loops in 3D, the face's inradius: the largest distance
-    of a point of the face from its loops, on a 48 x 48 grid of its domain; inf when no grid
-    point falls inside), cached."""
+def _edge_tree(ctx: EvalContext, f: int):
+    """(kd-tree of face ``f``'s trim loops in 3D (:func:`_rim`, a sixteenth of the edge band
+    apart), the face's inradius: the largest distance of a point of the face from its loops,
+    on a 48 x 48 grid of its domain; inf when no grid point falls inside), cached."""
     key = ("edge", f)
     if key not in ctx.cache:
         from scipy.spatial import cKDTree
 
-        from .features import _dense_loop
-
         face = ctx.prep.model.faces[f]
-        # a trim loop's vertices may lie a rounding error outside the surface's domain
-        # (FTC 06: v = -5e-6 on [1.8e-8, 38.6]): clipped onto it
-        (u0, u1), (v0, v1) = face.surface.domain
-        rim = np.concatenate([face.evaluate(np.column_stack([
-            np.clip(q[:, 0], u0, u1), np.clip(q[:, 1], v0, v1)]))
-            for q in (_dense_loop(lp, 8) for lp in face.loops)])
-        tree = cKDTree(rim)
+        tree = cKDTree(_rim(face, edge_margin(ctx.S) / 16.0))
         (a0, a1), (b0, b1) = face.uv_bounds
         g = np.linspace(0.0, 1.0, 50)[1:-1]
         uv = np.column_stack([np.repeat(a0 + g * (a1 - a0), g.size),
@@ -119,6 +111,38 @@ def _rim(ctx: EvalContext, f: int):
 #: points whose closest CAD point is nearer than this many scan spacings to the face's edge
 #: are left out of the GD&T characteristics (:func:`_on`)
 EDGE = 2.0
+
+
+def _rim(face, step: float) -> np.ndarray:
+    """Points along the face's trim loops at most about ``step`` apart in 3-D (a loop's
+    straight segment can be 100 mm long between two vertices: a fixed count per segment left
+    most of a long edge without the band of :func:`_on`)."""
+    from .features import _dense_loop
+
+    # a trim loop's vertices may lie a rounding error outside the surface's domain
+    # (FTC 06: v = -5e-6 on [1.8e-8, 38.6]): clipped onto it
+    (u0, u1), (v0, v1) = face.surface.domain
+
+    def clip(q):
+        return np.column_stack([np.clip(q[:, 0], u0, u1), np.clip(q[:, 1], v0, v1)])
+
+    out = []
+    for lp in face.loops:
+        q = clip(_dense_loop(lp, 8))
+        P = face.evaluate(q)
+        seg = np.linalg.norm(np.roll(P, -1, axis=0) - P, axis=1)
+        n = np.clip(np.ceil(seg / step), 1, 10_000).astype(np.int64)
+        idx = np.repeat(np.arange(len(q)), n)
+        t = (np.arange(idx.size) - np.repeat(np.cumsum(n) - n, n)) / np.repeat(n, n)
+        nq = np.roll(q, -1, axis=0)
+        out.append(face.evaluate(clip(q[idx] * (1 - t[:, None]) + nq[idx] * t[:, None])))
+    return np.concatenate(out)
+
+
+def edge_margin(S) -> float:
+    """The edge band of :func:`_on` (mm): ``EDGE`` scan spacings, at least 0.5 mm."""
+    sp = float(getattr(S.support, "spacing", 0.0) or 0.0)
+    return max(EDGE * sp, 0.5)
 
 
 # ------------------------------------------------------------------------------ DRF
@@ -415,7 +439,7 @@ def eval_orientation(c, ctx: EvalContext):
             # a short hole's mating fit keeps the CAD direction: its orientation would read 0
             # by construction (NIST CTC 03's GT11 on a hole through a 1.9 mm sheet); the
             # least-squares cylinder's axis is defined by all the points
-            rim = np.concatenate([_rim(ctx, int(i))[0].data for i in fidx])
+            rim = np.concatenate([_edge_tree(ctx, int(i))[0].data for i in fidx])
             ends, a, how = _lsq_axis_ends(X, f, rim)
         B = tangent_basis(f.axis)
         e2 = (ends[1] - ends[0]) @ B.T
