@@ -153,7 +153,8 @@ def test_distance_and_angle_of_a_perfect_plate_equal_scipy_fits_and_pass(perfect
     assert res["ANG"].details["supplement"] is False and res["ANG_SUP"].details["supplement"]
     for c in res.values():
         assert c.verdict == "pass", (c.name, c.measured, c.uncertainty)
-        assert 0 < c.uncertainty < 0.05
+        # a sanity bound (the angle's U is 0.055 deg since the edge band covers whole edges)
+        assert 0 < c.uncertainty < 0.1
 
 
 @pytest.mark.slow

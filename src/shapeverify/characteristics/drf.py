@@ -334,7 +334,7 @@ def _describe(N, scale) -> list:
         if np.linalg.norm(w) > 1e-6 * max(1.0, np.linalg.norm(t)):
             a = w / np.linalg.norm(w)
             # the point of the rotation axis: t = -omega x p  ->  p = omega x t / |omega|^2
-            p = np.cross(w, t) / (w @ w)
+            p = np.round(np.cross(w, t) / (w @ w), 3) + 0.0     # no '-0.000'
             out.append(f"rotation about ({a[0]:+.3f}, {a[1]:+.3f}, {a[2]:+.3f}) through "
                        f"({p[0]:.3f}, {p[1]:.3f}, {p[2]:.3f})")
         else:

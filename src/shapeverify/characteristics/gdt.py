@@ -554,11 +554,13 @@ def eval_runout(c, ctx: EvalContext):
     fidx = _faces(c, ctx)
     X, m, drf = _frame_points(c, ctx, fidx)
     nom = None                          # the datum axis's nominal (the DRF puts it there)
-    for d in drf.datums:
+    for i, d in enumerate(drf.datums):
         if d.kind in ("axis", "pattern"):
             f = _datum_feature(d.name, ctx.plan.datums[d.name], ctx)
             if d.kind == "axis" or _coaxial(f):
                 nom = f
+                # a plane before it (A|B: a face, then a hole) sets the axis's direction
+                tilt_fixed = any(e.kind in ("plane", "midplane") for e in drf.datums[:i])
                 break
     if nom is None:
         raise ValueError(f"{c.name}: runout needs an axis datum (a hole or boss, or coaxial "
@@ -586,16 +588,18 @@ def eval_runout(c, ctx: EvalContext):
             circ = max(circ, float(dk.max() - dk.min()))
     value = circ if c.type == "circular_runout" else total
     zq = extreme_quantile(X.shape[0], ctx.k)
-    # the datum axis's own noise: a mating cylinder rests on extreme points near its ends
-    # (the Gumbel spread of _datum_part), tilting it over the datum's length; the indicator
-    # reads that tilt times the face's distance from the datum, on both sides of the axis
+    # the datum axis's own noise: a mating cylinder rests on extreme points (the Gumbel
+    # spread of _datum_part); it shifts the axis by about that, which the indicator reads
+    # twice, and -- when no plane before it sets its direction -- tilts it over the datum's
+    # length, read as the tilt times the face's distance from the datum on both sides
     hd = (np.asarray(nom.points, float) - p0) @ a0
-    lever = float(np.linalg.norm(q, axis=1).max())
     Ud = 0.0
-    if hd.size > 2 and np.ptp(hd) > 0:
+    if hd.size > 2:
         sd = np.sqrt(2.0) * (np.pi / np.sqrt(6.0)) * ctx.S.noise / np.sqrt(
             2.0 * np.log(hd.size))
-        Ud = 2.0 * ctx.k * sd * lever / float(np.ptp(hd))
+        lever = 1.0 if tilt_fixed or np.ptp(hd) <= 0 else \
+            max(1.0, float(np.linalg.norm(q, axis=1).max()) / float(np.ptp(hd)))
+        Ud = 2.0 * ctx.k * sd * lever
     return _result(c, ctx, value, float(np.hypot(2.0 * zq * ctx.S.noise, Ud)),
                    {"faces": fidx, "n": int(X.shape[0]), "circular": circ, "total": total,
                     "axis_point": p0.tolist(), "axis": a0.tolist(),
