@@ -226,9 +226,7 @@ def _datum_part(drf, ctx, extent: float, zq: float) -> float:
         P = ctx.S.X[ctx.S.on(fidx)] if fidx is not None else np.zeros((0, 3))
         Ld = float(np.ptp(P @ tangent_basis(d.direction).T, axis=0).max()) if len(P) > 2 else 0
         if Ld > 0:
-            s = np.sqrt(2.0) * (np.pi / np.sqrt(6.0)) * ctx.S.noise / np.sqrt(
-                2.0 * np.log(max(len(P), 3)))
-            out = max(out, ctx.k * s * extent / Ld)
+            out = max(out, ctx.k * _extremes_sd(ctx.S.noise, len(P)) * extent / Ld)
     return out
 
 
@@ -538,8 +536,13 @@ def mating_centre_u(n: int, noise: float, k: float) -> float:
     the largest of n normal deviates; a Monte Carlo of the inscribed circle gives 0.68, 0.51,
     0.41 sigma per component at n = 20, 56, 200 against 0.74, 0.64, 0.56 here); the value
     doubles it.  (The extremes' common shift, ``z_n sigma``, changes the mating size only.)"""
-    s = np.sqrt(2.0) * (np.pi / np.sqrt(6.0)) * noise / np.sqrt(2.0 * np.log(max(int(n), 3)))
-    return float(2.0 * k * s)
+    return float(2.0 * k * _extremes_sd(noise, n))
+
+
+def _extremes_sd(noise: float, n: int) -> float:
+    """``sqrt(2) (pi / sqrt(6)) sigma / sqrt(2 ln n)``: the standard deviation of the
+    difference of the largest of ``n`` normal deviates of ``noise`` on two sides (Gumbel)."""
+    return np.sqrt(2.0) * (np.pi / np.sqrt(6.0)) * noise / np.sqrt(2.0 * np.log(max(int(n), 3)))
 
 
 # ------------------------------------------------------------------------------ runout
@@ -595,11 +598,9 @@ def eval_runout(c, ctx: EvalContext):
     hd = (np.asarray(nom.points, float) - p0) @ a0
     Ud = 0.0
     if hd.size > 2:
-        sd = np.sqrt(2.0) * (np.pi / np.sqrt(6.0)) * ctx.S.noise / np.sqrt(
-            2.0 * np.log(hd.size))
         lever = 1.0 if tilt_fixed or np.ptp(hd) <= 0 else \
             max(1.0, float(np.linalg.norm(q, axis=1).max()) / float(np.ptp(hd)))
-        Ud = 2.0 * ctx.k * sd * lever
+        Ud = mating_centre_u(hd.size, ctx.S.noise, ctx.k) * lever
     return _result(c, ctx, value, float(np.hypot(2.0 * zq * ctx.S.noise, Ud)),
                    {"faces": fidx, "n": int(X.shape[0]), "circular": circ, "total": total,
                     "axis_point": p0.tolist(), "axis": a0.tolist(),
