@@ -51,7 +51,7 @@ from shapeverify._lazy import cKDTree
 from .deviations import ON_BOUNDARY, TOO_FAR
 from .regions import LINK_FACTOR, SPARSE_AREA, DefectRegion, area_per_point, linked_components
 
-__all__ = ["find_material", "floating_surfaces", "MIN_MATERIAL_POINTS"]
+__all__ = ["find_material", "floating_surfaces", "far_over_surface", "MIN_MATERIAL_POINTS"]
 
 #: Fewest too-far points of a material region.
 MIN_MATERIAL_POINTS = 10
@@ -168,6 +168,19 @@ def beside_surface(dev):
         beside[rows] = np.isfinite(d) & (along_n <= MAX_NORMAL_SHARE * d)
     dist[rows] = d
     return beside, dist
+
+
+def far_over_surface(dev, beside=None) -> np.ndarray:
+    """(N,) float64: the signed distance (+ outside the material) of the too-far points over a
+    face (their offset from the foot point mostly along the normal, :func:`beside_surface`
+    False); NaN for every other point.  :class:`.regions.RegionSearch`'s ``far``."""
+    beside, dist = beside_surface(dev) if beside is None else beside
+    out = np.full(dev.reason.shape[0], np.nan)
+    rows = np.flatnonzero((dev.reason == TOO_FAR) & ~beside & np.isfinite(dist))
+    up = np.einsum("ij,ij->i", dev.points_model[rows] - dev.foot_points[rows],
+                   dev.normals[rows]) > 0
+    out[rows] = np.where(up, 1.0, -1.0) * dist[rows]
+    return out
 
 
 def floating_surfaces(dev, spacing: float, min_points: int = 3 * MIN_MATERIAL_POINTS, *,
