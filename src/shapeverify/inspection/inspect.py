@@ -434,12 +434,12 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
     regions, outliers, joined = join_beyond(dev, regions, outliers, spacing,
                                             tol.limits(dev.face), within, beside, weights,
                                             min_points=opts.min_region_points)
-    # material joins the part on its outer side: a measurement outlier inside the part (a
-    # reflection copied into a blade) carries no material above it; one above the surface can
-    # (the ramp up to a corner that the CAD chamfers and the part does not)
-    o = np.asarray(outliers.indices, np.int64)
+    # material joins the part's measured surface: a measurement outlier inside the part (a
+    # reflection copied into a blade) carries no material above it, nor does one lifted over
+    # the surface with a step (a reflection's sheet); one rising from the surface can (the ramp
+    # up to a corner that the CAD chamfers and the part does not)
     material = find_material(dev, spacing, tol.upper, beside=beside,
-                             outliers=o[dev.values[o] < 0])
+                             outliers=np.asarray(outliers.indices, np.int64))
     # CAD surface the scan sees through (issue 33 row 3): regions of kind "missing"
     missing = find_missing(prep, dev, spacing, within, tol, faces=opts.faces, seen_also=joined) \
         if opts.missing else []

@@ -28,7 +28,10 @@ The rule (all distances in mm, ``s`` = the scan's spacing on the part as area pe
    within ``ATTACH_RADIUS x s`` of an evaluated scan point that is not a measurement outlier:
    a sheet beside an edge touching the part at a point or two is a reflection, and so is a
    sheet whose only neighbours are its own out-of-tolerance points that reach within the
-   evaluation distance of a face); its points within ``LINK_FACTOR x s`` of an
+   evaluation distance of a face: measurement outliers join nothing, except those above the
+   part that rise from its in-tolerance surface, at most ``MAX_RISE_SLOPE`` times their
+   distance from it along the surface -- a ramp, not a reflection's points standing over the
+   measured surface with a step); its points within ``LINK_FACTOR x s`` of an
    evaluated scan point continue that point's surface (median slope ``|offset along the CAD normal| / |offset
    along the surface|`` at most ``MAX_JOIN_SLOPE``, about 30 degrees).  Material that was never
    removed continues the part; a surface floating over it with a step at its rim -- a
@@ -66,6 +69,12 @@ ATTACH_MIN = 3
 ATTACH_SHARE = 0.1
 #: Largest share of a candidate's offset from the CAD that may lie along the CAD normal.
 MAX_NORMAL_SHARE = 0.5
+#: A measurement outlier above the part carries material when it rises from the part's
+#: in-tolerance surface: its excess over the upper limit at most this many times its distance
+#: along the surface (foot points) from the nearest in-tolerance point (about 63 degrees; the
+#: ramp up to a corner that the CAD chamfers at 45 degrees reads 1, a reflection's points over
+#: the measured surface 3-4).
+MAX_RISE_SLOPE = 2.0
 
 
 def find_material(dev, spacing: float, upper_limit: float,
@@ -86,7 +95,10 @@ def find_material(dev, spacing: float, upper_limit: float,
         :func:`beside_surface` of ``dev``, when the caller has it (it is computed otherwise).
     outliers : (k,) int, optional
         Scan indices of the evaluated points that are measurement outliers
-        (:class:`.regions.Outliers` ``.indices``): material does not join the part through them.
+        (:class:`.regions.Outliers` ``.indices``): material does not join the part through them,
+        except through those above the part that rise from its in-tolerance surface without a
+        step (:func:`_rising`: the ramp up to a corner the CAD chamfers and the part does not;
+        a reflection's points lifted over measured surface do not).
 
     Returns
     -------
@@ -120,7 +132,8 @@ def find_material(dev, spacing: float, upper_limit: float,
     # part of itself, not to the part)
     part = dev.evaluated.copy()
     if outliers is not None:
-        part[np.asarray(outliers, np.int64)] = False
+        o = np.asarray(outliers, np.int64)
+        part[o[~_rising(dev, o, upper_limit, spacing)]] = False
     ev_idx = np.flatnonzero(part)
     if ev_idx.size == 0:
         return []
@@ -215,6 +228,24 @@ def floating_surfaces(dev, spacing: float, min_points: int = 3 * MIN_MATERIAL_PO
                     "centroid": [float(x) for x in dev.points_model[sel].mean(axis=0)],
                     "faces": [int(f) for f in np.unique(dev.face[sel]) if f >= 0],
                     "height": [float(dist[sel].min()), float(dist[sel].max())]})
+    return out
+
+
+def _rising(dev, idx, upper_limit: float, spacing: float) -> np.ndarray:
+    """(k,) bool: does each evaluated point ``idx`` lie above the part and rise from its
+    in-tolerance surface without a step -- its excess over ``upper_limit`` at most
+    :data:`MAX_RISE_SLOPE` times its distance along the surface (between foot points, at least
+    half a spacing) from the nearest in-tolerance evaluated point?"""
+    idx = np.asarray(idx, np.int64)
+    out = np.zeros(idx.size, bool)
+    v = dev.values[idx]
+    up = np.flatnonzero(v > 0)
+    good = np.flatnonzero(dev.evaluated & (np.abs(dev.values) <= abs(upper_limit)))
+    if up.size == 0 or good.size == 0:
+        return out
+    dt, _ = cKDTree(dev.foot_points[good]).query(dev.foot_points[idx[up]], k=1)
+    excess = v[up] - abs(upper_limit)
+    out[up] = excess <= MAX_RISE_SLOPE * np.maximum(dt, 0.5 * spacing)
     return out
 
 
