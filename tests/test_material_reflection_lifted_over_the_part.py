@@ -3,12 +3,14 @@
 
 0.5 mm, seed 26 of the good impeller (``test_material_impeller._scan``: 2 % outliers, 4
 reflection clusters): a 15-point 'material' region, +1.86 mm, beside a blade's edge.  It was the
-end of a reflection's sheet of 109 points: 55 evaluated (+0.85..+0.88 mm over the blade,
-measurement outliers) and 54 too far.  Material joins the part's measured surface, and the
-measurement outliers above the part counted as measured surface (the ramp up to a corner the
-CAD chamfers), so the sheet joined the part through 3 of its own points.  An outlier above the
-part now carries material only when it rises from the in-tolerance surface
-(``material.MAX_RISE_SLOPE``): a reflection's points stand over it with a step.
+end of a reflection's sheet of 109 points: 55 evaluated (+0.85..+0.88 mm, measurement
+outliers, 3 of them level with the blade past its edge) and 54 too far, 39 of those over the
+blades with their surface measured under them.  Material joined the part through the outliers
+above it (kept for the ramp up to a corner the CAD chamfers).  Now (``material.find_material``):
+an outlier above the part carries material only when it rises from the in-tolerance surface
+(``_rising``: from the nearest in-tolerance point, along the normal at most ``MAX_RISE_SLOPE``
+times across), and a material cluster that is a piece of a sheet floating over measured
+surface (``_piece_of_floating_sheet``) is no material.
 """
 from __future__ import annotations
 
@@ -94,3 +96,27 @@ def test_material_rising_from_the_part_past_its_edge_is_still_found():
         truth = np.linalg.norm(P[far] - dev.foot_points[far], axis=1).max()
         assert abs(regions[0].extreme - truth) < 1e-9
         assert regions[0].n >= 0.9 * far.size
+
+
+def test_the_end_of_a_floating_reflection_past_an_edge_is_no_material():
+    """A reflection folded over the face's edge: 1.5 mm over the face for 4 <= x <= 8 (too far,
+    the face measured under it), down to the face's level at its edge and on past it for 5 mm
+    (beside the CAD: a material candidate joined to the face's in-tolerance points, as the
+    impeller's was through points level with the blade).  Without the floating-sheet rule it
+    was a material region in every seed; a flange with nothing floating (the previous test)
+    stays one."""
+    for seed in range(4):
+        rng = np.random.default_rng(seed)
+        m = rng.poisson(120 / S ** 2)
+        F = np.column_stack([rng.uniform(0, 10, m), rng.uniform(-6, 6, m),
+                             rng.normal(0, 0.02, m)])
+        k = rng.poisson(11 * 6 / S ** 2)
+        x, y = rng.uniform(4, 15, k), rng.uniform(-3, 3, k)
+        z = np.where(x <= 8, 1.5, np.where(x >= 10, 0.0, 1.5 * (10 - x) / 2))
+        G = np.column_stack([x, y, z + rng.normal(0, 0.02, k)])
+        regions, dev = _material(np.vstack([F, G]))
+        g = np.arange(m, m + k)
+        # a candidate cluster past the edge, and the floating part over the face, counted
+        assert np.count_nonzero(beside_surface(dev)[0][g]) >= 60
+        assert np.count_nonzero((dev.reason[g] == TOO_FAR) & ~beside_surface(dev)[0][g]) >= 60
+        assert regions == [], (seed, regions)
