@@ -20,7 +20,7 @@ from .checks import (MAX_COPY_FRACTION, MIN_SCAN_POINTS, _bbox_diagonal,  # noqa
                      _unit_message, check_scan, default_evaluation_distance)
 from .coverage import MIN_COVERAGE, compute_coverage, seen_faces
 from .deviations import _deviations
-from .material import beside_surface, find_material, floating_surfaces
+from .material import beside_surface, far_over_surface, find_material, floating_surfaces
 from .missing import find_missing
 from .plan_link import PlanPose, with_characteristics
 from .regions import MIN_POINTS, RegionSearch, find_regions, surface_spacing
@@ -423,22 +423,23 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
     weights = getattr(reg, "weights", None)
     if weights is not None and np.shape(weights) != (scan.shape[0],):
         weights = None
+    beside = beside_surface(dev)           # regions, material and floating surfaces share it
     regions, outliers, _ = find_regions(
         dev.foot_points, dev.values, ev, within, dev.face, dev.normals, weights,
         limits=tol.limits(dev.face),
-        search=RegionSearch(min_points=opts.min_region_points, spacing=spacing))
-    beside = beside_surface(dev)                    # material and floating surfaces share it
+        search=RegionSearch(min_points=opts.min_region_points, spacing=spacing,
+                            far=far_over_surface(dev, beside)))
     # a bump taller (a dent deeper) than the evaluation distance: its flank's regions and the
     # surface beyond that continues them are one region, measured to its true height
     regions, outliers, joined = join_beyond(dev, regions, outliers, spacing,
                                             tol.limits(dev.face), within, beside, weights,
                                             min_points=opts.min_region_points)
-    # material joins the part on its outer side: a measurement outlier inside the part (a
-    # reflection copied into a blade) carries no material above it; one above the surface can
-    # (the ramp up to a corner that the CAD chamfers and the part does not)
-    o = np.asarray(outliers.indices, np.int64)
+    # material joins the part's measured surface: a measurement outlier inside the part (a
+    # reflection copied into a blade) carries no material above it, nor does one lifted over
+    # the surface with a step (a reflection's sheet); one rising from the surface can (the ramp
+    # up to a corner that the CAD chamfers and the part does not)
     material = find_material(dev, spacing, tol.upper, beside=beside,
-                             outliers=o[dev.values[o] < 0])
+                             outliers=np.asarray(outliers.indices, np.int64))
     # CAD surface the scan sees through (issue 33 row 3): regions of kind "missing"
     missing = find_missing(prep, dev, spacing, within, tol, faces=opts.faces, seen_also=joined) \
         if opts.missing else []

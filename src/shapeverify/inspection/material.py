@@ -28,7 +28,13 @@ The rule (all distances in mm, ``s`` = the scan's spacing on the part as area pe
    within ``ATTACH_RADIUS x s`` of an evaluated scan point that is not a measurement outlier:
    a sheet beside an edge touching the part at a point or two is a reflection, and so is a
    sheet whose only neighbours are its own out-of-tolerance points that reach within the
-   evaluation distance of a face); its points within ``LINK_FACTOR x s`` of an
+   evaluation distance of a face: measurement outliers join nothing, except those above the
+   part that rise from its in-tolerance surface (from the nearest in-tolerance point, at most
+   ``MAX_RISE_SLOPE`` times as far along the normal as across) -- a ramp, not a reflection's
+   points standing over the measured surface with a step); and it is no piece of a sheet
+   floating over measured surface (linked in space through measurement outliers and too-far
+   points over a face that have the face's in-tolerance surface under them: a reflection that
+   reaches past an edge at one end, :func:`_piece_of_floating_sheet`); its points within ``LINK_FACTOR x s`` of an
    evaluated scan point continue that point's surface (median slope ``|offset along the CAD normal| / |offset
    along the surface|`` at most ``MAX_JOIN_SLOPE``, about 30 degrees).  Material that was never
    removed continues the part; a surface floating over it with a step at its rim -- a
@@ -51,7 +57,7 @@ from shapeverify._lazy import cKDTree
 from .deviations import ON_BOUNDARY, TOO_FAR
 from .regions import LINK_FACTOR, SPARSE_AREA, DefectRegion, area_per_point, linked_components
 
-__all__ = ["find_material", "floating_surfaces", "MIN_MATERIAL_POINTS"]
+__all__ = ["find_material", "floating_surfaces", "far_over_surface", "MIN_MATERIAL_POINTS"]
 
 #: Fewest too-far points of a material region.
 MIN_MATERIAL_POINTS = 10
@@ -66,6 +72,17 @@ ATTACH_MIN = 3
 ATTACH_SHARE = 0.1
 #: Largest share of a candidate's offset from the CAD that may lie along the CAD normal.
 MAX_NORMAL_SHARE = 0.5
+#: A measurement outlier above the part carries material when it rises from the part's
+#: in-tolerance surface: from the nearest in-tolerance scan point, its offset along the normal
+#: at most this many times its offset across (about 63 degrees; a ramp up to a corner that the
+#: CAD chamfers at 45 degrees reads about 1, a reflection's points over measured surface more).
+MAX_RISE_SLOPE = 2.0
+#: A sheet's too-far point over a face floats over measured surface when the in-tolerance foot
+#: points within ``FLOAT_RADIUS`` spacings of its foot point number at least ``FLOAT_SEEN`` of a
+#: full disc's at the scan's spacing (a thin wall's two sides count double; a random sample
+#: reaches half with probability 0.98).
+FLOAT_RADIUS = 2.0
+FLOAT_SEEN = 0.5
 
 
 def find_material(dev, spacing: float, upper_limit: float,
@@ -86,7 +103,10 @@ def find_material(dev, spacing: float, upper_limit: float,
         :func:`beside_surface` of ``dev``, when the caller has it (it is computed otherwise).
     outliers : (k,) int, optional
         Scan indices of the evaluated points that are measurement outliers
-        (:class:`.regions.Outliers` ``.indices``): material does not join the part through them.
+        (:class:`.regions.Outliers` ``.indices``): material does not join the part through them,
+        except through those above the part that rise from its in-tolerance surface without a
+        step (:func:`_rising`: the ramp up to a corner the CAD chamfers and the part does not;
+        a reflection's points lifted over measured surface do not).
 
     Returns
     -------
@@ -120,13 +140,15 @@ def find_material(dev, spacing: float, upper_limit: float,
     # part of itself, not to the part)
     part = dev.evaluated.copy()
     if outliers is not None:
-        part[np.asarray(outliers, np.int64)] = False
+        o = np.asarray(outliers, np.int64)
+        part[o[~_rising(dev, o, upper_limit, spacing)]] = False
     ev_idx = np.flatnonzero(part)
     if ev_idx.size == 0:
         return []
     ev_tree = cKDTree(dev.points_model[ev_idx])
     r_area = 2.0 * spacing
     out = []
+    sheets = None
     for c in comps:
         sel = np.flatnonzero(labels == c)
         if np.mean(degree[sel] >= 2) < 0.8:
@@ -136,6 +158,11 @@ def find_material(dev, spacing: float, upper_limit: float,
             continue                 # sparser than the scanned part: stray points, not a surface
         if not _joins_part(p[sel], ev_tree, ev_idx, dev, link, spacing):
             continue                                       # detached, or a step: not material
+        if sheets is None:
+            sheets = _floating_sheets(dev, cand, outliers, beside, dist, link, spacing,
+                                      upper_limit)
+        if _piece_of_floating_sheet(sheets, cand[sel], sel.size):
+            continue           # the end of a reflection floating over measured surface
         far = sel[is_far[sel]]
         counts = tree.query_ball_point(p[far], r_area, return_length=True)
         a = np.pi * r_area ** 2 / np.maximum(counts, 1)
@@ -168,6 +195,19 @@ def beside_surface(dev):
         beside[rows] = np.isfinite(d) & (along_n <= MAX_NORMAL_SHARE * d)
     dist[rows] = d
     return beside, dist
+
+
+def far_over_surface(dev, beside=None) -> np.ndarray:
+    """(N,) float64: the signed distance (+ outside the material) of the too-far points over a
+    face (their offset from the foot point mostly along the normal, :func:`beside_surface`
+    False); NaN for every other point.  :class:`.regions.RegionSearch`'s ``far``."""
+    beside, dist = beside_surface(dev) if beside is None else beside
+    out = np.full(dev.reason.shape[0], np.nan)
+    rows = np.flatnonzero((dev.reason == TOO_FAR) & ~beside & np.isfinite(dist))
+    up = np.einsum("ij,ij->i", dev.points_model[rows] - dev.foot_points[rows],
+                   dev.normals[rows]) > 0
+    out[rows] = np.where(up, 1.0, -1.0) * dist[rows]
+    return out
 
 
 def floating_surfaces(dev, spacing: float, min_points: int = 3 * MIN_MATERIAL_POINTS, *,
@@ -203,6 +243,74 @@ def floating_surfaces(dev, spacing: float, min_points: int = 3 * MIN_MATERIAL_PO
                     "faces": [int(f) for f in np.unique(dev.face[sel]) if f >= 0],
                     "height": [float(dist[sel].min()), float(dist[sel].max())]})
     return out
+
+
+def _rising(dev, idx, upper_limit: float, spacing: float) -> np.ndarray:
+    """(k,) bool: does each evaluated point ``idx`` lie above the part and rise from its
+    in-tolerance surface without a step?  From the nearest in-tolerance evaluated scan point
+    (in space) to it, the offset along the CAD normal at its foot point is at most
+    :data:`MAX_RISE_SLOPE` times the offset across (at least half a spacing): a surface rising at
+    up to 63 degrees, not a point standing over measured surface.  (In space, not between foot
+    points: past a convex edge the feet of a sharp corner the CAD chamfers crowd onto the edge,
+    and a 45-degree ramp read a slope of 3 between them.)"""
+    idx = np.asarray(idx, np.int64)
+    out = np.zeros(idx.size, bool)
+    v = dev.values[idx]
+    up = np.flatnonzero(v > 0)
+    good = np.flatnonzero(dev.evaluated & (np.abs(dev.values) <= abs(upper_limit)))
+    if up.size == 0 or good.size == 0:
+        return out
+    P = dev.points_model
+    _, j = cKDTree(P[good]).query(P[idx[up]], k=1)
+    delta = P[idx[up]] - P[good[j]]
+    along = np.abs(np.einsum("ij,ij->i", delta, dev.normals[idx[up]]))
+    across = np.sqrt(np.maximum(np.einsum("ij,ij->i", delta, delta) - along * along, 0.0))
+    out[up] = along <= MAX_RISE_SLOPE * np.maximum(across, 0.5 * spacing)
+    return out
+
+
+def _floating_sheets(dev, cand, outliers, beside, dist, link, spacing, upper_limit):
+    """``(members, labels, floating)``: the material candidates ``cand``, the measurement
+    outliers and the too-far points *over* a face linked in space (within ``link``) into
+    sheets; ``floating`` (per member) marks the too-far points over a face with the part's
+    in-tolerance surface measured under them (at least ``FLOAT_SEEN`` of the in-tolerance foot
+    points that a disc of ``FLOAT_RADIUS`` spacings around their foot point holds at the
+    scan's spacing, counting those whose CAD normal is within 60 degrees of theirs)."""
+    over = np.flatnonzero((dev.reason == TOO_FAR) & ~beside & np.isfinite(dist))
+    o = np.zeros(0, np.int64) if outliers is None else np.asarray(outliers, np.int64)
+    members = np.unique(np.concatenate([cand, o, over]))
+    pairs = cKDTree(dev.points_model[members]).query_pairs(link, output_type="ndarray")
+    labels = linked_components(members.size, pairs)[1]
+    floating = np.zeros(members.size, bool)
+    at_over = np.flatnonzero(np.isin(members, over))
+    with np.errstate(invalid="ignore"):
+        good = np.flatnonzero(dev.evaluated & (np.abs(dev.values) <= abs(upper_limit)))
+    if at_over.size and good.size:
+        r = FLOAT_RADIUS * spacing
+        q = members[at_over]
+        lists = cKDTree(dev.foot_points[good]).query_ball_point(dev.foot_points[q], r)
+        lens = np.fromiter((len(x) for x in lists), np.int64, q.size)
+        if lens.sum():
+            flat = good[np.concatenate([np.asarray(x, np.int64) for x in lists])]
+            row = np.repeat(np.arange(q.size), lens)
+            # the surface under it: facing its way (not an adjacent face, not a thin wall's
+            # other side)
+            same = np.einsum("ij,ij->i", dev.normals[flat], dev.normals[q][row]) > 0.5
+            n = np.bincount(row, weights=same.astype(np.float64), minlength=q.size)
+            floating[at_over] = n >= FLOAT_SEEN * np.pi * FLOAT_RADIUS ** 2
+    return members, labels, floating
+
+
+def _piece_of_floating_sheet(sheets, idx, size) -> bool:
+    """Is the material component ``idx`` (scan indices, ``size`` points) a piece of a sheet
+    (:func:`_floating_sheets`) that floats over measured surface -- with at least
+    ``MIN_MATERIAL_POINTS`` and half as many points there as the component has?  A reflection
+    reaches past an edge at one end (the impeller's: 39 points floating, 15 past the edge);
+    material the CAD does not have continues the part, it does not float over it."""
+    members, labels, floating = sheets
+    at = np.isin(members, idx)
+    mine = np.isin(labels, np.unique(labels[at]))
+    return int(np.count_nonzero(floating & mine)) >= max(MIN_MATERIAL_POINTS, 0.5 * size)
 
 
 def _joins_part(p, ev_tree, ev_idx, dev, link: float, spacing: float) -> bool:

@@ -9,7 +9,9 @@ apart than the points along them -- where a density from a few spacings around c
 random clumping of a random sample (a dent of 25 points read -18 %).  Of each cell, the part
 where ``g = |d| - |limit|`` (on the region's side) is positive counts: ``g`` is the point's own
 value continued by the slope of a robust least-squares plane of ``g`` over its neighbours within
-``SLOPE_RADIUS`` spacings, so the boundary runs between an out-of-tolerance point and its
+``SLOPE_RADIUS`` spacings (an in-tolerance point's over its in-tolerance neighbours only: across
+a step the other side's points tilt the plane, and the crossing came to lie right beside the
+in-tolerance point), so the boundary runs between an out-of-tolerance point and its
 in-tolerance neighbours where ``g`` crosses zero, not half a cell beyond the last point out.
 The region's area is the sum of these parts over its out-of-tolerance points and their
 in-tolerance neighbours; a cell larger than ``2 x regions.SPARSE_AREA`` spacings^2 (a point in a gap
@@ -89,7 +91,14 @@ def out_area(tree, ev_idx, points, normals, g, q, spacing):
         rp = np.hypot(x, y)
         f = np.where(rp > 0, r3 / np.where(rp > 0, rp, 1.0), 1.0)   # unfolded to the 3-D distance
         x, y = np.where(ok, x * f, np.nan), np.where(ok, y * f, np.nan)
-        gx, gy = _slopes(x, y, r3, ok, g[np.maximum(nb, 0)], g[qq], SLOPE_RADIUS * spacing)
+        g_nb = g[np.maximum(nb, 0)]
+        # an in-tolerance point is continued by the slope of the in-tolerance surface around
+        # it: across a step (the wall of an object lying on the part, 3 mm up) a plane through
+        # the other side's points put the crossing right beside it, and the area grew by about
+        # the perimeter times half a spacing on that side alone
+        with np.errstate(invalid="ignore"):
+            inside = ok & ((g_nb < 0) | (g[qq] >= 0)[:, None])
+        gx, gy = _slopes(x, y, r3, inside, g_nb, g[qq], SLOPE_RADIUS * spacing)
         c = np.empty(qq.size)
         pa = np.empty(qq.size)
         cell_areas(np.ascontiguousarray(x), np.ascontiguousarray(y), nb,
