@@ -74,7 +74,9 @@ def test_total_runout_of_a_face_square_to_the_axis_is_its_axial_range(flange):
     assert perfect["RUN"].measured < 0.1 and perfect["RUN"].verdict != "fail", perfect["RUN"]
     # the boss against its own axis: its radial range, as before (noise only)
     assert perfect["BOSS"].measured < 0.05, perfect["BOSS"]
-    W, on = _wobble(X, 0.1)
+    # 0.2 deg: 0.27 mm at r 39, clear of the zone 0.1 plus U (0.1 deg read 0.151, 0.05 over it:
+    # undecided once U counts the datum boss's turn over its 30 mm, test_runout_datum_tilt_u)
+    W, on = _wobble(X, 0.2)
     res = evaluate_plan(prep, W, plan, init=np.eye(4))
     # brute force at the true pose: the axial range of the face's points (kept away from the
     # edges as the characteristic keeps them)
@@ -83,5 +85,5 @@ def test_total_runout_of_a_face_square_to_the_axis_is_its_axial_range(flange):
     brute = float(np.ptp(W[sel, 2]))
     assert abs(res["RUN"].measured - brute) < 0.02, (res["RUN"].measured, brute)
     assert res["RUN"].verdict == "fail", res["RUN"]
-    # per circle: the outer circle's range 2 r tan(0.1°) is the largest
+    # per circle: the outer circle's range 2 r tan(0.2°) is the largest
     assert 0.8 * brute < res["CIRC"].measured <= res["RUN"].measured + 1e-12, res["CIRC"]
