@@ -49,7 +49,7 @@ def plans(files):
 #: geometric tolerances the plan may still leave unsupported, with a word of each reason
 STILL_UNSUPPORTED = {
     "nist_ctc_03": {"GT5": "datum modifiers", "GT10": "two parallel planes"},
-    "nist_ctc_05": {"GT4": "target", "GT5": "target", "GT6": "edge", "GT7": "Concentricity"},
+    "nist_ctc_05": {"GT6": "edge", "GT7": "Concentricity"},
     "nist_ftc_11": {},
 }
 
@@ -111,3 +111,86 @@ def test_perfect_ftc11_ring_fails_no_characteristic_of_its_plan(files, plans):
         assert c.verdict in ("pass", "undecided"), c
         if c.type == "circular_runout":      # datum A (a plane) sets datum B's direction
             assert c.verdict == "pass" and c.uncertainty < 0.3, c
+
+
+def _faces_holding(path, points):
+    """The faces (``TopExp_Explorer`` order) that OpenCASCADE's own classifier puts every one
+    of ``points`` on (IN or ON the trimmed face, within 1e-4 mm of its surface)."""
+    from OCP.BRep import BRep_Tool
+    from OCP.BRepClass import BRepClass_FaceClassifier
+    from OCP.GeomAPI import GeomAPI_ProjectPointOnSurf
+    from OCP.gp import gp_Pnt
+    from OCP.TopAbs import TopAbs_FACE, TopAbs_IN, TopAbs_ON
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    from independent_scans import read_shape
+
+    out, k = [], 0
+    ex = TopExp_Explorer(read_shape(path), TopAbs_FACE)
+    while ex.More():
+        f = TopoDS.Face(ex.Current())
+        surf = BRep_Tool.Surface_s(f)
+        ok = True
+        for p in points:
+            g = gp_Pnt(*map(float, p))
+            pr = GeomAPI_ProjectPointOnSurf(g, surf)
+            if pr.NbPoints() == 0 or pr.LowerDistance() > 1e-4 or \
+                    BRepClass_FaceClassifier(f, g, 1e-4).State() not in (TopAbs_IN, TopAbs_ON):
+                ok = False
+                break
+        if ok:
+            out.append(k)
+        k += 1
+        ex.Next()
+    return out
+
+
+def test_ctc05_rectangle_targets_attached_to_no_shape_lie_on_the_face_occ_classifies(files, plans):
+    """CTC 05's datums C and D are one rectangle target each that the file attaches to no
+    shape (GT4, GT5 were unsupported): the plan puts each on the one face OpenCASCADE's face
+    classifier finds its centre and corners on (independent of the project's trimming)."""
+    import numpy as np
+
+    datums = plans["nist_ctc_05"].data["datums"]
+    for name in ("C", "D"):
+        (t,) = datums[name]["targets"]
+        assert t["type"] == "rectangle"
+        at, n, x = (np.asarray(t[k], float) for k in ("at", "direction", "xdirection"))
+        y = np.cross(n, x)
+        pts = [at] + [at + 0.99 * (sx * 0.5 * t["length"] * x + sy * 0.5 * t["width"] * y)
+                      for sx in (-1, 1) for sy in (-1, 1)]
+        assert [f"face:{k}" for k in _faces_holding(files["nist_ctc_05"], pts)] == [t["face"]]
+
+
+def test_perfect_ctc05_passes_its_perpendicularities_to_rectangle_target_datums(files, plans):
+    """GT4, GT5 (perpendicularity 0.254 to datum C, D: a rectangle target each) on an
+    independent perfect scan (OCP tessellation, area sampling at 2 mm, 0.02 mm noise): none
+    fails; the DRF's plane is fitted on the rectangle's points only (the strip of face 2 / 9
+    the rectangle covers: its area at the sampling density), along the target's normal."""
+    import numpy as np
+    import yaml
+
+    import shapeverify as sv
+    from independent_scans import random_points, read_shape, tessellate
+    from shapeverify.characteristics import evaluate_plan
+
+    path = files["nist_ctc_05"]
+    data = dict(plans["nist_ctc_05"].data)
+    data["characteristics"] = [c for c in data["characteristics"]
+                               if c["pmi"]["id"] in ("GT4", "GT5")]
+    data.pop("unsupported", None)
+    prep = sv.prepare(sv.load_model(path), spacing=2.0)
+    rng = np.random.default_rng(4)
+    V, T, _ = tessellate(read_shape(path), 0.002)
+    P, N = random_points(V, T, 2.0, rng)
+    X = (P + rng.normal(0.0, 0.02, len(P))[:, None] * N)[rng.permutation(len(P))]
+    res = evaluate_plan(prep, X, yaml.safe_dump(data), init=np.eye(4))
+    assert sorted(c.name for c in res.characteristics) == ["GT4_perpendicularity",
+                                                           "GT5_perpendicularity"]
+    for c in res.characteristics:
+        assert c.verdict in ("pass", "undecided"), c
+        fit = c.details["drf"]["fits"][0]
+        assert fit["kind"] == "plane" and abs(abs(fit["direction"][0]) - 1) < 1e-9
+        # the datum plane's points are the rectangle's: 50.8 x 31.75 mm at 1 point / 4 mm^2
+        assert 0.6 * 50.8 * 31.75 / 4 < fit["n"] < 1.4 * 50.8 * 31.75 / 4, fit
