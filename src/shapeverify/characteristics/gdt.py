@@ -427,6 +427,8 @@ def eval_orientation(c, ctx: EvalContext):
                                                         "the DRF", "noise": ctx.S.noise,
                                           "tangent_plane": bool(c.tangent_plane),
                                           "excluded": ctx.S.excluded(fidx)}, drf)
+    if kinds == {"plane"} and c.zone == "median_plane":
+        return _median_plane_orientation(c, ctx, fidx, drf)
     if kinds == {"cylinder"} and c.zone == "diameter":
         if X.shape[0] < 5:
             return _not_measured(c, f"fewer than 5 scan points on faces {fidx}")
@@ -455,6 +457,45 @@ def eval_orientation(c, ctx: EvalContext):
                        0.0, float(c.tol) + bonus)
     raise ValueError(f"{c.name}: {c.type} of faces {fidx} ({sorted(kinds)}) with a {c.zone} "
                      "zone: planes need zone: planes, cylinders zone: diameter")
+
+
+def _median_plane_orientation(c, ctx: EvalContext, fidx, drf):
+    """An orientation zone (two parallel planes, the DRF fixing their orientation as for a
+    plane) of a width's derived median plane (:mod:`.median_plane`): the sides are the faces
+    whose outward CAD normal points along the first face's and against it."""
+    from .median_plane import median_points
+
+    feats = ctx.feats
+    f = feats[fidx[0]]
+    n0 = np.asarray(f.axis, float)
+    one = [i for i in fidx if feats[i].axis @ n0 > 0]
+    two = [i for i in fidx if feats[i].axis @ n0 < 0]
+    if not one or not two:
+        raise ValueError(f"{c.name}: a median plane needs planar faces on both sides of a "
+                         f"width; faces {fidx} all face one way")
+    X1 = drf.apply(ctx.S.X[_on(ctx, one)])
+    X2 = drf.apply(ctx.S.X[_on(ctx, two)])
+    if X1.shape[0] < 3 or X2.shape[0] < 3:
+        return _not_measured(c, f"fewer than 3 scan points on a side of the width {fidx}")
+    M = median_points(X1, X2, n0)
+    turns = [np.cross(w, n0) for w in drf.free_rotations()]
+    turns = [t for t in turns if np.linalg.norm(t) > 1e-9]
+    width, n, _ = planes_zone(M, n0, turns[:2])
+    zq = extreme_quantile(max(M.shape[0], 2), ctx.k)
+    ext = float(np.ptp(M @ tangent_basis(n0).T, axis=0).max())
+    # a median point's height is the mean of a scan point's and the other side's interpolated
+    # one: its noise is at most the scan's (sigma sqrt(1/4 + 1/4) when the interpolation
+    # carries a point's full noise); the scan's sigma is taken (conservative)
+    U = float(np.hypot(2.0 * zq * ctx.S.noise, 2.0 * _datum_part(drf, ctx, ext, zq)))
+    ang = float(np.degrees(np.arccos(np.clip(abs(n0 @ drf.datums[0].direction), 0, 1))))
+    return _result(c, ctx, width, U, {"faces": fidx, "sides": [one, two],
+                                      "n": int(M.shape[0]), "n_sides": [len(X1), len(X2)],
+                                      "normal": n.tolist(), "turns": len(turns),
+                                      "angle_to_primary_deg": ang,
+                                      "definition": "minimum zone of the derived median "
+                                                    "plane's points, orientation fixed by the "
+                                                    "DRF", "noise": ctx.S.noise,
+                                      "excluded": ctx.S.excluded(fidx)}, drf)
 
 
 # ------------------------------------------------------------------------------ position

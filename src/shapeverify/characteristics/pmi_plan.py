@@ -619,10 +619,14 @@ def _orientation(item, ctx, faces, src) -> tuple[list, str]:
             two = [f for f in faces if ctx.feats[f].axis @ f0.axis < 0]
             if one and two and _planes_coplanar(ctx, one) and _planes_coplanar(ctx, two) and \
                     abs(ctx.feats[two[0]].axis @ f0.axis + 1) < 1e-6:
-                return [], (f"{t.lower()} of a width (the opposite faces {', '.join(map(str, one + two))}: "
-                            "a feature of size, whose derived median plane the zone controls); "
-                            "the plan's orientation is of surfaces and axes, not of a median "
-                            "plane")
+                # a width (a feature of size): the zone holds its derived median plane
+                extra = ([f"material {item['material']}"] if item["material"] else []) + \
+                    [m for m in item["modifiers"] if m != "Free_State"]
+                if extra:
+                    return [], (f"{t.lower()} of a width's median plane with "
+                                f"{', '.join(extra)} (not applied)")
+                entry["zone"] = "median_plane"
+                return [entry], ""
             return [], f"{t.lower()} of {len(faces)} planar faces that are not one plane"
         if item["material"]:
             return [], f"material modifier {item['material']} on a plane"

@@ -307,10 +307,12 @@ class Cylindricity(_Form):
 class _Oriented(_Gdt):
     """Orientation/location of ``faces`` relative to the datum reference frame ``datums``.
     ``zone``: ``planes`` (two parallel planes: a plane, or an axis in one direction) or
-    ``diameter`` (a cylinder about the axis of a hole or boss)."""
+    ``diameter`` (a cylinder about the axis of a hole or boss) or ``median_plane`` (two
+    parallel planes holding the derived median plane of a width: ``faces`` are its two
+    opposite sides, :mod:`.median_plane`)."""
 
     datums: DrfRef
-    zone: Literal["planes", "diameter"] = "planes"
+    zone: Literal["planes", "diameter", "median_plane"] = "planes"
     #: the zone holds the surface's tangent (contacting) plane, not every point (ASME (T))
     tangent_plane: bool = False
     #: an axis's bonus tolerance from its measured size (``size``: the diameter's limits)
