@@ -49,7 +49,7 @@ def plans(files):
 #: geometric tolerances the plan may still leave unsupported, with a word of each reason
 STILL_UNSUPPORTED = {
     "nist_ctc_03": {"GT5": "datum modifiers", "GT10": "two parallel planes"},
-    "nist_ctc_05": {"GT6": "edge", "GT7": "Concentricity"},
+    "nist_ctc_05": {"GT7": "Concentricity"},
     "nist_ftc_11": {},
 }
 
@@ -163,11 +163,15 @@ def test_ctc05_rectangle_targets_attached_to_no_shape_lie_on_the_face_occ_classi
         assert [f"face:{k}" for k in _faces_holding(files["nist_ctc_05"], pts)] == [t["face"]]
 
 
-def test_perfect_ctc05_passes_its_perpendicularities_to_rectangle_target_datums(files, plans):
-    """GT4, GT5 (perpendicularity 0.254 to datum C, D: a rectangle target each) on an
-    independent perfect scan (OCP tessellation, area sampling at 2 mm, 0.02 mm noise): none
-    fails; the DRF's plane is fitted on the rectangle's points only (the strip of face 2 / 9
-    the rectangle covers: its area at the sampling density), along the target's normal."""
+def test_perfect_ctc05_passes_its_perpendicularities_and_line_straightness(files, plans):
+    """GT4, GT5 (perpendicularity 0.254 to datum C, D: a rectangle target each) and GT6
+    (straightness 0.127 of the line drawn on the cylinder face 71) on an independent perfect
+    scan (OCP tessellation, area sampling at 2 mm, 0.02 mm noise): none fails; the DRF's plane
+    is fitted on the rectangle's points only (the strip of face 2 / 9 the rectangle covers:
+    its area at the sampling density), along the target's normal.  GT6's line element bent
+    by 0.3 mm in its middle (a tent along the line, the points of face 71 within 2 mm of the
+    section plane moved along the face's normal) reads the bend (brute force: the tent's
+    height, 0.3 mm, within the noise) and fails."""
     import numpy as np
     import yaml
 
@@ -178,7 +182,7 @@ def test_perfect_ctc05_passes_its_perpendicularities_to_rectangle_target_datums(
     path = files["nist_ctc_05"]
     data = dict(plans["nist_ctc_05"].data)
     data["characteristics"] = [c for c in data["characteristics"]
-                               if c["pmi"]["id"] in ("GT4", "GT5")]
+                               if c["pmi"]["id"] in ("GT4", "GT5", "GT6")]
     data.pop("unsupported", None)
     prep = sv.prepare(sv.load_model(path), spacing=2.0)
     rng = np.random.default_rng(4)
@@ -186,11 +190,27 @@ def test_perfect_ctc05_passes_its_perpendicularities_to_rectangle_target_datums(
     P, N = random_points(V, T, 2.0, rng)
     X = (P + rng.normal(0.0, 0.02, len(P))[:, None] * N)[rng.permutation(len(P))]
     res = evaluate_plan(prep, X, yaml.safe_dump(data), init=np.eye(4))
-    assert sorted(c.name for c in res.characteristics) == ["GT4_perpendicularity",
-                                                           "GT5_perpendicularity"]
+    got = {c.name: c for c in res.characteristics}
+    assert sorted(got) == ["GT4_perpendicularity", "GT5_perpendicularity", "GT6_straightness"]
     for c in res.characteristics:
         assert c.verdict in ("pass", "undecided"), c
-        fit = c.details["drf"]["fits"][0]
+    for k in ("GT4_perpendicularity", "GT5_perpendicularity"):
+        fit = got[k].details["drf"]["fits"][0]
         assert fit["kind"] == "plane" and abs(abs(fit["direction"][0]) - 1) < 1e-9
         # the datum plane's points are the rectangle's: 50.8 x 31.75 mm at 1 point / 4 mm^2
         assert 0.6 * 50.8 * 31.75 / 4 < fit["n"] < 1.4 * 50.8 * 31.75 / 4, fit
+    g6 = got["GT6_straightness"]
+    assert g6.details["n"] >= 8 and g6.measured < 0.1
+    # the bent line: the generator at x = 0, y = 76.2 (radius 127 about (0, -50.8)), z from
+    # 228.6 to 266.7; a tent 0.3 mm high at its middle along the outward normal (+y there)
+    c6 = next(c for c in data["characteristics"] if c["pmi"]["id"] == "GT6")
+    at, u = np.asarray(c6["through"]), np.asarray(c6["direction"])
+    q = X - at
+    near = (np.abs(q[:, 0]) < 2.0) & (np.abs(q[:, 1]) < 1.0) & (np.abs(q @ u) <= 30)
+    tent = 0.3 * np.clip(1 - np.abs(q[near] @ u) / (0.5 * c6["length"]), 0, None)
+    Xb = X.copy()
+    Xb[near, 1] += tent
+    data["characteristics"] = [c6]
+    (b6,) = evaluate_plan(prep, Xb, yaml.safe_dump(data), init=np.eye(4)).characteristics
+    assert b6.measured == pytest.approx(0.3, abs=g6.measured + 0.02), b6
+    assert b6.verdict == "fail", b6

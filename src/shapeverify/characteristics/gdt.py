@@ -743,6 +743,8 @@ def eval_straightness(c, ctx: EvalContext):
         r = cylinders_zone(np.array(cen), f.center, f.axis, "circumscribed")[0]
         return _result(c, ctx, 2.0 * r, 2.0 * zq * ctx.S.noise,
                        {"faces": fidx, "centres": np.array(cen).tolist()})
+    if getattr(c, "through", None) is not None:
+        return _straightness_of_line(c, ctx, fidx)
     if f.kind != "plane":
         raise ValueError(f"{c.name}: straightness of line elements needs a planar face")
     n0 = f.axis
@@ -763,6 +765,57 @@ def eval_straightness(c, ctx: EvalContext):
         return _not_measured(c, "no line element with 3 scan points")
     return _result(c, ctx, float(max(vals)), 2.0 * zq * ctx.S.noise,
                    {"faces": fidx, "direction": u.tolist(), "lines": vals})
+
+
+def line_element_zone(t, d) -> float:
+    """Minimum zone (two parallel lines, their distance) of the 2D points ``(t_i, d_i)``: a
+    line element's points along it (``t``) and across it (``d``)."""
+    P = np.column_stack([np.asarray(t, float), np.zeros(len(t)), np.asarray(d, float)])
+    return float(planes_zone(P, [0.0, 0.0, 1.0], [[1.0, 0.0, 0.0]])[0])
+
+
+def _straightness_of_line(c, ctx: EvalContext, fidx):
+    """Straightness of the one line element of the faces through ``c.through`` along
+    ``c.direction`` (``c.length`` long): the points whose CAD foot lies within a band of
+    the section plane (holding the line and the face's normal at ``through``; half-width one
+    scan spacing, at least 0.5 mm) and within the line's length; each point's signed
+    deviation from the CAD (along the CAD normal, which is the section's across-line
+    direction on a straight line element) against its place along the line; the minimum zone
+    of two parallel lines of these (the pose's own tilt is a slope, which the zone takes out).
+    The CAD line must be straight: points along it lie on the faces (1e-4 mm)."""
+    S = ctx.S
+    at = np.asarray(c.through, float)
+    u = np.asarray(c.direction, float)
+    u /= np.linalg.norm(u)
+    L = float(c.length)
+    line = at + np.outer(np.linspace(-0.5, 0.5, 9) * L, u)
+    cl = ctx.prep.closest(line, exact=True)
+    off = np.abs(np.asarray(cl.distances, float))
+    if not np.all(off <= 1e-4) or not np.all(np.isin(cl.face, fidx)):
+        raise ValueError(f"{c.name}: the line through {np.round(at, 4).tolist()} along "
+                         f"{np.round(u, 6).tolist()} is not a straight line element of faces "
+                         f"{fidx} (up to {float(off.max()):.3g} mm off)")
+    n0 = np.asarray(cl.normals[4], float)
+    u = u - (u @ n0) * n0
+    u /= np.linalg.norm(u)
+    s = np.cross(u, n0)
+    sp = float(getattr(S.support, "spacing", 0.0) or 0.0)
+    band = max(0.5, sp)
+    m = S.on(fidx)
+    q = S.feet - at
+    sel = m & (np.abs(q @ s) <= band) & (np.abs(q @ u) <= 0.5 * L)
+    t, d = q[sel] @ u, S.d[sel]
+    if t.size < 3 or np.ptp(t) < 0.5 * L:
+        return _not_measured(c, f"{t.size} scan points on the line element (at least 3 over "
+                                "half its length)")
+    value = line_element_zone(t, d)
+    zq = extreme_quantile(max(t.size, 2), ctx.k)
+    return _result(c, ctx, value, 2.0 * zq * ctx.S.noise,
+                   {"faces": fidx, "n": int(t.size), "through": at.tolist(),
+                    "direction": u.tolist(), "section_normal": s.tolist(), "band": band,
+                    "length": L, "span": float(np.ptp(t)), "noise": ctx.S.noise,
+                    "definition": "minimum zone of two parallel lines in the section plane "
+                                  "(deviations from the straight CAD line element)"})
 
 
 # ------------------------------------------------------------------------------ size

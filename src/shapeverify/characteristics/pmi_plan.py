@@ -462,6 +462,8 @@ def _tolerance(item, ctx, drf, why) -> tuple[list, str]:
         from .pmi_profile_line import line_profile_entries
 
         return line_profile_entries(item, ctx, drf, why, _src(item))
+    if t == "Straightness" and not item["faces"] and item.get("edges"):
+        return _straightness_of_line(item, ctx, _src(item))
     faces, reason = _faces_ok(item, ctx)
     if faces is None:
         return [], reason
@@ -587,6 +589,36 @@ def _form_or_runout(item, ctx, faces, src) -> tuple[list, str]:
                         f"{'⌀' if zone == 'diameter' else 'two-line'} zone")
         entry["zone"] = zone
     return [entry], ""
+
+
+def _straightness_of_line(item, ctx, src) -> tuple[list, str]:
+    """Straightness of a straight line drawn on one face (NIST CTC 05 GT6: a generator of a
+    cylinder): the line element of that face along the line, over the line's length
+    (:func:`.gdt._straightness_of_line`)."""
+    recs = item["edges"]
+    if len(recs) != 1 or recs[0]["curve"] != "Line" or len(recs[0].get("on_faces") or []) != 1:
+        return [], item.get("edge_reason") or "straightness of edges that are not one line drawn on one face"
+    if item["zone_modifier"] != "None" or item["value_type"] != "None" or item["datums"]:
+        return [], (f"straightness of a line with a {item['value_type']} zone, zone modifier "
+                    f"{item['zone_modifier']} or datums")
+    extra = [m for m in item["modifiers"] if m != "Free_State"] + \
+        ([f"material {item['material']}"] if item["material"] else [])
+    if extra:
+        return [], f"modifiers {', '.join(extra)} are not applied by the plan"
+    face = ctx.fmap.get(recs[0]["on_faces"][0])
+    if face is None:
+        return [], "its face could not be imported"
+    P = np.asarray(recs[0]["points"], float)
+    a, b = P[0], P[-1]
+    L = float(np.linalg.norm(b - a))
+    if not L > 0:
+        return [], "its line has no length"
+    u = (b - a) / L
+    return [{"name": ctx.name(f"{item['id']}_straightness"), "type": "straightness",
+             "faces": [f"face:{face}"], "tol": item["value"], "zone": "lines",
+             "direction": [float(x) + 0.0 for x in u],
+             "through": [float(x) + 0.0 for x in 0.5 * (a + b)], "length": L,
+             "pmi": {**src, "attached": f"a line drawn on face {face}: its line element"}}], ""
 
 
 def _size_of(item, ctx, faces) -> tuple[dict | None, str]:

@@ -289,11 +289,25 @@ class _Form(_Gdt):
 
 class Straightness(_Form):
     """Straightness of a cylinder's axis (``zone: diameter``) or of the line elements of the
-    faces along ``direction`` (two parallel lines, default)."""
+    faces along ``direction`` (two parallel lines, default).  With ``through`` (and
+    ``length``): the one line element of the faces through that point along ``direction``
+    (a straight line of the CAD surface, e.g. a cylinder's generator: a line drawn on the face
+    in the file), ``length`` mm long centred there, in the section plane that holds it and the
+    face's normal."""
 
     type: Literal["straightness"]
     zone: Literal["lines", "diameter"] = "lines"
     direction: Optional[Vec3] = None
+    through: Optional[Vec3] = None
+    length: Optional[float] = Field(default=None, gt=0)
+
+    @model_validator(mode="after")
+    def _line(self):
+        if self.through is not None and (self.direction is None or self.length is None
+                                         or self.zone != "lines"):
+            raise ValueError("straightness through a point takes direction and length "
+                             "(zone: lines)")
+        return self
 
 
 class Circularity(_Form):
