@@ -555,9 +555,15 @@ def eval_position(c, ctx: EvalContext):
                      "mating_diameter": mating, "least_material_diameter": least,
                      "nominal_diameter": float(f.diameter), "U": U,
                      "verdict": decide(value, None, tol, U), "ends": ends.tolist(),
-                     "note": note})
+                     "note": note, "_axis": (f.center, f.axis)})
+    shift = None
+    if getattr(c, "datum_modifiers", None):       # MMB/LMB: the best pose within the shift
+        shift = _position_shift(c, ctx, drf, rows)
+    for r in rows:
+        r.pop("_axis")
     worst = min(rows, key=lambda r: (r["tolerance"] - r["value"]) - r["U"])
-    details = {"features": rows, "material": c.material, "n_features": len(rows)}
+    details = {"features": rows, "material": c.material, "n_features": len(rows),
+               **({"datum_shift": shift} if shift else {})}
     res = _result(c, ctx, worst["value"], worst["U"], details, drf, 0.0, worst["tolerance"])
     verdicts = [r["verdict"] for r in rows]
     from .zones import worst_verdict
@@ -567,6 +573,41 @@ def eval_position(c, ctx: EvalContext):
 
         res = dataclasses.replace(res, verdict=worst_verdict(verdicts))
     return res
+
+
+def _position_shift(c, ctx, drf, rows) -> dict:
+    """Move the axes of ``rows`` (in place: ``value``, ``verdict``, ``ends``) to the best pose
+    within the datum feature shift of ``c.datum_modifiers`` (:func:`.datum_shift.
+    best_position_shift`, the moved axes then measured exactly: the motion applied to their
+    ends); the pose found must lower the largest excess over the zones, else the rows stay.
+    Returns the details."""
+    from .datum_shift import Infeasible, best_position_shift, shift_limits
+    from .drf import rigid_exp
+
+    S, datums, det = shift_limits(c, ctx, drf)
+    axes = [(np.asarray(r["ends"]), r["_axis"][0], r["_axis"][1], r["tolerance"]) for r in rows]
+    before = max(r["value"] - r["tolerance"] for r in rows)
+    try:
+        lin, xi, _ = best_position_shift(axes, S, datums)
+    except Infeasible as e:
+        return {"datums": det, "applied": False, "reason": str(e), "max_excess_before": before}
+    T = rigid_exp(xi)
+    moved = []
+    for (ends, c0, a, _), r in zip(axes, rows):
+        e2 = ends @ T[:3, :3].T + T[:3, 3]
+        q = e2 - c0
+        off = q - np.outer(q @ a, a)
+        moved.append((2.0 * float(np.linalg.norm(off, axis=1).max()), e2))
+    after = max(v - r["tolerance"] for (v, _), r in zip(moved, rows))
+    # excesses as diameters (value - tolerance), the LP's are radii
+    out = {"datums": det, "motion": xi.tolist(), "linearised_max_excess": 2.0 * lin,
+           "max_excess_before": before, "max_excess_after": after, "applied": bool(after < before)}
+    if after < before:
+        for (v, e2), r in zip(moved, rows):
+            r["value_at_datum_pose"] = r["value"]
+            r["value"], r["ends"] = v, e2.tolist()
+            r["verdict"] = decide(v, None, r["tolerance"], r["U"])
+    return out
 
 
 def mating_centre_u(n: int, noise: float, k: float) -> float:

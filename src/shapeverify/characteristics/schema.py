@@ -371,12 +371,19 @@ class Position(_Char):
     datums: Optional[DrfRef] = None
     material: Optional[Literal["M", "L"]] = None
     size: Optional[SizeLimits] = None
+    #: datums of ``datums`` referenced at MMB (``M``) or LMB (``L``): the axes are evaluated
+    #: at the best pose within the datum feature shift (:mod:`.datum_shift`)
+    datum_modifiers: Optional[dict[str, Literal["M", "L"]]] = None
 
     @model_validator(mode="after")
     def _bonus(self):
         if self.material is not None and self.size is None:
             raise ValueError(f"material {self.material} needs size: {{lower, upper}} (the "
                              "diameter's limits of deviation) for the bonus tolerance")
+        extra = sorted(set(self.datum_modifiers or ()) - set(self.datums or ()))
+        if extra:
+            raise ValueError(f"datum_modifiers name datums {extra} that are not in datums "
+                             f"{self.datums or []}")
         return self
 
 
