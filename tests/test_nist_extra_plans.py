@@ -49,7 +49,7 @@ def plans(files):
 #: geometric tolerances the plan may still leave unsupported, with a word of each reason
 STILL_UNSUPPORTED = {
     "nist_ctc_03": {"GT10": "two parallel planes"},
-    "nist_ctc_05": {"GT7": "Concentricity"},
+    "nist_ctc_05": {},
     "nist_ftc_11": {},
 }
 
@@ -163,7 +163,8 @@ def test_ctc05_rectangle_targets_attached_to_no_shape_lie_on_the_face_occ_classi
         assert [f"face:{k}" for k in _faces_holding(files["nist_ctc_05"], pts)] == [t["face"]]
 
 
-def test_perfect_ctc05_passes_its_perpendicularities_and_line_straightness(files, plans):
+def test_perfect_ctc05_passes_its_perpendicularities_line_straightness_and_concentricity(
+        files, plans):
     """GT4, GT5 (perpendicularity 0.254 to datum C, D: a rectangle target each) and GT6
     (straightness 0.127 of the line drawn on the cylinder face 71) on an independent perfect
     scan (OCP tessellation, area sampling at 2 mm, 0.02 mm noise): none fails; the DRF's plane
@@ -171,7 +172,9 @@ def test_perfect_ctc05_passes_its_perpendicularities_and_line_straightness(files
     its area at the sampling density), along the target's normal.  GT6's line element bent
     by 0.3 mm in its middle (a tent along the line, the points of face 71 within 2 mm of the
     section plane moved along the face's normal) reads the bend (brute force: the tent's
-    height, 0.3 mm, within the noise) and fails."""
+    height, 0.3 mm, within the noise) and fails.  GT7 (concentricity 0.762 of the cylinder
+    face 10, ⌀304.8, to datum A) passes; face 10's points moved 0.5 mm along x read twice
+    that (the median points of an off-axis circle lie 0.5 from the axis) and fail."""
     import numpy as np
     import yaml
 
@@ -182,7 +185,7 @@ def test_perfect_ctc05_passes_its_perpendicularities_and_line_straightness(files
     path = files["nist_ctc_05"]
     data = dict(plans["nist_ctc_05"].data)
     data["characteristics"] = [c for c in data["characteristics"]
-                               if c["pmi"]["id"] in ("GT4", "GT5", "GT6")]
+                               if c["pmi"]["id"] in ("GT4", "GT5", "GT6", "GT7")]
     data.pop("unsupported", None)
     prep = sv.prepare(sv.load_model(path), spacing=2.0)
     rng = np.random.default_rng(4)
@@ -191,7 +194,8 @@ def test_perfect_ctc05_passes_its_perpendicularities_and_line_straightness(files
     X = (P + rng.normal(0.0, 0.02, len(P))[:, None] * N)[rng.permutation(len(P))]
     res = evaluate_plan(prep, X, yaml.safe_dump(data), init=np.eye(4))
     got = {c.name: c for c in res.characteristics}
-    assert sorted(got) == ["GT4_perpendicularity", "GT5_perpendicularity", "GT6_straightness"]
+    assert sorted(got) == ["GT4_perpendicularity", "GT5_perpendicularity", "GT6_straightness",
+                           "GT7_concentricity"]
     for c in res.characteristics:
         assert c.verdict in ("pass", "undecided"), c
     for k in ("GT4_perpendicularity", "GT5_perpendicularity"):
@@ -214,6 +218,19 @@ def test_perfect_ctc05_passes_its_perpendicularities_and_line_straightness(files
     (b6,) = evaluate_plan(prep, Xb, yaml.safe_dump(data), init=np.eye(4)).characteristics
     assert b6.measured == pytest.approx(0.3, abs=g6.measured + 0.02), b6
     assert b6.verdict == "fail", b6
+    g7 = got["GT7_concentricity"]
+    assert g7.measured < 0.2 and g7.details["n_median_points"] > 100, g7
+    c7 = next(c for c in plans["nist_ctc_05"].data["characteristics"]
+              if c["pmi"]["id"] == "GT7")
+    data["characteristics"] = [c7]
+    Xc = X.copy()
+    q = X - [0.0, 0.0, 0.0]
+    on10 = (np.abs(np.hypot(q[:, 0], q[:, 1]) - 152.4) < 0.2) & (q[:, 2] > 33.3) & \
+        (q[:, 2] < 119.1)
+    Xc[on10] += [0.5, 0.0, 0.0]
+    (b7,) = evaluate_plan(prep, Xc, yaml.safe_dump(data), init=np.eye(4)).characteristics
+    assert b7.measured == pytest.approx(1.0, abs=g7.measured + 0.05), b7
+    assert b7.verdict == "fail", b7
 
 
 def _check_shift(c, data, X, F, inv):

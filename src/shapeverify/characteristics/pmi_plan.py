@@ -539,9 +539,11 @@ def _tolerance(item, ctx, drf, why) -> tuple[list, str]:
         return out, ""
     if t in _FORMS or t in _RUNOUTS:
         return _form_or_runout(item, ctx, faces, src)
-    if t in ("Concentricity", "Symmetry"):
+    if t == "Concentricity":
+        return _concentricity(item, ctx, faces, src)
+    if t == "Symmetry":
         return [], (f"{t} (ASME Y14.5-2009: the median points of opposed elements) is not "
-                    "measured; a coaxiality or symmetry drawn as a position tolerance is")
+                    "measured; a symmetry drawn as a position tolerance is")
     return [], f"no plan characteristic for {t} yet (issue 28 item 3)"
 
 
@@ -619,6 +621,32 @@ def _straightness_of_line(item, ctx, src) -> tuple[list, str]:
              "direction": [float(x) + 0.0 for x in u],
              "through": [float(x) + 0.0 for x in 0.5 * (a + b)], "length": L,
              "pmi": {**src, "attached": f"a line drawn on face {face}: its line element"}}], ""
+
+
+def _concentricity(item, ctx, faces, src) -> tuple[list, str]:
+    """Concentricity (⌀ zone) of one surface of revolution (a cylinder) about an axis datum
+    (:mod:`.concentricity`)."""
+    if item["value_type"] != "Diameter" or item["zone_modifier"] != "None":
+        return [], "a concentricity without a ⌀ zone, or with a zone modifier"
+    extra = [m for m in item["modifiers"] if m != "Free_State"] + \
+        ([f"material {item['material']}"] if item["material"] else [])
+    if extra:
+        return [], f"modifiers {', '.join(extra)} are not applied by the plan"
+    if not item["datums"]:
+        return [], "a concentricity without a datum axis"
+    kinds = {ctx.feats[f].kind for f in faces}
+    groups, other = _cylinders(ctx.feats, ctx.model, faces)
+    if kinds != {"cylinder"} or len(groups) != 1:
+        return [], (f"concentricity of {len(faces)} faces ({', '.join(sorted(kinds))}) that "
+                    "are not one cylinder")
+    names, r = _item_drf(item, ctx)
+    if names is None:
+        return [], r or "no datum reference frame"
+    if not any(ctx.datum_specs[n].get("kind") == "axis" for n in names):
+        return [], f"its datum reference frame {'|'.join(names)} has no axis datum"
+    return [{"name": ctx.name(f"{item['id']}_concentricity"), "type": "concentricity",
+             "faces": [f"face:{f}" for f in faces], "tol": item["value"], "datums": names,
+             "pmi": src}], ""
 
 
 def _size_of(item, ctx, faces) -> tuple[dict | None, str]:

@@ -14,7 +14,7 @@ __all__ = ["Tol", "PmiSource", "Unsupported", "Vec3", "FeatureId", "FeatureRef",
            "DatumTargetSpec", "DatumSize", "SurfaceProfile", "Flatness", "Cylinder", "CheckPoint", "DatumSpec",
            "Straightness",
            "Circularity", "Cylindricity", "Parallelism", "Perpendicularity", "Angularity",
-           "Position", "CircularRunout", "TotalRunout", "Width", "SizeLimits", "Distance",
+           "Position", "CircularRunout", "TotalRunout", "Concentricity", "Width", "SizeLimits", "Distance",
            "Angle", "LineProfile", "PositionZone",
            "FeatureSize"]
 
@@ -454,6 +454,15 @@ class CircularRunout(_Runout):
 
 class TotalRunout(_Runout):
     type: Literal["total_runout"]
+
+
+class Concentricity(_Runout):
+    """Concentricity (ASME Y14.5-2009 7.6.4): the median points of diametrically opposed
+    elements of ``faces`` (a surface of revolution) in a cylindrical zone of diameter ``tol``
+    about the datum axis (:mod:`.concentricity`)."""
+
+    type: Literal["concentricity"]
+    zone: Literal["diameter"] = "diameter"
 
 
 class _TwoPlanes(_Char):
