@@ -33,6 +33,13 @@ Size_Radius, Size_SphericalDiameter,       ``feature_size`` (:mod:`.pmi_sizes`)
 Size_SphericalRadius with ± limits
 Size_Thickness with ± limits on planar      ``distance`` between the two planes (a side of
 faces in two parallel planes                several coplanar faces is one plane)
+Parallelism/Perpendicularity/Angularity of  the orientation type with ``zone: median_plane``
+a width's two opposite planar sides         (its derived median plane, :mod:`.median_plane`)
+Straightness of a straight line drawn on a  ``straightness`` with ``through``, ``direction``,
+face                                        ``length``: that line element of the face
+Concentricity (⌀) of a cylinder to an axis  ``concentricity`` (:mod:`.concentricity`)
+Position (⌀) with datums at MMB / LMB       ``position`` with ``datum_modifiers`` (the best
+                                            pose within the datum shift, :mod:`.datum_shift`)
 =========================================  ===============================================
 
 An item attached to an edge rather than a face (NIST CTC 02: a hole's rim circle) is mapped to
@@ -51,7 +58,9 @@ modifier (no bonus tolerance); datum modifiers other than MMB/LMB of hole or bos
 of them and common datums in a profile's DRF (:mod:`.pmi_datums`); datums on edges that bound
 no cylinder; datum features left without faces (datums that the file ties to faces by an
 ``ITEM_IDENTIFIED_REPRESENTATION_USAGE`` that XCAF does not resolve, NIST CTC 01's B and C, are
-attached by :mod:`shapeverify.cad.pmi_iiru`).  Line datum targets attached to an edge drawn
+attached by :mod:`shapeverify.cad.pmi_iiru`).  Area datum targets (rectangle, circle) that
+the file attaches to no shape are put on the one planar face holding their placement
+(:mod:`.pmi_datums`).  Line datum targets attached to an edge drawn
 on a face take the edge's line; 'circular curve' targets (read from the STEP entities) are
 ``circular_line`` targets (:mod:`.pmi_datums`).
 Datums set up from datum targets, patterns of cylinders and common datums (``E-F``) are in the
