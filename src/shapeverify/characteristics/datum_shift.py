@@ -36,7 +36,7 @@ from __future__ import annotations
 import numpy as np
 
 __all__ = ["POLYGON", "Infeasible", "shift_allowance", "best_profile_shift", "motion_of",
-           "profile_with_shift", "pattern_shift_limits"]
+           "profile_with_shift", "pattern_shift_limits", "shift_limits", "best_position_shift"]
 
 #: sides of the regular polygon inscribed in each shift disc
 POLYGON = 64
@@ -150,18 +150,16 @@ def best_profile_shift(X, normals, d, S, datums, polygon: int = POLYGON):
     return float(res.x[m]), S @ y, y
 
 
-def profile_with_shift(c, ctx, X, drf, d, normals):
-    """(deviations of the profile's points ``X`` (DRF frame) at the best pose within the
-    shifts of ``c.datum_modifiers``, details) -- the motion from :func:`best_profile_shift`,
-    the deviations then taken again from the CAD (exact closest points); the original ones if
-    those are no better (the linearisation never makes a part worse).
+def shift_limits(c, ctx, drf):
+    """(S (6, m): the motions the shifted datums constrained, datums for
+    :func:`best_profile_shift`, details per datum) of ``c.datum_modifiers``.
 
     Raises
     ------
     ValueError
-        A modified datum is not a hole or boss axis, or the plan gives it no size limits.
+        A modified datum is not a hole or boss axis (or a pattern of them), or the plan gives
+        it no size limits.
     """
-    from .drf import rigid_exp
     from .gdt import _datum_feature
 
     S_parts, datums, det = [], [], {}
@@ -191,6 +189,23 @@ def profile_with_shift(c, ctx, X, drf, d, normals):
         S_parts.append(drf.constrained[k])
         det[name] = dd
     S = np.hstack(S_parts)
+    return S, datums, det
+
+
+def profile_with_shift(c, ctx, X, drf, d, normals):
+    """(deviations of the profile's points ``X`` (DRF frame) at the best pose within the
+    shifts of ``c.datum_modifiers``, details) -- the motion from :func:`best_profile_shift`,
+    the deviations then taken again from the CAD (exact closest points); the original ones if
+    those are no better (the linearisation never makes a part worse).
+
+    Raises
+    ------
+    ValueError
+        A modified datum is not a hole or boss axis, or the plan gives it no size limits.
+    """
+    from .drf import rigid_exp
+
+    S, datums, det = shift_limits(c, ctx, drf)
     ok = np.isfinite(d)
     try:
         lin, xi, _ = best_profile_shift(X[ok], normals[ok], d[ok], S, datums)
@@ -284,3 +299,64 @@ def _pattern_shift(c, name, spec, ctx, drf, k, mat):
     N = np.hstack(list(drf.constrained[k:]) + [drf.free_basis])
     datums, det = pattern_shift_limits(groups, sizes, mat, N)
     return datums, {"boundary": what, "features": det}
+
+
+def best_position_shift(axes, S, datums, polygon: int = POLYGON):
+    """The motion within the datum shifts that minimises the largest excess of a pattern of
+    axes over their position zones: ``max_j max_e (|P_j (e + omega x e + t - c_j)| - z_j / 2)``
+    over each axis j's ends e (``P_j`` across its nominal direction, ``c_j`` on its nominal
+    axis, ``z_j`` its zone's diameter with any bonus); each zone circle replaced by its
+    inscribed regular ``polygon``-gon (conservative), each datum's shift disc as in
+    :func:`best_profile_shift`: a linear programme.
+
+    Parameters
+    ----------
+    axes : list of (ends (k, 3), centre (3,), direction (3,), zone diameter)
+    S, datums : as for :func:`best_profile_shift`
+
+    Returns
+    -------
+    (the linearised min of the largest excess, xi (6,), y (m,))
+    """
+    from scipy.optimize import linprog
+
+    S = np.asarray(S, float)
+    m = S.shape[1]
+    ang = 2 * np.pi * (np.arange(polygon) + 0.5) / polygon
+    cosp = np.cos(np.pi / polygon)
+
+    def ring(a):
+        a = np.asarray(a, float) / np.linalg.norm(a)
+        e1 = np.cross(a, np.eye(3)[int(np.argmin(np.abs(a)))])
+        e1 /= np.linalg.norm(e1)
+        e2 = np.cross(a, e1)
+        return np.outer(np.cos(ang), e1) + np.outer(np.sin(ang), e2)
+
+    A, b = [], []
+    for ends, c0, a, z in axes:
+        U = ring(a)
+        for e in np.atleast_2d(np.asarray(ends, float)):
+            q = e - np.asarray(c0, float)
+            # U_k . (q + motion(e)) <= cos(pi/P) (z/2 + s): inside the excess-grown polygon
+            A.append(np.hstack([U @ _skew_rows(e) @ S, -cosp * np.ones((polygon, 1))]))
+            b.append(cosp * 0.5 * float(z) - U @ q)
+    for item in datums:
+        ends, axis, r = item[:3]
+        ends = np.atleast_2d(np.asarray(ends, float))
+        offs = (np.atleast_2d(np.asarray(item[3], float)) if len(item) > 3
+                else np.zeros_like(ends))
+        U = ring(axis)
+        for e, o in zip(ends, offs):
+            A.append(np.hstack([U @ _skew_rows(e) @ S, np.zeros((polygon, 1))]))
+            b.append(np.full(polygon, max(float(r), 0.0) * cosp) - U @ o)
+    c = np.r_[np.zeros(m), 1.0]
+    res = linprog(c, A_ub=np.vstack(A), b_ub=np.concatenate(b),
+                  bounds=[(None, None)] * m + [(None, None)], method="highs")
+    if res.status == 2:
+        raise Infeasible("no pose of the part fits its datum features on their simulators "
+                         "(a feature is off its place by more than its departure from the "
+                         "boundary allows)")
+    if res.status != 0:
+        raise ValueError(f"the datum shift optimisation failed: {res.message}")
+    y = res.x[:m]
+    return float(res.x[m]), S @ y, y

@@ -427,6 +427,8 @@ def eval_orientation(c, ctx: EvalContext):
                                                         "the DRF", "noise": ctx.S.noise,
                                           "tangent_plane": bool(c.tangent_plane),
                                           "excluded": ctx.S.excluded(fidx)}, drf)
+    if kinds == {"plane"} and c.zone == "median_plane":
+        return _median_plane_orientation(c, ctx, fidx, drf)
     if kinds == {"cylinder"} and c.zone == "diameter":
         if X.shape[0] < 5:
             return _not_measured(c, f"fewer than 5 scan points on faces {fidx}")
@@ -455,6 +457,45 @@ def eval_orientation(c, ctx: EvalContext):
                        0.0, float(c.tol) + bonus)
     raise ValueError(f"{c.name}: {c.type} of faces {fidx} ({sorted(kinds)}) with a {c.zone} "
                      "zone: planes need zone: planes, cylinders zone: diameter")
+
+
+def _median_plane_orientation(c, ctx: EvalContext, fidx, drf):
+    """An orientation zone (two parallel planes, the DRF fixing their orientation as for a
+    plane) of a width's derived median plane (:mod:`.median_plane`): the sides are the faces
+    whose outward CAD normal points along the first face's and against it."""
+    from .median_plane import median_points
+
+    feats = ctx.feats
+    f = feats[fidx[0]]
+    n0 = np.asarray(f.axis, float)
+    one = [i for i in fidx if feats[i].axis @ n0 > 0]
+    two = [i for i in fidx if feats[i].axis @ n0 < 0]
+    if not one or not two:
+        raise ValueError(f"{c.name}: a median plane needs planar faces on both sides of a "
+                         f"width; faces {fidx} all face one way")
+    X1 = drf.apply(ctx.S.X[_on(ctx, one)])
+    X2 = drf.apply(ctx.S.X[_on(ctx, two)])
+    if X1.shape[0] < 3 or X2.shape[0] < 3:
+        return _not_measured(c, f"fewer than 3 scan points on a side of the width {fidx}")
+    M = median_points(X1, X2, n0)
+    turns = [np.cross(w, n0) for w in drf.free_rotations()]
+    turns = [t for t in turns if np.linalg.norm(t) > 1e-9]
+    width, n, _ = planes_zone(M, n0, turns[:2])
+    zq = extreme_quantile(max(M.shape[0], 2), ctx.k)
+    ext = float(np.ptp(M @ tangent_basis(n0).T, axis=0).max())
+    # a median point's height is the mean of a scan point's and the other side's interpolated
+    # one: its noise is at most the scan's (sigma sqrt(1/4 + 1/4) when the interpolation
+    # carries a point's full noise); the scan's sigma is taken (conservative)
+    U = float(np.hypot(2.0 * zq * ctx.S.noise, 2.0 * _datum_part(drf, ctx, ext, zq)))
+    ang = float(np.degrees(np.arccos(np.clip(abs(n0 @ drf.datums[0].direction), 0, 1))))
+    return _result(c, ctx, width, U, {"faces": fidx, "sides": [one, two],
+                                      "n": int(M.shape[0]), "n_sides": [len(X1), len(X2)],
+                                      "normal": n.tolist(), "turns": len(turns),
+                                      "angle_to_primary_deg": ang,
+                                      "definition": "minimum zone of the derived median "
+                                                    "plane's points, orientation fixed by the "
+                                                    "DRF", "noise": ctx.S.noise,
+                                      "excluded": ctx.S.excluded(fidx)}, drf)
 
 
 # ------------------------------------------------------------------------------ position
@@ -514,9 +555,15 @@ def eval_position(c, ctx: EvalContext):
                      "mating_diameter": mating, "least_material_diameter": least,
                      "nominal_diameter": float(f.diameter), "U": U,
                      "verdict": decide(value, None, tol, U), "ends": ends.tolist(),
-                     "note": note})
+                     "note": note, "_axis": (f.center, f.axis)})
+    shift = None
+    if getattr(c, "datum_modifiers", None):       # MMB/LMB: the best pose within the shift
+        shift = _position_shift(c, ctx, drf, rows)
+    for r in rows:
+        r.pop("_axis")
     worst = min(rows, key=lambda r: (r["tolerance"] - r["value"]) - r["U"])
-    details = {"features": rows, "material": c.material, "n_features": len(rows)}
+    details = {"features": rows, "material": c.material, "n_features": len(rows),
+               **({"datum_shift": shift} if shift else {})}
     res = _result(c, ctx, worst["value"], worst["U"], details, drf, 0.0, worst["tolerance"])
     verdicts = [r["verdict"] for r in rows]
     from .zones import worst_verdict
@@ -526,6 +573,41 @@ def eval_position(c, ctx: EvalContext):
 
         res = dataclasses.replace(res, verdict=worst_verdict(verdicts))
     return res
+
+
+def _position_shift(c, ctx, drf, rows) -> dict:
+    """Move the axes of ``rows`` (in place: ``value``, ``verdict``, ``ends``) to the best pose
+    within the datum feature shift of ``c.datum_modifiers`` (:func:`.datum_shift.
+    best_position_shift`, the moved axes then measured exactly: the motion applied to their
+    ends); the pose found must lower the largest excess over the zones, else the rows stay.
+    Returns the details."""
+    from .datum_shift import Infeasible, best_position_shift, shift_limits
+    from .drf import rigid_exp
+
+    S, datums, det = shift_limits(c, ctx, drf)
+    axes = [(np.asarray(r["ends"]), r["_axis"][0], r["_axis"][1], r["tolerance"]) for r in rows]
+    before = max(r["value"] - r["tolerance"] for r in rows)
+    try:
+        lin, xi, _ = best_position_shift(axes, S, datums)
+    except Infeasible as e:
+        return {"datums": det, "applied": False, "reason": str(e), "max_excess_before": before}
+    T = rigid_exp(xi)
+    moved = []
+    for (ends, c0, a, _), r in zip(axes, rows):
+        e2 = ends @ T[:3, :3].T + T[:3, 3]
+        q = e2 - c0
+        off = q - np.outer(q @ a, a)
+        moved.append((2.0 * float(np.linalg.norm(off, axis=1).max()), e2))
+    after = max(v - r["tolerance"] for (v, _), r in zip(moved, rows))
+    # excesses as diameters (value - tolerance), the LP's are radii
+    out = {"datums": det, "motion": xi.tolist(), "linearised_max_excess": 2.0 * lin,
+           "max_excess_before": before, "max_excess_after": after, "applied": bool(after < before)}
+    if after < before:
+        for (v, e2), r in zip(moved, rows):
+            r["value_at_datum_pose"] = r["value"]
+            r["value"], r["ends"] = v, e2.tolist()
+            r["verdict"] = decide(v, None, r["tolerance"], r["U"])
+    return out
 
 
 def mating_centre_u(n: int, noise: float, k: float) -> float:
@@ -728,6 +810,8 @@ def eval_straightness(c, ctx: EvalContext):
         r = cylinders_zone(np.array(cen), f.center, f.axis, "circumscribed")[0]
         return _result(c, ctx, 2.0 * r, 2.0 * zq * ctx.S.noise,
                        {"faces": fidx, "centres": np.array(cen).tolist()})
+    if getattr(c, "through", None) is not None:
+        return _straightness_of_line(c, ctx, fidx)
     if f.kind != "plane":
         raise ValueError(f"{c.name}: straightness of line elements needs a planar face")
     n0 = f.axis
@@ -748,6 +832,57 @@ def eval_straightness(c, ctx: EvalContext):
         return _not_measured(c, "no line element with 3 scan points")
     return _result(c, ctx, float(max(vals)), 2.0 * zq * ctx.S.noise,
                    {"faces": fidx, "direction": u.tolist(), "lines": vals})
+
+
+def line_element_zone(t, d) -> float:
+    """Minimum zone (two parallel lines, their distance) of the 2D points ``(t_i, d_i)``: a
+    line element's points along it (``t``) and across it (``d``)."""
+    P = np.column_stack([np.asarray(t, float), np.zeros(len(t)), np.asarray(d, float)])
+    return float(planes_zone(P, [0.0, 0.0, 1.0], [[1.0, 0.0, 0.0]])[0])
+
+
+def _straightness_of_line(c, ctx: EvalContext, fidx):
+    """Straightness of the one line element of the faces through ``c.through`` along
+    ``c.direction`` (``c.length`` long): the points whose CAD foot lies within a band of
+    the section plane (holding the line and the face's normal at ``through``; half-width one
+    scan spacing, at least 0.5 mm) and within the line's length; each point's signed
+    deviation from the CAD (along the CAD normal, which is the section's across-line
+    direction on a straight line element) against its place along the line; the minimum zone
+    of two parallel lines of these (the pose's own tilt is a slope, which the zone takes out).
+    The CAD line must be straight: points along it lie on the faces (1e-4 mm)."""
+    S = ctx.S
+    at = np.asarray(c.through, float)
+    u = np.asarray(c.direction, float)
+    u /= np.linalg.norm(u)
+    L = float(c.length)
+    line = at + np.outer(np.linspace(-0.5, 0.5, 9) * L, u)
+    cl = ctx.prep.closest(line, exact=True)
+    off = np.abs(np.asarray(cl.distances, float))
+    if not np.all(off <= 1e-4) or not np.all(np.isin(cl.face, fidx)):
+        raise ValueError(f"{c.name}: the line through {np.round(at, 4).tolist()} along "
+                         f"{np.round(u, 6).tolist()} is not a straight line element of faces "
+                         f"{fidx} (up to {float(off.max()):.3g} mm off)")
+    n0 = np.asarray(cl.normals[4], float)
+    u = u - (u @ n0) * n0
+    u /= np.linalg.norm(u)
+    s = np.cross(u, n0)
+    sp = float(getattr(S.support, "spacing", 0.0) or 0.0)
+    band = max(0.5, sp)
+    m = S.on(fidx)
+    q = S.feet - at
+    sel = m & (np.abs(q @ s) <= band) & (np.abs(q @ u) <= 0.5 * L)
+    t, d = q[sel] @ u, S.d[sel]
+    if t.size < 3 or np.ptp(t) < 0.5 * L:
+        return _not_measured(c, f"{t.size} scan points on the line element (at least 3 over "
+                                "half its length)")
+    value = line_element_zone(t, d)
+    zq = extreme_quantile(max(t.size, 2), ctx.k)
+    return _result(c, ctx, value, 2.0 * zq * ctx.S.noise,
+                   {"faces": fidx, "n": int(t.size), "through": at.tolist(),
+                    "direction": u.tolist(), "section_normal": s.tolist(), "band": band,
+                    "length": L, "span": float(np.ptp(t)), "noise": ctx.S.noise,
+                    "definition": "minimum zone of two parallel lines in the section plane "
+                                  "(deviations from the straight CAD line element)"})
 
 
 # ------------------------------------------------------------------------------ size

@@ -63,6 +63,63 @@ def _line_on_edge(t: dict, what: str, ctx) -> tuple[dict | None, str, str]:
     return entry, note, ""
 
 
+def _area_on_face(t: dict, what: str, ctx) -> tuple[int | None, str, str]:
+    """(PMI face number, note, '') of an area target (circle, rectangle) that the file attaches
+    to no shape (NIST CTC 05 C1, D1: a placed rectangle only): the one planar face whose plane
+    holds the target's placement (normal along its ``direction``) and whose trimmed domain holds
+    its centre and its outline (the corners, or 8 points of the circle, each pulled 1 % towards
+    the centre); or (None, '', why)."""
+    import numpy as np
+
+    from ..fitting.surfaces import project_to_surface
+
+    at = np.asarray(t["at"], float)
+    n = np.asarray(t["direction"], float)
+    n /= np.linalg.norm(n)
+    if t["type"] == "Rectangle":
+        x = np.asarray(t["xdirection"], float)
+        x = x - (x @ n) * n
+        x /= np.linalg.norm(x)
+        y = np.cross(n, x)
+        hx, hy = 0.5 * float(t["length"]), 0.5 * float(t["width"])
+        rim = [at + sx * hx * x + sy * hy * y for sx in (-1, 1) for sy in (-1, 1)]
+    else:
+        e = np.cross(n, np.eye(3)[int(np.argmin(np.abs(n)))])
+        e /= np.linalg.norm(e)
+        f = np.cross(n, e)
+        r = 0.5 * float(t["length"])
+        rim = [at + r * (np.cos(a) * e + np.sin(a) * f) for a in np.linspace(0, 2 * np.pi, 9)[:-1]]
+    P = np.array([at] + [at + 0.99 * (q - at) for q in rim])
+    tol = max(1e-6 * ctx.size, 1e-6)
+    inv = {v: k for k, v in ctx.fmap.items()}
+    hits = []
+    for k, ft in enumerate(ctx.feats):
+        if ft.kind != "plane" or abs(abs(float(ft.axis @ n)) - 1) > 1e-6 \
+                or abs(float((at - ft.center) @ ft.axis)) > tol or k not in inv:
+            continue
+        face = ctx.model.faces[k]
+        (a0, a1), (b0, b1) = face.uv_bounds
+        g = np.stack(np.meshgrid(np.linspace(a0, a1, 41), np.linspace(b0, b1, 41)),
+                     -1).reshape(-1, 2)
+        G = face.evaluate(g)
+        uv0 = g[np.argmin(((P[:, None] - G[None]) ** 2).sum(-1), axis=1)]
+        uv, dist = project_to_surface(face.surface, P, uv0)
+        inside = face.contains(uv) & (np.abs(dist) <= tol)
+        if inside[0]:
+            hits.append((k, int(inside.sum()) - 1))
+    if len(hits) != 1:
+        return None, "", (f"{what} is attached to no shape, and its placement lies on "
+                          f"{len(hits)} planar faces of the part (one expected)")
+    k, n_in = hits[0]
+    if n_in != len(rim):
+        return None, "", (f"{what} is attached to no shape; its centre lies on face {k} but "
+                          f"{len(rim) - n_in} of its outline's {len(rim)} points are off it")
+    note = (f"target {t['number']}: attached to no shape in the file; its {t['type'].lower()} "
+            f"(centre and outline) lies on planar face {k}, the only face whose plane and "
+            "trimmed domain hold it")
+    return inv[k], note, ""
+
+
 def targets_spec(d: dict, ctx, src: dict) -> tuple[dict | None, str]:
     """(the ``datums`` entry of a datum set up from datum targets, '') or (None, why not).
 
@@ -97,6 +154,12 @@ def targets_spec(d: dict, ctx, src: dict) -> tuple[dict | None, str]:
             continue
         if "at" not in t:
             return None, f"{what}: the file gives no position for it (no target parameters)"
+        if kind in ("circle", "rectangle") and not t["faces"] and not t.get("other"):
+            face, note, why = _area_on_face(t, what, ctx)
+            if face is None:
+                return None, why
+            t = {**t, "faces": [face]}
+            notes.append(note)
         if len(t["faces"]) != 1:
             where = (f"{t['other'][0]}s" if t.get("other") else
                      f"{len(t['faces'])} faces" if t["faces"] else "no shape")

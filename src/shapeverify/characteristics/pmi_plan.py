@@ -33,6 +33,13 @@ Size_Radius, Size_SphericalDiameter,       ``feature_size`` (:mod:`.pmi_sizes`)
 Size_SphericalRadius with ± limits
 Size_Thickness with ± limits on planar      ``distance`` between the two planes (a side of
 faces in two parallel planes                several coplanar faces is one plane)
+Parallelism/Perpendicularity/Angularity of  the orientation type with ``zone: median_plane``
+a width's two opposite planar sides         (its derived median plane, :mod:`.median_plane`)
+Straightness of a straight line drawn on a  ``straightness`` with ``through``, ``direction``,
+face                                        ``length``: that line element of the face
+Concentricity (⌀) of a cylinder to an axis  ``concentricity`` (:mod:`.concentricity`)
+Position (⌀) with datums at MMB / LMB       ``position`` with ``datum_modifiers`` (the best
+                                            pose within the datum shift, :mod:`.datum_shift`)
 =========================================  ===============================================
 
 An item attached to an edge rather than a face (NIST CTC 02: a hole's rim circle) is mapped to
@@ -51,7 +58,9 @@ modifier (no bonus tolerance); datum modifiers other than MMB/LMB of hole or bos
 of them and common datums in a profile's DRF (:mod:`.pmi_datums`); datums on edges that bound
 no cylinder; datum features left without faces (datums that the file ties to faces by an
 ``ITEM_IDENTIFIED_REPRESENTATION_USAGE`` that XCAF does not resolve, NIST CTC 01's B and C, are
-attached by :mod:`shapeverify.cad.pmi_iiru`).  Line datum targets attached to an edge drawn
+attached by :mod:`shapeverify.cad.pmi_iiru`).  Area datum targets (rectangle, circle) that
+the file attaches to no shape are put on the one planar face holding their placement
+(:mod:`.pmi_datums`).  Line datum targets attached to an edge drawn
 on a face take the edge's line; 'circular curve' targets (read from the STEP entities) are
 ``circular_line`` targets (:mod:`.pmi_datums`).
 Datums set up from datum targets, patterns of cylinders and common datums (``E-F``) are in the
@@ -462,6 +471,8 @@ def _tolerance(item, ctx, drf, why) -> tuple[list, str]:
         from .pmi_profile_line import line_profile_entries
 
         return line_profile_entries(item, ctx, drf, why, _src(item))
+    if t == "Straightness" and not item["faces"] and item.get("edges"):
+        return _straightness_of_line(item, ctx, _src(item))
     faces, reason = _faces_ok(item, ctx)
     if faces is None:
         return [], reason
@@ -537,9 +548,11 @@ def _tolerance(item, ctx, drf, why) -> tuple[list, str]:
         return out, ""
     if t in _FORMS or t in _RUNOUTS:
         return _form_or_runout(item, ctx, faces, src)
-    if t in ("Concentricity", "Symmetry"):
+    if t == "Concentricity":
+        return _concentricity(item, ctx, faces, src)
+    if t == "Symmetry":
         return [], (f"{t} (ASME Y14.5-2009: the median points of opposed elements) is not "
-                    "measured; a coaxiality or symmetry drawn as a position tolerance is")
+                    "measured; a symmetry drawn as a position tolerance is")
     return [], f"no plan characteristic for {t} yet (issue 28 item 3)"
 
 
@@ -589,6 +602,62 @@ def _form_or_runout(item, ctx, faces, src) -> tuple[list, str]:
     return [entry], ""
 
 
+def _straightness_of_line(item, ctx, src) -> tuple[list, str]:
+    """Straightness of a straight line drawn on one face (NIST CTC 05 GT6: a generator of a
+    cylinder): the line element of that face along the line, over the line's length
+    (:func:`.gdt._straightness_of_line`)."""
+    recs = item["edges"]
+    if len(recs) != 1 or recs[0]["curve"] != "Line" or len(recs[0].get("on_faces") or []) != 1:
+        return [], item.get("edge_reason") or "straightness of edges that are not one line drawn on one face"
+    if item["zone_modifier"] != "None" or item["value_type"] != "None" or item["datums"]:
+        return [], (f"straightness of a line with a {item['value_type']} zone, zone modifier "
+                    f"{item['zone_modifier']} or datums")
+    extra = [m for m in item["modifiers"] if m != "Free_State"] + \
+        ([f"material {item['material']}"] if item["material"] else [])
+    if extra:
+        return [], f"modifiers {', '.join(extra)} are not applied by the plan"
+    face = ctx.fmap.get(recs[0]["on_faces"][0])
+    if face is None:
+        return [], "its face could not be imported"
+    P = np.asarray(recs[0]["points"], float)
+    a, b = P[0], P[-1]
+    L = float(np.linalg.norm(b - a))
+    if not L > 0:
+        return [], "its line has no length"
+    u = (b - a) / L
+    return [{"name": ctx.name(f"{item['id']}_straightness"), "type": "straightness",
+             "faces": [f"face:{face}"], "tol": item["value"], "zone": "lines",
+             "direction": [float(x) + 0.0 for x in u],
+             "through": [float(x) + 0.0 for x in 0.5 * (a + b)], "length": L,
+             "pmi": {**src, "attached": f"a line drawn on face {face}: its line element"}}], ""
+
+
+def _concentricity(item, ctx, faces, src) -> tuple[list, str]:
+    """Concentricity (⌀ zone) of one surface of revolution (a cylinder) about an axis datum
+    (:mod:`.concentricity`)."""
+    if item["value_type"] != "Diameter" or item["zone_modifier"] != "None":
+        return [], "a concentricity without a ⌀ zone, or with a zone modifier"
+    extra = [m for m in item["modifiers"] if m != "Free_State"] + \
+        ([f"material {item['material']}"] if item["material"] else [])
+    if extra:
+        return [], f"modifiers {', '.join(extra)} are not applied by the plan"
+    if not item["datums"]:
+        return [], "a concentricity without a datum axis"
+    kinds = {ctx.feats[f].kind for f in faces}
+    groups, other = _cylinders(ctx.feats, ctx.model, faces)
+    if kinds != {"cylinder"} or len(groups) != 1:
+        return [], (f"concentricity of {len(faces)} faces ({', '.join(sorted(kinds))}) that "
+                    "are not one cylinder")
+    names, r = _item_drf(item, ctx)
+    if names is None:
+        return [], r or "no datum reference frame"
+    if not any(ctx.datum_specs[n].get("kind") == "axis" for n in names):
+        return [], f"its datum reference frame {'|'.join(names)} has no axis datum"
+    return [{"name": ctx.name(f"{item['id']}_concentricity"), "type": "concentricity",
+             "faces": [f"face:{f}" for f in faces], "tol": item["value"], "datums": names,
+             "pmi": src}], ""
+
+
 def _size_of(item, ctx, faces) -> tuple[dict | None, str]:
     """The ``size`` limits of a material modifier: the Size_Diameter dimension on the same
     faces (the drawing's nominal and limits)."""
@@ -619,10 +688,14 @@ def _orientation(item, ctx, faces, src) -> tuple[list, str]:
             two = [f for f in faces if ctx.feats[f].axis @ f0.axis < 0]
             if one and two and _planes_coplanar(ctx, one) and _planes_coplanar(ctx, two) and \
                     abs(ctx.feats[two[0]].axis @ f0.axis + 1) < 1e-6:
-                return [], (f"{t.lower()} of a width (the opposite faces {', '.join(map(str, one + two))}: "
-                            "a feature of size, whose derived median plane the zone controls); "
-                            "the plan's orientation is of surfaces and axes, not of a median "
-                            "plane")
+                # a width (a feature of size): the zone holds its derived median plane
+                extra = ([f"material {item['material']}"] if item["material"] else []) + \
+                    [m for m in item["modifiers"] if m != "Free_State"]
+                if extra:
+                    return [], (f"{t.lower()} of a width's median plane with "
+                                f"{', '.join(extra)} (not applied)")
+                entry["zone"] = "median_plane"
+                return [entry], ""
             return [], f"{t.lower()} of {len(faces)} planar faces that are not one plane"
         if item["material"]:
             return [], f"material modifier {item['material']} on a plane"
@@ -655,15 +728,18 @@ def _position(item, ctx, faces, src) -> tuple[list, str]:
         return [], f"the zone is {zone} (no \u2300); position is of axes in a cylindrical zone"
     if item["zone_modifier"] != "None":
         return [], f"a {item['zone_modifier']} zone modifier"
-    names, r = _item_drf(item, ctx)
+    names, r = _item_drf(item, ctx, shift_ok=True)
     if names is None:
         return [], r or "no datum reference frame"
+    dm = dict(ctx.last_modifiers)
     groups, other = _cylinders(ctx.feats, ctx.model, faces)
     if other or not groups:
         return [], "it controls faces that are not cylinders (position is of axes)"
     entry = {"name": ctx.name(f"{item['id']}_position"), "type": "position",
              "features": [[f"face:{f}" for f in g[0]] for g in groups], "tol": item["value"],
              "datums": names, "pmi": src}
+    if dm:
+        entry["datum_modifiers"] = dm
     if item["material"]:
         size, r = _size_of(item, ctx, faces)
         if size is None:

@@ -29,6 +29,18 @@ def position_zone_entries(item, ctx, faces, src) -> tuple[list, str]:
         else:
             groups = _spheres(ctx.model, faces)
     except ValueError as exc:
+        if zone == "planes" and {ctx.feats[f].kind for f in faces} == {"cylinder"}:
+            # a hole's axis in two parallel planes (NIST CTC 03 GT10): the planes' direction
+            # across the axis is what the drawing's basic dimension shows; the PMI as read
+            # carries no zone orientation, and a DRF of a plane and two axes
+            # leaves two directions across the hole (along the secondary-tertiary line and
+            # square to it) with nothing to choose between them
+            drf = "|".join(d["name"] for d in item["datums"]) or "none"
+            return [], (f"{exc}: a hole's axis positioned in two parallel planes, whose "
+                        "direction across the axis the file does not give (no zone "
+                        f"orientation read from the PMI; the frame {drf} leaves two directions "
+                        "across the hole and the drawing's basic dimension that picks one "
+                        "is not semantic); not guessed")
         return [], str(exc)
     names = None
     if item["datums"]:

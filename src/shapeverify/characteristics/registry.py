@@ -82,6 +82,8 @@ TYPES: tuple[CharacteristicType, ...] = (
                        "circular runout", "↗"),
     CharacteristicType("total_runout", schema.TotalRunout, "gdt:eval_runout", True,
                        "total runout", "⌰"),
+    CharacteristicType("concentricity", schema.Concentricity,
+                       "concentricity:eval_concentricity", True, "concentricity", "◎"),
     CharacteristicType("width", schema.Width, "gdt:eval_width", False, "size (width)"),
     CharacteristicType("distance", schema.Distance, "gdt_size:eval_distance", False,
                        "distance (planes)"),

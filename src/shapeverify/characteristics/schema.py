@@ -14,7 +14,7 @@ __all__ = ["Tol", "PmiSource", "Unsupported", "Vec3", "FeatureId", "FeatureRef",
            "DatumTargetSpec", "DatumSize", "SurfaceProfile", "Flatness", "Cylinder", "CheckPoint", "DatumSpec",
            "Straightness",
            "Circularity", "Cylindricity", "Parallelism", "Perpendicularity", "Angularity",
-           "Position", "CircularRunout", "TotalRunout", "Width", "SizeLimits", "Distance",
+           "Position", "CircularRunout", "TotalRunout", "Concentricity", "Width", "SizeLimits", "Distance",
            "Angle", "LineProfile", "PositionZone",
            "FeatureSize"]
 
@@ -289,11 +289,25 @@ class _Form(_Gdt):
 
 class Straightness(_Form):
     """Straightness of a cylinder's axis (``zone: diameter``) or of the line elements of the
-    faces along ``direction`` (two parallel lines, default)."""
+    faces along ``direction`` (two parallel lines, default).  With ``through`` (and
+    ``length``): the one line element of the faces through that point along ``direction``
+    (a straight line of the CAD surface, e.g. a cylinder's generator: a line drawn on the face
+    in the file), ``length`` mm long centred there, in the section plane that holds it and the
+    face's normal."""
 
     type: Literal["straightness"]
     zone: Literal["lines", "diameter"] = "lines"
     direction: Optional[Vec3] = None
+    through: Optional[Vec3] = None
+    length: Optional[float] = Field(default=None, gt=0)
+
+    @model_validator(mode="after")
+    def _line(self):
+        if self.through is not None and (self.direction is None or self.length is None
+                                         or self.zone != "lines"):
+            raise ValueError("straightness through a point takes direction and length "
+                             "(zone: lines)")
+        return self
 
 
 class Circularity(_Form):
@@ -307,10 +321,12 @@ class Cylindricity(_Form):
 class _Oriented(_Gdt):
     """Orientation/location of ``faces`` relative to the datum reference frame ``datums``.
     ``zone``: ``planes`` (two parallel planes: a plane, or an axis in one direction) or
-    ``diameter`` (a cylinder about the axis of a hole or boss)."""
+    ``diameter`` (a cylinder about the axis of a hole or boss) or ``median_plane`` (two
+    parallel planes holding the derived median plane of a width: ``faces`` are its two
+    opposite sides, :mod:`.median_plane`)."""
 
     datums: DrfRef
-    zone: Literal["planes", "diameter"] = "planes"
+    zone: Literal["planes", "diameter", "median_plane"] = "planes"
     #: the zone holds the surface's tangent (contacting) plane, not every point (ASME (T))
     tangent_plane: bool = False
     #: an axis's bonus tolerance from its measured size (``size``: the diameter's limits)
@@ -355,12 +371,19 @@ class Position(_Char):
     datums: Optional[DrfRef] = None
     material: Optional[Literal["M", "L"]] = None
     size: Optional[SizeLimits] = None
+    #: datums of ``datums`` referenced at MMB (``M``) or LMB (``L``): the axes are evaluated
+    #: at the best pose within the datum feature shift (:mod:`.datum_shift`)
+    datum_modifiers: Optional[dict[str, Literal["M", "L"]]] = None
 
     @model_validator(mode="after")
     def _bonus(self):
         if self.material is not None and self.size is None:
             raise ValueError(f"material {self.material} needs size: {{lower, upper}} (the "
                              "diameter's limits of deviation) for the bonus tolerance")
+        extra = sorted(set(self.datum_modifiers or ()) - set(self.datums or ()))
+        if extra:
+            raise ValueError(f"datum_modifiers name datums {extra} that are not in datums "
+                             f"{self.datums or []}")
         return self
 
 
@@ -431,6 +454,15 @@ class CircularRunout(_Runout):
 
 class TotalRunout(_Runout):
     type: Literal["total_runout"]
+
+
+class Concentricity(_Runout):
+    """Concentricity (ASME Y14.5-2009 7.6.4): the median points of diametrically opposed
+    elements of ``faces`` (a surface of revolution) in a cylindrical zone of diameter ``tol``
+    about the datum axis (:mod:`.concentricity`)."""
+
+    type: Literal["concentricity"]
+    zone: Literal["diameter"] = "diameter"
 
 
 class _TwoPlanes(_Char):
