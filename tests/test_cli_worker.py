@@ -342,6 +342,71 @@ def test_first_command_starts_the_worker_by_default_and_says_so_once(files, tmp_
         shutil.rmtree(sock, ignore_errors=True)
 
 
+def test_first_inspect_runs_in_the_worker_it_starts_not_in_its_own_process_as_well(files, tmp_path):
+    """The first command paid twice (issue 32 item 7): it ran in its own process, importing
+    numpy, numba and scipy and loading the kernels (1.8-2.8 s of CPU), while the worker it
+    started did the same in the background (0.9-1.4 s), and the second command loaded them
+    again in the worker (0.8-1.2 s).  A first command that runs the kernels now waits for the
+    worker it starts and runs in it: the client imports none of them (``-X importtime``), the
+    worker answers it (the CPU log), with the same output, report and exit code as in-process,
+    and one note; the next command runs there without a note."""
+    from shapeverify.cli_worker import DEFAULT_MODE
+
+    if DEFAULT_MODE != "auto":
+        pytest.skip("the worker does not start by itself in this version (DEFAULT_MODE)")
+    sock = Path(tempfile.mkdtemp(prefix="svw-", dir="/tmp"))
+    env = _env(sock, files / "cache")
+    del env["SHAPEVERIFY_WORKER"]
+    log = tmp_path / "cpu.log"
+    argv = ["inspect", "panel.svm", "dented.ply", "--tolerance", "0.2", "--json", "r1.json"]
+    local = _sv(argv, files, {**env, "SHAPEVERIFY_NO_WORKER": "1"})
+    assert local.returncode == 1, local.stderr.decode()[-2000:]
+    local_json = _json(files / "r1.json")
+    (files / "r1.json").unlink()
+    pid = None
+    try:
+        first = subprocess.run([sys.executable, "-X", "importtime", "-m", "shapeverify", *argv],
+                               cwd=files, env={**env, "SHAPEVERIFY_WORKER_CPU_LOG": str(log)},
+                               capture_output=True, timeout=600)
+        err = first.stderr.decode()
+        imported = [ln.rsplit("|", 1)[-1].strip() for ln in err.splitlines()
+                    if ln.startswith("import time:")]
+        assert "shapeverify.cli_worker" in imported            # the client's imports are seen
+        assert not [m for m in imported if m.split(".")[0] in ("numpy", "numba", "scipy")], \
+            "the first command imported the numeric libraries in its own process"
+        assert first.returncode == local.returncode, err[-2000:]
+        assert len(log.read_text().splitlines()) == 1, "the first command did not run in the worker"
+        assert first.stdout == local.stdout
+        assert _json(files / "r1.json") == local_json
+        notes = [ln for ln in err.splitlines() if "worker" in ln and not ln.startswith("import")]
+        assert len(notes) == 1 and "this command and the next ones run in it" in notes[0], notes
+        assert "shapeverify worker stop" in notes[0] and "SHAPEVERIFY_WORKER=0" in notes[0]
+        pid = _status(env, files, wait=5)
+        assert pid is not None
+        second = _sv(argv, files, {**env, "SHAPEVERIFY_WORKER_CPU_LOG": str(log)})
+        assert second.returncode == 1 and second.stdout == local.stdout
+        assert len(log.read_text().splitlines()) == 2 and b"worker" not in second.stderr
+        assert not list(sock.glob("*.starting")) and not list(sock.glob("*.tmp"))
+    finally:
+        _sv(["worker", "stop"], files, env, timeout=60)
+        if pid is not None:
+            t0 = time.monotonic()
+            while _alive(pid) and time.monotonic() - t0 < 30:
+                time.sleep(0.05)
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+                pytest.fail(f"worker {pid} still ran after `shapeverify worker stop`")
+        shutil.rmtree(sock, ignore_errors=True)
+
+
+def test_a_command_that_finds_the_worker_starting_waits_for_it_only_when_it_runs_kernels():
+    from shapeverify.cli_worker import runs_kernels
+
+    assert runs_kernels(["inspect", "a.svm", "s.ply"]) and runs_kernels(["-v", "prepare", "a"])
+    assert not runs_kernels(["inspect", "--help"]) and not runs_kernels(["info", "a.step"])
+    assert not runs_kernels(["history"]) and not runs_kernels(["--help"]) and not runs_kernels([])
+
+
 @pytest.mark.parametrize("setting", [{"SHAPEVERIFY_WORKER": "0"},
                                      {"SHAPEVERIFY_NO_WORKER": "1", "SHAPEVERIFY_WORKER": "auto"}])
 def test_worker_off_or_no_worker_starts_none_and_says_nothing(files, setting):
