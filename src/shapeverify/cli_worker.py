@@ -13,11 +13,12 @@ Started by the first command, as Gradle's daemon is (``SHAPEVERIFY_WORKER``, def
 :data:`DEFAULT_MODE` ``auto``), saying so in one line on stderr (with how to stop it:
 ``shapeverify worker stop``, and to keep it from starting: ``SHAPEVERIFY_WORKER=0``).  A
 command that runs the numeric kernels (:data:`KERNEL_COMMANDS`: ``inspect``, ``prepare`` ...)
-and finds no worker starts one and waits for it (its imports) and runs in it: run in its own
+and finds no worker starts one, waits for it (its imports) and runs in it: run in its own
 process as well, it paid the imports and numba's first use twice, there and in the worker
-(first command 2.7-4.1 s of CPU in all, second 0.8-1.2 s; now 1.9-2.1 and 0.3-0.4).  Any other
-command (``info``, ``history``, ``--help``) runs in its own process at once, as it needs none of
-that, and leaves the worker starting in the background for the next ones.  With ``SHAPEVERIFY_WORKER=0`` only a worker started by
+(first ``inspect`` 3.1-4.2 s of CPU in all, second 0.8-1.1 s; now 1.9-2.4 and 0.3-0.5).  Any
+other command (``info``, ``history``, ``--help``) needs none of that: with no worker running it
+runs in its own process and starts none (``info`` of a cached file 0.2 s; starting the worker
+for it cost 1.2 s more).  With ``SHAPEVERIFY_WORKER=0`` only a worker started by
 ``shapeverify worker start`` is used.  ``SHAPEVERIFY_NO_WORKER=1`` makes every command run
 in-process (the tests set it: ``tests/conftest.py``).  The worker ends by ``shapeverify worker stop``, after
 ``--idle`` minutes without a request (default 30), or when the installed sources change.
@@ -242,9 +243,11 @@ def try_worker(argv: list) -> int | None:
     path = socket_path()
     sock = _connect(path)
     if sock is None:
-        if not auto_start() or path.exists():
+        # a command that needs no kernels (info, history, --help) runs in its own process and
+        # starts nothing: the worker's start (1.2 s of CPU) would cost 4-5 times the command
+        # (info of a cached file: 0.2 s), and is worth it only to a command that needs it
+        if not auto_start() or path.exists() or not runs_kernels(argv):
             return None
-        heavy = runs_kernels(argv)
         proc = None
         if _claim_start(path):
             try:
@@ -253,14 +256,6 @@ def try_worker(argv: list) -> int | None:
                 _note(f"could not start the shapeverify worker ({exc}); commands run in their "
                       "own process")
                 return None
-            if not heavy:   # for the next commands; this one runs in-process at once
-                _note("started the shapeverify worker in the background (1-2 s of CPU, "
-                      "once) so that the next commands start at once; it ends after 30 idle "
-                      "minutes. Stop it: shapeverify worker stop; never start it: "
-                      f"{AUTO_START_ENV}=0")
-                return None
-        elif not heavy:
-            return None     # another command is starting the worker: not worth waiting for
         # a command that loads numpy, numba and the kernels: run in the worker that is
         # starting (by this command or another), not in this process as well -- the imports
         # and numba's first use would be paid twice, here and in the worker
@@ -280,9 +275,9 @@ def try_worker(argv: list) -> int | None:
         return _run_remote(sock, argv)
 
 
-#: commands that import numpy and numba and run compiled kernels: the first of them waits for
-#: the worker it starts and runs in it; any other (info, history, --help) runs at once in its
-#: own process and leaves the worker to start in the background
+#: commands that import numpy and numba and run compiled kernels: the first of them starts the
+#: worker, waits for it and runs in it; any other (info, history, --help) runs in its own
+#: process when no worker runs, and starts none
 KERNEL_COMMANDS = frozenset({"prepare", "inspect", "measure", "unwrap", "hologram", "fit",
                              "calibrate"})
 #: how long the first command waits for the worker's socket before it runs in-process
