@@ -436,3 +436,25 @@ def test_the_test_session_starts_no_worker():
     from shapeverify.cli_worker import NO_WORKER_ENV
 
     assert os.environ.get(NO_WORKER_ENV) == "1"
+
+
+def test_a_worker_that_died_starting_is_not_waited_for(tmp_path):
+    """The first kernel command waits for the worker it starts: one that dies importing must
+    not keep it (or the next commands) waiting -- its start's claim is removed and the command
+    runs in its own process; a claim left by another command long ago is not waited on."""
+    from shapeverify.cli_worker import START_CLAIM_SECONDS, _wait_for_worker
+
+    path = tmp_path / "w.sock"
+    claim = path.with_suffix(".starting")
+    claim.write_text("")
+    dead = subprocess.Popen([sys.executable, "-c", "raise SystemExit(3)"])
+    dead.wait()
+    t0 = time.monotonic()
+    assert _wait_for_worker(path, dead, timeout=60) is None
+    assert time.monotonic() - t0 < 5 and not claim.exists()
+    claim.write_text("")
+    old = time.time() - START_CLAIM_SECONDS - 1
+    os.utime(claim, (old, old))
+    t0 = time.monotonic()
+    assert _wait_for_worker(path, None, timeout=60) is None
+    assert time.monotonic() - t0 < 5

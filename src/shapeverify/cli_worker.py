@@ -304,9 +304,18 @@ def _wait_for_worker(path: Path, proc, timeout: float = START_WAIT_SECONDS):
             if sock is not None:
                 return sock
         if proc is not None and proc.poll() is not None:
+            try:                # it died importing: the next command may start one again
+                os.unlink(claim)
+            except OSError:
+                pass
             return None
-        if proc is None and not os.path.exists(claim) and not os.path.exists(path):
-            return None         # the other command's worker gave up
+        if proc is None:        # started by another command: as long as its claim is fresh
+            try:
+                if time.time() - os.stat(claim).st_mtime >= START_CLAIM_SECONDS:
+                    return None
+            except FileNotFoundError:
+                if not os.path.exists(path):
+                    return None     # the other command's worker gave up
         time.sleep(0.02)
     return None
 
