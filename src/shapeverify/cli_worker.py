@@ -15,7 +15,7 @@ Started by the first command, as Gradle's daemon is (``SHAPEVERIFY_WORKER``, def
 command that runs the numeric kernels (:data:`KERNEL_COMMANDS`: ``inspect``, ``prepare`` ...)
 and finds no worker starts one, waits for it (its imports) and runs in it: run in its own
 process as well, it paid the imports and numba's first use twice, there and in the worker
-(first ``inspect`` 3.1-4.2 s of CPU in all, second 0.8-1.1 s; now 1.9-2.4 and 0.3-0.5).  Any
+(first ``inspect`` 3.1-4.4 s of CPU in all, second 0.8-1.1 s; now 1.7-2.5 and 0.3-0.5).  Any
 other command (``info``, ``history``, ``--help``) needs none of that: with no worker running it
 runs in its own process and starts none (``info`` of a cached file 0.2 s; starting the worker
 for it cost 1.2 s more).  With ``SHAPEVERIFY_WORKER=0`` only a worker started by
