@@ -302,10 +302,12 @@ def _status(env: dict, files: Path, wait: float) -> int | None:
         time.sleep(0.2)
 
 
-def test_first_command_starts_the_worker_by_default_and_says_so_once(files, tmp_path):
-    """SHAPEVERIFY_WORKER unset (``auto``, the default): the first command runs in its own
-    process and starts the worker, with one note on stderr naming how to stop it and how to keep
-    it from starting; the next command runs in the worker, with the same output, and no note."""
+def test_a_first_command_without_kernels_starts_no_worker_and_the_next_ones_use_it(files, tmp_path):
+    """SHAPEVERIFY_WORKER unset (``auto``, the default): ``info`` (a cached summary, 0.2 s) and
+    ``--help`` started the worker in the background, 1.2 s of CPU more, for commands that may
+    never come.  Now they run in their own process and start nothing (no note, nothing in the
+    socket directory); the first command that runs the kernels starts it, and an ``info`` after
+    that runs in the worker, with the same output and no note."""
     from shapeverify.cli_worker import DEFAULT_MODE
 
     if DEFAULT_MODE != "auto":
@@ -317,16 +319,21 @@ def test_first_command_starts_the_worker_by_default_and_says_so_once(files, tmp_
     pid = None
     try:
         first = _sv(["info", "panel.svm"], files, env)
-        assert first.returncode == 0, first.stderr.decode()[-2000:]
-        notes = [ln for ln in first.stderr.decode().splitlines() if "worker" in ln]
-        assert len(notes) == 1, notes
-        assert ("started the shapeverify worker" in notes[0]
-                and "shapeverify worker stop" in notes[0] and "SHAPEVERIFY_WORKER=0" in notes[0])
-        pid = _status(env, files, wait=240)
-        assert pid is not None, "the first command started no worker"
+        helped = _sv(["inspect", "--help"], files, env)
+        assert first.returncode == 0 and helped.returncode == 0, first.stderr.decode()[-2000:]
+        assert b"worker" not in first.stderr and b"worker" not in helped.stderr
+        time.sleep(1.0)
+        assert list(sock.iterdir()) == [], "a command without kernels started the worker"
+        started = _sv(["inspect", "panel.svm", "clean.ply", "--tolerance", "0.2"], files,
+                      {**env, "SHAPEVERIFY_WORKER_CPU_LOG": str(log)})
+        assert started.returncode == 0, started.stderr.decode()[-2000:]
+        notes = [ln for ln in started.stderr.decode().splitlines() if "worker" in ln]
+        assert len(notes) == 1 and "started the shapeverify worker" in notes[0], notes
+        pid = _status(env, files, wait=5)
+        assert pid is not None, "the first inspect started no worker"
         second = _sv(["info", "panel.svm"], files, {**env, "SHAPEVERIFY_WORKER_CPU_LOG": str(log)})
         assert second.returncode == 0
-        assert len(log.read_text().splitlines()) == 1, "the second command ran in-process"
+        assert len(log.read_text().splitlines()) == 2, "info ran in its own process"
         assert second.stdout == first.stdout
         assert b"worker" not in second.stderr
         assert not list(sock.glob("*.starting")), "the start's claim was left behind"
@@ -340,6 +347,71 @@ def test_first_command_starts_the_worker_by_default_and_says_so_once(files, tmp_
                 os.kill(pid, signal.SIGKILL)
                 pytest.fail(f"worker {pid} still ran after `shapeverify worker stop`")
         shutil.rmtree(sock, ignore_errors=True)
+
+
+def test_first_inspect_runs_in_the_worker_it_starts_not_in_its_own_process_as_well(files, tmp_path):
+    """The first command paid twice (issue 32 item 7): it ran in its own process, importing
+    numpy, numba and scipy and loading the kernels (1.8-2.8 s of CPU), while the worker it
+    started did the same in the background (0.9-1.4 s), and the second command loaded them
+    again in the worker (0.8-1.2 s).  A first command that runs the kernels now waits for the
+    worker it starts and runs in it: the client imports none of them (``-X importtime``), the
+    worker answers it (the CPU log), with the same output, report and exit code as in-process,
+    and one note; the next command runs there without a note."""
+    from shapeverify.cli_worker import DEFAULT_MODE
+
+    if DEFAULT_MODE != "auto":
+        pytest.skip("the worker does not start by itself in this version (DEFAULT_MODE)")
+    sock = Path(tempfile.mkdtemp(prefix="svw-", dir="/tmp"))
+    env = _env(sock, files / "cache")
+    del env["SHAPEVERIFY_WORKER"]
+    log = tmp_path / "cpu.log"
+    argv = ["inspect", "panel.svm", "dented.ply", "--tolerance", "0.2", "--json", "r1.json"]
+    local = _sv(argv, files, {**env, "SHAPEVERIFY_NO_WORKER": "1"})
+    assert local.returncode == 1, local.stderr.decode()[-2000:]
+    local_json = _json(files / "r1.json")
+    (files / "r1.json").unlink()
+    pid = None
+    try:
+        first = subprocess.run([sys.executable, "-X", "importtime", "-m", "shapeverify", *argv],
+                               cwd=files, env={**env, "SHAPEVERIFY_WORKER_CPU_LOG": str(log)},
+                               capture_output=True, timeout=600)
+        err = first.stderr.decode()
+        imported = [ln.rsplit("|", 1)[-1].strip() for ln in err.splitlines()
+                    if ln.startswith("import time:")]
+        assert "shapeverify.cli_worker" in imported            # the client's imports are seen
+        assert not [m for m in imported if m.split(".")[0] in ("numpy", "numba", "scipy")], \
+            "the first command imported the numeric libraries in its own process"
+        assert first.returncode == local.returncode, err[-2000:]
+        assert len(log.read_text().splitlines()) == 1, "the first command did not run in the worker"
+        assert first.stdout == local.stdout
+        assert _json(files / "r1.json") == local_json
+        notes = [ln for ln in err.splitlines() if "worker" in ln and not ln.startswith("import")]
+        assert len(notes) == 1 and "this command and the next ones run in it" in notes[0], notes
+        assert "shapeverify worker stop" in notes[0] and "SHAPEVERIFY_WORKER=0" in notes[0]
+        pid = _status(env, files, wait=5)
+        assert pid is not None
+        second = _sv(argv, files, {**env, "SHAPEVERIFY_WORKER_CPU_LOG": str(log)})
+        assert second.returncode == 1 and second.stdout == local.stdout
+        assert len(log.read_text().splitlines()) == 2 and b"worker" not in second.stderr
+        assert not list(sock.glob("*.starting")) and not list(sock.glob("*.tmp"))
+    finally:
+        _sv(["worker", "stop"], files, env, timeout=60)
+        if pid is not None:
+            t0 = time.monotonic()
+            while _alive(pid) and time.monotonic() - t0 < 30:
+                time.sleep(0.05)
+            if _alive(pid):
+                os.kill(pid, signal.SIGKILL)
+                pytest.fail(f"worker {pid} still ran after `shapeverify worker stop`")
+        shutil.rmtree(sock, ignore_errors=True)
+
+
+def test_a_command_that_finds_the_worker_starting_waits_for_it_only_when_it_runs_kernels():
+    from shapeverify.cli_worker import runs_kernels
+
+    assert runs_kernels(["inspect", "a.svm", "s.ply"]) and runs_kernels(["-v", "prepare", "a"])
+    assert not runs_kernels(["inspect", "--help"]) and not runs_kernels(["info", "a.step"])
+    assert not runs_kernels(["history"]) and not runs_kernels(["--help"]) and not runs_kernels([])
 
 
 @pytest.mark.parametrize("setting", [{"SHAPEVERIFY_WORKER": "0"},
@@ -364,3 +436,25 @@ def test_the_test_session_starts_no_worker():
     from shapeverify.cli_worker import NO_WORKER_ENV
 
     assert os.environ.get(NO_WORKER_ENV) == "1"
+
+
+def test_a_worker_that_died_starting_is_not_waited_for(tmp_path):
+    """The first kernel command waits for the worker it starts: one that dies importing must
+    not keep it (or the next commands) waiting -- its start's claim is removed and the command
+    runs in its own process; a claim left by another command long ago is not waited on."""
+    from shapeverify.cli_worker import START_CLAIM_SECONDS, _wait_for_worker
+
+    path = tmp_path / "w.sock"
+    claim = path.with_suffix(".starting")
+    claim.write_text("")
+    dead = subprocess.Popen([sys.executable, "-c", "raise SystemExit(3)"])
+    dead.wait()
+    t0 = time.monotonic()
+    assert _wait_for_worker(path, dead, timeout=60) is None
+    assert time.monotonic() - t0 < 5 and not claim.exists()
+    claim.write_text("")
+    old = time.time() - START_CLAIM_SECONDS - 1
+    os.utime(claim, (old, old))
+    t0 = time.monotonic()
+    assert _wait_for_worker(path, None, timeout=60) is None
+    assert time.monotonic() - t0 < 5

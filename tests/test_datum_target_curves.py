@@ -48,7 +48,7 @@ def _brute_centre(X, c0, slope, hole):
     cons = {"type": "ineq", "fun": lambda z: sgn * (z[2] - radii(z[:2])) if not hole
             else radii(z[:2]) - z[2]}
     res = minimize(lambda z: sgn * z[2], x0, constraints=[cons], method="SLSQP",
-                   options={"ftol": 1e-14, "maxiter": 500})
+                   options={"ftol": 1e-12, "maxiter": 500})
     assert res.success, res.message
     return c0 + np.array([res.x[0], 0.0, res.x[1]])
 

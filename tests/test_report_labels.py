@@ -219,3 +219,20 @@ def test_pdf_pages_keep_every_text_inside_a4_and_the_table_readable(L):
             assert _inside(cell.get_text().get_window_extent(r), cell.get_window_extent(r)), \
                 cell.get_text().get_text()
 
+
+
+def test_pdf_histogram_axis_covers_the_minimum_beyond_three_band_widths():
+    """The PDF's histogram axis stopped at -0.3 (three band widths) while the minimum was
+    -0.40: here a dent of 1.2 mm under a 0.2 mm band; the axis must reach the data's min and
+    max, and the bars count every deviation."""
+    pr, res = _plan_result(300.0, "SN-7", n_chars=3)
+    dv = np.asarray(pr.deviations, float)
+    dv = dv[np.isfinite(dv)]
+    assert dv.min() < -3 * 0.2                         # beyond where the old axis stopped
+    from shapeverify.characteristics.pdf import pdf_figures
+
+    fig = pdf_figures(pr, part="SN-7", date="2026-12-06", tolerance=0.2)[0]
+    hx = next(a for a in fig.axes if a.get_ylabel() == "points")
+    lo, hi = hx.get_xlim()
+    assert lo <= dv.min() and hi >= dv.max()
+    assert sum(p.get_height() for p in hx.patches) == dv.size

@@ -1,8 +1,9 @@
 """After ``python -m shapeverify.warmup`` nothing compiles (issue 32 item 3): the first inspection
 of a new part compiled for 95 s after ``make demo``'s warm-up, the first fringe analysis for
 18 s.  Here the warm-up runs on a fresh numba cache directory, then each command runs on new
-inputs of its own (other sizes, other data, text files, float32 arrays), as a user's first
-commands would, and must compile nothing: no ``numba:compile`` event in the command's process
+inputs of its own (other sizes, other data, text files, float32 and Fortran-ordered arrays: an
+F-ordered phase map compiled 2 kernels), as a user's first commands would, and must compile
+nothing: no ``numba:compile`` event in the command's process
 (numba fires it only when it compiles, not when it loads from the cache), no cache miss in any
 kernel's statistics, and no file written to the cache directory (which also covers the CAD
 importer's child process)."""
@@ -96,6 +97,8 @@ def _inputs(d: Path) -> dict:
     (d / "plan.yaml").write_text(PLAN.format(x=x, y=y).replace("tol: 0.4", "tol: 0.5"))
     yy, xx = np.mgrid[0:57, 0:33]
     np.save(d / "psi.npy", wrap(0.01 * (xx - 10.0) ** 2 - 0.02 * yy * xx).astype(np.float32))
+    # written in Fortran order (MATLAB, np.asfortranarray): np.load keeps the order
+    np.save(d / "psiF.npy", np.asfortranarray(wrap(0.008 * (xx - 12.0) ** 2 + 0.03 * yy)))
     l1, lam, pitch = 632.8e-6, 0.3, 0.04
     l2 = l1 * lam / (lam - l1)
     depth, _ = grooved_plate((72, 88), pitch, 0.8, 0.3)
@@ -121,6 +124,8 @@ def _commands(d: Path, inp: dict) -> list[list]:
          inp["plan"], "--pdf", d / "r.pdf"],
         ["unwrap", d / "psi.npy", "-o", d / "phi.npy"],
         ["unwrap", d / "psi.npy", "-o", d / "phi_q.npy", "--method", "quality"],
+        ["unwrap", d / "psiF.npy", "-o", d / "phi_wls.npy", "--method", "wls"],
+        ["unwrap", d / "psiF.npy", "-o", d / "phi_lp.npy", "--method", "lp"],
         ["hologram", d / "h1.npy", d / "h2.npy", "-o", d / "depth.npy", "--lambda1",
          str(inp["l1"]), "--lambda2", str(inp["l2"]), "--reference", d / "ref.npy"],
         ["fit", d / "curve.npy", "--ctrl", "9", "-o", d / "curve.json"],

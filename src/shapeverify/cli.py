@@ -598,8 +598,9 @@ def worker(
     idle: float = typer.Option(30.0, "--idle", help="start: stop the worker after this many minutes without a command"),
 ):
     """A resident worker that keeps the libraries and kernels loaded, so later commands answer
-    in a fraction of the time (the first command starts it unless SHAPEVERIFY_WORKER=0;
-    SHAPEVERIFY_NO_WORKER=1 ignores it).
+    in a fraction of the time (the first command that runs the kernels -- inspect, prepare,
+    measure, unwrap, hologram, fit, calibrate -- starts it and runs in it, unless
+    SHAPEVERIFY_WORKER=0; SHAPEVERIFY_NO_WORKER=1 ignores it).
 
     Exit code of status: 0 a worker runs, 1 none does.
     """

@@ -10,10 +10,15 @@ and its exit code.  The worker runs one request at a time through the same typer
 command line in-process (:data:`shapeverify.cli.app`), so the answers are the same.
 
 Started by the first command, as Gradle's daemon is (``SHAPEVERIFY_WORKER``, default
-:data:`DEFAULT_MODE` ``auto``): a command that finds no worker runs in its own process as before
-and starts one in the background for the commands after it, saying so in one line on stderr
-(with how to stop it: ``shapeverify worker stop``, and to keep it from starting:
-``SHAPEVERIFY_WORKER=0``).  With ``SHAPEVERIFY_WORKER=0`` only a worker started by
+:data:`DEFAULT_MODE` ``auto``), saying so in one line on stderr (with how to stop it:
+``shapeverify worker stop``, and to keep it from starting: ``SHAPEVERIFY_WORKER=0``).  A
+command that runs the numeric kernels (:data:`KERNEL_COMMANDS`: ``inspect``, ``prepare`` ...)
+and finds no worker starts one, waits for it (its imports) and runs in it: run in its own
+process as well, it paid the imports and numba's first use twice, there and in the worker
+(first ``inspect`` 3.1-4.4 s of CPU in all, second 0.8-1.1 s; now 1.7-2.5 and 0.3-0.5).  Any
+other command (``info``, ``history``, ``--help``) needs none of that: with no worker running it
+runs in its own process and starts none (``info`` of a cached file 0.2 s; starting the worker
+for it cost 1.2 s more).  With ``SHAPEVERIFY_WORKER=0`` only a worker started by
 ``shapeverify worker start`` is used.  ``SHAPEVERIFY_NO_WORKER=1`` makes every command run
 in-process (the tests set it: ``tests/conftest.py``).  The worker ends by ``shapeverify worker stop``, after
 ``--idle`` minutes without a request (default 30), or when the installed sources change.
@@ -49,7 +54,7 @@ from pathlib import Path
 
 __all__ = ["try_worker", "socket_path", "version_key", "start", "stop", "status",
            "NO_WORKER_ENV", "AUTO_START_ENV", "CPU_LOG_ENV", "DIR_ENV", "LOCAL_COMMANDS",
-           "DEFAULT_MODE", "auto_start"]
+           "DEFAULT_MODE", "auto_start", "KERNEL_COMMANDS", "runs_kernels"]
 
 NO_WORKER_ENV = "SHAPEVERIFY_NO_WORKER"
 AUTO_START_ENV = "SHAPEVERIFY_WORKER"
@@ -238,20 +243,81 @@ def try_worker(argv: list) -> int | None:
     path = socket_path()
     sock = _connect(path)
     if sock is None:
-        if auto_start() and not path.exists() and _claim_start(path):
+        # a command that needs no kernels (info, history, --help) runs in its own process and
+        # starts nothing: the worker's start (1.2 s of CPU) would cost 4-5 times the command
+        # (info of a cached file: 0.2 s), and is worth it only to a command that needs it
+        if not auto_start() or path.exists() or not runs_kernels(argv):
+            return None
+        proc = None
+        if _claim_start(path):
             try:
-                _spawn(path)  # for the next command; this one runs in-process
+                proc = _spawn(path)
             except OSError as exc:
                 _note(f"could not start the shapeverify worker ({exc}); commands run in their "
                       "own process")
-            else:
-                _note("started the shapeverify worker in the background (1-2 s of CPU, "
-                      "once) so that the next commands start at once; it ends after 30 idle "
-                      "minutes. Stop it: shapeverify worker stop; never start it: "
-                      f"{AUTO_START_ENV}=0")
-        return None
+                return None
+        # a command that loads numpy, numba and the kernels: run in the worker that is
+        # starting (by this command or another), not in this process as well -- the imports
+        # and numba's first use would be paid twice, here and in the worker
+        try:
+            sock = _wait_for_worker(path, proc)
+        except KeyboardInterrupt:
+            return 130
+        if sock is None:
+            _note("the shapeverify worker did not start (see "
+                  f"{path.with_suffix('.log')}); running in this process")
+            return None
+        if proc is not None:
+            _note("started the shapeverify worker (1-2 s of CPU, once): this command and the "
+                  "next ones run in it; it ends after 30 idle minutes. Stop it: shapeverify "
+                  f"worker stop; never start it: {AUTO_START_ENV}=0")
     with sock:
         return _run_remote(sock, argv)
+
+
+#: commands that import numpy and numba and run compiled kernels: the first of them starts the
+#: worker, waits for it and runs in it; any other (info, history, --help) runs in its own
+#: process when no worker runs, and starts none
+KERNEL_COMMANDS = frozenset({"prepare", "inspect", "measure", "unwrap", "hologram", "fit",
+                             "calibrate"})
+#: how long the first command waits for the worker's socket before it runs in-process
+START_WAIT_SECONDS = START_CLAIM_SECONDS
+
+
+def runs_kernels(argv: list) -> bool:
+    """Whether ``shapeverify ARGV`` runs the numeric kernels (not its ``--help``)."""
+    return (_command(argv) in KERNEL_COMMANDS
+            and not any(a in ("--help", "-h") for a in argv))
+
+
+def _wait_for_worker(path: Path, proc, timeout: float = START_WAIT_SECONDS):
+    """A connection to the worker starting at ``path`` once it listens (after its imports);
+    None when its process ``proc`` (None: started by another command) ended first, its start
+    was abandoned, or ``timeout`` seconds passed."""
+    import time
+
+    claim = path.with_suffix(".starting")
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout:
+        if os.path.exists(path):
+            sock = _connect(path)
+            if sock is not None:
+                return sock
+        if proc is not None and proc.poll() is not None:
+            try:                # it died importing: the next command may start one again
+                os.unlink(claim)
+            except OSError:
+                pass
+            return None
+        if proc is None:        # started by another command: as long as its claim is fresh
+            try:
+                if time.time() - os.stat(claim).st_mtime >= START_CLAIM_SECONDS:
+                    return None
+            except FileNotFoundError:
+                if not os.path.exists(path):
+                    return None     # the other command's worker gave up
+        time.sleep(0.02)
+    return None
 
 
 def auto_start() -> bool:

@@ -139,18 +139,23 @@ class Worker:
         if _ask("status", path=self.path) is not None:  # another worker answers there (two started at once)
             return
         listener = socket.socket(socket.AF_UNIX, socket.SOCK_STREAM)
+        # bound and listening under a name of its own, then renamed into place: a client that
+        # finds the socket file can connect (one that connected between bind and listen was
+        # refused, took the worker for dead and removed its socket file)
+        tmp = self.path.with_name(f"{self.path.stem}.{os.getpid()}.tmp")
         try:
-            os.unlink(self.path)
+            os.unlink(tmp)
         except FileNotFoundError:
             pass
         old = os.umask(0o177)
         try:
-            listener.bind(str(self.path))
+            listener.bind(str(tmp))
         finally:
             os.umask(old)
-        os.chmod(self.path, 0o600)
-        self.inode = os.stat(self.path).st_ino
+        os.chmod(tmp, 0o600)
         listener.listen(16)
+        os.replace(tmp, self.path)
+        self.inode = os.stat(self.path).st_ino
         try:  # the start a command claimed (cli_worker._claim_start) is done
             os.unlink(self.path.with_suffix(".starting"))
         except OSError:

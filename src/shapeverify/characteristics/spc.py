@@ -38,7 +38,8 @@ import numpy as np
 from . import registry
 
 __all__ = ["store_characteristics", "characteristic_rows", "characteristic_names", "capability",
-           "Capability", "plot_run_chart", "export_csv", "MIN_PARTS"]
+           "Capability", "plot_run_chart", "run_chart_figure", "export_csv", "MIN_PARTS",
+           "VERDICT_COLOURS"]
 
 logger = logging.getLogger(__name__)
 
@@ -270,6 +271,10 @@ def _series(rows):
     return [(n, [r for r in rows if r["name"] == n]) for n in names]
 
 
+#: the colour of a run chart's point by the part's verdict for the characteristic
+VERDICT_COLOURS = {"pass": "#4c72b0", "fail": "#b3261e", "undecided": "#a15c00"}
+
+
 def plot_run_chart(rows, path, *, dpi: int = 110) -> Path:
     """Run chart(s) of characteristic rows (one panel per series) with control and
     specification limits, the feature control frame and Cp/Cpk in the title; writes a PNG.
@@ -279,7 +284,24 @@ def plot_run_chart(rows, path, *, dpi: int = 110) -> Path:
     ValueError
         No rows.
     """
+    fig = run_chart_figure(rows, dpi=dpi)
+    path = Path(path)
+    fig.savefig(path, dpi=dpi)
+    return path
+
+
+def run_chart_figure(rows, *, dpi: int = 110):
+    """The figure :func:`plot_run_chart` writes.  Each panel's legend names every verdict
+    colour its points use (pass, fail, undecided: issue 32 item 4, the undecided point had no
+    entry), the mean, the control limits and the specification limits drawn.
+
+    Raises
+    ------
+    ValueError
+        No rows.
+    """
     from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from matplotlib.lines import Line2D
     from matplotlib.figure import Figure
 
     from ..report.fcf import font_text     # the font lacks some symbols: abbreviations
@@ -296,8 +318,13 @@ def plot_run_chart(rows, path, *, dpi: int = 110) -> Path:
         x = np.arange(1, len(y) + 1)
         lo, hi = rs[-1]["lower"], rs[-1]["upper"]
         ax.plot(x, y, "-", color="#4c72b0", lw=1)
-        col = {"pass": "#4c72b0", "fail": "#b3261e", "undecided": "#a15c00"}
+        col = VERDICT_COLOURS
         ax.scatter(x, y, s=20, c=[col.get(r["verdict"], "black") for r in rs], zorder=3)
+        drawn = [v for v in (*col, *sorted({str(r["verdict"]) for r in rs} - set(col)))
+                 if any(str(r["verdict"]) == v for r, yv in zip(rs, y) if np.isfinite(yv))]
+        handles = [Line2D([], [], ls="", marker="o", markersize=5, label=v,
+                          markerfacecolor=col.get(v, "black"), markeredgecolor=col.get(v, "black"))
+                   for v in drawn]
         fcf = rs[-1].get("fcf")
         title = name + (f"  {font_text(fcf)}" if fcf else "")
         if np.isfinite(y).sum() >= 2:
@@ -305,6 +332,8 @@ def plot_run_chart(rows, path, *, dpi: int = 110) -> Path:
             ax.axhline(cap.mean, color="#333333", lw=1)
             for lim in (cap.mean - 3 * cap.sigma_within, cap.mean + 3 * cap.sigma_within):
                 ax.axhline(lim, color="#b3261e", ls="--", lw=1)
+            handles += [Line2D([], [], color="#333333", lw=1, label="mean"),
+                        Line2D([], [], color="#b3261e", ls="--", lw=1, label="control limits")]
             f = (lambda v: "-" if v is None else f"{v:.2f}")
             title += (f": Cp {f(cap.cp)}, Cpk {f(cap.cpk)} (Pp {f(cap.pp)}, Ppk {f(cap.ppk)}); "
                       f"control limits mean ± 3 MR̄/1.128")
@@ -315,6 +344,10 @@ def plot_run_chart(rows, path, *, dpi: int = 110) -> Path:
                 ax.axhline(lim, color="#1b7f3b", lw=1.5)
                 ax.text(1.005, lim, lab, transform=ax.get_yaxis_transform(), fontsize=8,
                         color="#1b7f3b", va="center")
+        if lo is not None or hi is not None:
+            handles.append(Line2D([], [], color="#1b7f3b", lw=1.5,
+                                  label="specification limits"))
+        ax.legend(handles=handles, loc="best", fontsize=7, ncol=len(handles), framealpha=0.85)
         ax.set_title(title, fontsize=9)
         ax.set_ylabel("value [mm]")
         ax.grid(alpha=0.3)
@@ -324,9 +357,7 @@ def plot_run_chart(rows, path, *, dpi: int = 110) -> Path:
                                ha="right", fontsize=7)
     axes[-1].set_xlabel("inspection (part)")
     fig.tight_layout()
-    path = Path(path)
-    fig.savefig(path, dpi=dpi)
-    return path
+    return fig
 
 
 def export_csv(rows, path) -> Path:

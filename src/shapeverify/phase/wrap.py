@@ -167,7 +167,9 @@ def check_phase_map(psi, mask=None, name: str = "psi"):
     p = np.asarray(psi)
     if p.dtype.kind not in "fiu":
         raise ValueError(f"{name} must be a real-valued array, got dtype {p.dtype}")
-    p = p.astype(np.float64, copy=True)
+    # C order: a Fortran-ordered map (np.load of a .npy written in Fortran order) kept its
+    # order through astype and made numba compile the least-squares kernels again for it
+    p = p.astype(np.float64, order="C", copy=True)
     if p.ndim != 2:
         raise ValueError(
             f"{name} must be a 2-D phase map (H, W), got shape {p.shape}; "
@@ -188,7 +190,7 @@ def check_phase_map(psi, mask=None, name: str = "psi"):
         if m_in.dtype != bool:
             if m_in.dtype.kind not in "iu" or not np.isin(m_in, (0, 1)).all():
                 raise ValueError(f"mask must be boolean (True = valid pixel), got dtype {m_in.dtype}")
-        m = m_in.astype(bool)
+        m = m_in.astype(bool, order="C")
         bad = nan & m
         if bad.any():
             raise ValueError(
@@ -205,7 +207,7 @@ def check_map_like(x, shape, name: str, mask=None, allow_nan_outside_mask: bool 
     a = np.asarray(x)
     if a.dtype.kind not in "fiu":
         raise ValueError(f"{name} must be a real-valued array, got dtype {a.dtype}")
-    a = a.astype(np.float64, copy=True)
+    a = a.astype(np.float64, order="C", copy=True)
     if a.shape != tuple(shape):
         raise ValueError(f"{name} shape {a.shape} does not match the phase map shape {tuple(shape)}")
     finite = np.isfinite(a)
