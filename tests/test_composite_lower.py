@@ -211,3 +211,53 @@ def test_lower_profile_zone_moves_to_its_best_place_as_brute_force(rot):
     assert got["value"] == pytest.approx(brute, abs=1e-6)
     assert got["value"] <= 0.05 + 1e-9               # the form error only
     assert 2 * got["located"] > 0.4 * 2 - 0.1        # located: the 0.4 mm shift
+
+
+# ------------------------------------------------------------------------------ end to end
+_COMPOSITE_PLAN = """units: mm
+alignment: {type: best_fit}
+datums: {A: {faces: [face:0]}, B: {faces: [face:1]}, C: {faces: [face:2]}}
+characteristics:
+  - {name: POS_UPPER, type: position, features: [face:3], tol: 1.5, datums: [A, B, C],
+     composite: upper}
+  - {name: POS_LOWER, type: position, features: [face:3], tol: 0.3, datums: [A, B],
+     composite: lower}
+  - {name: POS_LOCATED, type: position, features: [face:3], tol: 0.3, datums: [A, B]}
+  - {name: PROF_UPPER, type: surface_profile, faces: [face:3], tol: 2.0, datums: [A, B, C],
+     composite: upper}
+  - {name: PROF_LOWER, type: surface_profile, faces: [face:3], tol: 0.3, datums: [A],
+     composite: lower}
+  - {name: PROF_LOCATED, type: surface_profile, faces: [face:3], tol: 0.3, datums: [A, B, C]}
+"""
+
+
+@pytest.mark.slow
+def test_composite_lower_segment_passes_a_boss_shifted_within_the_upper_zone():
+    """The bracket's boss 0.5 mm off (x), perfect in itself: the located segments read about
+    1.0 (position) and 0.5 x 2 (profile) and a located 0.3 fails; the upper segments (1.5,
+    2.0) pass; the lower segments, whose datums only orient the zone, read the boss's own
+    orientation and form (the scan noise) and pass."""
+    from shapeverify.characteristics import evaluate_plan
+    from shapeverify.characteristics.parts import BRACKET_BOSS, bracket
+    from shapeverify.nearest import prepare
+    from shapeverify.registration.rigid import apply_transform
+    from shapeverify.simulate import virtual_scan
+    from shapeverify.characteristics.drf import rigid_exp
+
+    bx, by, br, bh = BRACKET_BOSS
+    nominal = prepare(bracket(), spacing=1.0)
+    moved = prepare(bracket(boss=(bx + 0.5, by, br, bh)), spacing=1.0)
+    views = ([1.0, 1.0, 1.6], [-1.0, 1.0, 1.6], [1.0, -1.0, 1.6], [-1.0, -1.0, 1.6])
+    P = np.vstack([virtual_scan(moved, view=v, pixel=1.0, noise=0.02, rng=17 + i).scan
+                   for i, v in enumerate(views)])
+    P = apply_transform(rigid_exp([0.02, -0.03, 0.01, 1.5, -2.0, 1.0]), P)
+    res = evaluate_plan(nominal, P, _COMPOSITE_PLAN)
+    v = {c.name: (c.verdict, round(c.measured, 3)) for c in res.characteristics}
+    assert res["POS_LOCATED"].verdict == "fail" and res["PROF_LOCATED"].verdict == "fail", v
+    assert res["POS_UPPER"].verdict == "pass" and res["PROF_UPPER"].verdict == "pass", v
+    assert res["POS_LOWER"].verdict == "pass" and res["PROF_LOWER"].verdict == "pass", v
+    assert res["POS_LOCATED"].measured == pytest.approx(1.0, abs=0.15)
+    comp = res["POS_LOWER"].details["composite"]
+    assert comp["located"] == pytest.approx(res["POS_LOCATED"].measured, abs=1e-9)
+    assert res["POS_LOWER"].measured < 0.15
+    assert res["PROF_LOWER"].measured < 0.15
