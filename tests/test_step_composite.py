@@ -64,3 +64,31 @@ def test_ambiguous_composite_segments_are_left_unmarked(ctc04_text):
             _tol(7, "Position", 1.5, "DEF", [1])]
     missed = match_composites(rels, tols)
     assert len(missed) == 1 and not any("composite" in t for t in tols)
+
+
+@pytest.mark.slow
+def test_ctc04_plan_marks_the_lower_segments_of_its_composite_frames(tmp_path):
+    """CTC 04 (PMI read ~100 s): GT2/GT3 (position 1.5 D|E|F over 0.3 D|E of six holes) and
+    GT4/GT5 (profile 2 D|G|H over 0.2 D of faces 307, 308) are planned as upper and lower
+    segments, each lower one in its own DRF (not the plan's alignment, not per hole)."""
+    import shutil
+
+    from shapeverify.characteristics.pmi_plan import pmi_plan
+
+    p = tmp_path / "nist_ctc_04_asme1_ap242-e1.stp"
+    with gzip.open(CTC04, "rb") as src, open(p, "wb") as dst:
+        shutil.copyfileobj(src, dst)
+    res = pmi_plan(p)
+    by = {}
+    for c in res.data["characteristics"]:
+        by.setdefault(c["pmi"].get("id"), []).append(c)
+    got = {k: [(c["type"], c.get("composite"), tuple(c.get("datums") or ()), c["tol"])
+               for c in by[k]] for k in ("GT2", "GT3", "GT4", "GT5")}
+    assert got == {"GT2": [("position", "upper", ("D", "E", "F"), 1.5)],
+                   "GT3": [("position", "lower", ("D", "E"), 0.3)],
+                   "GT4": [("surface_profile", "upper", ("D", "G", "H"), 2.0)],
+                   "GT5": [("surface_profile", "lower", ("D",), 0.2)]}
+    assert len(by["GT3"][0]["features"]) == 6
+    assert by["GT3"][0]["pmi"]["composite"] == {"segment": "lower", "with": "GT2",
+                                                "entity": "#18730"}
+    assert "composites_unmatched" not in res.pmi

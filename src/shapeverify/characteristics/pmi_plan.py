@@ -681,15 +681,19 @@ def _position(item, ctx, faces, src) -> tuple[list, str]:
         return [], f"the zone is {zone} (no \u2300); position is of axes in a cylindrical zone"
     if item["zone_modifier"] != "None":
         return [], f"a {item['zone_modifier']} zone modifier"
-    names, r = _item_drf(item, ctx)
-    if names is None:
-        return [], r or "no datum reference frame"
+    names = None
+    if item["datums"] or not _lower(item):   # a lower segment without datums floats
+        names, r = _item_drf(item, ctx)
+        if names is None:
+            return [], r or "no datum reference frame"
     groups, other = _cylinders(ctx.feats, ctx.model, faces)
     if other or not groups:
         return [], "it controls faces that are not cylinders (position is of axes)"
     entry = {"name": ctx.name(f"{item['id']}_position"), "type": "position",
              "features": [[f"face:{f}" for f in g[0]] for g in groups], "tol": item["value"],
-             "datums": names, "pmi": src}
+             "pmi": src}
+    if names:
+        entry["datums"] = names
     if item["material"]:
         size, r = _size_of(item, ctx, faces)
         if size is None:

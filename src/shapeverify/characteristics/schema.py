@@ -137,9 +137,6 @@ class SurfaceProfile(_Char, Tol):
         if extra:
             raise ValueError(f"datum_modifiers name datums {extra} that are not in datums "
                              f"{self.datums or []}")
-        if self.composite == "lower" and not self.datum:
-            raise ValueError("composite: lower needs the profile in a datum frame (datum: "
-                             "true); a profile without datums floats already")
         if self.composite == "lower" and self.datum_modifiers:
             raise ValueError("composite: lower with datum_modifiers: the frame of a lower "
                              "segment moves freely already")
