@@ -415,6 +415,28 @@ def _attach_curve_targets(caf, path, names, index, edges, datum_list) -> set:
     return done
 
 
+def _mark_composites(path, tolerances) -> list:
+    """Mark the two segments of each composite feature control frame (``composite``:
+    :func:`.step_composite.match_composites`; XCAF does not keep the relationship); the
+    relationships that could not be matched to the tolerances XCAF read."""
+    from .step_composite import composite_relations_of_file, match_composites
+    from .step_units import length_unit_of_file
+
+    try:
+        rels = composite_relations_of_file(path)
+        if not rels:
+            return []
+        unit = length_unit_of_file(path)
+        missed = match_composites(rels, tolerances, unit[1] if unit else 1.0)
+    except (OSError, ValueError) as exc:
+        logger.warning("%s: could not read the composite tolerances: %s", path.name, exc)
+        return []
+    for m in missed:
+        logger.warning("%s: composite frame %s / %s not matched to the tolerances read: %s",
+                       path.name, m["upper"]["name"], m["lower"]["name"], m["reason"])
+    return missed
+
+
 def read_pmi_here(path) -> dict:
     """:func:`read_pmi` in this process (what the importer child runs)."""
     from OCP.XCAFDoc import (XCAFDoc_Datum, XCAFDoc_Dimension, XCAFDoc_DimTolTool,
@@ -554,6 +576,8 @@ def read_pmi_here(path) -> dict:
         edges.resolve(item, second, "faces2")
         dimensions.append(item)
 
+    composites_missed = _mark_composites(path, tolerances)
+
     used = set()
     for it in datum_list + tolerances + dimensions:
         used.update(it["faces"])
@@ -574,4 +598,5 @@ def read_pmi_here(path) -> dict:
         unread = []
     return {"source": str(path), "n_faces": len(faces), "datums": datum_list,
             "tolerances": tolerances, "dimensions": dimensions, "unread": unread,
+            **({"composites_unmatched": composites_missed} if composites_missed else {}),
             "face_vertices": {i: _vertices(faces[i]) for i in sorted(used)}}

@@ -34,6 +34,9 @@ characteristic's DRF (:meth:`.drf.DRF.apply`) when it names datums.
   ``tol + bonus`` (a negative bonus, a feature out of its size limits, counts as 0 and is
   reported).  A pattern is one tolerance: every feature in the same DRF; the result is the
   feature with the smallest margin, every feature's numbers in ``details['features']``.
+* **composite: lower** (position, surface_profile; :mod:`.composite`): the zone framework
+  translates, and turns about the axes the DRF leaves free, to the place minimising the worst
+  feature's deviation (``details['composite']``: the motion and the located value).
 * **circular / total runout** about the DRF's axis (the primary datum's, at its nominal
   place in the DRF): :func:`.gdt_zones.runout`.
 * **width** (size): distance between two parallel faces: each face's points' mean distance
@@ -274,8 +277,18 @@ def eval_surface_profile(c, ctx: EvalContext):
         return _not_measured(c, "no scan points on the profile's faces")
     cl = ctx.prep.closest(X, exact=True)
     d = np.asarray(cl.distances, float)
-    shift = None
-    if getattr(c, "datum_modifiers", None):       # MMB/LMB: the best pose within the shift
+    shift = comp = None
+    if getattr(c, "composite", None) == "lower":   # the zone framework at its best place
+        from .composite import best_profile_fit, lower_rotations
+
+        def devs(Y):
+            g = ctx.prep.closest(Y, exact=True)
+            return np.asarray(g.distances, float), np.asarray(g.normals, float)
+
+        fit = best_profile_fit(X, devs, lower_rotations(drf))
+        d = np.asarray(fit.pop("d"), float)
+        comp = {"segment": "lower", **fit, "located_value": 2.0 * fit["located"]}
+    elif getattr(c, "datum_modifiers", None):     # MMB/LMB: the best pose within the shift
         from .datum_shift import profile_with_shift
 
         d, shift = profile_with_shift(c, ctx, X, drf, d, np.asarray(cl.normals, float))
@@ -285,13 +298,14 @@ def eval_surface_profile(c, ctx: EvalContext):
     zq = extreme_quantile(d.size, ctx.k)
     ext = float(np.ptp(X, axis=0).max())
     U = float(np.sqrt((2.0 * zq * ctx.S.noise) ** 2 + (2.0 * _datum_part(drf, ctx, ext, zq)) ** 2
-                      + (2.0 * _datum_offsets(drf, ctx)) ** 2))
+                      + (0.0 if comp else 2.0 * _datum_offsets(drf, ctx)) ** 2))
     lo, hi = (0.0, float(c.tol)) if c.tol is not None else (0.0, float(c.upper - c.lower))
     return _result(c, ctx, value, U, {"n": int(d.size), "min": float(d.min()),
                                       "max": float(d.max()), "noise": ctx.S.noise,
                                       "extreme_quantile": zq, "faces": fl or "all",
                                       "excluded": ctx.S.excluded(fl),
-                                      **({"datum_shift": shift} if shift else {})},
+                                      **({"datum_shift": shift} if shift else {}),
+                                      **({"composite": comp} if comp else {})},
                    drf, 0.0, hi)
 
 
@@ -544,11 +558,13 @@ def eval_position(c, ctx: EvalContext):
         # cylinder's ends also take its tilt: 2 z_n sigma
         u_axis = (mating_centre_u(X.shape[0], ctx.S.noise, ctx.k) if "circle" in how
                   else 2.0 * zq * ctx.S.noise)
-        U = float(np.sqrt(u_axis ** 2
-                          + (2.0 * _datum_part(drf, ctx, ext, zq)) ** 2
+        u_turn = 2.0 * _datum_part(drf, ctx, ext, zq)
+        U = float(np.sqrt(u_axis ** 2 + u_turn ** 2
                           + (2.0 * _datum_offsets(drf, ctx, f.axis)) ** 2))
         tol = float(c.tol) + bonus
-        rows.append({"feature": ref if isinstance(ref, str) else list(ref), "faces": fidx,
+        rows.append({"centre": f.center.tolist(), "axis": f.axis.tolist(),
+                     "u_axis": float(u_axis), "u_turn": float(u_turn),
+                     "feature": ref if isinstance(ref, str) else list(ref), "faces": fidx,
                      "hole": hole, "value": value, "bonus": bonus, "tolerance": tol,
                      "n": int(X.shape[0]), "outliers": int(n_all - X.shape[0]),
                      "axis_fit": how,
@@ -556,14 +572,18 @@ def eval_position(c, ctx: EvalContext):
                      "nominal_diameter": float(f.diameter), "U": U,
                      "verdict": decide(value, None, tol, U), "ends": ends.tolist(),
                      "note": note, "_axis": (f.center, f.axis)})
-    shift = None
+    shift = comp = None
     if getattr(c, "datum_modifiers", None):       # MMB/LMB: the best pose within the shift
         shift = _position_shift(c, ctx, drf, rows)
+    if getattr(c, "composite", None) == "lower":  # the zone framework at its best place
+        comp = _lower_position(c, ctx, rows, drf)
     for r in rows:
-        r.pop("_axis")
+        for key in ("_axis", "u_axis", "u_turn"):
+            r.pop(key, None)
     worst = min(rows, key=lambda r: (r["tolerance"] - r["value"]) - r["U"])
     details = {"features": rows, "material": c.material, "n_features": len(rows),
-               **({"datum_shift": shift} if shift else {})}
+               **({"datum_shift": shift} if shift else {}),
+               **({"composite": comp} if comp else {})}
     res = _result(c, ctx, worst["value"], worst["U"], details, drf, 0.0, worst["tolerance"])
     verdicts = [r["verdict"] for r in rows]
     from .zones import worst_verdict
@@ -608,6 +628,26 @@ def _position_shift(c, ctx, drf, rows) -> dict:
             r["value"], r["ends"] = v, e2.tolist()
             r["verdict"] = decide(v, None, r["tolerance"], r["U"])
     return out
+
+
+def _lower_position(c, ctx, rows, drf) -> dict:
+    """The lower segment of a composite position (:mod:`.composite`): the true positions at
+    their best place; each row's value becomes twice its largest end distance from there (the
+    located value is kept as ``located``); its uncertainty keeps the axis' and the datums'
+    turn, not the datum planes' shift (the framework's location is free)."""
+    from .composite import best_pattern_fit, lower_rotations
+
+    fit = best_pattern_fit([np.asarray(r["ends"]) for r in rows],
+                           [r["centre"] for r in rows], [r["axis"] for r in rows],
+                           lower_rotations(drf))
+    for r, v in zip(rows, fit["per_feature"]):
+        r["located"] = r["value"]
+        r["value"] = float(v)
+        r["U"] = float(np.hypot(r.pop("u_axis"), r.pop("u_turn")))
+        r["verdict"] = decide(r["value"], None, r["tolerance"], r["U"])
+    return {"segment": "lower", "value": fit["value"], "located": fit["located"],
+            "rotation": fit["rotation"], "translation": fit["translation"],
+            "pivot": fit["pivot"]}
 
 
 def mating_centre_u(n: int, noise: float, k: float) -> float:

@@ -42,6 +42,12 @@ Position (⌀) with datums at MMB / LMB       ``position`` with ``datum_modifier
                                             pose within the datum shift, :mod:`.datum_shift`)
 =========================================  ===============================================
 
+The two segments of a composite feature control frame (``composite`` of the PMI reader,
+:mod:`shapeverify.cad.step_composite`) keep ``composite: upper | lower`` on their entries; a
+lower segment is always planned in its own datum frame (``position`` with ``datums``,
+``surface_profile`` with ``datums``), where the evaluation lets the zone framework move
+(:mod:`.composite`).
+
 An item attached to an edge rather than a face (NIST CTC 02: a hole's rim circle) is mapped to
 the feature the edge bounds by the PMI reader (:mod:`shapeverify.cad.pmi_edges`); its entry's
 ``pmi.attached`` says so.
@@ -250,6 +256,8 @@ def _src(item: dict) -> dict:
             out["modifiers"] = list(item["modifiers"])
         if item["zone_modifier"] != "None":
             out["zone_modifier"] = item["zone_modifier"]
+        if item.get("composite"):
+            out["composite"] = dict(item["composite"])
     elif item["kind"] == "dimension":
         out["nominal"] = item["nominal"]
         if item["lower"] is not None:
@@ -465,7 +473,25 @@ def _drf_reason(item, drf, why) -> str:
 
 
 def _tolerance(item, ctx, drf, why) -> tuple[list, str]:
-    """(plan characteristics, '') or ([], reason)."""
+    """(plan characteristics, '') or ([], reason); the segments of a composite frame carry
+    ``composite: upper | lower`` (:mod:`.composite`)."""
+    entries, reason = _tolerance_entries(item, ctx, drf, why)
+    seg = (item.get("composite") or {}).get("segment")
+    if seg and entries:
+        if {e["type"] for e in entries} - {"position", "surface_profile"}:
+            return [], (f"the {seg} segment of a composite frame on features the plan "
+                        "checks as " + ", ".join(sorted({e['type'] for e in entries})) +
+                        " (composite segments are planned for position and surface_profile)")
+        for e in entries:
+            e["composite"] = seg
+    return entries, reason
+
+
+def _lower(item) -> bool:
+    return (item.get("composite") or {}).get("segment") == "lower"
+
+
+def _tolerance_entries(item, ctx, drf, why) -> tuple[list, str]:
     t = item["type"]
     if t == "ProfileOfLine":
         from .pmi_profile_line import line_profile_entries
@@ -495,8 +521,8 @@ def _tolerance(item, ctx, drf, why) -> tuple[list, str]:
         if item["zone_modifier"] != "None":
             return [], f"a {item['zone_modifier']} zone modifier (uniform zones only)"
         if item["datums"]:
-            r = _drf_reason(item, drf, why)
-            if r:            # not the plan's alignment: in its own DRF (.drf)
+            r = _drf_reason(item, drf, why) or _lower(item)
+            if r:            # not the plan's alignment, or a lower segment: its own DRF
                 names, r2 = _item_drf(item, ctx, shift_ok=True)
                 if names is None:
                     return [], r2
@@ -519,7 +545,7 @@ def _tolerance(item, ctx, drf, why) -> tuple[list, str]:
             return position_zone_entries(item, ctx, faces, src)
         if item["material"] or (item["value_type"] == "Diameter"
                                 and item["zone_modifier"] == "None"
-                                and _drf_reason(item, drf, why)):
+                                and (_drf_reason(item, drf, why) or _lower(item))):
             return _position(item, ctx, faces, src)
         if item["value_type"] != "Diameter":
             zone = {"None": "two parallel planes", "SphericalDiameter": "a sphere"}.get(
@@ -728,16 +754,20 @@ def _position(item, ctx, faces, src) -> tuple[list, str]:
         return [], f"the zone is {zone} (no \u2300); position is of axes in a cylindrical zone"
     if item["zone_modifier"] != "None":
         return [], f"a {item['zone_modifier']} zone modifier"
-    names, r = _item_drf(item, ctx, shift_ok=True)
-    if names is None:
-        return [], r or "no datum reference frame"
-    dm = dict(ctx.last_modifiers)
+    names, dm = None, {}
+    if item["datums"] or not _lower(item):   # a lower segment without datums floats
+        names, r = _item_drf(item, ctx, shift_ok=True)
+        if names is None:
+            return [], r or "no datum reference frame"
+        dm = dict(ctx.last_modifiers)
     groups, other = _cylinders(ctx.feats, ctx.model, faces)
     if other or not groups:
         return [], "it controls faces that are not cylinders (position is of axes)"
     entry = {"name": ctx.name(f"{item['id']}_position"), "type": "position",
              "features": [[f"face:{f}" for f in g[0]] for g in groups], "tol": item["value"],
-             "datums": names, "pmi": src}
+             "pmi": src}
+    if names:
+        entry["datums"] = names
     if dm:
         entry["datum_modifiers"] = dm
     if item["material"]:

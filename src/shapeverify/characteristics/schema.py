@@ -122,6 +122,11 @@ class SurfaceProfile(_Char, Tol):
     #: within what the datum feature's departure from that boundary allows, and the profile
     #: is evaluated at the best pose within it (:mod:`.datum_shift`)
     datum_modifiers: Optional[dict[str, Literal["M", "L"]]] = None
+    #: a segment of a composite feature control frame (ASME Y14.5-2009 §7.5.1, §8.3.1):
+    #: ``upper`` (pattern-locating: located to all its datums, as without it) or ``lower``
+    #: (feature-relating: its datums orient the zone framework only; the framework translates
+    #: and turns about the free datum axes to its best place: :mod:`.composite`)
+    composite: Optional[Literal["upper", "lower"]] = None
 
     @model_validator(mode="after")
     def _drf(self):
@@ -132,6 +137,9 @@ class SurfaceProfile(_Char, Tol):
         if extra:
             raise ValueError(f"datum_modifiers name datums {extra} that are not in datums "
                              f"{self.datums or []}")
+        if self.composite == "lower" and self.datum_modifiers:
+            raise ValueError("composite: lower with datum_modifiers: the frame of a lower "
+                             "segment moves freely already")
         return self
 
 
@@ -332,6 +340,11 @@ class _Oriented(_Gdt):
     #: an axis's bonus tolerance from its measured size (``size``: the diameter's limits)
     material: Optional[Literal["M", "L"]] = None
     size: Optional[SizeLimits] = None
+    #: a segment of a composite feature control frame (ASME Y14.5-2009 §7.5.1, §8.3.1):
+    #: ``upper`` (pattern-locating: located to all its datums, as without it) or ``lower``
+    #: (feature-relating: its datums orient the zone framework only; the framework translates
+    #: and turns about the free datum axes to its best place: :mod:`.composite`)
+    composite: Optional[Literal["upper", "lower"]] = None
 
     @model_validator(mode="after")
     def _bonus(self):
@@ -374,6 +387,11 @@ class Position(_Char):
     #: datums of ``datums`` referenced at MMB (``M``) or LMB (``L``): the axes are evaluated
     #: at the best pose within the datum feature shift (:mod:`.datum_shift`)
     datum_modifiers: Optional[dict[str, Literal["M", "L"]]] = None
+    #: a segment of a composite feature control frame (ASME Y14.5-2009 §7.5.1, §8.3.1):
+    #: ``upper`` (pattern-locating: located to all its datums, as without it) or ``lower``
+    #: (feature-relating: its datums orient the zone framework only; the framework translates
+    #: and turns about the free datum axes to its best place: :mod:`.composite`)
+    composite: Optional[Literal["upper", "lower"]] = None
 
     @model_validator(mode="after")
     def _bonus(self):
