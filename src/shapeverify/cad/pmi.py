@@ -29,12 +29,14 @@ A datum that XCAF leaves without a shape because the file ties it to its faces b
 ``SET_REPRESENTATION_ITEM``) is attached from the STEP entities (:mod:`.pmi_iiru`; ``attached``
 says so); one set up from datum targets of a type XCAF does not read (a ``'circular curve'``,
 NIST FTC 06's G and H) gets them from the STEP entities (:func:`.pmi_iiru.resolve_curve_targets`);
-one that cannot be attached keeps ``unattached``, the reason.  Each tolerance and dimension
-keeps the name the file gives it (``name``: ``Position.3``).  A tolerance or dimension that the
-file's text declares but XCAF does not return (one tied to supplemental geometry only: NIST
-CTC 04's ``Position.3``) is listed in ``unread`` with the entity and why (:mod:`.pmi_text`).  A datum target attached to an
+one that cannot be attached keeps ``unattached``, the reason.  A datum target attached to an
 edge (a line drawn on a face: FTC 06's J and K) keeps the edge's record (``edges``:
 :func:`.pmi_edges.edge_record`, with the face it lies on).
+
+Each tolerance and dimension keeps the name the file gives it (``name``: ``Position.3``).  A
+tolerance or dimension that the file's text declares but XCAF does not return (one tied to
+supplemental geometry only: NIST CTC 04's ``Position.3``) is listed in ``unread`` with the
+entity and why (:mod:`.pmi_text`).
 
 The read runs in the project's importer child process (:mod:`shapeverify.cad.occ_worker`), so
 that a crash of OpenCASCADE on a damaged file raises :class:`~shapeverify.errors.CADImportError`
