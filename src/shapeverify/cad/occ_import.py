@@ -373,8 +373,9 @@ def _unwrap_periods(surface: NurbsSurface, uv_range) -> NurbsSurface:
         width = hi - lo
         r0, r1 = uv_range[axis]
         tol = 1e-7 * width
-        if not (width > 0 and np.isfinite(r0) and (r0 < lo - tol or r1 > hi + tol)):
-            continue
+        if not (width > 0 and np.isfinite(r0) and (r0 < lo - tol or r1 > hi + tol)
+                and r1 - r0 > width * (1 + 1e-6)):
+            continue  # within one period: _seam_shift moves an offset wire back (CTC 02, 05)
         c = np.moveaxis(ctrl, axis, 0)
         ww = None if w is None else np.moveaxis(w, axis, 0)
         size = float(np.ptp(c.reshape(-1, 3), axis=0).max())
