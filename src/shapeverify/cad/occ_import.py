@@ -309,7 +309,10 @@ def _nurbs_surface(surf, face) -> NurbsSurface:
             # the face straddles the seam of the period: cut the surface to the face's range
             su = (a0, a1) if surf.IsUPeriodic() and not inside_u else (u0, u1)
             sv = (b0, b1) if surf.IsVPeriodic() and not inside_v else (v0, v1)
-            surf.Segment(su[0], su[1], sv[0], sv[1])
+            wide = ((surf.IsUPeriodic() and su[1] - su[0] > surf.UPeriod() * (1 + 1e-9))
+                    or (surf.IsVPeriodic() and sv[1] - sv[0] > surf.VPeriod() * (1 + 1e-9)))
+            if not wide:  # wider than a period, Segment raises: _unwrap_periods extends it
+                surf.Segment(su[0], su[1], sv[0], sv[1])
         if surf.IsUPeriodic():
             surf.SetUNotPeriodic()
         if surf.IsVPeriodic():
@@ -322,8 +325,96 @@ def _nurbs_surface(surf, face) -> NurbsSurface:
     if surf.IsURational() or surf.IsVRational():
         weights = np.array([[surf.Weight(i, j) for j in range(1, nv + 1)]
                             for i in range(1, nu + 1)], dtype=np.float64)
-    return NurbsSurface(surf.UDegree(), surf.VDegree(), _array1(surf.UKnotSequence()),
-                        _array1(surf.VKnotSequence()), ctrl, weights)
+    nurbs = NurbsSurface(surf.UDegree(), surf.VDegree(), _array1(surf.UKnotSequence()),
+                         _array1(surf.VKnotSequence()), ctrl, weights)
+    return _unwrap_periods(nurbs, _pcurve_range(face))
+
+
+def _pcurve_range(face) -> tuple[tuple[float, float], tuple[float, float]]:
+    """((u_min, u_max), (v_min, v_max)) of the face's pcurves, sampled (``UVBounds`` of
+    B-spline pcurves can be loose: it bounds their poles)."""
+    from OCP.BRepAdaptor import BRepAdaptor_Curve2d
+    from OCP.TopAbs import TopAbs_EDGE
+    from OCP.TopExp import TopExp_Explorer
+    from OCP.TopoDS import TopoDS
+
+    pts = []
+    exp = TopExp_Explorer(face, TopAbs_EDGE)
+    while exp.More():
+        c = BRepAdaptor_Curve2d(TopoDS.Edge(exp.Current()), face)
+        for t in np.linspace(c.FirstParameter(), c.LastParameter(), 65):
+            pts.append(c.Value(float(t)).Coord())
+        exp.Next()
+    if not pts:
+        return (np.inf, -np.inf), (np.inf, -np.inf)
+    P = np.asarray(pts, np.float64)
+    return (float(P[:, 0].min()), float(P[:, 0].max())), (float(P[:, 1].min()),
+                                                          float(P[:, 1].max()))
+
+
+def _unwrap_periods(surface: NurbsSurface, uv_range) -> NurbsSurface:
+    """The surface repeated over whole periods of a closed direction so that its domain holds
+    the face's pcurves (``uv_range``, from :func:`_pcurve_range`); unchanged when they fit.
+
+    A face on a sphere whose seam is a slanted circle through the pole (NIST FTC 07's corner
+    blends: pcurves over u in [-pi/2, 2 pi]) spans more than one period: ``Segment`` raised
+    (the face was skipped) or the loops ran off a one-period domain and were clipped (their
+    vertices 0.7 mm off the face).  The clamped B-spline closed across the direction is joined
+    to copies of itself shifted by its width (knot multiplicity p at the joins, the shared
+    row of poles; a copy's weights scaled to the shared row's), which is exactly the periodic
+    surface continued."""
+    knots = [np.asarray(surface.knots_u, np.float64), np.asarray(surface.knots_v, np.float64)]
+    deg = [surface.degree_u, surface.degree_v]
+    ctrl = np.asarray(surface.control, np.float64)
+    w = None if surface.weights is None else np.asarray(surface.weights, np.float64)
+    changed = False
+    for axis in (0, 1):
+        lo, hi = surface.domain[axis]
+        width = hi - lo
+        r0, r1 = uv_range[axis]
+        tol = 1e-7 * width
+        if not (width > 0 and np.isfinite(r0) and (r0 < lo - tol or r1 > hi + tol)
+                and r1 - r0 > width * (1 + 1e-6)):
+            continue  # within one period: _seam_shift moves an offset wire back (CTC 02, 05)
+        c = np.moveaxis(ctrl, axis, 0)
+        ww = None if w is None else np.moveaxis(w, axis, 0)
+        size = float(np.ptp(c.reshape(-1, 3), axis=0).max())
+        if np.abs(c[0] - c[-1]).max() > 1e-9 * max(size, 1e-300):
+            continue  # not closed across this direction: nothing to continue
+        ratio = 1.0
+        if ww is not None:
+            ratio_row = ww[-1] / ww[0]
+            if np.abs(ratio_row - ratio_row[0]).max() > 1e-9 * abs(ratio_row[0]):
+                continue
+            ratio = float(ratio_row[0])
+        p = deg[axis]
+        k = knots[axis]
+        if np.ptp(k[1:p + 1]) > tol or np.ptp(k[-p - 1:-1]) > tol:
+            continue  # not clamped: the end rows are not the surface's edges
+        # SetUNotPeriodic leaves one knot beyond each end (multiplicity p at the ends): on the
+        # domain the first and last knots play no part, so the surface is the clamped one
+        inner = k[p + 1:len(k) - p - 1]
+        k0 = int(np.floor((r0 - lo) / width + 1e-9))
+        k1 = int(np.ceil((r1 - lo) / width - 1e-9))
+        if k1 - k0 > 8:
+            continue  # a pcurve wandering over many periods is damage, not a seam
+        new_k = [np.full(p + 1, lo + k0 * width)]
+        rows, wrows = [c[:1]], ([] if ww is None else [ww[:1] * ratio ** k0])
+        for j in range(k0, k1):
+            new_k.append(inner + j * width)
+            new_k.append(np.full(p if j < k1 - 1 else p + 1, lo + (j + 1) * width))
+            rows.append(c[1:])
+            if ww is not None:
+                wrows.append(ww[1:] * ratio ** j)
+        knots[axis] = np.concatenate(new_k)
+        ctrl = np.moveaxis(np.concatenate(rows), 0, axis)
+        if ww is not None:
+            w = np.moveaxis(np.concatenate(wrows), 0, axis)
+        changed = True
+        logger.debug("closed surface continued over periods %d..%d along axis %d", k0, k1, axis)
+    if not changed:
+        return surface
+    return NurbsSurface(surface.degree_u, surface.degree_v, knots[0], knots[1], ctrl, w)
 
 
 def _shape_faces(path: Path, fmt: str, shape) -> list:
