@@ -458,6 +458,13 @@ def _drf_reason(item, drf, why) -> str:
 def _tolerance(item, ctx, drf, why) -> tuple[list, str]:
     """(plan characteristics, '') or ([], reason)."""
     t = item["type"]
+    value = item.get("value")
+    if value is not None and not value > 0:  # NIST FTC 10: 0 at MMC / LMC (all of it bonus)
+        mat = item.get("material")
+        return [], (f"a tolerance of {value:g}"
+                    + (f" with material modifier {mat}" if mat and mat != "None" else "")
+                    + ": the plan's zones need a value above 0 (its bonus tolerance is added "
+                    "to one)")
     if t == "ProfileOfLine":
         from .pmi_profile_line import line_profile_entries
 
