@@ -19,14 +19,12 @@ The default run is small (a few hundred inputs per test, derandomized: about 10 
 
 from __future__ import annotations
 
-import contextlib
 import io
 import json
 import logging
 import os
 import random
 import re
-import signal
 import struct
 
 import numpy as np
@@ -34,6 +32,9 @@ import pytest
 import yaml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+
+from cpu_bound import Hang, cpu_time_bound
+from test_plan import EVERY_TYPE as PLAN
 
 from shapeverify.camera.rig import Rig, RigFormatError, load_rig, look_at_rig, save_rig
 from shapeverify.characteristics.plan import Plan, PlanError, parse_plan
@@ -55,22 +56,9 @@ def fuzz(n: int):
                                            HealthCheck.function_scoped_fixture])
 
 
-class Hang(Exception):
-    pass
-
-
-@contextlib.contextmanager
 def time_bound(seconds: float = SECONDS):
-    def _alarm(signum, frame):
-        raise Hang(f"did not return within {seconds} s")
-
-    old = signal.signal(signal.SIGPROF, _alarm)   # CPU seconds of this process: a hang
-    signal.setitimer(signal.ITIMER_PROF, seconds)  # burns them; a busy machine does not
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_PROF, 0)
-        signal.signal(signal.SIGPROF, old)
+    """Abort the block with :class:`Hang` after ``seconds`` of CPU time."""
+    return cpu_time_bound(seconds, "did not return")
 
 
 def outcome(fn, *args):
@@ -320,24 +308,6 @@ def test_fuzz_scan_header_mutations_read_what_the_header_declares(seed, mseed):
 
 
 # -------------------------------------------------------------------------------- plans
-PLAN = """units: mm
-part: A-0017
-alignment:
-  type: rps
-  points:
-    - {at: [20, 20, 0], lock: [z]}
-    - {at: [80, 20, 0], lock: [z]}
-    - {at: [50, 70, 0], lock: [z]}
-    - {at: [30, 40, 0], lock: [x, y], feature: "hole:0"}
-    - {at: [62, 22, 0], lock: [y]}
-characteristics:
-  - {name: H1, type: hole, feature: "hole:3", diameter: {lower: -0.1, upper: 0.3}}
-  - {name: F, type: flatness, feature: "face:0", tol: 0.05}
-  - {name: C, type: cylinder, near: [75, 58, 10], diameter: {tol: 0.1}}
-  - {name: P1, type: check_point, at: [50, 60, 0], lower: -0.2, upper: 0.1, radius: 3}
-  - {name: S, type: surface_profile, faces: ["face:0", 2], tol: 0.4, datum: false}
-section: {point: [50, 40, 0], normal: [0, 1, 0], width: 2}
-"""
 YAML_PIECES = ["&a ", "*a", "<<: *a", "!!python/object:os.system ", "!!binary ", "? ", "[[[[[", "]]",
                "9" * 5000, "1e999", "-.inf", ".nan", "2020-13-45", "~", "&a [*a]", "{", "}", "- ",
                "\t", "%YAML 1.1\n---\n", "---\n", "...\n", "\"\\x\"", "'", "@", "`", "|\n  x",

@@ -17,12 +17,10 @@ dominate otherwise); a failure is reported, and replayed, by its seed.
 
 from __future__ import annotations
 
-import contextlib
 import io
 import logging
 import math
 import random
-import signal
 import struct
 import tracemalloc
 
@@ -30,6 +28,8 @@ import numpy as np
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+
+from cpu_bound import Hang, cpu_time_bound
 
 from shapeverify.errors import ShapeVerifyError
 from shapeverify.io.points import read_points
@@ -45,23 +45,9 @@ def fuzz_settings(n: int):
                                            HealthCheck.function_scoped_fixture])
 
 
-class Hang(Exception):
-    pass
-
-
-@contextlib.contextmanager
 def no_hang(seconds: float = HANG_SECONDS):
-    """Abort the block with :class:`Hang` after ``seconds`` (main thread only, POSIX)."""
-    def _alarm(signum, frame):
-        raise Hang(f"reader did not return within {seconds} s")
-
-    old = signal.signal(signal.SIGPROF, _alarm)   # CPU seconds of this process: a hang
-    signal.setitimer(signal.ITIMER_PROF, seconds)  # burns them; a busy machine does not
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_PROF, 0)
-        signal.signal(signal.SIGPROF, old)
+    """Abort the block with :class:`Hang` after ``seconds`` of CPU time."""
+    return cpu_time_bound(seconds, "reader did not return")
 
 
 @pytest.fixture(scope="module")

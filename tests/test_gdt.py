@@ -18,7 +18,7 @@ from scipy.optimize import minimize, minimize_scalar
 from shapeverify.characteristics import registry
 from shapeverify.characteristics.drf import DatumFeature, fit_drf, rigid_exp
 from shapeverify.characteristics.gdt_zones import (circles_zone, cylinders_zone, planes_zone,
-                                                   runout, width_planes)
+                                                   width_planes)
 from shapeverify.characteristics.plan import PlanError, parse_plan
 
 TOL = 1e-6
@@ -176,22 +176,6 @@ def test_cylindricity_and_circumscribed_cylinder_equal_slsqp_on_exact_distances(
     value, p, a, (lo, hi) = cylinders_zone(X, R[:3, 3] + [0.02, 0, 0], a0 + [0.003, 0, 0], kind)
     brute = _slsqp_cylinder(X, R[:3, 3], a0, kind)
     assert value == pytest.approx(brute, abs=TOL)
-
-
-def test_runout_equals_the_radial_range_per_section_and_overall():
-    rng = np.random.default_rng(11)
-    X, R = _cyl_points(rng, n=400, noise=0.02)
-    p, a = R[:3, 3], R[:3, 2]
-    circ, total = runout(X, p, a, section_width=2.0)
-    q = X - p
-    h = q @ a
-    r = np.linalg.norm(q - np.outer(h, a), axis=1)
-    assert total == pytest.approx(r.max() - r.min(), abs=1e-12)
-    bands = {}
-    for hi, ri in zip(np.floor((h - h.min()) / 2.0), r):
-        bands.setdefault(hi, []).append(ri)
-    assert circ == pytest.approx(max(max(v) - min(v) for v in bands.values() if len(v) > 1),
-                                 abs=1e-12)
 
 
 # ------------------------------------------------------------------------------ DRF

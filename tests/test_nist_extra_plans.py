@@ -51,6 +51,7 @@ STILL_UNSUPPORTED = {
     "nist_ctc_03": {"GT5": "datum modifiers", "GT10": "two parallel planes"},
     "nist_ctc_05": {"GT4": "target", "GT5": "target", "GT6": "edge", "GT7": "Concentricity"},
     "nist_ftc_11": {},
+    "nist_ctc_04": {},
 }
 
 
@@ -67,6 +68,38 @@ def test_extra_nist_plan_holds_every_tolerance_of_the_file_once(files, plans, ke
     assert set(un) == set(STILL_UNSUPPORTED[key]), un
     for gid, word in STILL_UNSUPPORTED[key].items():
         assert word in un[gid], (gid, un[gid])
+
+
+@pytest.mark.parametrize("key", sorted(STILL_UNSUPPORTED))
+def test_extra_nist_plan_lists_every_declared_tolerance_and_dimension(files, plans, key):
+    """What the file's text declares = what XCAF read (characteristics, unsupported, or the
+    presentation-only) + what the plan lists as ``unread``, by type and name."""
+    from shapeverify.cad.pmi_text import declared_pmi
+
+    res = plans[key]
+    declared = declared_pmi(files[key].read_text(encoding="latin-1"))
+    read = Counter(("geometric_tolerance", t["type"], t["name"]) for t in res.pmi["tolerances"])
+    read += Counter(("dimension", d["name"]) for d in res.pmi["dimensions"]
+                    if d["type"] not in ("DimensionPresentation", "CommonLabel"))
+    unread = Counter((u.pmi.kind, u.pmi.type, u.pmi.name) if u.pmi.kind == "geometric_tolerance"
+                     else (u.pmi.kind, u.pmi.name) for u in res.plan.unread)
+    want = Counter((d["kind"], d["type"], d["name"]) if d["kind"] == "geometric_tolerance"
+                   else (d["kind"], d["name"]) for d in declared)
+    assert read + unread == want
+    for u in res.plan.unread:
+        assert u.pmi.entity in {d["entity"] for d in declared} and "inspect it by hand" in u.reason
+
+
+def test_ctc04_position_of_threaded_holes_is_listed_unread_not_dropped(plans):
+    """CTC 04's Position.3 (4 threaded holes) and their diameter are tied to thread curves in
+    supplemental geometry; OpenCASCADE's reader returns neither, and the plan dropped both
+    without a word."""
+    res = plans["nist_ctc_04"]
+    got = {(u.pmi.kind, u.pmi.type, u.pmi.name, u.pmi.entity) for u in res.plan.unread}
+    assert got == {("geometric_tolerance", "Position", "Position.3", "#18891"),
+                   ("dimension", "Size", "diameter", "#18938")}
+    assert all("GEOMETRIC_CURVE_SET" in u.reason for u in res.plan.unread)
+    assert {r["id"] for r in res.rows if r.get("unread")} == {"#18891", "#18938"}
 
 
 def test_ctc05_is_read_in_inches_and_its_form_and_runouts_are_planned(files, plans):

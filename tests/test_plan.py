@@ -5,6 +5,27 @@ import pytest
 
 from shapeverify.characteristics.plan import PlanError, load_plan, parse_plan
 
+#: an RPS alignment and one characteristic of each of the first five types (also the seed of
+#: the plan fuzzer, tests/test_fuzz_hostile.py)
+EVERY_TYPE = """units: mm
+part: A-0017
+alignment:
+  type: rps
+  points:
+    - {at: [20, 20, 0], lock: [z]}
+    - {at: [80, 20, 0], lock: [z]}
+    - {at: [50, 70, 0], lock: [z]}
+    - {at: [30, 40, 0], lock: [x, y], feature: "hole:0"}
+    - {at: [62, 22, 0], lock: [y]}
+characteristics:
+  - {name: H1, type: hole, feature: "hole:3", diameter: {lower: -0.1, upper: 0.3}}
+  - {name: F, type: flatness, feature: "face:0", tol: 0.05}
+  - {name: C, type: cylinder, near: [75, 58, 10], diameter: {tol: 0.1}}
+  - {name: P1, type: check_point, at: [50, 60, 0], lower: -0.2, upper: 0.1, radius: 3}
+  - {name: S, type: surface_profile, faces: ["face:0", 2], tol: 0.4, datum: false}
+section: {point: [50, 40, 0], normal: [0, 1, 0], width: 2}
+"""
+
 CONTRACT = """units: mm
 alignment: {type: best_fit}            # best_fit [faces: [...]] | constrained {free: [tx, ty, rz]} | rps {points: [{at: [x, y, z], lock: [z]}, ...]}
 characteristics:
@@ -24,25 +45,7 @@ def test_minimum_contract_is_accepted_as_written_in_the_issue():
 
 
 def test_every_alignment_and_characteristic_type_parses():
-    text = """units: mm
-part: A-0017
-alignment:
-  type: rps
-  points:
-    - {at: [20, 20, 0], lock: [z]}
-    - {at: [80, 20, 0], lock: [z]}
-    - {at: [50, 70, 0], lock: [z]}
-    - {at: [30, 40, 0], lock: [x, y], feature: "hole:0"}
-    - {at: [62, 22, 0], lock: [y]}
-characteristics:
-  - {name: H1, type: hole, feature: "hole:3", diameter: {lower: -0.1, upper: 0.3}}
-  - {name: F, type: flatness, feature: "face:0", tol: 0.05}
-  - {name: C, type: cylinder, near: [75, 58, 10], diameter: {tol: 0.1}}
-  - {name: P1, type: check_point, at: [50, 60, 0], lower: -0.2, upper: 0.1, radius: 3}
-  - {name: S, type: surface_profile, faces: ["face:0", 2], tol: 0.4, datum: false}
-section: {point: [50, 40, 0], normal: [0, 1, 0], width: 2}
-"""
-    p = parse_plan(text)
+    p = parse_plan(EVERY_TYPE)
     assert p.part == "A-0017" and len(p.alignment.points) == 5
     assert p.alignment.points[3].lock == ["x", "y"]
     assert [c.type for c in p.characteristics] == ["hole", "flatness", "cylinder", "check_point",

@@ -131,12 +131,17 @@ def write_pmi_plan(model_path: Path, output: Optional[Path]) -> None:
         out.print(text, markup=False, highlight=False, soft_wrap=True)
     else:
         _guard(output.write_text, text, encoding="utf-8")
-    n_gt = sum(1 for r in res.rows if r["kind"] == "geometric_tolerance")
+    n_gt = sum(1 for r in res.rows if r["kind"] == "geometric_tolerance" and not r.get("unread"))
     n_gt_un = sum(1 for u in res.plan.unsupported if u.pmi.kind == "geometric_tolerance")
+    unread = res.plan.unread
     console.print(f"{model_path.name}: {len(res.plan.characteristics)} characteristics, "
                   f"alignment {res.plan.alignment.type}; {len(res.plan.unsupported)} PMI items "
                   f"not checked ({n_gt_un} of {n_gt} geometric tolerances), each listed under "
-                  "'unsupported' with the reason" + (f"; plan: {output}" if output else ""),
+                  "'unsupported' with the reason"
+                  + (f"; {len(unread)} more the file declares but OpenCASCADE does not read "
+                     f"({', '.join(f'{u.pmi.type} {u.pmi.name!r}' for u in unread)}), listed "
+                     "under 'unread': inspect them by hand" if unread else "")
+                  + (f"; plan: {output}" if output else ""),
                   markup=False, highlight=False, soft_wrap=True)
 
 
@@ -168,7 +173,8 @@ def pmi_table(name: str, res) -> Table:
                                             if len(r["faces"]) > 6 else "")
         lim = r.get("limits")
         plan = (", ".join(r["entries"]) if r["entries"]
-                else Text.assemble(("unsupported: ", "yellow"), r["reason"]))
+                else Text.assemble(("not read: " if r.get("unread") else "unsupported: ",
+                                    "red" if r.get("unread") else "yellow"), r["reason"]))
         deg = "\u00b0" if r["kind"] == "dimension" and "Angular" in r["type"] else ""
         t.add_row(r["id"], r["kind"].replace("geometric_tolerance", "tolerance"), r["type"],
                   "-" if r.get("value") is None else f"{r['value']:g}{deg}",

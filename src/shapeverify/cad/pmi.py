@@ -29,7 +29,10 @@ A datum that XCAF leaves without a shape because the file ties it to its faces b
 ``SET_REPRESENTATION_ITEM``) is attached from the STEP entities (:mod:`.pmi_iiru`; ``attached``
 says so); one set up from datum targets of a type XCAF does not read (a ``'circular curve'``,
 NIST FTC 06's G and H) gets them from the STEP entities (:func:`.pmi_iiru.resolve_curve_targets`);
-one that cannot be attached keeps ``unattached``, the reason.  A datum target attached to an
+one that cannot be attached keeps ``unattached``, the reason.  Each tolerance and dimension
+keeps the name the file gives it (``name``: ``Position.3``).  A tolerance or dimension that the
+file's text declares but XCAF does not return (one tied to supplemental geometry only: NIST
+CTC 04's ``Position.3``) is listed in ``unread`` with the entity and why (:mod:`.pmi_text`).  A datum target attached to an
 edge (a line drawn on a face: FTC 06's J and K) keeps the edge's record (``edges``:
 :func:`.pmi_edges.edge_record`, with the face it lies on).
 
@@ -45,6 +48,7 @@ import os
 from pathlib import Path
 
 from ..errors import CADImportError, UnsupportedFormatError
+from .pmi_text import unread_pmi_of_file
 
 logger = logging.getLogger(__name__)
 
@@ -136,6 +140,12 @@ def _enum_name(v, prefix: str = "") -> str:
     if prefix and name.startswith(prefix):
         return name[len(prefix):]
     return name.rsplit("_", 1)[-1] if "_" in name else name
+
+
+def _semantic_name(o) -> str:
+    """The name the file gives a tolerance or dimension ('Position.3'), or ''."""
+    n = o.GetSemanticName()
+    return n.ToCString() if n is not None else ""
 
 
 def _seq(values) -> list:
@@ -505,7 +515,7 @@ def read_pmi_here(path) -> dict:
         mat = _enum_name(o.GetMaterialRequirementModifier())
         tolerances.append({
             "id": f"GT{k}", "kind": "geometric_tolerance",
-            "type": _enum_name(o.GetType(), _GT_PREFIX),
+            "type": _enum_name(o.GetType(), _GT_PREFIX), "name": _semantic_name(o),
             "value": float(o.GetValue()),
             "value_type": _enum_name(o.GetTypeOfValue()),
             "zone_modifier": _enum_name(o.GetZoneModifier()),
@@ -526,7 +536,7 @@ def read_pmi_here(path) -> dict:
         fs, other = _faces_of(first, index)
         fs2, other2 = _faces_of(second, index)
         item = {"id": f"DIM{k}", "kind": "dimension",
-                "type": _enum_name(o.GetType(), _DIM_PREFIX),
+                "type": _enum_name(o.GetType(), _DIM_PREFIX), "name": _semantic_name(o),
                 "nominal": float(o.GetValue()), "lower": None, "upper": None,
                 "qualifier": _enum_name(o.GetQualifier()),
                 "modifiers": [_enum_name(m, "XCAFDimTolObjects_DimensionModif_")
@@ -556,6 +566,12 @@ def read_pmi_here(path) -> dict:
     logger.info("%s: PMI %d datums, %d geometric tolerances, %d dimensions on %d of %d faces",
                 path.name, len(datum_list), len(tolerances), len(dimensions), len(used),
                 len(faces))
+    try:
+        unread = unread_pmi_of_file(path, tolerances, dimensions)
+    except (OSError, ValueError, RecursionError) as e:   # never lose the PMI that was read
+        logger.warning("%s: could not compare the PMI read with the file's text: %s",
+                       path.name, e)
+        unread = []
     return {"source": str(path), "n_faces": len(faces), "datums": datum_list,
-            "tolerances": tolerances, "dimensions": dimensions,
+            "tolerances": tolerances, "dimensions": dimensions, "unread": unread,
             "face_vertices": {i: _vertices(faces[i]) for i in sorted(used)}}

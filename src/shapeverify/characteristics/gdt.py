@@ -58,7 +58,7 @@ from .alignment import face_indices
 from .drf import DatumFeature, fit_drf
 from .evaluate import CharacteristicResult, EvalContext, _not_measured, _profile
 from .gdt_zones import (MIN_COVERAGE, angular_coverage, circles_zone, cylinders_zone,
-                        planes_zone, runout, tangent_basis)
+                        planes_zone, tangent_basis)
 from .support import extreme_quantile
 from .zones import decide, zone_decide
 

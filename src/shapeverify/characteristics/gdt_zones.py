@@ -24,7 +24,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.optimize import linprog
 
-__all__ = ["angular_coverage", "planes_zone", "width_planes", "circles_zone", "cylinders_zone", "tangent_basis", "runout"]
+__all__ = ["angular_coverage", "planes_zone", "width_planes", "circles_zone", "cylinders_zone", "tangent_basis"]
 
 _ROUNDS = 60
 _STOP = 1e-12
@@ -284,23 +284,3 @@ def cylinders_zone(points, point, axis, kind: str = "zone"):
     lo, hi = float(r.min()), float(r.max())
     value = hi - lo if kind == "zone" else (lo if kind == "inscribed" else hi)
     return value, p0, a, (lo, hi)
-
-
-def runout(points, point, axis, section_width: float | None = None):
-    """(circular runout, total runout) of points about a datum axis (ISO 1101 §18.15/16): the
-    radial range in each cross-section (bands ``section_width`` thick along the axis, default
-    the whole length split in 10) -- its maximum -- and over all points."""
-    P = np.asarray(points, np.float64)
-    a = np.asarray(axis, np.float64) / np.linalg.norm(axis)
-    q = P - np.asarray(point, np.float64)
-    h = q @ a
-    r = np.linalg.norm(q - np.outer(h, a), axis=1)
-    total = float(r.max() - r.min())
-    w = section_width or max(float(np.ptp(h)) / 10.0, 1e-9)
-    band = np.floor((h - h.min()) / w).astype(np.int64)
-    circ = 0.0
-    for b in np.unique(band):
-        rb = r[band == b]
-        if rb.size >= 2:
-            circ = max(circ, float(rb.max() - rb.min()))
-    return circ, total

@@ -21,7 +21,9 @@ Further characteristic types: ``flatness`` (``feature: face:3`` or ``near``, ``t
 (``faces: [datum_A]``; see ``shapeverify info --features``); in ``faces`` a name stands for
 every face that carries it.  A plan written by ``shapeverify plan`` from the CAD file's semantic PMI marks each entry
 with its source (``pmi: {kind: geometric_tolerance | dimension | datum, type: Position}``) and
-lists the PMI it does not check in ``unsupported: [{pmi: {...}, reason: "..."}]``.
+lists the PMI it does not check in ``unsupported: [{pmi: {...}, reason: "..."}]``, and the
+tolerances and dimensions the file declares that OpenCASCADE does not read at all in ``unread``
+(the same form; ``pmi`` has the item's ``name`` and STEP ``entity``).
 GD&T types (issue 28; docs/characteristics.md): ``straightness``, ``circularity``,
 ``cylindricity`` (``faces``, ``tol``); ``parallelism``, ``perpendicularity``, ``angularity``
 (``faces``, ``tol``, ``datums: [A, ...]``, ``zone: planes | diameter``); ``position``
@@ -183,6 +185,8 @@ class Plan(_Strict):
     evaluation_distance: Optional[float] = Field(default=None, gt=0)
     coverage_factor: float = Field(default=2.0, gt=0)
     unsupported: list[Unsupported] = Field(default_factory=list)
+    #: PMI the file declares that OpenCASCADE's reader does not return (not checked either)
+    unread: list[Unsupported] = Field(default_factory=list)
     #: datum features by letter, for the characteristics' own datum reference frames
     #: (``datums: [A, B, C]`` on a characteristic; fitted by :mod:`.drf`)
     datums: dict[str, DatumSpec] = Field(default_factory=dict)

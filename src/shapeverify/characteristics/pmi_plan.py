@@ -830,6 +830,12 @@ def pmi_plan(path, *, model=None, pmi=None, timeout: float | None = 600.0) -> Pm
         rows.append(_row(d, ctx, [], reason))
     data = {"units": "mm", "part": path.name, "alignment": alignment,
             "characteristics": chars, "unsupported": unsupported}
+    if pmi.get("unread"):
+        data["unread"] = [{"pmi": {k: u[k] for k in ("kind", "type", "name", "entity")},
+                           "reason": u["reason"]} for u in pmi["unread"]]
+        rows.extend({"id": u["entity"], "kind": u["kind"], "type": u["type"], "faces": [],
+                     "entries": [], "reason": u["reason"], "unread": True}
+                    for u in pmi["unread"])
     if table:
         data["datums"] = table
     plan = load_plan(data)
