@@ -104,10 +104,19 @@ class Feature:
 def _face_grid(face, n: int = _GRID) -> tuple[np.ndarray, np.ndarray]:
     (a0, a1), (b0, b1) = face.uv_bounds
     g = np.stack(np.meshgrid(np.linspace(a0, a1, n), np.linspace(b0, b1, n)), -1).reshape(-1, 2)
-    g = g[face.contains(g)]
+    g = _in_domain(face, g[face.contains(g)])
     if g.shape[0] < 8:  # a thin face: sample its loops' vertices as well
-        g = np.concatenate([g, np.concatenate(face.loops)])
+        g = np.concatenate([g, _in_domain(face, np.concatenate(face.loops))])
     return face.evaluate(g), face.normal(g)
+
+
+def _in_domain(face, uv: np.ndarray) -> np.ndarray:
+    """Trim-loop parameters ``uv`` (N, 2) clipped onto the face's surface domain: a STEP file's
+    pcurves may run a little past it (NIST FTC 10: v 8e-6 beyond +-23 on a cylinder's face;
+    hammer.iges: 6.2e-5 below u = 0), farther than the surface's evaluation accepts."""
+    (u0, u1), (v0, v1) = face.surface.domain
+    uv = np.asarray(uv, np.float64)
+    return np.column_stack([np.clip(uv[:, 0], u0, u1), np.clip(uv[:, 1], v0, v1)])
 
 
 def _dense_loop(loop: np.ndarray, per_segment: int = 2) -> np.ndarray:
@@ -160,7 +169,7 @@ def _hole(face, loop: np.ndarray, size: float):
     # points between them, in (u, v), lie inside the circle by the sagitta (0.001 mm for a
     # 5 mm hole read from STEP: more than the circle test allows), so only a loop too short
     # to fit is densified
-    uv = loop if loop.shape[0] >= 12 else _dense_loop(loop)
+    uv = _in_domain(face, loop if loop.shape[0] >= 12 else _dense_loop(loop))
     X = face.evaluate(uv)
     if X.shape[0] < 6:
         return None
@@ -204,6 +213,7 @@ def _opening(face, loop: np.ndarray, size: float):
     """An inner loop that is not one circle: ``(kind, centre, axis, length, width, outline,
     form_error)`` with kind ``'slot'`` (a planar, convex outline at least 1.5 times as long as
     wide), ``'pocket'`` (another planar outline) or ``'other'`` (a loop that is not planar)."""
+    loop = _in_domain(face, loop)
     X = face.evaluate(loop)
     if X.shape[0] < 3:
         raise ValueError(f"the loop has {X.shape[0]} vertices")
@@ -303,7 +313,8 @@ def _cylinder_holes(model, cyls: list, loop_holes: list, size: float):
         angs, ts = [], []
         for i, _, _, _ in g:
             X = np.concatenate([_face_grid(model.faces[i])[0]] + [
-                model.faces[i].evaluate(_dense_loop(lp, 4)) for lp in model.faces[i].loops]) - p
+                model.faces[i].evaluate(_in_domain(model.faces[i], _dense_loop(lp, 4)))
+                for lp in model.faces[i].loops]) - p
             angs.append(np.arctan2(X @ e2, X @ e1))
             ts.append(X @ a)
         ang, t = np.concatenate(angs), np.concatenate(ts)
