@@ -22,6 +22,12 @@ Three renderings of the same :class:`Frame`: :attr:`Frame.text` (``⌖|Ø0.5Ⓜ|
 terminal and the CSV), :func:`frame_html` (boxed compartments, the symbols as inline SVG so that
 no font is needed) and :func:`draw_frame` (matplotlib: boxes, the symbols drawn as strokes).
 
+A composite frame (``composite: upper | lower``, paired by :func:`composite_pairs`) is drawn
+as ASME Y14.5 writes it: one symbol cell spanning two rows, the upper segment's zone and datums
+in the top row, the lower's below, the columns aligned (:func:`composite_html`, a CSS grid;
+:func:`draw_composite`); the reports keep a row of values and verdict per segment, the pair
+together under the upper's DRF (:func:`group_by_drf`'s ``follows``).
+
 Fonts: DejaVu Sans (matplotlib's, the PDF's) has ⏥ ⊥ ∥ ∠ ○ ↗ ◎ Ø but not ⌖ ⌓ ⌒ ⌭ ⌰ ⏤ ⌯ nor the
 circled letters Ⓜ Ⓛ Ⓕ Ⓟ Ⓣ Ⓤ (checked with ``FT2Font.get_charmap``).  So the drawn forms never
 rely on a font for them: each symbol of :data:`SYMBOLS` is drawn from :data:`STROKES` (lines in a
@@ -593,12 +599,13 @@ font-size:13px;line-height:18px;vertical-align:middle;white-space:nowrap;margin:
 .fcf>span:first-child{border-left:none}
 .fcf-c{display:inline-block;border:1px solid currentColor;border-radius:50%;width:13px;
 height:13px;line-height:13px;font-size:9px;text-align:center;margin:0 1px}
-.fcf-comp{display:inline-grid;border:1px solid #1d1d1f;font-family:DejaVu Sans,Arial,sans-serif;
-font-size:13px;line-height:18px;vertical-align:middle;white-space:nowrap;margin:1px 0}
-.fcf-comp>span{padding:0 5px;display:inline-flex;align-items:center;border-left:1px solid #1d1d1f}
-.fcf-comp>span.fcf-r2{border-top:1px solid #1d1d1f}
-.fcf-comp>span.fcf-symcell{border-left:none;justify-content:center}
-.fcf-comp>span.fcf-empty{border-left:none}
+.fcf-comp{display:inline-grid;font-family:DejaVu Sans,Arial,sans-serif;font-size:13px;
+line-height:18px;vertical-align:middle;white-space:nowrap;margin:1px 0}
+.fcf-comp>span{padding:0 5px;display:inline-flex;align-items:center;
+border-right:1px solid #1d1d1f;border-bottom:1px solid #1d1d1f}
+.fcf-comp>span.fcf-r1{border-top:1px solid #1d1d1f}
+.fcf-comp>span.fcf-symcell{border:1px solid #1d1d1f;justify-content:center}
+.fcf-comp>span.fcf-empty{border:none}
 .fcf-dim{white-space:nowrap}
 .fcf-note{color:#555;font-size:12px;white-space:nowrap}
 """
@@ -636,11 +643,11 @@ def composite_html(upper: Frame, lower: Frame) -> str:
              + "".join(_token_html(t) for t in upper.compartments[0]) + "</span>"]
     for row, f in ((1, upper), (2, lower)):
         for j in range(1, n):
-            cls = "fcf-r2" if row == 2 else ""
-            if j < len(f.compartments):
+            cls = f"fcf-r{row}"           # each cell its own borders: the lower row's
+            if j < len(f.compartments):   # outline steps in where it has fewer datums
                 body = "".join(_token_html(t) for t in f.compartments[j])
             else:
-                body, cls = "", (cls + " fcf-empty").strip()
+                body, cls = "", "fcf-empty"
             cells.append(f'<span class="{cls}" style="grid-column:{j + 1};grid-row:{row}">'
                          f"{body}</span>")
     notes = "".join(f' <span class="fcf-note">{_html.escape(x)}</span>'

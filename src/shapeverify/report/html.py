@@ -405,7 +405,7 @@ tr.drf th{background:#eef0f3;text-align:left;padding-top:6px}
 @media print{body{background:#fff}main{max-width:none;padding:0}.card{box-shadow:none;
 break-inside:auto}table.chars tr{break-inside:avoid}}
 @media print,(max-width:860px){main{padding:8px}table.chars{font-size:10px}
-table.chars td,table.chars th{padding:2px 3px}table.chars .fcf{font-size:11px}}
+table.chars td,table.chars th{padding:2px 3px}table.chars .fcf,table.chars .fcf-comp{font-size:11px}}
 """
 
 
