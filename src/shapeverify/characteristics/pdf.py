@@ -409,17 +409,26 @@ def _table_entries(result):
     """``[("head", datums) | ("row", (cells, frames, colour)), ...]``: the characteristics
     grouped by datum reference frame (:func:`shapeverify.report.fcf.group_by_drf`), each
     group under its heading."""
-    from ..report.fcf import frames, group_by_drf
+    from ..report.fcf import composite_frames, composite_pairs, frames, group_by_drf
 
     plan = {c.name: c for c in result.plan.characteristics}
+    fs_of = {c.name: frames(c, plan.get(c.name)) for c in result.characteristics}
+    # a composite frame's two segments: adjacent rows, one frame drawn across both (the 4th
+    # element: ("upper", lower name, (upper frame, lower frame)) | ("lower", upper name))
+    pairs = composite_pairs(plan.values())
+    role: dict = {}
+    for lo, up in pairs.items():
+        both = composite_frames(fs_of[up], fs_of[lo]) if up in fs_of and lo in fs_of else None
+        if both is not None:
+            role[up], role[lo] = ("upper", lo, both), ("lower", up)
     items = []
     for c in result.characteristics:
-        fs = frames(c, plan.get(c.name))
         cells = [c.name, "", _fmt(c.nominal), _fmt(c.measured), _zone(c), _fmt(c.deviation),
                  _fmt(c.uncertainty, 3), c.verdict]
-        items.append((cells, fs, _colour(c.verdict)))
+        items.append((cells, fs_of[c.name], _colour(c.verdict), role.get(c.name)))
     out = []
-    for drf, group in group_by_drf(items):
+    follows = {lo: r[1] for lo, r in role.items() if r[0] == "lower"}
+    for drf, group in group_by_drf(items, follows=follows, name=lambda it: it[0][0]):
         out.append(("head", drf))
         out += [("row", it) for it in group]
     return out
@@ -428,7 +437,7 @@ def _table_entries(result):
 def _entry_height(entry) -> float:
     if entry[0] == "head":
         return _ROW_BASE + _ROW_LINE
-    cells, fs, _ = entry[1]
+    cells, fs = entry[1][:2]
     lines = max(max(str(x).count("\n") + 1 for x in cells), len(fs))
     return _ROW_BASE + _ROW_LINE * lines
 
@@ -515,10 +524,11 @@ def _draw_frames(fig, tab, chunk, drf_title) -> None:
     :data:`_FRAME_MIN_FONT` points."""
     from matplotlib.patches import Rectangle
 
-    from ..report.fcf import draw_frame, frame_width
+    from ..report.fcf import composite_width, draw_composite, draw_frame, frame_width
 
     renderer = fig.canvas.get_renderer()
     to_pt = 72.0 / fig.dpi
+    drawn = set()                   # lower segments drawn with their upper
     for r, e in enumerate(chunk, start=1):
         box = tab[r, 0].get_window_extent(renderer)
         if e[0] == "head":
@@ -532,6 +542,29 @@ def _draw_frames(fig, tab, chunk, drf_title) -> None:
             fig.add_artist(Rectangle((box.x0 / d, box.y0 / d), (right.x1 - box.x0) / d,
                                      box.height / d, transform=fig.dpi_scale_trans,
                                      facecolor="#ececec", edgecolor="none", zorder=-1))
+            continue
+        role = e[1][3] if len(e[1]) > 3 else None
+        if role is not None and role[0] == "lower" and e[1][0][0] in drawn:
+            continue
+        nxt = chunk[r] if r < len(chunk) else None
+        if (role is not None and role[0] == "upper" and nxt is not None and nxt[0] == "row"
+                and nxt[1][0][0] == role[1]):
+            # one frame across the two rows: the symbol cell spans both, the upper segment's
+            # row above the rows' boundary, the lower's below; the cells' edge between them
+            # in the frame column is not drawn
+            up_cell = tab[r, _FCF_COL].get_window_extent(renderer)
+            lo_cell = tab[r + 1, _FCF_COL].get_window_extent(renderer)
+            tab[r, _FCF_COL].visible_edges = "LRT"
+            tab[r + 1, _FCF_COL].visible_edges = "LRB"
+            room = up_cell.width * to_pt - 6.0
+            size, h = _FRAME_FONT, _FRAME_H
+            while size > _FRAME_MIN_FONT and composite_width(fig, *role[2], height=h,
+                                                              fontsize=size) > room:
+                size, h = size - 0.5, h * (size - 0.5) / size
+            y = lo_cell.y1 * to_pt - h
+            draw_composite(fig, *role[2], up_cell.x0 * to_pt + 3.0, y, height=h,
+                           fontsize=size, gids=(f"fcf:{e[1][0][0]}:0", f"fcf:{role[1]}:0"))
+            drawn.add(role[1])
             continue
         cell = tab[r, _FCF_COL].get_window_extent(renderer)
         fs = e[1][1]

@@ -22,6 +22,12 @@ Three renderings of the same :class:`Frame`: :attr:`Frame.text` (``⌖|Ø0.5Ⓜ|
 terminal and the CSV), :func:`frame_html` (boxed compartments, the symbols as inline SVG so that
 no font is needed) and :func:`draw_frame` (matplotlib: boxes, the symbols drawn as strokes).
 
+A composite frame (``composite: upper | lower``, paired by :func:`composite_pairs`) is drawn
+as ASME Y14.5 writes it: one symbol cell spanning two rows, the upper segment's zone and datums
+in the top row, the lower's below, the columns aligned (:func:`composite_html`, a CSS grid;
+:func:`draw_composite`); the reports keep a row of values and verdict per segment, the pair
+together under the upper's DRF (:func:`group_by_drf`'s ``follows``).
+
 Fonts: DejaVu Sans (matplotlib's, the PDF's) has ⏥ ⊥ ∥ ∠ ○ ↗ ◎ Ø but not ⌖ ⌓ ⌒ ⌭ ⌰ ⏤ ⌯ nor the
 circled letters Ⓜ Ⓛ Ⓕ Ⓟ Ⓣ Ⓤ (checked with ``FT2Font.get_charmap``).  So the drawn forms never
 rely on a font for them: each symbol of :data:`SYMBOLS` is drawn from :data:`STROKES` (lines in a
@@ -40,7 +46,8 @@ from ..characteristics import registry
 __all__ = ["Frame", "frames", "fcf_text", "drf_key", "drf_title", "group_by_drf",
            "frame_html", "svg_symbol", "draw_frame", "frame_width", "drawn_symbol", "font_text",
            "SYMBOLS", "PMI_SYMBOLS", "STROKES", "MODIFIERS", "ZONE_MODIFIERS", "DATUM_MODIFIERS",
-           "SIZE_SYMBOLS", "FCF_CSS"]
+           "SIZE_SYMBOLS", "FCF_CSS", "composite_pairs", "composite_frames", "composite_html",
+           "draw_composite", "composite_width"]
 
 #: geometric-tolerance symbol -> (name, abbreviation written where no glyph can be drawn)
 SYMBOLS: dict[str, tuple[str, str]] = {
@@ -435,13 +442,30 @@ def drf_key(fs) -> tuple:
     return ()
 
 
-def group_by_drf(items, key=lambda x: x[1]) -> list:
+def group_by_drf(items, key=lambda x: x[1], follows: dict | None = None,
+                 name=lambda x: x[0]) -> list:
     """``[(datums, [item, ...]), ...]``: the items grouped by :func:`drf_key` of ``key(item)``
     (their frames), each DRF in the order it first appears, those without datums last; the
-    items keep their order within a group."""
+    items keep their order within a group.
+
+    ``follows``: ``{lower name: upper name}`` (:func:`composite_pairs`, names by
+    ``name(item)``): the lower segment of a composite frame goes right after its upper, in the
+    upper's group (its own datums only orient it), when the upper is among the items."""
+    follows = follows or {}
+    names = {name(it) for it in items}
+    after: dict = {}
+    for it in items:
+        up = follows.get(name(it))
+        if up is not None and up in names and up != name(it):
+            after.setdefault(up, []).append(it)
+    moved = {id(x) for v in after.values() for x in v}
     groups: dict = {}
     for it in items:
-        groups.setdefault(drf_key(key(it)), []).append(it)
+        if id(it) in moved:
+            continue
+        g = groups.setdefault(drf_key(key(it)), [])
+        g.append(it)
+        g += after.get(name(it), [])
     none = groups.pop((), None)
     out = list(groups.items())
     if none is not None:
@@ -452,6 +476,47 @@ def group_by_drf(items, key=lambda x: x[1]) -> list:
 def drf_title(datums) -> str:
     """``"DRF A|B|C"``, or ``"without datums"``."""
     return f"DRF {'|'.join(datums)}" if datums else "without datums"
+
+
+# ------------------------------------------------------------------------------ composite
+def composite_pairs(entries) -> dict:
+    """``{lower name: upper name}``: the two segments of each composite feature control frame
+    among the plan's ``entries`` (``composite: upper | lower``).  A lower segment's upper is
+    the entry whose PMI is the one its ``pmi.composite.with`` names (``shapeverify plan``,
+    :mod:`shapeverify.cad.step_composite`); without that link (a hand-written plan), the
+    nearest unpaired upper of the same type before it.  Each upper pairs with one lower."""
+    entries = list(entries or ())
+    ups = [e for e in entries if _get(e, "composite") == "upper"]
+    used: set = set()
+    out: dict = {}
+    for i, lo in enumerate(entries):
+        if _get(lo, "composite") != "lower":
+            continue
+        link = (_pmi(lo).get("composite") or {})
+        other = link.get("with") if isinstance(link, dict) else None
+        cands = [u for u in ups if other is not None and _pmi(u).get("id") == other] \
+            if other is not None else []
+        if not cands:
+            cands = [u for u in reversed(entries[:i]) if _get(u, "composite") == "upper"
+                     and _get(u, "type") == _get(lo, "type")
+                     and (_pmi(u).get("composite") or {}).get("with") in (None, _pmi(lo).get("id"))]
+        for u in cands:
+            if id(u) not in used:
+                used.add(id(u))
+                out[str(_get(lo, "name"))] = str(_get(u, "name"))
+                break
+    return out
+
+
+def composite_frames(upper_frames, lower_frames):
+    """``(upper, lower)``: the two frames drawn as one composite frame, or None when the two
+    segments are not one tolerance frame each of the same symbol (then each is drawn alone)."""
+    if len(upper_frames) != 1 or len(lower_frames) != 1:
+        return None
+    u, lo = upper_frames[0], lower_frames[0]
+    if not (u.is_tolerance and lo.is_tolerance and u.symbol == lo.symbol):
+        return None
+    return u, lo
 
 
 
@@ -534,6 +599,13 @@ font-size:13px;line-height:18px;vertical-align:middle;white-space:nowrap;margin:
 .fcf>span:first-child{border-left:none}
 .fcf-c{display:inline-block;border:1px solid currentColor;border-radius:50%;width:13px;
 height:13px;line-height:13px;font-size:9px;text-align:center;margin:0 1px}
+.fcf-comp{display:inline-grid;font-family:DejaVu Sans,Arial,sans-serif;font-size:13px;
+line-height:18px;vertical-align:middle;white-space:nowrap;margin:1px 0}
+.fcf-comp>span{padding:0 5px;display:inline-flex;align-items:center;
+border-right:1px solid #1d1d1f;border-bottom:1px solid #1d1d1f}
+.fcf-comp>span.fcf-r1{border-top:1px solid #1d1d1f}
+.fcf-comp>span.fcf-symcell{border:1px solid #1d1d1f;justify-content:center}
+.fcf-comp>span.fcf-empty{border:none}
 .fcf-dim{white-space:nowrap}
 .fcf-note{color:#555;font-size:12px;white-space:nowrap}
 """
@@ -559,6 +631,30 @@ def frame_html(frame: Frame) -> str:
     comps = "".join("<span>" + "".join(_token_html(t) for t in c) + "</span>"
                     for c in frame.compartments)
     return f'<span class="fcf" data-fcf="{_html.escape(frame.text)}">{comps}</span>{notes}'
+
+
+def composite_html(upper: Frame, lower: Frame) -> str:
+    """A composite frame as ASME Y14.5 draws it: one symbol cell spanning two rows, the upper
+    segment's zone and datums in the first row, the lower's below, column by column (a CSS
+    grid; the symbol cell ``grid-row:1 / span 2``).  Each row's text in ``data-fcf-upper`` /
+    ``data-fcf-lower``; ``data-fcf`` is both, `` / ``-joined."""
+    n = max(len(upper.compartments), len(lower.compartments))
+    cells = ['<span class="fcf-symcell" style="grid-column:1;grid-row:1 / span 2">'
+             + "".join(_token_html(t) for t in upper.compartments[0]) + "</span>"]
+    for row, f in ((1, upper), (2, lower)):
+        for j in range(1, n):
+            cls = f"fcf-r{row}"           # each cell its own borders: the lower row's
+            if j < len(f.compartments):   # outline steps in where it has fewer datums
+                body = "".join(_token_html(t) for t in f.compartments[j])
+            else:
+                body, cls = "", "fcf-empty"
+            cells.append(f'<span class="{cls}" style="grid-column:{j + 1};grid-row:{row}">'
+                         f"{body}</span>")
+    notes = "".join(f' <span class="fcf-note">{_html.escape(x)}</span>'
+                    for x in upper.notes + lower.notes)
+    return (f'<span class="fcf-comp" data-fcf="{_html.escape(upper.text + " / " + lower.text)}"'
+            f' data-fcf-upper="{_html.escape(upper.text)}"'
+            f' data-fcf-lower="{_html.escape(lower.text)}">{"".join(cells)}</span>{notes}')
 
 
 # ------------------------------------------------------------------------------ matplotlib
@@ -608,9 +704,11 @@ def font_text(text: str) -> str:
 
 
 def draw_frame(fig, frame: Frame, x: float, y: float, *, height: float = 11.0,
-               fontsize: float = 8.0, gid: str | None = None) -> float:
+               fontsize: float = 8.0, gid: str | None = None,
+               min_widths: tuple | None = None) -> float:
     """Draw one frame on ``fig`` with its lower left corner at ``(x, y)`` (points from the
-    figure's lower left), ``height`` points high; returns its width in points.
+    figure's lower left), ``height`` points high; returns its width in points
+    (``min_widths``: each compartment at least that wide, points: a composite frame's columns).
 
     The compartments are boxes; a symbol is drawn from its strokes, a circled letter as a circle
     around the letter; texts are figure texts (so the page's text can be read back).  Every
@@ -639,7 +737,7 @@ def draw_frame(fig, frame: Frame, x: float, y: float, *, height: float = 11.0,
 
     cx = x
     sym_h = 0.72 * height
-    for comp in frame.compartments:
+    for ci, comp in enumerate(frame.compartments):
         start = cx
         cx += pad
         for kind, val in comp:
@@ -666,6 +764,8 @@ def draw_frame(fig, frame: Frame, x: float, y: float, *, height: float = 11.0,
                 continue
             cx += text(cx, font_text(val), fontsize)
         cx += pad
+        if min_widths is not None and ci < len(min_widths):
+            cx = max(cx, start + min_widths[ci])
         if frame.is_tolerance:
             place(Rectangle((start * k, y * k), (cx - start) * k, height * k, fill=False,
                             edgecolor="black", lw=0.8))
@@ -684,3 +784,52 @@ def frame_width(fig, frame: Frame, *, height: float = 11.0, fontsize: float = 8.
         a.remove()
     return w
 
+
+
+def _column_widths(fig, frame: Frame, height: float, fontsize: float) -> list:
+    """Each compartment's width (points) as :func:`draw_frame` draws it alone."""
+    return [frame_width(fig, Frame(frame.symbol, (c,), framed=True), height=height,
+                        fontsize=fontsize) for c in frame.compartments]
+
+
+def draw_composite(fig, upper: Frame, lower: Frame, x: float, y: float, *,
+                   height: float = 11.0, fontsize: float = 8.0, gid: str | None = None,
+                   gids: tuple | None = None) -> float:
+    """Draw a composite frame (ASME Y14.5): one symbol cell ``2 * height`` high at the left,
+    the upper segment's compartments in the top row (lower edge at ``y + height``), the
+    lower's in the bottom row (lower edge at ``y``), the columns as wide as the wider row's;
+    returns the width in points.  ``gids``: the two rows' gids (default ``gid``); the symbol
+    cell takes the upper's."""
+    from matplotlib.patches import Rectangle
+
+    gu, gl = gids or (gid or "fcf", gid or "fcf")
+    wu = _column_widths(fig, upper, height, fontsize)
+    wl = _column_widths(fig, lower, height, fontsize)
+    n = max(len(wu), len(wl))
+    cols = [max(wu[j] if j < len(wu) else 0.0, wl[j] if j < len(wl) else 0.0)
+            for j in range(n)]
+    k = 1.0 / 72.0
+    # the symbol, centred in its cell of two rows (drawn unboxed, then boxed 2 rows high)
+    sym = Frame(upper.symbol, (upper.compartments[0],), framed=False)
+    draw_frame(fig, sym, x + (cols[0] - wu[0]) / 2, y + height / 2, height=height,
+               fontsize=fontsize, gid=gu)
+    box = Rectangle((x * k, y * k), cols[0] * k, 2 * height * k, fill=False,
+                    edgecolor="black", lw=0.8, gid=gu, transform=fig.dpi_scale_trans)
+    fig.add_artist(box)
+    w = cols[0]
+    for f, yy, g in ((upper, y + height, gu), (lower, y, gl)):
+        rest = Frame(f.symbol, f.compartments[1:], f.datums, f.notes, f.part, True)
+        w = max(w, cols[0] + draw_frame(fig, rest, x + cols[0], yy, height=height,
+                                        fontsize=fontsize, gid=g, min_widths=cols[1:]))
+    return w
+
+
+def composite_width(fig, upper: Frame, lower: Frame, *, height: float = 11.0,
+                    fontsize: float = 8.0) -> float:
+    """The width (points) :func:`draw_composite` takes (drawn and removed)."""
+    n_texts, n_artists = len(fig.texts), len(fig.artists)
+    w = draw_composite(fig, upper, lower, 0.0, 0.0, height=height, fontsize=fontsize,
+                       gid="_measure")
+    for a in list(fig.texts[n_texts:]) + list(fig.artists[n_artists:]):
+        a.remove()
+    return w

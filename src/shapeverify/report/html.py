@@ -25,7 +25,8 @@ import numpy as np
 from .._random import generator
 from ..verdict_table import verdict_style
 from .colours import CMAP, color_limit
-from .fcf import FCF_CSS, drf_title, frame_html, frames, group_by_drf
+from .fcf import (FCF_CSS, composite_frames, composite_html, composite_pairs, drf_title,
+                  frame_html, frames, group_by_drf)
 from .labels import free_labels
 from .quantities import area_text, length_text
 from .ply import check_scan_length
@@ -86,11 +87,19 @@ def _characteristics_table(chars, plan_result, fmt) -> str:
     plan = getattr(plan_result, "plan", None)
     entries = {c.name: c for c in getattr(plan, "characteristics", ())}
     items = [(c, frames(c, entries.get(c["name"]))) for c in chars]
+    # a composite frame's two segments: adjacent rows, one frame drawn across both
+    pairs = composite_pairs(entries.values())
+    fs_of = {c["name"]: fs for c, fs in items}
+    joined = {lo: composite_frames(fs_of[up], fs_of[lo]) for lo, up in pairs.items()
+              if lo in fs_of and up in fs_of}
+    joined = {lo: v for lo, v in joined.items() if v is not None}
+    upper_of = {pairs[lo]: lo for lo in joined}
     header = ("characteristic", "feature control frame", "nominal", "measured", "zone",
               "deviation", "uncertainty U (k=2)", "verdict")
     out = ['<table class="regions chars">', "<tr>" + "".join(f"<th>{h}</th>" for h in header)
            + "</tr>"]
-    for drf, group in group_by_drf(items):
+    for drf, group in group_by_drf(items, follows={lo: pairs[lo] for lo in joined},
+                                   name=lambda it: it[0]["name"]):
         out.append(f'<tr class="drf" data-drf="{html.escape("|".join(drf))}"><th colspan='
                    f'"{len(header)}">{html.escape(drf_title(drf))}</th></tr>')
         for c, fs in group:
@@ -102,12 +111,19 @@ def _characteristics_table(chars, plan_result, fmt) -> str:
             else:
                 zone = _zone(str(c["type"]), lo, hi, fmt)
             v = html.escape(str(c["verdict"]))
-            cells = (html.escape(str(c["name"])), "<br>".join(frame_html(f) for f in fs),
-                     fmt(c.get("nominal")), fmt(c.get("measured")), zone,
-                     fmt(c.get("deviation"), True), fmt(c.get("uncertainty")),
-                     f'<b class="v-{v}">{v}</b>')
+            frame_cell = "<td>" + "<br>".join(frame_html(f) for f in fs) + "</td>"
+            if c["name"] in upper_of:           # the composite frame spans both rows
+                lo = upper_of[c["name"]]
+                frame_cell = (f'<td rowspan="2" class="fcf-pair" data-lower="'
+                              f'{html.escape(str(lo))}">{composite_html(*joined[lo])}</td>')
+            elif c["name"] in joined:           # drawn in its upper's row
+                frame_cell = ""
+            cells = (html.escape(str(c["name"])), fmt(c.get("nominal")),
+                     fmt(c.get("measured")), zone, fmt(c.get("deviation"), True),
+                     fmt(c.get("uncertainty")), f'<b class="v-{v}">{v}</b>')
             out.append(f'<tr data-name="{html.escape(str(c["name"]))}">'
-                       + "".join(f"<td>{x}</td>" for x in cells) + "</tr>")
+                       + f"<td>{cells[0]}</td>" + frame_cell
+                       + "".join(f"<td>{x}</td>" for x in cells[1:]) + "</tr>")
     out.append("</table>")
     return "".join(out)
 
@@ -389,7 +405,7 @@ tr.drf th{background:#eef0f3;text-align:left;padding-top:6px}
 @media print{body{background:#fff}main{max-width:none;padding:0}.card{box-shadow:none;
 break-inside:auto}table.chars tr{break-inside:avoid}}
 @media print,(max-width:860px){main{padding:8px}table.chars{font-size:10px}
-table.chars td,table.chars th{padding:2px 3px}table.chars .fcf{font-size:11px}}
+table.chars td,table.chars th{padding:2px 3px}table.chars .fcf,table.chars .fcf-comp{font-size:11px}}
 """
 
 

@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import math
 
-from .fcf import draw_frame, drf_title, font_text, frame_width, frames, group_by_drf
+from .fcf import (composite_pairs, draw_frame, drf_title, font_text, frame_width, frames,
+                  group_by_drf)
 
 __all__ = ["panel_entries", "panel_columns", "panel_height", "draw_panel", "MAX_COLUMNS",
            "MAX_PER_COLUMN"]
@@ -45,7 +46,9 @@ def panel_entries(result) -> list:
     entries = {e.name: e for e in getattr(plan, "characteristics", None) or ()}
     items = [(c, frames(c, entries.get(c.name))) for c in chars]
     out = []
-    for drf, group in group_by_drf(items):
+    # a composite frame's lower segment on the line after its upper, in the upper's group
+    for drf, group in group_by_drf(items, follows=composite_pairs(entries.values()),
+                                   name=lambda it: it[0].name):
         out.append(("head", drf, False))
         for c, fs in group:
             out += [("row", c, f, i) for i, f in enumerate(fs)]
