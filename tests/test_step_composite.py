@@ -92,3 +92,23 @@ def test_ctc04_plan_marks_the_lower_segments_of_its_composite_frames(tmp_path):
     assert by["GT3"][0]["pmi"]["composite"] == {"segment": "lower", "with": "GT2",
                                                 "entity": "#18730"}
     assert "composites_unmatched" not in res.pmi
+
+
+def test_ftc07_composite_frames_are_matched_in_inches(tmp_path):
+    """NIST FTC 07 declares the millimetre before its inch (the inch's base unit): the file's
+    unit was read as mm, no composite segment's value matched (0.06 in against 1.524 mm), and its
+    six composite frames were planned as separately located tolerances."""
+    from shapeverify.cad.pmi import read_pmi
+    from shapeverify.cad.step_units import length_unit_of_file
+
+    path = tmp_path / "ftc07.stp"
+    path.write_bytes(gzip.open(CTC04.parent / "nist_ftc_07_asme1_ap242-e2.stp.gz").read())
+    assert length_unit_of_file(path) == ("INCH", 25.4)
+    pmi = read_pmi(path)
+    assert "composites_unmatched" not in pmi
+    marks = {}
+    for t in pmi["tolerances"]:
+        if t.get("composite"):
+            marks.setdefault(t["name"], []).append(t["composite"]["segment"])
+    assert {n: sorted(s) for n, s in marks.items()} == {
+        n: ["lower", "upper"] for n in ("GP7", "GP12", "GP13", "GP15", "GP16", "GP19")}

@@ -99,6 +99,9 @@ def composite_relations_of_file(path) -> list:
 def _matches(seg: dict, tol: dict, scale: float) -> bool:
     if seg["type"] != tol["type"] or seg["value"] is None:
         return False
+    if seg.get("name") and tol.get("name") and seg["name"] != tol["name"]:
+        return False                    # the file's names (NIST FTC 07's GP15 and GP16 are
+        #                                 alike in type, values and datums)
     if abs(seg["value"] * scale - tol["value"]) > 1e-9 * max(1.0, abs(tol["value"])):
         return False
     return seg["n_datums"] == len({d["name"] for d in tol.get("datums", ())})
@@ -107,7 +110,8 @@ def _matches(seg: dict, tol: dict, scale: float) -> bool:
 def match_composites(relations: list, tolerances: list, scale: float = 1.0) -> list:
     """Mark the composite segments among ``tolerances`` (the dicts :func:`.pmi.read_pmi`
     returns): each pair of ``relations`` is matched by type, value (``scale``: mm per file
-    unit) and number of datums, the two segments sharing their faces; a segment that matches no
+    unit), number of datums and the name the file gives it (where both have one), the two
+    segments sharing their faces; a segment that matches no
     tolerance, or more than one, is left unmarked (and returned in the list of what could not be
     matched).  A matched tolerance gets ``composite: {'segment': 'upper' | 'lower', 'with':
     <the other's id>, 'entity': '#n'}``."""

@@ -32,14 +32,32 @@ def _si_mm(body: str) -> float | None:
     return _PREFIX_MM.get("$" if m.group(1) == "$" else m.group(2).upper())
 
 
+_GLOBAL = re.compile(r"GLOBAL_UNIT_ASSIGNED_CONTEXT\s*\(\s*\(([^()]*)\)")
+
+
 def length_unit_of_text(text: str) -> tuple[str, float] | None:
     """(name, millimetres per unit) of the length unit the STEP ``text`` declares, or None.
 
     A conversion-based length unit is followed to its measure and SI base unit; an SI length
-    unit gives its prefix.  The first length unit of the file wins.
+    unit gives its prefix.  The unit the geometric context assigns
+    (``GLOBAL_UNIT_ASSIGNED_CONTEXT``) wins, else a conversion-based one (the SI unit it is
+    based on is declared too, often first: NIST FTC 07 declares millimetre, then its inch), else
+    the first.
+
+    >>> length_unit_of_text("#3=(LENGTH_UNIT()NAMED_UNIT(*)SI_UNIT(.MILLI.,.METRE.));\\n"
+    ...     "#4=LENGTH_MEASURE_WITH_UNIT(LENGTH_MEASURE(25.4),#3);\\n"
+    ...     "#6=(CONVERSION_BASED_UNIT('INCH',#4)LENGTH_UNIT()NAMED_UNIT(#5));\\n"
+    ...     "#7=(GEOMETRIC_REPRESENTATION_CONTEXT(3)GLOBAL_UNIT_ASSIGNED_CONTEXT((#6,#8,#9))"
+    ...     "REPRESENTATION_CONTEXT('',''));")
+    ('INCH', 25.4)
     """
     ents = {int(k): v for k, v in _ENTITY.findall(text)}
-    for body in ents.values():
+    assigned = [int(r) for m in _GLOBAL.finditer(text)
+                for r in re.findall(r"#(\d+)", m.group(1))]
+    first = [k for k in assigned if k in ents] + sorted(
+        ents, key=lambda k: ("CONVERSION_BASED_UNIT" not in ents[k], k))
+    for k in first:
+        body = ents[k]
         if "LENGTH_UNIT" not in body:
             continue
         conv = _CONV.search(body)
