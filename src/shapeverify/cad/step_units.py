@@ -36,11 +36,25 @@ def length_unit_of_text(text: str) -> tuple[str, float] | None:
     """(name, millimetres per unit) of the length unit the STEP ``text`` declares, or None.
 
     A conversion-based length unit is followed to its measure and SI base unit; an SI length
-    unit gives its prefix.  The first length unit of the file wins.
+    unit gives its prefix.  The first length unit of the file wins, less the SI units that are
+    only the base of a conversion (NIST FTC 07 writes its millimetre, the inch's base, first).
+
+    >>> length_unit_of_text("#3=(LENGTH_UNIT()NAMED_UNIT(*)SI_UNIT(.MILLI.,.METRE.));\\n"
+    ...     "#4=LENGTH_MEASURE_WITH_UNIT(LENGTH_MEASURE(25.4),#3);\\n"
+    ...     "#6=(CONVERSION_BASED_UNIT('INCH',#4)LENGTH_UNIT()NAMED_UNIT(#5));")
+    ('INCH', 25.4)
     """
     ents = {int(k): v for k, v in _ENTITY.findall(text)}
+    bases = set()
     for body in ents.values():
+        conv = _CONV.search(body) if "LENGTH_UNIT" in body else None
+        meas = _MEAS.search(ents.get(int(conv.group(2)), "")) if conv else None
+        if meas is not None:
+            bases.add(int(meas.group(2)))
+    for k, body in ents.items():
         if "LENGTH_UNIT" not in body:
+            continue
+        if k in bases and _CONV.search(body) is None:
             continue
         conv = _CONV.search(body)
         if conv is None:

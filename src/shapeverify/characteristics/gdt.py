@@ -32,7 +32,7 @@ characteristic's DRF (:meth:`.drf.DRF.apply`) when it names datums.
   lower); a boss: (nominal + upper) - mating diameter); ``L``: from the least material size
   (a hole's smallest circumscribed, a boss's largest inscribed diameter).  The limit is
   ``tol + bonus`` (a negative bonus, a feature out of its size limits, counts as 0 and is
-  reported).  A pattern is one tolerance: every feature in the same DRF; the result is the
+  reported), at most ``max_tol`` when the frame caps it (ASME Y14.5-2009 §7.3.4).  A pattern is one tolerance: every feature in the same DRF; the result is the
   feature with the smallest margin, every feature's numbers in ``details['features']``.
 * **composite: lower** (position, surface_profile; :mod:`.composite`): the zone framework
   translates, and turns about the axes the DRF leaves free, to the place minimising the worst
@@ -562,6 +562,9 @@ def eval_position(c, ctx: EvalContext):
         U = float(np.sqrt(u_axis ** 2 + u_turn ** 2
                           + (2.0 * _datum_offsets(drf, ctx, f.axis)) ** 2))
         tol = float(c.tol) + bonus
+        cap = getattr(c, "max_tol", None)
+        if cap is not None and tol > float(cap):   # ASME Y14.5-2009 §7.3.4: "MAX"
+            tol = float(cap)
         rows.append({"centre": f.center.tolist(), "axis": f.axis.tolist(),
                      "u_axis": float(u_axis), "u_turn": float(u_turn),
                      "feature": ref if isinstance(ref, str) else list(ref), "faces": fidx,

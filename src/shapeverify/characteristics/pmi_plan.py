@@ -775,6 +775,8 @@ def _position(item, ctx, faces, src) -> tuple[list, str]:
         if size is None:
             return [], r
         entry["material"], entry["size"] = item["material"], size
+        if item.get("max_value", 0.0) > 0.0:     # the frame's "MAX" (ASME Y14.5-2009 §7.3.4)
+            entry["max_tol"] = item["max_value"]
     return [entry], ""
 
 
