@@ -84,3 +84,86 @@ def test_position_max_tol_needs_a_material_modifier_and_no_less_than_tol():
     with pytest.raises(ValueError, match="max_tol"):
         Position(type="position", name="P", features=["face:0"], tol=0.4, material="M",
                  size={"lower": 0.0, "upper": 0.5}, max_tol=0.3)
+
+
+# ------------------------------------------------------------------------- projected zones
+_HOLE = Feature("hole:1", "hole", 0, np.array([0.0, 0.0, 0.0]), np.array([0.0, 0.0, 1.0]), 10.0,
+                walls=(0,))
+
+
+def _rim_of_cad_hole(depth=20.0):
+    t = np.linspace(0.0, 2 * np.pi, 90, endpoint=False)
+    c = np.column_stack([5.0 * np.cos(t), 5.0 * np.sin(t)])
+    return np.vstack([np.column_stack([c, np.zeros(90)]), np.column_stack([c, -depth + 0 * t])])
+
+
+def _brute_projected(offset, tilt, L, n=200001):
+    """Twice the largest distance from the true position (the z axis) of the actual axis's
+    points over [mouth, mouth + L], the axis sampled densely: x(z) = offset + z tan(tilt)."""
+    z = np.linspace(0.0, L, n)
+    return 2.0 * float(np.abs(offset + z * np.tan(tilt)).max())
+
+
+@pytest.mark.parametrize("offset,tilt_deg,L", [(0.05, 0.3, 10.795), (0.0, 0.5, 3.81),
+                                               (-0.1, 0.2, 25.0)])
+def test_projected_position_of_a_tilted_hole_equals_brute_force_over_the_projection(
+        monkeypatch, offset, tilt_deg, L):
+    """A perfect hole wall leaning by t, crossing its mouth plane `offset` off: the projected
+    zone's value is 2 max |offset + z tan t| over z in [0, L] (brute force; = 2 (offset + L tan
+    t) when both are positive), while the position in the hole alone reads 2 max |offset - z tan
+    t| over its depth."""
+    t = np.radians(tilt_deg)
+    X, N = _hole_points(10.0, offset=(offset, 0.0), tilt=t)
+    ctx = _ctx(X, N, _CAD, monkeypatch, rim=_rim_of_cad_hole())
+    ctx.feats[1] = _HOLE
+    plain = gdt.eval_position(Position(type="position", name="P", features=["face:0"], tol=1.0),
+                              ctx)
+    r = gdt.eval_position(Position(type="position", name="P", features=["face:0"], tol=1.0,
+                                   projected=L), ctx)
+    want = _brute_projected(offset, t, L)
+    assert r.measured == pytest.approx(want, abs=1e-6)
+    if offset >= 0:
+        assert r.measured == pytest.approx(2 * (offset + L * np.tan(t)), abs=1e-6)
+    depth = 20.0
+    z = np.linspace(-depth, 0.0, 20001)
+    assert plain.measured == pytest.approx(2 * np.abs(offset + z * np.tan(t)).max(), abs=1e-6)
+    row = r.details["features"][0]
+    assert row["projected"]["length"] == L
+    assert row["projected"]["mouth"] == pytest.approx([0.0, 0.0, 0.0], abs=1e-9)
+    # given explicitly, the direction out of the mouth gives the same zone
+    r2 = gdt.eval_position(Position(type="position", name="P", features=["face:0"], tol=1.0,
+                                    projected=L, projected_direction=[0, 0, 1]), ctx)
+    assert r2.measured == pytest.approx(r.measured, abs=1e-12)
+
+
+def test_projected_position_fails_a_tilt_that_the_hole_alone_passes(monkeypatch):
+    """0.02 mm off at the mouth, leaning 0.5 degrees: in the hole (20 mm deep) the axis reads
+    2 x (20 tan 0.5° - 0.02) = 0.309 < 0.4, passes; projected 25 mm out it reads
+    2 x (0.02 + 25 tan 0.5°) = 0.476 > 0.4, fails."""
+    t = np.radians(0.5)
+    X, N = _hole_points(10.0, offset=(0.02, 0.0), tilt=t)
+    ctx = _ctx(X, N, _CAD, monkeypatch, rim=_rim_of_cad_hole())
+    ctx.feats[1] = _HOLE
+    plain = gdt.eval_position(Position(type="position", name="P", features=["face:0"], tol=0.4),
+                              ctx)
+    proj = gdt.eval_position(Position(type="position", name="P", features=["face:0"], tol=0.4,
+                                      projected=25.0), ctx)
+    assert plain.measured == pytest.approx(2 * (20 * np.tan(t) - 0.02), abs=1e-6)
+    assert plain.verdict == "pass"
+    assert proj.measured == pytest.approx(2 * (0.02 + 25 * np.tan(t)), abs=1e-6)
+    assert proj.verdict == "fail"
+
+
+def test_projected_position_of_a_hole_open_at_both_ends_needs_its_direction(monkeypatch):
+    X, N = _hole_points(10.0)
+    ctx = _ctx(X, N, _CAD, monkeypatch, rim=_rim_of_cad_hole())
+    ctx.feats[1] = _HOLE
+    ctx.feats[2] = Feature("hole:2", "hole", 0, np.array([0.0, 0.0, -20.0]),
+                           np.array([0.0, 0.0, -1.0]), 10.0, walls=(0,))
+    r = gdt.eval_position(Position(type="position", name="P", features=["face:0"], tol=0.4,
+                                   projected=10.0), ctx)
+    assert r.verdict == "undecided" and r.measured is None
+    assert "both ends" in r.details["reason"]
+    r = gdt.eval_position(Position(type="position", name="P", features=["face:0"], tol=0.4,
+                                   projected=10.0, projected_direction=[0, 0, -1]), ctx)
+    assert r.measured == pytest.approx(0.0, abs=1e-6)

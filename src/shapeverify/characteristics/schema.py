@@ -391,6 +391,9 @@ class Position(_Char):
     #: a projected tolerance zone (Ⓟ, ASME Y14.5-2009 §7.4.1) of this length (mm): the zone
     #: holds the axis extended out of the hole's mouth over ``projected`` mm (:mod:`.gdt`)
     projected: Optional[float] = Field(default=None, gt=0)
+    #: the direction out of the holes' mouth (model frame) the projected zone goes; default:
+    #: the ``hole:k`` feature's axis (its entry face's outward side)
+    projected_direction: Optional[Vec3] = None
     #: datums of ``datums`` referenced at MMB (``M``) or LMB (``L``): the axes are evaluated
     #: at the best pose within the datum feature shift (:mod:`.datum_shift`)
     datum_modifiers: Optional[dict[str, Literal["M", "L"]]] = None
@@ -405,6 +408,8 @@ class Position(_Char):
         if self.material is not None and self.size is None:
             raise ValueError(f"material {self.material} needs size: {{lower, upper}} (the "
                              "diameter's limits of deviation) for the bonus tolerance")
+        if self.projected_direction is not None and self.projected is None:
+            raise ValueError("projected_direction without projected (the zone's length)")
         if self.max_tol is not None and (self.material is None or self.max_tol < self.tol):
             raise ValueError(f"max_tol {self.max_tol} caps a bonus tolerance: it needs "
                              f"material: M or L and max_tol >= tol ({self.tol})")
