@@ -4,6 +4,7 @@ axis extended out of the hole's mouth over the projection length), on synthetic 
 answers are computed by hand / by brute force here."""
 from __future__ import annotations
 
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -167,3 +168,85 @@ def test_projected_position_of_a_hole_open_at_both_ends_needs_its_direction(monk
     r = gdt.eval_position(Position(type="position", name="P", features=["face:0"], tol=0.4,
                                    projected=10.0, projected_direction=[0, 0, -1]), ctx)
     assert r.measured == pytest.approx(0.0, abs=1e-6)
+
+
+# ------------------------------------------------------------------------- NIST FTC 07
+FTC07 = Path(__file__).parent / "data" / "nist_extra" / "nist_ftc_07_asme1_ap242-e2.stp.gz"
+
+
+@pytest.fixture(scope="module")
+def ftc07(tmp_path_factory):
+    import gzip
+    import shutil
+
+    from shapeverify.characteristics.pmi_plan import pmi_plan
+
+    p = tmp_path_factory.mktemp("ftc07") / FTC07.name[:-3]
+    with gzip.open(FTC07, "rb") as src, open(p, "wb") as dst:
+        shutil.copyfileobj(src, dst)
+    return p, pmi_plan(p)
+
+
+def _entries(res, ids):
+    return {c.pmi.id: c for c in res.plan.characteristics if c.pmi.id in ids}
+
+
+@pytest.mark.slow
+def test_ftc07_positions_at_mmc_carry_the_frames_maximum(ftc07):
+    """GT7 and GT17 (⌖ ⌀0.040 Ⓜ A B C, MAX 0.045 in the file's inch): the plan's entries carry
+    max_tol = 0.045 x 25.4 = 1.143 mm (the entity's measure read here from the text) and keep
+    tol 0.040 in = 1.016 mm."""
+    import re
+
+    path, res = ftc07
+    text = path.read_text(encoding="latin-1")
+    caps = [float(re.search(rf"#{m}\s*=\s*LENGTH_MEASURE_WITH_UNIT\(LENGTH_MEASURE\(([0-9.]+)\)",
+                            text).group(1))
+            for m in re.findall(r"GEOMETRIC_TOLERANCE_WITH_MAXIMUM_TOLERANCE\(#(\d+)\)", text)]
+    assert caps == [0.045, 0.045]
+    got = _entries(res, {"GT7", "GT17"})
+    assert set(got) == {"GT7", "GT17"}
+    for c in got.values():
+        assert c.material == "M"
+        assert c.max_tol == pytest.approx(caps[0] * 25.4, abs=1e-9)
+        assert c.tol == pytest.approx(0.040 * 25.4, abs=1e-9)
+
+
+@pytest.mark.slow
+def test_ftc07_projected_positions_are_planned_out_of_the_holes_mouths(ftc07):
+    """GT3 (Ⓟ 0.15 in), GT5 and GT6 (Ⓟ 0.425 in) were unsupported "projected zone modifier";
+    planned with their lengths in mm and the side the holes open to."""
+    _, res = ftc07
+    got = _entries(res, {"GT3", "GT5", "GT6"})
+    assert {k: c.projected for k, c in got.items()} == pytest.approx(
+        {"GT3": 0.15 * 25.4, "GT5": 0.425 * 25.4, "GT6": 0.425 * 25.4}, abs=1e-9)
+    assert [len(got[k].features) for k in ("GT3", "GT5", "GT6")] == [4, 1, 2]
+    un = {u.pmi.id: u.reason for u in res.plan.unsupported}
+    assert "GT4" in un and "Projected" in un["GT4"]      # a projected perpendicularity
+
+
+@pytest.mark.slow
+def test_perfect_ftc07_passes_its_projected_and_capped_positions(ftc07):
+    """The five positions on a perfect scan (OCP tessellation sampled by area, no noise), the
+    alignment at the true pose: every hole's axis on its true position (values of a few um
+    from the tessellation) passes."""
+    import shapeverify as sv
+    from independent_scans import random_points, read_shape, tessellate
+    from shapeverify.characteristics import evaluate_plan
+
+    path, res = ftc07
+    ids = {"GT3", "GT5", "GT6", "GT7", "GT17"}
+    plan = res.plan.model_copy(update={"characteristics": [
+        c for c in res.plan.characteristics if c.pmi.id in ids]})
+    prep = sv.prepare(sv.load_model(path), spacing=0.7)
+    rng = np.random.default_rng(7)
+    V, T, _ = tessellate(read_shape(path), 0.002)
+    P, _ = random_points(V, T, 0.7, rng)
+    out = evaluate_plan(prep, P[rng.permutation(len(P))], plan, init=np.eye(4))
+    got = {c.name: c for c in out.characteristics}
+    assert len(got) == 5
+    for c in got.values():
+        assert c.verdict == "pass", (c.name, c.measured, c.upper, c.details.get("reason"))
+        assert c.measured < 0.05, c
+    for name in ("GT3_position", "GT5_position", "GT6_position"):
+        assert all("projected" in r for r in got[name].details["features"])

@@ -544,8 +544,9 @@ def _tolerance_entries(item, ctx, drf, why) -> tuple[list, str]:
 
             return position_zone_entries(item, ctx, faces, src)
         if item["material"] or (item["value_type"] == "Diameter"
-                                and item["zone_modifier"] == "None"
-                                and (_drf_reason(item, drf, why) or _lower(item))):
+                                and item["zone_modifier"] == "Projected") or (
+                item["value_type"] == "Diameter" and item["zone_modifier"] == "None"
+                and (_drf_reason(item, drf, why) or _lower(item))):
             return _position(item, ctx, faces, src)
         if item["value_type"] != "Diameter":
             zone = {"None": "two parallel planes", "SphericalDiameter": "a sphere"}.get(
@@ -752,8 +753,10 @@ def _position(item, ctx, faces, src) -> tuple[list, str]:
         zone = {"None": "two parallel planes", "SphericalDiameter": "a sphere"}.get(
             item["value_type"], item["value_type"])
         return [], f"the zone is {zone} (no \u2300); position is of axes in a cylindrical zone"
-    if item["zone_modifier"] != "None":
+    if item["zone_modifier"] not in ("None", "Projected"):
         return [], f"a {item['zone_modifier']} zone modifier"
+    if item["zone_modifier"] == "Projected" and not item["zone_modifier_value"] > 0:
+        return [], "a Projected zone modifier without its length"
     names, dm = None, {}
     if item["datums"] or not _lower(item):   # a lower segment without datums floats
         names, r = _item_drf(item, ctx, shift_ok=True)
@@ -770,13 +773,29 @@ def _position(item, ctx, faces, src) -> tuple[list, str]:
         entry["datums"] = names
     if dm:
         entry["datum_modifiers"] = dm
+    if item["zone_modifier"] == "Projected":
+        # the side of the projection: the mating part's, the hole's entry face (where the
+        # frame's arrow points); the PMI does not give it: the hole's open end
+        dirs = []
+        for g in groups:
+            h = _hole_of(ctx.feats, g, ctx.size) if g[4] == _HOLE_SIDE else None
+            if h is None:
+                return [], (f"a Projected zone modifier on face:{g[0][0]}, not a hole's wall "
+                            "with a mouth of `info --features` (the side the zone goes)")
+            dirs.append(np.asarray(h.axis, float))
+        if any(float(d @ dirs[0]) < 1.0 - 1e-9 for d in dirs):
+            return [], ("a Projected zone modifier on holes that open on different sides "
+                        "(one projected_direction per entry)")
+        entry["projected"] = _mm(item["zone_modifier_value"])
+        entry["projected_direction"] = [_mm(x) for x in dirs[0]]
+        src["projected"] = "the holes' open end (the PMI gives no side)"
     if item["material"]:
         size, r = _size_of(item, ctx, faces)
         if size is None:
             return [], r
         entry["material"], entry["size"] = item["material"], size
         if item.get("max_value", 0.0) > 0.0:     # the frame's "MAX" (ASME Y14.5-2009 §7.3.4)
-            entry["max_tol"] = item["max_value"]
+            entry["max_tol"] = _mm(item["max_value"])
     return [entry], ""
 
 
