@@ -40,6 +40,11 @@ face                                        ``length``: that line element of the
 Concentricity (⌀) of a cylinder to an axis  ``concentricity`` (:mod:`.concentricity`)
 Position (⌀) with datums at MMB / LMB       ``position`` with ``datum_modifiers`` (the best
                                             pose within the datum shift, :mod:`.datum_shift`)
+Position (⌀) with a material modifier and   ``position`` with ``material``, ``size``,
+a maximum ("MAX", ASME Y14.5-2009 §7.3.4)   ``max_tol`` (:mod:`shapeverify.cad.step_maxtol`)
+Position (⌀) with a projected zone (Ⓟ,      ``position`` with ``projected`` (the length) and
+§7.4.1) of holes                            ``projected_direction`` (the ``hole:k``'s axis: its
+                                            open end; the PMI gives no side)
 =========================================  ===============================================
 
 The two segments of a composite feature control frame (``composite`` of the PMI reader,
