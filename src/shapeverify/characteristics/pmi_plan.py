@@ -793,7 +793,8 @@ def _position(item, ctx, faces, src) -> tuple[list, str]:
                         "(one projected_direction per entry)")
         entry["projected"] = _mm(item["zone_modifier_value"])
         entry["projected_direction"] = [_mm(x) for x in dirs[0]]
-        src["projected"] = "the holes' open end (the PMI gives no side)"
+        src["zone_modifier_value"] = _mm(item["zone_modifier_value"])   # the frame's Ⓟ length
+        src["projected_side"] = "the holes' open end (the PMI gives no side)"
     if item["material"]:
         size, r = _size_of(item, ctx, faces)
         if size is None:
@@ -801,6 +802,7 @@ def _position(item, ctx, faces, src) -> tuple[list, str]:
         entry["material"], entry["size"] = item["material"], size
         if item.get("max_value", 0.0) > 0.0:     # the frame's "MAX" (ASME Y14.5-2009 §7.3.4)
             entry["max_tol"] = _mm(item["max_value"])
+            src["max_value"] = entry["max_tol"]
     return [entry], ""
 
 
