@@ -52,8 +52,8 @@ STILL_UNSUPPORTED = {
     "nist_ctc_05": {},
     "nist_ftc_11": {},
     "nist_ctc_04": {},
-    "nist_ftc_07": {"GT3": "Projected", "GT4": "Projected", "GT5": "Projected",
-                    "GT6": "Projected", "GT10": "Statistical", "GT15": "not cylinders",
+    # GT4: a projected perpendicularity (positions with Ⓟ are planned)
+    "nist_ftc_07": {"GT4": "Projected", "GT10": "Statistical", "GT15": "not cylinders",
                     "GT16": "not cylinders"},
     "nist_ftc_10": {"GT9": "Symmetry", "GT11": "All_Around", "GT23": "MMB",
                     "GT25": "tolerance of 0", "GT34": "tolerance of 0",

@@ -439,6 +439,24 @@ def _mark_composites(path, tolerances) -> list:
     return missed
 
 
+def _max_tolerances(path, tolerances) -> None:
+    """``max_value`` (the frame's "MAX", mm) of the tolerances whose maximum XCAF did not
+    read (:mod:`.step_maxtol`)."""
+    from .step_maxtol import apply_max_tolerances
+    from .step_units import length_unit_of_file
+
+    if not any(t["material"] and t["max_value"] == 0.0 for t in tolerances):
+        return
+    try:
+        unit = length_unit_of_file(path)
+        _, odd = apply_max_tolerances(path, tolerances, unit[1] if unit else 1.0)
+    except (OSError, ValueError) as exc:
+        logger.warning("%s: could not read the maximum tolerances: %s", path.name, exc)
+        return
+    for gid, why in odd:
+        logger.warning("%s: maximum tolerance of %s not read: %s", path.name, gid, why)
+
+
 def read_pmi_here(path) -> dict:
     """:func:`read_pmi` in this process (what the importer child runs)."""
     from OCP.XCAFDoc import (XCAFDoc_Datum, XCAFDoc_Dimension, XCAFDoc_DimTolTool,
@@ -545,6 +563,7 @@ def read_pmi_here(path) -> dict:
             "zone_modifier": _enum_name(o.GetZoneModifier()),
             "zone_modifier_value": float(o.GetValueOfZoneModifier()),
             "material": None if mat == "None" else mat,
+            "max_value": float(o.GetMaxValueModifier()),
             "modifiers": [_enum_name(m, "XCAFDimTolObjects_GeomToleranceModif_")
                           for m in _seq(o.GetModifiers())],
             "datums": drf, "faces": fs, "other": other})
@@ -579,6 +598,7 @@ def read_pmi_here(path) -> dict:
         dimensions.append(item)
 
     composites_missed = _mark_composites(path, tolerances)
+    _max_tolerances(path, tolerances)
 
     used = set()
     for it in datum_list + tolerances + dimensions:

@@ -32,7 +32,13 @@ characteristic's DRF (:meth:`.drf.DRF.apply`) when it names datums.
   lower); a boss: (nominal + upper) - mating diameter); ``L``: from the least material size
   (a hole's smallest circumscribed, a boss's largest inscribed diameter).  The limit is
   ``tol + bonus`` (a negative bonus, a feature out of its size limits, counts as 0 and is
-  reported).  A pattern is one tolerance: every feature in the same DRF; the result is the
+  reported), at most ``max_tol`` when the frame caps it (ASME Y14.5-2009 §7.3.4).
+  ``projected: L`` (Ⓟ, §7.4.1): the zone holds the axis extended out of the hole's mouth:
+  value = twice the largest distance from the true position of the fitted axis where it
+  crosses the planes normal to the CAD axis at the mouth and ``L`` beyond (the side:
+  ``projected_direction``, else the ``hole:k`` feature's axis, :func:`_projection_direction`);
+  a short feature's axis is its least-squares cylinder's (a mating fit keeps the CAD
+  direction, blind to the tilt the projection magnifies).  A pattern is one tolerance: every feature in the same DRF; the result is the
   feature with the smallest margin, every feature's numbers in ``details['features']``.
 * **composite: lower** (position, surface_profile; :mod:`.composite`): the zone framework
   translates, and turns about the axes the DRF leaves free, to the place minimising the worst
@@ -547,10 +553,6 @@ def eval_position(c, ctx: EvalContext):
         X, _ = _cylinder_points(X, f)
         ends, mating, _, a, how = _axis_ends(X, f, hole)
         least = _least_material(X, f, hole) if c.material == "L" else float("nan")
-        q = ends - f.center
-        off = q - np.outer(q @ f.axis, f.axis)
-        value = 2.0 * float(np.linalg.norm(off, axis=1).max())
-        bonus, note = _bonus(c, hole, mating, least, f.diameter)
         zq = extreme_quantile(X.shape[0], ctx.k)
         ext = float(np.linalg.norm(ends[1] - ends[0]))
         # the axis: a mating circle's centre (CAD direction) moves with the difference of its
@@ -558,10 +560,28 @@ def eval_position(c, ctx: EvalContext):
         # cylinder's ends also take its tilt: 2 z_n sigma
         u_axis = (mating_centre_u(X.shape[0], ctx.S.noise, ctx.k) if "circle" in how
                   else 2.0 * zq * ctx.S.noise)
-        u_turn = 2.0 * _datum_part(drf, ctx, ext, zq)
+        reach = ext
+        proj = getattr(c, "projected", None)
+        if proj is not None:
+            try:
+                ends, how, mouth = _projected_ends(c, ctx, fidx, f, X, ends, a, how)
+            except ValueError as exc:
+                return _not_measured(c, f"{ref}: {exc}")
+            # the ends extrapolated up to L past the fitted segment: an end's error grows as
+            # (1 + 2 L / extent) times (the far one), the datums' turn over extent + L
+            u_axis *= 1.0 + 2.0 * float(proj) / max(ext, 1e-9)
+            reach = ext + float(proj)
+        q = ends - f.center
+        off = q - np.outer(q @ f.axis, f.axis)
+        value = 2.0 * float(np.linalg.norm(off, axis=1).max())
+        bonus, note = _bonus(c, hole, mating, least, f.diameter)
+        u_turn = 2.0 * _datum_part(drf, ctx, reach, zq)
         U = float(np.sqrt(u_axis ** 2 + u_turn ** 2
                           + (2.0 * _datum_offsets(drf, ctx, f.axis)) ** 2))
         tol = float(c.tol) + bonus
+        cap = getattr(c, "max_tol", None)
+        if cap is not None and tol > float(cap):   # ASME Y14.5-2009 §7.3.4: "MAX"
+            tol = float(cap)
         rows.append({"centre": f.center.tolist(), "axis": f.axis.tolist(),
                      "u_axis": float(u_axis), "u_turn": float(u_turn),
                      "feature": ref if isinstance(ref, str) else list(ref), "faces": fidx,
@@ -572,6 +592,8 @@ def eval_position(c, ctx: EvalContext):
                      "nominal_diameter": float(f.diameter), "U": U,
                      "verdict": decide(value, None, tol, U), "ends": ends.tolist(),
                      "note": note, "_axis": (f.center, f.axis)})
+        if proj is not None:
+            rows[-1]["projected"] = {"length": float(proj), "mouth": mouth}
     shift = comp = None
     if getattr(c, "datum_modifiers", None):       # MMB/LMB: the best pose within the shift
         shift = _position_shift(c, ctx, drf, rows)
@@ -593,6 +615,60 @@ def eval_position(c, ctx: EvalContext):
 
         res = dataclasses.replace(res, verdict=worst_verdict(verdicts))
     return res
+
+
+def _faces_rim(ctx, fidx) -> np.ndarray:
+    """The CAD trim loops of faces ``fidx`` (3-D points about 0.2 mm apart), cached."""
+    key = ("rim", tuple(int(f) for f in fidx))
+    if key not in ctx.cache:
+        ctx.cache[key] = np.concatenate([_rim(ctx.prep.model.faces[int(f)], 0.2)
+                                         for f in fidx])
+    return ctx.cache[key]
+
+
+def _projection_direction(c, ctx, fidx, feat) -> np.ndarray:
+    """The unit direction out of the hole's mouth, the side the projected zone goes:
+    ``c.projected_direction``, else the axis of the ``hole:k`` whose walls are these faces
+    (:mod:`.features`: a loop hole's axis points like its entry face's outward normal; a hole
+    of wall faces only points out of the wall's end farther from the model's centre)."""
+    d = getattr(c, "projected_direction", None)
+    if d is None:
+        holes = [h for h in (ctx.feats.values() if isinstance(ctx.feats, dict) else ctx.feats)
+                 if h.kind == "hole" and set(fidx) & set(h.walls)]
+        if not holes:
+            raise ValueError("no hole of `info --features` has these walls: the side of the "
+                             "projected zone is not known (give projected_direction)")
+        if len({float(np.sign(np.asarray(h.axis, float) @ feat.axis)) for h in holes}) > 1:
+            raise ValueError("a hole open at both ends: the side of the projected zone is not "
+                             "known (give projected_direction)")
+        d = holes[0].axis
+    d = np.asarray(d, float)
+    return d / np.linalg.norm(d)
+
+
+def _projected_ends(c, ctx, fidx, feat, X, ends, a, how):
+    """(the two points of the fitted axis extended out of the hole's mouth that bound the
+    projected zone, how the axis was fitted, the mouth (3,) on the CAD axis): the fitted axis
+    (a short feature's mating fit keeps the CAD direction, which does not see a tilt: its
+    least-squares cylinder's axis is taken) crossing the planes normal to the CAD axis at the
+    mouth (the faces' CAD end on the projection's side) and ``c.projected`` mm beyond."""
+    d = _projection_direction(c, ctx, fidx, feat)
+    n = np.asarray(feat.axis, float)
+    n = n if n @ d > 0 else -n
+    if abs(float(n @ d)) < 1.0 - 1e-6:
+        raise ValueError(f"projected_direction {d.tolist()} is not along the hole's axis "
+                         f"{n.tolist()}")
+    rim = _faces_rim(ctx, fidx)
+    if "CAD direction" in how:
+        ends, a, how = _lsq_axis_ends(X, feat, rim)
+    a = np.asarray(a, float)
+    a = a if a @ n > 0 else -a
+    h0 = float(((rim - feat.center) @ n).max())
+    p = np.asarray(ends[0], float)
+    hp = float((p - feat.center) @ n)
+    pts = np.stack([p + ((h - hp) / float(a @ n)) * a for h in (h0, h0 + float(c.projected))])
+    mouth = (feat.center + h0 * n).tolist()
+    return pts, how + f", extended {float(c.projected):g} mm out of the mouth", mouth
 
 
 def _position_shift(c, ctx, drf, rows) -> dict:

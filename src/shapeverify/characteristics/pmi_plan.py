@@ -40,6 +40,11 @@ face                                        ``length``: that line element of the
 Concentricity (⌀) of a cylinder to an axis  ``concentricity`` (:mod:`.concentricity`)
 Position (⌀) with datums at MMB / LMB       ``position`` with ``datum_modifiers`` (the best
                                             pose within the datum shift, :mod:`.datum_shift`)
+Position (⌀) with a material modifier and   ``position`` with ``material``, ``size``,
+a maximum ("MAX", ASME Y14.5-2009 §7.3.4)   ``max_tol`` (:mod:`shapeverify.cad.step_maxtol`)
+Position (⌀) with a projected zone (Ⓟ,      ``position`` with ``projected`` (the length) and
+§7.4.1) of holes                            ``projected_direction`` (the ``hole:k``'s axis: its
+                                            open end; the PMI gives no side)
 =========================================  ===============================================
 
 The two segments of a composite feature control frame (``composite`` of the PMI reader,
@@ -551,8 +556,9 @@ def _tolerance_entries(item, ctx, drf, why) -> tuple[list, str]:
 
             return position_zone_entries(item, ctx, faces, src)
         if item["material"] or (item["value_type"] == "Diameter"
-                                and item["zone_modifier"] == "None"
-                                and (_drf_reason(item, drf, why) or _lower(item))):
+                                and item["zone_modifier"] == "Projected") or (
+                item["value_type"] == "Diameter" and item["zone_modifier"] == "None"
+                and (_drf_reason(item, drf, why) or _lower(item))):
             return _position(item, ctx, faces, src)
         if item["value_type"] != "Diameter":
             zone = {"None": "two parallel planes", "SphericalDiameter": "a sphere"}.get(
@@ -759,8 +765,10 @@ def _position(item, ctx, faces, src) -> tuple[list, str]:
         zone = {"None": "two parallel planes", "SphericalDiameter": "a sphere"}.get(
             item["value_type"], item["value_type"])
         return [], f"the zone is {zone} (no \u2300); position is of axes in a cylindrical zone"
-    if item["zone_modifier"] != "None":
+    if item["zone_modifier"] not in ("None", "Projected"):
         return [], f"a {item['zone_modifier']} zone modifier"
+    if item["zone_modifier"] == "Projected" and not item["zone_modifier_value"] > 0:
+        return [], "a Projected zone modifier without its length"
     names, dm = None, {}
     if item["datums"] or not _lower(item):   # a lower segment without datums floats
         names, r = _item_drf(item, ctx, shift_ok=True)
@@ -777,11 +785,31 @@ def _position(item, ctx, faces, src) -> tuple[list, str]:
         entry["datums"] = names
     if dm:
         entry["datum_modifiers"] = dm
+    if item["zone_modifier"] == "Projected":
+        # the side of the projection: the mating part's, the hole's entry face (where the
+        # frame's arrow points); the PMI does not give it: the hole's open end
+        dirs = []
+        for g in groups:
+            h = _hole_of(ctx.feats, g, ctx.size) if g[4] == _HOLE_SIDE else None
+            if h is None:
+                return [], (f"a Projected zone modifier on face:{g[0][0]}, not a hole's wall "
+                            "with a mouth of `info --features` (the side the zone goes)")
+            dirs.append(np.asarray(h.axis, float))
+        if any(float(d @ dirs[0]) < 1.0 - 1e-9 for d in dirs):
+            return [], ("a Projected zone modifier on holes that open on different sides "
+                        "(one projected_direction per entry)")
+        entry["projected"] = _mm(item["zone_modifier_value"])
+        entry["projected_direction"] = [_mm(x) for x in dirs[0]]
+        src["zone_modifier_value"] = _mm(item["zone_modifier_value"])   # the frame's Ⓟ length
+        src["projected_side"] = "the holes' open end (the PMI gives no side)"
     if item["material"]:
         size, r = _size_of(item, ctx, faces)
         if size is None:
             return [], r
         entry["material"], entry["size"] = item["material"], size
+        if item.get("max_value", 0.0) > 0.0:     # the frame's "MAX" (ASME Y14.5-2009 §7.3.4)
+            entry["max_tol"] = _mm(item["max_value"])
+            src["max_value"] = entry["max_tol"]
     return [entry], ""
 
 

@@ -374,7 +374,8 @@ class Position(_Char):
     ``face:N`` or a list of coaxial cylinder faces; several: a pattern under one tolerance), in the datum reference frame
     ``datums`` (none: the plan's alignment).  ``zone: diameter``: a cylindrical zone of
     diameter ``tol``.  ``material: M`` or ``L``: the bonus tolerance from the measured size
-    (``size``: the diameter's limits of deviation)."""
+    (``size``: the diameter's limits of deviation), capped at ``max_tol``.  ``projected``:
+    a projected zone of that length out of each hole's mouth."""
 
     type: Literal["position"]
     features: Annotated[list[Union[FeatureRef, Annotated[list[FeatureRef], Field(min_length=1)]]],
@@ -384,6 +385,15 @@ class Position(_Char):
     datums: Optional[DrfRef] = None
     material: Optional[Literal["M", "L"]] = None
     size: Optional[SizeLimits] = None
+    #: the maximum tolerance with a material modifier (ASME Y14.5-2009 §7.3.4, "MAX" in the
+    #: frame): the limit is ``min(tol + bonus, max_tol)``
+    max_tol: Optional[float] = Field(default=None, gt=0)
+    #: a projected tolerance zone (Ⓟ, ASME Y14.5-2009 §7.4.1) of this length (mm): the zone
+    #: holds the axis extended out of the hole's mouth over ``projected`` mm (:mod:`.gdt`)
+    projected: Optional[float] = Field(default=None, gt=0)
+    #: the direction out of the holes' mouth (model frame) the projected zone goes; default:
+    #: the ``hole:k`` feature's axis (its entry face's outward side)
+    projected_direction: Optional[Vec3] = None
     #: datums of ``datums`` referenced at MMB (``M``) or LMB (``L``): the axes are evaluated
     #: at the best pose within the datum feature shift (:mod:`.datum_shift`)
     datum_modifiers: Optional[dict[str, Literal["M", "L"]]] = None
@@ -398,6 +408,11 @@ class Position(_Char):
         if self.material is not None and self.size is None:
             raise ValueError(f"material {self.material} needs size: {{lower, upper}} (the "
                              "diameter's limits of deviation) for the bonus tolerance")
+        if self.projected_direction is not None and self.projected is None:
+            raise ValueError("projected_direction without projected (the zone's length)")
+        if self.max_tol is not None and (self.material is None or self.max_tol < self.tol):
+            raise ValueError(f"max_tol {self.max_tol} caps a bonus tolerance: it needs "
+                             f"material: M or L and max_tol >= tol ({self.tol})")
         extra = sorted(set(self.datum_modifiers or ()) - set(self.datums or ()))
         if extra:
             raise ValueError(f"datum_modifiers name datums {extra} that are not in datums "
