@@ -56,7 +56,6 @@ STILL_UNSUPPORTED = {
     "nist_ftc_07": {"GT4": "Projected", "GT10": "Statistical", "GT15": "not cylinders",
                     "GT16": "not cylinders"},
     "nist_ftc_10": {"GT9": "Symmetry", "GT11": "All_Around", "GT23": "MMB",
-                    "GT25": "tolerance of 0", "GT34": "tolerance of 0",
                     "GT26": "cylinders", "GT35": "cylinders"},
 }
 

@@ -250,3 +250,22 @@ def test_perfect_ftc07_passes_its_projected_and_capped_positions(ftc07):
         assert c.measured < 0.05, c
     for name in ("GT3_position", "GT5_position", "GT6_position"):
         assert all("projected" in r for r in got[name].details["features"])
+
+
+def test_position_zero_at_mmc_is_all_bonus(monkeypatch):
+    """A zero positional tolerance at MMC (ASME Y14.5-2009 §7.3.3.3; NIST FTC 10 GT25/GT34
+    were unsupported: the plan's schema needed tol > 0): a hole of nominal 10 (size 0 / +0.5)
+    made 10.4 has a limit of 0 + 0.4; 0.1 off (measured 0.2) passes, 0.3 off (0.6) fails, and
+    a hole at its MMC size (bonus 0) fails any offset."""
+    base = dict(type="position", name="P", features=["face:0"], tol=0.0, material="M",
+                size={"lower": 0.0, "upper": 0.5})
+    for d, off, measured, upper, verdict in ((10.4, 0.1, 0.2, 0.4, "pass"),
+                                             (10.4, 0.3, 0.6, 0.4, "fail"),
+                                             (10.0, 0.05, 0.1, 0.0, "fail")):
+        X, N = _hole_points(d, offset=(off, 0.0))
+        r = gdt.eval_position(Position(**base), _ctx(X, N, _CAD, monkeypatch))
+        assert r.measured == pytest.approx(measured, abs=1e-6)
+        assert r.upper == pytest.approx(upper, abs=1e-6)
+        assert r.verdict == verdict, (d, off, r.measured, r.upper)
+    with pytest.raises(ValueError, match="tol 0 needs material"):
+        Position(type="position", name="P", features=["face:0"], tol=0.0)

@@ -499,12 +499,13 @@ def _lower(item) -> bool:
 def _tolerance_entries(item, ctx, drf, why) -> tuple[list, str]:
     t = item["type"]
     value = item.get("value")
-    if value is not None and not value > 0:  # NIST FTC 10: 0 at MMC / LMC (all of it bonus)
-        mat = item.get("material")
+    mat = item.get("material")
+    zero_ok = t == "Position" and mat in ("M", "L")   # 0 at MMC/LMC: all of it bonus
+    if value is not None and not value > 0 and not (value == 0 and zero_ok):
         return [], (f"a tolerance of {value:g}"
                     + (f" with material modifier {mat}" if mat and mat != "None" else "")
-                    + ": the plan's zones need a value above 0 (its bonus tolerance is added "
-                    "to one)")
+                    + ": a zone of 0 is planned only for a position at MMC or LMC (all of "
+                    "it bonus)")
     if t == "ProfileOfLine":
         from .pmi_profile_line import line_profile_entries
 

@@ -380,7 +380,9 @@ class Position(_Char):
     type: Literal["position"]
     features: Annotated[list[Union[FeatureRef, Annotated[list[FeatureRef], Field(min_length=1)]]],
                         Field(min_length=1)]
-    tol: float = Field(gt=0)
+    #: 0 only with a material modifier (ASME Y14.5-2009 §7.3.3.3: zero at MMC/LMC, all of the
+    #: tolerance is bonus)
+    tol: float = Field(ge=0)
     zone: Literal["diameter"] = "diameter"
     datums: Optional[DrfRef] = None
     material: Optional[Literal["M", "L"]] = None
@@ -408,6 +410,9 @@ class Position(_Char):
         if self.material is not None and self.size is None:
             raise ValueError(f"material {self.material} needs size: {{lower, upper}} (the "
                              "diameter's limits of deviation) for the bonus tolerance")
+        if self.tol == 0 and self.material is None:
+            raise ValueError("tol 0 needs material: M or L (a zero tolerance at MMC/LMC is all "
+                             "bonus); without one, give the zone's diameter (> 0)")
         if self.projected_direction is not None and self.projected is None:
             raise ValueError("projected_direction without projected (the zone's length)")
         if self.max_tol is not None and (self.material is None or self.max_tol < self.tol):
