@@ -112,8 +112,6 @@ def best_profile_shift(X, normals, d, S, datums, polygon: int = POLYGON):
     -------
     (value: the linearised min of max |d'|, xi (6,), y (m,))
     """
-    from scipy.optimize import linprog
-
     X, Nn, d = (np.asarray(v, float) for v in (X, normals, d))
     S = np.asarray(S, float)
     m = S.shape[1]
@@ -137,17 +135,7 @@ def best_profile_shift(X, normals, d, S, datums, polygon: int = POLYGON):
         for e, o in zip(ends, offs):
             A.append(np.hstack([U @ _skew_rows(e) @ S, np.zeros((polygon, 1))]))
             b.append(np.full(polygon, max(float(r), 0.0) * np.cos(np.pi / polygon)) - U @ o)
-    c = np.r_[np.zeros(m), 1.0]
-    res = linprog(c, A_ub=np.vstack(A), b_ub=np.concatenate(b),
-                  bounds=[(None, None)] * m + [(0, None)], method="highs")
-    if res.status == 2:
-        raise Infeasible("no pose of the part fits its datum features on their simulators "
-                         "(a feature is off its place by more than its departure from the "
-                         "boundary allows)")
-    if res.status != 0:
-        raise ValueError(f"the datum shift optimisation failed: {res.message}")
-    y = res.x[:m]
-    return float(res.x[m]), S @ y, y
+    return _min_excess(A, b, S, m, (0, None))
 
 
 def shift_limits(c, ctx, drf):
@@ -318,8 +306,6 @@ def best_position_shift(axes, S, datums, polygon: int = POLYGON):
     -------
     (the linearised min of the largest excess, xi (6,), y (m,))
     """
-    from scipy.optimize import linprog
-
     S = np.asarray(S, float)
     m = S.shape[1]
     ang = 2 * np.pi * (np.arange(polygon) + 0.5) / polygon
@@ -349,9 +335,18 @@ def best_position_shift(axes, S, datums, polygon: int = POLYGON):
         for e, o in zip(ends, offs):
             A.append(np.hstack([U @ _skew_rows(e) @ S, np.zeros((polygon, 1))]))
             b.append(np.full(polygon, max(float(r), 0.0) * cosp) - U @ o)
+    return _min_excess(A, b, S, m, (None, None))
+
+
+def _min_excess(A, b, S, m: int, bound: tuple):
+    """The LP of the datum shift: minimise the last variable (the largest excess, bounded by
+    ``bound``) over ``m`` motion coordinates ``y`` (the motion ``S @ y``) subject to
+    ``A [y, t] <= b``.  Returns (excess, motion, y); :class:`Infeasible` when no pose fits."""
+    from scipy.optimize import linprog
+
     c = np.r_[np.zeros(m), 1.0]
     res = linprog(c, A_ub=np.vstack(A), b_ub=np.concatenate(b),
-                  bounds=[(None, None)] * m + [(None, None)], method="highs")
+                  bounds=[(None, None)] * m + [bound], method="highs")
     if res.status == 2:
         raise Infeasible("no pose of the part fits its datum features on their simulators "
                          "(a feature is off its place by more than its departure from the "
