@@ -13,7 +13,6 @@ import pytest
 
 pytestmark = [pytest.mark.slow, pytest.mark.shared]
 
-NIST = ("cad", "nist")
 FTC08 = "nist_ftc_08_asme1_ap242-e1.stp"
 KEEP = ("GT16", "GT22")
 
@@ -25,20 +24,14 @@ def _faces(refs):
 @pytest.fixture(scope="module")
 def ftc08(shared_data):
     from independent_scans import random_points, read_shape, tessellate
-    from model_cache import cached_model, cached_prepared
+    from model_cache import cached_prepared
+    from nist_plans import nist_plan
 
     from shapeverify.characteristics.features import model_features
     from shapeverify.characteristics.plan import load_plan
-    from shapeverify.characteristics.pmi_plan import _face_map, pmi_plan
 
-    path = shared_data.joinpath(*NIST, FTC08)
-    if not path.exists():
-        pytest.skip(f"{path} not present (NIST MBE PMI test model)")
-    model = cached_model(path)
-    r = pmi_plan(path, model=model)
-    m = getattr(model, "model", model)
-    fmap = _face_map(r.pmi, m)
-    inv = {v: k for k, v in fmap.items()}
+    n = nist_plan(shared_data, FTC08)
+    path, r, m, fmap, inv = n.path, n.result, n.model, n.fmap, n.inv
     data = copy.deepcopy(r.data)
     data["characteristics"] = [c for c in data["characteristics"] if c["pmi"]["id"] in KEEP]
     rmb = copy.deepcopy(next(c for c in data["characteristics"] if c["pmi"]["id"] == "GT16"))

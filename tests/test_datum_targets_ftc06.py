@@ -19,7 +19,6 @@ import pytest
 
 pytestmark = [pytest.mark.slow, pytest.mark.shared]
 
-NIST = ("cad", "nist")
 FTC06 = "nist_ftc_06_asme1_ap242-e1.stp"
 KEEP = ("GT20", "GT21", "GT22", "GT23")
 
@@ -27,20 +26,14 @@ KEEP = ("GT20", "GT21", "GT22", "GT23")
 @pytest.fixture(scope="module")
 def ftc06(shared_data):
     from independent_scans import random_points, read_shape, tessellate
-    from model_cache import cached_model, cached_prepared
+    from model_cache import cached_prepared
+    from nist_plans import nist_plan
 
     from shapeverify.characteristics.features import model_features
     from shapeverify.characteristics.plan import load_plan
-    from shapeverify.characteristics.pmi_plan import _face_map, pmi_plan
 
-    path = shared_data.joinpath(*NIST, FTC06)
-    if not path.exists():
-        pytest.skip(f"{path} not present (NIST MBE PMI test model)")
-    model = cached_model(path)
-    r = pmi_plan(path, model=model)
-    m = getattr(model, "model", model)
-    fmap = _face_map(r.pmi, m)
-    inv = {v: k for k, v in fmap.items()}
+    n = nist_plan(shared_data, FTC06)
+    path, r, m, fmap, inv = n.path, n.result, n.model, n.fmap, n.inv
     data = dict(r.data)
     data["characteristics"] = [c for c in data["characteristics"] if c["pmi"]["id"] in KEEP]
     # the faces under test: the toleranced faces and every face of their datums

@@ -1,0 +1,27 @@
+"""A NIST PMI test part's plan and face numbering, for the tests that run part of a plan on an
+independent scan (tests/test_datum_targets_ftc06.py, test_median_plane_ftc06.py,
+test_datum_shift_pattern_nist.py)."""
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import pytest
+
+
+def nist_plan(shared_data, name: str):
+    """``path``, ``model`` (the imported model), ``result`` (:func:`pmi_plan`'s), ``fmap`` (PMI
+    face -> model face) and ``inv`` (its inverse) of ``shared_data/cad/nist/name``; the test is
+    skipped when the file is not there."""
+    from model_cache import cached_model
+
+    from shapeverify.characteristics.pmi_plan import _face_map, pmi_plan
+
+    path = shared_data / "cad" / "nist" / name
+    if not path.exists():
+        pytest.skip(f"{path} not present (NIST MBE PMI test model)")
+    model = cached_model(path)
+    result = pmi_plan(path, model=model)
+    m = getattr(model, "model", model)
+    fmap = _face_map(result.pmi, m)
+    return SimpleNamespace(path=path, model=m, result=result, fmap=fmap,
+                           inv={v: k for k, v in fmap.items()})
