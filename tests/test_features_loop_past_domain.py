@@ -25,10 +25,13 @@ def test_a_hole_wall_whose_loop_runs_past_the_v_domain_is_still_a_hole():
     assert holes[0].diameter == pytest.approx(10.0, rel=1e-9)
 
 
-def test_a_zero_tolerance_at_mmc_is_unsupported_with_the_reason_not_an_invalid_plan():
+def test_a_zero_tolerance_without_a_material_modifier_is_unsupported_not_an_invalid_plan():
+    """NIST FTC 10's Position.12 / .19 are 0 at LMC / MMC (all bonus: planned since, see
+    tests/test_position_max_projected.py); a zero zone without a material modifier has no
+    bonus to come from and stays unsupported, with the reason, rather than an invalid plan."""
     from shapeverify.characteristics.pmi_plan import _tolerance
 
-    item = {"type": "Position", "value": 0.0, "material": "M", "faces": [1], "id": "Position.19"}
+    item = {"type": "Position", "value": 0.0, "material": None, "faces": [1], "id": "GT1"}
     entries, reason = _tolerance(item, None, None, "")
     assert entries == []
-    assert reason.startswith("a tolerance of 0 with material modifier M")
+    assert reason.startswith("a tolerance of 0:") and "MMC or LMC" in reason

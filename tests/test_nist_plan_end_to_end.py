@@ -74,11 +74,12 @@ def _check(res):
 def test_ftc08_plan_perfect_moved_hole_tilted_face(ftc08):
     cases = _check(ftc08)
     hole, tilt = cases["hole"], cases["tilt"]
-    # the moved hole is one of the 10-hole pattern of GT11 (1.016 at MMC) and GT12 (0.508):
-    # 2 x 0.3 mm exceeds GT12 only
+    # the moved hole is one of the 10-hole pattern of the composite frame GT11 (1.016 at MMC,
+    # upper: located) over GT12 (0.508, lower: the zone framework floats).  Located, the hole
+    # reads 2 x 0.3 mm; the lower segment's best place splits the move: 0.3, in its zone
     assert hole["defect"]["characteristic"] in ("GT11_position", "GT12_position")
-    assert hole["rows"]["GT12_position"]["verdict"] == "fail"
-    assert 0.5 < hole["rows"]["GT12_position"]["measured"] < 0.7
+    assert hole["rows"]["GT12_position"]["verdict"] == "pass"
+    assert 0.25 < hole["rows"]["GT12_position"]["measured"] < 0.4
     assert hole["rows"]["GT11_position"]["verdict"] == "pass"
     # face:4 tilted 0.2 deg over its 305 mm: parallelism to A = 1.07 mm (GT7 0.381, GT8 0.762)
     L = tilt["defect"]["length"]
