@@ -58,9 +58,9 @@ def _alive(pid: int) -> bool:
     except OSError:
         return True
 
-def _stop_worker(files, env, pid, sock) -> None:
+def _stop_worker(files, env, pid) -> None:
     """`shapeverify worker stop`; the worker ``pid`` (if any) must end within 30 s (else it is
-    killed and the test fails); the socket folder goes."""
+    killed and the test fails)."""
     _sv(["worker", "stop"], files, env, timeout=60)
     if pid is not None:
         t0 = time.monotonic()
@@ -69,7 +69,6 @@ def _stop_worker(files, env, pid, sock) -> None:
         if _alive(pid):
             os.kill(pid, signal.SIGKILL)
             pytest.fail(f"worker {pid} still ran after `shapeverify worker stop`")
-    shutil.rmtree(sock, ignore_errors=True)
 
 
 
@@ -108,14 +107,7 @@ def worker(files):
         pid = int(re.search(rb"pid (\d+)", res.stdout).group(1))
         yield {"env": env, "pid": pid, "sock": sock}
     finally:
-        _sv(["worker", "stop"], files, env, timeout=60)
-        if pid is not None:
-            t0 = time.monotonic()
-            while _alive(pid) and time.monotonic() - t0 < 30:
-                time.sleep(0.05)
-            if _alive(pid):
-                os.kill(pid, signal.SIGKILL)
-                pytest.fail(f"worker {pid} still ran after `shapeverify worker stop`")
+        _stop_worker(files, env, pid)
         assert not list(sock.glob("*.sock")), "the worker left its socket behind"
         shutil.rmtree(sock, ignore_errors=True)
 
@@ -352,7 +344,8 @@ def test_a_first_command_without_kernels_starts_no_worker_and_the_next_ones_use_
         assert b"worker" not in second.stderr
         assert not list(sock.glob("*.starting")), "the start's claim was left behind"
     finally:
-        _stop_worker(files, env, pid, sock)
+        _stop_worker(files, env, pid)
+        shutil.rmtree(sock, ignore_errors=True)
 
 
 def test_first_inspect_runs_in_the_worker_it_starts_not_in_its_own_process_as_well(files, tmp_path):
@@ -401,7 +394,8 @@ def test_first_inspect_runs_in_the_worker_it_starts_not_in_its_own_process_as_we
         assert len(log.read_text().splitlines()) == 2 and b"worker" not in second.stderr
         assert not list(sock.glob("*.starting")) and not list(sock.glob("*.tmp"))
     finally:
-        _stop_worker(files, env, pid, sock)
+        _stop_worker(files, env, pid)
+        shutil.rmtree(sock, ignore_errors=True)
 
 
 def test_a_command_that_finds_the_worker_starting_waits_for_it_only_when_it_runs_kernels():
