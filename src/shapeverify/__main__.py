@@ -1,7 +1,5 @@
 """``python -m shapeverify``: the ``shapeverify`` command."""
 
-import sys
+from shapeverify.cli_start import run
 
-from shapeverify.cli_start import main
-
-sys.exit(main())
+run()
