@@ -411,6 +411,9 @@ def main() -> None:
     ap.add_argument("--work", type=Path, default=None,
                     help="directory of the inputs (kept; made when missing)")
     ap.add_argument("--out", default=str(ROOT / "benchmarks" / "results_cli.md"))
+    ap.add_argument("--peer-python", default=sys.executable,
+                    help="the Python that runs the Open3D script (open3d is no dependency of "
+                         "shapeverify: e.g. a throwaway venv with open3d-cpu)")
     args = ap.parse_args()
     env = _env()
     work = args.work or Path(tempfile.mkdtemp(prefix="bench_cli_"))
@@ -446,7 +449,8 @@ def main() -> None:
     worker_start = started + status["preload_cpu"]
     auto = measure_auto(inspect_argv, work, env, args.repeat)
     peer = measure("Open3D script (ICP point-to-plane + signed distances + JSON report)",
-                   [py, paths["o3d"], paths["scan"], paths["model"], work / "o3d.json", "0.2"],
+                   [args.peer_python, paths["o3d"], paths["scan"], paths["model"],
+                    work / "o3d.json", "0.2"],
                    work, env, args.repeat)
     lib = measure("the same inspection through the library (a Python script, no command line)",
                   [py, paths["lib"], paths["svm"], paths["scan"], work / "lib.json"], work, env,
@@ -479,7 +483,9 @@ def main() -> None:
         f"### {datetime.datetime.now(datetime.timezone.utc):%Y-%m-%d %H:%M} UTC",
         "",
         f"Command: `env -u PYTHONDONTWRITEBYTECODE .venv/bin/python benchmarks/bench_cli.py "
-        f"--repeat {args.repeat}`  ",
+        f"--repeat {args.repeat}"
+        + (f" --peer-python {args.peer_python}" if args.peer_python != sys.executable else "")
+        + "`  ",
         f"Machine: {platform.processor() or platform.machine()}, {os.cpu_count()} cores, "
         f"Python {platform.python_version()}; load average (1, 5, 15 min) "
         f"{', '.join(f'{x:.1f}' for x in load_start)} at the start, "
