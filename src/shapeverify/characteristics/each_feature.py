@@ -31,6 +31,8 @@ def each_feature(evaluate, c, ctx):
     for g, r in zip(c.features, results):
         row = {"faces": list(g), "value": r.measured, "uncertainty": r.uncertainty,
                "verdict": r.verdict}
+        if "n" in r.details:
+            row["n"] = r.details["n"]
         if r.measured is None:
             row["reason"] = r.details.get("reason")
         rows.append(row)
