@@ -180,3 +180,28 @@ def test_features_must_split_the_faces():
         load_plan({"characteristics": [{"name": "C", "type": "cylindricity", "tol": 0.1,
                                         "faces": ["face:1", "face:2"],
                                         "features": [["face:1"], ["face:3"]]}]})
+
+
+def test_face_groups_are_the_built_cylinders_and_planes(part):
+    """Grouped by :func:`features_of`: the three pins (two faces each, on the axes they were
+    built on), the six half discs of the pins' tops (one plane z = 22), and each of the
+    block's six sides alone -- as the construction made them (each face's own OpenCASCADE
+    sample point decides where it lies)."""
+    from shapeverify.characteristics.face_groups import features_of
+    from shapeverify.characteristics.features import model_features
+
+    model, _, walls, _, _ = part
+    groups, other = features_of(model_features(model), list(range(len(model.faces))),
+                                float(model.size))
+    assert other == []
+    cyl = sorted(sorted(g) for k, g in groups if k == "cylinder")
+    assert cyl == sorted(walls.values())
+    planes = sorted(sorted(g) for k, g in groups if k == "plane")
+    # the truth of each face: a point of it (its trimmed domain's centre, evaluated)
+    mid = {}
+    for i, f in enumerate(model.faces):
+        (a0, a1), (b0, b1) = f.uv_bounds
+        mid[i] = f.evaluate(np.array([[0.5 * (a0 + a1), 0.5 * (b0 + b1)]]))[0]
+    tops = sorted(i for i in range(len(model.faces)) if abs(mid[i][2] - Z1) < 1e-9)
+    assert len(tops) == 6 and tops in planes
+    assert len(planes) == 7 and all(len(g) == 1 for g in planes if g != tops)
