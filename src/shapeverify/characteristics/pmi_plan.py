@@ -50,6 +50,13 @@ Position (⌀) with a projected zone (Ⓟ,      ``position`` with ``projected`` 
                                             open end; the PMI gives no side)
 =========================================  ===============================================
 
+Features the CAD splits into several faces (:mod:`.face_groups`): coaxial cylinder faces of
+one radius are one cylinder (a boss's diameter, a datum axis, a position, a form tolerance
+measure all of them together), coplanar faces with one outward side one plane.  A form or
+orientation tolerance on several separate features (a "3X" cylindricity of three holes) gets
+``features``, one list of faces per feature, each evaluated individually
+(:mod:`.each_feature`).
+
 The two segments of a composite feature control frame (``composite`` of the PMI reader,
 :mod:`shapeverify.cad.step_composite`) keep ``composite: upper | lower`` on their entries; a
 lower segment is always planned in its own datum frame (``position`` with ``datums``,
