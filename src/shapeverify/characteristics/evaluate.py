@@ -32,7 +32,8 @@ only, so one stray point does not decide a profile and no value is a cut-off.
   position that holds the measured axis), limits ``[0, t]``; diameter deviation = measured -
   nominal, limits ±tol.
 * **cylinder** diameter: robust least-squares cylinder (Tukey) of the evaluated points of the
-  cylindrical face; deviation = measured - nominal.
+  cylindrical face (or of all the faces of one cylinder split by the CAD, ``faces``);
+  deviation = measured - nominal.
 * **check_point**: deviation at a point = mean ``d`` of the evaluated points within ``radius``
   of the CAD point closest to ``at`` (same face), nominal 0.  Its noise part ``s / sqrt(n)``
   comes from the local sample standard deviation s, so the coverage factor is Student's t for
@@ -508,10 +509,22 @@ def _cylinder(c, S: _Scan, feats, k):
     from ..fitting import fit_cylinder
     from .size_features import radius_uncertainty
 
-    f = _face_feature(c, feats, S, "cylinder")
-    m = S.on([f.face])
+    if getattr(c, "faces", None) is not None:      # one cylinder split into several faces
+        from .face_groups import cylinder_groups
+
+        fl = face_indices(S.prep.model, c.faces).tolist()
+        if any(feats[i].kind != "cylinder" for i in fl) or \
+                len(cylinder_groups(feats, fl, float(S.prep.model.size))) != 1:
+            raise ValueError(f"{c.name}: the faces {c.faces} are not the faces of one "
+                             "cylinder (one axis, one radius)")
+        f = feats[fl[0]]
+    else:
+        f = _face_feature(c, feats, S, "cylinder")
+        fl = [f.face]
+    m = S.on(fl)
     if np.count_nonzero(m) < 20:
-        return _not_measured(c, f"only {int(m.sum())} scan points on {f.id}")
+        return _not_measured(c, f"only {int(m.sum())} scan points on "
+                                f"{f.id if len(fl) == 1 else fl}")
     P = S.X[m]
     cy = fit_cylinder(P, loss="tukey", axis=f.axis)
     a = cy.axis
@@ -524,7 +537,8 @@ def _cylinder(c, S: _Scan, feats, k):
     return CharacteristicResult(c.name, c.type, float(f.diameter), meas, dev, lo, hi, U,
                                 decide(dev, lo, hi, U),
                                 {"feature": f.id, "n": int(m.sum()), "axis": a.tolist(),
-                                 "rms": cy.rms, "excluded": S.excluded([f.face])})
+                                 "rms": cy.rms, "excluded": S.excluded(fl),
+                                 **({"faces": fl} if len(fl) > 1 else {})})
 
 
 def _check_point(c, S: _Scan, al, k):

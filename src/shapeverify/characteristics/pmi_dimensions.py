@@ -1,6 +1,8 @@
 """Plan entries of the PMI dimensions between two features (:mod:`.pmi_plan`): a
-``Location_LinearDistance`` between two parallel planar faces becomes a ``distance``, a
-``Location_Angular`` between two planar faces an ``angle`` (:mod:`.gdt_size`), each with the
+``Location_LinearDistance`` between two parallel planes becomes a ``distance``, a
+``Location_Angular`` between two planes an ``angle`` (:mod:`.gdt_size`) -- a side is a planar
+face or several faces of one plane (NIST FTC 10 DIM8: a face against four counterbore floors
+at one depth) --, each with the
 dimension's nominal and ± limits; a ``Size_Thickness`` on planar faces that lie in two
 parallel planes (NIST CTC 03: one face against four coplanar ones) a ``distance`` between the
 two planes.  Anything else stays unsupported, with the reason."""
@@ -16,13 +18,17 @@ def _mm(x: float) -> float:
 
 
 def _planes(item, ctx) -> tuple[list | None, str]:
-    """([face 1, face 2] model numbers, '') or (None, why): one planar face on each side."""
+    """([side 1, side 2], '') or (None, why): each side one plane -- a planar face, or planar
+    faces in one plane with one outward side (:func:`.face_groups.plane_groups`: a floor the
+    CAD splits, four counterbore floors at one depth) -- as lists of model face numbers."""
+    from .face_groups import plane_groups
+
     sides = []
     for key in ("faces", "faces2"):
         faces = [ctx.fmap.get(f) for f in item.get(key, [])]
         if any(f is None for f in faces):
             return None, "a face it names could not be imported (see the import's warnings)"
-        sides.append(faces)
+        sides.append(list(dict.fromkeys(faces)))
     if not sides[0] or not sides[1]:
         why = item.get("edge_reason" if not sides[0] else "edge_reason2")
         if why:
@@ -31,15 +37,21 @@ def _planes(item, ctx) -> tuple[list | None, str]:
         what = f"{item['other'][0]}s" if item.get("other") else "nothing"
         return None, (f"it is not between two faces (its {'first' if not sides[0] else 'second'} "
                       f"side is attached to {what})")
-    if len(sides[0]) != 1 or len(sides[1]) != 1:
-        return None, (f"a dimension between {len(sides[0])} and {len(sides[1])} faces (the plan's "
-                      "distances and angles are between two planar faces)")
-    f1, f2 = sides[0][0], sides[1][0]
-    kinds = [ctx.feats[f1].kind, ctx.feats[f2].kind]
-    if kinds != ["plane", "plane"]:
-        return None, (f"a dimension between a {kinds[0]} and a {kinds[1]} (the plan's distances "
-                      "and angles are between planar faces)")
-    return [f1, f2], ""
+    for k, side in enumerate(sides):
+        kinds = sorted({ctx.feats[f].kind for f in side})
+        if kinds != ["plane"]:
+            return None, (f"a dimension between a {ctx.feats[sides[0][0]].kind} and a "
+                          f"{ctx.feats[sides[1][0]].kind} (the plan's distances and angles are "
+                          "between planar faces)" if len(sides[0]) == len(sides[1]) == 1 else
+                          f"its {('first', 'second')[k]} side is {len(side)} faces "
+                          f"({', '.join(kinds)}); the plan's distances and angles are "
+                          "between planes")
+        n = len(plane_groups(ctx.feats, side, max(ctx.size, 1.0)))
+        if n != 1:
+            return None, (f"its {('first', 'second')[k]} side is {len(side)} planar faces in "
+                          f"{n} planes (the plan's distances and angles are between two "
+                          "planes)")
+    return sides, ""
 
 
 def between_entries(item, ctx, src: dict, name) -> tuple[list, str]:
@@ -50,12 +62,13 @@ def between_entries(item, ctx, src: dict, name) -> tuple[list, str]:
         return [], f"{t} without \u00b1 limits (a basic or reference dimension)"
     if item["modifiers"]:
         return [], f"dimension modifiers {', '.join(item['modifiers'])}"
-    faces, why = _planes(item, ctx)
-    if faces is None:
+    sides, why = _planes(item, ctx)
+    if sides is None:
         return [], why
-    a, b = ctx.feats[faces[0]], ctx.feats[faces[1]]
+    a, b = ctx.feats[sides[0][0]], ctx.feats[sides[1][0]]
     nom = float(item["nominal"])
-    entry = {"faces": [f"face:{f}" for f in faces], "lower": _mm(item["lower"]),
+    entry = {"faces": [f"face:{s[0]}" if len(s) == 1 else [f"face:{f}" for f in s]
+                       for s in sides], "lower": _mm(item["lower"]),
              "upper": _mm(item["upper"]), "nominal": _mm(nom), "pmi": src}
     if t == "Location_LinearDistance":
         if abs(abs(a.axis @ b.axis) - 1.0) > 1e-6:

@@ -18,13 +18,16 @@ ProfileOfSurface in the plan's DRF         ``surface_profile`` (``datum: true``)
 Position (cylindrical zone, no material    ``hole`` ``position: {tol}``, one per hole of the
 modifier) of holes, in the plan's DRF      tolerance (a pattern gives one entry per hole)
 Size_Diameter with ± limits                ``hole`` ``diameter`` (a hole) or ``cylinder``
-                                           ``diameter`` (a boss); a drawn nominal that
+                                           ``diameter`` (a boss: ``faces`` when the CAD
+                                           splits it); a drawn nominal that
                                            differs from the CAD's shifts the limits (the
                                            drawing's sizes, as deviations from the CAD)
 Location_LinearDistance with ± limits      ``distance`` (:mod:`.pmi_dimensions`)
-between two parallel planar faces
+between two parallel planes (each side a
+face or coplanar faces)
 Location_Angular with ± limits between     ``angle``
-two planar faces
+two planes (each side a face or coplanar
+faces)
 Position without ⌀ on a slot's / tab's two ``position_zone`` ``zone: planes``
 sides; with S⌀ on spheres                  (``zone: sphere``, one per sphere)
                                            (:mod:`.pmi_positions`)
@@ -46,6 +49,13 @@ Position (⌀) with a projected zone (Ⓟ,      ``position`` with ``projected`` 
 §7.4.1) of holes                            ``projected_direction`` (the ``hole:k``'s axis: its
                                             open end; the PMI gives no side)
 =========================================  ===============================================
+
+Features the CAD splits into several faces (:mod:`.face_groups`): coaxial cylinder faces of
+one radius are one cylinder (a boss's diameter, a datum axis, a position, a form tolerance
+measure all of them together), coplanar faces with one outward side one plane.  A form or
+orientation tolerance on several separate features (a "3X" cylindricity of three holes) gets
+``features``, one list of faces per feature, each evaluated individually
+(:mod:`.each_feature`).
 
 The two segments of a composite feature control frame (``composite`` of the PMI reader,
 :mod:`shapeverify.cad.step_composite`) keep ``composite: upper | lower`` on their entries; a
@@ -199,28 +209,17 @@ def _side(model, i: int, c, a) -> str:
 
 
 def _cylinders(feats, model, faces) -> tuple[list, list]:
-    """Coaxial groups of cylindrical faces: ([(faces, centre, axis, diameter, side)], the
-    faces that are not cylinders)."""
-    groups, other = [], []
-    size = float(model.size)
-    for i in faces:
-        f = feats[i]
-        if f.kind != "cylinder":
-            other.append(i)
-            continue
-        for g in groups:
-            q = f.center - g[1]
-            off = np.linalg.norm(q - (q @ g[2]) * g[2])
-            if (abs(f.diameter - g[3]) <= 1e-4 * g[3] + 1e-6
-                    and np.linalg.norm(np.cross(f.axis, g[2])) < 1e-4
-                    and off <= 1e-4 * g[3] + 1e-7 * size):
-                g[0].append(i)
-                break
-        else:
-            groups.append([[i], f.center, f.axis, float(f.diameter), None])
-    for g in groups:
-        g[4] = _side(model, g[0][0], g[1], g[2])
-    return groups, other
+    """Coaxial groups of cylindrical faces of one radius (:func:`.face_groups.cylinder_groups`):
+    ([(faces, centre, axis, diameter, side)], the faces that are not cylinders)."""
+    from .face_groups import cylinder_groups
+
+    cyl = [i for i in faces if feats[i].kind == "cylinder"]
+    groups = []
+    for g in cylinder_groups(feats, cyl, float(model.size)):
+        f = feats[g[0]]
+        groups.append([g, f.center, f.axis, float(f.diameter),
+                       _side(model, g[0], f.center, f.axis)])
+    return groups, [i for i in faces if feats[i].kind != "cylinder"]
 
 
 def _hole_of(feats, group, size: float):
@@ -319,11 +318,11 @@ def _datum_ref(d: dict, ctx) -> tuple[str | None, str]:
 
 
 def _planes_coplanar(ctx, faces) -> bool:
+    """The planar faces lie in one plane with one outward side (:mod:`.face_groups`)."""
+    from .face_groups import same_plane
+
     f0 = ctx.feats[faces[0]]
-    tol = 1e-6 * ctx.size + 1e-6
-    return all(abs(abs(ctx.feats[f].axis @ f0.axis) - 1) < 1e-6
-               and ctx.feats[f].axis @ f0.axis > 0
-               and abs((ctx.feats[f].center - f0.center) @ f0.axis) <= tol for f in faces)
+    return all(same_plane(ctx.feats[f], f0, ctx.size) for f in faces)
 
 
 def _datum_spec(d: dict, ctx) -> tuple[dict | None, str]:
@@ -629,10 +628,11 @@ def _form_or_runout(item, ctx, faces, src) -> tuple[list, str]:
         return [], f"a form tolerance ({t}) with datums {_drf_key(item)}"
     if not kinds <= allowed or len(kinds) != 1:
         return [], f"{t} of {sorted(kinds)} faces (the plan's {kind} takes {sorted(allowed)})"
-    if "cylinder" in kinds:
-        groups, _ = _cylinders(ctx.feats, ctx.model, faces)
-        if len(groups) != 1:
-            return [], f"{t} of {len(groups)} cylinders under one tolerance"
+    feats = _features(ctx, faces)
+    if len(feats) > 1:
+        # separate features under one frame (a "3X" cylindricity of three pins): each
+        # individually (:mod:`.each_feature`); one cylinder the CAD splits stays one feature
+        entry["features"] = feats
     if kind == "straightness":
         zone = "diameter" if item["value_type"] == "Diameter" else "lines"
         if (zone == "diameter") != (kinds == {"cylinder"}):
@@ -640,6 +640,15 @@ def _form_or_runout(item, ctx, faces, src) -> tuple[list, str]:
                         f"{'⌀' if zone == 'diameter' else 'two-line'} zone")
         entry["zone"] = zone
     return [entry], ""
+
+
+def _features(ctx, faces) -> list:
+    """The separate features (cylinders, planes: :func:`.face_groups.features_of`) of an
+    item's faces, as the plan's face lists."""
+    from .face_groups import features_of
+
+    groups, _ = features_of(ctx.feats, faces, ctx.size)
+    return [[f"face:{f}" for f in g] for _, g in groups]
 
 
 def _straightness_of_line(item, ctx, src) -> tuple[list, str]:
@@ -736,7 +745,8 @@ def _orientation(item, ctx, faces, src) -> tuple[list, str]:
                                 f"{', '.join(extra)} (not applied)")
                 entry["zone"] = "median_plane"
                 return [entry], ""
-            return [], f"{t.lower()} of {len(faces)} planar faces that are not one plane"
+            # several separate planes under one frame: each individually (:mod:`.each_feature`)
+            entry["features"] = _features(ctx, faces)
         if item["material"]:
             return [], f"material modifier {item['material']} on a plane"
         entry["zone"] = "planes"
@@ -745,8 +755,8 @@ def _orientation(item, ctx, faces, src) -> tuple[list, str]:
         return [entry], ""
     if kinds == {"cylinder"} and item["value_type"] == "Diameter":
         groups, _ = _cylinders(ctx.feats, ctx.model, faces)
-        if len(groups) != 1:
-            return [], f"{t.lower()} of {len(groups)} axes under one tolerance"
+        if len(groups) > 1:       # several axes under one frame: each individually
+            entry["features"] = [[f"face:{f}" for f in g[0]] for g in groups]
         if "Tangent_Plane" in item["modifiers"]:
             return [], "a tangent plane modifier on an axis"
         entry["zone"] = "diameter"
@@ -868,11 +878,11 @@ def _dimension(item, ctx) -> tuple[list, str]:
             out.append({"name": ctx.name(f"{item['id']}_diameter_{h.id.replace(':', '')}"),
                         "type": "hole", "feature": h.id, "diameter": tol, "pmi": src})
         else:
-            if len(g[0]) > 1:
-                return [], (f"a boss of {len(g[0])} faces; the plan's cylinder is one face")
+            # a boss the CAD splits into several faces (two half-cylinders) is one cylinder
+            where = ({"feature": f"face:{g[0][0]}"} if len(g[0]) == 1 else
+                     {"faces": [f"face:{f}" for f in g[0]]})
             out.append({"name": ctx.name(f"{item['id']}_diameter_face{g[0][0]}"),
-                        "type": "cylinder", "feature": f"face:{g[0][0]}", "diameter": tol,
-                        "pmi": src})
+                        "type": "cylinder", **where, "diameter": tol, "pmi": src})
     return out, ""
 
 
@@ -894,6 +904,22 @@ def _row(item, ctx, entries, reason) -> dict:
         row["name"] = item["name"]
         row["targets"] = [f"{t['type']} {t['number']}" for t in item["targets"]]
     return row
+
+
+def _unused_datum(name: str, ctx, unsupported: list) -> str:
+    """Why a datum the plan could fit (its ``datums`` entry, e.g. a plane of several faces,
+    a width's median plane) is not in the plan: only unchecked items reference it."""
+    spec = ctx.datum_specs.get(name)
+    if spec is None:
+        return ""
+    ids = [u["pmi"]["id"] for u in unsupported if name in
+           re.split(r"[|\-]", u["pmi"].get("datums", "") or "")]
+    if not ids:
+        return ""
+    what = spec.get("kind", "datum")
+    n = len(spec.get("faces") or [])
+    return (f"datum {name} ({what}" + (f" of {n} faces" if n > 1 else "") + ") is referenced "
+            f"only by PMI items the plan does not check ({', '.join(ids)})")
 
 
 def pmi_plan(path, *, model=None, pmi=None, timeout: float | None = 600.0) -> PmiPlan:
@@ -958,7 +984,8 @@ def pmi_plan(path, *, model=None, pmi=None, timeout: float | None = 600.0) -> Pm
         if name in used or name in table or name in common:
             rows.append(_row(d, ctx, [{"name": "alignment" if name in used else "datums"}], ""))
             continue
-        reason = (ctx.datum_why.get(name) if d["targets"] else None) or why.get(name) or (
+        reason = (ctx.datum_why.get(name) if d["targets"] else None) or \
+            _unused_datum(name, ctx, unsupported) or why.get(name) or (
             f"datum {name} is not in the plan's alignment (the plan aligns on one datum "
             f"reference frame: {'|'.join(drf) if drf else 'best fit'})")
         unsupported.append({"pmi": _src(d), "reason": reason})

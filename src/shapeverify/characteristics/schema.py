@@ -162,8 +162,20 @@ class Flatness(_Char):
 
 
 class Cylinder(_Located):
+    """Diameter of a cylinder (a boss, a bore's wall): one face (``feature`` or ``near``),
+    or the coaxial faces of one radius that the CAD splits it into (``faces``: two
+    half-cylinders, a face cut at a seam), fitted as one cylinder."""
+
     type: Literal["cylinder"]
     diameter: Tol
+    faces: Optional[Annotated[list[Union[FeatureId, int, str]], Field(min_length=1)]] = None
+
+    @model_validator(mode="after")
+    def _where(self):
+        if sum(x is not None for x in (self.feature, self.near, self.faces)) != 1:
+            raise ValueError("give exactly one of feature (e.g. 'face:3'), near: [x, y, z] or "
+                             "faces: [...] (the faces of one cylinder)")
+        return self
 
 
 class CheckPoint(_Char, Tol):
@@ -291,7 +303,25 @@ class _Gdt(_Char):
     tol: float = Field(gt=0)
 
 
-class _Form(_Gdt):
+class _Each(_Gdt):
+    """A tolerance that may apply to several separate features (a "3X" frame on three pins):
+    ``features`` splits ``faces`` into the features (each a list of faces: one cylinder, one
+    plane), and each is evaluated on its own (ASME Y14.5: a frame that applies to several
+    features applies to each individually; :mod:`.each_feature`).  Without it, ``faces`` is
+    one feature."""
+
+    features: Optional[Annotated[list[FaceList], Field(min_length=2)]] = None
+
+    @model_validator(mode="after")
+    def _split(self):
+        if self.features is not None and sorted(
+                str(f) for g in self.features for f in g) != sorted(str(f) for f in self.faces):
+            raise ValueError(f"features {self.features} must split faces {self.faces} (each "
+                             "face in exactly one feature)")
+        return self
+
+
+class _Form(_Each):
     pass
 
 
@@ -326,7 +356,7 @@ class Cylindricity(_Form):
     type: Literal["cylindricity"]
 
 
-class _Oriented(_Gdt):
+class _Oriented(_Each):
     """Orientation/location of ``faces`` relative to the datum reference frame ``datums``.
     ``zone``: ``planes`` (two parallel planes: a plane, or an axis in one direction) or
     ``diameter`` (a cylinder about the axis of a hole or boss) or ``median_plane`` (two
@@ -540,7 +570,10 @@ class Distance(_TwoPlanes):
 class Angle(_TwoPlanes):
     """The angle (degrees) between two planar faces' least-squares planes; ``nominal``
     (degrees, default the CAD's angle between the outward normals) may be that angle or its
-    supplement (the drawing's side)."""
+    supplement (the drawing's side).  A side is a face or a list of coplanar faces (as for
+    ``distance``)."""
 
     type: Literal["angle"]
+    faces: Annotated[list[Union[FeatureId, int, str, list[Union[FeatureId, int, str]]]],
+                     Field(min_length=2, max_length=2)]
     nominal: Optional[float] = Field(default=None, gt=0, lt=180)
