@@ -38,6 +38,8 @@ a width's two opposite planar sides         (its derived median plane, :mod:`.me
 Straightness of a straight line drawn on a  ``straightness`` with ``through``, ``direction``,
 face                                        ``length``: that line element of the face
 Concentricity (⌀) of a cylinder to an axis  ``concentricity`` (:mod:`.concentricity`)
+Symmetry of a width's two opposite sides     ``symmetry`` (:mod:`.symmetry`; the DRF holds
+to a datum centre plane                      the centre plane the CAD centres it on)
 Position (⌀) with datums at MMB / LMB       ``position`` with ``datum_modifiers`` (the best
                                             pose within the datum shift, :mod:`.datum_shift`)
 Position (⌀) with a material modifier and   ``position`` with ``material``, ``size``,
@@ -591,8 +593,9 @@ def _tolerance_entries(item, ctx, drf, why) -> tuple[list, str]:
     if t == "Concentricity":
         return _concentricity(item, ctx, faces, src)
     if t == "Symmetry":
-        return [], (f"{t} (ASME Y14.5-2009: the median points of opposed elements) is not "
-                    "measured; a symmetry drawn as a position tolerance is")
+        from .pmi_symmetry import symmetry_entries
+
+        return symmetry_entries(item, ctx, faces, src)
     return [], f"no plan characteristic for {t} yet (issue 28 item 3)"
 
 

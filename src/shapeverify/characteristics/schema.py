@@ -16,7 +16,7 @@ __all__ = ["Tol", "PmiSource", "Unsupported", "Vec3", "FeatureId", "FeatureRef",
            "Circularity", "Cylindricity", "Parallelism", "Perpendicularity", "Angularity",
            "Position", "CircularRunout", "TotalRunout", "Concentricity", "Width", "SizeLimits", "Distance",
            "Angle", "LineProfile", "PositionZone",
-           "FeatureSize"]
+           "FeatureSize", "Symmetry"]
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 FeatureId = Annotated[str, Field(pattern=r"^(hole|face|cylinder|plane):\d+$")]
@@ -501,6 +501,16 @@ class Concentricity(_Runout):
 
     type: Literal["concentricity"]
     zone: Literal["diameter"] = "diameter"
+
+
+class Symmetry(_Gdt):
+    """Symmetry (ASME Y14.5-2009 7.7.2): the median points of opposed elements of the width
+    whose two opposite planar sides are ``faces`` in two parallel planes ``tol`` apart centred
+    on the datum centre plane (the CAD's centre plane in the DRF ``datums``;
+    :mod:`.symmetry`)."""
+
+    type: Literal["symmetry"]
+    datums: DrfRef
 
 
 class _TwoPlanes(_Char):
