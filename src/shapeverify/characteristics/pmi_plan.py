@@ -47,6 +47,8 @@ a maximum ("MAX", ASME Y14.5-2009 §7.3.4)   ``max_tol`` (:mod:`shapeverify.cad.
 Position (⌀) with a projected zone (Ⓟ,      ``position`` with ``projected`` (the length) and
 §7.4.1) of holes                            ``projected_direction`` (the ``hole:k``'s axis: its
                                             open end; the PMI gives no side)
+Orientation (⌀) with a projected zone of a  the orientation type, ``zone: diameter``, with
+hole's axis                                 ``projected``, ``projected_direction`` (as above)
 =========================================  ===============================================
 
 The two segments of a composite feature control frame (``composite`` of the PMI reader,
@@ -715,8 +717,11 @@ def _size_of(item, ctx, faces) -> tuple[dict | None, str]:
 
 def _orientation(item, ctx, faces, src) -> tuple[list, str]:
     t = item["type"]
-    if item["zone_modifier"] != "None":
+    projected = item["zone_modifier"] == "Projected" and item["value_type"] == "Diameter"
+    if item["zone_modifier"] != "None" and not projected:
         return [], f"a {item['zone_modifier']} zone modifier"
+    if projected and not item["zone_modifier_value"] > 0:
+        return [], "a Projected zone modifier without its length"
     names, r = _item_drf(item, ctx)
     if names is None:
         return [], r or "no datum reference frame"
@@ -724,7 +729,7 @@ def _orientation(item, ctx, faces, src) -> tuple[list, str]:
     entry = {"name": ctx.name(f"{item['id']}_{t.lower()}"), "type": t.lower(),
              "faces": [f"face:{f}" for f in faces], "tol": item["value"], "datums": names,
              "pmi": src}
-    if kinds == {"plane"} and item["value_type"] == "None":
+    if kinds == {"plane"} and item["value_type"] == "None" and not projected:
         if not _planes_coplanar(ctx, faces):
             f0 = ctx.feats[faces[0]]
             one = [f for f in faces if ctx.feats[f].axis @ f0.axis > 0]
@@ -753,6 +758,10 @@ def _orientation(item, ctx, faces, src) -> tuple[list, str]:
         if "Tangent_Plane" in item["modifiers"]:
             return [], "a tangent plane modifier on an axis"
         entry["zone"] = "diameter"
+        if projected:          # the axis extended out of the hole's mouth (§7.4.1)
+            r = _projected(item, ctx, groups, entry, src)
+            if r:
+                return [], r
         if item["material"]:
             size, r = _size_of(item, ctx, faces)
             if size is None:
@@ -762,6 +771,28 @@ def _orientation(item, ctx, faces, src) -> tuple[list, str]:
     zone = "\u2300 (an axis)" if item["value_type"] == "Diameter" else "two parallel planes"
     return [], (f"{t.lower()} of {', '.join(sorted(kinds))} faces with a {zone} zone (planes "
                 "with a planes zone, cylinders with a \u2300 zone are supported)")
+
+
+def _projected(item, ctx, groups, entry, src) -> str:
+    """Put a Projected zone's ``projected`` (length) and ``projected_direction`` into
+    ``entry`` (and the frame's Ⓟ length into ``src``); '' or why it cannot be planned."""
+    # the side of the projection: the mating part's, the hole's entry face (where the
+    # frame's arrow points); the PMI does not give it: the hole's open end
+    dirs = []
+    for g in groups:
+        h = _hole_of(ctx.feats, g, ctx.size) if g[4] == _HOLE_SIDE else None
+        if h is None:
+            return (f"a Projected zone modifier on face:{g[0][0]}, not a hole's wall "
+                    "with a mouth of `info --features` (the side the zone goes)")
+        dirs.append(np.asarray(h.axis, float))
+    if any(float(d @ dirs[0]) < 1.0 - 1e-9 for d in dirs):
+        return ("a Projected zone modifier on holes that open on different sides "
+                "(one projected_direction per entry)")
+    entry["projected"] = _mm(item["zone_modifier_value"])
+    entry["projected_direction"] = [_mm(x) for x in dirs[0]]
+    src["zone_modifier_value"] = _mm(item["zone_modifier_value"])   # the frame's Ⓟ length
+    src["projected_side"] = "the holes' open end (the PMI gives no side)"
+    return ""
 
 
 def _position(item, ctx, faces, src) -> tuple[list, str]:
@@ -790,22 +821,9 @@ def _position(item, ctx, faces, src) -> tuple[list, str]:
     if dm:
         entry["datum_modifiers"] = dm
     if item["zone_modifier"] == "Projected":
-        # the side of the projection: the mating part's, the hole's entry face (where the
-        # frame's arrow points); the PMI does not give it: the hole's open end
-        dirs = []
-        for g in groups:
-            h = _hole_of(ctx.feats, g, ctx.size) if g[4] == _HOLE_SIDE else None
-            if h is None:
-                return [], (f"a Projected zone modifier on face:{g[0][0]}, not a hole's wall "
-                            "with a mouth of `info --features` (the side the zone goes)")
-            dirs.append(np.asarray(h.axis, float))
-        if any(float(d @ dirs[0]) < 1.0 - 1e-9 for d in dirs):
-            return [], ("a Projected zone modifier on holes that open on different sides "
-                        "(one projected_direction per entry)")
-        entry["projected"] = _mm(item["zone_modifier_value"])
-        entry["projected_direction"] = [_mm(x) for x in dirs[0]]
-        src["zone_modifier_value"] = _mm(item["zone_modifier_value"])   # the frame's Ⓟ length
-        src["projected_side"] = "the holes' open end (the PMI gives no side)"
+        r = _projected(item, ctx, groups, entry, src)
+        if r:
+            return [], r
     if item["material"]:
         size, r = _size_of(item, ctx, faces)
         if size is None:

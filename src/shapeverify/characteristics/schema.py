@@ -345,12 +345,21 @@ class _Oriented(_Gdt):
     #: (feature-relating: its datums orient the zone framework only; the framework translates
     #: and turns about the free datum axes to its best place: :mod:`.composite`)
     composite: Optional[Literal["upper", "lower"]] = None
+    #: a projected zone (Ⓟ, ASME Y14.5-2009 §7.4.1) of this length (mm) of an axis (zone:
+    #: diameter): the zone holds the axis extended out of the hole's mouth (:mod:`.gdt`)
+    projected: Optional[float] = Field(default=None, gt=0)
+    #: the direction out of the hole's mouth (model frame); default: the ``hole:k``'s axis
+    projected_direction: Optional[Vec3] = None
 
     @model_validator(mode="after")
     def _bonus(self):
         if self.material is not None and (self.size is None or self.zone != "diameter"):
             raise ValueError(f"material {self.material} applies to an axis (zone: diameter) "
                              "and needs size: {lower, upper}")
+        if self.projected is not None and self.zone != "diameter":
+            raise ValueError("projected applies to an axis (zone: diameter)")
+        if self.projected_direction is not None and self.projected is None:
+            raise ValueError("projected_direction without projected (the zone's length)")
         return self
 
 
