@@ -521,6 +521,13 @@ def _tolerance_entries(item, ctx, drf, why) -> tuple[list, str]:
         return [], reason
     src = _src(item)
     reason = _modifier_reason(item)
+    if reason and "All_Around" in item["modifiers"]:
+        kinds = Counter(ctx.feats[f].kind for f in faces)
+        reason += (f": All_Around ties it to {len(faces)} faces around a feature ("
+                   + ", ".join(f"{n} {k}" for k, n in sorted(kinds.items())) + ")"
+                   + ("; the plan's orientation zone of a cylindrical face's surface is not "
+                      "defined (planes and axes only)" if set(kinds) - {"plane"} else
+                      "; each face's zone separately is not planned"))
     if reason:
         return [], reason
     if t == "Flatness":
@@ -773,6 +780,30 @@ def _orientation(item, ctx, faces, src) -> tuple[list, str]:
                 "with a planes zone, cylinders with a \u2300 zone are supported)")
 
 
+def _counterbores(ctx, groups, other) -> str:
+    """': counterbored holes ...' when the cylinders pair up coaxially (two diameters per
+    axis) and the other faces are planes square to them (the counterbores' floors), else ''."""
+    if not groups or {ctx.feats[f].kind for f in other} != {"plane"}:
+        return ""
+    axes: list = []
+    for g in groups:
+        for a in axes:
+            q = g[1] - a[0][1]
+            if np.linalg.norm(np.cross(g[2], a[0][2])) < 1e-6 and \
+                    np.linalg.norm(q - (q @ g[2]) * g[2]) <= 1e-6 * ctx.size:
+                a.append(g)
+                break
+        else:
+            axes.append([g])
+    if any(len(a) != 2 or a[0][3] == a[1][3] for a in axes) or len(other) != len(axes):
+        return ""
+    d = sorted({round(g[3], 4) for g in groups})
+    return (f": {len(axes)} counterbored holes (a \u2300{d[0]:g} hole and a \u2300{d[-1]:g} "
+            "counterbore on each axis, with the counterbore's planar floor); the position of "
+            "a counterbored hole (hole and counterbore coaxial in one zone, each with its own "
+            "size for a material modifier's bonus) is not planned")
+
+
 def _projected(item, ctx, groups, entry, src) -> str:
     """Put a Projected zone's ``projected`` (length) and ``projected_direction`` into
     ``entry`` (and the frame's Ⓟ length into ``src``); '' or why it cannot be planned."""
@@ -812,7 +843,8 @@ def _position(item, ctx, faces, src) -> tuple[list, str]:
         dm = dict(ctx.last_modifiers)
     groups, other = _cylinders(ctx.feats, ctx.model, faces)
     if other or not groups:
-        return [], "it controls faces that are not cylinders (position is of axes)"
+        return [], ("it controls faces that are not cylinders (position is of axes)"
+                    + _counterbores(ctx, groups, other))
     entry = {"name": ctx.name(f"{item['id']}_position"), "type": "position",
              "features": [[f"face:{f}" for f in g[0]] for g in groups], "tol": item["value"],
              "pmi": src}
