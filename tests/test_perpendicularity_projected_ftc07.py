@@ -18,8 +18,6 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-pytestmark = pytest.mark.slow
-
 GZ = Path(__file__).parent / "data" / "nist_extra" / "nist_ftc_07_asme1_ap242-e2.stp.gz"
 HOLE = (191, 192)
 #: datum A (142, 7), the hole B, the hole C (187, 188) for the best fit
@@ -73,6 +71,7 @@ def _tilted(d, deg):
     return P
 
 
+@pytest.mark.slow
 def test_ftc07_gt4_is_a_projected_perpendicularity_of_the_hole_axis(ftc07):
     (c,) = ftc07["data"]["characteristics"]
     assert c["type"] == "perpendicularity" and c["zone"] == "diameter"
@@ -80,6 +79,7 @@ def test_ftc07_gt4_is_a_projected_perpendicularity_of_the_hole_axis(ftc07):
     assert sorted(c["faces"]) == ["face:191", "face:192"]
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("deg, verdict", [(0.0, "pass"), (1.5, "pass"), (2.5, "fail")])
 def test_tilted_hole_reads_its_tilt_over_the_projected_length(ftc07, deg, verdict):
     c = _run(ftc07, _tilted(ftc07, deg))
@@ -88,7 +88,24 @@ def test_tilted_hole_reads_its_tilt_over_the_projected_length(ftc07, deg, verdic
     assert c.verdict == verdict, c
 
 
+@pytest.mark.slow
 def test_perfect_ftc07_hole_with_noise_passes_its_projected_perpendicularity(ftc07):
     P = ftc07["P"] + ftc07["rng"].normal(0.0, 0.02, len(ftc07["P"]))[:, None] * ftc07["N"]
     c = _run(ftc07, P)
     assert c.verdict == "pass" and c.measured < 0.2, c
+
+
+def test_projected_orientation_is_of_an_axis_and_its_direction_needs_its_length():
+    """The plan's orientation took no projected zone; now it does, of axes only."""
+    from shapeverify.characteristics.plan import load_plan
+
+    base = {"name": "P", "type": "perpendicularity", "faces": ["face:1"], "tol": 0.381,
+            "datums": ["A"]}
+    plan = {"datums": {"A": {"faces": ["face:0"]}}}
+    ok = load_plan({**plan, "characteristics": [{**base, "zone": "diameter",
+                                                 "projected": 10.795}]})
+    assert ok.characteristics[0].projected == 10.795
+    for bad, word in (({"zone": "planes", "projected": 5.0}, "axis"),
+                      ({"zone": "diameter", "projected_direction": [0, 1, 0]}, "without")):
+        with pytest.raises(Exception, match=word):
+            load_plan({**plan, "characteristics": [{**base, **bad}]})
