@@ -55,10 +55,9 @@ STILL_UNSUPPORTED = {
     "nist_ctc_05": {},
     "nist_ftc_11": {},
     "nist_ctc_04": {},
-    # GT4: a projected perpendicularity (positions with Ⓟ are planned)
-    "nist_ftc_07": {"GT4": "Projected", "GT10": "Statistical", "GT15": "not cylinders",
-                    "GT16": "not cylinders"},
-    "nist_ftc_10": {"GT9": "Symmetry", "GT11": "All_Around", "GT23": "MMB"},
+    "nist_ftc_07": {"GT10": "Statistical", "GT15": "counterbored holes",
+                    "GT16": "counterbored holes"},
+    "nist_ftc_10": {"GT11": "All_Around", "GT23": "MMB"},
 }
 
 

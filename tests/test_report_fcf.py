@@ -60,6 +60,8 @@ ROWS = {
                       "datums": ["A", "B"]}, "⌰|0.08|A|B"),
     "concentricity": ({"type": "concentricity", "faces": ["face:2"], "tol": 0.762,
                        "datums": ["A"]}, "◎|Ø0.762|A"),
+    "symmetry": ({"type": "symmetry", "faces": ["face:5", "face:6"], "tol": 0.5,
+                  "datums": ["A", "B"]}, "⌯|0.5|A|B"),
     "width": ({"type": "width", "faces": ["face:5", "face:6"], "lower": -0.1, "upper": 0.2},
               "25.000 +0.2/−0.1"),
     "distance": ({"type": "distance", "faces": ["face:5", "face:6"], "nominal": 25.0,

@@ -24,7 +24,8 @@ characteristic's DRF (:meth:`.drf.DRF.apply`) when it names datums.
   boss): the axis of the mating cylinder (largest inscribed for a hole, smallest
   circumscribed for a boss) between the ends of the feature; value = the
   diameter of the smallest cylinder in the CAD axis's direction holding those ends (the
-  distance of the ends across that direction).
+  distance of the ends across that direction).  ``projected: L`` (Ⓟ): the ends are those of
+  the fitted axis at the mouth and ``L`` beyond (as for position, below).
 * **position** (``zone: diameter``): each feature's axis is the axis of its mating cylinder
   (ASME Y14.5: the unrelated actual mating envelope); value = twice the largest distance of its
   ends from the true position (the CAD axis in the DRF).  ``material: M``: bonus = the mating
@@ -461,18 +462,29 @@ def eval_orientation(c, ctx: EvalContext):
             # least-squares cylinder's axis is defined by all the points
             rim = np.concatenate([_edge_tree(ctx, int(i))[0].data for i in fidx])
             ends, a, how = _lsq_axis_ends(X, f, rim)
+        ext = float(np.linalg.norm(ends[1] - ends[0]))
+        u_axis, reach, proj = 2.0 * zq * ctx.S.noise, ext, None
+        if getattr(c, "projected", None) is not None:
+            # Ⓟ: the fitted axis between the mouth and projected mm beyond; its tilt (what the
+            # ends across the axis measure) is known to u_axis / ext, read over the length
+            try:
+                ends, how, mouth = _projected_ends(c, ctx, fidx, f, X, ends, a, how)
+            except ValueError as exc:
+                return _not_measured(c, f"faces {fidx}: {exc}")
+            u_axis *= float(c.projected) / max(ext, 1e-9)
+            reach = float(c.projected)
+            proj = {"length": float(c.projected), "mouth": mouth}
         B = tangent_basis(f.axis)
         e2 = (ends[1] - ends[0]) @ B.T
         value = float(np.linalg.norm(e2))
-        ext = float(np.linalg.norm(ends[1] - ends[0]))
-        U = float(np.hypot(2.0 * zq * ctx.S.noise, 2.0 * _datum_part(drf, ctx, ext, zq)))
+        U = float(np.hypot(u_axis, 2.0 * _datum_part(drf, ctx, reach, zq)))
         least = _least_material(X, f, hole) if c.material == "L" else float("nan")
         bonus, note = _bonus(c, hole, mating, least, f.diameter)
         return _result(c, ctx, value, U, {"faces": fidx, "n": int(X.shape[0]),
                                           "axis": a.tolist(), "ends": ends.tolist(),
                                           "hole": hole, "mating_diameter": mating,
                                           "axis_fit": how, "bonus": bonus, "note": note,
-                                          "noise": ctx.S.noise,
+                                          "noise": ctx.S.noise, "projected": proj,
                                           "excluded": ctx.S.excluded(fidx)}, drf,
                        0.0, float(c.tol) + bonus)
     raise ValueError(f"{c.name}: {c.type} of faces {fidx} ({sorted(kinds)}) with a {c.zone} "

@@ -41,6 +41,8 @@ a width's two opposite planar sides         (its derived median plane, :mod:`.me
 Straightness of a straight line drawn on a  ``straightness`` with ``through``, ``direction``,
 face                                        ``length``: that line element of the face
 Concentricity (⌀) of a cylinder to an axis  ``concentricity`` (:mod:`.concentricity`)
+Symmetry of a width's two opposite sides     ``symmetry`` (:mod:`.symmetry`; the DRF holds
+to a datum centre plane                      the centre plane the CAD centres it on)
 Position (⌀) with datums at MMB / LMB       ``position`` with ``datum_modifiers`` (the best
                                             pose within the datum shift, :mod:`.datum_shift`)
 Position (⌀) with a material modifier and   ``position`` with ``material``, ``size``,
@@ -48,6 +50,8 @@ a maximum ("MAX", ASME Y14.5-2009 §7.3.4)   ``max_tol`` (:mod:`shapeverify.cad.
 Position (⌀) with a projected zone (Ⓟ,      ``position`` with ``projected`` (the length) and
 §7.4.1) of holes                            ``projected_direction`` (the ``hole:k``'s axis: its
                                             open end; the PMI gives no side)
+Orientation (⌀) with a projected zone of a  the orientation type, ``zone: diameter``, with
+hole's axis                                 ``projected``, ``projected_direction`` (as above)
 =========================================  ===============================================
 
 Features the CAD splits into several faces (:mod:`.face_groups`): coaxial cylinder faces of
@@ -516,6 +520,13 @@ def _tolerance_entries(item, ctx, drf, why) -> tuple[list, str]:
         return [], reason
     src = _src(item)
     reason = _modifier_reason(item)
+    if reason and "All_Around" in item["modifiers"]:
+        kinds = Counter(ctx.feats[f].kind for f in faces)
+        reason += (f": All_Around ties it to {len(faces)} faces around a feature ("
+                   + ", ".join(f"{n} {k}" for k, n in sorted(kinds.items())) + ")"
+                   + ("; the plan's orientation zone of a cylindrical face's surface is not "
+                      "defined (planes and axes only)" if set(kinds) - {"plane"} else
+                      "; each face's zone separately is not planned"))
     if reason:
         return [], reason
     if t == "Flatness":
@@ -590,8 +601,9 @@ def _tolerance_entries(item, ctx, drf, why) -> tuple[list, str]:
     if t == "Concentricity":
         return _concentricity(item, ctx, faces, src)
     if t == "Symmetry":
-        return [], (f"{t} (ASME Y14.5-2009: the median points of opposed elements) is not "
-                    "measured; a symmetry drawn as a position tolerance is")
+        from .pmi_symmetry import symmetry_entries
+
+        return symmetry_entries(item, ctx, faces, src)
     return [], f"no plan characteristic for {t} yet (issue 28 item 3)"
 
 
@@ -721,8 +733,11 @@ def _size_of(item, ctx, faces) -> tuple[dict | None, str]:
 
 def _orientation(item, ctx, faces, src) -> tuple[list, str]:
     t = item["type"]
-    if item["zone_modifier"] != "None":
+    projected = item["zone_modifier"] == "Projected" and item["value_type"] == "Diameter"
+    if item["zone_modifier"] != "None" and not projected:
         return [], f"a {item['zone_modifier']} zone modifier"
+    if projected and not item["zone_modifier_value"] > 0:
+        return [], "a Projected zone modifier without its length"
     names, r = _item_drf(item, ctx)
     if names is None:
         return [], r or "no datum reference frame"
@@ -730,7 +745,7 @@ def _orientation(item, ctx, faces, src) -> tuple[list, str]:
     entry = {"name": ctx.name(f"{item['id']}_{t.lower()}"), "type": t.lower(),
              "faces": [f"face:{f}" for f in faces], "tol": item["value"], "datums": names,
              "pmi": src}
-    if kinds == {"plane"} and item["value_type"] == "None":
+    if kinds == {"plane"} and item["value_type"] == "None" and not projected:
         if not _planes_coplanar(ctx, faces):
             f0 = ctx.feats[faces[0]]
             one = [f for f in faces if ctx.feats[f].axis @ f0.axis > 0]
@@ -760,6 +775,10 @@ def _orientation(item, ctx, faces, src) -> tuple[list, str]:
         if "Tangent_Plane" in item["modifiers"]:
             return [], "a tangent plane modifier on an axis"
         entry["zone"] = "diameter"
+        if projected:          # the axis extended out of the hole's mouth (§7.4.1)
+            r = _projected(item, ctx, groups, entry, src)
+            if r:
+                return [], r
         if item["material"]:
             size, r = _size_of(item, ctx, faces)
             if size is None:
@@ -769,6 +788,52 @@ def _orientation(item, ctx, faces, src) -> tuple[list, str]:
     zone = "\u2300 (an axis)" if item["value_type"] == "Diameter" else "two parallel planes"
     return [], (f"{t.lower()} of {', '.join(sorted(kinds))} faces with a {zone} zone (planes "
                 "with a planes zone, cylinders with a \u2300 zone are supported)")
+
+
+def _counterbores(ctx, groups, other) -> str:
+    """': counterbored holes ...' when the cylinders pair up coaxially (two diameters per
+    axis) and the other faces are planes square to them (the counterbores' floors), else ''."""
+    if not groups or {ctx.feats[f].kind for f in other} != {"plane"}:
+        return ""
+    axes: list = []
+    for g in groups:
+        for a in axes:
+            q = g[1] - a[0][1]
+            if np.linalg.norm(np.cross(g[2], a[0][2])) < 1e-6 and \
+                    np.linalg.norm(q - (q @ g[2]) * g[2]) <= 1e-6 * ctx.size:
+                a.append(g)
+                break
+        else:
+            axes.append([g])
+    if any(len(a) != 2 or a[0][3] == a[1][3] for a in axes) or len(other) != len(axes):
+        return ""
+    d = sorted({round(g[3], 4) for g in groups})
+    return (f": {len(axes)} counterbored holes (a \u2300{d[0]:g} hole and a \u2300{d[-1]:g} "
+            "counterbore on each axis, with the counterbore's planar floor); the position of "
+            "a counterbored hole (hole and counterbore coaxial in one zone, each with its own "
+            "size for a material modifier's bonus) is not planned")
+
+
+def _projected(item, ctx, groups, entry, src) -> str:
+    """Put a Projected zone's ``projected`` (length) and ``projected_direction`` into
+    ``entry`` (and the frame's Ⓟ length into ``src``); '' or why it cannot be planned."""
+    # the side of the projection: the mating part's, the hole's entry face (where the
+    # frame's arrow points); the PMI does not give it: the hole's open end
+    dirs = []
+    for g in groups:
+        h = _hole_of(ctx.feats, g, ctx.size) if g[4] == _HOLE_SIDE else None
+        if h is None:
+            return (f"a Projected zone modifier on face:{g[0][0]}, not a hole's wall "
+                    "with a mouth of `info --features` (the side the zone goes)")
+        dirs.append(np.asarray(h.axis, float))
+    if any(float(d @ dirs[0]) < 1.0 - 1e-9 for d in dirs):
+        return ("a Projected zone modifier on holes that open on different sides "
+                "(one projected_direction per entry)")
+    entry["projected"] = _mm(item["zone_modifier_value"])
+    entry["projected_direction"] = [_mm(x) for x in dirs[0]]
+    src["zone_modifier_value"] = _mm(item["zone_modifier_value"])   # the frame's Ⓟ length
+    src["projected_side"] = "the holes' open end (the PMI gives no side)"
+    return ""
 
 
 def _position(item, ctx, faces, src) -> tuple[list, str]:
@@ -788,7 +853,8 @@ def _position(item, ctx, faces, src) -> tuple[list, str]:
         dm = dict(ctx.last_modifiers)
     groups, other = _cylinders(ctx.feats, ctx.model, faces)
     if other or not groups:
-        return [], "it controls faces that are not cylinders (position is of axes)"
+        return [], ("it controls faces that are not cylinders (position is of axes)"
+                    + _counterbores(ctx, groups, other))
     entry = {"name": ctx.name(f"{item['id']}_position"), "type": "position",
              "features": [[f"face:{f}" for f in g[0]] for g in groups], "tol": item["value"],
              "pmi": src}
@@ -797,22 +863,9 @@ def _position(item, ctx, faces, src) -> tuple[list, str]:
     if dm:
         entry["datum_modifiers"] = dm
     if item["zone_modifier"] == "Projected":
-        # the side of the projection: the mating part's, the hole's entry face (where the
-        # frame's arrow points); the PMI does not give it: the hole's open end
-        dirs = []
-        for g in groups:
-            h = _hole_of(ctx.feats, g, ctx.size) if g[4] == _HOLE_SIDE else None
-            if h is None:
-                return [], (f"a Projected zone modifier on face:{g[0][0]}, not a hole's wall "
-                            "with a mouth of `info --features` (the side the zone goes)")
-            dirs.append(np.asarray(h.axis, float))
-        if any(float(d @ dirs[0]) < 1.0 - 1e-9 for d in dirs):
-            return [], ("a Projected zone modifier on holes that open on different sides "
-                        "(one projected_direction per entry)")
-        entry["projected"] = _mm(item["zone_modifier_value"])
-        entry["projected_direction"] = [_mm(x) for x in dirs[0]]
-        src["zone_modifier_value"] = _mm(item["zone_modifier_value"])   # the frame's Ⓟ length
-        src["projected_side"] = "the holes' open end (the PMI gives no side)"
+        r = _projected(item, ctx, groups, entry, src)
+        if r:
+            return [], r
     if item["material"]:
         size, r = _size_of(item, ctx, faces)
         if size is None:

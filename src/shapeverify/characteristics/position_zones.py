@@ -67,8 +67,9 @@ def width_sides(feats, faces) -> tuple[list, list, np.ndarray, float, float, boo
     tol = 1e-6 * max(1.0, max(map(abs, s1 + s2)))
     if np.ptp(s1) > tol or np.ptp(s2) > tol:
         raise ValueError(f"the sides of faces {faces} are not two planes (each side coplanar)")
-    # u from side A to side B
-    A, B, u = (one, two, n0) if s2[0] > s1[0] else (two, one, -n0)
+    # u = n0, from side A (lower along u) to side B (a tab's sides, whose outward normals
+    # part, gave u = -n0 here: a negative width and 'slot')
+    A, B, u = (one, two, n0) if s2[0] > s1[0] else (two, one, n0)
     a, b = float(np.asarray(feats[A[0]].center) @ u), float(np.asarray(feats[B[0]].center) @ u)
     slot = bool(np.asarray(feats[A[0]].axis, float) @ u > 0)   # A's outward normal faces B
     return A, B, u, 0.5 * (a + b), b - a, slot

@@ -84,6 +84,8 @@ TYPES: tuple[CharacteristicType, ...] = (
                        "total runout", "⌰"),
     CharacteristicType("concentricity", schema.Concentricity,
                        "concentricity:eval_concentricity", True, "concentricity", "◎"),
+    CharacteristicType("symmetry", schema.Symmetry, "symmetry:eval_symmetry", True,
+                       "symmetry", "⌯"),
     CharacteristicType("width", schema.Width, "gdt:eval_width", False, "size (width)"),
     CharacteristicType("distance", schema.Distance, "gdt_size:eval_distance", False,
                        "distance (planes)"),

@@ -16,7 +16,7 @@ __all__ = ["Tol", "PmiSource", "Unsupported", "Vec3", "FeatureId", "FeatureRef",
            "Circularity", "Cylindricity", "Parallelism", "Perpendicularity", "Angularity",
            "Position", "CircularRunout", "TotalRunout", "Concentricity", "Width", "SizeLimits", "Distance",
            "Angle", "LineProfile", "PositionZone",
-           "FeatureSize"]
+           "FeatureSize", "Symmetry"]
 
 Vec3 = Annotated[list[float], Field(min_length=3, max_length=3)]
 FeatureId = Annotated[str, Field(pattern=r"^(hole|face|cylinder|plane):\d+$")]
@@ -375,12 +375,21 @@ class _Oriented(_Each):
     #: (feature-relating: its datums orient the zone framework only; the framework translates
     #: and turns about the free datum axes to its best place: :mod:`.composite`)
     composite: Optional[Literal["upper", "lower"]] = None
+    #: a projected zone (Ⓟ, ASME Y14.5-2009 §7.4.1) of this length (mm) of an axis (zone:
+    #: diameter): the zone holds the axis extended out of the hole's mouth (:mod:`.gdt`)
+    projected: Optional[float] = Field(default=None, gt=0)
+    #: the direction out of the hole's mouth (model frame); default: the ``hole:k``'s axis
+    projected_direction: Optional[Vec3] = None
 
     @model_validator(mode="after")
     def _bonus(self):
         if self.material is not None and (self.size is None or self.zone != "diameter"):
             raise ValueError(f"material {self.material} applies to an axis (zone: diameter) "
                              "and needs size: {lower, upper}")
+        if self.projected is not None and self.zone != "diameter":
+            raise ValueError("projected applies to an axis (zone: diameter)")
+        if self.projected_direction is not None and self.projected is None:
+            raise ValueError("projected_direction without projected (the zone's length)")
         return self
 
 
@@ -531,6 +540,16 @@ class Concentricity(_Runout):
 
     type: Literal["concentricity"]
     zone: Literal["diameter"] = "diameter"
+
+
+class Symmetry(_Gdt):
+    """Symmetry (ASME Y14.5-2009 7.7.2): the median points of opposed elements of the width
+    whose two opposite planar sides are ``faces`` in two parallel planes ``tol`` apart centred
+    on the datum centre plane (the CAD's centre plane in the DRF ``datums``;
+    :mod:`.symmetry`)."""
+
+    type: Literal["symmetry"]
+    datums: DrfRef
 
 
 class _TwoPlanes(_Char):
