@@ -642,7 +642,7 @@ def _describe(idx, core, med, points, values, face, normals, tree, ev_idx, spaci
     q = np.union1d(idx, nb[within[nb]])
     g = np.full(values.shape[0], np.nan)
     g[ev_idx] = (values[ev_idx] - hi_lim[ev_idx]) if above else (lo_lim[ev_idx] - values[ev_idx])
-    part, cell = out_area(tree, ev_idx, points, normals, g, q, spacing)
+    part, cell = out_area(tree, ev_idx, points, normals, g, q, spacing, values=values, above=above)
     part = np.where(cell <= 2.0 * sparse, part, 0.0)    # a point in a gap stands for no area
     area = float(np.sum(part))
 
