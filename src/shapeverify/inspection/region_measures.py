@@ -57,6 +57,12 @@ STEEP_MIN_POINTS = 5
 STEEP_TRIM = 2
 #: ... and the points must spread across the plane at least this share of their spread along it.
 STEEP_SPREAD = 0.25
+#: ... and this many times their spread across it (a noisy row's plane is the noise's).
+STEEP_DETERMINED = 3.0
+#: ... and rise along the CAD normal with a standard deviation of at least this many times the
+#: noise of the in-tolerance points around (a row of a scan as noisy as its spacing rises by
+#: its noise).
+STEEP_NOISE = 3.0
 #: The peak's quadratic: smallest and largest radius (spacings), fewest points, most steps.
 MIN_PEAK_RADIUS = 2.2
 MAX_PEAK_RADIUS = 6.0
@@ -93,6 +99,7 @@ def out_area(tree, ev_idx, points, normals, g, q, spacing, values=None, above=Tr
     reach = max(2.0 * bound, SLOPE_RADIUS * spacing)
     part = np.zeros(q.size)
     cell = np.zeros(q.size)
+    noise = _noise_among(points, values, q[g[q] < 0]) if values is not None else 0.0
     for lo in range(0, q.size, CHUNK):
         qq = q[lo:lo + CHUNK]
         p = points[qq]
@@ -120,7 +127,8 @@ def out_area(tree, ev_idx, points, normals, g, q, spacing, values=None, above=Tr
                 sg = 1.0 if above else -1.0          # g = d - limit, or -d - limit
                 sx, sy = _steep_slopes(points, values, normals, nb[out], ok[out], qq[out],
                                        e1[out], e2[out], normals[qq[out]],
-                                       sg * gx[out], sg * gy[out], STEEP_RADIUS * spacing)
+                                       sg * gx[out], sg * gy[out], STEEP_RADIUS * spacing,
+                                       noise)
                 gx[out], gy[out] = sg * sx, sg * sy
         c = np.empty(qq.size)
         pa = np.empty(qq.size)
@@ -132,7 +140,16 @@ def out_area(tree, ev_idx, points, normals, g, q, spacing, values=None, above=Tr
     return part, cell
 
 
-def _steep_slopes(points, values, normals, nb, ok, qq, e1, e2, n0, gx, gy, radius):
+def _noise_among(points, values, idx) -> float:
+    """Noise sigma of the deviations ``values[idx]`` (in-tolerance points): ``1.4826 median
+    |d_i - d_j| / sqrt 2`` over nearest foot-point neighbours (0 under 6 points)."""
+    if idx.size < 6:
+        return 0.0
+    _, j = cKDTree(points[idx]).query(points[idx], k=2)
+    return float(1.4826 * np.median(np.abs(values[idx] - values[idx[j[:, 1]]])) / np.sqrt(2.0))
+
+
+def _steep_slopes(points, values, normals, nb, ok, qq, e1, e2, n0, gx, gy, radius, noise=0.0):
     """Slope of ``d`` at the out-of-tolerance points ``qq``: the least-squares slope ``(gx,
     gy)`` of ``d``, or where the scanned surface is steeper than 45 degrees to the CAD the
     slope of its principal plane.
@@ -168,8 +185,12 @@ def _steep_slopes(points, values, normals, nb, ok, qq, e1, e2, n0, gx, gy, radiu
         if step == STEEP_TRIM:
             break
         r = np.where(near, np.abs(np.einsum("ijk,ik->ij", A, n)), np.nan)
+        # the closer half, but never fewer than STEEP_MIN_POINTS - 1 (three points and the
+        # point itself always fit a plane exactly)
+        kth = np.sort(r, axis=1)[:, min(STEEP_MIN_POINTS - 2, r.shape[1] - 1)]
         with np.errstate(invalid="ignore"):
-            W = (near & (r <= nanmedian_rows(r)[:, None])).astype(np.float64)
+            cut = np.fmax(nanmedian_rows(r), kth)
+            W = (near & (r <= cut[:, None])).astype(np.float64)
     t = np.hypot(n[:, 0], n[:, 1])
     slope = t / np.maximum(np.abs(n[:, 2]), t * 1e-6 + 1e-300)
     # d = -(n1 x + n2 y) / n3 on the plane: the slope's direction, its length capped
@@ -177,8 +198,17 @@ def _steep_slopes(points, values, normals, nb, ok, qq, e1, e2, n0, gx, gy, radiu
     sx, sy = n[:, 0] * along, n[:, 1] * along
     flip = sx * gx + sy * gy < 0
     sx, sy = np.where(flip, -sx, sx), np.where(flip, -sy, sy)
-    # points along one line (a scanner row) fix no plane
-    flat2 = lam[:, 1] >= STEEP_SPREAD ** 2 * lam[:, 2]
+    # points along one line (a scanner row) fix no plane: the plane's spread across its second
+    # axis must be a share of that along the first and several times that across it; and a
+    # steep surface rises along the CAD normal by more than the noise (a row of a scan as noisy
+    # as its spacing, whose plane holds the normal, rises by its noise alone)
+    Wk = W
+    nk = Wk.sum(axis=1)
+    zm = (Wk * Z).sum(axis=1) / np.maximum(nk, 1.0)
+    zsd = np.sqrt(np.maximum((Wk * (Z - zm[:, None]) ** 2).sum(axis=1) / np.maximum(nk, 1.0), 0.0))
+    flat2 = (lam[:, 1] >= STEEP_SPREAD ** 2 * lam[:, 2]) & \
+        (lam[:, 1] >= STEEP_DETERMINED ** 2 * np.maximum(lam[:, 0], 0.0)) & \
+        (zsd >= STEEP_NOISE * noise)
     steep = (cnt >= STEEP_MIN_POINTS) & flat2 & (slope > 1.0) & (slope > np.hypot(gx, gy))
     return np.where(steep, sx, gx), np.where(steep, sy, gy)
 
