@@ -167,7 +167,9 @@ def _steep_slopes(points, values, normals, nb, ok, qq, e1, e2, n0, gx, gy, radiu
     m, k = nb.shape
     j = np.maximum(nb, 0)
     D = S[j] - S[qq][:, None, :]
-    near = ok & (np.linalg.norm(D, axis=2) <= radius)
+    with np.errstate(invalid="ignore"):
+        near = ok & (np.linalg.norm(D, axis=2) <= radius)
+    D = np.where(near[:, :, None], D, 0.0)          # padding and unevaluated rows: NaN
     X = np.einsum("ijk,ik->ij", D, e1)
     Y = np.einsum("ijk,ik->ij", D, e2)
     Z = np.einsum("ijk,ik->ij", D, n0)
