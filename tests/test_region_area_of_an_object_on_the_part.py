@@ -8,9 +8,14 @@ point's ``g = |d| - limit`` is continued across its cell by the slope of a plane
 neighbours, and through the wall's and the top's points (up to 2.9 mm above the limit) the plane
 crossed zero right beside it, so nearly all of its cell counted out.  An in-tolerance point is
 now continued by the slope of the in-tolerance surface around it
-(``region_measures.out_area``).  The other half is left: the wall's points lie on the rim and
-their cells reach half-way to the panel's points outside (the boundary of a step between samples
-is taken half-way).
+(``region_measures.out_area``).  The other half: the wall's points lie on the rim and
+their cells reach half-way to the panel's points outside, and the least-squares plane of ``g``
+over their foot points (crowded on the rim's line) leaned about the step's height over the
+neighbourhood, so the zero lay beyond the cell.  An out-of-tolerance point on a surface steeper
+than 45 degrees to the CAD now takes the slope of the scan points' own plane (the wall's: nearly
+vertical, so the boundary is the wall's foot line; ``region_measures._steep_slopes``).  Left: the
+points at the wall's top edge, whose plane holds the box's top too (at 1 mm, +10..+21 % over
+8 seeds; before +19..+32 %).
 """
 from __future__ import annotations
 
@@ -58,17 +63,18 @@ def _box_on_plane(seed, s, half=3.0, height=3.0):
 
 @pytest.mark.parametrize("spacing", [0.5, 1.0])
 def test_area_of_an_object_lying_on_the_part_has_no_band_beside_its_walls(spacing):
-    """One region; its area over the footprint (36 mm^2) by under 0.55 x perimeter x spacing
-    (before: 0.7-0.9 x; now 0.36-0.46 x).  At 0.5 mm that is within 15 % of the footprint."""
+    """One region; its area over the footprint (36 mm^2) by under 0.35 x perimeter x spacing
+    (first: 0.7-0.9 x; with the one-sided slope 0.36-0.46 x; with the wall's own plane
+    0.13-0.31 x).  At 0.5 mm that is within 8 % of the footprint (before: +11..+16 %)."""
     half = 3.0
     footprint, perimeter = (2 * half) ** 2, 8 * half
     for seed in (0, 1, 3):           # (seed 2 at 1 mm: no region, with or without the change)
         regions = _regions(_box_on_plane(seed, spacing, half))
         assert len(regions) == 1, (seed, regions)
         excess = regions[0].area - footprint
-        assert 0.0 < excess < 0.55 * perimeter * spacing, (seed, regions[0].area)
+        assert 0.0 < excess < 0.35 * perimeter * spacing, (seed, regions[0].area)
         if spacing == 0.5:
-            assert abs(regions[0].area / footprint - 1) < 0.16, regions[0].area
+            assert abs(regions[0].area / footprint - 1) < 0.08, regions[0].area
 
 
 @pytest.mark.parametrize("depth", [-0.3, -0.5, 0.5])

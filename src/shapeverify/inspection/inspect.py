@@ -404,7 +404,8 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
     if opts.faces == "seen":             # the faces the scan saw (coverage.seen_faces)
         feet = dev.foot_points[dev.evaluated]
         faces, seen_note = seen_faces(
-            prep, feet, surface_spacing(feet) if feet.shape[0] >= 2 else float("nan"),
+            prep, feet, surface_spacing(feet, normals=dev.normals[dev.evaluated])
+            if feet.shape[0] >= 2 else float("nan"),
             model_size=_model_size(prep))
         opts = dataclasses.replace(opts, faces=faces)
     if opts.faces is not None:
@@ -418,7 +419,8 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
     ev_feet = dev.foot_points[ev]
     # the spacing and the coverage are grid searches; the regions build their k-d tree of the
     # evaluated foot points only when there are out-of-tolerance points to look at
-    spacing = surface_spacing(ev_feet) if ev_feet.shape[0] >= 2 else float("nan")
+    spacing = surface_spacing(ev_feet, normals=dev.normals[ev]) if ev_feet.shape[0] >= 2 \
+        else float("nan")
     within = tol.within(dev.values, dev.face)
     weights = getattr(reg, "weights", None)
     if weights is not None and np.shape(weights) != (scan.shape[0],):

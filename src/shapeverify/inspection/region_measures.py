@@ -13,6 +13,10 @@ value continued by the slope of a robust least-squares plane of ``g`` over its n
 a step the other side's points tilt the plane, and the crossing came to lie right beside the
 in-tolerance point), so the boundary runs between an out-of-tolerance point and its
 in-tolerance neighbours where ``g`` crosses zero, not half a cell beyond the last point out.
+Where the scanned surface is steeper than 45 degrees to the CAD (the wall of an object lying on
+the part: its points' feet crowd onto the rim's line) an out-of-tolerance point takes the slope
+of the scan points' own principal plane (:func:`_steep_slopes`): a wall's is vertical, so the
+boundary is its foot line, where the part's surface stops being in tolerance.
 The region's area is the sum of these parts over its out-of-tolerance points and their
 in-tolerance neighbours; a cell larger than ``2 x regions.SPARSE_AREA`` spacings^2 (a point in a gap
 of the scan, beside the part) counts nothing.
@@ -45,6 +49,20 @@ __all__ = ["out_area", "fitted_peak", "seen_among", "CELL_BOUND", "SLOPE_RADIUS"
 CELL_BOUND = 1.5
 #: Radius of the plane whose slope continues ``|d| - |limit|`` across a cell, in spacings.
 SLOPE_RADIUS = 2.5
+#: Radius (spacings, in space) of the scan points whose principal plane gives a steep surface's
+#: slope, and the fewest points (with the point itself) it needs.
+STEEP_RADIUS = 1.5
+STEEP_MIN_POINTS = 5
+#: Times the steep surface's plane is fitted again to the half of the points closest to it.
+STEEP_TRIM = 2
+#: ... and the points must spread across the plane at least this share of their spread along it.
+STEEP_SPREAD = 0.25
+#: ... and this many times their spread across it (a noisy row's plane is the noise's).
+STEEP_DETERMINED = 3.0
+#: ... and rise along the CAD normal with a standard deviation of at least this many times the
+#: noise of the in-tolerance points around (a row of a scan as noisy as its spacing rises by
+#: its noise).
+STEEP_NOISE = 3.0
 #: The peak's quadratic: smallest and largest radius (spacings), fewest points, most steps.
 MIN_PEAK_RADIUS = 2.2
 MAX_PEAK_RADIUS = 6.0
@@ -67,17 +85,21 @@ def _basis(normals):
     return e1, np.cross(n, e1)
 
 
-def out_area(tree, ev_idx, points, normals, g, q, spacing):
+def out_area(tree, ev_idx, points, normals, g, q, spacing, values=None, above=True):
     """``(part, cell)`` (each (len(q),), mm^2): of each point ``q`` (scan indices of evaluated
     points), its cell's area and the part of it where ``g`` (per scan point, > 0 out of
     tolerance on the region's side) continued by its local slope is positive.
 
     ``tree`` holds the evaluated foot points ``points[ev_idx]`` (at least those within
-    ``2 x CELL_BOUND`` spacings of ``q``)."""
+    ``2 x CELL_BOUND`` spacings of ``q``).  ``values`` (per scan point, signed deviations along
+    ``normals``; ``above``: the region's side, ``g`` rising with ``d`` or against it): the scan
+    points ``points + values x normals`` give the out-of-tolerance points' slope where the
+    scanned surface is steep to the CAD (:func:`_steep_slopes`)."""
     bound = CELL_BOUND * spacing
     reach = max(2.0 * bound, SLOPE_RADIUS * spacing)
     part = np.zeros(q.size)
     cell = np.zeros(q.size)
+    noise = _noise_among(points, values, q[g[q] < 0]) if values is not None else 0.0
     for lo in range(0, q.size, CHUNK):
         qq = q[lo:lo + CHUNK]
         p = points[qq]
@@ -99,6 +121,15 @@ def out_area(tree, ev_idx, points, normals, g, q, spacing):
         with np.errstate(invalid="ignore"):
             inside = ok & ((g_nb < 0) | (g[qq] >= 0)[:, None])
         gx, gy = _slopes(x, y, r3, inside, g_nb, g[qq], SLOPE_RADIUS * spacing)
+        if values is not None:
+            out = g[qq] >= 0
+            if out.any():
+                sg = 1.0 if above else -1.0          # g = d - limit, or -d - limit
+                sx, sy = _steep_slopes(points, values, normals, nb[out], ok[out], qq[out],
+                                       e1[out], e2[out], normals[qq[out]],
+                                       sg * gx[out], sg * gy[out], STEEP_RADIUS * spacing,
+                                       noise)
+                gx[out], gy[out] = sg * sx, sg * sy
         c = np.empty(qq.size)
         pa = np.empty(qq.size)
         cell_areas(np.ascontiguousarray(x), np.ascontiguousarray(y), nb,
@@ -107,6 +138,81 @@ def out_area(tree, ev_idx, points, normals, g, q, spacing):
         part[lo:lo + qq.size] = pa
         cell[lo:lo + qq.size] = c
     return part, cell
+
+
+def _noise_among(points, values, idx) -> float:
+    """Noise sigma of the deviations ``values[idx]`` (in-tolerance points): ``1.4826 median
+    |d_i - d_j| / sqrt 2`` over nearest foot-point neighbours (0 under 6 points)."""
+    if idx.size < 6:
+        return 0.0
+    _, j = cKDTree(points[idx]).query(points[idx], k=2)
+    return float(1.4826 * np.median(np.abs(values[idx] - values[idx[j[:, 1]]])) / np.sqrt(2.0))
+
+
+def _steep_slopes(points, values, normals, nb, ok, qq, e1, e2, n0, gx, gy, radius, noise=0.0):
+    """Slope of ``d`` at the out-of-tolerance points ``qq``: the least-squares slope ``(gx,
+    gy)`` of ``d``, or where the scanned surface is steeper than 45 degrees to the CAD the
+    slope of its principal plane.
+
+    The wall of an object lying on the part (a step) is sampled by points whose foot points
+    crowd onto one line under it: the plane of ``d`` over the foot points is ill-posed there,
+    and its slope (about the step's height over the neighbourhood) put the zero of ``g`` half a
+    cell and more outside the wall, whose foot line *is* the boundary.  The orthogonal
+    (principal-axis) plane of the scan points ``points + values x normals`` within ``radius``
+    in space reads the wall as the step it is: its normal ``n`` in the point's frame gives the
+    slope ``-(n1, n2) / n3`` of ``d``, pointing the way the least-squares plane rises (a
+    vertical plane has two).  It is taken where that slope is steeper than 1 and than the
+    least-squares one, so a gently sloping surface (a dent) keeps its least-squares slope."""
+    S = points + values[:, None] * normals          # only rows of nb are read
+    m, k = nb.shape
+    j = np.maximum(nb, 0)
+    D = S[j] - S[qq][:, None, :]
+    with np.errstate(invalid="ignore"):
+        near = ok & (np.linalg.norm(D, axis=2) <= radius)
+    D = np.where(near[:, :, None], D, 0.0)          # padding and unevaluated rows: NaN
+    X = np.einsum("ijk,ik->ij", D, e1)
+    Y = np.einsum("ijk,ik->ij", D, e2)
+    Z = np.einsum("ijk,ik->ij", D, n0)
+    A = np.stack([X, Y, Z], axis=2)                 # (m, k, 3), the point itself at 0
+    cnt = near.sum(axis=1) + 1.0
+    W = near.astype(np.float64)
+    # the plane through the point itself, fitted again to the half of its neighbours closest
+    # to it (twice): at the top of a wall the object's top lies within the radius too, and a
+    # plane through both leans 45 degrees
+    for step in range(STEEP_TRIM + 1):
+        C = np.einsum("ij,ijk,ijl->ikl", W, A, A)
+        C = np.where((cnt >= STEEP_MIN_POINTS)[:, None, None], C, np.eye(3))
+        lam, vec = np.linalg.eigh(C)
+        n = vec[:, :, 0]                            # smallest principal axis
+        if step == STEEP_TRIM:
+            break
+        r = np.where(near, np.abs(np.einsum("ijk,ik->ij", A, n)), np.nan)
+        # the closer half, but never fewer than STEEP_MIN_POINTS - 1 (three points and the
+        # point itself always fit a plane exactly)
+        kth = np.sort(r, axis=1)[:, min(STEEP_MIN_POINTS - 2, r.shape[1] - 1)]
+        with np.errstate(invalid="ignore"):
+            cut = np.fmax(nanmedian_rows(r), kth)
+            W = (near & (r <= cut[:, None])).astype(np.float64)
+    t = np.hypot(n[:, 0], n[:, 1])
+    slope = t / np.maximum(np.abs(n[:, 2]), t * 1e-6 + 1e-300)
+    # d = -(n1 x + n2 y) / n3 on the plane: the slope's direction, its length capped
+    along = -np.where(n[:, 2] < 0, -1.0, 1.0) * slope / np.maximum(t, 1e-300)
+    sx, sy = n[:, 0] * along, n[:, 1] * along
+    flip = sx * gx + sy * gy < 0
+    sx, sy = np.where(flip, -sx, sx), np.where(flip, -sy, sy)
+    # points along one line (a scanner row) fix no plane: the plane's spread across its second
+    # axis must be a share of that along the first and several times that across it; and a
+    # steep surface rises along the CAD normal by more than the noise (a row of a scan as noisy
+    # as its spacing, whose plane holds the normal, rises by its noise alone)
+    Wk = W
+    nk = Wk.sum(axis=1)
+    zm = (Wk * Z).sum(axis=1) / np.maximum(nk, 1.0)
+    zsd = np.sqrt(np.maximum((Wk * (Z - zm[:, None]) ** 2).sum(axis=1) / np.maximum(nk, 1.0), 0.0))
+    flat2 = (lam[:, 1] >= STEEP_SPREAD ** 2 * lam[:, 2]) & \
+        (lam[:, 1] >= STEEP_DETERMINED ** 2 * np.maximum(lam[:, 0], 0.0)) & \
+        (zsd >= STEEP_NOISE * noise)
+    steep = (cnt >= STEEP_MIN_POINTS) & flat2 & (slope > 1.0) & (slope > np.hypot(gx, gy))
+    return np.where(steep, sx, gx), np.where(steep, sy, gy)
 
 
 def _neighbour_table(tree, ev_idx, p, radius):

@@ -7,7 +7,10 @@ surface): a spike 1 mm off the surface still has its neighbours around it.
 per point (:func:`surface_spacing`): the same for a grid, random sampling, scanner rows or
 anisotropic rows of the same density, and not collapsed by a second exposure of the same surface
 (two passes 0.02 mm apart once gave a "spacing" of 0.017 mm, and every point of a dent looked
-isolated: the dented part passed).  Support is counted by surface area, not by points.
+isolated: the dented part passed).  Support is counted by surface area, not by points.  Only
+neighbours on a point's own side of the part count (:func:`_same_side`): on a wall thinner
+than a few spacings the other side's points are as near, and the spacing read 0.76 x the truth
+on the impeller's blades.
 
 **Defect or outlier.**  A defect is a place where the *surface* is out of tolerance, not a few
 points.  Every evaluated point near an out-of-tolerance one gets the median deviation of its 9
@@ -106,6 +109,12 @@ AREA_RADIUS = 5.0
 SPARSE_AREA = 3.0
 #: The neighbour whose distance measures the density (:func:`surface_spacing`).
 K_DENSITY = 8
+#: Neighbours count for the spacing when their normals are within this angle (120 degrees: the
+#: other side of a thin wall, about 180 degrees away, does not; an edge, 90 degrees, does).
+SAME_SIDE_ANGLE = 120.0
+SAME_SIDE_COS = float(np.cos(np.radians(SAME_SIDE_ANGLE)))
+#: ... and when their offset lies within this angle (degrees) of the point's tangent plane.
+SAME_SHEET_ELEVATION = 20.0
 #: Most points the density is estimated from.
 DENSITY_SUBSET = 20000
 #: A layer over measured surface: in-tolerance points within this radius (spacings) of its core
@@ -215,7 +224,7 @@ class Outliers:
         return f"Outliers(n={self.n}, low_weight={self.n_low_weight}, layer={self.n_layer})"
 
 
-def surface_spacing(points: np.ndarray, seed: int = 0) -> float:
+def surface_spacing(points: np.ndarray, seed: int = 0, normals: np.ndarray | None = None) -> float:
     """Spacing (mm) of ``points`` as surface area per point: ``sqrt(area / points)``.
 
     Unlike the median nearest-neighbour distance (:func:`median_spacing`), this is the same
@@ -225,6 +234,13 @@ def surface_spacing(points: np.ndarray, seed: int = 0) -> float:
     any sampling pattern look Poisson to the estimator): a first guess from the distance to the
     ``K_DENSITY``-th nearest neighbour (density ``(k - 1/3) / (pi * median r_k^2)``), refined by
     the median number of points within four such spacings, scaled back to all points.  NaN for fewer than ``K_DENSITY + 1`` points or all coincident.
+
+    ``normals`` ((N, 3), the CAD normals at ``points``): only neighbours on the same side of the
+    part count (:func:`_same_side`: normals within ``SAME_SIDE_ANGLE``, offsets within
+    ``SAME_SHEET_ELEVATION`` of the tangent plane): on a wall thinner than a few spacings the
+    other side's points are as near as the own side's, and the spacing read 0.76 x the true one
+    on the impeller's blades (0.95-0.98 x now at 0.5-1 mm).  A convex or concave edge (normals 90 degrees apart) still counts:
+    a ball around a point on an edge meets both faces over a full disc.
     """
     n = points.shape[0]
     k = K_DENSITY
@@ -232,19 +248,59 @@ def surface_spacing(points: np.ndarray, seed: int = 0) -> float:
         return median_spacing(None, points) if n >= 2 else float("nan")
     m = min(DENSITY_SUBSET, max(k + 1, n // 2))
     rng = np.random.default_rng(seed)
-    sub = points[np.sort(rng.choice(n, m, replace=False))] if m < n else points
-    q = sub[np.linspace(0, m - 1, min(m, 2000)).astype(np.int64)]
+    pick = np.sort(rng.choice(n, m, replace=False)) if m < n else np.arange(n)
+    sub = points[pick]
+    qi = np.linspace(0, m - 1, min(m, 2000)).astype(np.int64)
+    q = sub[qi]
     tree = cKDTree(sub)
-    d, _ = tree.query(q, k=k + 1)
-    r2 = np.median(d[:, k] ** 2)
+    if normals is None:
+        d, _ = tree.query(q, k=k + 1)
+        r2 = np.median(d[:, k] ** 2)
+    else:
+        nn = np.asarray(normals, np.float64)[pick]
+        kk = min(m, 4 * (k + 1))
+        d, j = tree.query(q, k=kk)
+        jj = np.minimum(j, m - 1)
+        same = _same_side(nn[jj], sub[jj] - q[:, None, :], nn[qi][:, None, :], d)
+        rank = np.cumsum(same, axis=1)
+        hit = same & (rank == k + 1)                 # the point itself is the first
+        r2 = np.median(np.where(hit.any(axis=1), d[np.arange(len(q)), np.argmax(hit, axis=1)],
+                                d[:, -1]) ** 2)
     if not r2 > 0:
         return float("nan")
     # refined by counting the points within 4 such spacings (about 50): pairs of points (two
     # exposures, repeated rows) bias the k-th neighbour's distance, not the count
     radius = 4.0 * np.sqrt(np.pi * r2 / (k - 1.0 / 3.0))
-    c = tree.query_ball_point(q, radius, return_length=True)
+    if normals is None:
+        c = tree.query_ball_point(q, radius, return_length=True)
+    else:
+        lists = tree.query_ball_point(q, radius)
+        lens = np.fromiter((len(x) for x in lists), np.int64, len(lists))
+        j = np.fromiter((i for x in lists for i in x), np.int64, int(lens.sum()))
+        row = np.repeat(np.arange(len(lists)), lens)
+        dj = sub[j] - q[row]
+        same = _same_side(nn[j], dj, nn[qi][row], np.linalg.norm(dj, axis=-1))
+        c = np.bincount(row, weights=same, minlength=len(lists))
     area_per_sub = np.pi * radius ** 2 / max(float(np.median(c)) - 1.0, 1.0)
     return float(np.sqrt(area_per_sub * m / n))
+
+
+def _same_side(nj, dj, ni, r):
+    """Neighbours ``j`` (normals ``nj``, offsets ``dj`` from point ``i``, distances ``r``) on
+    point ``i``'s side of the part: normals within ``SAME_SIDE_ANGLE`` of ``ni`` (oriented
+    models: the other side of a wall faces away) and the offset within ``SAME_SHEET_ELEVATION``
+    of the plane square to the mean of the two normals, ``i``'s tangent plane on a flat face
+    (a model whose faces are not oriented, as IGES surfaces often are:
+    the impeller's blades, about 1.2-1.7 mm thick, have the same normal on both sides: their
+    other side lies 20 degrees or more out of the plane within 3.3 mm)."""
+    cos = np.sum(nj * ni, axis=-1)
+    # the chord between two points of one smooth sheet is square to the mean of their normals
+    # (exactly so on a circle): its elevation from the plane across that mean is the test, so
+    # a curved surface keeps its points however far around they lie
+    m = nj + ni
+    up = np.abs(np.sum(dj * m, axis=-1))
+    lim = np.sin(np.radians(SAME_SHEET_ELEVATION)) * r * np.linalg.norm(m, axis=-1)
+    return (cos > SAME_SIDE_COS) & (up <= lim + 1e-12 * r)
 
 
 @dataclass(frozen=True)
@@ -324,7 +380,7 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
     ev_idx = np.flatnonzero(evaluated)
     ev_pts = points[ev_idx]
     if spacing is None:
-        spacing = surface_spacing(ev_pts)
+        spacing = surface_spacing(ev_pts, normals=normals[ev_idx])
     if not np.isfinite(spacing) or spacing <= 0:
         # A single evaluated point (or all coincident): nothing can be connected.
         low = _low_weight(weights, out_idx)
@@ -642,7 +698,7 @@ def _describe(idx, core, med, points, values, face, normals, tree, ev_idx, spaci
     q = np.union1d(idx, nb[within[nb]])
     g = np.full(values.shape[0], np.nan)
     g[ev_idx] = (values[ev_idx] - hi_lim[ev_idx]) if above else (lo_lim[ev_idx] - values[ev_idx])
-    part, cell = out_area(tree, ev_idx, points, normals, g, q, spacing)
+    part, cell = out_area(tree, ev_idx, points, normals, g, q, spacing, values=values, above=above)
     part = np.where(cell <= 2.0 * sparse, part, 0.0)    # a point in a gap stands for no area
     area = float(np.sum(part))
 
