@@ -339,7 +339,8 @@ class Model:
         """(2, 3) axis-aligned bounding box [min, max] in mm.
 
         For CAD faces: the trimming loops mapped to 3D, plus each coordinate's extremes inside
-        each face, found on a 24 x 24 grid and polished with a few Newton steps.
+        each face, found on a 24 x 24 grid and polished with a few Newton steps; the faces of
+        the part only (:meth:`part_faces`: supplemental geometry left out).
         """
         if self.kind != "cad":
             pts = self.vertices
