@@ -100,6 +100,20 @@ def test_ftc10_supplemental_faces_keep_their_numbers_outside_the_solid(ftc10):
         assert _dist(f.evaluate(uv)[0], faces[i]) < 1e-6 * model.size, i
 
 
+def test_ctc04_fill_shell_is_supplemental(tmp_path):
+    """CTC 04's open shell 'Fill.1' (face 483, after the solid's 483 faces)."""
+    p = tmp_path / "nist_ctc_04_asme1_ap242-e1.stp"
+    with gzip.open(DATA / "nist_ctc_04_asme1_ap242-e1.stp.gz", "rb") as src:
+        p.write_bytes(src.read())
+    model = cached_model(p)
+    shape = read_shape(p)
+    faces = _occ_faces(shape)
+    in_solid = _occ_faces(_solid(shape))
+    outside = [i for i, f in enumerate(faces) if not any(f.IsSame(g) for g in in_solid)]
+    assert len(model.faces) == len(faces) == 484
+    assert list(model.supplemental) == outside == [483]
+
+
 def test_ftc10_model_points_all_lie_on_the_solid(ftc10):
     prep = cached_prepared(ftc10, spacing=1.0)
     model = prep.model

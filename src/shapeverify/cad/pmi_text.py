@@ -26,9 +26,9 @@ from __future__ import annotations
 import re
 from collections import Counter, defaultdict
 
-__all__ = ["declared_pmi", "unread_pmi", "unread_pmi_of_file"]
+from .step_text import GT_TYPES, StepText, step_text
 
-from .step_text import GT_TYPES, StepText, calls as _calls, step_text
+__all__ = ["declared_pmi", "unread_pmi", "unread_pmi_of_file"]
 
 #: dimension entities: (applies_to, name, ...) for sizes; (name, description, relating,
 #: related, ...) for locations
