@@ -219,6 +219,14 @@ def test_supplemental_face_is_numbered_but_never_sampled_nor_answered(tmp_path):
     back = sv.load_model(tmp_path / "plates.svmodel")
     assert back.supplemental == (1,) and len(back.faces) == 2
     assert summarize(back).supplemental == (1,)
+    from rich.console import Console
+
+    from shapeverify.cli import model_summary_table
+
+    con = Console(width=200, record=True)
+    con.print(model_summary_table(back, "plates"))
+    text = con.export_text()
+    assert "supplemental faces" in text and "1 (faces 1: outside the solid" in text
     with pytest.raises(ValueError, match="supplemental"):
         sv.inspect(prep, q - [0, 0, 1.0], tolerance=0.1, faces=[1])
     with pytest.raises(ValueError, match="supplemental"):
