@@ -135,7 +135,8 @@ def tessellate_model(model, max_edge: float | None = None, max_per_side: int = 4
         raise ValueError(f"max_edge must be a positive length in mm, got {max_edge!r}")
     V, T, UV, VF, TF = [], [], [], [], []
     offset = 0
-    for f in model.part_faces():  # supplemental geometry (Model.supplemental) is not the part
+    part = model.part_faces() if hasattr(model, "part_faces") else range(len(model.faces))
+    for f in part:  # supplemental geometry (Model.supplemental) is not the part
         face = model.faces[f]
         verts, tris, uv = tessellate_face(face, max_edge, max_per_side, cover)
         V.append(verts)
