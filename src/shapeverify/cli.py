@@ -201,6 +201,11 @@ def model_summary_table(m, title: str) -> Table:
     t.add_row("kind", s.kind)
     t.add_row("faces", str(s.faces) if not s.missing else  # issue 33 row 2
               f"{s.faces} of {s.faces_in_file} in the file; missing: {'; '.join(s.missing)}")
+    if getattr(s, "supplemental", ()):
+        from shapeverify.cad.summary import face_ranges
+        t.add_row("supplemental faces",
+                  f"{len(s.supplemental)} (faces {face_ranges(s.supplemental)}: outside the solid, "
+                  "kept for the PMI; excluded from model points, registration and deviations)")
     if s.kind == "cad":
         t.add_row("rational faces", str(s.rational_faces))
         t.add_row("faces with holes", str(s.faces_with_holes))

@@ -109,9 +109,12 @@ def _tile_grid(tile, h):
 
 
 def _sample_cad(model, s, rng):
-    faces = tuple(model.faces)
-    if not faces:
+    if not model.faces:
         raise ValueError(f"model {getattr(model, 'source', '')!r} has no faces to sample")
+    # the faces of the part: supplemental geometry (Model.supplemental) is never sampled,
+    # its points would be surface the manufactured part does not have
+    index = model.part_faces() if hasattr(model, "part_faces") else range(len(model.faces))
+    faces = tuple(model.faces[i] for i in index)
     h = _CAND * s
     r = _RADIUS * s
     boxes = [_face_box(face) for face in faces]
@@ -120,7 +123,7 @@ def _sample_cad(model, s, rng):
     plans = [_plan(face.surface, box, h, metric=mt)[0]
              for face, box, mt in zip(faces, boxes, metrics)]
     parts = _Parts()
-    for fi, (face, tiles) in enumerate(zip(faces, plans)):
+    for fi, face, tiles in zip(index, faces, plans):
         batch, n_batch = [], 0
         for k, tile in enumerate(tiles):
             uv = _tile_grid(tile, h)

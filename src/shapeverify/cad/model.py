@@ -253,6 +253,15 @@ class Model:
         The name of each face in ``faces`` as the CAD file gives it (STEP face entity names,
         e.g. ``"datum_A"``), None for an unnamed face; None when no face has a name (the
         usual case).  Inspection plans may name faces by these names.
+    supplemental : tuple of int
+        Indices (into ``faces``) of supplemental geometry: faces of a file that holds a solid
+        (or solids) which belong to no solid -- open shells and free faces a designer adds for
+        construction or annotation (NIST FTC 10: 18 faces 1.25-1.69 mm off the solid; CTC 04:
+        an open shell 'Fill.1').  They keep their numbers (PMI ties datum targets and thread
+        curves to them) but are not the part: a scan never sees them, so they are left out of
+        the model points, the closest-point structure, registration, deviations and coverage
+        (:meth:`part_faces`).  Empty for a file without a solid (a surface model: every face
+        is the part).
 
     Raises
     ------
@@ -272,6 +281,7 @@ class Model:
     skipped_faces: tuple = ()
     face_names: tuple | None = None
     open_seams: tuple = ()
+    supplemental: tuple = ()
 
     def __post_init__(self):
         if self.kind not in _KINDS:
@@ -299,6 +309,14 @@ class Model:
                                  "(one name or None per face)")
             object.__setattr__(self, "face_names",
                                names if any(n is not None for n in names) else None)
+        supp = tuple(sorted({int(i) for i in self.supplemental}))
+        if supp and not (0 <= supp[0] and supp[-1] < len(faces)):
+            raise ValueError(f"supplemental face indices must be in [0, {len(faces)}), got "
+                             f"{list(supp)}")
+        if supp and len(supp) == len(faces):
+            raise ValueError("every face is supplemental: a model needs at least one face of "
+                             "the part")
+        object.__setattr__(self, "supplemental", supp)
         object.__setattr__(self, "vertices", _opt_array(self.vertices, np.float64, "vertices"))
         object.__setattr__(self, "triangles", _opt_array(self.triangles, np.int32, "triangles"))
         object.__setattr__(self, "cloud_normals",
@@ -321,18 +339,26 @@ class Model:
         """(2, 3) axis-aligned bounding box [min, max] in mm.
 
         For CAD faces: the trimming loops mapped to 3D, plus each coordinate's extremes inside
-        each face, found on a 24 x 24 grid and polished with a few Newton steps.
+        each face, found on a 24 x 24 grid and polished with a few Newton steps; the faces of
+        the part only (:meth:`part_faces`: supplemental geometry left out).
         """
         if self.kind != "cad":
             pts = self.vertices
         else:
-            pts = np.concatenate([_face_extremes(f) for f in self.faces]) if self.faces \
-                else np.zeros((0, 3))
+            pts = np.concatenate([_face_extremes(self.faces[i]) for i in self.part_faces()]) \
+                if self.faces else np.zeros((0, 3))
         if pts.shape[0] == 0:
             raise ValueError("an empty model has no bounds")
         b = np.stack([pts.min(axis=0), pts.max(axis=0)])
         b.setflags(write=False)
         return b
+
+    def part_faces(self) -> tuple:
+        """Indices of the faces that are the part (all but :attr:`supplemental`), ascending."""
+        if not self.supplemental:
+            return tuple(range(len(self.faces)))
+        skip = set(self.supplemental)
+        return tuple(i for i in range(len(self.faces)) if i not in skip)
 
     @property
     def n_missing_faces(self) -> int:
@@ -360,6 +386,8 @@ class Model:
                 + (f", triangles={self.triangles.shape[0]}" if self.triangles is not None else ""))
         if self.n_missing_faces:
             what += f" (of {self.n_faces_in_file} in the file)"
+        if self.supplemental:
+            what += f", supplemental={len(self.supplemental)}"
         return (f"Model(kind={self.kind.value!r}, {what}, unit={self.unit!r}, "
                 f"scale_to_mm={self.scale_to_mm:g}, source={self.source!r})")
 

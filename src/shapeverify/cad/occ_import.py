@@ -555,6 +555,24 @@ def _open_seams(path: Path, fmt: str, all_free) -> list:
             if n]
 
 
+def _supplemental_flags(shape, faces) -> list:
+    """One bool per face of ``faces``: True for a face that belongs to no solid of a shape that
+    has a solid (supplemental geometry: an open shell or a free face beside the part's solid,
+    NIST FTC 10's 18 faces, CTC 04's 'Fill.1'); all False when no face is in a solid (a
+    surface model: every face is the part)."""
+    from OCP.collections import (
+        IndexedDataMap_TopoDS_Shape_List_TopoDS_Shape_TopTools_ShapeMapHasher as FaceSolids)
+    from OCP.TopAbs import TopAbs_FACE, TopAbs_SOLID
+    from OCP.TopExp import TopExp
+
+    m = FaceSolids()
+    TopExp.MapShapesAndUniqueAncestors_s(shape, TopAbs_FACE, TopAbs_SOLID, m)
+    in_solid = [m.Contains(f) and m.FindFromKey(f).Size() > 0 for f in faces]
+    if not any(in_solid):
+        return [False] * len(faces)
+    return [not x for x in in_solid]
+
+
 def _missing_faces(path: Path, fmt: str, n_read: int, skipped: list) -> int:
     """The faces the file declares (:func:`~shapeverify.cad.face_count.declared_faces`, at
     least the ``n_read`` OpenCASCADE found); appends to ``skipped`` a line per declared face
@@ -582,16 +600,19 @@ def _read_cad_here(path: Path, fmt: str, chord_tol: float, gap_tol: float) -> Mo
     _init_ocp()
     from OCP.TopAbs import TopAbs_REVERSED
 
+    from .summary import face_ranges
+
     shape, unit, scale, names_doc = _read_shape_named(path, fmt)
     t_read = time.perf_counter()
     faces = _shape_faces(path, fmt, shape)
     edge_faces = _edge_face_map(shape)
+    supp_flags = _supplemental_flags(shape, faces)
     if names_doc is not None:
         from .step_names import face_names
         file_names = face_names(names_doc, faces)
     else:
         file_names = (None,) * len(faces)
-    kept_names = []
+    kept_names, supplemental = [], []
 
     surfaces, rev, all_uv, all_xyz, all_free, all_tol, all_edge = [], [], [], [], [], [], []
     edge_base = 0
@@ -610,6 +631,8 @@ def _read_cad_here(path: Path, fmt: str, chord_tol: float, gap_tol: float) -> Mo
         n_converted += conv is not None
         all_edge.append([e + edge_base for e in ed])
         edge_base += 1 + max(int(e.max()) for e in ed)
+        if supp_flags[i]:
+            supplemental.append(len(surfaces))  # its index among the faces kept
         surfaces.append(surface)
         kept_names.append(file_names[i])
         rev.append(face.Orientation() == TopAbs_REVERSED)
@@ -629,6 +652,12 @@ def _read_cad_here(path: Path, fmt: str, chord_tol: float, gap_tol: float) -> Mo
 
     if gap_tol > 0:
         _clear_touching(all_xyz, all_free, all_edge, all_tol, gap_tol)
+    if supplemental and len(supplemental) == len(surfaces):
+        supplemental = []  # the faces of the solid were all skipped: keep what there is
+    if supplemental:
+        logger.info("%s: %d supplemental face(s) outside the solid (open shells or free "
+                    "faces: %s) keep their numbers but are not part of the surface inspected",
+                    path.name, len(supplemental), face_ranges(supplemental))
     seams = _open_seams(path, fmt, all_free)
     if seams:
         logger.warning("%s: the file declares closed shells (solids) but the model has open "
@@ -638,7 +667,7 @@ def _read_cad_here(path: Path, fmt: str, chord_tol: float, gap_tol: float) -> Mo
                   unit=unit, scale_to_mm=scale, source=str(path), kind="cad",
                   n_faces_in_file=n_in_file, skipped_faces=tuple(skipped),
                   face_names=tuple(kept_names) if any(n is not None for n in kept_names)
-                  else None, open_seams=tuple(seams))
+                  else None, open_seams=tuple(seams), supplemental=tuple(supplemental))
     t_end = time.perf_counter()
     n_seg = sum(lp.shape[0] for uv in all_uv for lp in uv)
     n_free = sum(int(f.sum()) for fr in all_free for f in fr)

@@ -17,6 +17,9 @@ same figures with OpenCASCADE's own queries (and numpy), in the importer child
   ``faces``, ``rational_faces`` and ``faces_with_holes`` are therefore those of the model.
   (Not reproduced: a face the import skips because sampling its loops raises, e.g. a pcurve
   evaluating to NaN; no such face is known.)
+* **Supplemental faces**: those outside the solid, by the import's own rule
+  (:func:`~shapeverify.cad.occ_import._supplemental_flags`); the bounds leave them out, as
+  :attr:`Model.bounds` does.
 * **Unit**: the same reader, the same unit.
 * **Bounds**: those of :attr:`Model.bounds` (the trimming loops mapped to 3D plus each
   coordinate's extremes inside each face) computed from OpenCASCADE's geometry: the exact
@@ -97,7 +100,8 @@ def _summary_here(path: Path, fmt: str) -> ModelSummary:
     shape, unit, scale, _ = oi._read_shape_named(path, fmt)
     t_read = time.perf_counter()
     faces = oi._shape_faces(path, fmt, shape)
-    kept, rational, holed, skipped, why = [], 0, 0, 0, []
+    supp_flags = oi._supplemental_flags(shape, faces)
+    kept, rational, holed, skipped, why, supp = [], 0, 0, 0, [], []
     for i, face in enumerate(faces):
         try:
             work, surface, conv = oi._face_surface(face, i, path)
@@ -112,6 +116,8 @@ def _summary_here(path: Path, fmt: str) -> ModelSummary:
                                         if isinstance(exc, ShapeVerifyError)
                                         else f"{type(exc).__name__}: {exc}"))
             continue
+        if supp_flags[i]:
+            supp.append(len(kept))
         kept.append(face)
         rational += surface.rational
         holed += loops > 1
@@ -123,7 +129,10 @@ def _summary_here(path: Path, fmt: str) -> ModelSummary:
         logger.warning("%s: %d of the %d faces in the file were not loaded: %s", path,
                        n_in_file - len(kept), n_in_file, "; ".join(why))
     t_faces = time.perf_counter()
-    lo, hi = _bounds(kept)
+    if len(supp) == len(kept):
+        supp = []  # as the import: the solid's faces were all skipped
+    part = set(range(len(kept))) - set(supp)
+    lo, hi = _bounds([f for k, f in enumerate(kept) if k in part])
     from .number_check import check_extent
 
     check_extent(path, lo, hi)  # issue 33 fuzz: a finite but absurd number in the file
@@ -135,7 +144,7 @@ def _summary_here(path: Path, fmt: str) -> ModelSummary:
                         faces_with_holes=int(holed), vertices=None, unit=unit,
                         scale_to_mm=float(scale), lo=tuple(float(x) for x in lo),
                         hi=tuple(float(x) for x in hi), size=size, faces_in_file=n_in_file,
-                        missing=tuple(why))
+                        missing=tuple(why), supplemental=tuple(supp))
 
 
 # -------------------------------------------------------------------------------------- bounds

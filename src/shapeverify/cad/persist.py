@@ -23,7 +23,8 @@ Layout (F faces, L loops, K loop vertices; format version 1)
 
 ``meta`` holds ``face_names`` (one name or null per face) only when some face has a name from
 the CAD file; files without it (all files written before names were read) load with
-``face_names=None``.
+``face_names=None``; likewise ``supplemental`` (the indices of supplemental faces,
+:attr:`Model.supplemental`) only when there are some.
 
 :func:`model_to_arrays` / :func:`model_from_arrays` expose the same dictionary so that other
 files (e.g. a prepared closest-point structure) can embed a model.
@@ -112,6 +113,8 @@ def model_to_arrays(model) -> dict:
         meta["face_names"] = list(model.face_names)
     if model.open_seams:
         meta["open_seams"] = list(model.open_seams)
+    if model.supplemental:
+        meta["supplemental"] = list(model.supplemental)
     a = {
         "meta": np.frombuffer(json.dumps(meta).encode("utf-8"), dtype=np.uint8),
         "scale_to_mm": np.array([model.scale_to_mm], dtype=np.float64),
@@ -218,6 +221,7 @@ def model_from_arrays(a, where: str = "<arrays>"):
                       n_faces_in_file=meta.get("n_faces_in_file"),
                       skipped_faces=tuple(meta.get("skipped_faces") or ()),
                       open_seams=tuple(meta.get("open_seams") or ()),
+                      supplemental=tuple(meta.get("supplemental") or ()),
                       face_names=_face_names(meta.get("face_names"), n, where), **opt)
         if "bounds" in a and np.shape(a["bounds"]) == (2, 3):
             b = np.array(a["bounds"], dtype=np.float64)

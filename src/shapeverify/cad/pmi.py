@@ -618,6 +618,9 @@ def read_pmi_here(path) -> dict:
         logger.warning("%s: could not compare the PMI read with the file's text: %s",
                        path.name, e)
         unread = []
+    from .step_text import clear as _forget_text
+
+    _forget_text()  # the text was parsed once for the four readers (step_text); let it go
     return {"source": str(path), "n_faces": len(faces), "datums": datum_list,
             "tolerances": tolerances, "dimensions": dimensions, "unread": unread,
             **({"composites_unmatched": composites_missed} if composites_missed else {}),

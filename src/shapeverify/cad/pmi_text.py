@@ -26,19 +26,10 @@ from __future__ import annotations
 import re
 from collections import Counter, defaultdict
 
+from .step_text import GT_TYPES, StepText, step_text
+
 __all__ = ["declared_pmi", "unread_pmi", "unread_pmi_of_file"]
 
-#: STEP AP242 tolerance entity -> OpenCASCADE's type name (XCAFDimTolObjects_GeomToleranceType_)
-GT_TYPES = {
-    "ANGULARITY_TOLERANCE": "Angularity", "CIRCULAR_RUNOUT_TOLERANCE": "CircularRunout",
-    "COAXIALITY_TOLERANCE": "Coaxiality", "CONCENTRICITY_TOLERANCE": "Concentricity",
-    "CYLINDRICITY_TOLERANCE": "Cylindricity", "FLATNESS_TOLERANCE": "Flatness",
-    "LINE_PROFILE_TOLERANCE": "ProfileOfLine", "PARALLELISM_TOLERANCE": "Parallelism",
-    "PERPENDICULARITY_TOLERANCE": "Perpendicularity", "POSITION_TOLERANCE": "Position",
-    "ROUNDNESS_TOLERANCE": "CircularityOrRoundness", "STRAIGHTNESS_TOLERANCE": "Straightness",
-    "SURFACE_PROFILE_TOLERANCE": "ProfileOfSurface", "SYMMETRY_TOLERANCE": "Symmetry",
-    "TOTAL_RUNOUT_TOLERANCE": "TotalRunout",
-}
 #: dimension entities: (applies_to, name, ...) for sizes; (name, description, relating,
 #: related, ...) for locations
 _SIZES = ("DIMENSIONAL_SIZE", "DIMENSIONAL_SIZE_WITH_PATH", "ANGULAR_SIZE")
@@ -50,41 +41,7 @@ _SHAPE_ITEMS = {"ADVANCED_FACE", "FACE_SURFACE", "EDGE_CURVE", "ORIENTED_EDGE", 
                 "MANIFOLD_SOLID_BREP", "CLOSED_SHELL", "OPEN_SHELL", "BREP_WITH_VOIDS"}
 _USAGES = ("ITEM_IDENTIFIED_REPRESENTATION_USAGE", "GEOMETRIC_ITEM_SPECIFIC_USAGE")
 
-_STR = r"'(?:[^']|'')*'"
-_ENTITY = re.compile(r"#(\d+)\s*=\s*((?:" + _STR + r"|[^;'])*);")
 _CALL = re.compile(r"([A-Z][A-Z0-9_]*)\s*\(")
-
-
-def _entities(text: str) -> dict[int, str]:
-    i = text.find("DATA;")
-    return {int(k): v.strip() for k, v in _ENTITY.findall(text[i + 5:] if i >= 0 else text)}
-
-
-def _calls(body: str) -> dict[str, list[str]]:
-    """{KEYWORD: its top-level arguments as text} of a simple or complex entity's body."""
-    out, i = {}, 0
-    while True:
-        m = _CALL.search(body, i)
-        if m is None:
-            return out
-        j, depth, args, cur = m.end(), 1, [], []
-        while j < len(body) and depth:
-            c = body[j]
-            if c == "'":
-                s = re.match(_STR, body[j:])
-                cur.append(s.group(0))
-                j += len(s.group(0))
-                continue
-            depth += (c == "(") - (c == ")")
-            if depth == 1 and c == ",":
-                args.append("".join(cur).strip())
-                cur = []
-            elif depth:
-                cur.append(c)
-            j += 1
-        args.append("".join(cur).strip())
-        out.setdefault(m.group(1), args if args != [""] else [])
-        i = j
 
 
 def _text(arg: str) -> str:
@@ -107,13 +64,17 @@ def declared_pmi(text: str) -> list[dict]:
     """Every geometric tolerance and semantic dimension the STEP ``text`` declares:
     ``{entity: '#n', kind, type, name, aspect}`` (``type``: OpenCASCADE's tolerance type, or
     ``Size`` / ``Location`` for a dimension; ``aspect``: the shape aspect it applies to)."""
-    return _declared(_entities(text))
+    return _declared(StepText(text))
 
 
-def _declared(ents: dict[int, str]) -> list[dict]:
+def _declared(st: StepText) -> list[dict]:
     out = []
-    for k in sorted(ents):
-        calls = _calls(ents[k])
+    for k in sorted(st.entities):
+        body = st.entities[k]
+        # every keyword matched below holds one of these: the others need no tokenizing
+        if "_TOLERANCE" not in body and "_SIZE" not in body and "_LOCATION" not in body:
+            continue
+        calls = st.calls(k)
         gt = next((GT_TYPES[c] for c in calls if c in GT_TYPES), None)
         if gt is not None:
             args = calls.get("GEOMETRIC_TOLERANCE") or next(
@@ -141,11 +102,12 @@ def _declared(ents: dict[int, str]) -> list[dict]:
 class _Reach:
     """What a shape aspect (with the aspects it groups) is tied to by usages."""
 
-    def __init__(self, ents: dict[int, str]):
-        self.ents = ents
+    def __init__(self, st: StepText):
+        self.st = st
+        self.ents = st.entities
         self.items, self.parts = defaultdict(list), defaultdict(list)
-        for k, body in ents.items():
-            calls = _calls(body) if ("USAGE" in body or "SHAPE_ASPECT_RELATIONSHIP" in body) \
+        for k, body in self.ents.items():
+            calls = st.calls(k) if ("USAGE" in body or "SHAPE_ASPECT_RELATIONSHIP" in body) \
                 else {}
             for u in _USAGES:
                 a = calls.get(u)
@@ -171,7 +133,7 @@ class _Reach:
         return out
 
     def why(self, d: dict) -> str:
-        calls = _calls(self.ents.get(d["aspect"], ""))
+        calls = self.st.calls(d["aspect"]) if d["aspect"] is not None else {}
         keyword, args = next(iter(calls.items()), ("?", []))
         label = _text(args[1]) if len(args) > 1 else ""
         head = f"its shape aspect #{d['aspect']} ({keyword}" + (f" {label!r})" if label else ")")
@@ -197,8 +159,11 @@ def unread_pmi(text: str, tolerances, dimensions) -> list[dict]:
 
     Returns ``[{kind, type, name, entity, reason}]`` (``entity``: '#n', or 'one of #a, #b').
     """
-    ents = _entities(text)
-    declared = _declared(ents)
+    return _unread(StepText(text), tolerances, dimensions)
+
+
+def _unread(st: StepText, tolerances, dimensions) -> list[dict]:
+    declared = _declared(st)
     have = Counter([("geometric_tolerance", t["type"], _norm(t.get("name"))) for t in tolerances]
                    + [("dimension", "", _norm(d.get("name"))) for d in dimensions
                       if d["type"] not in _NOT_SEMANTIC])
@@ -206,7 +171,7 @@ def unread_pmi(text: str, tolerances, dimensions) -> list[dict]:
     for d in declared:
         key = (d["kind"], d["type"] if d["kind"] == "geometric_tolerance" else "", _norm(d["name"]))
         groups[key].append(d)
-    reach, out = _Reach(ents), []
+    reach, out = _Reach(st), []
     for key, ds in groups.items():
         missing = len(ds) - have.get(key, 0)
         if missing <= 0:
@@ -228,6 +193,5 @@ def unread_pmi(text: str, tolerances, dimensions) -> list[dict]:
 
 
 def unread_pmi_of_file(path, tolerances, dimensions) -> list[dict]:
-    """:func:`unread_pmi` of a STEP file (read as latin-1)."""
-    with open(path, "r", encoding="latin-1") as fh:
-        return unread_pmi(fh.read(), tolerances, dimensions)
+    """:func:`unread_pmi` of a STEP file (read as latin-1, once: :func:`.step_text.step_text`)."""
+    return _unread(step_text(path), tolerances, dimensions)

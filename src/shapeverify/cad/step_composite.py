@@ -27,9 +27,10 @@ from __future__ import annotations
 
 import re
 
+from .step_text import GT_KINDS, StepText, step_text
+
 __all__ = ["composite_relations_of_text", "composite_relations_of_file", "match_composites"]
 
-_ENTITY = re.compile(r"#(\d+)\s*=\s*([^;]*);")
 _REL = re.compile(r"GEOMETRIC_TOLERANCE_RELATIONSHIP\s*\(\s*'([^']*)'\s*,\s*(?:'[^']*'|\$)\s*,"
                   r"\s*#(\d+)\s*,\s*#(\d+)\s*\)", re.I)
 _GT = re.compile(r"GEOMETRIC_TOLERANCE\s*\(\s*'([^']*)'\s*,\s*(?:'[^']*'|\$)\s*,\s*#(\d+)",
@@ -39,11 +40,8 @@ _DREF = re.compile(r"GEOMETRIC_TOLERANCE_WITH_DATUM_REFERENCE\s*\(\s*\(([^)]*)\)
 _MEAS = re.compile(r"MEASURE\s*\(\s*([-+0-9.EeDd]+)\s*\)")
 _REFS = re.compile(r"#(\d+)")
 
-#: STEP tolerance entity -> XCAF's type name (XCAFDimTolObjects_GeomToleranceType_...)
-XCAF_TYPE = {"POSITION": "Position", "SURFACE_PROFILE": "ProfileOfSurface",
-             "LINE_PROFILE": "ProfileOfLine", "PERPENDICULARITY": "Perpendicularity",
-             "PARALLELISM": "Parallelism", "ANGULARITY": "Angularity",
-             "FLATNESS": "Flatness", "STRAIGHTNESS": "Straightness"}
+#: STEP tolerance entity (without ``_TOLERANCE``) -> XCAF's type name: the shared table
+XCAF_TYPE = GT_KINDS
 
 
 def _segment(ents: dict, k: int) -> dict | None:
@@ -73,9 +71,14 @@ def composite_relations_of_text(text: str) -> list:
     """The composite frames of the STEP ``text``: a list of ``{'upper': seg, 'lower': seg}``
     (each seg: ``entity`` (its #id), ``name``, ``type`` (XCAF's name), ``value`` (file unit),
     ``n_datums``), in the file's order.  Other tolerance relationships are left out."""
-    ents = {int(k): v for k, v in _ENTITY.findall(text)}
-    out = []
+    return _relations(StepText(text))
+
+
+def _relations(st: StepText) -> list:
+    ents, out = st.entities, []
     for body in ents.values():
+        if "TOLERANCE_RELATIONSHIP" not in body.upper():
+            continue
         m = _REL.search(body)
         if m is None or m.group(1).strip().lower() != "composite":
             continue
@@ -86,14 +89,12 @@ def composite_relations_of_text(text: str) -> list:
 
 
 def composite_relations_of_file(path) -> list:
-    """:func:`composite_relations_of_text` of a STEP file (read as latin-1); [] without
-    relationships (the text is only parsed when the file names one)."""
-    with open(path, "r", encoding="latin-1") as fh:
-        text = fh.read()
-    if "GEOMETRIC_TOLERANCE_RELATIONSHIP" not in text.upper():
+    """:func:`composite_relations_of_text` of a STEP file (read as latin-1, once:
+    :func:`.step_text.step_text`); [] without relationships."""
+    st = step_text(path)
+    if not st.mentions("GEOMETRIC_TOLERANCE_RELATIONSHIP"):
         return []
-    i = text.find("DATA;")
-    return composite_relations_of_text(text[i + 5:] if i >= 0 else text)
+    return _relations(st)
 
 
 def _matches(seg: dict, tol: dict, scale: float) -> bool:

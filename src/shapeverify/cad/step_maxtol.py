@@ -18,7 +18,8 @@ from __future__ import annotations
 
 import re
 
-from .step_composite import _ENTITY, _MEAS, _segment
+from .step_composite import _MEAS, _segment
+from .step_text import StepText, step_text
 
 __all__ = ["max_tolerances_of_text", "apply_max_tolerances"]
 
@@ -28,8 +29,11 @@ _MAX = re.compile(r"GEOMETRIC_TOLERANCE_WITH_MAXIMUM_TOLERANCE\s*\(\s*#(\d+)", r
 def max_tolerances_of_text(text: str) -> list:
     """Every geometric tolerance of the STEP ``text`` (:func:`.step_composite._segment`'s
     fields) with ``max_value`` (file unit; 0.0 without a maximum tolerance)."""
-    ents = {int(k): v for k, v in _ENTITY.findall(text)}
-    out = []
+    return _max_tolerances(StepText(text))
+
+
+def _max_tolerances(st: StepText) -> list:
+    ents, out = st.entities, []
     for k, body in ents.items():
         if "GEOMETRIC_TOLERANCE" not in body.upper():
             continue
@@ -48,16 +52,15 @@ def apply_max_tolerances(path, tolerances, scale: float = 1.0) -> list:
     """Set ``max_value`` (mm; ``scale``: mm per file unit) on the ``tolerances`` XCAF read
     (:func:`.pmi.read_pmi`'s dicts) whose maximum it left at 0 and the file gives: the file's
     tolerances that match one (type, magnitude, number of datums, name when both have one)
-    must agree on the maximum, else it is left out and reported.  Returns the ids set and
+    must agree on the maximum, else it is left out and reported (the file is read once:
+    :func:`.step_text.step_text`).  Returns the ids set and
     the ambiguities as ``[(id, reason)]``."""
-    with open(path, "r", encoding="latin-1") as fh:
-        text = fh.read()
-    if "GEOMETRIC_TOLERANCE_WITH_MAXIMUM_TOLERANCE" not in text.upper():
+    st = step_text(path)
+    if not st.mentions("GEOMETRIC_TOLERANCE_WITH_MAXIMUM_TOLERANCE"):
         return [], []
     from .step_composite import _matches
 
-    i = text.find("DATA;")
-    segs = max_tolerances_of_text(text[i + 5:] if i >= 0 else text)
+    segs = _max_tolerances(st)
     done, odd = [], []
     for t in tolerances:
         if t.get("max_value", 0.0) > 0.0:

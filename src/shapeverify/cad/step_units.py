@@ -12,6 +12,8 @@ from __future__ import annotations
 
 import re
 
+from .step_text import StepText, step_text
+
 __all__ = ["length_unit_of_text", "length_unit_of_file"]
 
 #: millimetres per metre for each SI prefix STEP writes (``.MILLI.``; ``$``: none)
@@ -19,7 +21,6 @@ _PREFIX_MM = {"$": 1e3, "EXA": 1e21, "PETA": 1e18, "TERA": 1e15, "GIGA": 1e12, "
               "KILO": 1e6, "HECTO": 1e5, "DECA": 1e4, "DECI": 1e2, "CENTI": 10.0, "MILLI": 1.0,
               "MICRO": 1e-3, "NANO": 1e-6, "PICO": 1e-9, "FEMTO": 1e-12, "ATTO": 1e-15}
 
-_ENTITY = re.compile(r"#(\d+)\s*=\s*([^;]*);")
 _SI = re.compile(r"SI_UNIT\s*\(\s*(\$|\.(\w+)\.)\s*,\s*\.METRE\.\s*\)")
 _CONV = re.compile(r"CONVERSION_BASED_UNIT\s*\(\s*'([^']*)'\s*,\s*#(\d+)\s*\)")
 _MEAS = re.compile(r"LENGTH_MEASURE\s*\(\s*([-+0-9.EeDd]+)\s*\)\s*\)?\s*,\s*#(\d+)")
@@ -51,8 +52,12 @@ def length_unit_of_text(text: str) -> tuple[str, float] | None:
     ...     "REPRESENTATION_CONTEXT('',''));")
     ('INCH', 25.4)
     """
-    ents = {int(k): v for k, v in _ENTITY.findall(text)}
-    assigned = [int(r) for m in _GLOBAL.finditer(text)
+    return _length_unit(StepText(text))
+
+
+def _length_unit(st: StepText) -> tuple[str, float] | None:
+    ents = st.entities
+    assigned = [int(r) for m in _GLOBAL.finditer(st.data)
                 for r in re.findall(r"#(\d+)", m.group(1))]
     first = [k for k in assigned if k in ents] + sorted(
         ents, key=lambda k: ("CONVERSION_BASED_UNIT" not in ents[k], k))
@@ -77,8 +82,9 @@ def length_unit_of_text(text: str) -> tuple[str, float] | None:
 
 
 def length_unit_of_file(path) -> tuple[str, float] | None:
-    """:func:`length_unit_of_text` of a STEP file's DATA section (read as latin-1)."""
-    with open(path, "r", encoding="latin-1") as fh:
-        text = fh.read()
-    i = text.find("DATA;")
-    return length_unit_of_text(text[i + 5:] if i >= 0 else text)
+    """:func:`length_unit_of_text` of a STEP file's DATA section (read as latin-1, once:
+    :func:`.step_text.step_text`; the answer is kept with it)."""
+    st = step_text(path)
+    if "length_unit" not in st.memo:
+        st.memo["length_unit"] = _length_unit(st)
+    return st.memo["length_unit"]

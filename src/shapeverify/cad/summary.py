@@ -29,7 +29,7 @@ __all__ = ["ModelSummary", "summarize", "read_summary", "cached_summary", "cache
 
 logger = logging.getLogger(__name__)
 
-_FORMAT = 2  # bump when ModelSummary's fields change
+_FORMAT = 3  # bump when ModelSummary's fields change
 _MAX_ENTRIES = 256  # the oldest entries beyond this are removed when one is written
 
 
@@ -59,6 +59,9 @@ class ModelSummary:
         when some are missing (issue 33 row 2).
     missing : tuple of str
         One line per face of the file that is not in the model, saying which and why.
+    supplemental : tuple of int
+        The supplemental faces (:attr:`~shapeverify.cad.model.Model.supplemental`: outside
+        the part's solid; numbered, but not inspected); the bounds are those of the others.
     """
 
     kind: str
@@ -73,6 +76,19 @@ class ModelSummary:
     size: float
     faces_in_file: int | None = None
     missing: tuple = ()
+    supplemental: tuple = ()
+
+
+def face_ranges(idx) -> str:
+    """'264-281, 300' for ascending face numbers."""
+    out, start = [], None
+    for k, i in enumerate(idx):
+        if start is None:
+            start = i
+        if k + 1 == len(idx) or idx[k + 1] != i + 1:
+            out.append(f"{start}" if start == i else f"{start}-{i}")
+            start = None
+    return ", ".join(out)
 
 
 def summarize(model) -> ModelSummary:
@@ -87,7 +103,8 @@ def summarize(model) -> ModelSummary:
         unit=model.unit, scale_to_mm=float(model.scale_to_mm),
         lo=tuple(float(x) for x in lo), hi=tuple(float(x) for x in hi), size=float(model.size),
         faces_in_file=model.n_faces_in_file if cad else None,
-        missing=tuple(model.skipped_faces) if cad else ())
+        missing=tuple(model.skipped_faces) if cad else (),
+        supplemental=tuple(getattr(model, "supplemental", ())) if cad else ())
 
 
 def read_summary(path) -> ModelSummary:
@@ -188,6 +205,7 @@ def _read_entry(entry: Path, stamp: str) -> ModelSummary | None:
             return None
         data["lo"], data["hi"] = tuple(map(float, data["lo"])), tuple(map(float, data["hi"]))
         data["missing"] = tuple(str(x) for x in data.get("missing", ()))
+        data["supplemental"] = tuple(int(x) for x in data.get("supplemental", ()))
         s = ModelSummary(**data)
         if not (len(s.lo) == len(s.hi) == 3 and isinstance(s.faces, int)):
             raise ValueError("malformed entry")

@@ -103,7 +103,10 @@ def _compact(face, uv, tris):
 
 def tessellate_model(model, max_edge: float | None = None, max_per_side: int = 400,
                      cover: bool = True) -> Tessellation:
-    """Tessellate every face of a CAD model (or wrap a mesh model's triangles).
+    """Tessellate every face of the part of a CAD model (or wrap a mesh model's triangles).
+
+    Supplemental faces (``Model.supplemental``: geometry outside the part's solid) are left
+    out: neither a camera nor the report sees surface the manufactured part does not have.
 
     Parameters
     ----------
@@ -132,7 +135,9 @@ def tessellate_model(model, max_edge: float | None = None, max_per_side: int = 4
         raise ValueError(f"max_edge must be a positive length in mm, got {max_edge!r}")
     V, T, UV, VF, TF = [], [], [], [], []
     offset = 0
-    for f, face in enumerate(model.faces):
+    part = model.part_faces() if hasattr(model, "part_faces") else range(len(model.faces))
+    for f in part:  # supplemental geometry (Model.supplemental) is not the part
+        face = model.faces[f]
         verts, tris, uv = tessellate_face(face, max_edge, max_per_side, cover)
         V.append(verts)
         T.append(tris + offset)

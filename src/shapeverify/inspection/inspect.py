@@ -374,6 +374,11 @@ def _check_faces(prep, faces) -> tuple | str | None:
             raise ValueError(f"face {f!r} does not exist: the model has faces 0..{n_faces - 1} "
                              "(see `shapeverify info`)")
         out.append(i)
+    supp = sorted(set(out) & set(getattr(model, "supplemental", ())))
+    if supp:
+        raise ValueError(f"face(s) {', '.join(map(str, supp))} are supplemental geometry (outside "
+                         "the part's solid: no scan holds them); name faces of the part "
+                         "(see `shapeverify info`)")
     if not out:
         raise ValueError("faces= is empty; name at least one face, or leave it out to inspect all")
     return tuple(sorted(set(out)))

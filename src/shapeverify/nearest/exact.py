@@ -256,7 +256,8 @@ class ExactCAD:
         self.ch_r = np.array(ch_r, dtype=np.float64)
         # bounds of every face, patch by patch: the search over them makes the answer global
         self.patches = PatchBounds(faces, self.tab, (self.seg_off, self.x0, self.y0, self.x1,
-                                                     self.y1), _PATCH * self.spacing)
+                                                     self.y1), _PATCH * self.spacing,
+                                    skip=getattr(model, "supplemental", ()))
 
     def derivatives(self, faces, uv) -> np.ndarray:
         """Derivatives (N, 3, 3, 3) from the patch tables, ``[:, k, l]`` = d^(k+l)S/du^k dv^l

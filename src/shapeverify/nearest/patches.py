@@ -110,6 +110,9 @@ class PatchBounds:
     seg : (seg_off (F+1,), x0, y0, x1, y1) trimming segments per face in (u, v)
     size : float
         Longest control-polygon edge of a patch (mm); about 4 model point spacings.
+    skip : iterable of int
+        Faces left out (supplemental geometry, ``Model.supplemental``): the search never
+        returns a foot on them.
 
     Attributes (patch k, in hierarchy order)
     ----------------------------------------
@@ -119,7 +122,7 @@ class PatchBounds:
     ``node_child`` (M,) (first child, -1 for a leaf), ``node_first``/``node_count`` (M,).
     """
 
-    def __init__(self, faces, tab, seg, size: float):
+    def __init__(self, faces, tab, seg, size: float, skip=()):
         deg, bu, bu_off, mu, mu_off, bv, bv_off, mv, mv_off, coef, c_off = tab
         seg_off, x0, y0, x1, y1 = seg
         ctrl = np.concatenate([f.surface.control.reshape(-1, 3) for f in faces])
@@ -128,7 +131,10 @@ class PatchBounds:
         size = float(size)
         F, Cn, Ax, Hf, UV = [], [], [], [], []
         n_bad = 0
+        skip = set(skip)
         for fi, face in enumerate(faces):
+            if fi in skip:      # supplemental geometry (Model.supplemental): not the part
+                continue
             p, q = int(deg[fi, 0]), int(deg[fi, 1])
             b_u = bu[bu_off[fi]:bu_off[fi + 1]]
             b_v = bv[bv_off[fi]:bv_off[fi + 1]]

@@ -159,7 +159,8 @@ def _mean_normal(model) -> np.ndarray:
     """Area-weighted mean outward normal (for the default viewing direction)."""
     if model.kind == "cad":
         acc = np.zeros(3)
-        for f in model.faces:
+        part = model.part_faces() if hasattr(model, "part_faces") else range(len(model.faces))
+        for f in (model.faces[i] for i in part):
             (a0, a1), (b0, b1) = f.uv_bounds
             g = np.stack(np.meshgrid(np.linspace(a0, a1, 24), np.linspace(b0, b1, 24)),
                          axis=-1).reshape(-1, 2)
