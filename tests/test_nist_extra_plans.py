@@ -51,6 +51,11 @@ STILL_UNSUPPORTED = {
     "nist_ctc_03": {"GT10": "two parallel planes"},
     "nist_ctc_05": {},
     "nist_ftc_11": {},
+    # CTC 02 e2 (CATIA): datum A's point targets are attached to vertices (standalone points);
+    # GT19's profile of a line has no section direction in the semantic PMI
+    "nist_ctc_02": {"GT3": "not to one face", "GT4": "not to one face", "GT5": "not to one face",
+                    "GT13": "not to one face", "GT19": "section direction",
+                    "GT20": "not to one face", "GT21": "not to one face"},
     "nist_ctc_04": {},
     # GT4: a projected perpendicularity (positions with Ⓟ are planned)
     "nist_ftc_07": {"GT4": "Projected", "GT10": "Statistical", "GT15": "not cylinders",
