@@ -54,6 +54,9 @@ STILL_UNSUPPORTED = {
     "nist_ctc_03": {"GT10": "two parallel planes"},
     "nist_ctc_05": {},
     "nist_ftc_11": {},
+    # CTC 02 e2 (CATIA): GT19's profile of a line is attached to faces, with no section
+    # direction in the semantic PMI (e1 attaches it to a line drawn on a face)
+    "nist_ctc_02": {"GT19": "section direction"},
     "nist_ctc_04": {},
     "nist_ftc_07": {"GT10": "Statistical", "GT15": "counterbored holes",
                     "GT16": "counterbored holes"},
@@ -500,3 +503,35 @@ def test_perfect_ftc10_passes_its_split_bosses_coplanar_distances_and_3x_cylindr
             assert len(c.details["features"]) == n
             assert c.measured + c.uncertainty == max(
                 r["value"] + r["uncertainty"] for r in c.details["features"])
+
+
+def test_ctc02_e2_plans_the_characteristics_of_the_e1_plan(plans):
+    """CTC 02 in AP242 edition 2 (CATIA's export, 635 faces) and the shared e1 file (another
+    system's, 487 faces) are one drawing: the e2 plan holds the e1 plan's characteristics by
+    type, tolerance and datums but GT19's profile of a line (see STILL_UNSUPPORTED) and the
+    perpendicularity to K, which e2 writes as 0.254000000000003 (e1: 0.25). Datum A, B and C's
+    point targets are attached to vertices in e2 (standalone points), and were unsupported;
+    they sit at e1's positions."""
+    import numpy as np
+    import yaml
+
+    e1 = yaml.safe_load((Path(__file__).parent / "data" / "pmi_plans" / "nist_ctc_02.yaml")
+                        .read_text(encoding="utf-8"))
+    plan = plans["nist_ctc_02"].plan
+
+    def key(c):
+        tol = c.get("tol")
+        return (c["type"], None if tol is None else round(tol, 3), tuple(c.get("datums") or ()))
+
+    def dump(x):
+        return x.model_dump(exclude_none=True) if hasattr(x, "model_dump") else dict(x)
+
+    got = Counter(key(dump(c)) for c in plan.characteristics)
+    want = Counter(key(c) for c in e1["characteristics"])
+    assert got - want == Counter({("perpendicularity", 0.254, ("K",)): 1})
+    assert want - got == Counter({("perpendicularity", 0.25, ("K",)): 1,
+                                  ("line_profile", 0.25, ("A", "B", "C")): 1})
+    for name in "ABC":
+        mine = sorted(np.round([t["at"] for t in dump(plan.datums[name])["targets"]], 1).tolist())
+        theirs = sorted(np.round([t["at"] for t in e1["datums"][name]["targets"]], 1).tolist())
+        assert np.allclose(mine, theirs, atol=0.1), name

@@ -120,6 +120,48 @@ def _area_on_face(t: dict, what: str, ctx) -> tuple[int | None, str, str]:
     return inv[k], note, ""
 
 
+def _point_on_face(t: dict, what: str, ctx) -> tuple[int | None, str, str]:
+    """(PMI face number, note, '') of a point target that the file attaches to a vertex -- a
+    standalone point (NIST CTC 02 e2, CATIA's 'Point.5' ...) -- not to a face: the one face whose
+    trimmed domain holds the point (within 1e-6 of the part's size, of the domain on its
+    edge); on an edge, the one whose
+    normal there is along the target's ``direction``; or (None, '', why)."""
+    import numpy as np
+
+    from ..fitting.surfaces import project_to_surface
+
+    at = np.asarray(t["at"], float)
+    tol = max(1e-6 * ctx.size, 1e-6)
+    inv = {v: k for k, v in ctx.fmap.items()}
+    hits = []
+    for k, face in enumerate(ctx.model.faces):
+        if k not in inv:
+            continue
+        c = np.asarray(face.surface.control, float).reshape(-1, 3)
+        if np.any(at < c.min(0) - tol) or np.any(at > c.max(0) + tol):
+            continue                   # a NURBS surface lies in its control net's box
+        (a0, a1), (b0, b1) = face.uv_bounds
+        g = np.stack(np.meshgrid(np.linspace(a0, a1, 41), np.linspace(b0, b1, 41)),
+                     -1).reshape(-1, 2)
+        uv0 = g[np.argmin(((face.evaluate(g) - at) ** 2).sum(-1))][None]
+        uv, dist = project_to_surface(face.surface, at[None], uv0)
+        ring = uv + 1e-7 * np.array([a1 - a0, b1 - b0]) * np.array(
+            [[0, 0], [1, 0], [-1, 0], [0, 1], [0, -1], [1, 1], [1, -1], [-1, 1], [-1, -1]])
+        if abs(float(dist[0])) <= tol and face.contains(ring).any():   # on its edge too
+            hits.append((k, uv))
+    if len(hits) > 1 and t.get("direction") is not None:
+        n = np.asarray(t["direction"], float)
+        n = n / np.linalg.norm(n)
+        hits = [(k, uv) for k, uv in hits
+                if abs(abs(float(ctx.model.faces[k].normal(uv)[0] @ n)) - 1) < 1e-6]
+    if len(hits) != 1:
+        return None, "", (f"{what} is attached to a vertex that lies on {len(hits)} faces of "
+                          "the part along its direction (one expected)")
+    k = hits[0][0]
+    return inv[k], (f"target {t['number']}: attached to a point (vertex) in the file; it lies "
+                    f"on face {k}, the only face whose trimmed domain holds it"), ""
+
+
 def targets_spec(d: dict, ctx, src: dict) -> tuple[dict | None, str]:
     """(the ``datums`` entry of a datum set up from datum targets, '') or (None, why not).
 
@@ -156,6 +198,12 @@ def targets_spec(d: dict, ctx, src: dict) -> tuple[dict | None, str]:
             return None, f"{what}: the file gives no position for it (no target parameters)"
         if kind in ("circle", "rectangle") and not t["faces"] and not t.get("other"):
             face, note, why = _area_on_face(t, what, ctx)
+            if face is None:
+                return None, why
+            t = {**t, "faces": [face]}
+            notes.append(note)
+        if kind == "point" and not t["faces"] and set(t.get("other") or ()) == {"vertex"}:
+            face, note, why = _point_on_face(t, what, ctx)
             if face is None:
                 return None, why
             t = {**t, "faces": [face]}
