@@ -305,9 +305,12 @@ def inspect_case(prep, plan, P, rng, given_pose: bool, data=None, feats=None, de
     return verdict_rows(pr, data, feats, defect), sec, al
 
 
-def run_file(name, spacing, seed, given_pose, only=None, fine=None):
-    from independent_scans import random_points, read_shape, tessellate
-    from model_cache import cached_prepared
+def run_file(name, spacing, seed, given_pose, only=None, fine=None, cached=False):
+    """The cases of one file.  ``cached`` (the tests): the PMI, the model's features and the
+    tessellation from tests/model_cache.py (bitwise what read_pmi, model_features and
+    tessellate give, computed once per code version), so ``plan_cpu_s`` is not the plan's."""
+    from independent_scans import file_tessellation, random_points, read_shape, tessellate
+    from model_cache import cached_pmi, cached_prepared
 
     from shapeverify.characteristics.features import model_features
     from shapeverify.characteristics.plan import load_plan
@@ -315,13 +318,14 @@ def run_file(name, spacing, seed, given_pose, only=None, fine=None):
 
     path = DATA / name
     t0 = time.process_time()
-    prep = cached_prepared(path)
-    r = pmi_plan(path, model=prep.model)
+    prep = cached_prepared(path, features=cached)
+    r = pmi_plan(path, model=prep.model, pmi=cached_pmi(path) if cached else None)
     data = r.data
     plan = load_plan(data)
     feats = model_features(prep.model)
     t_plan = time.process_time() - t0
-    V, T, F = tessellate(read_shape(path), DEFLECTION)
+    V, T, F = (file_tessellation(path, DEFLECTION) if cached
+               else tessellate(read_shape(path), DEFLECTION))
     rng = np.random.default_rng(seed)
     P, N, t = random_points(V, T, spacing, rng, with_triangles=True)
     if fine is not None and fine < spacing:

@@ -134,26 +134,8 @@ def _named(model, path):
     return model
 
 
-def cached_model(path):
-    """``shapeverify.load_model(path)`` of a CAD file, imported once per code version."""
-    return _named(_cached(_entry(path, "model", {}, ".svmodel"), lambda: _load_model(path),
-                          lambda m, p: m.save(p), _load_model), path)
-
-
-def cached_prepared(path, **kwargs):
-    """``shapeverify.prepare(load_model(path), **kwargs)``, built once per code version."""
-    from shapeverify.nearest import load_prepared, prepare
-
-    prep = _cached(_entry(path, "prepared", kwargs, ".svm"),
-                   lambda: prepare(cached_model(path), **kwargs),
-                   lambda prep, p: prep.save(p), load_prepared)
-    _named(prep.model, path)
-    return prep
-
-
-def cached_pmi(path):
-    """``shapeverify.cad.pmi.read_pmi(path)`` of a STEP file, read once per code version (the
-    dict pickled as it came back from the importer)."""
+def _pickled(entry: Path, build):
+    """``build()``, pickled at ``entry`` once per code version."""
     import pickle
 
     def save(obj, p):
@@ -167,7 +149,55 @@ def cached_pmi(path):
             except (pickle.UnpicklingError, EOFError) as e:
                 raise ValueError(f"{p}: damaged entry") from e
 
-    pmi = _cached(_entry(path, "pmi", {}, ".pkl"), lambda: _read_pmi(path), save, load)
+    return _cached(entry, build, save, load)
+
+
+def _with_features(model, entry: Path):
+    """``model`` (the model of the cache entry ``entry``) with what
+    :func:`shapeverify.characteristics.features.model_features` and ``feature_notes`` return
+    for it in place (the attributes model_features caches its answer in), computed once per
+    entry: the features fit a plane and a cylinder to every face (NIST CTC 02: 16 s of CPU),
+    and every plan from PMI, plan evaluation and feature lookup of a NIST module asked for
+    them again -- on the model and again on the prepared model's copy."""
+    from shapeverify.characteristics.features import feature_notes, model_features
+
+    def build():
+        return tuple(model_features(model)), tuple(feature_notes(model))
+
+    feats, notes = _pickled(entry.with_name(entry.name + ".features.pkl"), build)
+    object.__setattr__(model, "_sv_features", feats)
+    object.__setattr__(model, "_sv_feature_notes", notes)
+    return model
+
+
+def cached_model(path, *, features: bool = False):
+    """``shapeverify.load_model(path)`` of a CAD file, imported once per code version.
+    ``features``: with its :func:`model_features` in place, also computed once per code version
+    (what model_features would compute on the model and keep on it)."""
+    entry = _entry(path, "model", {}, ".svmodel")
+    model = _named(_cached(entry, lambda: _load_model(path), lambda m, p: m.save(p),
+                           _load_model), path)
+    return _with_features(model, entry) if features else model
+
+
+def cached_prepared(path, *, features: bool = False, **kwargs):
+    """``shapeverify.prepare(load_model(path), **kwargs)``, built once per code version.
+    ``features``: as in :func:`cached_model`, on ``prep.model``."""
+    from shapeverify.nearest import load_prepared, prepare
+
+    entry = _entry(path, "prepared", kwargs, ".svm")
+    prep = _cached(entry, lambda: prepare(cached_model(path), **kwargs),
+                   lambda prep, p: prep.save(p), load_prepared)
+    _named(prep.model, path)
+    if features:
+        _with_features(prep.model, entry)
+    return prep
+
+
+def cached_pmi(path):
+    """``shapeverify.cad.pmi.read_pmi(path)`` of a STEP file, read once per code version (the
+    dict pickled as it came back from the importer)."""
+    pmi = _pickled(_entry(path, "pmi", {}, ".pkl"), lambda: _read_pmi(path))
     pmi["source"] = str(Path(path))
     return pmi
 
@@ -198,10 +228,13 @@ def cached_arrays(path, what: str, build, *, code=(), **kwargs):
 
 def load_model_stand_in(path):
     """What a test puts in place of ``shapeverify.cad.load.load_model`` to have a command it
-    runs in-process read CAD files through :func:`cached_model` (other files: the real one)."""
+    runs in-process read CAD files through :func:`cached_model` (other files: the real one),
+    with the model's features in place (every such command so far -- ``plan``, ``info
+    --features``, ``plan_from_pmi`` -- computes them)."""
     from shapeverify.cad.load import _CAD
 
-    return cached_model(path) if Path(path).suffix.lower() in _CAD else _load_model(path)
+    return (cached_model(path, features=True) if Path(path).suffix.lower() in _CAD
+            else _load_model(path))
 
 
 def read_pmi_stand_in(path, **kwargs):

@@ -12,16 +12,30 @@ def nist_plan(shared_data, name: str):
     """``path``, ``model`` (the imported model), ``result`` (:func:`pmi_plan`'s), ``fmap`` (PMI
     face -> model face) and ``inv`` (its inverse) of ``shared_data/cad/nist/name``; the test is
     skipped when the file is not there."""
-    from model_cache import cached_model
+    from model_cache import cached_model, cached_pmi
 
     from shapeverify.characteristics.pmi_plan import _face_map, pmi_plan
 
     path = shared_data / "cad" / "nist" / name
     if not path.exists():
         pytest.skip(f"{path} not present (NIST MBE PMI test model)")
-    model = cached_model(path)
-    result = pmi_plan(path, model=model)
+    # the import, PMI and the model's features: once per code version for every NIST module
+    # (tests/model_cache.py: bitwise what load_model, read_pmi, model_features give)
+    model = cached_model(path, features=True)
+    result = pmi_plan(path, model=model, pmi=cached_pmi(path))
     m = getattr(model, "model", model)
     fmap = _face_map(result.pmi, m)
     return SimpleNamespace(path=path, model=m, result=result, fmap=fmap,
                            inv={v: k for k, v in fmap.items()})
+
+
+def cached_pmi_plan(path):
+    """``pmi_plan(path)`` with the import, the PMI and the model's features from
+    tests/model_cache.py (bitwise what load_model, read_pmi and model_features give, computed
+    once per code version and shared by every module and pytest-xdist worker that plans the
+    same file: the features are most of a plan's CPU, the PMI read and import the rest)."""
+    from model_cache import cached_model, cached_pmi
+
+    from shapeverify.characteristics.pmi_plan import pmi_plan
+
+    return pmi_plan(path, model=cached_model(path, features=True), pmi=cached_pmi(path))

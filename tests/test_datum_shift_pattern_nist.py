@@ -44,7 +44,7 @@ def ftc08(shared_data):
         for n in c["datums"]:
             faces |= _faces(data["datums"][n]["faces"])
     data["alignment"] = {"type": "best_fit", "faces": [f"face:{f}" for f in sorted(faces)]}
-    prep = cached_prepared(path, spacing=1.0, allow_incomplete=True)
+    prep = cached_prepared(path, spacing=1.0, allow_incomplete=True, features=True)
     V, T, F = tessellate(read_shape(path), 0.01)
     keep = [inv[f] for f in faces]
     T, F = T[np.isin(F, keep)], F[np.isin(F, keep)]

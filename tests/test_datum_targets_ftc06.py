@@ -50,7 +50,7 @@ def ftc06(shared_data):
                     faces.add(int(f.split(":")[1]))
     # the plan's alignment is a best fit of every face: of the scanned ones here
     data["alignment"] = {"type": "best_fit", "faces": [f"face:{f}" for f in sorted(faces)]}
-    prep = cached_prepared(path, spacing=1.0, allow_incomplete=True)
+    prep = cached_prepared(path, spacing=1.0, allow_incomplete=True, features=True)
     V, T, F = tessellate(read_shape(path), 0.01)
     pmi_faces = [inv[f] for f in faces]
     T, F = T[np.isin(F, pmi_faces)], F[np.isin(F, pmi_faces)]

@@ -50,13 +50,13 @@ def _setup(shared_data, name, keep, faces=None, spacing=1.0):
     # the import, PMI, preparation and tessellation are built once per suite run and shared
     # with the other NIST modules (tests/model_cache.py: bitwise what load_model, read_pmi,
     # prepare and tessellate give)
-    model = cached_model(path)
+    model = cached_model(path, features=True)
     r = pmi_plan(path, model=model, pmi=cached_pmi(path))
     data = dict(r.data)
     data["characteristics"] = [c for c in data["characteristics"] if c["pmi"]["id"] in keep]
     m = getattr(model, "model", model)
     # (allow_incomplete changes nothing for a complete model: then the other modules' entry)
-    prep = cached_prepared(path, spacing=spacing,
+    prep = cached_prepared(path, spacing=spacing, features=True,
                            **({"allow_incomplete": True} if is_incomplete(model) else {}))
     V, T, F = file_tessellation(path, 0.01)
     if faces is not None:

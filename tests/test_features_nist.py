@@ -154,8 +154,9 @@ def _check_file(path):
 
     from shapeverify.characteristics.features import model_features
 
-    # load_model's import, built once per suite run for every NIST module (tests/model_cache.py)
-    model = cached_model(path)
+    # load_model's import and its model_features, built once per code version for every NIST
+    # module (tests/model_cache.py)
+    model = cached_model(path, features=True)
     holes = [f for f in model_features(model) if f.kind == "hole"]
     loops, walls = occ_holes(path)
     problems = []

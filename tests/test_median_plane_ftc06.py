@@ -33,7 +33,7 @@ def ftc06(shared_data):
     data["characteristics"] = [c for c in data["characteristics"] if c["pmi"]["id"] == "GT15"]
     faces = {21, 106, 45, 44, 8}           # GT15, its datum A; C and D fix the best fit
     data["alignment"] = {"type": "best_fit", "faces": [f"face:{f}" for f in sorted(faces)]}
-    prep = cached_prepared(path, spacing=1.0, allow_incomplete=True)
+    prep = cached_prepared(path, spacing=1.0, allow_incomplete=True, features=True)
     V, T, F = tessellate(read_shape(path), 0.01)
     keep = np.isin(F, [inv[f] for f in faces])
     T, F = T[keep], F[keep]

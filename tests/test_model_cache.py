@@ -86,3 +86,30 @@ def test_cached_pmi_and_arrays_are_what_their_builders_give_and_keyed_by_the_hel
     helper.write_text("# v2, another helper\n")
     model_cache.cached_arrays(step, "demo", build, code=(helper,), scale=2.5)
     assert len(calls) == 3
+
+
+def _feature_fields(feats):
+    """Every field of every feature, arrays as bytes (bitwise)."""
+    import dataclasses
+
+    return [tuple(v.tobytes() if isinstance(v, np.ndarray) else v
+                  for v in (getattr(f, fl.name) for fl in dataclasses.fields(f))) for f in feats]
+
+
+def test_cached_features_are_bitwise_model_features_of_a_fresh_import(tmp_path, monkeypatch):
+    """``features=True``: the model (and the prepared model's model) carries what
+    ``model_features`` and ``feature_notes`` compute on a fresh ``load_model``, from a fresh
+    entry and a stored one; without it, nothing is put in place."""
+    from shapeverify.characteristics.features import feature_notes, model_features
+
+    monkeypatch.setenv("SHAPEVERIFY_TEST_CACHE", str(tmp_path / "cache"))
+    step = example_part_step(tmp_path / "panel.step")
+    fresh = load_model(step)
+    want, notes = _feature_fields(model_features(fresh)), feature_notes(fresh)
+    assert not hasattr(model_cache.cached_model(step), "_sv_features")
+    for _ in range(2):                                   # built, then read back
+        m = model_cache.cached_model(step, features=True)
+        assert _feature_fields(m._sv_features) == want and list(m._sv_feature_notes) == notes
+        assert _feature_fields(model_features(m)) == want
+        prep = model_cache.cached_prepared(step, spacing=6.0, features=True)
+        assert _feature_fields(model_features(prep)) == want

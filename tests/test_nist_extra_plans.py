@@ -44,9 +44,10 @@ def files(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def plans(files):
-    from shapeverify.characteristics.pmi_plan import pmi_plan
+    from nist_plans import cached_pmi_plan
 
-    return {k: pmi_plan(p) for k, p in files.items()}
+    # pmi_plan(p), its import, PMI and features once per code version (tests/model_cache.py)
+    return {k: cached_pmi_plan(p) for k, p in files.items()}
 
 
 #: geometric tolerances the plan may still leave unsupported, with a word of each reason
@@ -137,14 +138,14 @@ def test_perfect_ftc11_ring_fails_no_characteristic_of_its_plan(files, plans):
     0.02 mm noise, random order), the alignment started at the true pose."""
     import numpy as np
 
-    import shapeverify as sv
-    from independent_scans import random_points, read_shape, tessellate
+    from independent_scans import file_tessellation, random_points
+    from model_cache import cached_prepared
     from shapeverify.characteristics import evaluate_plan
 
     path = files["nist_ftc_11"]
-    prep = sv.prepare(sv.load_model(path), spacing=0.5)
+    prep = cached_prepared(path, spacing=0.5, features=True)
     rng = np.random.default_rng(4)
-    V, T, _ = tessellate(read_shape(path), 0.002)
+    V, T, _ = file_tessellation(path, 0.002)
     P, N = random_points(V, T, 0.5, rng)
     X = (P + rng.normal(0.0, 0.02, len(P))[:, None] * N)[rng.permutation(len(P))]
     res = evaluate_plan(prep, X, plans["nist_ftc_11"].plan, init=np.eye(4))
@@ -220,8 +221,8 @@ def test_perfect_ctc05_passes_its_perpendicularities_line_straightness_and_conce
     import numpy as np
     import yaml
 
-    import shapeverify as sv
-    from independent_scans import random_points, read_shape, tessellate
+    from independent_scans import file_tessellation, random_points
+    from model_cache import cached_prepared
     from shapeverify.characteristics import evaluate_plan
 
     path = files["nist_ctc_05"]
@@ -229,9 +230,9 @@ def test_perfect_ctc05_passes_its_perpendicularities_line_straightness_and_conce
     data["characteristics"] = [c for c in data["characteristics"]
                                if c["pmi"]["id"] in ("GT4", "GT5", "GT6", "GT7")]
     data.pop("unsupported", None)
-    prep = sv.prepare(sv.load_model(path), spacing=2.0)
+    prep = cached_prepared(path, spacing=2.0, features=True)
     rng = np.random.default_rng(4)
-    V, T, _ = tessellate(read_shape(path), 0.002)
+    V, T, _ = file_tessellation(path, 0.002)
     P, N = random_points(V, T, 2.0, rng)
     X = (P + rng.normal(0.0, 0.02, len(P))[:, None] * N)[rng.permutation(len(P))]
     res = evaluate_plan(prep, X, yaml.safe_dump(data), init=np.eye(4))
@@ -317,8 +318,8 @@ def test_ctc03_gt5_position_at_datum_mmb_shifts_within_the_datums_departure(file
     import numpy as np
     import yaml
 
-    import shapeverify as sv
-    from independent_scans import random_points, read_shape, tessellate
+    from independent_scans import file_tessellation, random_points
+    from model_cache import cached_prepared
     from shapeverify.characteristics import evaluate_plan
     from shapeverify.characteristics.drf import rigid_exp
     from shapeverify.characteristics.pmi_plan import _face_map
@@ -332,11 +333,12 @@ def test_ctc03_gt5_position_at_datum_mmb_shifts_within_the_datums_departure(file
     data["characteristics"] = [gt5]
     data.pop("unsupported", None)
     path = files["nist_ctc_03"]
-    model = sv.load_model(path)
+    # load_model, prepare, tessellate: once per code version (tests/model_cache.py)
+    prep = cached_prepared(path, spacing=1.0, features=True)
+    model = prep.model
     inv = {v: k for k, v in _face_map(plans["nist_ctc_03"].pmi, model).items()}
-    prep = sv.prepare(model, spacing=1.0)
     rng = np.random.default_rng(5)
-    V, T, F = tessellate(read_shape(path), 0.002)
+    V, T, F = file_tessellation(path, 0.002)
     P, N, t = random_points(V, T, 1.0, rng, with_triangles=True)
     X = P + rng.normal(0.0, 0.02, len(P))[:, None] * N
     (c,) = evaluate_plan(prep, X, yaml.safe_dump(data), init=np.eye(4)).characteristics

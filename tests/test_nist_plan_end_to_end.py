@@ -39,7 +39,8 @@ def _cases(shared_data, name):
     import check_nist_plans as cnp
 
     cnp.DATA = shared_data / "cad" / "nist"
-    return cnp.run_file(name, SPACING, 0, True, fine=FINE)
+    # the PMI, features and tessellation shared with the other NIST modules
+    return cnp.run_file(name, SPACING, 0, True, fine=FINE, cached=True)
 
 
 @pytest.fixture(scope="module")

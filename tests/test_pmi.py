@@ -178,7 +178,7 @@ def test_plan_from_pmi_ties_ctc01_diameters_to_the_holes_of_that_diameter(shared
 
     path = _file(shared_data, NIST[0])
     plan = load_plan(nist_plans[NIST[0]][3])
-    feats = model_features(cached_model(path))      # load_model's, once per suite run
+    feats = model_features(cached_model(path, features=True))   # once per code version
     holes = [c for c in plan.characteristics if c.type == "hole" and c.diameter is not None]
     assert len(holes) >= 4
     for c in holes:

@@ -21,7 +21,7 @@ def ctc02(shared_data):
 
     path = shared_data / "cad" / "nist" / NAME
     # load_model and read_pmi, once per suite run for every NIST module (tests/model_cache.py)
-    model = cached_model(path)
+    model = cached_model(path, features=True)
     pmi = cached_pmi(path)
     r = pmi_plan(path, model=model, pmi=pmi)
     m = getattr(model, "model", model)

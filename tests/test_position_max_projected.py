@@ -179,12 +179,13 @@ def ftc07(tmp_path_factory):
     import gzip
     import shutil
 
-    from shapeverify.characteristics.pmi_plan import pmi_plan
+    from nist_plans import cached_pmi_plan
 
     p = tmp_path_factory.mktemp("ftc07") / FTC07.name[:-3]
     with gzip.open(FTC07, "rb") as src, open(p, "wb") as dst:
         shutil.copyfileobj(src, dst)
-    return p, pmi_plan(p)
+    # pmi_plan(p), its import, PMI and features once per code version (tests/model_cache.py)
+    return p, cached_pmi_plan(p)
 
 
 def _entries(res, ids):
@@ -230,17 +231,17 @@ def test_perfect_ftc07_passes_its_projected_and_capped_positions(ftc07):
     """The five positions on a perfect scan (OCP tessellation sampled by area, no noise), the
     alignment at the true pose: every hole's axis on its true position (values of a few um
     from the tessellation) passes."""
-    import shapeverify as sv
-    from independent_scans import random_points, read_shape, tessellate
+    from independent_scans import file_tessellation, random_points
+    from model_cache import cached_prepared
     from shapeverify.characteristics import evaluate_plan
 
     path, res = ftc07
     ids = {"GT3", "GT5", "GT6", "GT7", "GT17"}
     plan = res.plan.model_copy(update={"characteristics": [
         c for c in res.plan.characteristics if c.pmi.id in ids]})
-    prep = sv.prepare(sv.load_model(path), spacing=0.7)
+    prep = cached_prepared(path, spacing=0.7, features=True)
     rng = np.random.default_rng(7)
-    V, T, _ = tessellate(read_shape(path), 0.002)
+    V, T, _ = file_tessellation(path, 0.002)
     P, _ = random_points(V, T, 0.7, rng)
     out = evaluate_plan(prep, P[rng.permutation(len(P))], plan, init=np.eye(4))
     got = {c.name: c for c in out.characteristics}

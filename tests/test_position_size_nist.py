@@ -27,12 +27,12 @@ def ftc06(shared_data):
     path = shared_data / "cad" / "nist" / NAME
     # import, PMI, preparation and tessellation: once per suite run for every NIST module
     # (tests/model_cache.py: bitwise what load_model, read_pmi, prepare, tessellate give)
-    model = cached_model(path)
+    model = cached_model(path, features=True)
     r = pmi_plan(path, model=model, pmi=cached_pmi(path))
     data = dict(r.data)
     data["characteristics"] = [c for c in r.data["characteristics"] if c["pmi"]["id"] in IDS]
     plan = load_plan(data)
-    prep = cached_prepared(path, spacing=1.0)
+    prep = cached_prepared(path, spacing=1.0, features=True)
     V, T, F = file_tessellation(path, 0.01)
     rng = np.random.default_rng(0)
     P, N, t = random_points(V, T, 1.0, rng, with_triangles=True)

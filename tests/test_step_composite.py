@@ -73,12 +73,13 @@ def test_ctc04_plan_marks_the_lower_segments_of_its_composite_frames(tmp_path):
     segments, each lower one in its own DRF (not the plan's alignment, not per hole)."""
     import shutil
 
-    from shapeverify.characteristics.pmi_plan import pmi_plan
+    from nist_plans import cached_pmi_plan
 
     p = tmp_path / "nist_ctc_04_asme1_ap242-e1.stp"
     with gzip.open(CTC04, "rb") as src, open(p, "wb") as dst:
         shutil.copyfileobj(src, dst)
-    res = pmi_plan(p)
+    # pmi_plan(p), with its import, PMI and features shared with test_nist_extra_plans.py
+    res = cached_pmi_plan(p)
     by = {}
     for c in res.data["characteristics"]:
         by.setdefault(c["pmi"].get("id"), []).append(c)

@@ -64,18 +64,79 @@ def _cache_state(cache: Path) -> dict:
             for p in cache.rglob("*") if p.is_file()}
 
 
-@pytest.fixture(scope="module")
-def warmed(tmp_path_factory):
-    """A fresh numba cache directory filled by the warm-up, and the environment that uses it."""
-    root = tmp_path_factory.mktemp("warm")
+def _sources_stamp() -> str:
+    """SHA-256 of what a numba cache entry of the package depends on: every source file of the
+    ``shapeverify`` in use (path, size and mtime -- numba's own test of a stale entry -- and
+    bytes), where it lives (a ``NUMBA_CACHE_DIR`` holds a folder per source folder), numba's
+    and Python's versions."""
+    import hashlib
+
+    import numba
+
+    import shapeverify
+
+    root = Path(shapeverify.__file__).resolve().parent
+    h = hashlib.sha256(json.dumps([str(root), numba.__version__, sys.version,
+                                   sys.executable]).encode())
+    for p in sorted(root.rglob("*.py")):
+        st = p.stat()
+        h.update(f"{p.relative_to(root)}\0{st.st_size}\0{st.st_mtime_ns}\0".encode())
+        h.update(p.read_bytes())
+    return h.hexdigest()
+
+
+def _files(d: Path) -> dict:
+    import hashlib
+
+    return {str(p.relative_to(d)): hashlib.sha256(p.read_bytes()).hexdigest()
+            for p in sorted(d.rglob("*")) if p.is_file()}
+
+
+def _warm_up_into(root: Path) -> None:
+    """``python -m shapeverify.warmup`` with a fresh, empty numba cache directory
+    ``root/numba`` (and summary cache ``root/summaries``)."""
     cache = root / "numba"
-    cache.mkdir()
+    cache.mkdir(parents=True)
     env = {**os.environ, "NUMBA_CACHE_DIR": str(cache),
            "SHAPEVERIFY_CACHE_DIR": str(root / "summaries"), "COLUMNS": "120"}
     proc = subprocess.run([sys.executable, "-m", "shapeverify.warmup", "--quiet"], env=env,
                           capture_output=True, text=True, timeout=3600)
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-3000:]
+
+
+@pytest.fixture(scope="module")
+def warmed(tmp_path_factory):
+    """A fresh numba cache directory filled by the warm-up, and the environment that uses it.
+
+    The warm-up on an empty cache is minutes of compiling (278 s of a 28-minute suite), and
+    its result depends only on the sources and numba: it is kept, untouched, in the suite's
+    cache (tests/model_cache.py's folder of this code version, keyed by the sources' bytes,
+    sizes and mtimes, their folder, numba and Python) with the list of its files and their
+    SHA-256, and each run gets a copy of exactly what the warm-up wrote -- its own directory,
+    which the commands below then use (and must not add to).  A kept result whose files
+    differ from its list (a copy someone changed) is made again."""
+    import shutil
+
+    from model_cache import _locked, cache_root
+
+    keep = cache_root() / f"warmup-{_sources_stamp()[:24]}"
+    listed = keep / "files.json"
+    with _locked(keep):
+        if not (listed.is_file() and json.loads(listed.read_text()) == _files(keep / "made")):
+            shutil.rmtree(keep, ignore_errors=True)
+            tmp = keep.with_name(f"{keep.name}.{os.getpid()}")
+            shutil.rmtree(tmp, ignore_errors=True)
+            _warm_up_into(tmp / "made")
+            listed_tmp = tmp / "files.json"
+            listed_tmp.write_text(json.dumps(_files(tmp / "made")))
+            os.replace(tmp, keep)
+    root = tmp_path_factory.mktemp("warm")
+    shutil.copytree(keep / "made", root, dirs_exist_ok=True)
+    cache = root / "numba"
+    assert _files(root) == json.loads(listed.read_text())
     assert any(cache.rglob("*.nbc")), "the warm-up wrote nothing to the fresh cache"
+    env = {**os.environ, "NUMBA_CACHE_DIR": str(cache),
+           "SHAPEVERIFY_CACHE_DIR": str(root / "summaries"), "COLUMNS": "120"}
     return root, cache, env
 
 
