@@ -93,9 +93,10 @@ def _area_on_face(t: dict, what: str, ctx) -> tuple[int | None, str, str]:
     tol = max(1e-6 * ctx.size, 1e-6)
     inv = {v: k for k, v in ctx.fmap.items()}
     hits = []
+    supp = set(getattr(ctx.model, "supplemental", ()))   # outside the solid: not the part
     for k, ft in enumerate(ctx.feats):
         if ft.kind != "plane" or abs(abs(float(ft.axis @ n)) - 1) > 1e-6 \
-                or abs(float((at - ft.center) @ ft.axis)) > tol or k not in inv:
+                or abs(float((at - ft.center) @ ft.axis)) > tol or k not in inv or k in supp:
             continue
         face = ctx.model.faces[k]
         (a0, a1), (b0, b1) = face.uv_bounds
@@ -134,8 +135,9 @@ def _point_on_face(t: dict, what: str, ctx) -> tuple[int | None, str, str]:
     tol = max(1e-6 * ctx.size, 1e-6)
     inv = {v: k for k, v in ctx.fmap.items()}
     hits = []
+    supp = set(getattr(ctx.model, "supplemental", ()))   # outside the solid: not the part
     for k, face in enumerate(ctx.model.faces):
-        if k not in inv:
+        if k not in inv or k in supp:
             continue
         c = np.asarray(face.surface.control, float).reshape(-1, 3)
         if np.any(at < c.min(0) - tol) or np.any(at > c.max(0) + tol):

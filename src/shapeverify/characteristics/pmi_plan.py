@@ -110,6 +110,7 @@ import yaml
 from ..errors import CADImportError
 from .features import _face_grid, model_features
 from .plan import Plan, load_plan
+from .pmi_supplemental import remap_supplemental
 
 logger = logging.getLogger(__name__)
 
@@ -252,6 +253,9 @@ def _src(item: dict) -> dict:
     for key in ("attached", "attached2"):       # faces found from the edges it points at
         if item.get(key):
             out[key] = item[key]
+    if item.get("from_supplemental"):           # faces outside the solid, mapped onto it
+        out["from_supplemental"] = list(item["from_supplemental"])
+        out["supplemental_note"] = item["supplemental_note"]
     if item["kind"] == "geometric_tolerance":
         out["value"] = item["value"]
         if item["value_type"] != "None":
@@ -286,6 +290,8 @@ def _datum_faces(d: dict, ctx, targets_why: str) -> tuple[list | None, str]:
     if d["type"] == "DatumTarget" or d["targets"]:
         return None, (f"datum {d['name']} is set up from datum targets "
                       f"({', '.join(t['type'] for t in d['targets'])}); {targets_why}")
+    if not d["faces"] and d.get("supplemental_reason"):
+        return None, f"datum {d['name']}: {d['supplemental_reason']}"
     if not d["faces"]:
         if d["other"]:
             return None, f"datum {d['name']} is attached to {d['other'][0]}s, not faces"
@@ -441,6 +447,8 @@ def _faces_ok(item, ctx, key="faces"):
     faces = [ctx.fmap.get(f) for f in item[key]]
     if any(f is None for f in faces):
         return None, "a face it names could not be imported (see the import's warnings)"
+    if not faces and item.get("supplemental_reason"):
+        return None, item["supplemental_reason"]
     if not faces:
         if item.get("edge_reason"):
             return None, item["edge_reason"]
@@ -1008,7 +1016,10 @@ def pmi_plan(path, *, model=None, pmi=None, timeout: float | None = 600.0) -> Pm
 
         model = load_model(path)
     model = getattr(model, "model", model)
-    ctx = _Ctx(pmi, model, _face_map(pmi, model))
+    fmap = _face_map(pmi, model)
+    # PMI on supplemental faces (outside the solid, never scanned) onto the solid faces under them
+    pmi = remap_supplemental(pmi, model, fmap)
+    ctx = _Ctx(pmi, model, fmap)
     datums = {d["name"]: d for d in pmi["datums"]}
     for name, d in datums.items():
         spec, reason = _datum_spec(d, ctx)
