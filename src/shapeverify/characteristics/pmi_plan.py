@@ -90,6 +90,11 @@ on a face take the edge's line; 'circular curve' targets (read from the STEP ent
 ``circular_line`` targets (:mod:`.pmi_datums`).
 Datums set up from datum targets, patterns of cylinders and common datums (``E-F``) are in the
 ``datums`` table (:mod:`.pmi_datums`).
+PMI on supplemental faces (open shells beside the solid, ``Model.supplemental``: never scanned)
+is put on the solid faces each such face lies on, and the entry's ``pmi`` says so
+(``from_supplemental: [280, 281]``, ``supplemental_note``); a supplemental face on no solid
+face (a construction surface off the part) is left out of the item's faces, and an item left
+with none is unsupported with that reason (:mod:`.pmi_supplemental`).
 
 Example (needs the NIST test model)::
 

@@ -153,6 +153,9 @@ def remap_supplemental(pmi: dict, model, fmap: dict) -> dict:
                     cov = (f", {s['covered']:.0%} of it" if s["covered"] < 0.995 else "")
                     notes.append(f"face {f} lies on face{'s' if len(to) > 1 else ''} "
                                  f"{_fmt(to)}{cov}")
+                elif s["n"] == 0:
+                    notes.append(f"face {f} is too small for a {GRID} x {GRID} grid of its "
+                                 "domain to sample: left out")
                 else:
                     notes.append(f"face {f} lies on no face of the solid (a construction "
                                  "surface off the part): left out")
