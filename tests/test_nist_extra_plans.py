@@ -8,8 +8,8 @@ first run would: each found a bug that CTC 01/02 and FTC 06/08 never showed.
   circularity and total runouts were "no plan characteristic yet", and a total runout of a
   face square to its datum axis read 140.7 mm (the radial range of a plane) on a perfect part.
 * CTC 03's thickness dimension (one face against four coplanar pads) was unsupported.
-* FTC 10 splits its features into several faces: DIM10, DIM19 (⌀5.5 bosses of two
-  half-cylinder faces), DIM8, DIM15, DIM22 (distances to four coplanar counterbore floors or
+* FTC 10 splits its features into several faces: DIM10, DIM19 (⌀5.5 of two supplemental
+  half-cylinder faces lying on a threaded hole's wall: planned as that hole), DIM8, DIM15, DIM22 (distances to four coplanar counterbore floors or
   ledges), GT26, GT35 ("3X" / "4X" cylindricity of holes of two faces each) were unsupported.
 * FTC 11 (a 1.9 mm thin ring): its runout and circularity were unsupported; the runout's U
   counted the datum hole's tilt over 1.9 mm (1.86 mm) though datum A, a plane, sets it.
@@ -434,10 +434,18 @@ def test_ftc10_split_bosses_coplanar_sides_and_3x_cylindricity_are_planned_per_f
             assert abs((p - p0) @ n0) < 1e-6
         return p0, n0
 
-    for dim in ("DIM10", "DIM19"):
+    fmap = {v: k for k, v in inv.items()}
+    model = _model(files["nist_ftc_10"])
+    for dim, supp in (("DIM10", [268, 269]), ("DIM19", [274, 275])):
+        # the file's two half-cylinder faces are supplemental (an open shell beside the solid,
+        # never scanned) lying on the threaded hole's wall: the plan measures that hole
         c = by_id[dim]
-        assert c["type"] == "cylinder" and len(c["faces"]) == 2, c
-        assert 2 * one_cylinder(c["faces"])[2] == pytest.approx(5.5, abs=1e-6)
+        assert c["type"] == "hole" and c["pmi"]["from_supplemental"] == supp, c
+        item = next(d for d in res.pmi["dimensions"] if d["id"] == dim)
+        solid = [f"face:{fmap[f]}" for f in item["faces"]]
+        assert len(solid) == 2 and not {fmap[f] for f in item["faces"]} & set(model.supplemental)
+        refs = solid + [f"face:{fmap[f]}" for f in supp]
+        assert 2 * one_cylinder(refs)[2] == pytest.approx(5.5, abs=1e-6)
     for dim, nominal in (("DIM8", 10.0), ("DIM15", 2.0), ("DIM22", 10.0)):
         c = by_id[dim]
         assert c["type"] == "distance" and c["nominal"] == nominal
@@ -483,8 +491,13 @@ def test_perfect_ftc10_passes_its_split_bosses_coplanar_distances_and_3x_cylindr
     data.pop("unsupported", None)
     model = _model(path)
     inv = {v: k for k, v in _face_map(res.pmi, model).items()}
+    fmap = {v: k for k, v in inv.items()}
     faces = set()
     for c in data["characteristics"]:
+        if str(c.get("feature", "")).startswith("hole:"):   # the PMI item's (solid) faces
+            item = next(d for d in res.pmi["dimensions"] if d["id"] == c["pmi"]["id"])
+            faces.update(f"face:{fmap[f]}" for f in item["faces"])
+            continue
         for s in c.get("faces") or [c.get("feature")]:
             faces.update(s if isinstance(s, list) else [s])
     prep = sv.prepare(model, spacing=1.5)
