@@ -257,8 +257,9 @@ def _rises_from_the_part(region, feet, values, good, limits, spacing, evaluation
     if not np.isfinite(evaluation_distance):
         return True
     idx = np.asarray(region.indices, np.int64)
+    above = region.side == "above"
     if normals is not None and standing_wall(feet, values, normals, np.flatnonzero(good), idx,
-                                             spacing) >= WALL_MIN:
+                                             spacing, limits[1] if above else limits[0]) >= WALL_MIN:
         return True
     above = region.side == "above"
     lim = np.abs(limits[1][idx] if above else limits[0][idx])

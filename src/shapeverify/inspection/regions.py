@@ -139,9 +139,15 @@ AMONG_SHARE = 0.1
 #: ``WALL_THICKNESS`` of its width) more than ``WALL_ANGLE`` degrees out of the tangent plane,
 #: linked down to the in-tolerance surface: no layer over the part, whatever else it holds.
 WALL_MIN = 5
-WALL_K = 6
+WALL_K = 8
 WALL_THICKNESS = 0.3
 WALL_ANGLE = 60.0
+#: ... its neighbourhood a patch, not a line (its narrower width at least this share of its
+#: wider: pairs of a doubled exposure along a row made "walls" in a reflection blob) ...
+WALL_LINE = 0.2
+#: ... and its lowest point at most this many spacings beyond the limit (a wall rises from the
+#: limit; a reflection lifted 1 mm with a step at its rim does not).
+WALL_FOOT = 0.5
 #: Registration weight below which a point counts as rejected by the robust registration.
 LOW_WEIGHT = 1e-3
 #: Widest neighbourhood of an out-of-tolerance point looked at, in spacings (the quadratic peak
@@ -456,7 +462,7 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
                 d, _ = cKDTree(pc[at]).query(points[side], k=1, distance_upper_bound=link)
                 members = side[np.isfinite(d)]
                 if standing_wall(points, values, normals, ev_idx[within[ev_idx]], members,
-                                 spacing) >= WALL_MIN:
+                                 spacing, hi_lim if up_c else lo_lim) >= WALL_MIN:
                     layer[k] = False     # a wall rising from the surface: material, no layer
                     continue
                 if not layer[k]:
@@ -596,22 +602,24 @@ def steep_points(X: np.ndarray, normals: np.ndarray, spacing: float) -> np.ndarr
     Y = X[j[ok]]
     Y = Y - Y.mean(axis=1, keepdims=True)
     lam, vec = np.linalg.eigh(np.einsum("nki,nkj->nij", Y, Y) / WALL_K)
-    thin = np.sqrt(np.maximum(lam[:, 0], 0.0) / np.maximum(lam[:, 1], 1e-300)) <= WALL_THICKNESS
+    thin = ((np.sqrt(np.maximum(lam[:, 0], 0.0) / np.maximum(lam[:, 1], 1e-300)) <= WALL_THICKNESS)
+            & (np.sqrt(np.maximum(lam[:, 1], 0.0) / np.maximum(lam[:, 2], 1e-300)) >= WALL_LINE))
     tilt = np.abs(np.einsum("ij,ij->i", vec[:, :, 0], normals[ok]))
     steep[ok] = thin & (tilt <= np.cos(np.radians(WALL_ANGLE)))
     return steep
 
 
-def standing_wall(points, values, normals, good, members, spacing) -> int:
+def standing_wall(points, values, normals, good, members, spacing, limit) -> int:
     """How many of a component's out-of-tolerance points ``members`` (scan indices, one side;
     ``points`` the foot points, ``values`` the signed deviations) lie on a steep wall that
     rises from the part's in-tolerance surface (``good``: scan indices of in-tolerance points
-    around).
+    around; ``limit``: (N,) the limit on the members' side).
 
     In space (at the scan points, ``foot + d x normal``) a wall standing on the part -- the side
     of an object lying on a panel, of a boss, of a rib -- is a thin sheet steeper than
     ``WALL_ANGLE`` degrees (:func:`steep_points`) whose foot is continuous with the part's
-    measured surface: linked within ``LINK_FACTOR x s`` down to in-tolerance points.  Its feet
+    measured surface: linked within ``LINK_FACTOR x s`` down to in-tolerance points, its lowest
+    point at most ``WALL_FOOT x s`` beyond the limit.  Its feet
     crowd onto its foot line right beside the part's in-tolerance points, so the rules for
     layers read it as a layer *over* measured surface (the box on the panel at 0.5 mm seed 5:
     all four walls' points became outliers and the part passed).  A reflection, a ghost or a
@@ -636,6 +644,10 @@ def standing_wall(points, values, normals, good, members, spacing) -> int:
     n_comp, lab = linked_components(si.size, pairs)
     foot = np.zeros(n_comp, bool)
     foot[lab[np.isfinite(dg)]] = True
+    excess = np.abs(values[members[si]]) - np.abs(limit[members[si]])
+    low = np.full(n_comp, np.inf)
+    np.minimum.at(low, lab, excess)
+    foot &= low <= WALL_FOOT * spacing
     return int(np.count_nonzero(foot[lab]))
 
 
