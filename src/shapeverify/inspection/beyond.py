@@ -258,7 +258,7 @@ def _rises_from_the_part(region, feet, values, good, limits, spacing, evaluation
         return True
     idx = np.asarray(region.indices, np.int64)
     above = region.side == "above"
-    if normals is not None and standing_wall(feet, values, normals, np.flatnonzero(good), idx,
+    if above and normals is not None and standing_wall(feet, values, normals, np.flatnonzero(good), idx,
                                              spacing, limits[1] if above else limits[0]) >= WALL_MIN:
         return True
     above = region.side == "above"

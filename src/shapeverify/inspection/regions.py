@@ -148,6 +148,11 @@ WALL_LINE = 0.2
 #: ... and its lowest point at most this many spacings beyond the limit (a wall rises from the
 #: limit; a reflection lifted 1 mm with a step at its rim does not).
 WALL_FOOT = 0.5
+#: ... and the in-tolerance surface within ``WALL_SIDE_RADIUS`` spacings of its feet on one side
+#: of its foot line: on the other, at most ``WALL_SIDE_SHARE`` as many points (for most of its
+#: points).
+WALL_SIDE_RADIUS = 2.0
+WALL_SIDE_SHARE = 0.25
 #: Registration weight below which a point counts as rejected by the robust registration.
 LOW_WEIGHT = 1e-3
 #: Widest neighbourhood of an out-of-tolerance point looked at, in spacings (the quadratic peak
@@ -461,8 +466,8 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
                 side = out_idx[(values[out_idx] > 0) == up_c]
                 d, _ = cKDTree(pc[at]).query(points[side], k=1, distance_upper_bound=link)
                 members = side[np.isfinite(d)]
-                if standing_wall(points, values, normals, ev_idx[within[ev_idx]], members,
-                                 spacing, hi_lim if up_c else lo_lim) >= WALL_MIN:
+                if up_c and standing_wall(points, values, normals, ev_idx[within[ev_idx]],
+                                          members, spacing, hi_lim) >= WALL_MIN:
                     layer[k] = False     # a wall rising from the surface: material, no layer
                     continue
                 if not layer[k]:
@@ -586,19 +591,22 @@ def _over_measured_surface(tree, ev_idx, values, pc, med, up, labels, comps, lo,
     return out
 
 
-def steep_points(X: np.ndarray, normals: np.ndarray, spacing: float) -> np.ndarray:
+def steep_points(X: np.ndarray, normals: np.ndarray, spacing: float, sheet_normals=False):
     """(n,) bool: which of the points ``X`` (in space; ``normals`` the CAD normals at their
     foot points) lie on a thin local sheet more than ``WALL_ANGLE`` degrees out of the CAD's
     tangent plane -- a wall standing on the part, whose feet crowd onto its foot line.  The
     local sheet is the plane of the ``WALL_K`` nearest points (all within ``LINK_FACTOR x s``),
-    its thickness at most ``WALL_THICKNESS`` of its width."""
+    its thickness at most ``WALL_THICKNESS`` of its width.  ``sheet_normals``: also return the
+    local sheets' normals ((n, 3), zero where there is none)."""
     steep = np.zeros(X.shape[0], bool)
+    v = np.zeros(X.shape)
+    done = (lambda: (steep, v)) if sheet_normals else (lambda: steep)
     if X.shape[0] < WALL_K:
-        return steep
+        return done()
     d, j = cKDTree(X).query(X, k=WALL_K)
     ok = np.flatnonzero(np.isfinite(d).all(axis=1) & (d[:, -1] <= LINK_FACTOR * spacing))
     if ok.size == 0:
-        return steep
+        return done()
     Y = X[j[ok]]
     Y = Y - Y.mean(axis=1, keepdims=True)
     lam, vec = np.linalg.eigh(np.einsum("nki,nkj->nij", Y, Y) / WALL_K)
@@ -606,7 +614,8 @@ def steep_points(X: np.ndarray, normals: np.ndarray, spacing: float) -> np.ndarr
             & (np.sqrt(np.maximum(lam[:, 1], 0.0) / np.maximum(lam[:, 2], 1e-300)) >= WALL_LINE))
     tilt = np.abs(np.einsum("ij,ij->i", vec[:, :, 0], normals[ok]))
     steep[ok] = thin & (tilt <= np.cos(np.radians(WALL_ANGLE)))
-    return steep
+    v[ok] = vec[:, :, 0]
+    return done()
 
 
 def standing_wall(points, values, normals, good, members, spacing, limit) -> int:
@@ -624,19 +633,22 @@ def standing_wall(points, values, normals, good, members, spacing, limit) -> int
     layers read it as a layer *over* measured surface (the box on the panel at 0.5 mm seed 5:
     all four walls' points became outliers and the part passed).  A reflection, a ghost or a
     second view lies over the surface, about parallel to it, and floats above it without a
-    wall down to it."""
+    wall down to it.  Only walls rising *from* the part count (the regions above it): a
+    reflection crossing an impeller blade's tip read as a 13-point 'wall' 0.3 mm into it."""
     members = np.asarray(members, np.int64)
     good = np.asarray(good, np.int64)
     if members.size < WALL_MIN or good.size == 0:
         return 0
     X = points[members] + values[members, None] * normals[members]
-    si = np.flatnonzero(steep_points(X, normals[members], spacing))
+    steep, v = steep_points(X, normals[members], spacing, sheet_normals=True)
+    si = np.flatnonzero(steep)
     if si.size < WALL_MIN:
         return 0
     link = LINK_FACTOR * spacing
     G = points[good] + values[good, None] * normals[good]
     lo, hi = X[si].min(axis=0) - link, X[si].max(axis=0) + link
-    G = G[np.all((G >= lo) & (G <= hi), axis=1)]
+    box = np.all((G >= lo) & (G <= hi), axis=1)
+    G, gf = G[box], points[good[box]]
     if G.shape[0] == 0:
         return 0
     dg, _ = cKDTree(G).query(X[si], k=1, distance_upper_bound=link)
@@ -648,6 +660,21 @@ def standing_wall(points, values, normals, good, members, spacing, limit) -> int
     low = np.full(n_comp, np.inf)
     np.minimum.at(low, lab, excess)
     foot &= low <= WALL_FOOT * spacing
+    # it stands on the part: the in-tolerance surface lies on one side of its foot line only
+    # (an object hides the part under it); a reflection crossing the part (a blade's tip) has
+    # the part's surface measured on both sides of where it crosses
+    r = WALL_SIDE_RADIUS * spacing
+    lists = cKDTree(gf).query_ball_point(points[members[si]], r)
+    lens = np.fromiter((len(x) for x in lists), np.int64, si.size)
+    if lens.sum():
+        flat = np.concatenate([np.asarray(x, np.int64) for x in lists if len(x)])
+        row = np.repeat(np.arange(si.size), lens)
+        t = np.einsum("ij,ij->i", gf[flat] - points[members[si]][row], v[si][row])
+        npos = np.bincount(row, weights=(t > 0.5 * spacing).astype(float), minlength=si.size)
+        nneg = np.bincount(row, weights=(t < -0.5 * spacing).astype(float), minlength=si.size)
+        two = np.minimum(npos, nneg) > WALL_SIDE_SHARE * np.maximum(npos, nneg)
+        n_two = np.bincount(lab, weights=two.astype(float), minlength=n_comp)
+        foot &= n_two <= 0.5 * np.bincount(lab, minlength=n_comp)
     return int(np.count_nonzero(foot[lab]))
 
 
