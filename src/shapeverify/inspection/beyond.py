@@ -59,8 +59,8 @@ import numpy as np
 from shapeverify._lazy import cKDTree
 
 from .deviations import TOO_FAR
-from .regions import (LINK_FACTOR, MIN_POINTS, Outliers, RegionSearch, find_regions,
-                      linked_components)
+from .regions import (LINK_FACTOR, MIN_POINTS, WALL_MIN, Outliers, RegionSearch, find_regions,
+                      linked_components, standing_wall, steep_points)
 
 __all__ = ["join_beyond"]
 
@@ -155,7 +155,7 @@ def join_beyond(dev, regions, outliers, spacing: float, limits, within, beside, 
     good_feet = np.flatnonzero(dev.evaluated & within)
     comps = [c for c in np.flatnonzero(n_touch >= ATTACH_MIN)
              if _replaces_surface(np.flatnonzero(labels == c), cand, P, feet, degree, good_feet,
-                                  spacing)]
+                                  spacing, dev.normals)]
     if not comps:
         return none
 
@@ -173,7 +173,7 @@ def join_beyond(dev, regions, outliers, spacing: float, limits, within, beside, 
                                                    beyond=beyond))
     new = [r for r in found if r.n_beyond > 0 and
            _rises_from_the_part(r, feet, values, dev.evaluated & within, limits, spacing,
-                                dev.evaluation_distance)]
+                                dev.evaluation_distance, dev.normals)]
     if not new:
         return none          # a layer over the part after all (find_regions' rules): as it was
     held = np.zeros(values.shape[0], bool)
@@ -188,13 +188,24 @@ def join_beyond(dev, regions, outliers, spacing: float, limits, within, beside, 
     return out, outliers, np.flatnonzero(held & beyond)
 
 
-def _replaces_surface(sel, cand, P, feet, degree, good_feet, spacing) -> bool:
+def _replaces_surface(sel, cand, P, feet, degree, good_feet, spacing, normals=None) -> bool:
     """Is the component ``cand[sel]`` a dense thin sheet that replaces the part's surface (no
-    in-tolerance surface measured under it)?  (module docstring, step 2)"""
+    in-tolerance surface measured under it)?  (module docstring, step 2)  Its points on a
+    steep wall (:func:`.regions.steep_points`, ``normals`` given) stand *beside* the surface,
+    their feet crowded onto the wall's foot line next to the part's in-tolerance points: they
+    say nothing of the surface under the sheet and are left out of that test (an object's walls
+    up to 3 mm made more than half of the sheet of its walls and top, and the object read as a
+    reflection: the box on the panel at 0.5 mm seed 5)."""
     if sel.size < ATTACH_MIN or np.mean(degree[sel] >= 2) < DEGREE_SHARE:
         return False
     idx = cand[sel]
-    sample = idx[np.linspace(0, idx.size - 1, min(idx.size, SAMPLE)).astype(np.int64)]
+    if normals is not None:
+        flat = idx[~steep_points(P[idx], normals[idx], spacing)]
+        if flat.size == 0:
+            return True                          # all wall: nothing lies over the surface
+    else:
+        flat = idx
+    sample = flat[np.linspace(0, flat.size - 1, min(flat.size, SAMPLE)).astype(np.int64)]
     if idx.size >= FLAT_K + 2:
         t = cKDTree(P[idx])
         _, j = t.query(P[sample], k=FLAT_K)
@@ -229,7 +240,8 @@ def _replaces_surface(sel, cand, P, feet, degree, good_feet, spacing) -> bool:
     return True
 
 
-def _rises_from_the_part(region, feet, values, good, limits, spacing, evaluation_distance) -> bool:
+def _rises_from_the_part(region, feet, values, good, limits, spacing, evaluation_distance,
+                         normals=None) -> bool:
     """Does ``region`` (its too-far points evaluated at ``values``) rise from the part's
     in-tolerance surface (``good``) continuously, or stand on it with a step at its rim?
 
@@ -237,10 +249,18 @@ def _rises_from_the_part(region, feet, values, good, limits, spacing, evaluation
     in-tolerance points the region's points are just out of tolerance.  A surface lifted off the
     part with a step at its rim (a reflection blob pushed off along the rays: its rim as far from
     the CAD as the evaluation distance and the part's surface right beside it) has its lowest
-    points beside the part near the evaluation distance (module docstring, step 3)."""
+    points beside the part near the evaluation distance (module docstring, step 3).  A region
+    holding a steep wall linked down to the in-tolerance surface (:func:`.regions.standing_wall`,
+    ``normals`` given) rises from it whatever its rim's lowest points (at 1 mm spacing an
+    object's 3 mm walls have a few points within the evaluation distance, scattered in
+    height)."""
     if not np.isfinite(evaluation_distance):
         return True
     idx = np.asarray(region.indices, np.int64)
+    above = region.side == "above"
+    if above and normals is not None and standing_wall(feet, values, normals, np.flatnonzero(good), idx,
+                                             spacing, limits[1] if above else limits[0]) >= WALL_MIN:
+        return True
     above = region.side == "above"
     lim = np.abs(limits[1][idx] if above else limits[0][idx])
     excess = np.abs(values[idx]) - lim

@@ -95,6 +95,7 @@ from .region_measures import (CELL_BOUND, MAX_PEAK_RADIUS, fitted_peak, local_no
 logger = logging.getLogger(__name__)
 
 __all__ = ["DefectRegion", "Outliers", "RegionSearch", "find_regions", "median_spacing", "surface_spacing", "MIN_POINTS",
+           "standing_wall", "steep_points",
            "LINK_FACTOR", "neighbourhood_median"]
 
 #: Default smallest number of points of a defect region.
@@ -133,6 +134,25 @@ SEEN_SHARE = 0.5
 #: surface's deep points, only the scan's stray outliers: a few per cent of its points).
 AMONG_MIN = 3
 AMONG_SHARE = 0.1
+#: A wall standing on the part (:func:`standing_wall`): at least this many out-of-tolerance
+#: points on a local sheet (from its ``WALL_K`` nearest points in space, thickness at most
+#: ``WALL_THICKNESS`` of its width) more than ``WALL_ANGLE`` degrees out of the tangent plane,
+#: linked down to the in-tolerance surface: no layer over the part, whatever else it holds.
+WALL_MIN = 5
+WALL_K = 8
+WALL_THICKNESS = 0.3
+WALL_ANGLE = 60.0
+#: ... its neighbourhood a patch, not a line (its narrower width at least this share of its
+#: wider: pairs of a doubled exposure along a row made "walls" in a reflection blob) ...
+WALL_LINE = 0.2
+#: ... and its lowest point at most this many spacings beyond the limit (a wall rises from the
+#: limit; a reflection lifted 1 mm with a step at its rim does not).
+WALL_FOOT = 0.5
+#: ... and the in-tolerance surface within ``WALL_SIDE_RADIUS`` spacings of its feet on one side
+#: of its foot line: on the other, at most ``WALL_SIDE_SHARE`` as many points (for most of its
+#: points).
+WALL_SIDE_RADIUS = 2.0
+WALL_SIDE_SHARE = 0.25
 #: Registration weight below which a point counts as rejected by the robust registration.
 LOW_WEIGHT = 1e-3
 #: Widest neighbourhood of an out-of-tolerance point looked at, in spacings (the quadratic peak
@@ -440,16 +460,20 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
                                            keep, lo_lim[core], hi_lim[core], spacing)
             sheets = []
             for k, c in enumerate(keep):
+                at = labels == c
+                up_c = bool(core_up[at][0])
+                # its out-of-tolerance points (those the region would hold)
+                side = out_idx[(values[out_idx] > 0) == up_c]
+                d, _ = cKDTree(pc[at]).query(points[side], k=1, distance_upper_bound=link)
+                members = side[np.isfinite(d)]
+                if up_c and standing_wall(points, values, normals, ev_idx[within[ev_idx]],
+                                          members, spacing, hi_lim) >= WALL_MIN:
+                    layer[k] = False     # a wall rising from the surface: material, no layer
+                    continue
                 if not layer[k]:
-                    at = labels == c
-                    up_c = bool(core_up[at][0])
                     layer[k] = seen_under(tree, ev_idx, values, normals, points, core[at],
                                           up_c, lo_lim, hi_lim, spacing) >= SEEN_SHARE
                 if not layer[k]:
-                    # its out-of-tolerance points (those the region would hold)
-                    side = out_idx[(values[out_idx] > 0) == up_c]
-                    d, _ = cKDTree(pc[at]).query(points[side], k=1, distance_upper_bound=link)
-                    members = side[np.isfinite(d)]
                     layer[k] = seen_around(tree, ev_idx, values, normals, points, members, up_c,
                                            lo_lim, hi_lim, spacing) >= SEEN_SHARE
                 if not layer[k]:
@@ -565,6 +589,93 @@ def _over_measured_surface(tree, ev_idx, values, pc, med, up, labels, comps, lo,
         base = tree.query_ball_point(all_pts[ring], r, return_length=True)
         out[k] = np.median(lens[at]) >= LAYER_DENSITY * np.median(base)
     return out
+
+
+def steep_points(X: np.ndarray, normals: np.ndarray, spacing: float, sheet_normals=False):
+    """(n,) bool: which of the points ``X`` (in space; ``normals`` the CAD normals at their
+    foot points) lie on a thin local sheet more than ``WALL_ANGLE`` degrees out of the CAD's
+    tangent plane -- a wall standing on the part, whose feet crowd onto its foot line.  The
+    local sheet is the plane of the ``WALL_K`` nearest points (all within ``LINK_FACTOR x s``),
+    its thickness at most ``WALL_THICKNESS`` of its width.  ``sheet_normals``: also return the
+    local sheets' normals ((n, 3), zero where there is none)."""
+    steep = np.zeros(X.shape[0], bool)
+    v = np.zeros(X.shape)
+    done = (lambda: (steep, v)) if sheet_normals else (lambda: steep)
+    if X.shape[0] < WALL_K:
+        return done()
+    d, j = cKDTree(X).query(X, k=WALL_K)
+    ok = np.flatnonzero(np.isfinite(d).all(axis=1) & (d[:, -1] <= LINK_FACTOR * spacing))
+    if ok.size == 0:
+        return done()
+    Y = X[j[ok]]
+    Y = Y - Y.mean(axis=1, keepdims=True)
+    lam, vec = np.linalg.eigh(np.einsum("nki,nkj->nij", Y, Y) / WALL_K)
+    thin = ((np.sqrt(np.maximum(lam[:, 0], 0.0) / np.maximum(lam[:, 1], 1e-300)) <= WALL_THICKNESS)
+            & (np.sqrt(np.maximum(lam[:, 1], 0.0) / np.maximum(lam[:, 2], 1e-300)) >= WALL_LINE))
+    tilt = np.abs(np.einsum("ij,ij->i", vec[:, :, 0], normals[ok]))
+    steep[ok] = thin & (tilt <= np.cos(np.radians(WALL_ANGLE)))
+    v[ok] = vec[:, :, 0]
+    return done()
+
+
+def standing_wall(points, values, normals, good, members, spacing, limit) -> int:
+    """How many of a component's out-of-tolerance points ``members`` (scan indices, one side;
+    ``points`` the foot points, ``values`` the signed deviations) lie on a steep wall that
+    rises from the part's in-tolerance surface (``good``: scan indices of in-tolerance points
+    around; ``limit``: (N,) the limit on the members' side).
+
+    In space (at the scan points, ``foot + d x normal``) a wall standing on the part -- the side
+    of an object lying on a panel, of a boss, of a rib -- is a thin sheet steeper than
+    ``WALL_ANGLE`` degrees (:func:`steep_points`) whose foot is continuous with the part's
+    measured surface: linked within ``LINK_FACTOR x s`` down to in-tolerance points, its lowest
+    point at most ``WALL_FOOT x s`` beyond the limit.  Its feet
+    crowd onto its foot line right beside the part's in-tolerance points, so the rules for
+    layers read it as a layer *over* measured surface (the box on the panel at 0.5 mm seed 5:
+    all four walls' points became outliers and the part passed).  A reflection, a ghost or a
+    second view lies over the surface, about parallel to it, and floats above it without a
+    wall down to it.  Only walls rising *from* the part count (the regions above it): a
+    reflection crossing an impeller blade's tip read as a 13-point 'wall' 0.3 mm into it."""
+    members = np.asarray(members, np.int64)
+    good = np.asarray(good, np.int64)
+    if members.size < WALL_MIN or good.size == 0:
+        return 0
+    X = points[members] + values[members, None] * normals[members]
+    steep, v = steep_points(X, normals[members], spacing, sheet_normals=True)
+    si = np.flatnonzero(steep)
+    if si.size < WALL_MIN:
+        return 0
+    link = LINK_FACTOR * spacing
+    G = points[good] + values[good, None] * normals[good]
+    lo, hi = X[si].min(axis=0) - link, X[si].max(axis=0) + link
+    box = np.all((G >= lo) & (G <= hi), axis=1)
+    G, gf = G[box], points[good[box]]
+    if G.shape[0] == 0:
+        return 0
+    dg, _ = cKDTree(G).query(X[si], k=1, distance_upper_bound=link)
+    pairs = cKDTree(X[si]).query_pairs(link, output_type="ndarray")
+    n_comp, lab = linked_components(si.size, pairs)
+    foot = np.zeros(n_comp, bool)
+    foot[lab[np.isfinite(dg)]] = True
+    excess = np.abs(values[members[si]]) - np.abs(limit[members[si]])
+    low = np.full(n_comp, np.inf)
+    np.minimum.at(low, lab, excess)
+    foot &= low <= WALL_FOOT * spacing
+    # it stands on the part: the in-tolerance surface lies on one side of its foot line only
+    # (an object hides the part under it); a reflection crossing the part (a blade's tip) has
+    # the part's surface measured on both sides of where it crosses
+    r = WALL_SIDE_RADIUS * spacing
+    lists = cKDTree(gf).query_ball_point(points[members[si]], r)
+    lens = np.fromiter((len(x) for x in lists), np.int64, si.size)
+    if lens.sum():
+        flat = np.concatenate([np.asarray(x, np.int64) for x in lists if len(x)])
+        row = np.repeat(np.arange(si.size), lens)
+        t = np.einsum("ij,ij->i", gf[flat] - points[members[si]][row], v[si][row])
+        npos = np.bincount(row, weights=(t > 0.5 * spacing).astype(float), minlength=si.size)
+        nneg = np.bincount(row, weights=(t < -0.5 * spacing).astype(float), minlength=si.size)
+        two = np.minimum(npos, nneg) > WALL_SIDE_SHARE * np.maximum(npos, nneg)
+        n_two = np.bincount(lab, weights=two.astype(float), minlength=n_comp)
+        foot &= n_two <= 0.5 * np.bincount(lab, minlength=n_comp)
+    return int(np.count_nonzero(foot[lab]))
 
 
 def _sheets(points, values, normals, side, link, far=None, evaluated=None):
