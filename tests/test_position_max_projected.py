@@ -216,14 +216,17 @@ def test_ftc07_positions_at_mmc_carry_the_frames_maximum(ftc07):
 @pytest.mark.slow
 def test_ftc07_projected_positions_are_planned_out_of_the_holes_mouths(ftc07):
     """GT3 (Ⓟ 0.15 in), GT5 and GT6 (Ⓟ 0.425 in) were unsupported "projected zone modifier";
+    so was GT4 (a perpendicularity with Ⓟ 0.425 in);
     planned with their lengths in mm and the side the holes open to."""
     _, res = ftc07
     got = _entries(res, {"GT3", "GT5", "GT6"})
     assert {k: c.projected for k, c in got.items()} == pytest.approx(
         {"GT3": 0.15 * 25.4, "GT5": 0.425 * 25.4, "GT6": 0.425 * 25.4}, abs=1e-9)
     assert [len(got[k].features) for k in ("GT3", "GT5", "GT6")] == [4, 1, 2]
-    un = {u.pmi.id: u.reason for u in res.plan.unsupported}
-    assert "GT4" in un and "Projected" in un["GT4"]      # a projected perpendicularity
+    # GT4, a perpendicularity with Ⓟ 0.425 in, is planned too (an axis's projected zone)
+    gt4 = _entries(res, {"GT4"})["GT4"]
+    assert gt4.type == "perpendicularity" and gt4.projected == pytest.approx(0.425 * 25.4,
+                                                                             abs=1e-9)
 
 
 @pytest.mark.slow
