@@ -47,6 +47,7 @@ def test_info_prints_faces_and_units(panel):
     assert "faces" in res.output and "mm" in res.output
 
 
+@pytest.mark.slow
 def test_inspect_pass_fail_and_outputs(panel):
     out = panel / "out"
     out.mkdir()

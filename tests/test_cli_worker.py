@@ -308,6 +308,7 @@ def _status(env: dict, files: Path, wait: float) -> int | None:
         time.sleep(0.2)
 
 
+@pytest.mark.slow
 def test_a_first_command_without_kernels_starts_no_worker_and_the_next_ones_use_it(files, tmp_path):
     """SHAPEVERIFY_WORKER unset (``auto``, the default): ``info`` (a cached summary, 0.2 s) and
     ``--help`` started the worker in the background, 1.2 s of CPU more, for commands that may
@@ -348,6 +349,7 @@ def test_a_first_command_without_kernels_starts_no_worker_and_the_next_ones_use_
         shutil.rmtree(sock, ignore_errors=True)
 
 
+@pytest.mark.slow
 def test_first_inspect_runs_in_the_worker_it_starts_not_in_its_own_process_as_well(files, tmp_path):
     """The first command paid twice (issue 32 item 7): it ran in its own process, importing
     numpy, numba and scipy and loading the kernels (1.8-2.8 s of CPU), while the worker it

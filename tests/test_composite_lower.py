@@ -113,6 +113,7 @@ def test_lower_position_with_free_rotation_matches_brute_force():
     assert best_pattern_fit(ends, C, A, np.zeros((0, 3)))["value"] > got["value"] + 0.05
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("move", [0.3, 0.45])
 def test_lower_position_one_hole_moved_fails_the_lower_segment(move):
     """One hole of six moved ``move`` off the others (the pattern also 0.4 mm off as a whole):
@@ -194,6 +195,7 @@ def brute_profile(X, tag, rotations, p):
     return best
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("rot", [False, True])
 def test_lower_profile_zone_moves_to_its_best_place_as_brute_force(rot):
     """A profile of three faces displaced 0.4 mm as a whole (and turned 1 mrad about z, the

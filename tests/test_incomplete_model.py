@@ -85,6 +85,7 @@ def test_row2_prepare_refuses_an_incomplete_model_unless_allowed(plate, tmp_path
     assert load_prepared(tmp_path / "m.svm").model.skipped_faces == model.skipped_faces
 
 
+@pytest.mark.slow
 def test_row2_inspection_against_an_allowed_incomplete_model_names_the_missing_faces(plate,
                                                                                      tmp_path):
     """A scan of the complete plate with a 0.5 mm dent on the face that is missing: the

@@ -96,6 +96,7 @@ def test_views_with_given_poses_and_a_view_moved_off_is_named(prep):
         sv.inspection.inspect_views(prep, views, poses=truths[:2])
 
 
+@pytest.mark.slow
 def test_cli_inspects_several_view_files_and_an_e57_with_several_scans(prep, tmp_path):
     import json
 

@@ -226,6 +226,7 @@ def test_ctc02_e2_datum_k_circle_target_on_supplemental_face_635_lands_on_solid_
 
 
 # ------------------------------------------------------------------ a perfect scan
+@pytest.mark.slow
 def test_ftc08_perfect_independent_scan_passes_gt6_on_solid_face(ftc08):
     """GT6 (flatness 0.127 mm of face 14, from supplemental face 247) on a perfect part:
     OpenCASCADE's tessellation of the solid's faces, uniform by area at 2 mm, 0.02 mm noise,

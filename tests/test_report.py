@@ -198,6 +198,7 @@ def test_result_json_matches_report_numbers(inspected):
 
 
 # ------------------------------------------------------------------ bytes or a path
+@pytest.mark.slow
 def test_every_writer_returns_the_bytes_its_write_function_writes(inspected, tmp_path):
     import re as _re
 

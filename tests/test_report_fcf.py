@@ -190,6 +190,7 @@ def _expected_groups(pr):
     return items, F.group_by_drf(items)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("name", NIST)
 def test_pdf_table_draws_every_frame_in_its_cell_grouped_by_drf(name):
     from matplotlib.lines import Line2D

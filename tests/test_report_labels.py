@@ -184,6 +184,7 @@ def _inside(bb, box, pad=0.6):
             and bb.y1 <= box.y1 + pad)
 
 
+@pytest.mark.slow
 @pytest.mark.parametrize("L", [40_000.0, 1.0])
 def test_pdf_pages_keep_every_text_inside_a4_and_the_table_readable(L):
     from matplotlib.text import Text

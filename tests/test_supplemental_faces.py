@@ -114,6 +114,7 @@ def test_ctc04_fill_shell_is_supplemental(tmp_path):
     assert list(model.supplemental) == outside == [483]
 
 
+@pytest.mark.slow
 def test_ftc10_model_points_all_lie_on_the_solid(ftc10):
     prep = cached_prepared(ftc10, spacing=1.0)
     model = prep.model
