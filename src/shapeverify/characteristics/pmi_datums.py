@@ -63,6 +63,23 @@ def _line_on_edge(t: dict, what: str, ctx) -> tuple[dict | None, str, str]:
     return entry, note, ""
 
 
+def project_on_face(face, P) -> tuple:
+    """``(uv, dist)`` of points ``P`` (n, 3) projected on ``face``'s surface, each started from
+    the nearest node of a 41 x 41 grid over the face's uv box (a target's rim, a supplemental
+    face's samples).  ``dist`` is signed along the surface normal; whether ``uv`` lies in the
+    trimmed face is the caller's test (``face.contains``)."""
+    import numpy as np
+
+    from ..fitting.surfaces import project_to_surface
+
+    (a0, a1), (b0, b1) = face.uv_bounds
+    g = np.stack(np.meshgrid(np.linspace(a0, a1, 41), np.linspace(b0, b1, 41)),
+                 -1).reshape(-1, 2)
+    G = face.evaluate(g)
+    uv0 = g[np.argmin(((P[:, None] - G[None]) ** 2).sum(-1), axis=1)]
+    return project_to_surface(face.surface, P, uv0)
+
+
 def _area_on_face(t: dict, what: str, ctx) -> tuple[int | None, str, str]:
     """(PMI face number, note, '') of an area target (circle, rectangle) that the file attaches
     to no shape (NIST CTC 05 C1, D1: a placed rectangle only): the one planar face whose plane
@@ -70,8 +87,6 @@ def _area_on_face(t: dict, what: str, ctx) -> tuple[int | None, str, str]:
     its centre and its outline (the corners, or 8 points of the circle, each pulled 1 % towards
     the centre); or (None, '', why)."""
     import numpy as np
-
-    from ..fitting.surfaces import project_to_surface
 
     at = np.asarray(t["at"], float)
     n = np.asarray(t["direction"], float)
@@ -99,12 +114,7 @@ def _area_on_face(t: dict, what: str, ctx) -> tuple[int | None, str, str]:
                 or abs(float((at - ft.center) @ ft.axis)) > tol or k not in inv or k in supp:
             continue
         face = ctx.model.faces[k]
-        (a0, a1), (b0, b1) = face.uv_bounds
-        g = np.stack(np.meshgrid(np.linspace(a0, a1, 41), np.linspace(b0, b1, 41)),
-                     -1).reshape(-1, 2)
-        G = face.evaluate(g)
-        uv0 = g[np.argmin(((P[:, None] - G[None]) ** 2).sum(-1), axis=1)]
-        uv, dist = project_to_surface(face.surface, P, uv0)
+        uv, dist = project_on_face(face, P)
         inside = face.contains(uv) & (np.abs(dist) <= tol)
         if inside[0]:
             hits.append((k, int(inside.sum()) - 1))
@@ -129,8 +139,6 @@ def _point_on_face(t: dict, what: str, ctx) -> tuple[int | None, str, str]:
     normal there is along the target's ``direction``; or (None, '', why)."""
     import numpy as np
 
-    from ..fitting.surfaces import project_to_surface
-
     at = np.asarray(t["at"], float)
     tol = max(1e-6 * ctx.size, 1e-6)
     inv = {v: k for k, v in ctx.fmap.items()}
@@ -143,10 +151,7 @@ def _point_on_face(t: dict, what: str, ctx) -> tuple[int | None, str, str]:
         if np.any(at < c.min(0) - tol) or np.any(at > c.max(0) + tol):
             continue                   # a NURBS surface lies in its control net's box
         (a0, a1), (b0, b1) = face.uv_bounds
-        g = np.stack(np.meshgrid(np.linspace(a0, a1, 41), np.linspace(b0, b1, 41)),
-                     -1).reshape(-1, 2)
-        uv0 = g[np.argmin(((face.evaluate(g) - at) ** 2).sum(-1))][None]
-        uv, dist = project_to_surface(face.surface, at[None], uv0)
+        uv, dist = project_on_face(face, at[None])
         ring = uv + 1e-7 * np.array([a1 - a0, b1 - b0]) * np.array(
             [[0, 0], [1, 0], [-1, 0], [0, 1], [0, -1], [1, 1], [1, -1], [-1, 1], [-1, -1]])
         if abs(float(dist[0])) <= tol and face.contains(ring).any():   # on its edge too

@@ -47,7 +47,7 @@ def supplemental_map(model) -> dict:
     """{supplemental face (model number): {"on": [solid faces], "covered": fraction of its
     samples on them, "off": largest distance of a sample from the solid faces tried (mm),
     "n": samples}} for every supplemental face of ``model``."""
-    from ..fitting.surfaces import project_to_surface
+    from .pmi_datums import project_on_face
 
     supp = tuple(getattr(model, "supplemental", ()) or ())
     if not supp:
@@ -70,12 +70,7 @@ def supplemental_map(model) -> dict:
             blo, bhi = _box(face, boxes, k)
             if np.any(hi < blo - tol) or np.any(lo > bhi + tol):
                 continue
-            (a0, a1), (b0, b1) = face.uv_bounds
-            g = np.stack(np.meshgrid(np.linspace(a0, a1, 41), np.linspace(b0, b1, 41)),
-                         -1).reshape(-1, 2)
-            G = face.evaluate(g)
-            uv0 = g[np.argmin(((P[:, None] - G[None]) ** 2).sum(-1), axis=1)]
-            uv, dist = project_to_surface(face.surface, P, uv0)
+            uv, dist = project_on_face(face, P)
             # on the face: the foot inside its trimmed domain, the same surface (normals
             # along each other: a face that meets it at an angle shares an edge only)
             along = np.abs(np.einsum("ij,ij->i", face.normal(uv), N)) > 1 - 1e-6
