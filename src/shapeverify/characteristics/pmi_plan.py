@@ -462,6 +462,14 @@ def _faces_ok(item, ctx, key="faces"):
     return faces, ""
 
 
+def unapplied_modifiers(item: dict) -> str:
+    """Why an item is unsupported when it carries modifiers the plan does not apply (any but
+    Free_State, or a material modifier), or '' when it carries none."""
+    extra = [m for m in item["modifiers"] if m != "Free_State"] + \
+        ([f"material {item['material']}"] if item["material"] else [])
+    return f"modifiers {', '.join(extra)} are not applied by the plan" if extra else ""
+
+
 #: tolerance modifiers that do not change what a characteristic measures, per type
 #: (Free_State: a scan of the unrestrained part is a free-state measurement)
 _HARMLESS = {"ProfileOfSurface": {"All_Around", "All_Over", "Free_State"},
@@ -634,10 +642,9 @@ def _form_or_runout(item, ctx, faces, src) -> tuple[list, str]:
     t = item["type"]
     if item["zone_modifier"] != "None":
         return [], f"a {item['zone_modifier']} zone modifier"
-    extra = [m for m in item["modifiers"] if m != "Free_State"] + \
-        ([f"material {item['material']}"] if item["material"] else [])
-    if extra:
-        return [], f"modifiers {', '.join(extra)} are not applied by the plan"
+    why = unapplied_modifiers(item)
+    if why:
+        return [], why
     kinds = {ctx.feats[f].kind for f in faces}
     kind, allowed = _FORMS.get(t, (_RUNOUTS.get(t), None))
     entry = {"name": ctx.name(f"{item['id']}_{kind}"), "type": kind,
@@ -686,10 +693,9 @@ def _straightness_of_line(item, ctx, src) -> tuple[list, str]:
     if item["zone_modifier"] != "None" or item["value_type"] != "None" or item["datums"]:
         return [], (f"straightness of a line with a {item['value_type']} zone, zone modifier "
                     f"{item['zone_modifier']} or datums")
-    extra = [m for m in item["modifiers"] if m != "Free_State"] + \
-        ([f"material {item['material']}"] if item["material"] else [])
-    if extra:
-        return [], f"modifiers {', '.join(extra)} are not applied by the plan"
+    why = unapplied_modifiers(item)
+    if why:
+        return [], why
     face = ctx.fmap.get(recs[0]["on_faces"][0])
     if face is None:
         return [], "its face could not be imported"
@@ -711,10 +717,9 @@ def _concentricity(item, ctx, faces, src) -> tuple[list, str]:
     (:mod:`.concentricity`)."""
     if item["value_type"] != "Diameter" or item["zone_modifier"] != "None":
         return [], "a concentricity without a ⌀ zone, or with a zone modifier"
-    extra = [m for m in item["modifiers"] if m != "Free_State"] + \
-        ([f"material {item['material']}"] if item["material"] else [])
-    if extra:
-        return [], f"modifiers {', '.join(extra)} are not applied by the plan"
+    why = unapplied_modifiers(item)
+    if why:
+        return [], why
     if not item["datums"]:
         return [], "a concentricity without a datum axis"
     kinds = {ctx.feats[f].kind for f in faces}

@@ -10,16 +10,15 @@ __all__ = ["symmetry_entries"]
 
 def symmetry_entries(item, ctx, faces, src) -> tuple[list, str]:
     """(plan entries, '') or ([], reason) of a ``Symmetry`` on ``faces`` (model numbers)."""
-    from .pmi_plan import _item_drf
+    from .pmi_plan import _item_drf, unapplied_modifiers
     from .position_zones import width_sides
 
     if item["value_type"] != "None" or item["zone_modifier"] != "None":
         return [], (f"a symmetry with a {item['value_type']} zone or a {item['zone_modifier']} "
                     "zone modifier (two parallel planes only)")
-    extra = [m for m in item["modifiers"] if m != "Free_State"] + \
-        ([f"material {item['material']}"] if item["material"] else [])
-    if extra:
-        return [], f"modifiers {', '.join(extra)} are not applied by the plan"
+    why = unapplied_modifiers(item)
+    if why:
+        return [], why
     if not item["datums"]:
         return [], "a symmetry without a datum centre plane"
     try:
