@@ -43,8 +43,32 @@ def _fmt(value) -> str:
 
 class _Repr:
     def __repr__(self) -> str:
-        parts = [f"{f.name}={_fmt(getattr(self, f.name))}" for f in dataclasses.fields(self)]
+        # a subclass's own fields first, then the keyword-only ones it inherits (_ElementFit's)
+        fields = sorted(dataclasses.fields(self), key=lambda f: bool(f.kw_only))
+        parts = [f"{f.name}={_fmt(getattr(self, f.name))}" for f in fields]
         return f"{type(self).__name__}({', '.join(parts)})"
+
+
+@dataclasses.dataclass(frozen=True, repr=False, kw_only=True)
+class _ElementFit(_Repr):
+    """What every geometric-element fit reports besides its geometry: the rms of the residuals,
+    the residuals (signed or not: each subclass says), the robust weights, the residual scale,
+    the loss, the number of iterations and whether they converged.  Keyword-only, so a subclass
+    lists its geometry first; :func:`_fit_stats` fills them."""
+    rms: float
+    residuals: np.ndarray
+    weights: np.ndarray
+    scale: float
+    loss: str
+    iterations: int
+    converged: bool
+
+
+def _fit_stats(r, w, s, loss, iterations, converged) -> dict:
+    """The :class:`_ElementFit` fields of residuals ``r`` with weights ``w`` and scale ``s``."""
+    r = np.asarray(r)
+    return dict(rms=float(np.sqrt(np.mean(r * r))), residuals=r, weights=w, scale=s, loss=loss,
+                iterations=iterations, converged=converged)
 
 
 # ----------------------------------------------------------------------------------------------

@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._renamed import renamed_keywords
-from ._element_base import _check_loss, _check_points, _irls, _lm, _perp_basis, _Repr, _unit
+from ._element_base import (_check_loss, _check_points, _ElementFit, _fit_stats, _irls, _lm,
+                            _perp_basis, _unit)
 from .spheres_circles import _pratt
 
 logger = logging.getLogger(__name__)
@@ -27,22 +28,15 @@ __all__ = ["CylinderFit", "ConeFit", "fit_cylinder", "fit_cone"]
 
 
 @dataclass(frozen=True, repr=False)
-class CylinderFit(_Repr):
+class CylinderFit(_ElementFit):
     """Cylinder; ``point`` is the point of the axis closest to the centroid of the data."""
     point: np.ndarray
     axis: np.ndarray
     radius: float
-    rms: float
-    residuals: np.ndarray
-    weights: np.ndarray
-    scale: float
-    loss: str
-    iterations: int
-    converged: bool
 
 
 @dataclass(frozen=True, repr=False)
-class ConeFit(_Repr):
+class ConeFit(_ElementFit):
     """Cone: radius ``radius`` at ``point`` (axis point closest to the centroid), opening towards ``axis``.
 
     The radius at axial position ``h`` (from ``point`` along ``axis``) is ``radius + h * tan(half_angle)``;
@@ -52,13 +46,6 @@ class ConeFit(_Repr):
     axis: np.ndarray
     radius: float
     half_angle: float
-    rms: float
-    residuals: np.ndarray
-    weights: np.ndarray
-    scale: float
-    loss: str
-    iterations: int
-    converged: bool
 
     @property
     def apex(self) -> np.ndarray:
@@ -207,7 +194,7 @@ def fit_cylinder(points, loss: str = "l2", scale: float | None = None, axis=None
     p, a, (R,), r, w, s, it, ok = _fit_axial(x, loss, scale, axis, max_iterations, rtol, "cylinder")
     if R <= 0:
         raise ValueError("fit_cylinder: the fit degenerated to a non-positive radius")
-    return CylinderFit(p, a, float(R), float(np.sqrt(np.mean(r * r))), r, w, s, loss, it, ok)
+    return CylinderFit(p, a, float(R), **_fit_stats(r, w, s, loss, it, ok))
 
 
 @renamed_keywords(tolerance="rtol")
@@ -237,4 +224,4 @@ def fit_cone(points, loss: str = "l2", scale: float | None = None, axis=None,
     x = _check_points(points, (3,), 6, "fit_cone", spread=2)
     _check_loss(loss, scale)
     p, a, (R, psi), r, w, s, it, ok = _fit_axial(x, loss, scale, axis, max_iterations, rtol, "cone")
-    return ConeFit(p, a, float(R), float(psi), float(np.sqrt(np.mean(r * r))), r, w, s, loss, it, ok)
+    return ConeFit(p, a, float(R), float(psi), **_fit_stats(r, w, s, loss, it, ok))

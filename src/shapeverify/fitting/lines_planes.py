@@ -17,37 +17,23 @@ from dataclasses import dataclass
 import numpy as np
 
 from .._renamed import renamed_keywords
-from ._element_base import _check_loss, _check_points, _irls, _Repr
+from ._element_base import _check_loss, _check_points, _ElementFit, _fit_stats, _irls
 
 __all__ = ["LineFit", "PlaneFit", "fit_line", "fit_plane"]
 
 
 @dataclass(frozen=True, repr=False)
-class LineFit(_Repr):
+class LineFit(_ElementFit):
     """Line ``point + s * direction``; ``residuals`` are (unsigned) distances to the line."""
     point: np.ndarray
     direction: np.ndarray
-    rms: float
-    residuals: np.ndarray
-    weights: np.ndarray
-    scale: float
-    loss: str
-    iterations: int
-    converged: bool
 
 
 @dataclass(frozen=True, repr=False)
-class PlaneFit(_Repr):
+class PlaneFit(_ElementFit):
     """Plane through ``point`` with unit ``normal``; ``residuals`` signed along the normal."""
     point: np.ndarray
     normal: np.ndarray
-    rms: float
-    residuals: np.ndarray
-    weights: np.ndarray
-    scale: float
-    loss: str
-    iterations: int
-    converged: bool
 
 
 # ----------------------------------------------------------------------------------------------
@@ -100,7 +86,7 @@ def fit_line(points, loss: str = "l2", scale: float | None = None,
     c, a = state
     a = a if a[np.argmax(np.abs(a))] > 0 else -a
     r = dist((c, a))
-    return LineFit(c, a, float(np.sqrt(np.mean(r * r))), r, w, s, loss, it, ok)
+    return LineFit(c, a, **_fit_stats(r, w, s, loss, it, ok))
 
 
 @renamed_keywords(tolerance="rtol")
@@ -139,4 +125,4 @@ def fit_plane(points, loss: str = "l2", scale: float | None = None,
     n = n if n[np.argmax(np.abs(n))] > 0 else -n
     n = n + 0.0  # no negative zeros
     r = dist((c, n))
-    return PlaneFit(c, n, float(np.sqrt(np.mean(r * r))), r, w, s, loss, it, ok)
+    return PlaneFit(c, n, **_fit_stats(r, w, s, loss, it, ok))

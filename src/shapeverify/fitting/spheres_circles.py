@@ -20,13 +20,14 @@ import scipy.linalg
 
 from .._random import generator
 from .._renamed import renamed_keywords
-from ._element_base import _check_loss, _check_points, _irls, _lm, _perp_basis, _Repr, _unit
+from ._element_base import (_check_loss, _check_points, _ElementFit, _fit_stats, _irls, _lm,
+                            _perp_basis, _unit)
 
 __all__ = ["CircleFit", "SphereFit", "fit_circle", "fit_sphere"]
 
 
 @dataclass(frozen=True, repr=False)
-class CircleFit(_Repr):
+class CircleFit(_ElementFit):
     """Circle: ``center`` (2,) or (3,), ``radius``; ``normal`` (3,) of its plane for 3-D data, else None.
 
     ``residuals``: signed radial distance (+ outside) in 2-D; unsigned distance to the circle in 3-D.
@@ -34,27 +35,13 @@ class CircleFit(_Repr):
     center: np.ndarray
     radius: float
     normal: np.ndarray | None
-    rms: float
-    residuals: np.ndarray
-    weights: np.ndarray
-    scale: float
-    loss: str
-    iterations: int
-    converged: bool
 
 
 @dataclass(frozen=True, repr=False)
-class SphereFit(_Repr):
+class SphereFit(_ElementFit):
     """Sphere; ``residuals`` are signed distances (+ outside)."""
     center: np.ndarray
     radius: float
-    rms: float
-    residuals: np.ndarray
-    weights: np.ndarray
-    scale: float
-    loss: str
-    iterations: int
-    converged: bool
 
 
 # ----------------------------------------------------------------------------------------------
@@ -201,7 +188,7 @@ def fit_sphere(points, loss: str = "l2", scale: float | None = None,
     x = _check_points(points, (3,), 4, "fit_sphere", spread=2)
     _check_loss(loss, scale)
     c, R, r, w, s, it, ok = _fit_hypersphere(x, loss, scale, max_iterations, rtol, "fit_sphere", rng)
-    return SphereFit(c, R, float(np.sqrt(np.mean(r * r))), r, w, s, loss, it, ok)
+    return SphereFit(c, R, **_fit_stats(r, w, s, loss, it, ok))
 
 
 @renamed_keywords(tolerance="rtol")
@@ -241,7 +228,7 @@ def fit_circle(points, loss: str = "l2", scale: float | None = None,
     _check_loss(loss, scale)
     if x.shape[1] == 2:
         c, R, r, w, s, it, ok = _fit_hypersphere(x, loss, scale, max_iterations, rtol, "fit_circle", rng)
-        return CircleFit(c, R, None, float(np.sqrt(np.mean(r * r))), r, w, s, loss, it, ok)
+        return CircleFit(c, R, None, **_fit_stats(r, w, s, loss, it, ok))
     if len(x) < 4:
         raise ValueError(f"fit_circle: a 3-D circle needs at least 4 points, got {len(x)}")
     c0 = x.mean(axis=0)
@@ -293,4 +280,4 @@ def fit_circle(points, loss: str = "l2", scale: float | None = None,
     c, n, R = st
     n = n if n[np.argmax(np.abs(n))] > 0 else -n
     r = dist(st)
-    return CircleFit(c + c0, float(R), n, float(np.sqrt(np.mean(r * r))), r, w, s, loss, it, ok)
+    return CircleFit(c + c0, float(R), n, **_fit_stats(r, w, s, loss, it, ok))
