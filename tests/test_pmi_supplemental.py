@@ -14,6 +14,8 @@ least-squares plane of the scan points OpenCASCADE's face 14 holds.
 """
 from __future__ import annotations
 
+import io
+
 import copy
 import gzip
 from pathlib import Path
@@ -145,6 +147,24 @@ def test_ftc08_gt6_flatness_on_supplemental_face_247_plans_solid_face_14(ftc08):
     P = _inside_points(occ[247])
     assert len(P) > 50
     assert max(_dist(p, occ[14]) for p in P[::7]) < 1e-6
+
+
+def test_info_pmi_table_says_where_supplemental_pmi_went(ftc08):
+    """``info --pmi`` printed face:14 for FTC 08's GT6 without saying the file ties it to the
+    supplemental face 247 (the plan's YAML said so; the table did not)."""
+    from rich.console import Console
+
+    from shapeverify.cli_plan import pmi_table
+
+    r, m, fmap = _plan(ftc08)
+    con = Console(width=400, record=True, file=io.StringIO())
+    con.print(pmi_table("ftc08", r))
+    lines = con.export_text().splitlines()
+    [k] = [i for i, x in enumerate(lines) if x.split("\u2502")[1:2]
+           and x.split("\u2502")[1].strip() == "GT6"]
+    assert f"face:{fmap[14]}" in lines[k]
+    assert "supplemental geometry (outside the solid, never scanned): face 247 lies on face 14" \
+        in lines[k + 1]
 
 
 def test_ftc10_gt10_profile_on_supplemental_faces_280_281_plans_solid_faces(ftc10):

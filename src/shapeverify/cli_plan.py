@@ -156,7 +156,9 @@ def pmi_table(name: str, res) -> Table:
     """The table ``info --pmi`` prints: one row per PMI item of ``res`` (a PMI plan result:
     ``rows`` and ``plan.alignment``), with the plan entries made of it or why none.
 
-    Cells are plain text (a reason such as "faces [41, 40]" shows as written); an angle
+    Cells are plain text (a reason such as "faces [41, 40]" shows as written); an item the file
+    attaches to supplemental geometry lists, under its faces, what became of each supplemental
+    face (mapped onto the solid faces it lies on, or left out: :mod:`.pmi_supplemental`); an angle
     dimension's values are in degrees, every other value (an angularity's zone too) in mm.
     """
     from rich.text import Text
@@ -180,5 +182,7 @@ def pmi_table(name: str, res) -> Table:
                   "-" if r.get("value") is None else f"{r['value']:g}{deg}",
                   "-" if not lim else f"{lim[0]:+g}{deg} / {lim[1]:+g}{deg}",
                   r.get("datums") or ", ".join(r.get("targets", [])) or "-",
-                  ", ".join(r.get("modifiers", [])) or "-", faces or "-", plan)
+                  ", ".join(r.get("modifiers", [])) or "-",
+                  Text.assemble(faces or "-", ("\n" + r["supplemental_note"], "dim"))
+                  if r.get("supplemental_note") else faces or "-", plan)
     return t

@@ -962,6 +962,8 @@ def _row(item, ctx, entries, reason) -> dict:
     row = {"id": item["id"], "kind": item["kind"], "type": item["type"],
            "faces": ["face:%d" % f if f is not None else "?" for f in faces],
            "entries": [e["name"] for e in entries] if entries else [], "reason": reason}
+    if item.get("supplemental_note"):
+        row["supplemental_note"] = item["supplemental_note"]
     if item["kind"] == "geometric_tolerance":
         row["value"] = item["value"]
         row["datums"] = "|".join(d["name"] for d in item["datums"])
