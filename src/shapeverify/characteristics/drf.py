@@ -74,6 +74,11 @@ class DatumFeature:
     contacts: tuple | None = field(default=None, repr=False)
     #: 'pattern': the features, each (p0, axis, indices into ``points``, hole)
     groups: tuple | None = field(default=None, repr=False)
+    #: 'axis' of a partial cylinder (a radius: the CAD faces cover less than
+    #: :data:`.gdt_zones.MIN_COVERAGE` degrees about their axis): the degrees they cover and
+    #: their basic radius (mm)
+    arc: float | None = None
+    radius: float | None = None
 
 
 @dataclass(frozen=True)
@@ -171,6 +176,18 @@ def _turns(d0, N) -> list:
     return [u[:, i] for i in range(len(s)) if s[i] > 1e-6]
 
 
+def _turn_sine(d0, N) -> float:
+    """How far (the sine of the angle) the free rotations N (6, k) turn the unit vector d0, per
+    unit rotation: 0 when the datums before fix its direction (a plane's fitted normal leaves
+    a rotation about itself, 1e-4 off the nominal axis: that is not a turn)."""
+    out = 0.0
+    for v in N.T:
+        w = v[:3]
+        if np.linalg.norm(w) > 1e-12:
+            out = max(out, float(np.linalg.norm(np.cross(w, d0)) / np.linalg.norm(w)))
+    return out
+
+
 def _fit(f: DatumFeature, X, N):
     """(DatumFit, rows G (m, 6), right side r (m,)) of one datum on points X (corrected frame)."""
     d0 = np.asarray(f.direction, float) / np.linalg.norm(f.direction)
@@ -196,6 +213,8 @@ def _fit(f: DatumFeature, X, N):
         if X.shape[0] < 5:
             raise ValueError(f"datum {f.name}: {X.shape[0]} scan points on its axis (need 5)")
         cover = angular_coverage(X, p0, d0)
+        if cover < MIN_COVERAGE and f.arc is not None and f.arc < MIN_COVERAGE:
+            return _fit_arc(f, X, cover, _turn_sine(d0, N), d0, p0, B)
         if cover < MIN_COVERAGE:
             raise ValueError(f"datum {f.name}: the scan covers {cover:.0f} degrees of its "
                              f"circumference (its axis needs {MIN_COVERAGE:.0f})")
@@ -245,6 +264,48 @@ def _fit(f: DatumFeature, X, N):
         return _fit_pattern(f, X, N)
     raise ValueError(f"datum {f.name}: unknown kind {f.kind!r} (plane, midplane, axis, "
                      "point, targets or pattern)")
+
+
+#: a partial cylindrical datum feature needs this much arc (degrees) of the face and its scan
+MIN_ARC = 90.0
+
+
+def _fit_arc(f: DatumFeature, X, cover, turn: float, d0, p0, B):
+    """A partial cylindrical datum feature (a radius; FTC 10's datum K, a boss of 166 degrees):
+    no mating cylinder exists (the largest inscribed / smallest circumscribed circle of an arc
+    is unbounded or degenerate), so its simulator is the cylinder of the basic radius (ASME
+    Y14.5-2018 7.11.4: a datum feature simulator of basic size), placed by least squares on
+    the points (Gauss-Newton on ``sum (|xy - c| - r)^2``), the direction fixed by the datums
+    before it.  The scan must cover most of the face's arc."""
+    if turn > 0.01:
+        raise ValueError(f"datum {f.name}: a partial cylinder ({f.arc:.0f} degrees) sets an "
+                         "axis only with its direction fixed by a datum before it")
+    if f.arc < MIN_ARC or cover < 0.8 * f.arc:
+        raise ValueError(f"datum {f.name}: the scan covers {cover:.0f} degrees of the "
+                         f"{f.arc:.0f} its partial cylinder spans (its axis needs "
+                         f"{max(MIN_ARC, 0.8 * f.arc):.0f})")
+    r0 = float(f.radius)
+    xy = (X - p0) @ B.T
+    c = np.zeros(2)
+    for _ in range(50):
+        q = xy - c
+        rho = np.linalg.norm(q, axis=1)
+        J = -q / rho[:, None]                       # d(rho - r0)/dc
+        step = np.linalg.lstsq(J, -(rho - r0), rcond=None)[0]
+        c = c + step
+        if np.linalg.norm(step) < 1e-12 * max(r0, 1.0):
+            break
+    res = np.linalg.norm(xy - c, axis=1) - r0
+    pc = p0 + c @ B
+    fit = DatumFit(f.name, "axis", f"axis of the cylinder of basic radius {r0:g} least-squares "
+                   f"placed on the partial cylinder ({f.arc:.0f} degrees; direction fixed by "
+                   "the datums before it)", pc, d0, X.shape[0], float(np.ptp(res)))
+    rows = [np.r_[np.cross(d0, b), 0, 0, 0] for b in B]
+    rhs = [0.0 for _ in B]
+    for b in B:
+        rows.append(np.r_[np.cross(pc, b), b])
+        rhs.append(b @ (p0 - pc))
+    return fit, np.array(rows), np.array(rhs)
 
 
 def _fit_targets(f: DatumFeature, X):

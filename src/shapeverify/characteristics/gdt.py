@@ -196,7 +196,16 @@ def _datum_feature(name, spec, ctx: EvalContext) -> DatumFeature:
     radial = q - np.outer(q @ f.axis, f.axis)
     hole = float(np.sum(S.normals[m] * radial)) < 0 if len(X) else True
     X, _ = _cylinder_points(X, f)
-    return DatumFeature(name, "axis", f.center, f.axis, X, hole=hole)
+    return DatumFeature(name, "axis", f.center, f.axis, X, hole=hole,
+                        arc=_faces_arc(ctx.prep.model, fidx, f), radius=0.5 * f.diameter)
+
+
+def _faces_arc(model, fidx, f) -> float:
+    """Degrees about the cylinder feature ``f``'s axis that its CAD faces ``fidx`` cover."""
+    from .features import _face_grid
+
+    G = np.concatenate([_face_grid(model.faces[i])[0] for i in fidx])
+    return angular_coverage(G, f.center, f.axis)
 
 
 def drf_of(names, ctx: EvalContext):
