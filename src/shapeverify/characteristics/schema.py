@@ -245,12 +245,31 @@ class SizeLimits(_Strict):
         return self
 
 
-class DatumSize(SizeLimits):
-    """The size limits of a datum feature of size (a hole's or boss's diameter, mm): its
-    maximum/least material boundary for a datum referenced at MMB/LMB (:mod:`.datum_shift`);
-    ``nominal`` is required."""
+class DatumSize(_Strict):
+    """The size of a datum feature of size (a hole's or boss's diameter, mm) for a datum
+    referenced at MMB/LMB (:mod:`.datum_shift`): ``nominal`` and its limits ``lower`` <
+    ``upper`` (the boundary is then the size's MMC / LMC), or the boundary's diameter itself,
+    ``mmb`` / ``lmb`` (a size without limits: the boundary worked out from the nominal and the
+    geometric tolerances applied to the feature, :func:`.pmi_datums.derived_boundary`; ``rule``
+    says how)."""
 
     nominal: float = Field(gt=0)
+    lower: Optional[float] = None
+    upper: Optional[float] = None
+    mmb: Optional[float] = Field(default=None, gt=0)
+    lmb: Optional[float] = Field(default=None, gt=0)
+    rule: Optional[str] = None
+
+    @model_validator(mode="after")
+    def _limits(self):
+        if (self.lower is None) != (self.upper is None):
+            raise ValueError("a datum size takes both lower and upper (or neither, with mmb "
+                             "or lmb)")
+        if self.lower is not None and not self.lower < self.upper:
+            raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
+        if self.lower is None and self.mmb is None and self.lmb is None:
+            raise ValueError("a datum size takes lower and upper, or the boundary mmb / lmb")
+        return self
 
 
 class DatumSpec(_Strict):
