@@ -59,8 +59,7 @@ STILL_UNSUPPORTED = {
     # direction in the semantic PMI (e1 attaches it to a line drawn on a face)
     "nist_ctc_02": {"GT19": "section direction"},
     "nist_ctc_04": {},
-    "nist_ftc_07": {"GT10": "Statistical", "GT15": "counterbored holes",
-                    "GT16": "counterbored holes"},
+    "nist_ftc_07": {"GT10": "Statistical"},
     "nist_ftc_10": {"GT11": "All_Around"},
 }
 
@@ -667,3 +666,94 @@ def test_perfect_ftc10_passes_gt23_and_a_moved_hole_passes_only_by_the_datum_shi
     assert got[0.0][0] == "pass" and got[0.0][2] < 0.1, got
     assert got[0.6][0] == "pass" and got[0.6][1] == pytest.approx(1.2, abs=0.05), got
     assert got[1.0][0] == "fail" and got[1.0][1] == pytest.approx(2.0, abs=0.05), got
+
+
+def test_ftc07_composite_position_of_counterbored_holes_holds_hole_and_counterbore_in_one_zone(
+        files, plans):
+    """FTC 07 GT15/GT16 (composite position ⌀1.524 (M) / ⌀0.508 (M) to E|B|C under a
+    counterbored hole's callout; "counterbored holes ... not planned" before): each of the 4
+    holes and its counterbore is its own axis at their common true position (coaxial by
+    OpenCASCADE's own surfaces, 1e-6), each with its own size for the bonus (⌀7.1374 -0.0254
+    +0.1524, DIM18; ⌀11.1252 ±0.254, DIM17, which the file attaches to one counterbore: "4X");
+    the floors are left out.  On an independent scan (OCP tessellation by area: the part at
+    1.5 mm, E, B, C and the 8 cylinders at 0.25 mm; 0.005 mm noise; best-fit alignment from
+    the true pose): the perfect part passes both segments, each feature's bonus is its mating
+    size less its own MMC (the mating size within 0.02 of twice the smallest radial distance of
+    its points about the CAD axis: brute force); one hole (not its counterbore) moved 0.6 mm
+    across its axis reads 1.2 in the located segment on that feature alone (the others < 0.03)
+    and passes it; the lower segment fails at 0.6 -- the smallest circle holding the 8 axes'
+    offsets (one at 0.6, seven at 0) has radius 0.3."""
+    import numpy as np
+    import yaml
+
+    from independent_scans import file_tessellation, random_points
+    from model_cache import cached_prepared
+    from shapeverify.characteristics import evaluate_plan
+    from shapeverify.characteristics.pmi_plan import _face_map
+
+    path, res = files["nist_ftc_07"], plans["nist_ftc_07"]
+    data = dict(res.data)
+    gt = {c["pmi"]["id"]: c for c in data["characteristics"] if c["pmi"]["id"] in ("GT15", "GT16")}
+    assert (gt["GT15"]["composite"], gt["GT16"]["composite"]) == ("upper", "lower")
+    assert gt["GT15"]["features"] == gt["GT16"]["features"]
+    feats = gt["GT15"]["features"]
+    assert len(feats) == 8
+    hole = {"nominal": 7.1374, "lower": -0.0254, "upper": 0.1524}
+    cbore = {"nominal": 11.1252, "lower": -0.254, "upper": 0.254}
+    occ = _occ_surfaces(path)
+    prep = cached_prepared(path, spacing=1.5, features=True)
+    inv = {v: k for k, v in _face_map(res.pmi, prep.model).items()}
+    cyl = [[occ[inv[int(f.split(":")[1])]] for f in g] for g in feats]
+    for g in cyl:       # each feature one cylinder
+        assert all(k == "cylinder" and abs(r - g[0][3]) < 1e-9 for k, _, _, r in g)
+    for c in gt.values():
+        assert c["material"] == "M" and "size" not in c
+        for k, (g, size) in enumerate(zip(cyl, c["feature_sizes"])):
+            assert size == (hole if 2 * g[0][3] < 9 else cbore), (k, size)
+            assert abs(2 * g[0][3] - size["nominal"]) < 0.02
+    for k in range(0, 8, 2):   # (hole, counterbore) pairs on one axis
+        (_, p, a, r), (_, q, b, s) = cyl[k][0], cyl[k + 1][0]
+        assert r < s and np.linalg.norm(np.cross(a, b)) < 1e-6
+        assert np.linalg.norm((q - p) - ((q - p) @ a) * a) < 1e-6
+    assert "floors" in gt["GT15"]["pmi"]["counterbored_holes"]
+
+    data["characteristics"] = [gt["GT15"], gt["GT16"]]
+    data.pop("unsupported", None)
+    data["alignment"] = {"type": "best_fit"}
+    fo = [[inv[int(f.split(":")[1])] for f in g] for g in feats]
+    dense = [inv[int(f.split(":")[1])] for n in "EBC" for f in data["datums"][n]["faces"]]
+    rng = np.random.default_rng(7)
+    V, T, F = file_tessellation(path, 0.002)
+    P, N = random_points(V, T, 1.5, rng)
+    P2, N2, t2 = random_points(V, T, 0.25, rng, with_triangles=True,
+                               tris=np.flatnonzero(np.isin(F, dense + sum(fo, []))))
+    X0 = P + rng.normal(0.0, 0.005, len(P))[:, None] * N
+    X2 = P2 + rng.normal(0.0, 0.005, len(P2))[:, None] * N2
+
+    def run(Y):
+        out = evaluate_plan(prep, np.vstack([X0, Y]), yaml.safe_dump(data),
+                            init=np.eye(4)).characteristics
+        return {c.name.split("_")[0]: c for c in out}
+
+    got = run(X2)
+    for c in got.values():
+        assert c.verdict == "pass", c
+        for r, size, g, idx in zip(c.details["features"], gt[c.name.split("_")[0]]["feature_sizes"],
+                                   cyl, fo):
+            mmc = size["nominal"] + size["lower"]
+            assert r["bonus"] == pytest.approx(max(r["mating_diameter"] - mmc, 0.0), abs=1e-9)
+            _, p0, a0, _ = g[0]
+            Q = X2[np.isin(F[t2], idx)] - p0
+            rad = np.linalg.norm(Q - np.outer(Q @ a0, a0), axis=1)
+            assert r["mating_diameter"] == pytest.approx(2 * rad.min(), abs=0.02)
+    # the first hole (its ⌀7.1374 wall, not the counterbore) moved 0.6 mm across its axis
+    a0 = cyl[0][0][2]
+    d = np.cross(a0, [0.0, 0.0, 1.0] if abs(a0[2]) < 0.9 else [1.0, 0.0, 0.0])
+    Y = X2.copy()
+    Y[np.isin(F[t2], fo[0])] += 0.6 * d / np.linalg.norm(d)
+    got = run(Y)
+    up = [r["value"] for r in got["GT15"].details["features"]]
+    assert got["GT15"].verdict == "pass" and up[0] == pytest.approx(1.2, abs=0.03), up
+    assert max(up[1:]) < 0.03, up
+    assert got["GT16"].verdict == "fail"
+    assert got["GT16"].details["composite"]["value"] == pytest.approx(0.6, abs=0.03)

@@ -395,13 +395,15 @@ def _least_material(X, feat, hole: bool) -> float:
     return 2.0 * cylinders_zone(X, feat.center, feat.axis, kind)[0]
 
 
-def _bonus(c, hole: bool, mating: float, least: float, cad_diameter: float):
-    """(bonus, note) of a material modifier (module docstring); (0, None) without one."""
+def _bonus(c, hole: bool, mating: float, least: float, cad_diameter: float, size=None):
+    """(bonus, note) of a material modifier (module docstring); (0, None) without one.
+    ``size``: the feature's own size limits (default ``c.size``)."""
     if getattr(c, "material", None) is None:
         return 0.0, None
-    nom = float(c.size.nominal) if c.size.nominal is not None else float(cad_diameter)
-    mmc = nom + (c.size.lower if hole else c.size.upper)
-    lmc = nom + (c.size.upper if hole else c.size.lower)
+    size = c.size if size is None else size
+    nom = float(size.nominal) if size.nominal is not None else float(cad_diameter)
+    mmc = nom + (size.lower if hole else size.upper)
+    lmc = nom + (size.upper if hole else size.lower)
     if c.material == "M":
         bonus = (mating - mmc) if hole else (mmc - mating)
     else:
@@ -550,7 +552,8 @@ def eval_position(c, ctx: EvalContext):
     rows = []
     drf = drf_of(c.datums, ctx) if c.datums else None
     zq = None
-    for ref in c.features:
+    sizes = getattr(c, "feature_sizes", None) or [None] * len(c.features)
+    for ref, own_size in zip(c.features, sizes):
         fidx = _feature_faces(ref, ctx)
         f = ctx.feats[fidx[0]]
         if f.kind != "cylinder":
@@ -586,7 +589,7 @@ def eval_position(c, ctx: EvalContext):
         q = ends - f.center
         off = q - np.outer(q @ f.axis, f.axis)
         value = 2.0 * float(np.linalg.norm(off, axis=1).max())
-        bonus, note = _bonus(c, hole, mating, least, f.diameter)
+        bonus, note = _bonus(c, hole, mating, least, f.diameter, own_size)
         u_turn = 2.0 * _datum_part(drf, ctx, reach, zq)
         U = float(np.sqrt(u_axis ** 2 + u_turn ** 2
                           + (2.0 * _datum_offsets(drf, ctx, f.axis)) ** 2))
