@@ -738,8 +738,8 @@ def test_ftc07_composite_position_of_counterbored_holes_holds_hole_and_counterbo
     got = run(X2)
     for c in got.values():
         assert c.verdict == "pass", c
-        for r, size, g, idx in zip(c.details["features"], gt[c.name.split("_")[0]]["feature_sizes"],
-                                   cyl, fo):
+        sizes = gt[c.name.split("_")[0]]["feature_sizes"]
+        for r, size, g, idx in zip(c.details["features"], sizes, cyl, fo):
             mmc = size["nominal"] + size["lower"]
             assert r["bonus"] == pytest.approx(max(r["mating_diameter"] - mmc, 0.0), abs=1e-9)
             _, p0, a0, _ = g[0]

@@ -545,8 +545,13 @@ def _tolerance_entries(item, ctx, drf, why) -> tuple[list, str]:
         kinds = Counter(ctx.feats[f].kind for f in faces)
         reason += (f": All_Around ties it to {len(faces)} faces around a feature ("
                    + ", ".join(f"{n} {k}" for k, n in sorted(kinds.items())) + ")"
-                   + ("; the plan's orientation zone of a cylindrical face's surface is not "
-                      "defined (planes and axes only)" if set(kinds) - {"plane"} else
+                   + ("; an orientation zone is two parallel planes (a plane surface), a "
+                      "cylinder (a feature of size's axis) or, with EACH ELEMENT, two lines "
+                      "(a line element): a face that is part of a cylinder around the contour "
+                      "is none of these; the readings left -- each line element along the "
+                      "datum's normal (the file gives no EACH ELEMENT) or a profile held to "
+                      "the datum in orientation only (it would bound form and size too) -- "
+                      "are not the frame's zone; not guessed" if set(kinds) - {"plane"} else
                       "; each face's zone separately is not planned"))
     if reason:
         return [], reason
