@@ -728,9 +728,13 @@ def _lower_position(c, ctx, rows, drf) -> dict:
     turn, not the datum planes' shift (the framework's location is free)."""
     from .composite import best_pattern_fit, lower_rotations
 
+    tols = [r["tolerance"] for r in rows]
+    # features of different zones (their own bonus at MMC/LMC): the framework's best place
+    # is the one with the smallest largest excess over each feature's own zone
     fit = best_pattern_fit([np.asarray(r["ends"]) for r in rows],
                            [r["centre"] for r in rows], [r["axis"] for r in rows],
-                           lower_rotations(drf))
+                           lower_rotations(drf),
+                           radii=None if len(set(tols)) == 1 else [t / 2.0 for t in tols])
     for r, v in zip(rows, fit["per_feature"]):
         r["located"] = r["value"]
         r["value"] = float(v)
