@@ -263,3 +263,37 @@ def test_composite_lower_segment_passes_a_boss_shifted_within_the_upper_zone():
     assert comp["located"] == pytest.approx(res["POS_LOCATED"].measured, abs=1e-9)
     assert res["POS_LOWER"].measured < 0.15
     assert res["PROF_LOWER"].measured < 0.15
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_lower_position_of_features_with_their_own_zones_minimises_the_largest_excess(seed):
+    """Features of different zones in one lower segment (a counterbored hole's hole and
+    counterbore at MMC, each zone ``tol + its own bonus``): the framework's best place is the
+    one with the smallest largest excess ``distance - radius`` of an axis over its own zone
+    (``radii``), not the smallest largest distance.  Brute force for parallel axes (a
+    translation across them): the convex ``max_i |v_i - t| - r_i`` on a 0.002 mm grid, then
+    polished by Nelder-Mead from the grid's best."""
+    from scipy.optimize import minimize
+
+    rng = np.random.default_rng(seed)
+    n = 6
+    C = np.column_stack([rng.uniform(-40, 40, (n, 2)), np.zeros(n)])
+    off = rng.uniform(-0.3, 0.3, (n, 2))
+    radii = rng.uniform(0.2, 0.5, n)
+    ends = [np.array([[*(c[:2] + o), -5.0], [*(c[:2] + o), 5.0]]) for c, o in zip(C, off)]
+    fit = best_pattern_fit(ends, C, np.tile(Z, (n, 1)), np.zeros((0, 3)), radii=radii)
+    got = float((np.asarray(fit["per_feature"]) / 2 - radii).max())
+
+    def f(t):
+        return float((np.linalg.norm(off - t, axis=1) - radii).max())
+
+    g = np.arange(-0.3, 0.3, 0.002)
+    T = np.stack(np.meshgrid(g, g), -1).reshape(-1, 2)
+    F = (np.linalg.norm(off[None] - T[:, None], axis=2) - radii).max(1)
+    t0 = T[F.argmin()]
+    brute = minimize(f, t0, method="Nelder-Mead",
+                     options={"xatol": 1e-10, "fatol": 1e-12, "maxiter": 20000}).fun
+    assert got == pytest.approx(brute, abs=1e-6)
+    # the plain fit (no radii) minimises the largest distance instead: never a smaller excess
+    plain = best_pattern_fit(ends, C, np.tile(Z, (n, 1)), np.zeros((0, 3)))
+    assert float((np.asarray(plain["per_feature"]) / 2 - radii).max()) >= got - 1e-9

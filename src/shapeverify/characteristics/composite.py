@@ -17,7 +17,10 @@ The best place (the characteristic's ``details['composite']`` gives the motion):
   translation) of the features' measured axis ends minimising the largest distance of an end
   from its true axis; value = twice that distance (the zone diameter the worst feature needs).
   A small smooth minimax problem in epigraph form (minimise ``q`` with ``q >= dist^2`` for
-  every end), solved by SLSQP from the identity.
+  every end), solved by SLSQP from the identity.  Features whose zones differ (each its own
+  bonus at MMC/LMC, e.g. a counterbored hole's hole and counterbore): the largest excess
+  ``dist - r_i`` over each one's own zone radius is minimised instead (``(q + r_i)^2 >=
+  dist^2``, ``q + r_i >= 0``).
 * **profile of a surface** (:func:`best_profile_fit`): the rigid motion in the same set
   minimising the largest ``|deviation|``: a linear programme in the small motion (each
   deviation changes by ``n . (omega x (x - p) + t)``, HiGHS), the points moved by the exact
@@ -50,7 +53,8 @@ def _move(X, w, t, p):
     return (np.asarray(X, float) - p) @ rotation_matrix(w).T + p + t
 
 
-def best_pattern_fit(ends, centres, axes, rotations, scale: float | None = None) -> dict:
+def best_pattern_fit(ends, centres, axes, rotations, scale: float | None = None,
+                     radii=None) -> dict:
     """The best place of a pattern's true positions (module docstring).
 
     Parameters
@@ -60,6 +64,10 @@ def best_pattern_fit(ends, centres, axes, rotations, scale: float | None = None)
     rotations : (k, 3)         free rotation axes (:func:`lower_rotations`), k in 0..3
     scale : float, optional    lever (mm) of rotations against translations (default: the
                                pattern's extent)
+    radii : (n,), optional     each feature's own zone radius (features of different sizes
+                               at MMC/LMC: each zone ``tol + its bonus``): the best place then
+                               minimises the largest ``distance - radius`` (the largest
+                               excess over its own zone), not the largest distance
 
     Returns
     -------
@@ -86,15 +94,28 @@ def best_pattern_fit(ends, centres, axes, rotations, scale: float | None = None)
         return np.einsum("ij,ij->i", Q, Q) - along ** 2
 
     d0 = dist2(np.zeros(k + 3))
-    x0 = np.r_[np.zeros(k + 3), d0.max()]
-    cons = {"type": "ineq", "fun": lambda x: x[-1] - dist2(x[:-1])}
+    if radii is None:       # epigraph: q >= dist^2 for every end
+        x0 = np.r_[np.zeros(k + 3), d0.max()]
+        cons = [{"type": "ineq", "fun": lambda x: x[-1] - dist2(x[:-1])}]
+
+        def top(x):
+            return dist2(x).max()
+    else:                   # q >= dist - r_i, i.e. (q + r_i)^2 >= dist^2 with q + r_i >= 0
+        rr = np.asarray(radii, float)[idx]
+
+        def top(x):
+            return float((np.sqrt(np.maximum(dist2(x), 0.0)) - rr).max())
+
+        x0 = np.r_[np.zeros(k + 3), top(np.zeros(k + 3))]
+        cons = [{"type": "ineq", "fun": lambda x: (x[-1] + rr) ** 2 - dist2(x[:-1])},
+                {"type": "ineq", "fun": lambda x: x[-1] + rr}]
     best = x0
     for _ in range(3):       # restart from the answer: SLSQP's Hessian estimate starts again
         r = minimize(lambda x: x[-1], best, jac=lambda x: np.r_[np.zeros(k + 3), 1.0],
-                     constraints=[cons], method="SLSQP",
+                     constraints=cons, method="SLSQP",
                      options={"ftol": 1e-16, "maxiter": 500})
         x = r.x.copy()
-        x[-1] = dist2(x[:-1]).max()
+        x[-1] = top(x[:-1])
         if x[-1] < best[-1] - 1e-15:
             best = x
         else:

@@ -51,24 +51,27 @@ def shift_allowance(points, point, axis, hole: bool, material: str, size) -> tup
     point, axis       its fitted axis (in the DRF: the nominal one)
     hole : bool       a hole (True) or a boss
     material : 'M' or 'L'
-    size              nominal, lower, upper (mm) of its diameter (an object with attributes)
+    size              nominal, lower, upper (mm) of its diameter, or the boundary's diameter
+                      ``mmb`` / ``lmb`` itself (an object with attributes)
     """
     X = np.asarray(points, float)
     a = np.asarray(axis, float) / np.linalg.norm(axis)
     q = X - np.asarray(point, float)
     rad = np.linalg.norm(q - np.outer(q @ a, a), axis=1)
     r_in, r_out = float(rad.min()), float(rad.max())
-    lo, hi = size.nominal + size.lower, size.nominal + size.upper
-    if material == "M":
-        bound = lo if hole else hi
-        r = r_in - bound / 2 if hole else bound / 2 - r_out
-        what = "MMB"
-    elif material == "L":
-        bound = hi if hole else lo
-        r = bound / 2 - r_out if hole else r_in - bound / 2
-        what = "LMB"
-    else:
+    if material not in ("M", "L"):
         raise ValueError(f"datum modifier {material!r}: M (MMB) or L (LMB)")
+    what = "MMB" if material == "M" else "LMB"
+    bound = getattr(size, "mmb" if material == "M" else "lmb", None)
+    if bound is None:           # the size's MMC (a hole's smallest, a boss's largest) / LMC
+        if getattr(size, "lower", None) is None:
+            raise ValueError(f"datum size {size}: no limits and no {what} diameter")
+        lo, hi = size.nominal + size.lower, size.nominal + size.upper
+        bound = (lo if hole else hi) if material == "M" else (hi if hole else lo)
+    if material == "M":
+        r = r_in - bound / 2 if hole else bound / 2 - r_out
+    else:
+        r = bound / 2 - r_out if hole else r_in - bound / 2
     det = {"boundary": what, "boundary_diameter": bound, "r_in": r_in, "r_out": r_out,
            "shift_radius": max(r, 0.0)}
     if r < 0:

@@ -404,13 +404,15 @@ def _least_material(X, feat, hole: bool) -> float:
     return 2.0 * cylinders_zone(X, feat.center, feat.axis, kind)[0]
 
 
-def _bonus(c, hole: bool, mating: float, least: float, cad_diameter: float):
-    """(bonus, note) of a material modifier (module docstring); (0, None) without one."""
+def _bonus(c, hole: bool, mating: float, least: float, cad_diameter: float, size=None):
+    """(bonus, note) of a material modifier (module docstring); (0, None) without one.
+    ``size``: the feature's own size limits (default ``c.size``)."""
     if getattr(c, "material", None) is None:
         return 0.0, None
-    nom = float(c.size.nominal) if c.size.nominal is not None else float(cad_diameter)
-    mmc = nom + (c.size.lower if hole else c.size.upper)
-    lmc = nom + (c.size.upper if hole else c.size.lower)
+    size = c.size if size is None else size
+    nom = float(size.nominal) if size.nominal is not None else float(cad_diameter)
+    mmc = nom + (size.lower if hole else size.upper)
+    lmc = nom + (size.upper if hole else size.lower)
     if c.material == "M":
         bonus = (mating - mmc) if hole else (mmc - mating)
     else:
@@ -559,7 +561,8 @@ def eval_position(c, ctx: EvalContext):
     rows = []
     drf = drf_of(c.datums, ctx) if c.datums else None
     zq = None
-    for ref in c.features:
+    sizes = getattr(c, "feature_sizes", None) or [None] * len(c.features)
+    for ref, own_size in zip(c.features, sizes):
         fidx = _feature_faces(ref, ctx)
         f = ctx.feats[fidx[0]]
         if f.kind != "cylinder":
@@ -595,7 +598,7 @@ def eval_position(c, ctx: EvalContext):
         q = ends - f.center
         off = q - np.outer(q @ f.axis, f.axis)
         value = 2.0 * float(np.linalg.norm(off, axis=1).max())
-        bonus, note = _bonus(c, hole, mating, least, f.diameter)
+        bonus, note = _bonus(c, hole, mating, least, f.diameter, own_size)
         u_turn = 2.0 * _datum_part(drf, ctx, reach, zq)
         U = float(np.sqrt(u_axis ** 2 + u_turn ** 2
                           + (2.0 * _datum_offsets(drf, ctx, f.axis)) ** 2))
@@ -734,9 +737,13 @@ def _lower_position(c, ctx, rows, drf) -> dict:
     turn, not the datum planes' shift (the framework's location is free)."""
     from .composite import best_pattern_fit, lower_rotations
 
+    tols = [r["tolerance"] for r in rows]
+    # features of different zones (their own bonus at MMC/LMC): the framework's best place
+    # is the one with the smallest largest excess over each feature's own zone
     fit = best_pattern_fit([np.asarray(r["ends"]) for r in rows],
                            [r["centre"] for r in rows], [r["axis"] for r in rows],
-                           lower_rotations(drf))
+                           lower_rotations(drf),
+                           radii=None if len(set(tols)) == 1 else [t / 2.0 for t in tols])
     for r, v in zip(rows, fit["per_feature"]):
         r["located"] = r["value"]
         r["value"] = float(v)

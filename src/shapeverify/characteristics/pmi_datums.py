@@ -300,6 +300,88 @@ def _diameter(letter: str, ctx) -> dict | None:
             "upper": _mm(size["upper"])}
 
 
+#: tolerances that hold a datum feature's axis in orientation to the datums before it
+_ORIENTATION = ("Perpendicularity", "Parallelism", "Angularity")
+
+
+def _frame_labels(item: dict) -> list[str]:
+    """A tolerance's datum reference frame as labels (common datums joined: ``E-F``)."""
+    ds = item.get("datums") or []
+    return ["-".join(d["name"] for d in ds if d["order"] == o)
+            for o in sorted({d["order"] for d in ds})]
+
+
+def derived_boundary(letter: str, ctx, before: list, pattern: bool) -> dict | None:
+    """The MMB / LMB of the datum feature of size ``letter`` whose size has no limits in the
+    file (ASME Y14.5-2009 4.11.6: the boundary is worked out from the feature's MMC -- here its
+    nominal size, the only size the file gives -- and the geometric tolerances that hold it to
+    the datums of higher precedence, ``before`` in the frame that references it):
+
+    * the candidates: tolerances with a diameter zone on the feature's faces whose frame starts
+      with ``before`` (the same datums, none at MMB/LMB) -- a position (it bounds the feature's
+      axis in every direction relative to those datums, and the pattern's features relative to
+      each other); an orientation tolerance only for a single feature (a pattern's spacing is
+      not held by it) after planes only (a hole square to a plane is then free in location);
+      none for a primary single feature (MMB = MMC);
+    * each candidate of zone ``t`` guarantees the boundary ``nominal - t`` of a hole (a pin of
+      that diameter, at its basic place among the pattern's features, fits every conforming
+      feature: the axis lies in the zone of diameter ``t``), ``nominal + t`` of a boss; the
+      smallest ``t`` gives the largest (tightest) such boundary, the MMB.  The LMB mirrors it
+      (``nominal + t`` of a hole, ``nominal - t`` of a boss).
+
+    Returns the size entry (``nominal``, ``mmb``, ``lmb``, ``rule``), or None when the datum's
+    faces are not one cylinder size (then the datum stays unsupported)."""
+    import numpy as np
+
+    from .pmi_plan import _cylinders, _mm
+
+    datum = next(d for d in ctx.pmi["datums"] if d["name"] == letter)
+    want = set(datum["faces"])
+    faces = [ctx.fmap[f] for f in sorted(want) if f in ctx.fmap]
+    groups, other = _cylinders(ctx.feats, ctx.model, faces)
+    if not faces or len(groups) != 1 or other:
+        return None
+    cad_d, side = groups[0][3], groups[0][4]
+    dim = next((x for x in ctx.pmi["dimensions"] if x["type"] == "Size_Diameter"
+                and want and want <= set(x["faces"])), None)
+    nominal = _mm(dim["nominal"]) if dim is not None else _mm(cad_d)
+    said = (f"{dim['id']}'s nominal diameter {nominal:g} (no limits)" if dim is not None else
+            f"its CAD diameter {nominal:g} (no size dimension)")
+    single_after_planes = (not pattern and before
+                           and all((ctx.datum_specs.get(b) or {}).get("kind") == "plane"
+                                   for b in before))
+    best = None
+    for t in ctx.pmi["tolerances"]:
+        if (t.get("value_type") != "Diameter" or not want <= set(t["faces"])
+                or t.get("value") is None or not np.isfinite(t["value"])):
+            continue
+        if t["type"] == "Position":
+            ok = pattern or bool(before)
+        else:
+            ok = t["type"] in _ORIENTATION and single_after_planes
+        refs = [d for d in t.get("datums") or [] if d["order"] <= len(before)]
+        if (not ok or _frame_labels(t)[:len(before)] != list(before)
+                or any(d["modifiers"] for d in refs)):
+            continue
+        if best is None or t["value"] < best["value"]:
+            best = t
+    tol = _mm(best["value"]) if best is not None else 0.0
+    hole = side == "hole"
+    mmb, lmb = (nominal - tol, nominal + tol) if hole else (nominal + tol, nominal - tol)
+    if min(mmb, lmb) <= 0:
+        return None
+    what = "hole" if hole else "boss"
+    if best is None:
+        how = (f"no diameter-zone position{'' if pattern else ' or orientation'} tolerance "
+               f"holds it to {'|'.join(before) or 'the datums before it'}: MMB = MMC")
+    else:
+        how = (f"{best['id']}'s {best['type'].lower()} ⌀{tol:g} "
+               f"({'|'.join(_frame_labels(best))}) holds it to {'|'.join(before) or 'its frame'}")
+    rule = (f"ASME Y14.5-2009 4.11.6: datum {letter} ({what}) has no toleranced size; MMC = "
+            f"{said}; {how}; MMB ⌀{_mm(mmb):g}, LMB ⌀{_mm(lmb):g}")
+    return {"nominal": nominal, "mmb": _mm(mmb), "lmb": _mm(lmb), "rule": rule}
+
+
 def datum_modifiers(item: dict, ctx, names: list) -> tuple[dict | None, str]:
     """({DRF datum name: 'M' | 'L'} of a tolerance's DRF ``names`` (common datums joined,
     ``H-J``), '') or (None, why not): each modified datum must be a hole or boss axis, or a
@@ -334,9 +416,13 @@ def datum_modifiers(item: dict, ctx, names: list) -> tuple[dict | None, str]:
         sizes = {}
         for d in group:
             sz = _diameter(d["name"], ctx)
+            if sz is None:      # no size limits: the boundary from the nominal and the GD&T
+                sz = derived_boundary(d["name"], ctx, names[:names.index(name)],
+                                      len(group) > 1 or spec.get("kind") == "pattern")
             if sz is None:
                 return None, (f"datum {d['name']} at {what}: no toleranced diameter "
-                              "(Size_Diameter) on its faces for its boundary")
+                              "(Size_Diameter) on its faces, and its faces are not one "
+                              "cylinder whose nominal diameter could give the boundary")
             sizes[d["name"]] = sz
         if len({tuple(sorted(v.items())) for v in sizes.values()}) == 1:
             spec["size"] = next(iter(sizes.values()))

@@ -545,8 +545,13 @@ def _tolerance_entries(item, ctx, drf, why) -> tuple[list, str]:
         kinds = Counter(ctx.feats[f].kind for f in faces)
         reason += (f": All_Around ties it to {len(faces)} faces around a feature ("
                    + ", ".join(f"{n} {k}" for k, n in sorted(kinds.items())) + ")"
-                   + ("; the plan's orientation zone of a cylindrical face's surface is not "
-                      "defined (planes and axes only)" if set(kinds) - {"plane"} else
+                   + ("; an orientation zone is two parallel planes (a plane surface), a "
+                      "cylinder (a feature of size's axis) or, with EACH ELEMENT, two lines "
+                      "(a line element): a face that is part of a cylinder around the contour "
+                      "is none of these; the readings left -- each line element along the "
+                      "datum's normal (the file gives no EACH ELEMENT) or a profile held to "
+                      "the datum in orientation only (it would bound form and size too) -- "
+                      "are not the frame's zone; not guessed" if set(kinds) - {"plane"} else
                       "; each face's zone separately is not planned"))
     if reason:
         return [], reason
@@ -808,11 +813,13 @@ def _orientation(item, ctx, faces, src) -> tuple[list, str]:
                 "with a planes zone, cylinders with a \u2300 zone are supported)")
 
 
-def _counterbores(ctx, groups, other) -> str:
-    """': counterbored holes ...' when the cylinders pair up coaxially (two diameters per
-    axis) and the other faces are planes square to them (the counterbores' floors), else ''."""
-    if not groups or {ctx.feats[f].kind for f in other} != {"plane"}:
-        return ""
+def _counterbore_axes(ctx, groups, other) -> list | None:
+    """The counterbored holes of a position's faces: [[hole group, counterbore group], ...]
+    (groups of :func:`_cylinders`, smaller diameter first) when the cylinders pair up coaxially
+    (two diameters per axis) and the other faces are one plane per axis square to it (the
+    counterbores' floors), else None."""
+    if not groups or not other or {ctx.feats[f].kind for f in other} != {"plane"}:
+        return None
     axes: list = []
     for g in groups:
         for a in axes:
@@ -824,12 +831,41 @@ def _counterbores(ctx, groups, other) -> str:
         else:
             axes.append([g])
     if any(len(a) != 2 or a[0][3] == a[1][3] for a in axes) or len(other) != len(axes):
-        return ""
-    d = sorted({round(g[3], 4) for g in groups})
-    return (f": {len(axes)} counterbored holes (a \u2300{d[0]:g} hole and a \u2300{d[-1]:g} "
-            "counterbore on each axis, with the counterbore's planar floor); the position of "
-            "a counterbored hole (hole and counterbore coaxial in one zone, each with its own "
-            "size for a material modifier's bonus) is not planned")
+        return None
+    for f in other:         # each floor square to an axis
+        n = np.asarray(ctx.feats[f].axis, float)
+        if not any(abs(abs(float(n @ a[0][2])) - 1.0) < 1e-6 for a in axes):
+            return None
+    return [sorted(a, key=lambda g: g[3]) for a in axes]
+
+
+def _group_sizes(item, ctx, groups) -> tuple[list | None, str]:
+    """The size limits of each cylinder group of a material-modified tolerance whose features
+    are not all one size (a counterbored hole: hole and counterbore): the Size_Diameter with
+    limits on faces of this tolerance that all lie on cylinders of the group's CAD diameter
+    (a "4X" size the file attaches to one instance applies to every instance of that diameter
+    under the frame)."""
+    mine = {ctx.fmap.get(f): f for f in item["faces"]}
+    out = []
+    for g in groups:
+        got = None
+        for d in ctx.pmi["dimensions"]:
+            if d["type"] != "Size_Diameter" or d["lower"] is None or not d["faces"]:
+                continue
+            fs = [ctx.fmap.get(f) for f in d["faces"]]
+            if any(f is None or f not in mine for f in fs):
+                continue
+            if all(ctx.feats[f].kind == "cylinder"
+                   and abs(float(ctx.feats[f].diameter) - g[3]) <= 1e-6 * ctx.size for f in fs):
+                got = {"lower": _mm(d["lower"]), "upper": _mm(d["upper"]),
+                       "nominal": _mm(d["nominal"])}
+                break
+        if got is None:
+            return None, (f"material modifier {item['material']}: no toleranced diameter "
+                          f"(Size_Diameter) on its \u2300{g[3]:g} faces (face:{g[0][0]}) for "
+                          "their bonus tolerance")
+        out.append(got)
+    return out, ""
 
 
 def _projected(item, ctx, groups, entry, src) -> str:
@@ -870,9 +906,21 @@ def _position(item, ctx, faces, src) -> tuple[list, str]:
             return [], r or "no datum reference frame"
         dm = dict(ctx.last_modifiers)
     groups, other = _cylinders(ctx.feats, ctx.model, faces)
-    if other or not groups:
-        return [], ("it controls faces that are not cylinders (position is of axes)"
-                    + _counterbores(ctx, groups, other))
+    cbores = _counterbore_axes(ctx, groups, other)
+    if (other and cbores is None) or not groups:
+        return [], "it controls faces that are not cylinders (position is of axes)"
+    if cbores:
+        # one frame under a counterbored hole's callout: the hole's and the counterbore's
+        # axes each lie in the zone about their common true position, each with the bonus of
+        # its own size (ASME Y14.5-2009, positional tolerancing of coaxial features: the
+        # counterbored holes under one callout share the hole's frame); the
+        # floors (the counterbores' depth) are no axes and are not positioned
+        src["counterbored_holes"] = (
+            f"{len(cbores)} counterbored holes: the \u2300{cbores[0][0][3]:g} hole and the "
+            f"\u2300{cbores[0][1][3]:g} counterbore of each, coaxial, each its own axis in the "
+            "zone at their common true position with its own size's bonus; the floors "
+            f"({', '.join(f'face:{f}' for f in other)}) are not positioned")
+        groups = [g for a in cbores for g in a]
     entry = {"name": ctx.name(f"{item['id']}_position"), "type": "position",
              "features": [[f"face:{f}" for f in g[0]] for g in groups], "tol": item["value"],
              "pmi": src}
@@ -884,11 +932,17 @@ def _position(item, ctx, faces, src) -> tuple[list, str]:
         r = _projected(item, ctx, groups, entry, src)
         if r:
             return [], r
-    if item["material"]:
+    if item["material"] and len({round(g[3], 9) for g in groups}) > 1:
+        sizes, r = _group_sizes(item, ctx, groups)
+        if sizes is None:
+            return [], r
+        entry["material"], entry["feature_sizes"] = item["material"], sizes
+    elif item["material"]:
         size, r = _size_of(item, ctx, faces)
         if size is None:
             return [], r
         entry["material"], entry["size"] = item["material"], size
+    if item["material"]:
         if item.get("max_value", 0.0) > 0.0:     # the frame's "MAX" (ASME Y14.5-2009 §7.3.4)
             entry["max_tol"] = _mm(item["max_value"])
             src["max_value"] = entry["max_tol"]

@@ -245,12 +245,31 @@ class SizeLimits(_Strict):
         return self
 
 
-class DatumSize(SizeLimits):
-    """The size limits of a datum feature of size (a hole's or boss's diameter, mm): its
-    maximum/least material boundary for a datum referenced at MMB/LMB (:mod:`.datum_shift`);
-    ``nominal`` is required."""
+class DatumSize(_Strict):
+    """The size of a datum feature of size (a hole's or boss's diameter, mm) for a datum
+    referenced at MMB/LMB (:mod:`.datum_shift`): ``nominal`` and its limits ``lower`` <
+    ``upper`` (the boundary is then the size's MMC / LMC), or the boundary's diameter itself,
+    ``mmb`` / ``lmb`` (a size without limits: the boundary worked out from the nominal and the
+    geometric tolerances applied to the feature, :func:`.pmi_datums.derived_boundary`; ``rule``
+    says how)."""
 
     nominal: float = Field(gt=0)
+    lower: Optional[float] = None
+    upper: Optional[float] = None
+    mmb: Optional[float] = Field(default=None, gt=0)
+    lmb: Optional[float] = Field(default=None, gt=0)
+    rule: Optional[str] = None
+
+    @model_validator(mode="after")
+    def _limits(self):
+        if (self.lower is None) != (self.upper is None):
+            raise ValueError("a datum size takes both lower and upper (or neither, with mmb "
+                             "or lmb)")
+        if self.lower is not None and not self.lower < self.upper:
+            raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
+        if self.lower is None and self.mmb is None and self.lmb is None:
+            raise ValueError("a datum size takes lower and upper, or the boundary mmb / lmb")
+        return self
 
 
 class DatumSpec(_Strict):
@@ -426,6 +445,11 @@ class Position(_Char):
     datums: Optional[DrfRef] = None
     material: Optional[Literal["M", "L"]] = None
     size: Optional[SizeLimits] = None
+    #: features of different sizes under one frame (a counterbored hole: the hole and its
+    #: counterbore, coaxial, each an entry of ``features`` with the same true position): the
+    #: size limits of each, in ``features``' order, for each one's own bonus (instead of
+    #: ``size``)
+    feature_sizes: Optional[list[SizeLimits]] = None
     #: the maximum tolerance with a material modifier (ASME Y14.5-2009 §7.3.4, "MAX" in the
     #: frame): the limit is ``min(tol + bonus, max_tol)``
     max_tol: Optional[float] = Field(default=None, gt=0)
@@ -446,9 +470,14 @@ class Position(_Char):
 
     @model_validator(mode="after")
     def _bonus(self):
-        if self.material is not None and self.size is None:
+        if self.material is not None and self.size is None and self.feature_sizes is None:
             raise ValueError(f"material {self.material} needs size: {{lower, upper}} (the "
                              "diameter's limits of deviation) for the bonus tolerance")
+        if self.feature_sizes is not None and (self.material is None or self.size is not None
+                                               or len(self.feature_sizes)
+                                               != len(self.features)):
+            raise ValueError("feature_sizes gives one size per entry of features, with "
+                             "material: M or L and instead of size")
         if self.tol == 0 and self.material is None:
             raise ValueError("tol 0 needs material: M or L (a zero tolerance at MMC/LMC is all "
                              "bonus); without one, give the zone's diameter (> 0)")
