@@ -59,6 +59,7 @@ import numpy as np
 from shapeverify._lazy import cKDTree
 
 from .deviations import TOO_FAR
+from .region_measures import on_a_wall
 from .regions import (LINK_FACTOR, MIN_POINTS, WALL_MIN, Outliers, RegionSearch, find_regions,
                       linked_components, standing_wall, steep_points)
 
@@ -200,7 +201,8 @@ def _replaces_surface(sel, cand, P, feet, degree, good_feet, spacing, normals=No
         return False
     idx = cand[sel]
     if normals is not None:
-        flat = idx[~steep_points(P[idx], normals[idx], spacing)]
+        flat = idx[~(steep_points(P[idx], normals[idx], spacing) |
+                     on_a_wall(P[idx], normals[idx], spacing))]
         if flat.size == 0:
             return True                          # all wall: nothing lies over the surface
     else:

@@ -46,7 +46,7 @@ from scipy.spatial import cKDTree
 from ..measures.spacing import nanmedian_rows
 from ._cluster_kernels import cell_areas
 
-__all__ = ["out_area", "fitted_peak", "seen_among", "CELL_BOUND", "SLOPE_RADIUS"]
+__all__ = ["out_area", "fitted_peak", "seen_among", "on_a_wall", "CELL_BOUND", "SLOPE_RADIUS"]
 
 #: Half size of the square that bounds a point's cell, in spacings.
 CELL_BOUND = 1.5
@@ -312,6 +312,29 @@ def _wall_plane(S, nb, ok, qq, e1, e2, n0, radius, band, noise):
     zsd = np.sqrt(((W * (Z - zm[:, None]) ** 2).sum(axis=1) + zm ** 2) / nk)
     found &= rz >= WALL_PATCH * zsd
     return n, found
+
+
+def on_a_wall(X, normals, spacing) -> np.ndarray:
+    """(n,) bool: the points ``X`` (in space, CAD ``normals``) that lie on a wall among
+    themselves: a steep plane through the point and two of its nearest holding enough of its
+    ``WALL_K`` nearest within ``WALL_RADIUS`` spacings, as a patch (:func:`_wall_plane`; band
+    ``2 x WALL_BAND`` spacings, the noise unknown).  At 1 mm the walls of a 3 mm object beyond
+    the evaluation distance are two spacings tall: the plane of a point's 8 nearest
+    (:func:`.regions.steep_points`) holds the object's top too, and three quarters of the
+    walls read as surface lying over the part's (the box on a lattice scan: the part passed)."""
+    n = X.shape[0]
+    if n < WALL_MIN_INLIERS + 1:
+        return np.zeros(n, bool)
+    k = min(WALL_K + 1, n)
+    d, j = cKDTree(X).query(X, k=k, distance_upper_bound=WALL_RADIUS * spacing)
+    d, j = d.reshape(n, k)[:, 1:], j.reshape(n, k)[:, 1:]
+    ok = np.isfinite(d)
+    nb = np.where(ok, j, -1).astype(np.int64)
+    e1, e2 = _basis(normals)
+    nn = normals / np.maximum(np.linalg.norm(normals, axis=1), 1e-300)[:, None]
+    _, found = _wall_plane(X, nb, ok, np.arange(n), e1, e2, nn, WALL_RADIUS * spacing,
+                           2.0 * WALL_BAND * spacing, 0.0)
+    return found
 
 
 def _neighbour_table(tree, ev_idx, p, radius):
