@@ -57,17 +57,8 @@ def test_box_walls_beyond_evaluation_read_as_surface_gentle_surface_is_no_wall()
 def test_box_walls_beyond_evaluation_read_as_surface_on_the_panel(panel, sampler, seed):  # noqa: F811
     """The panel scanned on a lattice (the box by area) or by area, 1 mm: the part fails with
     one region within 15 % of the footprint, its extreme within 10 % of the height."""
-    import independent_scans as ind
     prep, V, T, F = panel
-    if sampler == "grid":
-        real = ind.random_points
-        ind.random_points = lambda V, T, s, rng: (ind.lattice_points(V, T, s, rng)[0], None)
-        try:
-            P, _ = _box_scan(prep, V, T, F, 1.0, seed)
-        finally:
-            ind.random_points = real
-    else:
-        P, _ = _box_scan(prep, V, T, F, 1.0, seed)
+    P, _ = _box_scan(prep, V, T, F, 1.0, seed, sampler)
     res = inspect_registered(prep, P, _identity(), tolerance=TOL)
     assert res.verdict == "fail" and len(res.regions) == 1, res.reasons
     r = res.regions[0]
