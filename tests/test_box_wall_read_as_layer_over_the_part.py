@@ -46,12 +46,16 @@ def panel(tmp_path_factory):
     return prep, V, T, F
 
 
-def _box_scan(prep, V, T, F, spacing, seed):
-    """The panel scanned by area with the box lying on it (its top and four walls sampled at
-    the panel's density, the panel's points under it hidden), as
+def _box_scan(prep, V, T, F, spacing, seed, sampler="random"):
+    """The panel scanned by area (``sampler="grid"``: on a lattice in random order) with the box
+    lying on it (its top and four walls sampled by area at the panel's density, the panel's
+    points under it hidden), as
     ``test_tall_bump_one_region.test_object_lying_on_the_part_is_one_region_of_its_height``."""
     rng = np.random.default_rng(seed)
-    P, _ = ind.random_points(V, T, spacing, rng)
+    if sampler == "grid":
+        P = ind.lattice_points(V, T, spacing, rng)[0]
+    else:
+        P, _ = ind.random_points(V, T, spacing, rng)
     site = np.array(ind.dent_site(V, T, F, 3 * HALF))
     cp = prep.closest(site[None], exact=True)
     c, n = cp.points[0], cp.normals[0]

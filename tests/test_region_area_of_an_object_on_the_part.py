@@ -13,9 +13,10 @@ their cells reach half-way to the panel's points outside, and the least-squares 
 over their foot points (crowded on the rim's line) leaned about the step's height over the
 neighbourhood, so the zero lay beyond the cell.  An out-of-tolerance point on a surface steeper
 than 45 degrees to the CAD now takes the slope of the scan points' own plane (the wall's: nearly
-vertical, so the boundary is the wall's foot line; ``region_measures._steep_slopes``).  Left: the
-points at the wall's top edge, whose plane holds the box's top too (at 1 mm, +10..+21 % over
-8 seeds; before +19..+32 %).
+vertical, so the boundary is the wall's foot line; ``region_measures._steep_slopes``); at 1 mm
+the points at the wall's top edge, whose plane held the box's top too, read +10..+21 % over 8
+seeds (before +19..+32 %) until the wall's plane became the steep plane that the most points
+lie on (``test_box_wall_top_edge_leans_its_plane``: -1..+4 %).
 """
 from __future__ import annotations
 
@@ -63,18 +64,20 @@ def _box_on_plane(seed, s, half=3.0, height=3.0):
 
 @pytest.mark.parametrize("spacing", [0.5, 1.0])
 def test_area_of_an_object_lying_on_the_part_has_no_band_beside_its_walls(spacing):
-    """One region; its area over the footprint (36 mm^2) by under 0.35 x perimeter x spacing
-    (first: 0.7-0.9 x; with the one-sided slope 0.36-0.46 x; with the wall's own plane
-    0.13-0.31 x).  At 0.5 mm that is within 8 % of the footprint (before: +11..+16 %)."""
+    """One region; its area off the footprint (36 mm^2) by under 0.1 x perimeter x spacing
+    (first: +0.7-0.9 x; with the one-sided slope +0.36-0.46 x; with the wall's own plane
+    +0.13-0.31 x; with the wall's plane of the most points on it, -0.01..+0.05 x,
+    ``test_box_wall_top_edge_leans_its_plane``).  At 0.5 mm that is within 3 % of the
+    footprint (before: +11..+16 %)."""
     half = 3.0
     footprint, perimeter = (2 * half) ** 2, 8 * half
     for seed in (0, 1, 3):           # (seed 2 at 1 mm: no region, with or without the change)
         regions = _regions(_box_on_plane(seed, spacing, half))
         assert len(regions) == 1, (seed, regions)
         excess = regions[0].area - footprint
-        assert 0.0 < excess < 0.35 * perimeter * spacing, (seed, regions[0].area)
+        assert abs(excess) < 0.1 * perimeter * spacing, (seed, regions[0].area)
         if spacing == 0.5:
-            assert abs(regions[0].area / footprint - 1) < 0.08, regions[0].area
+            assert abs(regions[0].area / footprint - 1) < 0.03, regions[0].area
 
 
 @pytest.mark.parametrize("depth", [-0.3, -0.5, 0.5])

@@ -59,6 +59,7 @@ import numpy as np
 from shapeverify._lazy import cKDTree
 
 from .deviations import TOO_FAR
+from .region_measures import on_a_wall
 from .regions import (LINK_FACTOR, MIN_POINTS, WALL_MIN, Outliers, RegionSearch, find_regions,
                       linked_components, standing_wall, steep_points)
 
@@ -195,12 +196,16 @@ def _replaces_surface(sel, cand, P, feet, degree, good_feet, spacing, normals=No
     their feet crowded onto the wall's foot line next to the part's in-tolerance points: they
     say nothing of the surface under the sheet and are left out of that test (an object's walls
     up to 3 mm made more than half of the sheet of its walls and top, and the object read as a
-    reflection: the box on the panel at 0.5 mm seed 5)."""
+    reflection: the box on the panel at 0.5 mm seed 5).  A wall point is also one on the steep
+    plane that the most of its neighbours lie on (:func:`.region_measures.on_a_wall`): at 1 mm
+    the walls above the evaluation distance are two spacings tall, the plane of a point's 8
+    nearest holds the top, and the box on a lattice-scanned panel read as a reflection."""
     if sel.size < ATTACH_MIN or np.mean(degree[sel] >= 2) < DEGREE_SHARE:
         return False
     idx = cand[sel]
     if normals is not None:
-        flat = idx[~steep_points(P[idx], normals[idx], spacing)]
+        flat = idx[~(steep_points(P[idx], normals[idx], spacing) |
+                     on_a_wall(P[idx], normals[idx], spacing))]
         if flat.size == 0:
             return True                          # all wall: nothing lies over the surface
     else:

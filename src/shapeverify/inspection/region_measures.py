@@ -15,8 +15,11 @@ in-tolerance point), so the boundary runs between an out-of-tolerance point and 
 in-tolerance neighbours where ``g`` crosses zero, not half a cell beyond the last point out.
 Where the scanned surface is steeper than 45 degrees to the CAD (the wall of an object lying on
 the part: its points' feet crowd onto the rim's line) an out-of-tolerance point takes the slope
-of the scan points' own principal plane (:func:`_steep_slopes`): a wall's is vertical, so the
-boundary is its foot line, where the part's surface stops being in tolerance.
+of the scan points' own plane (:func:`_steep_slopes`): a wall's is vertical, so the
+boundary is its foot line, where the part's surface stops being in tolerance.  That plane is
+the steep plane through the point that the most of its neighbours lie on (:func:`_wall_plane`;
+else their principal plane): at a wall's top edge the object's top lies within reach too, and
+a plane through both leaned the wall 20-60 degrees, putting the boundary a cell outside.
 The region's area is the sum of these parts over its out-of-tolerance points and their
 in-tolerance neighbours; a cell larger than ``2 x regions.SPARSE_AREA`` spacings^2 (a point in a gap
 of the scan, beside the part) counts nothing.
@@ -43,7 +46,7 @@ from scipy.spatial import cKDTree
 from ..measures.spacing import nanmedian_rows
 from ._cluster_kernels import cell_areas
 
-__all__ = ["out_area", "fitted_peak", "seen_among", "CELL_BOUND", "SLOPE_RADIUS"]
+__all__ = ["out_area", "fitted_peak", "seen_among", "on_a_wall", "CELL_BOUND", "SLOPE_RADIUS"]
 
 #: Half size of the square that bounds a point's cell, in spacings.
 CELL_BOUND = 1.5
@@ -63,6 +66,23 @@ STEEP_DETERMINED = 3.0
 #: noise of the in-tolerance points around (a row of a scan as noisy as its spacing rises by
 #: its noise).
 STEEP_NOISE = 3.0
+#: The wall's plane (:func:`_wall_plane`): its points within this many spacings in space, the
+#: nearest ``WALL_K`` of them, candidate planes through the point and two of its ``WALL_PAIRS``
+#: nearest (not within ``WALL_ANGLE`` (sine) of one line), a point on it within the larger of
+#: ``WALL_NOISE`` x the noise and ``WALL_BAND`` spacings, and the fewest points on it.
+WALL_RADIUS = 2.5
+WALL_K = 24
+WALL_PAIRS = 8
+WALL_ANGLE = 0.3
+WALL_NOISE = 3.0
+WALL_BAND = 0.05
+WALL_MIN_INLIERS = 5
+#: ... and its slope to the CAD (a wall: a plane just steeper than 45 degrees holds a gentle
+#: dent's points within a band of noise a quarter of the spacing wide, the wavy cube's at R/5).
+WALL_SLOPE = 2.0
+#: ... and its points' heights scatter about a quadratic along it by at least this share of
+#: their spread (a patch, not a scanner row's curve across a dent: aniso rows on the wavy cube).
+WALL_PATCH = 0.4
 #: The peak's quadratic: smallest and largest radius (spacings), fewest points, most steps.
 MIN_PEAK_RADIUS = 2.2
 MAX_PEAK_RADIUS = 6.0
@@ -161,8 +181,10 @@ def _steep_slopes(points, values, normals, nb, ok, qq, e1, e2, n0, gx, gy, radiu
     (principal-axis) plane of the scan points ``points + values x normals`` within ``radius``
     in space reads the wall as the step it is: its normal ``n`` in the point's frame gives the
     slope ``-(n1, n2) / n3`` of ``d``, pointing the way the least-squares plane rises (a
-    vertical plane has two).  It is taken where that slope is steeper than 1 and than the
-    least-squares one, so a gently sloping surface (a dent) keeps its least-squares slope."""
+    vertical plane has two).  Where a steep plane through the point and two of its nearest
+    holds enough of its neighbours (:func:`_wall_plane`) that plane is the wall's instead.  It
+    is taken where that slope is steeper than 1 and than the least-squares one, so a gently
+    sloping surface (a dent) keeps its least-squares slope."""
     S = points + values[:, None] * normals          # only rows of nb are read
     m, k = nb.shape
     j = np.maximum(nb, 0)
@@ -193,6 +215,16 @@ def _steep_slopes(points, values, normals, nb, ok, qq, e1, e2, n0, gx, gy, radiu
         with np.errstate(invalid="ignore"):
             cut = np.fmax(nanmedian_rows(r), kth)
             W = (near & (r <= cut[:, None])).astype(np.float64)
+    ok_pca = (cnt >= STEEP_MIN_POINTS) & _fixes_a_wall(A, W, lam, noise)
+    # the plane that the most points within WALL_RADIUS lie on (to the noise), of the steep
+    # planes through the point and two of its nearest neighbours: at the top edge of a wall
+    # the object's top lies within the radius too, and a principal plane through both (or
+    # through the closer half of the few points at 1 mm spacing) leaned 20-45 degrees, so the
+    # zero of g lay half a cell and more outside the wall's foot line
+    spacing = radius / STEEP_RADIUS
+    nw, ok_w = _wall_plane(S, nb, ok, qq, e1, e2, n0, WALL_RADIUS * spacing,
+                           max(WALL_NOISE * noise, WALL_BAND * spacing), noise)
+    n = np.where(ok_w[:, None], nw, n)
     t = np.hypot(n[:, 0], n[:, 1])
     slope = t / np.maximum(np.abs(n[:, 2]), t * 1e-6 + 1e-300)
     # d = -(n1 x + n2 y) / n3 on the plane: the slope's direction, its length capped
@@ -200,19 +232,109 @@ def _steep_slopes(points, values, normals, nb, ok, qq, e1, e2, n0, gx, gy, radiu
     sx, sy = n[:, 0] * along, n[:, 1] * along
     flip = sx * gx + sy * gy < 0
     sx, sy = np.where(flip, -sx, sx), np.where(flip, -sy, sy)
-    # points along one line (a scanner row) fix no plane: the plane's spread across its second
-    # axis must be a share of that along the first and several times that across it; and a
-    # steep surface rises along the CAD normal by more than the noise (a row of a scan as noisy
-    # as its spacing, whose plane holds the normal, rises by its noise alone)
-    Wk = W
-    nk = Wk.sum(axis=1)
-    zm = (Wk * Z).sum(axis=1) / np.maximum(nk, 1.0)
-    zsd = np.sqrt(np.maximum((Wk * (Z - zm[:, None]) ** 2).sum(axis=1) / np.maximum(nk, 1.0), 0.0))
-    flat2 = (lam[:, 1] >= STEEP_SPREAD ** 2 * lam[:, 2]) & \
+    steep = (ok_pca | ok_w) & (slope > 1.0) & (slope > np.hypot(gx, gy))
+    return np.where(steep, sx, gx), np.where(steep, sy, gy)
+
+
+def _fixes_a_wall(A, W, lam, noise):
+    """Do the points ``A`` ((m, k, 3) in the point's frame, the CAD normal last) weighted by
+    ``W``, whose plane's scatter matrix has eigenvalues ``lam`` (ascending), fix a steep plane?
+    Points along one line (a scanner row) fix no plane: the plane's spread across its second
+    axis must be a share of that along the first and several times that across it; and a
+    steep surface rises along the CAD normal by more than the noise (a row of a scan as noisy
+    as its spacing, whose plane holds the normal, rises by its noise alone)."""
+    Z = A[:, :, 2]
+    nk = W.sum(axis=1)
+    zm = (W * Z).sum(axis=1) / np.maximum(nk, 1.0)
+    zsd = np.sqrt(np.maximum((W * (Z - zm[:, None]) ** 2).sum(axis=1) / np.maximum(nk, 1.0), 0.0))
+    return (lam[:, 1] >= STEEP_SPREAD ** 2 * lam[:, 2]) & \
         (lam[:, 1] >= STEEP_DETERMINED ** 2 * np.maximum(lam[:, 0], 0.0)) & \
         (zsd >= STEEP_NOISE * noise)
-    steep = (cnt >= STEEP_MIN_POINTS) & flat2 & (slope > 1.0) & (slope > np.hypot(gx, gy))
-    return np.where(steep, sx, gx), np.where(steep, sy, gy)
+
+
+def _wall_plane(S, nb, ok, qq, e1, e2, n0, radius, band, noise):
+    """``(normal (m, 3) in each point's frame, found (m,))``: the steep plane (slope > ``WALL_SLOPE`` to the
+    CAD) through each point ``qq`` and two of its ``WALL_PAIRS`` nearest scan points ``S`` in
+    space that the most of its ``WALL_K`` nearest within ``radius`` lie on (within ``band``),
+    refitted to those points; found when at least ``WALL_MIN_INLIERS`` lie on it and they fix
+    a plane (:func:`_fixes_a_wall`).  A wall's top-edge point lies on two planes, the wall's
+    and the object's top: the steep one is the wall's, down which ``g`` falls to the limit."""
+    m = qq.size
+    j = np.maximum(nb, 0)
+    D = S[j] - S[qq][:, None, :]
+    A = np.stack([np.einsum("ijk,ik->ij", D, e) for e in (e1, e2, n0)], axis=2)
+    r = np.linalg.norm(A, axis=2)
+    with np.errstate(invalid="ignore"):
+        near = ok & (r <= radius) & (r > 0)
+    r = np.where(near, r, np.inf)
+    k = min(WALL_K, r.shape[1])
+    o = np.argsort(r, axis=1, kind="stable")[:, :k]
+    B = np.take_along_axis(A, o[:, :, None], axis=1)
+    Bv = np.isfinite(np.take_along_axis(r, o, axis=1))
+    B = np.where(Bv[:, :, None], B, 0.0)
+    p = min(WALL_PAIRS, k)
+    ia, ib = np.triu_indices(p, 1)
+    if ia.size == 0 or m == 0:
+        return np.zeros((m, 3)), np.zeros(m, bool)
+    Ca = np.cross(B[:, ia], B[:, ib])                        # (m, pairs, 3)
+    la = np.linalg.norm(Ca, axis=2)
+    lab = np.linalg.norm(B[:, ia], axis=2) * np.linalg.norm(B[:, ib], axis=2)
+    Nc = Ca / np.maximum(la, 1e-300)[:, :, None]
+    good = Bv[:, ia] & Bv[:, ib] & (la >= WALL_ANGLE * lab) & \
+        (np.hypot(Nc[:, :, 0], Nc[:, :, 1]) > WALL_SLOPE * np.abs(Nc[:, :, 2]))
+    res = np.abs(np.einsum("ikj,icj->ick", B, Nc))            # (m, pairs, k)
+    inl = (res <= band) & Bv[:, None, :]
+    count = np.where(good, inl.sum(axis=2), -1)
+    best = np.argmax(count, axis=1)
+    W = np.take_along_axis(inl, best[:, None, None], axis=1)[:, 0].astype(np.float64)
+    found = np.take_along_axis(count, best[:, None], axis=1)[:, 0] >= WALL_MIN_INLIERS
+    C = np.einsum("ij,ijk,ijl->ikl", W, B, B)
+    C = np.where(found[:, None, None], C, np.eye(3))
+    lam, vec = np.linalg.eigh(C)
+    n = vec[:, :, 0]
+    found &= _fixes_a_wall(B, W, lam, noise) & \
+        (np.hypot(n[:, 0], n[:, 1]) > WALL_SLOPE * np.abs(n[:, 2]))
+    # a wall is a patch: its points' heights are no function of where they lie along it (a
+    # scanner row across a curved dent lies in a steep plane too, as a curve z(t))
+    h = np.stack([-n[:, 1], n[:, 0], np.zeros(m)], axis=1)
+    h /= np.maximum(np.linalg.norm(h, axis=1), 1e-300)[:, None]
+    t = np.einsum("ijk,ik->ij", B, h)
+    Z = B[:, :, 2]
+    X = np.stack([np.ones_like(t), t, t * t], axis=2)            # the point itself: (1, 0, 0)
+    M = np.einsum("ij,ijk,ijl->ikl", W, X, X)
+    M[:, 0, 0] += 1.0
+    M = np.where(found[:, None, None], M, np.eye(3))
+    c = np.linalg.solve(M + 1e-12 * np.eye(3), np.einsum("ij,ijk,ij->ik", W, X, Z)[:, :, None])[:, :, 0]
+    res = (W * (Z - np.einsum("ijk,ik->ij", X, c)) ** 2).sum(axis=1) + c[:, 0] ** 2
+    nk = W.sum(axis=1) + 1.0
+    rz = np.sqrt(res / np.maximum(nk - 3.0, 1.0))
+    zm = (W * Z).sum(axis=1) / nk
+    zsd = np.sqrt(((W * (Z - zm[:, None]) ** 2).sum(axis=1) + zm ** 2) / nk)
+    found &= rz >= WALL_PATCH * zsd
+    return n, found
+
+
+def on_a_wall(X, normals, spacing) -> np.ndarray:
+    """(n,) bool: the points ``X`` (in space, CAD ``normals``) that lie on a wall among
+    themselves: a steep plane through the point and two of its nearest holding enough of its
+    ``WALL_K`` nearest within ``WALL_RADIUS`` spacings, as a patch (:func:`_wall_plane`; band
+    ``2 x WALL_BAND`` spacings, the noise unknown).  At 1 mm the walls of a 3 mm object beyond
+    the evaluation distance are two spacings tall: the plane of a point's 8 nearest
+    (:func:`.regions.steep_points`) holds the object's top too, and three quarters of the
+    walls read as surface lying over the part's (the box on a lattice scan: the part passed)."""
+    n = X.shape[0]
+    if n < WALL_MIN_INLIERS + 1:
+        return np.zeros(n, bool)
+    k = min(WALL_K + 1, n)
+    d, j = cKDTree(X).query(X, k=k, distance_upper_bound=WALL_RADIUS * spacing)
+    d, j = d.reshape(n, k)[:, 1:], j.reshape(n, k)[:, 1:]
+    ok = np.isfinite(d)
+    nb = np.where(ok, j, -1).astype(np.int64)
+    e1, e2 = _basis(normals)
+    nn = normals / np.maximum(np.linalg.norm(normals, axis=1), 1e-300)[:, None]
+    _, found = _wall_plane(X, nb, ok, np.arange(n), e1, e2, nn, WALL_RADIUS * spacing,
+                           2.0 * WALL_BAND * spacing, 0.0)
+    return found
 
 
 def _neighbour_table(tree, ev_idx, p, radius):
