@@ -26,6 +26,12 @@ def scan(prep):
     return virtual_scan(prep, view=VIEW, pixel=1.0, noise=0.02, motion=(2.0, 3.0), rng=3)
 
 
+@pytest.fixture(scope="module")
+def best(prep, scan):
+    """``best_fit`` of the module's scan with the defaults (three tests read it: fitted once)."""
+    return al.best_fit(scan.scan, prep)
+
+
 def _within(res, vs, k=5.0, floor=(2e-5, 2e-3)):
     """The pose error is within k standard deviations of the stated covariance (per axis)."""
     e = pose_error(res.T_model_scan, vs.T_model_scan)
@@ -35,8 +41,8 @@ def _within(res, vs, k=5.0, floor=(2e-5, 2e-3)):
     return e
 
 
-def test_best_fit_recovers_the_pose_within_its_covariance(prep, scan):
-    res = al.best_fit(scan.scan, prep)
+def test_best_fit_recovers_the_pose_within_its_covariance(best, scan):
+    res = best
     e = _within(res, scan)
     assert np.linalg.norm(e[3:]) < 0.01 and res.dof_fitted == al.DOF_NAMES
     assert res.rms == pytest.approx(0.02, rel=0.4)
@@ -150,11 +156,11 @@ def test_datum_plane_and_two_holes_recover_the_pose_within_the_hole_uncertainty(
     assert np.max(np.linalg.norm((X - Xt)[:, :2], axis=1)) < 0.6
 
 
-def test_align_dispatches_plan_alignments(prep, scan):
+def test_align_dispatches_plan_alignments(prep, scan, best):
     from shapeverify.characteristics.plan import parse_plan
 
     plan = parse_plan("alignment: {type: constrained, free: [tx, ty, tz, rx, ry, rz]}\n")
-    res = al.align(scan.scan, prep, plan.alignment, init=al.best_fit(scan.scan, prep).T_model_scan)
+    res = al.align(scan.scan, prep, plan.alignment, init=best.T_model_scan)
     assert res.kind == "constrained"
     _within(res, scan)
 
@@ -172,10 +178,11 @@ def _final_state(prep, scan, T, sigma, reach):
     return X, np.where(valid[:, None], cl.normals, 0.0), np.where(valid, r, 0.0), w
 
 
-def test_pose_covariance_is_the_tukey_sandwich_and_the_best_fit_states_the_same(prep, scan):
+def test_pose_covariance_is_the_tukey_sandwich_and_the_best_fit_states_the_same(prep, scan,
+                                                                               best):
     from shapeverify.registration.rigid import pose_covariance
 
-    res = al.best_fit(scan.scan, prep)
+    res = best
     sigma = res.details["scale"]
     X, Nn, r, w, = _final_state(prep, scan.scan, res.T_model_scan, sigma, al._reach(prep, None))
     C = pose_covariance(X, Nn, r, w, X.mean(0), 50.0, loss="tukey", sigma=sigma)

@@ -24,6 +24,7 @@ script to print the cycles inside one folder: ``python tests/test_import_cycles.
 from __future__ import annotations
 
 import ast
+import functools
 from collections import deque
 from pathlib import Path
 
@@ -58,7 +59,17 @@ def import_graph(root: Path = PACKAGE, parents: bool = False) -> dict[str, set[s
 
     ``parents``: also link to the packages whose ``__init__`` Python runs on the way
     (``import a.b.c`` runs ``a`` and ``a.b``): cycles through a package's re-exports.
+
+    Built once per root, ``parents`` and state of its files (path, size, mtime) in a test run:
+    every caller gets its own copy.
     """
+    stamp = tuple(sorted((str(p), p.stat().st_size, p.stat().st_mtime_ns)
+                         for p in Path(root).rglob("*.py")))
+    return {m: set(t) for m, t in _import_graph(Path(root), parents, stamp).items()}
+
+
+@functools.lru_cache(maxsize=8)
+def _import_graph(root: Path, parents: bool, stamp: tuple) -> dict[str, frozenset[str]]:
     mods = _modules(root)
     graph: dict[str, set[str]] = {m: set() for m in mods}
     for m, path in mods.items():
@@ -87,7 +98,7 @@ def import_graph(root: Path = PACKAGE, parents: bool = False) -> dict[str, set[s
                     t = ".".join(parts[:k])
                     if t in mods and t != m and not (m + ".").startswith(t + "."):
                         graph[m].add(t)
-    return graph
+    return {m: frozenset(t) for m, t in graph.items()}
 
 
 _PACKAGES = {m for m, p in _modules().items() if p.name == "__init__.py"}
