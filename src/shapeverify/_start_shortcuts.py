@@ -1,0 +1,93 @@
+"""Two costs of a command's first kernel that its answer does not need (issue 32 item 7).
+
+Installed by the command line before it imports the inspection
+(:func:`shapeverify.cli_start.preimport`) and by the resident worker's preload; the library
+itself leaves numba and scipy as they are.
+
+* :func:`defer_numba_registries`: before it loads a kernel from its on-disk cache, numba
+  refreshes its target context (``Cache.load_overload`` calls ``target_context.refresh()``):
+  the first refresh imports every typing and lowering registry numba has (``numba.cpython.*``,
+  ``numba.np.*``, ``numba.typed``, ``numba.experimental`` ...) and installs them, ~0.2 s of
+  CPU.  A cached kernel needs none of it: its machine code links only against the symbols the
+  context registers when it is made (numba's C helpers, the math library), the NRT runtime
+  (``rtsys.initialize``) and the hash secret (``numba.cpython.hashing``, for kernels that hash).
+  On a cache miss numba refreshes as before and compiles (its compiler refreshes too).  The
+  kernels run the same machine code: the same answers.
+* :func:`import_scipy_spatial`: as they import, ``scipy.linalg``, ``scipy.special`` and
+  ``scipy.spatial`` rewrite ~230 docstrings (``FunctionDoc`` parses each one to append a note on
+  array-API support), 0.1-0.2 s of CPU; imported here with that rewrite skipped, the docstrings
+  stay as written.  Nothing else changes.
+"""
+
+from __future__ import annotations
+
+__all__ = ["defer_numba_registries", "import_scipy_spatial"]
+
+
+def defer_numba_registries() -> bool:
+    """Make numba load cached kernels without its registries (see the module); idempotent.
+    False when this numba lacks what it relies on (then numba is left as it is)."""
+    try:
+        from numba.core import caching
+        from numba.core.runtime import rtsys
+    except ImportError:
+        return False
+    cache = caching.Cache
+    if getattr(cache.load_overload, "_shapeverify_deferred", False):
+        return True
+    if not all(hasattr(cache, n) for n in ("_load_overload", "_guard_against_spurious_io_errors")):
+        return False
+
+    def load_overload(self, sig, target_context):
+        rtsys.initialize(target_context)          # the NRT symbols; once
+        import numba.cpython.hashing  # noqa: F401 - the hash secret's symbols
+
+        data = None
+        with self._guard_against_spurious_io_errors():
+            data = self._load_overload(sig, target_context)
+        if data is None:                          # a miss: numba compiles next, as before
+            target_context.refresh()
+        return data
+
+    load_overload._shapeverify_deferred = True
+    load_overload.__doc__ = cache.load_overload.__doc__
+    cache.load_overload = load_overload
+    return True
+
+
+class _DocAsWritten(dict):
+    """Stands for scipy's ``FunctionDoc`` while scipy imports: every section an empty list
+    (the notes appended to it are dropped), ``str`` a signature line and the doc as written."""
+
+    def __init__(self, func, *args, **kwargs):
+        super().__init__()
+        self._doc = getattr(func, "__doc__", None) or ""
+
+    def __missing__(self, key):
+        return self.setdefault(key, [])
+
+    def __str__(self):
+        return "\n" + self._doc
+
+
+def import_scipy_spatial() -> None:
+    """``import scipy.spatial`` without scipy's docstring rewrite (see the module); a plain
+    import when scipy is already imported or its internals differ."""
+    import sys
+
+    if "scipy.spatial" in sys.modules:
+        return
+    try:
+        import scipy._lib._array_api as array_api
+        import scipy._lib._util as util
+    except ImportError:
+        array_api = util = None
+    mods = [m for m in (array_api, util) if m is not None and hasattr(m, "FunctionDoc")]
+    saved = [m.FunctionDoc for m in mods]
+    try:
+        for m in mods:
+            m.FunctionDoc = _DocAsWritten
+        import scipy.spatial  # noqa: F401
+    finally:
+        for m, f in zip(mods, saved):
+            m.FunctionDoc = f
