@@ -38,6 +38,9 @@ if sys.argv[1] == "deferred":
     from shapeverify._start_shortcuts import defer_numba_registries
     assert defer_numba_registries()
 import kern
+import numba.core.base  # noqa: F401 - registers numba's llvm-lock events
+from llvmlite.binding import ffi
+callbacks = list(ffi.lib._lock._cblist)
 rng = np.random.default_rng(3)
 P, q = rng.normal(size=(500, 3)), rng.normal(size=3)
 k, d = kern.nearest_index(P, q)
@@ -46,6 +49,7 @@ out = {"k": int(k), "d": float(d), "registries_after_hit": registries}
 # a signature not in the cache: numba compiles it (float32 points)
 k32, _ = kern.nearest_index(P.astype(np.float32), q.astype(np.float32))
 out["k32"] = int(k32)
+out["callbacks_kept"] = ffi.lib._lock._cblist == callbacks and len(callbacks) > 0
 out["hits"] = sum(kern.nearest_index.stats.cache_hits.values())
 out["misses"] = sum(kern.nearest_index.stats.cache_misses.values())
 d2 = ((P - q) ** 2).sum(axis=1)
@@ -73,6 +77,7 @@ def test_cached_kernel_loads_without_numba_registries_and_gives_the_same_answer(
     assert not deferred["registries_after_hit"]     # the cache hit did not refresh numba
     assert (deferred["k"], deferred["d"]) == (first["k"], first["d"])
     assert deferred["k32"] == first["k32"] == first["brute_k"]
+    assert deferred["callbacks_kept"]               # the llvm-lock callbacks back after loads
 
 
 def test_a_cache_miss_still_compiles_with_the_registries_deferred(tmp_path):
