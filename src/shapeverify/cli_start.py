@@ -99,6 +99,13 @@ def preimport(modules=INSPECT_MODULES) -> None:
     was = gc.isenabled()
     gc.disable()
     try:
+        from shapeverify._start_shortcuts import (defer_numba_registries,
+                                                   import_kernel_env_modules,
+                                                   import_scipy_spatial)
+
+        defer_numba_registries()    # cached kernels load without numba's registries (~0.2 s)
+        import_scipy_spatial()      # without scipy's docstring rewrite (0.1-0.2 s)
+        import_kernel_env_modules()  # what the kernels' environments name
         for name in modules:
             importlib.import_module(name)
             if name == "shapeverify.cli_common":

@@ -98,8 +98,9 @@ class Worker:
 
     # ------------------------------------------------------------------ preparation
     def preload(self) -> None:
-        """Import the command line and the pipeline and use numba once (its registries and
-        ``scipy.linalg``), so that a request pays only its own work."""
+        """Import the command line and the pipeline, scipy.spatial and numba (cached kernels load
+        without numba's registries: :mod:`shapeverify._start_shortcuts`), so that a request
+        pays only its own work."""
         import contextlib
         import gc
         import io
@@ -113,6 +114,13 @@ class Worker:
         with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
             import typer.main
 
+            from shapeverify._start_shortcuts import (defer_numba_registries,
+                                                       import_kernel_env_modules,
+                                                       import_scipy_spatial)
+
+            defer_numba_registries()    # cached kernels load without numba's registries
+            import_scipy_spatial()      # without scipy's docstring rewrite
+            import_kernel_env_modules()  # what the kernels' environments name
             from shapeverify import cli, cli_common  # noqa: F401
             import shapeverify.inspection  # noqa: F401
             import shapeverify.nearest  # noqa: F401

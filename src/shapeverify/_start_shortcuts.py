@@ -1,0 +1,143 @@
+"""Two costs of a command's first kernel that its answer does not need (issue 32 item 7).
+
+Installed by the command line before it imports the inspection
+(:func:`shapeverify.cli_start.preimport`) and by the resident worker's preload; the library
+itself leaves numba and scipy as they are.
+
+* :func:`defer_numba_registries`: before it loads a kernel from its on-disk cache, numba
+  refreshes its target context (``Cache.load_overload`` calls ``target_context.refresh()``):
+  the first refresh imports every typing and lowering registry numba has (``numba.cpython.*``,
+  ``numba.np.*``, ``numba.typed``, ``numba.experimental`` ...) and installs them, ~0.2 s of
+  CPU.  A cached kernel needs none of it: its machine code links only against the symbols the
+  context registers when it is made (numba's C helpers, the math library), the NRT runtime
+  (``rtsys.initialize``) and the hash secret (``numba.cpython.hashing``, for kernels that hash).
+  On a cache miss numba refreshes as before and compiles (its compiler refreshes too).  While
+  a kernel loads, llvmlite's lock callbacks (numba's compile-timing events) are off.  The
+  kernels run the same machine code: the same answers.
+* :func:`import_scipy_spatial`: as they import, ``scipy.linalg``, ``scipy.special`` and
+  ``scipy.spatial`` rewrite ~230 docstrings (``FunctionDoc`` parses each one to append a note on
+  array-API support), 0.1-0.2 s of CPU; imported here with that rewrite skipped, the docstrings
+  stay as written.  Nothing else changes.
+"""
+
+from __future__ import annotations
+
+__all__ = ["KERNEL_ENV_MODULES", "defer_numba_registries", "import_kernel_env_modules",
+           "import_scipy_spatial"]
+
+#: numba's modules that the cached kernels of an inspection name in their environments (the
+#: functions they inlined from numba's array, math, sort and linalg implementations): a kernel
+#: that loads imports them (21 modules, ~0.1 s).  Imported with the other modules of the
+#: command's start, so that the resident worker freezes them with its preload (``gc.freeze``)
+#: instead of walking them at every later collection.
+KERNEL_ENV_MODULES = ("numba.core.optional", "numba.cpython.charseq", "numba.cpython.mathimpl",
+                      "numba.cpython.numbers", "numba.cpython.slicing", "numba.cpython.unicode",
+                      "numba.misc.mergesort", "numba.misc.quicksort", "numba.np.arraymath",
+                      "numba.np.arrayobj", "numba.np.linalg", "numba.np.npdatetime",
+                      "numba.np.npyfuncs", "numba.np.npyimpl")
+
+
+def defer_numba_registries() -> bool:
+    """Make numba load cached kernels without its registries (see the module); idempotent.
+    False when this numba lacks what it relies on (then numba is left as it is)."""
+    try:
+        from numba.core import caching
+        from numba.core.runtime import rtsys
+    except ImportError:
+        return False
+    cache = caching.Cache
+    if getattr(cache.load_overload, "_shapeverify_deferred", False):
+        return True
+    if not all(hasattr(cache, n) for n in ("_load_overload", "_guard_against_spurious_io_errors")):
+        return False
+
+    def load_overload(self, sig, target_context):
+        rtsys.initialize(target_context)          # the NRT symbols; once
+        import numba.cpython.hashing  # noqa: F401 - the hash secret's symbols
+
+        data = None
+        with _quiet_llvm_lock(), self._guard_against_spurious_io_errors():
+            data = self._load_overload(sig, target_context)
+        if data is None:                          # a miss: numba compiles next, as before
+            target_context.refresh()
+        return data
+
+    load_overload._shapeverify_deferred = True
+    load_overload.__doc__ = cache.load_overload.__doc__
+    cache.load_overload = load_overload
+    return True
+
+
+class _quiet_llvm_lock:
+    """While a cached kernel loads: llvmlite's lock held (reentrant) and its callbacks off.
+    numba makes every llvmlite call (~300 per kernel loaded: symbols, bitcode) start and end a
+    ``numba:llvm_lock`` event, which only times compilations; ~0.035 s of the 21 loads.  The
+    lock is held while they are off, so another thread's call cannot start an event whose end
+    would be skipped."""
+
+    def __enter__(self):
+        try:
+            from llvmlite.binding import ffi
+
+            self._lock = ffi.lib._lock
+            self._lock._lock.acquire()
+        except (ImportError, AttributeError):
+            self._lock = None
+            return self
+        self._saved, self._lock._cblist = self._lock._cblist, []
+        return self
+
+    def __exit__(self, *exc):
+        if self._lock is not None:
+            self._lock._cblist = self._saved
+            self._lock._lock.release()
+        return False
+
+
+def import_kernel_env_modules() -> None:
+    """Import :data:`KERNEL_ENV_MODULES` (those this numba has)."""
+    import importlib
+
+    for name in KERNEL_ENV_MODULES:
+        try:
+            importlib.import_module(name)
+        except ImportError:
+            pass
+
+
+class _DocAsWritten(dict):
+    """Stands for scipy's ``FunctionDoc`` while scipy imports: every section an empty list
+    (the notes appended to it are dropped), ``str`` a signature line and the doc as written."""
+
+    def __init__(self, func, *args, **kwargs):
+        super().__init__()
+        self._doc = getattr(func, "__doc__", None) or ""
+
+    def __missing__(self, key):
+        return self.setdefault(key, [])
+
+    def __str__(self):
+        return "\n" + self._doc
+
+
+def import_scipy_spatial() -> None:
+    """``import scipy.spatial`` without scipy's docstring rewrite (see the module); a plain
+    import when scipy is already imported or its internals differ."""
+    import sys
+
+    if "scipy.spatial" in sys.modules:
+        return
+    try:
+        import scipy._lib._array_api as array_api
+        import scipy._lib._util as util
+    except ImportError:
+        array_api = util = None
+    mods = [m for m in (array_api, util) if m is not None and hasattr(m, "FunctionDoc")]
+    saved = [m.FunctionDoc for m in mods]
+    try:
+        for m in mods:
+            m.FunctionDoc = _DocAsWritten
+        import scipy.spatial  # noqa: F401
+    finally:
+        for m, f in zip(mods, saved):
+            m.FunctionDoc = f

@@ -1,0 +1,118 @@
+"""The command line's start shortcuts (``shapeverify._start_shortcuts``, issue 32 item 7): a
+cached numba kernel loads without numba's registries and answers as the compiled one; a kernel
+not in the cache still compiles; scipy.spatial imported without the docstring rewrite works as
+before and leaves scipy's ``FunctionDoc`` in place.  Each in a fresh interpreter (this test
+process has loaded numba's registries already), the kernel in a module of its own under
+``tmp_path`` so that its cache is this test's."""
+
+from __future__ import annotations
+
+import json
+import os
+import subprocess
+import sys
+import textwrap
+from pathlib import Path
+
+KERNEL = '''
+import numpy as np
+from numba import njit
+
+
+@njit(cache=True)
+def nearest_index(points, q):
+    best, k = np.inf, -1
+    for i in range(points.shape[0]):
+        d = 0.0
+        for j in range(points.shape[1]):
+            d += (points[i, j] - q[j]) ** 2
+        if d < best:
+            best, k = d, i
+    return k, np.sqrt(best)
+'''
+
+RUN = r'''
+import json, sys
+import numpy as np
+if sys.argv[1] == "deferred":
+    from shapeverify._start_shortcuts import defer_numba_registries
+    assert defer_numba_registries()
+import kern
+import numba.core.base  # noqa: F401 - registers numba's llvm-lock events
+from llvmlite.binding import ffi
+callbacks = list(ffi.lib._lock._cblist)
+rng = np.random.default_rng(3)
+P, q = rng.normal(size=(500, 3)), rng.normal(size=3)
+k, d = kern.nearest_index(P, q)
+registries = "numba.typed.typeddict" in sys.modules
+out = {"k": int(k), "d": float(d), "registries_after_hit": registries}
+# a signature not in the cache: numba compiles it (float32 points)
+k32, _ = kern.nearest_index(P.astype(np.float32), q.astype(np.float32))
+out["k32"] = int(k32)
+out["callbacks_kept"] = ffi.lib._lock._cblist == callbacks and len(callbacks) > 0
+out["hits"] = sum(kern.nearest_index.stats.cache_hits.values())
+out["misses"] = sum(kern.nearest_index.stats.cache_misses.values())
+d2 = ((P - q) ** 2).sum(axis=1)
+out["brute_k"], out["brute_d"] = int(np.argmin(d2)), float(np.sqrt(d2.min()))
+print(json.dumps(out))
+'''
+
+
+def _run(tmp_path: Path, mode: str) -> dict:
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(tmp_path), str(Path(__file__).parents[1] / "src"),
+                                         env.get("PYTHONPATH", "")])
+    proc = subprocess.run([sys.executable, "-c", RUN, mode], cwd=tmp_path, env=env,
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return json.loads(proc.stdout.splitlines()[-1])
+
+
+def test_cached_kernel_loads_without_numba_registries_and_gives_the_same_answer(tmp_path):
+    (tmp_path / "kern.py").write_text(textwrap.dedent(KERNEL))
+    first = _run(tmp_path, "plain")         # compiles both signatures, caches them
+    assert first["k"] == first["brute_k"] and abs(first["d"] - first["brute_d"]) < 1e-12
+    deferred = _run(tmp_path, "deferred")   # both signatures from the cache
+    assert deferred["hits"] == 2 and deferred["misses"] == 0
+    assert not deferred["registries_after_hit"]     # the cache hit did not refresh numba
+    assert (deferred["k"], deferred["d"]) == (first["k"], first["d"])
+    assert deferred["k32"] == first["k32"] == first["brute_k"]
+    assert deferred["callbacks_kept"]               # the llvm-lock callbacks back after loads
+
+
+def test_a_cache_miss_still_compiles_with_the_registries_deferred(tmp_path):
+    (tmp_path / "kern.py").write_text(textwrap.dedent(KERNEL))
+    out = _run(tmp_path, "deferred")        # nothing cached: both signatures compile
+    assert out["misses"] == 2 and out["hits"] == 0
+    assert out["k"] == out["brute_k"] and abs(out["d"] - out["brute_d"]) < 1e-12
+    assert out["k32"] == out["brute_k"]
+
+
+SCIPY = r'''
+import json, sys
+import numpy as np
+from shapeverify._start_shortcuts import import_scipy_spatial
+import_scipy_spatial()
+import scipy._lib._array_api as aa, scipy._lib._util as uu
+from scipy._lib._docscrape import FunctionDoc
+from scipy.spatial import cKDTree
+rng = np.random.default_rng(5)
+P, Q = rng.normal(size=(2000, 3)), rng.normal(size=(50, 3))
+d, i = cKDTree(P).query(Q, k=3)
+D = np.linalg.norm(Q[:, None, :] - P[None, :, :], axis=2)
+bi = np.argsort(D, axis=1)[:, :3]
+print(json.dumps({"same_index": bool((i == bi).all()),
+                  "dist_err": float(np.abs(d - np.take_along_axis(D, bi, 1)).max()),
+                  "restored": aa.FunctionDoc is FunctionDoc and uu.FunctionDoc is FunctionDoc}))
+'''
+
+
+def test_scipy_spatial_without_the_docstring_rewrite_queries_as_brute_force():
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(Path(__file__).parents[1] / "src"),
+                                         env.get("PYTHONPATH", "")])
+    proc = subprocess.run([sys.executable, "-c", SCIPY], env=env, capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    out = json.loads(proc.stdout.splitlines()[-1])
+    assert out["same_index"] and out["dist_err"] < 1e-12 and out["restored"]
