@@ -8,6 +8,11 @@ first run would: each found a bug that CTC 01/02 and FTC 06/08 never showed.
   circularity and total runouts were "no plan characteristic yet", and a total runout of a
   face square to its datum axis read 140.7 mm (the radial range of a plane) on a perfect part.
 * CTC 03's thickness dimension (one face against four coplanar pads) was unsupported.
+* CTC 03 e1 (another CAD export of CTC 03) writes that thickness as a DIRECTED_DIMENSIONAL_LOCATION
+  between two coplanar pads (XCAF: a distance of 0), their composite shape aspect holding the
+  five faces; the plan said "nominal 20.828 differs from the CAD faces' 0.0000 mm", and the
+  unread-PMI check did not count the directed location as declared.  Its geometric tolerance
+  values are inch numbers in a millimetre measure (see E1_GT_INCH).
 * FTC 10 splits its features into several faces: DIM10, DIM19 (⌀5.5 of two supplemental
   half-cylinder faces lying on a threaded hole's wall: planned as that hole), DIM8, DIM15, DIM22 (distances to four coplanar counterbore floors or
   ledges), GT26, GT35 ("3X" / "4X" cylindricity of holes of two faces each) were unsupported.
@@ -38,7 +43,10 @@ def files(tmp_path_factory):
         p = out / gz.name[:-3]
         with gzip.open(gz, "rb") as src, open(p, "wb") as dst:
             shutil.copyfileobj(src, dst)
-        paths[p.name[:11]] = p
+        key = p.name[:11]
+        if key == "nist_ctc_03" and p.name.endswith("-e1.stp"):    # both editions bundled
+            key += "_e1"
+        paths[key] = p
     return paths
 
 
@@ -53,6 +61,7 @@ def plans(files):
 #: geometric tolerances the plan may still leave unsupported, with a word of each reason
 STILL_UNSUPPORTED = {
     "nist_ctc_03": {"GT10": "two parallel planes"},
+    "nist_ctc_03_e1": {"GT7": "two parallel planes"},
     "nist_ctc_05": {},
     "nist_ftc_11": {},
     # CTC 02 e2 (CATIA): GT19's profile of a line is attached to faces, with no section
@@ -757,3 +766,71 @@ def test_ftc07_composite_position_of_counterbored_holes_holds_hole_and_counterbo
     assert max(up[1:]) < 0.03, up
     assert got["GT16"].verdict == "fail"
     assert got["GT16"].details["composite"]["value"] == pytest.approx(0.6, abs=0.03)
+++ test_nist_extra_plans.py
+
+
+def _plan_key(c, scale=1.0):
+    c = c.model_dump(exclude_none=True) if hasattr(c, "model_dump") else dict(c)
+    tol = c.get("tol")
+    return (c["type"], None if tol is None else round(tol * scale, 3),
+            tuple(c.get("datums") or ()), None if c.get("nominal") is None
+            else round(c["nominal"], 3), c.get("lower"), c.get("upper"))
+
+
+#: CTC 03 e1 writes its geometric tolerance values in inches with the millimetre unit
+#: (``#37111=LENGTH_MEASURE_WITH_UNIT(LENGTH_MEASURE(10.E-03),#61)``, #61 the SI millimetre),
+#: while its dimensions carry an INCH conversion-based unit; XCAF and the plan read 0.01 mm
+#: where the drawing (and e2) say 0.010 in = 0.254 mm
+E1_GT_INCH = 25.4
+
+
+def test_ctc03_e1_plans_the_characteristics_of_the_e2_plan(plans):
+    """CTC 03 in AP242 e1 (156 faces) and e2 (120 faces) are two CAD exports of one drawing:
+    the same characteristics by type, datums and limits, the geometric tolerances' values as
+    the e1 file writes them (inch numbers in a millimetre measure); e1's thickness
+    'Linear Size.9' is a location between two coplanar faces of a composite of five (DIM11),
+    planned as e2's DIM9: the distance of a face to the plane of four pads."""
+    e1, e2 = plans["nist_ctc_03_e1"].plan, plans["nist_ctc_03"].plan
+    gt = {c.name for c in e1.characteristics if c.pmi.kind == "geometric_tolerance"}
+    got = Counter(_plan_key(c, E1_GT_INCH if c.name in gt else 1.0) for c in e1.characteristics)
+    assert got == Counter(_plan_key(c) for c in e2.characteristics)
+    assert {_plan_key(c)[1] for c in e1.characteristics if c.name in gt} - {None} <= {
+        0.01, 0.02, 0.03, 0.04, 0.05, 0.06}
+    assert sorted(e1.datums) == sorted(e2.datums) == list("ABCDE")
+    d = next(c for c in e1.characteristics if c.pmi.id == "DIM11")
+    assert (d.type, d.nominal, d.lower, d.upper) == ("distance", pytest.approx(20.828),
+                                                      -1.524, 1.524)
+    sides = sorted(d.faces, key=lambda s: isinstance(s, list))
+    assert isinstance(sides[0], str) and len(sides[1]) == 4
+    un = {u.pmi.id: u.reason for u in e1.unsupported}
+    assert set(un) == {"GT7", "DIM5", "DIM8", "DIM9", "DIM10"}, un
+
+
+def test_perfect_ctc03_e1_fails_no_characteristic_of_its_plan(files, plans):
+    """The e1 plan, its geometric tolerances read as the inches the drawing gives
+    (:data:`E1_GT_INCH`), on an independent scan (OCP tessellation sampled by area at 1.5 mm,
+    0.02 mm noise, random order), the alignment started at the true pose: none fails."""
+    import numpy as np
+    import yaml
+
+    from independent_scans import file_tessellation, random_points
+    from model_cache import cached_prepared
+    from shapeverify.characteristics import evaluate_plan
+
+    path = files["nist_ctc_03_e1"]
+    data = dict(plans["nist_ctc_03_e1"].data)
+    data["characteristics"] = [
+        {**c, "tol": c["tol"] * E1_GT_INCH} if c["pmi"]["kind"] == "geometric_tolerance"
+        and c.get("tol") is not None else c for c in data["characteristics"]]
+    data.pop("unsupported", None)
+    prep = cached_prepared(path, spacing=1.5, features=True)
+    rng = np.random.default_rng(4)
+    V, T, _ = file_tessellation(path, 0.002)
+    P, N = random_points(V, T, 1.5, rng)
+    X = (P + rng.normal(0.0, 0.02, len(P))[:, None] * N)[rng.permutation(len(P))]
+    got = evaluate_plan(prep, X, yaml.safe_dump(data), init=np.eye(4)).characteristics
+    assert len(got) == 23
+    for c in got:
+        assert c.verdict in ("pass", "undecided"), c
+    dist = next(c for c in got if c.name == "DIM11_distance")
+    assert dist.verdict == "pass" and abs(dist.measured - 20.828) < 0.05

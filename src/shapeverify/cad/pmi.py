@@ -395,6 +395,28 @@ def _attach_by_usage(caf, path, names, index, datum_list) -> set:
     return done
 
 
+def _attach_dimension_groups(caf, path, index, dimensions) -> None:
+    """``group_faces`` of the linear location dimensions whose two sides are components of one
+    composite shape aspect (:func:`.pmi_iiru.dimension_groups`): every face of that composite,
+    which the plan measures when the two sides alone do not make the dimension (coplanar)."""
+    want = [d for d in dimensions if d["type"] == "Location_LinearDistance"]
+    if not want:
+        return
+    from .pmi_iiru import dimension_groups
+
+    try:
+        groups = dimension_groups(caf, index)
+    except Exception as e:      # a diagnosis beyond XCAF; the read stands without it
+        logger.warning("%s: could not follow the composite shape aspects of dimensions: %s",
+                       path.name, e)
+        return
+    for d in want:
+        sides = {frozenset(d["faces"]), frozenset(d["faces2"])}
+        hits = [g for fa, fb, g in groups if {frozenset(fa), frozenset(fb)} == sides]
+        if len(hits) == 1 and len(hits[0]) > len(d["faces"]) + len(d["faces2"]):
+            d["group_faces"] = hits[0]
+
+
 def _attach_curve_targets(caf, path, names, index, edges, datum_list) -> set:
     """The datums of ``names`` set up from datum targets XCAF does not read (a 'circular
     curve'), their targets read here from the STEP entities (:mod:`.pmi_iiru`): ``targets``
@@ -597,6 +619,7 @@ def read_pmi_here(path) -> dict:
         edges.resolve(item, second, "faces2")
         dimensions.append(item)
 
+    _attach_dimension_groups(caf, path, index, dimensions)
     composites_missed = _mark_composites(path, tolerances)
     _max_tolerances(path, tolerances)
 
@@ -604,6 +627,7 @@ def read_pmi_here(path) -> dict:
     for it in datum_list + tolerances + dimensions:
         used.update(it["faces"])
         used.update(it.get("faces2", ()))
+        used.update(it.get("group_faces", ()))
         for t in it.get("targets", ()):
             used.update(t["faces"])
             used.update(t.get("on_faces", ()))

@@ -30,7 +30,7 @@ from __future__ import annotations
 
 import re
 
-__all__ = ["resolve_datums"]
+__all__ = ["dimension_groups", "resolve_datums"]
 
 _USAGE = re.compile(rb"#(\d+)\s*=\s*(ITEM_IDENTIFIED_REPRESENTATION_USAGE|"
                     rb"GEOMETRIC_ITEM_SPECIFIC_USAGE)\s*\(")
@@ -314,4 +314,73 @@ def resolve_curve_targets(caf, names, index, edge_faces, faces) -> dict:
                     "attached": (f"{desc!r} target {_label(tgt)}: its curve (a circle \u2300"
                                  f"{2 * circ['radius']:.6g}) on faces "
                                  f"{', '.join(map(str, on))}, resolved from the STEP entities")})
+    return out
+
+
+def dimension_groups(caf, index) -> list[tuple[list, list, list]]:
+    """``(faces, faces2, group)`` of each ``DIMENSIONAL_LOCATION`` whose two shape aspects are
+    components of one composite shape aspect (``COMPOSITE_GROUP_SHAPE_ASPECT``): the faces of
+    its two sides and of every component of that composite, as model face numbers.
+
+    NIST CTC 03 e1 writes its thickness 'Linear Size.9' (one face against four coplanar pads
+    and the datum D face) as a location between two of the five faces, which lie in one plane,
+    with the five faces as the components of a composite the presentation is tied to; XCAF
+    reads the location's two faces only (a distance of 0 against a nominal of 20.8 mm).
+    Only groups whose every component resolves to faces are returned.
+    """
+    from OCP.STEPConstruct import STEPConstruct
+    from OCP.StepAP242 import (StepAP242_DraughtingModelItemAssociation,
+                               StepAP242_ItemIdentifiedRepresentationUsage)
+    from OCP.StepRepr import StepRepr_CompositeShapeAspect, StepRepr_ShapeAspectRelationship
+    from OCP.StepShape import StepShape_DimensionalLocation
+
+    ws = caf.Reader().WS()
+    model, tp = ws.Model(), ws.TransferReader().TransientProcess()
+    ents = [model.Value(i) for i in range(1, model.NbEntities() + 1)]
+    locs = [e for e in ents if isinstance(e, StepShape_DimensionalLocation)]
+    if not locs:
+        return []
+    rels = [e for e in ents if isinstance(e, StepRepr_ShapeAspectRelationship)
+            and not isinstance(e, StepShape_DimensionalLocation)]
+    usages: dict = {}                   # id(aspect) -> [usage]
+    for e in ents:
+        if isinstance(e, StepAP242_ItemIdentifiedRepresentationUsage) and not isinstance(
+                e, StepAP242_DraughtingModelItemAssociation):
+            d = e.Definition().Value() if e.Definition() is not None else None
+            if d is not None:
+                usages.setdefault(id(d), []).append(e)
+
+    def faces_of(aspect) -> list | None:
+        out = []
+        for u in usages.get(id(aspect), []):
+            for j in range(1, u.NbIdentifiedItem() + 1):
+                x = u.IdentifiedItemValue(j)
+                s = STEPConstruct.FindShape_s(tp, x) if x is not None else None
+                if s is None or s.IsNull():
+                    return None
+                fs, _ = index.of(s)
+                if not fs:
+                    return None
+                out.extend(f for f in fs if f not in out)
+        return out or None
+
+    def composites(aspect) -> list:
+        return [r.RelatingShapeAspect() for r in rels
+                if r.RelatedShapeAspect() is aspect
+                and isinstance(r.RelatingShapeAspect(), StepRepr_CompositeShapeAspect)]
+
+    out = []
+    for loc in locs:
+        a, b = loc.RelatingShapeAspect(), loc.RelatedShapeAspect()
+        if a is None or b is None:
+            continue
+        common = [c for c in composites(a) if any(c is d for d in composites(b))]
+        if len(common) != 1:
+            continue
+        parts = [r.RelatedShapeAspect() for r in rels if r.RelatingShapeAspect() is common[0]]
+        fa, fb = faces_of(a), faces_of(b)
+        group = [faces_of(p) for p in parts]
+        if fa is None or fb is None or not group or any(g is None for g in group):
+            continue
+        out.append((fa, fb, list(dict.fromkeys(f for g in group for f in g))))
     return out

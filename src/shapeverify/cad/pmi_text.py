@@ -33,7 +33,8 @@ __all__ = ["declared_pmi", "unread_pmi", "unread_pmi_of_file"]
 #: dimension entities: (applies_to, name, ...) for sizes; (name, description, relating,
 #: related, ...) for locations
 _SIZES = ("DIMENSIONAL_SIZE", "DIMENSIONAL_SIZE_WITH_PATH", "ANGULAR_SIZE")
-_LOCATIONS = ("DIMENSIONAL_LOCATION", "DIMENSIONAL_LOCATION_WITH_PATH", "ANGULAR_LOCATION")
+_LOCATIONS = ("DIMENSIONAL_LOCATION", "DIMENSIONAL_LOCATION_WITH_PATH", "ANGULAR_LOCATION",
+              "DIRECTED_DIMENSIONAL_LOCATION")
 #: XCAF's dimensions that are presentation only (no semantic counterpart in the text)
 _NOT_SEMANTIC = ("DimensionPresentation", "CommonLabel")
 #: items of the model's shape a usage may point at (what XCAF attaches PMI to)

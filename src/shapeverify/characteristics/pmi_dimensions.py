@@ -75,6 +75,16 @@ def between_entries(item, ctx, src: dict, name) -> tuple[list, str]:
             return [], "a distance between planar faces that are not parallel"
         cad = float(abs((b.center - a.center) @ a.axis))
         if abs(cad - nom) > 1e-4 * max(nom, 1.0) + 1e-6:
+            if item.get("group_faces") and cad <= 1e-6 * max(float(ctx.model.size), 1.0):
+                # two coplanar faces of a composite (a face and coplanar pads): the distance
+                # between the two planes of the composite's faces (as a Size_Thickness)
+                got, why = thickness_entries(
+                    {**item, "faces": item["group_faces"], "faces2": []}, ctx, src,
+                    lambda _n: name(f"{item['id']}_distance"))
+                if got:
+                    return got, ""
+                return [], (f"the nominal distance {nom:g} is not between its two coplanar "
+                            f"faces; the faces of their composite: {why}")
             return [], (f"the nominal distance {nom:g} differs from the CAD faces' "
                         f"{cad:.4f} mm")
         return [{"name": name(f"{item['id']}_distance"), "type": "distance", **entry}], ""
