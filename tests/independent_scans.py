@@ -221,6 +221,29 @@ def dent_site(V, T, F, radius):
     return cand[i]
 
 
+def box_on_part(P, prep, V, T, F, half, height, spacing, rng):
+    """Scan points ``P`` with a box (``2 half`` x ``2 half`` x ``height``) standing on the part
+    where :func:`dent_site` puts a dent of radius ``3 half``: the points under its footprint
+    removed, its top and four walls drawn uniformly by area at ``spacing`` (Poisson counts).
+    Returns (points, the footprint's centre on the CAD surface); no noise is added."""
+    site = np.array(dent_site(V, T, F, 3 * half))
+    cp = prep.closest(site[None], exact=True)
+    c, n = cp.points[0], cp.normals[0]
+    e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
+    e1 /= np.linalg.norm(e1)
+    e2 = np.cross(n, e1)
+    off = P - c
+    under = (np.abs(off @ e1) < half) & (np.abs(off @ e2) < half) & (np.abs(off @ n) < 1.0)
+    faces = [(c - half * e1 - half * e2 + height * n, e1, e2, 2 * half, 2 * half)]
+    faces += [(c - half * a - half * b, a, n, 2 * half, height)
+              for a, b in [(e1, e2), (e2, -e1), (-e1, -e2), (-e2, e1)]]
+    box = []
+    for o, a, b, la, lb in faces:
+        m = rng.poisson(la * lb / spacing ** 2)
+        box.append(o + rng.random(m)[:, None] * la * a + rng.random(m)[:, None] * lb * b)
+    return np.vstack([P[~under]] + box), c
+
+
 def scan(V, T, sampler, spacing, rng, noise=0.0, dents=(), aniso=1.0, exact=None):
     """Scan points: ``sampler`` in {'random', 'grid', 'scanner', 'aniso'}; ``dents``
     ``[(center, depth, radius)]`` (depth < 0: into the part); ``exact``: ``(shape, face of each

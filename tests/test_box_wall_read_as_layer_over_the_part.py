@@ -56,22 +56,7 @@ def _box_scan(prep, V, T, F, spacing, seed, sampler="random"):
         P = ind.lattice_points(V, T, spacing, rng)[0]
     else:
         P, _ = ind.random_points(V, T, spacing, rng)
-    site = np.array(ind.dent_site(V, T, F, 3 * HALF))
-    cp = prep.closest(site[None], exact=True)
-    c, n = cp.points[0], cp.normals[0]
-    e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
-    e1 /= np.linalg.norm(e1)
-    e2 = np.cross(n, e1)
-    off = P - c
-    under = (np.abs(off @ e1) < HALF) & (np.abs(off @ e2) < HALF) & (np.abs(off @ n) < 1.0)
-    faces = [(c - HALF * e1 - HALF * e2 + HEIGHT * n, e1, e2, 2 * HALF, 2 * HALF)]
-    faces += [(c - HALF * a - HALF * b, a, n, 2 * HALF, HEIGHT)
-              for a, b in [(e1, e2), (e2, -e1), (-e1, -e2), (-e2, e1)]]
-    box = []
-    for o, a, b, la, lb in faces:
-        m = rng.poisson(la * lb / spacing ** 2)
-        box.append(o + rng.random(m)[:, None] * la * a + rng.random(m)[:, None] * lb * b)
-    P = np.vstack([P[~under]] + box)
+    P, c = ind.box_on_part(P, prep, V, T, F, HALF, HEIGHT, spacing, rng)
     return (P + rng.normal(0.0, NOISE, P.shape))[rng.permutation(len(P))], c
 
 

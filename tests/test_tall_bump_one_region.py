@@ -98,12 +98,6 @@ def test_flank_region_alone_keeps_its_numbers_when_nothing_lies_beyond(panel):
     assert abs(r.extreme / 0.6 - 1.0) <= 0.10
 
 
-def _frame(n):
-    e1 = np.cross(n, [1.0, 0.0, 0.0] if abs(n[0]) < 0.9 else [0.0, 1.0, 0.0])
-    e1 /= np.linalg.norm(e1)
-    return e1, np.cross(n, e1)
-
-
 def test_object_lying_on_the_part_is_one_region_of_its_height(panel):
     """A 6 x 6 x 3 mm box lying on the panel, its top and walls scanned by area at 1 mm (the
     panel's points under it hidden): one region whose extreme is the box's height (it was a
@@ -112,20 +106,7 @@ def test_object_lying_on_the_part_is_one_region_of_its_height(panel):
     rng = np.random.default_rng(2)
     half, height, spacing = 3.0, 3.0, 1.0
     P, _ = ind.random_points(V, T, spacing, rng)
-    site = np.array(ind.dent_site(V, T, F, 3 * half))
-    cp = prep.closest(site[None], exact=True)
-    c, n = cp.points[0], cp.normals[0]
-    e1, e2 = _frame(n)
-    off = P - c
-    under = (np.abs(off @ e1) < half) & (np.abs(off @ e2) < half) & (np.abs(off @ n) < 1.0)
-    faces = [(c - half * e1 - half * e2 + height * n, e1, e2, 2 * half, 2 * half)]
-    faces += [(c - half * a - half * b, a, n, 2 * half, height)
-              for a, b in [(e1, e2), (e2, -e1), (-e1, -e2), (-e2, e1)]]
-    box = []
-    for o, a, b, la, lb in faces:
-        m = rng.poisson(la * lb / spacing ** 2)
-        box.append(o + rng.random(m)[:, None] * la * a + rng.random(m)[:, None] * lb * b)
-    P = np.vstack([P[~under]] + box)
+    P, c = ind.box_on_part(P, prep, V, T, F, half, height, spacing, rng)
     P = (P + rng.normal(0.0, NOISE, P.shape))[rng.permutation(len(P))]
     res = inspect_registered(prep, P, _identity(), tolerance=TOL)
     assert res.verdict == "fail" and len(res.regions) == 1, res.reasons
