@@ -461,6 +461,20 @@ def _mark_composites(path, tolerances) -> list:
     return missed
 
 
+def _unit_slip(path, tolerances, dimensions) -> None:
+    """Tolerance values the file writes in inches with the millimetre unit, read as inches
+    (:mod:`.step_unit_slip`: NIST CTC 03 e1)."""
+    from .step_unit_slip import apply_unit_slip
+
+    try:
+        if apply_unit_slip(path, tolerances, dimensions):
+            logger.warning("%s: the geometric tolerance values are written with the "
+                           "millimetre unit but the dimensions in inches; read as inches",
+                           path.name)
+    except (OSError, ValueError) as exc:
+        logger.warning("%s: could not check the tolerance units: %s", path.name, exc)
+
+
 def _max_tolerances(path, tolerances) -> None:
     """``max_value`` (the frame's "MAX", mm) of the tolerances whose maximum XCAF did not
     read (:mod:`.step_maxtol`)."""
@@ -620,6 +634,7 @@ def read_pmi_here(path) -> dict:
         dimensions.append(item)
 
     _attach_dimension_groups(caf, path, index, dimensions)
+    _unit_slip(path, tolerances, dimensions)
     composites_missed = _mark_composites(path, tolerances)
     _max_tolerances(path, tolerances)
 

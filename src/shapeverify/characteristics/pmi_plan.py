@@ -258,6 +258,8 @@ def _src(item: dict) -> dict:
     for key in ("attached", "attached2"):       # faces found from the edges it points at
         if item.get(key):
             out[key] = item[key]
+    if item.get("unit_note"):                   # values read in another unit than written
+        out["unit_note"] = item["unit_note"]
     if item.get("from_supplemental"):           # faces outside the solid, mapped onto it
         out["from_supplemental"] = list(item["from_supplemental"])
         out["supplemental_note"] = item["supplemental_note"]
