@@ -152,9 +152,18 @@ def _measure_datum_hole(f, X, prep):
         return measure_hole(X, f.center, f.axis, f.diameter)
     cl = prep.closest(X[near], exact=True)
     d = np.asarray(cl.distances, np.float64)
-    return measure_hole(X[near], f.center, f.axis, f.diameter,
-                        face=prep.model.faces[f.face], deviations=d,
-                        normals=np.asarray(cl.normals, np.float64))
+    try:
+        hm = measure_hole(X[near], f.center, f.axis, f.diameter,
+                          face=prep.model.faces[f.face], deviations=d,
+                          normals=np.asarray(cl.normals, np.float64))
+    except ValueError:
+        hm = None
+    if hm is not None and hm.n_wall > 0:
+        return hm
+    # no wall seen (a thin sheet, a sparse scan): the rim's circle of all the points, as before
+    # (CTC 03 e1 at 1.5 mm: the rim measured without the wall candidates set aside moved the
+    # frame 0.54 mm over three iterations, against 0.009 mm this way)
+    return measure_hole(X, f.center, f.axis, f.diameter)
 
 
 def _pierce(kind, p, a, zp, z):
