@@ -142,21 +142,30 @@ def test_ctc03_thickness_is_a_distance_from_one_face_to_the_pads_plane(plans):
         ["face:70", "face:72", "face:74", "face:76"])
 
 
+def _perfect_scan(path, spacing: float, seed: int = 4):
+    """(prepared model, scan) of a perfect part scanned independently: OpenCASCADE's
+    tessellation sampled uniformly by area at ``spacing``, 0.02 mm noise along the normal,
+    random order, in the model frame."""
+    import numpy as np
+
+    from independent_scans import file_tessellation, random_points
+    from model_cache import cached_prepared
+
+    prep = cached_prepared(path, spacing=spacing, features=True)
+    rng = np.random.default_rng(seed)
+    V, T, _ = file_tessellation(path, 0.002)
+    P, N = random_points(V, T, spacing, rng)
+    return prep, (P + rng.normal(0.0, 0.02, len(P))[:, None] * N)[rng.permutation(len(P))]
+
+
 def test_perfect_ftc11_ring_fails_no_characteristic_of_its_plan(files, plans):
     """The whole plan on an independent scan (OCP tessellation sampled by area at 0.5 mm,
     0.02 mm noise, random order), the alignment started at the true pose."""
     import numpy as np
 
-    from independent_scans import file_tessellation, random_points
-    from model_cache import cached_prepared
     from shapeverify.characteristics import evaluate_plan
 
-    path = files["nist_ftc_11"]
-    prep = cached_prepared(path, spacing=0.5, features=True)
-    rng = np.random.default_rng(4)
-    V, T, _ = file_tessellation(path, 0.002)
-    P, N = random_points(V, T, 0.5, rng)
-    X = (P + rng.normal(0.0, 0.02, len(P))[:, None] * N)[rng.permutation(len(P))]
+    prep, X = _perfect_scan(files["nist_ftc_11"], 0.5)
     res = evaluate_plan(prep, X, plans["nist_ftc_11"].plan, init=np.eye(4))
     assert len(res.characteristics) == 7
     for c in res.characteristics:
@@ -230,8 +239,6 @@ def test_perfect_ctc05_passes_its_perpendicularities_line_straightness_and_conce
     import numpy as np
     import yaml
 
-    from independent_scans import file_tessellation, random_points
-    from model_cache import cached_prepared
     from shapeverify.characteristics import evaluate_plan
 
     path = files["nist_ctc_05"]
@@ -239,11 +246,7 @@ def test_perfect_ctc05_passes_its_perpendicularities_line_straightness_and_conce
     data["characteristics"] = [c for c in data["characteristics"]
                                if c["pmi"]["id"] in ("GT4", "GT5", "GT6", "GT7")]
     data.pop("unsupported", None)
-    prep = cached_prepared(path, spacing=2.0, features=True)
-    rng = np.random.default_rng(4)
-    V, T, _ = file_tessellation(path, 0.002)
-    P, N = random_points(V, T, 2.0, rng)
-    X = (P + rng.normal(0.0, 0.02, len(P))[:, None] * N)[rng.permutation(len(P))]
+    prep, X = _perfect_scan(path, 2.0)
     res = evaluate_plan(prep, X, yaml.safe_dump(data), init=np.eye(4))
     got = {c.name: c for c in res.characteristics}
     assert sorted(got) == ["GT4_perpendicularity", "GT5_perpendicularity", "GT6_straightness",
@@ -330,7 +333,6 @@ def test_ctc03_gt5_position_at_datum_mmb_shifts_within_the_datums_departure(file
     from independent_scans import file_tessellation, random_points
     from model_cache import cached_prepared
     from shapeverify.characteristics import evaluate_plan
-    from shapeverify.characteristics.drf import rigid_exp
     from shapeverify.characteristics.pmi_plan import _face_map
 
     data = dict(plans["nist_ctc_03"].data)
@@ -816,18 +818,12 @@ def test_perfect_ctc03_e1_fails_no_characteristic_of_its_plan(files, plans):
     import numpy as np
     import yaml
 
-    from independent_scans import file_tessellation, random_points
-    from model_cache import cached_prepared
     from shapeverify.characteristics import evaluate_plan
 
     path = files["nist_ctc_03_e1"]
     data = dict(plans["nist_ctc_03_e1"].data)
     data.pop("unsupported", None)
-    prep = cached_prepared(path, spacing=1.5, features=True)
-    rng = np.random.default_rng(4)
-    V, T, _ = file_tessellation(path, 0.002)
-    P, N = random_points(V, T, 1.5, rng)
-    X = (P + rng.normal(0.0, 0.02, len(P))[:, None] * N)[rng.permutation(len(P))]
+    prep, X = _perfect_scan(path, 1.5)
     got = evaluate_plan(prep, X, yaml.safe_dump(data), init=np.eye(4)).characteristics
     assert len(got) == 23
     for c in got:

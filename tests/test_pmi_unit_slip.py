@@ -30,7 +30,7 @@ def _tol(v):
 def test_inch_numbers_in_a_millimetre_measure_are_read_as_inches(tmp_path):
     p = _file(tmp_path, "10.E-03")
     t = _tol(0.01)
-    assert apply_unit_slip(p, t, [])
+    assert apply_unit_slip(p, t)
     assert abs(t[0]["value"] - 0.254) < 1e-12
     assert "read as inches: 0.01 in" in t[0]["unit_note"]
 

@@ -461,13 +461,13 @@ def _mark_composites(path, tolerances) -> list:
     return missed
 
 
-def _unit_slip(path, tolerances, dimensions) -> None:
+def _unit_slip(path, tolerances) -> None:
     """Tolerance values the file writes in inches with the millimetre unit, read as inches
     (:mod:`.step_unit_slip`: NIST CTC 03 e1)."""
     from .step_unit_slip import apply_unit_slip
 
     try:
-        if apply_unit_slip(path, tolerances, dimensions):
+        if apply_unit_slip(path, tolerances):
             logger.warning("%s: the geometric tolerance values are written with the "
                            "millimetre unit but the dimensions in inches; read as inches",
                            path.name)
@@ -634,7 +634,7 @@ def read_pmi_here(path) -> dict:
         dimensions.append(item)
 
     _attach_dimension_groups(caf, path, index, dimensions)
-    _unit_slip(path, tolerances, dimensions)
+    _unit_slip(path, tolerances)
     composites_missed = _mark_composites(path, tolerances)
     _max_tolerances(path, tolerances)
 

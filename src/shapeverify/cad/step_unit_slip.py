@@ -22,11 +22,11 @@ from __future__ import annotations
 import re
 
 from .step_text import GT_TYPES, step_text
+from .step_units import _CONV, _MEAS, _si_mm
 
 __all__ = ["unit_slip", "apply_unit_slip"]
 
 _REF = re.compile(r"#(\d+)")
-_MEAS = re.compile(r"LENGTH_MEASURE\s*\(\s*[-+0-9.EeDd]+\s*\)\s*,\s*#(\d+)")
 
 
 def _units(ents) -> tuple[set, set]:
@@ -35,10 +35,11 @@ def _units(ents) -> tuple[set, set]:
     for k, body in ents.items():
         if "LENGTH_UNIT" not in body:
             continue
-        if "CONVERSION_BASED_UNIT" in body:
-            if re.search(r"CONVERSION_BASED_UNIT\s*\(\s*'INCH'", body, re.I):
+        conv = _CONV.search(body)
+        if conv is not None:
+            if conv.group(1).strip().upper() == "INCH":
                 inch.add(k)
-        elif "SI_UNIT" in body:
+        elif _si_mm(body) is not None:
             si.add(k)
     return inch, si
 
@@ -47,11 +48,10 @@ def _dimension_units(ents) -> set:
     """Units of the dimensions' nominal values (``REPRESENTATION_ITEM('nominal value')``)."""
     out = set()
     for body in ents.values():
-        if "'nominal value'" in body and "LENGTH_MEASURE" in body:
-            m = re.search(r"MEASURE_WITH_UNIT\s*\(\s*(?:POSITIVE_)?LENGTH_MEASURE\s*\([^)]*\)"
-                          r"\s*,\s*#(\d+)", body)
+        if "'nominal value'" in body:
+            m = _MEAS.search(body)
             if m:
-                out.add(int(m.group(1)))
+                out.add(int(m.group(2)))
     return out
 
 
@@ -72,11 +72,11 @@ def _tolerance_units(st) -> set:
             continue
         m = _MEAS.search(st.entities.get(int(ref.group(1)), ""))
         if m:
-            out.add(int(m.group(1)))
+            out.add(int(m.group(2)))
     return out
 
 
-def unit_slip(path, tolerances, dimensions=()) -> bool:
+def unit_slip(path, tolerances) -> bool:
     """True when the file writes its geometric tolerance values in inches with the millimetre
     unit (the module docstring's two conditions)."""
     st = step_text(path)
@@ -94,9 +94,9 @@ def unit_slip(path, tolerances, dimensions=()) -> bool:
     return not any(abs(q - round(q)) < 1e-6 * max(q, 1.0) for q in steps)
 
 
-def apply_unit_slip(path, tolerances, dimensions) -> bool:
+def apply_unit_slip(path, tolerances) -> bool:
     """Read the tolerance values as inches when :func:`unit_slip` holds (in place); True if so."""
-    if not unit_slip(path, tolerances, dimensions):
+    if not unit_slip(path, tolerances):
         return False
     for t in tolerances:
         note = (f"the file writes {t['value']:g} with the millimetre unit while its dimensions "

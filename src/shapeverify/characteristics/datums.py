@@ -13,7 +13,7 @@ import numpy as np
 from ..registration.rigid import apply_transform, invert_transform, make_transform, pose_error
 from .alignment import AlignmentResult, _check_T
 from .features import find_feature, model_features
-from .holes import measure_hole
+from .holes import hole_reach, measure_hole
 
 __all__ = ["datum_alignment"]
 
@@ -145,9 +145,8 @@ def _measure_datum_hole(f, X, prep):
     a = np.asarray(f.axis, float) / np.linalg.norm(f.axis)
     q = X - f.center
     t = q @ a
-    r0 = 0.5 * float(f.diameter)
     radial = np.linalg.norm(q - np.outer(t, a), axis=1)
-    near = np.flatnonzero(radial < 2.0 * r0 + 12.0 * max(0.05 * r0, 0.5) + 1.0)
+    near = np.flatnonzero(radial < hole_reach(f.diameter) + 1.0)
     if near.size == 0:
         return measure_hole(X, f.center, f.axis, f.diameter)
     cl = prep.closest(X[near], exact=True)

@@ -188,6 +188,28 @@ def _turn_sine(d0, N) -> float:
     return out
 
 
+def _plane_rows(n, pm, d0, p0, B):
+    """Rows (G, r) of ``G xi = r`` that bring a fitted plane (normal ``n`` through ``pm``) onto
+    its nominal (``d0`` through ``p0``): its two turns across ``d0`` ((omega x n).b =
+    (d0 - n).b for each b of ``B``) and its offset along ``d0``."""
+    rows = [np.r_[np.cross(n, b), 0, 0, 0] for b in B]
+    rhs = [(d0 - n) @ b for b in B]
+    rows.append(np.r_[np.cross(pm, d0), d0])
+    rhs.append(d0 @ (p0 - pm))
+    return np.array(rows), np.array(rhs)
+
+
+def _axis_rows(a, c, d0, p0, B):
+    """Rows (G, r) that bring a fitted axis (direction ``a`` through ``c``) onto its nominal
+    (``d0`` through ``p0``): its two turns and its two translations across ``d0``."""
+    rows = [np.r_[np.cross(a, b), 0, 0, 0] for b in B]
+    rhs = [(d0 - a) @ b for b in B]
+    for b in B:
+        rows.append(np.r_[np.cross(c, b), b])
+        rhs.append(b @ (p0 - c))
+    return np.array(rows), np.array(rhs)
+
+
 def _fit(f: DatumFeature, X, N):
     """(DatumFit, rows G (m, 6), right side r (m,)) of one datum on points X (corrected frame)."""
     d0 = np.asarray(f.direction, float) / np.linalg.norm(f.direction)
@@ -201,11 +223,7 @@ def _fit(f: DatumFeature, X, N):
         pm = p0 + (hi - n @ p0) * n     # a point of the tangent (outer) plane
         fit = DatumFit(f.name, "plane", "tangent plane (constrained minimax, outside the "
                        "material)", pm, n, X.shape[0], width)
-        rows = [np.r_[np.cross(n, b), 0, 0, 0] for b in B]   # (omega x n).b = (n0 - n).b
-        rhs = [(d0 - n) @ b for b in B]
-        rows.append(np.r_[np.cross(pm, d0), d0])
-        rhs.append(d0 @ (p0 - pm))
-        return fit, np.array(rows), np.array(rhs)
+        return (fit, *_plane_rows(n, pm, d0, p0, B))
     if f.kind == "axis":
         kind = "inscribed" if f.hole else "circumscribed"
         what = ("largest inscribed" if f.hole else "smallest circumscribed")
@@ -229,12 +247,7 @@ def _fit(f: DatumFeature, X, N):
                                    "datums before it)")
         a = a if a @ d0 > 0 else -a
         fit = DatumFit(f.name, "axis", name, c, a, X.shape[0], form)
-        rows = [np.r_[np.cross(a, b), 0, 0, 0] for b in B]
-        rhs = [(d0 - a) @ b for b in B]
-        for b in B:
-            rows.append(np.r_[np.cross(c, b), b])
-            rhs.append(b @ (p0 - c))
-        return fit, np.array(rows), np.array(rhs)
+        return (fit, *_axis_rows(a, c, d0, p0, B))
     if f.kind == "point":
         dv = np.asarray(f.deviations if f.deviations is not None else [], float)
         if dv.size == 0:
@@ -253,11 +266,7 @@ def _fit(f: DatumFeature, X, N):
         fit = DatumFit(f.name, "midplane", "centre plane of the width's mating planes (the "
                        "closest pair enclosing a tab, the farthest pair inside a slot)", pm, n,
                        X.shape[0] + X2.shape[0], size)
-        rows = [np.r_[np.cross(n, b), 0, 0, 0] for b in B]
-        rhs = [(d0 - n) @ b for b in B]
-        rows.append(np.r_[np.cross(pm, d0), d0])
-        rhs.append(d0 @ (p0 - pm))
-        return fit, np.array(rows), np.array(rhs)
+        return (fit, *_plane_rows(n, pm, d0, p0, B))
     if f.kind == "targets":
         return _fit_targets(f, X)
     if f.kind == "pattern":
@@ -300,12 +309,7 @@ def _fit_arc(f: DatumFeature, X, cover, turn: float, d0, p0, B):
     fit = DatumFit(f.name, "axis", f"axis of the cylinder of basic radius {r0:g} least-squares "
                    f"placed on the partial cylinder ({f.arc:.0f} degrees; direction fixed by "
                    "the datums before it)", pc, d0, X.shape[0], float(np.ptp(res)))
-    rows = [np.r_[np.cross(d0, b), 0, 0, 0] for b in B]
-    rhs = [0.0 for _ in B]
-    for b in B:
-        rows.append(np.r_[np.cross(pc, b), b])
-        rhs.append(b @ (p0 - pc))
-    return fit, np.array(rows), np.array(rhs)
+    return (fit, *_axis_rows(d0, pc, d0, p0, B))
 
 
 def _fit_targets(f: DatumFeature, X):

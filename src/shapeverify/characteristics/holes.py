@@ -88,7 +88,7 @@ from shapeverify._lazy import cKDTree
 
 from ..fitting import fit_circle
 
-__all__ = ["HoleMeasurement", "measure_hole", "plane_basis", "position_coverage",
+__all__ = ["HoleMeasurement", "hole_reach", "measure_hole", "plane_basis", "position_coverage",
            "rim_spacing_needed"]
 
 
@@ -409,6 +409,14 @@ def _virtual_edges(xy, cen, r_edge: float, w: float, h: float, reach: float, win
     return float(np.mean(means)), u, len(means), float(np.std(allo)), float(np.mean(fill))
 
 
+def hole_reach(diameter: float, spacing: float | None = None) -> float:
+    """Radius about a hole's axis within which :func:`measure_hole` looks at the sheet around
+    it: the hole's diameter plus 12 spacings (default spacing: 5 % of the radius, at least
+    0.5 mm)."""
+    r0 = 0.5 * float(diameter)
+    return 2.0 * r0 + 12.0 * (spacing or max(0.05 * r0, 0.5))
+
+
 def measure_hole(points, center, axis, diameter: float, spacing: float | None = None,
                  face=None, deviations=None, normals=None):
     """Measure one hole from scan points already in the model frame.
@@ -466,7 +474,7 @@ def measure_hole(points, center, axis, diameter: float, spacing: float | None = 
                 "not stop at this edge and its diameter cannot be read from where the points "
                 "stop; measure the hole's cylindrical wall instead (its own hole or cylinder "
                 "feature in 'shapeverify info --features')")
-    reach0 = 2.0 * r0 + 12.0 * h0
+    reach0 = hole_reach(diameter, h0)
     slab = np.abs(hgt) < max(r0, 5.0)
     if cand is not None and cand.size:
         slab[cand] = False                    # wall points are not the sheet's edge points
