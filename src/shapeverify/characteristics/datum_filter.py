@@ -23,11 +23,11 @@ __all__ = ["RADIUS", "filter_plane_points"]
 
 #: the filter's radius (mm); 0: off (the default: the raw tangent plane, as before).  2.5 mm (at
 #: 1 mm spacing ~20 points per neighbourhood) takes the tangent plane's offset from the noise
-#: from ~3.5 to ~1 sigma.  Not on by default yet: A/B'd on FTC 07 (perfect, hole, tilt; 1 mm),
-#: FTC 06 (perfect, tilt of datum C; 1.5 mm) with no verdict changed and the located zones of
-#: the perfect parts 0.05-0.1 mm smaller (FTC 07 GT22 0.268 -> 0.170 in 0.152), but not on
-#: every part (``benchmarks/ab_datum_filter.py``; benchmarks/results_plan.md, sweep9).  The U
-#: of the datum's offset (:func:`.gdt._datum_offsets`) is still the raw tangent plane's.
+#: from ~3.5 to ~1 sigma.  Not on by default yet: A/B'd in 14 cases on FTC 06/07/08/10, CTC
+#: 01/03/04 (perfect, hole, tilt) with no verdict changed and the located zones of the perfect
+#: parts 0.04-0.13 mm smaller (FTC 07 GT22 0.268 -> 0.170 in 0.152), not on CTC 02/05 and
+#: FTC 11 (``benchmarks/ab_datum_filter.py``; benchmarks/results_plan.md, sweep9).  The U of
+#: the datum's offset (:func:`.gdt._datum_offsets`) is still the raw tangent plane's.
 RADIUS = 0.0
 
 
