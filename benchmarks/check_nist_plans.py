@@ -340,7 +340,8 @@ def run_file(name, spacing, seed, given_pose, only=None, fine=None, cached=False
             P, N, t = np.vstack([P, P2]), np.vstack([N, N2]), np.concatenate([t, t2])
     face = F[t]
     P = P + rng.normal(0.0, NOISE, len(P))[:, None] * N
-    out = {"file": name, "points": int(len(P)),
+    out = {"file": name, "points": int(len(P)), "noise": NOISE, "seed": seed,
+           "deflection": DEFLECTION,
            "spacing": spacing if fine is None else f"{spacing} ({fine} on faces < {SMALL_FACE:g} mm2)",
            "plan_cpu_s": t_plan,
            "characteristics": len(data["characteristics"]),
@@ -369,6 +370,11 @@ def run_file(name, spacing, seed, given_pose, only=None, fine=None, cached=False
                                      data, feats, what)
         out["cases"][case] = {"defect": what, "cpu_s": sec, "alignment": al, "rows": rows}
         print(f"{name} {case}: {sec:.0f} s CPU, {summary(rows)}", file=sys.stderr, flush=True)
+        for k, v in rows.items():       # what did not pass, at once (a run may be cut short)
+            if v["verdict"] != "pass":
+                print(f"  {k} {v['type']} {_num(v['measured'])} in {_num(v['lower'])} .. "
+                      f"{_num(v['upper'])} U {_num(v['uncertainty'])} {v['verdict']} "
+                      f"{v['relation']} {(v['reason'] or '')[:100]}", file=sys.stderr, flush=True)
     return out
 
 
@@ -396,7 +402,8 @@ def _num(x):
 
 def markdown(res) -> str:
     lines = [f"### {res['file']}", "",
-             f"{res['points']:,} points at {res['spacing']} mm; {res['characteristics']} "
+             f"{res['points']:,} points at {res['spacing']} mm, noise {res.get('noise')} mm, seed "
+             f"{res.get('seed')}, deflection {res.get('deflection')} mm; {res['characteristics']} "
              f"characteristics, {res['unsupported']} PMI items unsupported; plan + model "
              f"{res['plan_cpu_s']:.0f} s CPU.", ""]
     for case, c in res["cases"].items():
@@ -422,6 +429,7 @@ def markdown(res) -> str:
 
 
 def main(argv=None):
+    global NOISE, DEFLECTION
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--quick", action="store_true",
                     help="FTC 08 and CTC 01 at 2 mm (1 mm on small faces), true pose")
@@ -432,9 +440,13 @@ def main(argv=None):
     ap.add_argument("--cases", nargs="*", choices=("perfect", "hole", "tilt"))
     ap.add_argument("--init", action="store_true", help="give the true pose (no registration)")
     ap.add_argument("--seed", type=int, default=0)
+    ap.add_argument("--noise", type=float, default=NOISE, help=f"mm, sigma along the normal ({NOISE})")
+    ap.add_argument("--deflection", type=float, default=DEFLECTION,
+                    help=f"mm, the tessellation's chord error ({DEFLECTION})")
     ap.add_argument("--out", help="Markdown file to write")
     ap.add_argument("--json", help="JSON file to write")
     a = ap.parse_args(argv)
+    NOISE, DEFLECTION = a.noise, a.deflection
     files = a.files or (QUICK if a.quick else FILES)
     spacing = a.spacing or (2.0 if a.quick else 1.0)
     allres, md = [], []

@@ -179,7 +179,9 @@ def _datum_feature(name, spec, ctx: EvalContext) -> DatumFeature:
     m = _on(ctx, fidx)
     f = feats[fidx[0]]
     if kind == "plane":
-        return DatumFeature(name, "plane", f.center, f.axis, S.X[m])
+        from .datum_filter import filter_plane_points
+
+        return DatumFeature(name, "plane", f.center, f.axis, filter_plane_points(S.X[m]))
     if kind == "midplane":
         one = [i for i in fidx if feats[i].axis @ f.axis > 0]
         two = [i for i in fidx if feats[i].axis @ f.axis < 0]
