@@ -544,17 +544,9 @@ def _tolerance_entries(item, ctx, drf, why) -> tuple[list, str]:
     src = _src(item)
     reason = _modifier_reason(item)
     if reason and "All_Around" in item["modifiers"]:
-        kinds = Counter(ctx.feats[f].kind for f in faces)
-        reason += (f": All_Around ties it to {len(faces)} faces around a feature ("
-                   + ", ".join(f"{n} {k}" for k, n in sorted(kinds.items())) + ")"
-                   + ("; an orientation zone is two parallel planes (a plane surface), a "
-                      "cylinder (a feature of size's axis) or, with EACH ELEMENT, two lines "
-                      "(a line element): a face that is part of a cylinder around the contour "
-                      "is none of these; the readings left -- each line element along the "
-                      "datum's normal (the file gives no EACH ELEMENT) or a profile held to "
-                      "the datum in orientation only (it would bound form and size too) -- "
-                      "are not the frame's zone; not guessed" if set(kinds) - {"plane"} else
-                      "; each face's zone separately is not planned"))
+        from .pmi_all_around import all_around_reason
+
+        reason = all_around_reason(item, ctx, faces, reason)
     if reason:
         return [], reason
     if t == "Flatness":
