@@ -62,12 +62,13 @@ def main(argv=None):
         cases.append((f"hole moved {a.move} mm {label}", Q))
     print(f"{Path(a.file).name}: {len(P):,} points; {c['name']} zone {c['tol']:.4f} normal "
           f"{u.tolist()}; characteristics of the hole: {others}")
+    sys.stdout.reconfigure(line_buffering=True)
     for name, Q in cases:
         rows, sec, al = inspect_case(prep, plan, Q, np.random.default_rng(a.seed + 1), a.init)
         fails = [k for k, v in rows.items() if v["verdict"] != "pass"]
         print(f"\n{name} ({sec:.0f} s CPU, pose {al['rot_deg']:.4f} deg / "
               f"{al['trans_mm']:.4f} mm): not passing: {fails or 'none'}")
-        for k in others:
+        for k in dict.fromkeys(others + fails + [r for r in rows if "position" in r]):
             v = rows[k]
             print(f"  {k}: measured {v['measured']:.4f} limit {v['upper']:.4f} "
                   f"U {v['uncertainty']:.4f} -> {v['verdict']}")

@@ -28,7 +28,9 @@ characteristic's DRF (:meth:`.drf.DRF.apply`) when it names datums.
   the fitted axis at the mouth and ``L`` beyond (as for position, below).
 * **position** (``zone: diameter``): each feature's axis is the axis of its mating cylinder
   (ASME Y14.5: the unrelated actual mating envelope); value = twice the largest distance of its
-  ends from the true position (the CAD axis in the DRF).  ``material: M``: bonus = the mating
+  ends from the true position (the CAD axis in the DRF); ``zone: planes`` (ASME Y14.5-2009
+  §7.7.3): twice the largest offset of the ends along ``direction`` (across the axis).
+  ``material: M``: bonus = the mating
   size's departure from the maximum material size (a hole: mating diameter - (nominal +
   lower); a boss: (nominal + upper) - mating diameter); ``L``: from the least material size
   (a hole's smallest circumscribed, a boss's largest inscribed diameter).  The limit is

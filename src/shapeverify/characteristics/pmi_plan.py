@@ -31,6 +31,8 @@ faces)
 Position without ⌀ on a slot's / tab's two ``position_zone`` ``zone: planes``
 sides; with S⌀ on spheres                  (``zone: sphere``, one per sphere)
                                            (:mod:`.pmi_positions`)
+Position without ⌀ of a hole's axis,       ``position`` ``zone: planes``, ``direction``
+its frame drawn on a dimension line        (:mod:`.pmi_axis_planes`)
 ProfileOfLine at a line drawn on a face    ``line_profile`` (:mod:`.pmi_profile_line`)
 Size_Radius, Size_SphericalDiameter,       ``feature_size`` (:mod:`.pmi_sizes`)
 Size_SphericalRadius with ± limits
