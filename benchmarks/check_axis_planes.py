@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from check_nist_plans import DEFLECTION, NOISE, face_ids, inspect_case  # noqa: E402
+from check_nist_plans import DEFLECTION, NOISE, _num, face_ids, inspect_case  # noqa: E402
 
 
 def main(argv=None):
@@ -70,8 +70,8 @@ def main(argv=None):
               f"{al['trans_mm']:.4f} mm): not passing: {fails or 'none'}")
         for k in dict.fromkeys(others + fails + [r for r in rows if "position" in r]):
             v = rows[k]
-            print(f"  {k}: measured {v['measured']:.4f} limit {v['upper']:.4f} "
-                  f"U {v['uncertainty']:.4f} -> {v['verdict']}")
+            print(f"  {k}: measured {_num(v['measured'])} limit {_num(v['upper'])} "
+                  f"U {_num(v['uncertainty'])} -> {v['verdict']}")
 
 
 if __name__ == "__main__":
