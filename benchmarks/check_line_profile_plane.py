@@ -1,7 +1,8 @@
 """A profile of a line of one plane in a DRF (NIST CTC 02 e2 GT19, planned with sections
 covering the face) on independent scans (as :mod:`check_nist_plans`): a perfect part, and the
-face's points moved ``--move`` mm along its normal (the located line elements then read
-2 x move: fail when that exceeds the 0.25 zone).
+face's points turned ``--tilt`` degrees about the in-plane axis across its sections' direction
+through its centroid (the far ends move ``L/2 tan(tilt)``; CTC 02's face 18 also holds datum
+C's target point, near the centroid, so a shift along the normal would move the DRF with it).
 
     PYTHONPATH=src:tests .venv/bin/python benchmarks/check_line_profile_plane.py --file /tmp/nist_ctc_02_asme1_ap242-e2.stp --spacing 2 --init
 """
@@ -21,7 +22,7 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--file", required=True)
     ap.add_argument("--spacing", type=float, default=1.0)
-    ap.add_argument("--move", type=float, default=0.2)
+    ap.add_argument("--tilt", type=float, default=0.2)
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--init", action="store_true")
     a = ap.parse_args(argv)
@@ -46,11 +47,17 @@ def main(argv=None):
     P, N, t = random_points(V, T, a.spacing, rng, with_triangles=True)
     face = F[t]
     P = P + rng.normal(0.0, NOISE, len(P))[:, None] * N
+    from check_nist_plans import rotate_about
+
     Q = P.copy()
-    Q[np.isin(face, g)] += a.move * n
+    sel = np.isin(face, g)
+    axis = np.cross(n, np.asarray(c["normal"], float))
+    Q[sel] = rotate_about(P[sel], P[sel].mean(axis=0), axis / np.linalg.norm(axis), a.tilt)
+    L = float(np.ptp(P[sel] @ np.asarray(c["normal"], float)))
     print(f"{Path(a.file).name}: {len(P):,} points; {c['name']} faces {g} tol {c['tol']} "
           f"datums {c['datums']} sections {c['count']}")
-    for name, X in (("perfect", P), (f"face moved {a.move} mm along its normal", Q)):
+    ends = 0.5 * L * np.tan(np.radians(a.tilt))
+    for name, X in (("perfect", P), (f"face tilted {a.tilt} deg (ends +-{ends:.3f} mm)", Q)):
         rows, sec, al = inspect_case(prep, plan, X, np.random.default_rng(a.seed + 1), a.init)
         fails = [k for k, v in rows.items() if v["verdict"] != "pass"]
         print(f"\n{name} ({sec:.0f} s CPU): not passing: {fails or 'none'}")
