@@ -61,16 +61,21 @@ def plans(files):
 
 #: geometric tolerances the plan may still leave unsupported, with a word of each reason
 STILL_UNSUPPORTED = {
-    "nist_ctc_03": {"GT10": "two parallel planes"},
-    "nist_ctc_03_e1": {"GT7": "two parallel planes"},
+    # CTC 03 'Position.8' (e2 GT10, e1 GT7), a hole's axis in two parallel planes: the
+    # direction from the dimension line its frame is drawn on (test_position_axis_planes.py)
+    "nist_ctc_03": {},
+    "nist_ctc_03_e1": {},
     "nist_ctc_05": {},
     "nist_ftc_11": {},
-    # CTC 02 e2 (CATIA): GT19's profile of a line is attached to faces, with no section
-    # direction in the semantic PMI (e1 attaches it to a line drawn on a face)
-    "nist_ctc_02": {"GT19": "section direction"},
+    # CTC 02 e2 (CATIA): GT19's profile of a line is attached to one planar face, with no
+    # section direction in the semantic PMI; located (A|B|C), a plane's line elements do not
+    # depend on it (test_line_profile_plane.py)
+    "nist_ctc_02": {},
     "nist_ctc_04": {},
     "nist_ftc_07": {"GT10": "Statistical"},
-    "nist_ftc_10": {"GT11": "All_Around"},
+    # FTC 10 GT11: perpendicularity All Around an obround's contour (two planes, two
+    # half-cylinders): no orientation zone for a half-cylinder (pmi_all_around.py)
+    "nist_ftc_10": {"GT11": "part-cylinder R7.5, axis along the datum's normal"},
 }
 
 
@@ -830,3 +835,17 @@ def test_perfect_ctc03_e1_fails_no_characteristic_of_its_plan(files, plans):
         assert c.verdict in ("pass", "undecided"), c
     dist = next(c for c in got if c.name == "DIM11_distance")
     assert dist.verdict == "pass" and abs(dist.measured - 20.828) < 0.05
+
+
+@pytest.mark.parametrize("key,gid", [("nist_ctc_03", "GT10"), ("nist_ctc_03_e1", "GT7")])
+def test_ctc03_position8_is_a_planes_zone_along_y_in_d_b_c(plans, key, gid):
+    c = next(c for c in plans[key].plan.characteristics if c.pmi.id == gid)
+    assert (c.type, c.zone, c.datums) == ("position", "planes", ["D", "B", "C"])
+    assert c.direction == [0.0, 1.0, 0.0] and c.tol == pytest.approx(0.762)
+    assert "dimension line" in c.pmi.zone_direction
+
+
+def test_ctc02_e2_gt19_line_profile_of_a_plane_covers_the_face(plans):
+    c = next(c for c in plans["nist_ctc_02"].plan.characteristics if c.pmi.id == "GT19")
+    assert (c.type, c.datums, c.faces) == ("line_profile", ["A", "B", "C"], ["face:18"])
+    assert c.count > 10 and c.slab == 0.5

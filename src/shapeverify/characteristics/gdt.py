@@ -28,7 +28,9 @@ characteristic's DRF (:meth:`.drf.DRF.apply`) when it names datums.
   the fitted axis at the mouth and ``L`` beyond (as for position, below).
 * **position** (``zone: diameter``): each feature's axis is the axis of its mating cylinder
   (ASME Y14.5: the unrelated actual mating envelope); value = twice the largest distance of its
-  ends from the true position (the CAD axis in the DRF).  ``material: M``: bonus = the mating
+  ends from the true position (the CAD axis in the DRF); ``zone: planes`` (ASME Y14.5-2009
+  §7.7.3): twice the largest offset of the ends along ``direction`` (across the axis).
+  ``material: M``: bonus = the mating
   size's departure from the maximum material size (a hole: mating diameter - (nominal +
   lower); a boss: (nominal + upper) - mating diameter); ``L``: from the least material size
   (a hole's smallest circumscribed, a boss's largest inscribed diameter).  The limit is
@@ -599,7 +601,11 @@ def eval_position(c, ctx: EvalContext):
             reach = ext + float(proj)
         q = ends - f.center
         off = q - np.outer(q @ f.axis, f.axis)
-        value = 2.0 * float(np.linalg.norm(off, axis=1).max())
+        if c.zone == "planes":     # two parallel planes normal to u (across the axis)
+            u = _across(c.direction, f.axis)
+            value = 2.0 * float(np.abs(off @ u).max())
+        else:
+            value = 2.0 * float(np.linalg.norm(off, axis=1).max())
         bonus, note = _bonus(c, hole, mating, least, f.diameter, own_size)
         u_turn = 2.0 * _datum_part(drf, ctx, reach, zq)
         U = float(np.sqrt(u_axis ** 2 + u_turn ** 2
@@ -617,6 +623,8 @@ def eval_position(c, ctx: EvalContext):
                      "mating_diameter": mating, "least_material_diameter": least,
                      "nominal_diameter": float(f.diameter), "U": U,
                      "verdict": decide(value, None, tol, U), "ends": ends.tolist(),
+                     **({"zone_normal": _across(c.direction, f.axis).tolist()}
+                        if c.zone == "planes" else {}),
                      "note": note, "_axis": (f.center, f.axis)})
         if proj is not None:
             rows[-1]["projected"] = {"length": float(proj), "mouth": mouth}
@@ -641,6 +649,17 @@ def eval_position(c, ctx: EvalContext):
 
         res = dataclasses.replace(res, verdict=worst_verdict(verdicts))
     return res
+
+
+def _across(direction, axis) -> np.ndarray:
+    """The unit normal of a planes zone about an axis: ``direction`` less its part along the
+    axis; ValueError when it is (nearly) along the axis."""
+    u = np.asarray(direction, float) / np.linalg.norm(direction)
+    a = np.asarray(axis, float)
+    if abs(float(u @ a)) > 1e-6:
+        raise ValueError(f"the planes' normal {u.tolist()} is not across the axis "
+                         f"{a.tolist()} (zone: planes bounds the axis across itself)")
+    return u - (u @ a) * a
 
 
 def _faces_rim(ctx, fidx) -> np.ndarray:

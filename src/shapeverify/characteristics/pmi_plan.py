@@ -31,6 +31,8 @@ faces)
 Position without ⌀ on a slot's / tab's two ``position_zone`` ``zone: planes``
 sides; with S⌀ on spheres                  (``zone: sphere``, one per sphere)
                                            (:mod:`.pmi_positions`)
+Position without ⌀ of a hole's axis,       ``position`` ``zone: planes``, ``direction``
+its frame drawn on a dimension line        (:mod:`.pmi_axis_planes`)
 ProfileOfLine at a line drawn on a face    ``line_profile`` (:mod:`.pmi_profile_line`)
 Size_Radius, Size_SphericalDiameter,       ``feature_size`` (:mod:`.pmi_sizes`)
 Size_SphericalRadius with ± limits
@@ -544,17 +546,9 @@ def _tolerance_entries(item, ctx, drf, why) -> tuple[list, str]:
     src = _src(item)
     reason = _modifier_reason(item)
     if reason and "All_Around" in item["modifiers"]:
-        kinds = Counter(ctx.feats[f].kind for f in faces)
-        reason += (f": All_Around ties it to {len(faces)} faces around a feature ("
-                   + ", ".join(f"{n} {k}" for k, n in sorted(kinds.items())) + ")"
-                   + ("; an orientation zone is two parallel planes (a plane surface), a "
-                      "cylinder (a feature of size's axis) or, with EACH ELEMENT, two lines "
-                      "(a line element): a face that is part of a cylinder around the contour "
-                      "is none of these; the readings left -- each line element along the "
-                      "datum's normal (the file gives no EACH ELEMENT) or a profile held to "
-                      "the datum in orientation only (it would bound form and size too) -- "
-                      "are not the frame's zone; not guessed" if set(kinds) - {"plane"} else
-                      "; each face's zone separately is not planned"))
+        from .pmi_all_around import all_around_reason
+
+        reason = all_around_reason(item, ctx, faces, reason)
     if reason:
         return [], reason
     if t == "Flatness":

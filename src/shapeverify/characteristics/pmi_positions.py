@@ -1,6 +1,7 @@
 """Plan entries of a PMI position whose zone is not a cylinder (:mod:`.pmi_plan`,
 :mod:`.position_zones`): ``Position`` without ⌀ (two parallel planes) on the two opposite
-planar sides of a slot or tab, and ``Position`` with S⌀ (a sphere) on the faces of a sphere."""
+planar sides of a slot or tab, and ``Position`` with S⌀ (a sphere) on the faces of a sphere.
+A round hole's axis in two parallel planes: :mod:`.pmi_axis_planes`."""
 from __future__ import annotations
 
 __all__ = ["position_zone_entries"]
@@ -13,6 +14,15 @@ def position_zone_entries(item, ctx, faces, src) -> tuple[list, str]:
 
     vt = item["value_type"]
     zone = {"None": "planes", "SphericalDiameter": "sphere"}[vt]
+    if zone == "planes" and faces and {ctx.feats[f].kind for f in faces} == {"cylinder"}:
+        if item["zone_modifier"] != "None":
+            return [], f"a {item['zone_modifier']} zone modifier"
+        extra = [m for m in item["modifiers"] if m != "Free_State"]
+        if extra:
+            return [], f"modifier {', '.join(extra)} is not applied by the plan"
+        from .pmi_axis_planes import axis_planes_entries
+
+        return axis_planes_entries(item, ctx, faces, src)
     if item["material"]:
         return [], (f"material modifier {item['material']} on a position in "
                     f"{'two parallel planes' if zone == 'planes' else 'a sphere'} (bonus "
@@ -29,18 +39,6 @@ def position_zone_entries(item, ctx, faces, src) -> tuple[list, str]:
         else:
             groups = _spheres(ctx.model, faces)
     except ValueError as exc:
-        if zone == "planes" and {ctx.feats[f].kind for f in faces} == {"cylinder"}:
-            # a hole's axis in two parallel planes (NIST CTC 03 GT10): the planes' direction
-            # across the axis is what the drawing's basic dimension shows; the PMI as read
-            # carries no zone orientation, and a DRF of a plane and two axes
-            # leaves two directions across the hole (along the secondary-tertiary line and
-            # square to it) with nothing to choose between them
-            drf = "|".join(d["name"] for d in item["datums"]) or "none"
-            return [], (f"{exc}: a hole's axis positioned in two parallel planes, whose "
-                        "direction across the axis the file does not give (no zone "
-                        f"orientation read from the PMI; the frame {drf} leaves two directions "
-                        "across the hole and the drawing's basic dimension that picks one "
-                        "is not semantic); not guessed")
         return [], str(exc)
     names = None
     if item["datums"]:

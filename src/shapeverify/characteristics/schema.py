@@ -431,9 +431,11 @@ class Position(_Char):
     """Position of the axes of holes/bosses (``features``: each ``hole:N``, a cylinder face
     ``face:N`` or a list of coaxial cylinder faces; several: a pattern under one tolerance), in the datum reference frame
     ``datums`` (none: the plan's alignment).  ``zone: diameter``: a cylindrical zone of
-    diameter ``tol``.  ``material: M`` or ``L``: the bonus tolerance from the measured size
-    (``size``: the diameter's limits of deviation), capped at ``max_tol``.  ``projected``:
-    a projected zone of that length out of each hole's mouth."""
+    diameter ``tol``; ``zone: planes``: two parallel planes ``tol`` apart, perpendicular to
+    ``direction`` (across the axes; ASME Y14.5-2009 §7.7.3, bidirectional positional
+    tolerancing), about the true position.  ``material: M`` or ``L``: the bonus tolerance
+    from the measured size (``size``: the diameter's limits of deviation), capped at
+    ``max_tol``.  ``projected``: a projected zone of that length out of each hole's mouth."""
 
     type: Literal["position"]
     features: Annotated[list[Union[FeatureRef, Annotated[list[FeatureRef], Field(min_length=1)]]],
@@ -441,7 +443,10 @@ class Position(_Char):
     #: 0 only with a material modifier (ASME Y14.5-2009 §7.3.3.3: zero at MMC/LMC, all of the
     #: tolerance is bonus)
     tol: float = Field(ge=0)
-    zone: Literal["diameter"] = "diameter"
+    zone: Literal["diameter", "planes"] = "diameter"
+    #: ``zone: planes``: the planes' normal (model frame, across the axes): the zone bounds
+    #: the axes' offset from the true position along it
+    direction: Optional[Vec3] = None
     datums: Optional[DrfRef] = None
     material: Optional[Literal["M", "L"]] = None
     size: Optional[SizeLimits] = None
@@ -490,6 +495,14 @@ class Position(_Char):
         if extra:
             raise ValueError(f"datum_modifiers name datums {extra} that are not in datums "
                              f"{self.datums or []}")
+        if (self.zone == "planes") != (self.direction is not None):
+            raise ValueError("zone: planes takes direction (the planes' normal), and "
+                             "direction applies to zone: planes only")
+        if self.direction is not None and not sum(x * x for x in self.direction) > 0:
+            raise ValueError("direction must be a non-zero vector")
+        if self.zone == "planes" and (self.datum_modifiers or self.composite == "lower"):
+            raise ValueError("zone: planes is evaluated at the datums' pose (no "
+                             "datum_modifiers, no composite lower segment)")
         return self
 
 
