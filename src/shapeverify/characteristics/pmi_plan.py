@@ -34,6 +34,7 @@ sides; with S⌀ on spheres                  (``zone: sphere``, one per sphere)
 ProfileOfLine at a line drawn on a face    ``line_profile`` (:mod:`.pmi_profile_line`)
 Size_Radius, Size_SphericalDiameter,       ``feature_size`` (:mod:`.pmi_sizes`)
 Size_SphericalRadius with ± limits
+Size_Angular of cones with ± limits        ``cone_angle`` per cone (:mod:`.pmi_cones`)
 Size_Thickness with ± limits on planar      ``distance`` between the two planes (a side of
 faces in two parallel planes                several coplanar faces is one plane)
 Parallelism/Perpendicularity/Angularity of  the orientation type with ``zone: median_plane``
@@ -961,10 +962,11 @@ def _dimension(item, ctx) -> tuple[list, str]:
         from .pmi_dimensions import thickness_entries
 
         return thickness_entries(item, ctx, _src(item), ctx.name)
-    if t in ("Size_Radius", "Size_SphericalDiameter", "Size_SphericalRadius"):
+    if t in ("Size_Radius", "Size_SphericalDiameter", "Size_SphericalRadius", "Size_Angular"):
+        from .pmi_cones import angular_entries
         from .pmi_sizes import size_entries
 
-        return size_entries(item, ctx, _src(item))
+        return (angular_entries if t == "Size_Angular" else size_entries)(item, ctx, _src(item))
     if t != "Size_Diameter":
         if t == "Location_None":
             from .pmi_sizes import LOCATION_NONE_REASON

@@ -98,6 +98,8 @@ TYPES: tuple[CharacteristicType, ...] = (
                        "⌖"),
     CharacteristicType("feature_size", schema.FeatureSize, "size_features:eval_feature_size",
                        False, "size (radius, sphere)"),
+    CharacteristicType("cone_angle", schema.ConeAngle, "cone_sizes:eval_cone_angle", False,
+                       "angle (cone)", unit="deg"),
 )
 
 _BY_NAME = {t.name: t for t in TYPES}
