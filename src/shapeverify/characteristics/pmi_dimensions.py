@@ -85,8 +85,13 @@ def between_entries(item, ctx, src: dict, name) -> tuple[list, str]:
                     return got, ""
                 return [], (f"the nominal distance {nom:g} is not between its two coplanar "
                             f"faces; the faces of their composite: {why}")
-            return [], (f"the nominal distance {nom:g} differs from the CAD faces' "
-                        f"{cad:.4f} mm")
+            if not item["lower"] <= cad - nom <= item["upper"]:
+                return [], (f"the nominal distance {nom:g} differs from the CAD faces' "
+                            f"{cad:.4f} mm by more than its limits")
+            # the CAD's faces lie within the drawing's limits: a nominal written to the
+            # drawing's places (FTC 06 DIM40: .56 +-.02 in between faces .5625 in apart);
+            # measured against the drawing's nominal and limits
+            entry["pmi"] = {**src, "cad_distance": _mm(cad)}
         return [{"name": name(f"{item['id']}_distance"), "type": "distance", **entry}], ""
     cad = float(np.degrees(np.arccos(np.clip(a.axis @ b.axis, -1.0, 1.0))))
     if min(abs(cad - nom), abs(180.0 - cad - nom)) > 1e-3:
