@@ -1,8 +1,10 @@
-"""NIST CTC 04 DIM6 (``Size_Angular`` 90° ±1° on the 30 countersinks, 60 half-cone faces;
-issue 28 item 3): planned as 30 ``cone_angle`` entries and measured on an independent scan
-(OpenCASCADE tessellation sampled by area, moved onto the exact cones, 0.02 mm noise): a
-perfect part fails none; one countersink opened by 1.2° (its cone's half angle +0.6° about the
-apex) fails that one only, by the opening (an independent computation)."""
+"""NIST CTC 04 DIM6 (``Size_Angular`` 90° ±1° on the 30 countersinks, 60 half-cone faces)
+and DIM7 (``Size_Diameter`` ⌀20 ±0.3 on the circles where they meet the top face; issue 28
+item 3): planned as 30 ``cone_angle`` and 30 ``cone_diameter`` entries and measured on an
+independent scan (OpenCASCADE tessellation sampled by area, moved onto the exact cones, 0.02 mm
+noise): a perfect part fails none; one countersink opened by 1.2° (its cone's half angle
++0.6° about the apex) fails its angle and its diameter only, by the opening (⌀ 20 tan 45.6°
+at the surface 10 mm above the apex, an independent computation)."""
 from __future__ import annotations
 
 import gzip
@@ -39,9 +41,10 @@ def _scan(path, res, model, fmap, rng):
     from independent_scans import on_surface, random_points, read_shape, tessellate
 
     data = dict(res.data)
-    data["characteristics"] = [c for c in data["characteristics"] if c["pmi"]["id"] == "DIM6"]
+    data["characteristics"] = [c for c in data["characteristics"]
+                               if c["pmi"]["id"] in ("DIM6", "DIM7")]
     data.pop("unsupported", None)
-    cones = sorted(int(f.split(":")[1]) for c in data["characteristics"] for f in c["faces"])
+    cones = sorted({int(f.split(":")[1]) for c in data["characteristics"] for f in c["faces"]})
     data["alignment"] = {"type": "best_fit", "faces": [f"face:{f}" for f in cones]}
     inv = {v: k for k, v in fmap.items()}
     shape = read_shape(path)
@@ -75,20 +78,36 @@ def test_ctc04_dim6_is_one_cone_angle_per_countersink(ctc04):
     assert "DIM6" not in {u["pmi"]["id"] for u in res.data.get("unsupported", [])}
 
 
+def test_ctc04_dim7_is_each_countersinks_diameter_at_the_top_face(ctc04):
+    _, res, model, fmap = ctc04
+    got = [c for c in res.data["characteristics"] if c["pmi"]["id"] == "DIM7"]
+    item = next(d for d in res.pmi["dimensions"] if d["id"] == "DIM7")
+    cones = {tuple(sorted(c["faces"])) for c in res.data["characteristics"]
+             if c["pmi"]["id"] == "DIM6"}
+    assert {tuple(sorted(c["faces"])) for c in got} == cones and len(got) == 30
+    top = {f"face:{fmap[f]}" for r in item["edges"] for f, k in zip(r["faces"], r["kinds"])
+           if k == "Plane"}
+    assert top == {"face:382"}
+    assert {(c["type"], tuple(c["at"]), c["nominal"], c["lower"], c["upper"]) for c in got} == {
+        ("cone_diameter", ("face:382",), 20.0, -0.3, 0.3)}
+    assert "DIM7" not in {u["pmi"]["id"] for u in res.data.get("unsupported", [])}
+
+
 def test_perfect_ctc04_countersinks_pass_and_one_opened_by_1_2_deg_fails(ctc04):
     path, res, model, fmap = ctc04
     rng = np.random.default_rng(4)
     P, N, data, tri_face, n_cone = _scan(path, res, model, fmap, rng)
     noise = rng.normal(0.0, 0.02, len(P))[:, None] * N
     got = _evaluate(model, P + noise, data)
-    assert len(got) == 30
+    assert len(got) == 60
     for c in got:
         assert c.verdict == "pass", c
-        assert abs(c.measured - 90.0) < 0.2 and c.uncertainty < 0.2
+        want = 90.0 if c.type == "cone_angle" else 20.0
+        assert abs(c.measured - want) < 0.2 and c.uncertainty < 0.2, c
 
     # open the first countersink: each point keeps its distance from the apex and turns
     # away from the axis by 0.6 deg in its axial plane (apex and axis from the CAD file)
-    first = data["characteristics"][0]
+    first = next(c for c in data["characteristics"] if c["type"] == "cone_angle")
     faces = [int(f.split(":")[1]) for f in first["faces"]]
     inv = {v: k for k, v in fmap.items()}
     on = np.zeros(len(P), bool)
@@ -105,4 +124,8 @@ def test_perfect_ctc04_countersinks_pass_and_one_opened_by_1_2_deg_fails(ctc04):
     got = {c.name: c for c in _evaluate(model, Q + noise, data)}
     bad = got.pop(first["name"])
     assert bad.verdict == "fail" and abs(bad.measured - 91.2) < 0.1, bad
+    dia = next(c for c in data["characteristics"] if c["type"] == "cone_diameter"
+               and sorted(c["faces"]) == sorted(first["faces"]))
+    bad = got.pop(dia["name"])
+    assert bad.verdict == "fail" and abs(bad.measured - 20 * np.tan(psi)) < 0.05, bad
     assert all(c.verdict == "pass" for c in got.values())

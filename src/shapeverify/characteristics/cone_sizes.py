@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["cad_cone", "cone_fit_angle", "half_angle_sd", "eval_cone_angle"]
+__all__ = ["cad_cone", "cone_fit_angle", "half_angle_sd", "cone_covariance", "eval_cone_angle"]
 
 
 def cad_cone(model, faces) -> tuple[np.ndarray, np.ndarray, float, float]:
@@ -59,9 +59,15 @@ def cone_fit_angle(P, axis=None, loss: str = "tukey"):
 
 
 def half_angle_sd(P, f) -> float:
-    """Standard uncertainty (rad) of the half angle of the cone fit ``f`` of ``P``: sandwich
-    covariance of the orthogonal distance ``d = (rho - R) cos psi - h sin psi`` linearised in
-    (axis point 2, tilt 2, R, psi) by central differences."""
+    """Standard uncertainty (rad) of the half angle of the cone fit ``f`` of ``P``
+    (:func:`cone_covariance`)."""
+    return float(np.sqrt(max(cone_covariance(P, f)[5, 5], 0.0)))
+
+
+def cone_covariance(P, f) -> np.ndarray:
+    """(6, 6) covariance of the cone fit ``f`` of ``P`` in (axis point 2, tilt 2, R at
+    ``f.point``, half angle): sandwich covariance of the orthogonal distance
+    ``d = (rho - R) cos psi - h sin psi`` linearised by central differences."""
     from .holes import plane_basis
 
     p0, a0 = np.asarray(f.point, float), np.asarray(f.axis, float)
@@ -86,9 +92,9 @@ def half_angle_sd(P, f) -> float:
     try:
         Hinv = np.linalg.inv((J * w[:, None]).T @ J)
     except np.linalg.LinAlgError:
-        return float("inf")
+        return np.full((6, 6), np.inf)
     Jb = J * (w * r)[:, None]
-    return float(np.sqrt(max((Hinv @ (Jb.T @ Jb) @ Hinv)[5, 5], 0.0)))
+    return Hinv @ (Jb.T @ Jb) @ Hinv
 
 
 def eval_cone_angle(c, ctx):

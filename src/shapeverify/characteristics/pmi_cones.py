@@ -5,12 +5,16 @@ cone becomes a ``cone_angle`` with the dimension's ± limits, ``angle: included`
 drawn nominal is the cone's apex angle, ``half`` when it is its angle to the axis.  The values
 are in degrees: OpenCASCADE returns the file's plane-angle measures as written (CTC 04
 declares a ``CONVERSION_BASED_UNIT('DEGREE')``: 90.0, ±1.0), and the nominal must agree with
-the CAD cone's angle in degrees to 1e-3 (a radian value would not)."""
+the CAD cone's angle in degrees to 1e-3 (a radian value would not).
+
+A ``Size_Diameter`` attached to the circles where cones meet a plane (CTC 04 DIM7, ⌀20 ±0.3)
+is the countersinks' diameter at that surface: one ``cone_diameter`` per cone
+(:mod:`.countersink`)."""
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["angular_entries", "cone_groups"]
+__all__ = ["angular_entries", "cone_groups", "countersink_entries"]
 
 
 def cone_groups(model, faces, size: float) -> tuple[list, list]:
@@ -69,5 +73,46 @@ def angular_entries(item, ctx, src) -> tuple[list, str]:
         out.append({"name": ctx.name(name), "type": "cone_angle",
                     "faces": [f"face:{f}" for f in g], "angle": which,
                     "lower": _mm(item["lower"]), "upper": _mm(item["upper"]),
+                    "nominal": _mm(nominal), "pmi": src})
+    return out, ""
+
+
+def countersink_entries(item, ctx, src, why: str) -> tuple[list, str]:
+    """(plan entries, '') of a ``Size_Diameter`` attached to the circular edges where cones
+    meet a plane (NIST CTC 04 DIM7, ⌀20 ±0.3 on its 30 countersinks: the countersinks'
+    diameter at the surface they are cut in), one ``cone_diameter`` per cone; else ([], why)."""
+    from .countersink import diameter_at_plane
+    from .pmi_plan import _mm
+
+    recs = item.get("edges") or []
+    if (item["faces"] or not recs or item["lower"] is None or item["modifiers"]
+            or any(r.get("curve") != "Circle" or sorted(r.get("kinds", ())) != ["Cone", "Plane"]
+                   for r in recs)):
+        return [], why
+    pairs = [(ctx.fmap.get(r["faces"][r["kinds"].index("Cone")]),
+              ctx.fmap.get(r["faces"][r["kinds"].index("Plane")])) for r in recs]
+    if any(c is None or p is None for c, p in pairs):
+        return [], why
+    groups, other = cone_groups(ctx.model, list(dict.fromkeys(c for c, _ in pairs)), ctx.size)
+    if other:
+        return [], why
+    nominal = float(item["nominal"])
+    out = []
+    for k, (g, A, a, psi) in enumerate(groups, start=1):
+        at = sorted({p for c, p in pairs if c in g})
+        pl = ctx.feats[at[0]]
+        if len(at) != 1 or pl.kind != "plane":
+            return [], f"{why} (cone face:{g[0]} meets {len(at)} faces, not one plane)"
+        cad, _ = diameter_at_plane(A, a, psi, pl.center, pl.axis)
+        shift = nominal - cad
+        if abs(shift) <= 1e-3 * nominal + 1e-6:
+            shift = 0.0
+        elif not item["lower"] <= -shift <= item["upper"]:
+            return [], (f"the nominal \u2300{nominal:g} differs from the CAD countersink's "
+                        f"\u2300{cad:.4f} at face:{at[0]} by more than its limits")
+        name = f"{item['id']}_diameter" + (f"_{k}" if len(groups) > 1 else "")
+        out.append({"name": ctx.name(name), "type": "cone_diameter",
+                    "faces": [f"face:{f}" for f in g], "at": [f"face:{at[0]}"],
+                    "lower": _mm(item["lower"] + shift), "upper": _mm(item["upper"] + shift),
                     "nominal": _mm(nominal), "pmi": src})
     return out, ""

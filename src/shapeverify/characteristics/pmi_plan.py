@@ -34,7 +34,8 @@ sides; with S⌀ on spheres                  (``zone: sphere``, one per sphere)
 ProfileOfLine at a line drawn on a face    ``line_profile`` (:mod:`.pmi_profile_line`)
 Size_Radius, Size_SphericalDiameter,       ``feature_size`` (:mod:`.pmi_sizes`)
 Size_SphericalRadius with ± limits
-Size_Angular of cones with ± limits        ``cone_angle`` per cone (:mod:`.pmi_cones`)
+Size_Angular of cones with ± limits;       ``cone_angle`` per cone; ``cone_diameter``
+Size_Diameter on cone-plane circular edges  (a countersink at its surface, :mod:`.pmi_cones`)
 Size_Thickness with ± limits on planar      ``distance`` between the two planes (a side of
 faces in two parallel planes                several coplanar faces is one plane)
 Parallelism/Perpendicularity/Angularity of  the orientation type with ``zone: median_plane``
@@ -980,8 +981,9 @@ def _dimension(item, ctx) -> tuple[list, str]:
     if item["modifiers"]:
         return [], f"size modifiers {', '.join(item['modifiers'])}"
     faces, reason = _faces_ok(item, ctx)
-    if faces is None:
-        return [], reason
+    if faces is None:       # a countersink's diameter at its edges, else the reason
+        from .pmi_cones import countersink_entries
+        return countersink_entries(item, ctx, _src(item), reason)
     groups, other = _cylinders(ctx.feats, ctx.model, faces)
     if other or not groups:
         return [], "it controls faces that are not cylinders"
