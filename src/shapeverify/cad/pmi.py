@@ -50,6 +50,7 @@ import os
 from pathlib import Path
 
 from ..errors import CADImportError, UnsupportedFormatError
+from .pmi_construction import attach_construction_sides
 from .pmi_text import unread_pmi_of_file
 
 logger = logging.getLogger(__name__)
@@ -634,6 +635,7 @@ def read_pmi_here(path) -> dict:
         dimensions.append(item)
 
     _attach_dimension_groups(caf, path, index, dimensions)
+    attach_construction_sides(caf, index, dimensions)   # a side on supplemental curves
     _unit_slip(path, tolerances, dimensions)
     composites_missed = _mark_composites(path, tolerances)
     _max_tolerances(path, tolerances)

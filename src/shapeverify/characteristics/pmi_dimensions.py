@@ -30,7 +30,8 @@ def _planes(item, ctx) -> tuple[list | None, str]:
             return None, "a face it names could not be imported (see the import's warnings)"
         sides.append(list(dict.fromkeys(faces)))
     if not sides[0] or not sides[1]:
-        why = item.get("edge_reason" if not sides[0] else "edge_reason2")
+        why = item.get("edge_reason" if not sides[0] else "edge_reason2") or \
+            (item.get("side2_reason") if sides[0] else None)
         if why:
             which = "first" if not sides[0] else "second"
             return None, f"it is not between two faces (its {which} side: {why})"

@@ -1,10 +1,11 @@
-"""NIST CTC 04 DIM6 (``Size_Angular`` 90° ±1° on the 30 countersinks, 60 half-cone faces)
-and DIM7 (``Size_Diameter`` ⌀20 ±0.3 on the circles where they meet the top face; issue 28
+"""NIST CTC 04's dimensions on its countersinks and threads.  DIM6 (``Size_Angular`` 90° ±1°
+on the 30 countersinks, 60 half-cone faces) and DIM7 (``Size_Diameter`` ⌀20 ±0.3 on the circles where they meet the top face; issue 28
 item 3): planned as 30 ``cone_angle`` and 30 ``cone_diameter`` entries and measured on an
 independent scan (OpenCASCADE tessellation sampled by area, moved onto the exact cones, 0.02 mm
 noise): a perfect part fails none; one countersink opened by 1.2° (its cone's half angle
 +0.6° about the apex) fails its angle and its diameter only, by the opening (⌀ 20 tan 45.6°
-at the surface 10 mm above the apex, an independent computation)."""
+at the surface 10 mm above the apex, an independent computation).  DIM8 (a thread depth to
+supplemental curves) stays unsupported, with the curves named."""
 from __future__ import annotations
 
 import gzip
@@ -129,3 +130,28 @@ def test_perfect_ctc04_countersinks_pass_and_one_opened_by_1_2_deg_fails(ctc04):
     bad = got.pop(dia["name"])
     assert bad.verdict == "fail" and abs(bad.measured - 20 * np.tan(psi)) < 0.05, bad
     assert all(c.verdict == "pass" for c in got.values())
+
+
+def test_ctc04_dim8_thread_depth_to_supplemental_curves_names_them(ctc04):
+    """DIM8 (25 ±0.25) runs from faces 401 and 394 to 'Upper Thread Plane.1', four 270° arcs
+    of radius 6 in the file's supplemental geometry (the cosmetic end of four threads) that
+    XCAF leaves unattached: the reason names them instead of "attached to nothing"."""
+    import re
+
+    path, res, _, _ = ctc04
+    item = next(d for d in res.pmi["dimensions"] if d["id"] == "DIM8")
+    # the arcs' centres (CARTESIAN_POINTs #17563, #17570, #17577, #17584 of the file) lie
+    # 25 mm from the plane of faces 401 and 394 (their vertices): the dimension's other side
+    text = path.read_text(errors="replace")
+    C = np.array([[float(v) for v in re.search(rf"#{k}=CARTESIAN_POINT\('',\(([^)]*)\)\)",
+                                                text).group(1).split(",")]
+                  for k in (17563, 17570, 17577, 17584)])
+    fv = {int(k): v for k, v in res.pmi["face_vertices"].items()}
+    V = np.vstack([fv[f] for f in item["faces"]])
+    n = np.linalg.svd(V - V.mean(axis=0))[2][2]
+    assert np.allclose(np.abs((C - V.mean(axis=0)) @ n), 25.0, atol=1e-6)
+    assert item["faces2"] == [] and item["other"] == []
+    why = {u["pmi"]["id"]: u["reason"] for u in res.data["unsupported"]}["DIM8"]
+    assert why == ("it is not between two faces (its second side: supplemental geometry "
+                   "('Upper Thread Plane.1': 4 circle arcs of radius 6 (file units)), not a "
+                   "surface of the part: no scan point lies on it)")
