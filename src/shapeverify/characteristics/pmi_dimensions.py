@@ -17,6 +17,34 @@ def _mm(x: float) -> float:
     return float(round(float(x), 9)) + 0.0
 
 
+def _edge_sides(item, ctx) -> list | None:
+    """[side 1, side 2] of a linear distance a side of which is a straight edge between two
+    planar faces (NIST CTC 05 DIM24, 127 ±0.2032 between the top's edges with its two side
+    faces): of each such edge the face that, with the other side, makes two parallel planes
+    ``nominal`` apart -- None unless exactly one choice does."""
+    cands = []
+    for key in ("faces", "faces2"):
+        recs = item.get("edges" if key == "faces" else "edges2") or []
+        if item.get(key):
+            cands.append([[ctx.fmap.get(f) for f in item[key]]])
+        elif len(recs) == 1 and recs[0]["curve"] == "Line" and recs[0]["kinds"] == ["Plane",
+                                                                                     "Plane"]:
+            cands.append([[ctx.fmap.get(f)] for f in recs[0]["faces"]])
+        else:
+            return None
+    nom = float(item["nominal"])
+    hits = []
+    for s1 in cands[0]:
+        for s2 in cands[1]:
+            if None in s1 or None in s2 or set(s1) & set(s2):
+                continue
+            a, b = ctx.feats[s1[0]], ctx.feats[s2[0]]
+            if (a.kind == b.kind == "plane" and abs(abs(a.axis @ b.axis) - 1.0) <= 1e-6
+                    and abs(abs((b.center - a.center) @ a.axis) - nom) <= 1e-4 * max(nom, 1.0)):
+                hits.append([s1, s2])
+    return hits[0] if len(hits) == 1 else None
+
+
 def _planes(item, ctx) -> tuple[list | None, str]:
     """([side 1, side 2], '') or (None, why): each side one plane -- a planar face, or planar
     faces in one plane with one outward side (:func:`.face_groups.plane_groups`: a floor the
@@ -29,6 +57,8 @@ def _planes(item, ctx) -> tuple[list | None, str]:
         if any(f is None for f in faces):
             return None, "a face it names could not be imported (see the import's warnings)"
         sides.append(list(dict.fromkeys(faces)))
+    if (not sides[0] or not sides[1]) and item["type"] == "Location_LinearDistance":
+        sides = _edge_sides(item, ctx) or sides
     if not sides[0] or not sides[1]:
         why = item.get("edge_reason" if not sides[0] else "edge_reason2") or \
             (item.get("side2_reason") if sides[0] else None)
@@ -66,6 +96,8 @@ def between_entries(item, ctx, src: dict, name) -> tuple[list, str]:
     sides, why = _planes(item, ctx)
     if sides is None:
         return [], why
+    if not item["faces"] or not item["faces2"]:      # a side from a straight edge
+        src = {**src, "attached": "the parallel planar faces of its straight edges"}
     a, b = ctx.feats[sides[0][0]], ctx.feats[sides[1][0]]
     nom = float(item["nominal"])
     entry = {"faces": [f"face:{s[0]}" if len(s) == 1 else [f"face:{f}" for f in s]
