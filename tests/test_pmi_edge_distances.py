@@ -49,3 +49,31 @@ def test_edges_whose_faces_are_not_the_nominal_apart_keep_the_edge_reason():
     # nominal of 279.4 with the edge [0, 77] against [5, 74] is one choice only
     got, why = between_entries(_item(279.4, e2=(5, 74)), _ctx(), {"id": "X"}, lambda n: n)
     assert why == "" and got[0]["faces"] == ["face:0", "face:5"]
+
+
+def test_side_at_the_circle_where_a_hole_meets_its_drill_point_is_named_as_such():
+    """FTC 06 DIM49 (12.7 ±1.27 from face 125 to where the ⌀6.35 hole's wall, face 20, meets
+    its drill point, face 18) said "not the rim of a cylinder"; the reason now names that
+    circle and admits the missing characteristic; an edge that is not square to the
+    cylinder's axis keeps the reader's reason."""
+    t = np.linspace(0.0, np.pi, 9)
+    ring = np.column_stack([76.2 + 3.175 * np.cos(t), np.full(9, 72.39),
+                            -158.75 + 3.175 * np.sin(t)])
+    rec = {"curve": "BSplineCurve", "faces": [18, 20], "kinds": ["Cone", "Cylinder"],
+           "cylinders": {20: [[76.2, 85.09, -158.75], [0.0, -1.0, 0.0], 3.175]},
+           "points": ring.tolist()}
+    ctx = _ctx()
+    ctx.feats[125] = _plane([76.2, 85.09, -158.75], [0, 1, 0])
+    ctx.fmap[125] = 125
+    item = {"id": "DIM49", "type": "Location_LinearDistance", "nominal": 12.7, "lower": -1.27,
+            "upper": 1.27, "modifiers": [], "faces": [125], "faces2": [], "other": ["edge"],
+            "edges2": [rec], "edge_reason2": "the reader's reason"}
+    got, why = between_entries(item, ctx, {"id": "DIM49"}, lambda n: n)
+    assert got == [] and why == (
+        "it is not between two faces (its second side: the circle (\u23006.35) where face 20 "
+        "(Cylinder) meets face 18 (Cone), e.g. a drilled hole's depth to its point: the plan "
+        "has no characteristic for a distance to such a circle yet (issue 28 item 3))")
+    ring[:, 1] += 0.2 * np.sin(t)                       # not in a plane square to the axis
+    rec["points"] = ring.tolist()
+    got, why = between_entries(item, ctx, {"id": "DIM49"}, lambda n: n)
+    assert why == "it is not between two faces (its second side: the reader's reason)"

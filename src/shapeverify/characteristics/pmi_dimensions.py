@@ -45,6 +45,26 @@ def _edge_sides(item, ctx) -> list | None:
     return hits[0] if len(hits) == 1 else None
 
 
+def _junction(recs) -> str:
+    """'' or what a side is when it is the circle where a cylinder meets a cone (NIST FTC 06
+    DIM49: a drilled hole's depth, plane to where its ⌀6.35 wall meets the drill point): the
+    edge's points on the cylinder, in one plane square to its axis."""
+    if len(recs) != 1 or sorted(recs[0]["kinds"]) != ["Cone", "Cylinder"] \
+            or len(recs[0]["cylinders"]) != 1:
+        return ""
+    r = recs[0]
+    (i, (c, a, rad)), = r["cylinders"].items()
+    q = np.asarray(r["points"], float) - np.asarray(c, float)
+    h = q @ np.asarray(a, float)
+    rho = np.linalg.norm(q - np.outer(h, a), axis=1)
+    if np.ptp(h) > 1e-4 * rad or np.max(np.abs(rho - rad)) > 1e-3 * rad:
+        return ""
+    cone = r["faces"][r["kinds"].index("Cone")]
+    return (f"the circle (\u2300{2 * rad:.6g}) where face {i} (Cylinder) meets face {cone} "
+            "(Cone), e.g. a drilled hole's depth to its point: the plan has no characteristic "
+            "for a distance to such a circle yet (issue 28 item 3)")
+
+
 def _planes(item, ctx) -> tuple[list | None, str]:
     """([side 1, side 2], '') or (None, why): each side one plane -- a planar face, or planar
     faces in one plane with one outward side (:func:`.face_groups.plane_groups`: a floor the
@@ -60,7 +80,8 @@ def _planes(item, ctx) -> tuple[list | None, str]:
     if (not sides[0] or not sides[1]) and item["type"] == "Location_LinearDistance":
         sides = _edge_sides(item, ctx) or sides
     if not sides[0] or not sides[1]:
-        why = item.get("edge_reason" if not sides[0] else "edge_reason2") or \
+        why = _junction(item.get("edges" if not sides[0] else "edges2") or []) or \
+            item.get("edge_reason" if not sides[0] else "edge_reason2") or \
             (item.get("side2_reason") if sides[0] else None)
         if why:
             which = "first" if not sides[0] else "second"
