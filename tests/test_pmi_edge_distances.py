@@ -73,6 +73,12 @@ def test_side_at_the_circle_where_a_hole_meets_its_drill_point_is_named_as_such(
         "it is not between two faces (its second side: the circle (\u23006.35) where face 20 "
         "(Cylinder) meets face 18 (Cone), e.g. a drilled hole's depth to its point: the plan "
         "has no characteristic for a distance to such a circle yet (issue 28 item 3))")
+    # FTC 10 DIM16: the circle in two halves and edges of thread faces on it: the same
+    other = {"curve": "BSplineCurve", "faces": [265], "kinds": ["Cylinder"],
+             "cylinders": {265: [[76.2, 85.09, -158.75], [0.0, 1.0, 0.0], 3.175]},
+             "points": ring[::-1].tolist()}
+    item2 = {**item, "edges2": [other, rec]}
+    assert between_entries(item2, ctx, {"id": "DIM49"}, lambda n: n)[1] == why
     ring[:, 1] += 0.2 * np.sin(t)                       # not in a plane square to the axis
     rec["points"] = ring.tolist()
     got, why = between_entries(item, ctx, {"id": "DIM49"}, lambda n: n)

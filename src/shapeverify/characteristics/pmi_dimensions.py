@@ -46,20 +46,22 @@ def _edge_sides(item, ctx) -> list | None:
 
 
 def _junction(recs) -> str:
-    """'' or what a side is when it is the circle where a cylinder meets a cone (NIST FTC 06
-    DIM49: a drilled hole's depth, plane to where its ⌀6.35 wall meets the drill point): the
-    edge's points on the cylinder, in one plane square to its axis."""
-    if len(recs) != 1 or sorted(recs[0]["kinds"]) != ["Cone", "Cylinder"] \
-            or len(recs[0]["cylinders"]) != 1:
+    """'' or what a side is when its edges lie on the circle where a cylinder meets a cone
+    (NIST FTC 06 DIM49: a drilled hole's depth, plane to where its ⌀6.35 wall meets the drill
+    point; FTC 10 DIM16 the same circle in two halves and four edges of thread faces): every
+    edge's points on the cylinder of the first cylinder-cone edge, in one plane square to its
+    axis."""
+    meet = [r for r in recs if sorted(r["kinds"]) == ["Cone", "Cylinder"]
+            and len(r["cylinders"]) == 1]
+    if not meet:
         return ""
-    r = recs[0]
-    (i, (c, a, rad)), = r["cylinders"].items()
-    q = np.asarray(r["points"], float) - np.asarray(c, float)
+    (i, (c, a, rad)), = meet[0]["cylinders"].items()
+    q = np.concatenate([np.asarray(r["points"], float) for r in recs]) - np.asarray(c, float)
     h = q @ np.asarray(a, float)
     rho = np.linalg.norm(q - np.outer(h, a), axis=1)
     if np.ptp(h) > 1e-4 * rad or np.max(np.abs(rho - rad)) > 1e-3 * rad:
         return ""
-    cone = r["faces"][r["kinds"].index("Cone")]
+    cone = meet[0]["faces"][meet[0]["kinds"].index("Cone")]
     return (f"the circle (\u2300{2 * rad:.6g}) where face {i} (Cylinder) meets face {cone} "
             "(Cone), e.g. a drilled hole's depth to its point: the plan has no characteristic "
             "for a distance to such a circle yet (issue 28 item 3)")
