@@ -35,7 +35,7 @@ ProfileOfLine at a line drawn on a face    ``line_profile`` (:mod:`.pmi_profile_
 Size_Radius, Size_SphericalDiameter,       ``feature_size`` (:mod:`.pmi_sizes`)
 Size_SphericalRadius with ± limits
 Size_Angular of cones with ± limits;       ``cone_angle`` per cone; ``cone_diameter``
-Size_Diameter on cone-plane circular edges  (a countersink at its surface, :mod:`.pmi_cones`)
+Size_Diameter on cone-plane circle edges   (a countersink at its surface, :mod:`.pmi_cones`)
 Size_Thickness with ± limits on planar      ``distance`` between the two planes (a side of
 faces in two parallel planes                several coplanar faces is one plane)
 Parallelism/Perpendicularity/Angularity of  the orientation type with ``zone: median_plane``
