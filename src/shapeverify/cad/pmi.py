@@ -635,10 +635,10 @@ def read_pmi_here(path) -> dict:
         dimensions.append(item)
 
     _attach_dimension_groups(caf, path, index, dimensions)
-    attach_construction_sides(caf, index, dimensions)   # a side on supplemental curves
     _unit_slip(path, tolerances, dimensions)
     composites_missed = _mark_composites(path, tolerances)
     _max_tolerances(path, tolerances)
+    attach_construction_sides(caf, index, dimensions)   # a side on supplemental curves
 
     used = set()
     for it in datum_list + tolerances + dimensions:
