@@ -115,3 +115,45 @@ def test_line_drawn_on_a_face_names_the_face_it_lies_on():
     assert top == pytest.approx(20.0)
     _, _, why = edge_feature([rec], faces, emap, index)
     assert f"drawn on face {rec['on_faces'][0]}" in why
+
+
+def _block_with_hole_cut_aslant(deg: float):
+    """The block with its hole (one wall face), its top cut by a plane tilted ``deg`` about x
+    through (20, 15, 18): the hole's top rim is not a circle (an ellipse, or a B-spline in a
+    CAD export: NIST FTC 07 DIM15)."""
+    from OCP.BRepAlgoAPI import BRepAlgoAPI_Cut
+    from OCP.BRepPrimAPI import BRepPrimAPI_MakeBox
+    from OCP.gp import gp_Ax1, gp_Dir, gp_Pnt, gp_Trsf
+    from OCP.BRepBuilderAPI import BRepBuilderAPI_Transform
+
+    big = BRepPrimAPI_MakeBox(gp_Pnt(-50, -50, 18.0), 140.0, 130.0, 50.0).Shape()
+    t = gp_Trsf()
+    t.SetRotation(gp_Ax1(gp_Pnt(20, 15, 18.0), gp_Dir(1, 0, 0)), np.radians(deg))
+    big = BRepBuilderAPI_Transform(big, t, True).Shape()
+    return BRepAlgoAPI_Cut(_block_with_hole(False), big).Shape()
+
+
+def test_rim_of_a_hole_cut_aslant_by_a_plane_maps_to_the_hole_wall():
+    """FTC 07 DIM15 (⌀22.225 on a B-spline edge between its cylinder and a plane) was "not
+    the rim of a cylinder": an edge around a cylinder where a plane cuts it is its rim; a
+    straight edge between that plane and a side face is still not mapped."""
+    from shapeverify.cad._occ_loops import _edge_face_map
+
+    oi._init_ocp()
+    shape = _block_with_hole_cut_aslant(1.0)
+    faces = _faces(shape)
+    index, emap = _FaceIndex(faces), _edge_face_map(shape)
+    walls = _cyl_faces(faces)
+    recs = [edge_record(e, index, emap, faces) for e in _edges(shape)]
+    rims = [r for r in recs if sorted(r["kinds"]) == ["Cylinder", "Plane"]
+            and r["curve"] not in ("Circle", "Line")
+            and min(p[2] for p in r["points"]) > 17.0]
+    assert rims and all(r["curve"] != "Circle" for r in rims)
+    for r in rims:
+        P = np.asarray(r["points"])
+        assert np.ptp(P[:, 2]) > 0.05                    # not in a plane square to the axis
+        got, how, why = edge_feature([r], faces, emap, index)
+        assert why == "" and got == walls
+        assert how.startswith(f"edge ({r['curve']}) around the \u230010 cylinder")
+    line = next(r for r in recs if r["curve"] == "Line" and "Cylinder" not in r["kinds"])
+    assert edge_feature([line], faces, emap, index)[0] == []

@@ -75,6 +75,11 @@ ROWS = {
     "feature_size": ({"type": "feature_size", "faces": ["face:3"], "shape": "sphere",
                       "size": "radius", "lower": -0.508, "upper": 0.508, "nominal": 12.7},
                      "SR12.700 +0.508/−0.508"),
+    "cone_angle": ({"type": "cone_angle", "faces": ["face:3", "face:4"], "angle": "included",
+                    "nominal": 90.0, "lower": -1.0, "upper": 1.0}, "90.000° +1°/−1°"),
+    "cone_diameter": ({"type": "cone_diameter", "faces": ["face:3", "face:4"],
+                       "at": ["face:1"], "nominal": 20.0, "lower": -0.3, "upper": 0.3},
+                      "Ø20.000 +0.3/−0.3"),
 }
 DATUMS = {k: {"faces": ["face:1"]} for k in "ABC"}
 

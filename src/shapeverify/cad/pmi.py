@@ -50,6 +50,7 @@ import os
 from pathlib import Path
 
 from ..errors import CADImportError, UnsupportedFormatError
+from .pmi_construction import attach_construction_sides
 from .pmi_text import unread_pmi_of_file
 
 logger = logging.getLogger(__name__)
@@ -637,6 +638,7 @@ def read_pmi_here(path) -> dict:
     _unit_slip(path, tolerances)
     composites_missed = _mark_composites(path, tolerances)
     _max_tolerances(path, tolerances)
+    attach_construction_sides(caf, index, dimensions)   # a side on supplemental curves
 
     used = set()
     for it in datum_list + tolerances + dimensions:

@@ -267,6 +267,26 @@ def _cylinder_wall(start: int, cyl, faces, edge_faces, index) -> list:
     return sorted(wall)
 
 
+def _rim_around(r) -> int | None:
+    """The cylinder face a non-circular edge between one cylinder and one plane runs around
+    (a rim the plane cuts a little aslant: NIST FTC 07 DIM15's B-spline edge of its ⌀22.225
+    cylinder, 0.39 mm of axial run over half a turn): its points on that cylinder, turning 90°
+    or more about its axis, within a tenth of its radius along it; else None."""
+    if sorted(r["kinds"]) != ["Cylinder", "Plane"] or len(r["cylinders"]) != 1:
+        return None
+    (i, (c, a, rad)), = r["cylinders"].items()
+    c, a, P = np.asarray(c, float), np.asarray(a, float), np.asarray(r["points"], float)
+    q = P - c
+    h = q @ a
+    radial = q - np.outer(h, a)
+    if np.ptp(h) > 0.1 * rad or np.max(np.abs(np.linalg.norm(radial, axis=1) - rad)) > 1e-3 * rad:
+        return None
+    e1 = radial[0] / np.linalg.norm(radial[0])
+    ang = np.sort(np.arctan2(radial @ np.cross(a, e1), radial @ e1) % (2 * np.pi))
+    gaps = np.diff(np.r_[ang, ang[0] + 2 * np.pi])
+    return int(i) if 2 * np.pi - gaps.max() >= np.pi / 2 else None
+
+
 def edge_feature(records: list, faces, edge_faces, index) -> tuple[list, str, str]:
     """(faces, how, '') of the feature the edges of one PMI item bound, or ([], '', reason).
 
@@ -283,6 +303,14 @@ def edge_feature(records: list, faces, edge_faces, index) -> tuple[list, str, st
                 out.extend(f for f in wall if f not in out)
                 hows.append(f"circular edge (\u2300{2 * radius:.6g}) of the cylinder it bounds")
                 continue
+        rim = _rim_around(r) if r["curve"] != "Circle" else None
+        if rim is not None:
+            cyl = r["cylinders"][rim]
+            wall = _cylinder_wall(rim, cyl, faces, edge_faces, index)
+            out.extend(f for f in wall if f not in out)
+            hows.append(f"edge ({r['curve']}) around the \u2300{2 * cyl[2]:.6g} cylinder it "
+                        "bounds, where a plane cuts it")
+            continue
         if r["faces"]:
             between = " and ".join(f"face {f} ({k})" for f, k in zip(r["faces"], r["kinds"]))
             what = ("a circular edge" if r["curve"] == "Circle" else

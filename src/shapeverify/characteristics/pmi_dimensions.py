@@ -17,6 +17,56 @@ def _mm(x: float) -> float:
     return float(round(float(x), 9)) + 0.0
 
 
+def _edge_sides(item, ctx) -> list | None:
+    """[side 1, side 2] of a linear distance a side of which is a straight edge between two
+    planar faces (NIST CTC 05 DIM24, 127 ±0.2032 between the top's edges with its two side
+    faces): of each such edge the face that, with the other side, makes two parallel planes
+    ``nominal`` apart -- None unless exactly one choice does."""
+    cands = []
+    for key in ("faces", "faces2"):
+        recs = item.get("edges" if key == "faces" else "edges2") or []
+        if item.get(key):
+            cands.append([[ctx.fmap.get(f) for f in item[key]]])
+        elif len(recs) == 1 and recs[0]["curve"] == "Line" and recs[0]["kinds"] == ["Plane",
+                                                                                     "Plane"]:
+            cands.append([[ctx.fmap.get(f)] for f in recs[0]["faces"]])
+        else:
+            return None
+    nom = float(item["nominal"])
+    hits = []
+    for s1 in cands[0]:
+        for s2 in cands[1]:
+            if None in s1 or None in s2 or set(s1) & set(s2):
+                continue
+            a, b = ctx.feats[s1[0]], ctx.feats[s2[0]]
+            if (a.kind == b.kind == "plane" and abs(abs(a.axis @ b.axis) - 1.0) <= 1e-6
+                    and abs(abs((b.center - a.center) @ a.axis) - nom) <= 1e-4 * max(nom, 1.0)):
+                hits.append([s1, s2])
+    return hits[0] if len(hits) == 1 else None
+
+
+def _junction(recs) -> str:
+    """'' or what a side is when its edges lie on the circle where a cylinder meets a cone
+    (NIST FTC 06 DIM49: a drilled hole's depth, plane to where its ⌀6.35 wall meets the drill
+    point; FTC 10 DIM16 the same circle in two halves and four edges of thread faces): every
+    edge's points on the cylinder of the first cylinder-cone edge, in one plane square to its
+    axis."""
+    meet = [r for r in recs if sorted(r["kinds"]) == ["Cone", "Cylinder"]
+            and len(r["cylinders"]) == 1]
+    if not meet:
+        return ""
+    (i, (c, a, rad)), = meet[0]["cylinders"].items()
+    q = np.concatenate([np.asarray(r["points"], float) for r in recs]) - np.asarray(c, float)
+    h = q @ np.asarray(a, float)
+    rho = np.linalg.norm(q - np.outer(h, a), axis=1)
+    if np.ptp(h) > 1e-4 * rad or np.max(np.abs(rho - rad)) > 1e-3 * rad:
+        return ""
+    cone = meet[0]["faces"][meet[0]["kinds"].index("Cone")]
+    return (f"the circle (\u2300{2 * rad:.6g}) where face {i} (Cylinder) meets face {cone} "
+            "(Cone), e.g. a drilled hole's depth to its point: the plan has no characteristic "
+            "for a distance to such a circle yet (issue 28 item 3)")
+
+
 def _planes(item, ctx) -> tuple[list | None, str]:
     """([side 1, side 2], '') or (None, why): each side one plane -- a planar face, or planar
     faces in one plane with one outward side (:func:`.face_groups.plane_groups`: a floor the
@@ -29,8 +79,12 @@ def _planes(item, ctx) -> tuple[list | None, str]:
         if any(f is None for f in faces):
             return None, "a face it names could not be imported (see the import's warnings)"
         sides.append(list(dict.fromkeys(faces)))
+    if (not sides[0] or not sides[1]) and item["type"] == "Location_LinearDistance":
+        sides = _edge_sides(item, ctx) or sides
     if not sides[0] or not sides[1]:
-        why = item.get("edge_reason" if not sides[0] else "edge_reason2")
+        why = _junction(item.get("edges" if not sides[0] else "edges2") or []) or \
+            item.get("edge_reason" if not sides[0] else "edge_reason2") or \
+            (item.get("side2_reason") if sides[0] else None)
         if why:
             which = "first" if not sides[0] else "second"
             return None, f"it is not between two faces (its {which} side: {why})"
@@ -65,6 +119,8 @@ def between_entries(item, ctx, src: dict, name) -> tuple[list, str]:
     sides, why = _planes(item, ctx)
     if sides is None:
         return [], why
+    if not item["faces"] or not item["faces2"]:      # a side from a straight edge
+        src = {**src, "attached": "the parallel planar faces of its straight edges"}
     a, b = ctx.feats[sides[0][0]], ctx.feats[sides[1][0]]
     nom = float(item["nominal"])
     entry = {"faces": [f"face:{s[0]}" if len(s) == 1 else [f"face:{f}" for f in s]
@@ -85,8 +141,13 @@ def between_entries(item, ctx, src: dict, name) -> tuple[list, str]:
                     return got, ""
                 return [], (f"the nominal distance {nom:g} is not between its two coplanar "
                             f"faces; the faces of their composite: {why}")
-            return [], (f"the nominal distance {nom:g} differs from the CAD faces' "
-                        f"{cad:.4f} mm")
+            if not item["lower"] <= cad - nom <= item["upper"]:
+                return [], (f"the nominal distance {nom:g} differs from the CAD faces' "
+                            f"{cad:.4f} mm by more than its limits")
+            # the CAD's faces lie within the drawing's limits: a nominal written to the
+            # drawing's places (FTC 06 DIM40: .56 +-.02 in between faces .5625 in apart);
+            # measured against the drawing's nominal and limits
+            entry["pmi"] = {**src, "cad_distance": _mm(cad)}
         return [{"name": name(f"{item['id']}_distance"), "type": "distance", **entry}], ""
     cad = float(np.degrees(np.arccos(np.clip(a.axis @ b.axis, -1.0, 1.0))))
     if min(abs(cad - nom), abs(180.0 - cad - nom)) > 1e-3:

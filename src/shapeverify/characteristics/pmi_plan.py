@@ -36,6 +36,8 @@ its frame drawn on a dimension line        (:mod:`.pmi_axis_planes`)
 ProfileOfLine at a line drawn on a face    ``line_profile`` (:mod:`.pmi_profile_line`)
 Size_Radius, Size_SphericalDiameter,       ``feature_size`` (:mod:`.pmi_sizes`)
 Size_SphericalRadius with ± limits
+Size_Angular of cones with ± limits;       ``cone_angle`` per cone; ``cone_diameter``
+Size_Diameter on cone-plane circle edges   (a countersink at its surface, :mod:`.pmi_cones`)
 Size_Thickness with ± limits on planar      ``distance`` between the two planes (a side of
 faces in two parallel planes                several coplanar faces is one plane)
 Parallelism/Perpendicularity/Angularity of  the orientation type with ``zone: median_plane``
@@ -955,10 +957,11 @@ def _dimension(item, ctx) -> tuple[list, str]:
         from .pmi_dimensions import thickness_entries
 
         return thickness_entries(item, ctx, _src(item), ctx.name)
-    if t in ("Size_Radius", "Size_SphericalDiameter", "Size_SphericalRadius"):
+    if t in ("Size_Radius", "Size_SphericalDiameter", "Size_SphericalRadius", "Size_Angular"):
+        from .pmi_cones import angular_entries
         from .pmi_sizes import size_entries
 
-        return size_entries(item, ctx, _src(item))
+        return (angular_entries if t == "Size_Angular" else size_entries)(item, ctx, _src(item))
     if t != "Size_Diameter":
         if t == "Location_None":
             from .pmi_sizes import LOCATION_NONE_REASON
@@ -972,8 +975,9 @@ def _dimension(item, ctx) -> tuple[list, str]:
     if item["modifiers"]:
         return [], f"size modifiers {', '.join(item['modifiers'])}"
     faces, reason = _faces_ok(item, ctx)
-    if faces is None:
-        return [], reason
+    if faces is None:       # a countersink's diameter at its edges, else the reason
+        from .pmi_cones import countersink_entries
+        return countersink_entries(item, ctx, _src(item), reason)
     groups, other = _cylinders(ctx.feats, ctx.model, faces)
     if other or not groups:
         return [], "it controls faces that are not cylinders"

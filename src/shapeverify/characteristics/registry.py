@@ -98,6 +98,10 @@ TYPES: tuple[CharacteristicType, ...] = (
                        "⌖"),
     CharacteristicType("feature_size", schema.FeatureSize, "size_features:eval_feature_size",
                        False, "size (radius, sphere)"),
+    CharacteristicType("cone_angle", schema.ConeAngle, "cone_sizes:eval_cone_angle", False,
+                       "angle (cone)", unit="deg"),
+    CharacteristicType("cone_diameter", schema.ConeDiameter, "countersink:eval_cone_diameter",
+                       False, "diameter (countersink)", "Ø"),
 )
 
 _BY_NAME = {t.name: t for t in TYPES}

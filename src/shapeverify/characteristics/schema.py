@@ -561,6 +561,45 @@ class FeatureSize(_Char):
         return self
 
 
+class ConeAngle(_Char):
+    """The angle (degrees) of the least-squares cone of ``faces`` (one cone: a countersink, a
+    chamfer; the CAD may split it in several faces): ``angle: included`` (the apex angle, as a
+    countersink's 90° is drawn) or ``half`` (to the axis), within ``lower``/``upper`` of the
+    CAD's angle (``nominal``: the drawing's, for the report); :mod:`.cone_sizes`."""
+
+    type: Literal["cone_angle"]
+    faces: FaceList
+    angle: Literal["included", "half"] = "included"
+    lower: float
+    upper: float
+    nominal: Optional[float] = Field(default=None, gt=0, lt=180)
+
+    @model_validator(mode="after")
+    def _order(self):
+        if not self.lower < self.upper:
+            raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
+        return self
+
+
+class ConeDiameter(_Char):
+    """A countersink's diameter (mm): the least-squares cone of ``faces`` where its axis meets
+    the least-squares plane of ``at`` (the surface it is cut in), within ``lower``/``upper``
+    of the CAD's (``nominal``: the drawing's, for the report); :mod:`.countersink`."""
+
+    type: Literal["cone_diameter"]
+    faces: FaceList
+    at: FaceList
+    lower: float
+    upper: float
+    nominal: Optional[float] = Field(default=None, gt=0)
+
+    @model_validator(mode="after")
+    def _order(self):
+        if not self.lower < self.upper:
+            raise ValueError(f"lower ({self.lower}) must be below upper ({self.upper})")
+        return self
+
+
 class _Runout(_Gdt):
     """Runout of the surfaces ``faces`` about the datum axis (``datums``: an axis datum)."""
 
