@@ -158,6 +158,7 @@ def test_damaged_svm_is_one_error_line_naming_the_file_and_exit_2(panel, tmp_pat
     assert "internal error" not in res.output and "Traceback" not in res.output
 
 
+@pytest.mark.slow  # 3.8 s of CPU with numba's cache warm (quick tests: under ~3 s)
 def test_a_step_file_that_crashes_opencascade_is_exit_2_not_a_dead_process(panel, tmp_path):
     bad = _crashing_step(panel / "panel.step", tmp_path / "broken.step")
     res = runner.invoke(app, ["info", str(bad)])

@@ -54,6 +54,7 @@ def test_surface_exact_recovery_grid():
     # (the net itself is not unique: the surface may extend beyond the grid's border)
 
 
+@pytest.mark.slow  # 3.8 s of CPU with numba's cache warm (quick tests: under ~3 s)
 def test_surface_scattered_noise_level():
     s = _known_surface()
     rng = np.random.default_rng(1)

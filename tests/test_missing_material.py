@@ -169,6 +169,7 @@ def test_reports_show_a_missing_region(prep, fine, tmp_path):
     assert row["region_min"] is None or np.isnan(row["region_min"])    # no extreme: none stored
 
 
+@pytest.mark.slow  # 3.0 s of CPU with numba's cache warm (quick tests: under ~3 s)
 def test_a_hole_in_a_solid_the_cad_does_not_have_fails_by_default(tmp_path):
     """Issue 33 row 3 on a solid (a 10 mm plate, CAD without the hole, scan of the drilled
     plate sampled by area from OpenCASCADE's tessellation): the hole's wall lies inside the

@@ -245,6 +245,7 @@ def test_pdf_table_draws_every_frame_in_its_cell_grouped_by_drf(name):
     assert sum(o[0] == "row" for o in got) == len(pr.characteristics)
 
 
+@pytest.mark.slow  # 3.0 s of CPU with numba's cache warm (quick tests: under ~3 s)
 def test_pdf_frames_lie_inside_their_cells_and_a4():
     """The widest frames of FTC 08 (⌖ Ø0.5842 Ⓜ Ⓕ A B C) fit the frame column."""
     from matplotlib.table import Table

@@ -143,6 +143,7 @@ def test_boss_of_two_half_cylinder_faces_is_measured_as_one_cylinder(part):
     assert c.verdict == "fail" and c.nominal == pytest.approx(8.0, abs=1e-9)
 
 
+@pytest.mark.slow  # 3.4 s of CPU with numba's cache warm (quick tests: under ~3 s)
 def test_3x_cylindricity_of_three_pins_is_each_pins_own_minimum_zone(part):
     """One tolerance on three pins, the middle one oval by +-0.05 mm: each pin's value is the
     minimum zone of its own points (SLSQP), the result the worst (the oval pin, 0.1 plus the

@@ -137,6 +137,7 @@ def test_ftc10_model_points_all_lie_on_the_solid(ftc10):
     assert not np.isin(near_sup.face, model.supplemental).any()
 
 
+@pytest.mark.slow  # 4.3 s of CPU with numba's cache warm (quick tests: under ~3 s)
 def test_ftc10_dent_under_a_supplemental_thread_face_is_found(ftc10):
     """A 1 mm dent of the tapped hole's wall towards face 265 (a thread cylinder 1.25 mm away,
     inside the material): measured against the supplemental face it read about 0.25 mm."""

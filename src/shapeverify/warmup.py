@@ -197,7 +197,10 @@ def warm_up(say=logger.info) -> float:
         _far_queries(work / "panel.svm")
         say("scans as other programs hand them over (read-only, float32, Fortran order)")
         input_variants(work / "panel.svm", work / "scan.ply")
-        from shapeverify._warmup_commands import library_variants, run_all
+        from shapeverify._warmup_commands import global_search, library_variants, run_all
+
+        say("the search with no start (a scan in any pose)")
+        global_search(work / "panel.svm", work / "scan.ply")
 
         run_all(work, _run, say, step=step, svm=work / "panel.svm", scan=work / "scan.ply")
         say("phase maps and points as other programs hand them over")
