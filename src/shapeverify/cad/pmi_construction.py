@@ -47,25 +47,13 @@ def construction_sides(caf, index) -> list[tuple[list, str]]:
     one side of which is only supplemental geometry (items of a constructive geometry
     representation) and the other faces of the model (model face numbers)."""
     from OCP.STEPConstruct import STEPConstruct
-    from OCP.StepAP242 import (StepAP242_DraughtingModelItemAssociation,
-                               StepAP242_ItemIdentifiedRepresentationUsage)
-    from OCP.StepRepr import (StepRepr_ConstructiveGeometryRepresentation,
-                              StepRepr_ShapeAspectRelationship)
-    from OCP.StepShape import StepShape_DimensionalLocation
+    from OCP.StepRepr import StepRepr_ConstructiveGeometryRepresentation
 
-    ws = caf.Reader().WS()
-    model, tp = ws.Model(), ws.TransferReader().TransientProcess()
-    ents = [model.Value(i) for i in range(1, model.NbEntities() + 1)]
-    locs = [e for e in ents if isinstance(e, StepShape_DimensionalLocation)]
+    from .pmi_iiru import location_graph
+
+    tp, _ents, locs, rels, usages = location_graph(caf)
     if not locs:
         return []
-    rels = [e for e in ents if isinstance(e, StepRepr_ShapeAspectRelationship)
-            and not isinstance(e, StepShape_DimensionalLocation)]
-    usages: dict = {}
-    for e in ents:
-        if isinstance(e, StepAP242_ItemIdentifiedRepresentationUsage) and not isinstance(
-                e, StepAP242_DraughtingModelItemAssociation) and e.Definition() is not None:
-            usages.setdefault(id(e.Definition().Value()), []).append(e)
 
     def uses(aspect) -> list:
         own = usages.get(id(aspect), [])

@@ -317,6 +317,34 @@ def resolve_curve_targets(caf, names, index, edge_faces, faces) -> dict:
     return out
 
 
+def location_graph(caf) -> tuple:
+    """``(transient process, entities, locations, relationships, usages)`` of the STEP file
+    ``caf`` read: all its entities, its ``DIMENSIONAL_LOCATION`` entities, the other
+    ``SHAPE_ASPECT_RELATIONSHIP`` entities, and the ``ITEM_IDENTIFIED_REPRESENTATION_USAGE``
+    entities (not the draughting ones) by ``id`` of the shape aspect they define.  The keys
+    are ids of the entities' Python wrappers: hold on to ``entities`` while using them
+    (pybind11 hands out the same wrapper for an entity only while one is alive)."""
+    from OCP.StepAP242 import (StepAP242_DraughtingModelItemAssociation,
+                               StepAP242_ItemIdentifiedRepresentationUsage)
+    from OCP.StepRepr import StepRepr_ShapeAspectRelationship
+    from OCP.StepShape import StepShape_DimensionalLocation
+
+    ws = caf.Reader().WS()
+    model, tp = ws.Model(), ws.TransferReader().TransientProcess()
+    ents = [model.Value(i) for i in range(1, model.NbEntities() + 1)]
+    locs = [e for e in ents if isinstance(e, StepShape_DimensionalLocation)]
+    rels = [e for e in ents if isinstance(e, StepRepr_ShapeAspectRelationship)
+            and not isinstance(e, StepShape_DimensionalLocation)]
+    usages: dict = {}
+    for e in ents:
+        if isinstance(e, StepAP242_ItemIdentifiedRepresentationUsage) and not isinstance(
+                e, StepAP242_DraughtingModelItemAssociation):
+            d = e.Definition().Value() if e.Definition() is not None else None
+            if d is not None:
+                usages.setdefault(id(d), []).append(e)
+    return tp, ents, locs, rels, usages
+
+
 def dimension_groups(caf, index) -> list[tuple[list, list, list]]:
     """``(faces, faces2, group)`` of each ``DIMENSIONAL_LOCATION`` whose two shape aspects are
     components of one composite shape aspect (``COMPOSITE_GROUP_SHAPE_ASPECT``): the faces of
@@ -329,26 +357,11 @@ def dimension_groups(caf, index) -> list[tuple[list, list, list]]:
     Only groups whose every component resolves to faces are returned.
     """
     from OCP.STEPConstruct import STEPConstruct
-    from OCP.StepAP242 import (StepAP242_DraughtingModelItemAssociation,
-                               StepAP242_ItemIdentifiedRepresentationUsage)
-    from OCP.StepRepr import StepRepr_CompositeShapeAspect, StepRepr_ShapeAspectRelationship
-    from OCP.StepShape import StepShape_DimensionalLocation
+    from OCP.StepRepr import StepRepr_CompositeShapeAspect
 
-    ws = caf.Reader().WS()
-    model, tp = ws.Model(), ws.TransferReader().TransientProcess()
-    ents = [model.Value(i) for i in range(1, model.NbEntities() + 1)]
-    locs = [e for e in ents if isinstance(e, StepShape_DimensionalLocation)]
+    tp, _ents, locs, rels, usages = location_graph(caf)
     if not locs:
         return []
-    rels = [e for e in ents if isinstance(e, StepRepr_ShapeAspectRelationship)
-            and not isinstance(e, StepShape_DimensionalLocation)]
-    usages: dict = {}                   # id(aspect) -> [usage]
-    for e in ents:
-        if isinstance(e, StepAP242_ItemIdentifiedRepresentationUsage) and not isinstance(
-                e, StepAP242_DraughtingModelItemAssociation):
-            d = e.Definition().Value() if e.Definition() is not None else None
-            if d is not None:
-                usages.setdefault(id(d), []).append(e)
 
     def faces_of(aspect) -> list | None:
         out = []

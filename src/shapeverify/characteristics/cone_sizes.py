@@ -22,7 +22,7 @@ from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["cad_cone", "cone_fit_angle", "half_angle_sd", "cone_covariance", "eval_cone_angle"]
+__all__ = ["cad_cone", "cached_cad_cone", "cone_fit_angle", "half_angle_sd", "cone_covariance", "eval_cone_angle"]
 
 
 def cad_cone(model, faces) -> tuple[np.ndarray, np.ndarray, float, float]:
@@ -97,13 +97,9 @@ def cone_covariance(P, f) -> np.ndarray:
     return Hinv @ (Jb.T @ Jb) @ Hinv
 
 
-def eval_cone_angle(c, ctx):
-    """cone_angle (module docstring)."""
-    from .alignment import face_indices
-    from .evaluate import CharacteristicResult, _not_measured
-    from .zones import decide
-
-    fl = face_indices(ctx.prep.model, c.faces).tolist()
+def cached_cad_cone(c, ctx, fl) -> tuple[np.ndarray, np.ndarray, float]:
+    """(apex, axis, half angle) of :func:`cad_cone` of the model faces ``fl``, kept in the
+    evaluation's cache; ValueError when the faces are not one cone."""
     key = ("cad_cone", tuple(fl))
     if key not in ctx.cache:
         ctx.cache[key] = cad_cone(ctx.prep.model, fl)
@@ -111,6 +107,17 @@ def eval_cone_angle(c, ctx):
     if not err <= 1e-6 * max(float(ctx.prep.model.size), 1.0) + 1e-9:
         raise ValueError(f"{c.name}: the faces {fl} are not one cone (CAD points {err:.3g} mm "
                          "off the cone of their normals)")
+    return apex, axis0, psi0
+
+
+def eval_cone_angle(c, ctx):
+    """cone_angle (module docstring)."""
+    from .alignment import face_indices
+    from .evaluate import CharacteristicResult, _not_measured
+    from .zones import decide
+
+    fl = face_indices(ctx.prep.model, c.faces).tolist()
+    apex, axis0, psi0 = cached_cad_cone(c, ctx, fl)
     m = ctx.S.on(fl)
     n = int(np.count_nonzero(m))
     if n < 20:

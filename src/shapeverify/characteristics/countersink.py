@@ -30,19 +30,14 @@ def diameter_at_plane(apex, axis, psi, c, n) -> tuple[float, float]:
 def eval_cone_diameter(c, ctx):
     """cone_diameter (module docstring)."""
     from .alignment import face_indices
-    from .cone_sizes import cad_cone, cone_covariance, cone_fit_angle
+    from .cone_sizes import cached_cad_cone, cone_covariance, cone_fit_angle
     from .evaluate import CharacteristicResult, _not_measured
     from .gdt_size import lsq_plane
     from .zones import decide
 
     fl = face_indices(ctx.prep.model, c.faces).tolist()
     at = face_indices(ctx.prep.model, c.at).tolist()
-    key = ("cad_cone", tuple(fl))
-    if key not in ctx.cache:
-        ctx.cache[key] = cad_cone(ctx.prep.model, fl)
-    apex0, a0, psi0, err = ctx.cache[key]
-    if not err <= 1e-6 * max(float(ctx.prep.model.size), 1.0) + 1e-9:
-        raise ValueError(f"{c.name}: the faces {fl} are not one cone")
+    apex0, a0, psi0 = cached_cad_cone(c, ctx, fl)
     pl = [ctx.feats[f] for f in at]
     if any(f.kind != "plane" for f in pl):
         raise ValueError(f"{c.name}: at {c.at} must be planar faces")
