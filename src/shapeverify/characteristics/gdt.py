@@ -601,9 +601,11 @@ def eval_position(c, ctx: EvalContext):
             reach = ext + float(proj)
         q = ends - f.center
         off = q - np.outer(q @ f.axis, f.axis)
+        zone = {}
         if c.zone == "planes":     # two parallel planes normal to u (across the axis)
             u = _across(c.direction, f.axis)
             value = 2.0 * float(np.abs(off @ u).max())
+            zone = {"zone_normal": u.tolist()}
         else:
             value = 2.0 * float(np.linalg.norm(off, axis=1).max())
         bonus, note = _bonus(c, hole, mating, least, f.diameter, own_size)
@@ -623,8 +625,7 @@ def eval_position(c, ctx: EvalContext):
                      "mating_diameter": mating, "least_material_diameter": least,
                      "nominal_diameter": float(f.diameter), "U": U,
                      "verdict": decide(value, None, tol, U), "ends": ends.tolist(),
-                     **({"zone_normal": _across(c.direction, f.axis).tolist()}
-                        if c.zone == "planes" else {}),
+                     **zone,
                      "note": note, "_axis": (f.center, f.axis)})
         if proj is not None:
             rows[-1]["projected"] = {"length": float(proj), "mouth": mouth}

@@ -82,7 +82,7 @@ def countersink_entries(item, ctx, src, why: str) -> tuple[list, str]:
     meet a plane (NIST CTC 04 DIM7, ⌀20 ±0.3 on its 30 countersinks: the countersinks'
     diameter at the surface they are cut in), one ``cone_diameter`` per cone; else ([], why)."""
     from .countersink import diameter_at_plane
-    from .pmi_plan import _mm
+    from .pmi_plan import _drawn_shift, _mm
 
     recs = item.get("edges") or []
     if (item["faces"] or not recs or item["lower"] is None or item["modifiers"]
@@ -104,10 +104,8 @@ def countersink_entries(item, ctx, src, why: str) -> tuple[list, str]:
         if len(at) != 1 or pl.kind != "plane":
             return [], f"{why} (cone face:{g[0]} meets {len(at)} faces, not one plane)"
         cad, _ = diameter_at_plane(A, a, psi, pl.center, pl.axis)
-        shift = nominal - cad
-        if abs(shift) <= 1e-3 * nominal + 1e-6:
-            shift = 0.0
-        elif not item["lower"] <= -shift <= item["upper"]:
+        shift = _drawn_shift(item, cad)
+        if shift is None:
             return [], (f"the nominal \u2300{nominal:g} differs from the CAD countersink's "
                         f"\u2300{cad:.4f} at face:{at[0]} by more than its limits")
         name = f"{item['id']}_diameter" + (f"_{k}" if len(groups) > 1 else "")

@@ -257,6 +257,17 @@ def _mm(x: float) -> float:
     leaves 0.20000000000000284), no negative zero."""
     return float(round(float(x), 9)) + 0.0
 
+
+def _drawn_shift(item, cad: float) -> float | None:
+    """How far a size's drawn nominal lies from the CAD's (0 within 1e-3 of it, rounding of
+    the drawing's places), the plan's limits being deviations from the CAD size: a drawing
+    whose nominal differs from the model's (FTC 08: 6.0452 drawn, 6.0325 modelled) keeps its
+    own limits shifted by it -- None when the model lies outside them."""
+    shift = float(item["nominal"]) - cad
+    if abs(shift) <= 1e-3 * float(item["nominal"]) + 1e-6:
+        return 0.0
+    return shift if item["lower"] <= -shift <= item["upper"] else None
+
 def _src(item: dict) -> dict:
     out = {"kind": item["kind"], "type": item["type"], "id": item["id"]}
     for key in ("attached", "attached2"):       # faces found from the edges it points at
@@ -483,6 +494,15 @@ _HARMLESS = {"ProfileOfSurface": {"All_Around", "All_Over", "Free_State"},
              "Parallelism": {"Free_State", "Tangent_Plane"},
              "Perpendicularity": {"Free_State", "Tangent_Plane"},
              "Angularity": {"Free_State", "Tangent_Plane"}}
+
+
+def _plain_zone_reason(item, note: str = "") -> str:
+    """'' or why a tolerance's zone is not the plain one the plan measures: a zone modifier
+    (``note`` appended), or a modifier other than Free_State."""
+    if item["zone_modifier"] != "None":
+        return f"a {item['zone_modifier']} zone modifier{note}"
+    extra = [m for m in item["modifiers"] if m != "Free_State"]
+    return f"modifier {', '.join(extra)} is not applied by the plan" if extra else ""
 
 
 def _modifier_reason(item) -> str:
@@ -983,13 +1003,8 @@ def _dimension(item, ctx) -> tuple[list, str]:
         return [], "it controls faces that are not cylinders"
     out = []
     for g in groups:
-        # the plan's diameter limits are deviations from the CAD's diameter: a drawing whose
-        # nominal differs from the model's (FTC 08: 6.0452 drawn, 6.0325 modelled) keeps its
-        # own size limits, shifted by the difference -- when the model lies within them
-        shift = float(item["nominal"]) - g[3]
-        if abs(shift) <= 1e-3 * item["nominal"] + 1e-6:
-            shift = 0.0
-        elif not item["lower"] <= -shift <= item["upper"]:
+        shift = _drawn_shift(item, g[3])
+        if shift is None:
             return [], (f"the nominal \u2300{item['nominal']:g} differs from the CAD cylinder's "
                         f"\u2300{g[3]:.4f} by more than its limits")
         tol = {"lower": _mm(item["lower"] + shift), "upper": _mm(item["upper"] + shift)}

@@ -9,17 +9,15 @@ __all__ = ["position_zone_entries"]
 
 def position_zone_entries(item, ctx, faces, src) -> tuple[list, str]:
     """(plan entries, '') or ([], reason) of a planes- or sphere-zone ``Position``."""
-    from .pmi_plan import _item_drf
+    from .pmi_plan import _item_drf, _plain_zone_reason
     from .position_zones import width_sides
 
     vt = item["value_type"]
     zone = {"None": "planes", "SphericalDiameter": "sphere"}[vt]
     if zone == "planes" and faces and {ctx.feats[f].kind for f in faces} == {"cylinder"}:
-        if item["zone_modifier"] != "None":
-            return [], f"a {item['zone_modifier']} zone modifier"
-        extra = [m for m in item["modifiers"] if m != "Free_State"]
-        if extra:
-            return [], f"modifier {', '.join(extra)} is not applied by the plan"
+        why = _plain_zone_reason(item)
+        if why:
+            return [], why
         from .pmi_axis_planes import axis_planes_entries
 
         return axis_planes_entries(item, ctx, faces, src)
@@ -27,11 +25,9 @@ def position_zone_entries(item, ctx, faces, src) -> tuple[list, str]:
         return [], (f"material modifier {item['material']} on a position in "
                     f"{'two parallel planes' if zone == 'planes' else 'a sphere'} (bonus "
                     "tolerance only for axes)")
-    if item["zone_modifier"] != "None":
-        return [], f"a {item['zone_modifier']} zone modifier"
-    extra = [m for m in item["modifiers"] if m != "Free_State"]
-    if extra:
-        return [], f"modifier {', '.join(extra)} is not applied by the plan"
+    why = _plain_zone_reason(item)
+    if why:
+        return [], why
     try:
         if zone == "planes":
             width_sides(ctx.feats, faces)

@@ -23,7 +23,7 @@ __all__ = ["line_profile_entries"]
 
 def line_profile_entries(item, ctx, drf, why, src) -> tuple[list, str]:
     """(plan entries, '') or ([], reason) of a ``ProfileOfLine`` item."""
-    from .pmi_plan import _drf_reason, _item_drf
+    from .pmi_plan import _drf_reason, _item_drf, _plain_zone_reason
 
     recs = item.get("edges") or []
     normals = [r["section_normal"] for r in recs if r.get("section_normal")]
@@ -38,11 +38,9 @@ def line_profile_entries(item, ctx, drf, why, src) -> tuple[list, str]:
     faces = [ctx.fmap.get(f) for f in dict.fromkeys(on)]
     if any(f is None for f in faces):
         return [], "a face it names could not be imported (see the import's warnings)"
-    if item["zone_modifier"] != "None":
-        return [], f"a {item['zone_modifier']} zone modifier (uniform zones only)"
-    extra = [m for m in item["modifiers"] if m not in ("Free_State",)]
-    if extra:
-        return [], f"modifier {', '.join(extra)} is not applied by the plan"
+    plain = _plain_zone_reason(item, " (uniform zones only)")
+    if plain:
+        return [], plain
     names = None
     if item["datums"]:
         names, r = _item_drf(item, ctx)
@@ -63,7 +61,7 @@ def _plane_entries(item, ctx, src) -> tuple[list, str]:
     import numpy as np
 
     from .features import _face_grid
-    from .pmi_plan import _item_drf, _planes_coplanar
+    from .pmi_plan import _item_drf, _plain_zone_reason, _planes_coplanar
 
     faces = [ctx.fmap.get(f) for f in item["faces"]]
     if any(f is None for f in faces):
@@ -77,11 +75,9 @@ def _plane_entries(item, ctx, src) -> tuple[list, str]:
         return [], ("the section direction of a profile of a line attached to faces is not "
                     "in the file's semantic PMI, and without datums each section's zone "
                     "floats: the value depends on it")
-    if item["zone_modifier"] != "None":
-        return [], f"a {item['zone_modifier']} zone modifier (uniform zones only)"
-    extra = [m for m in item["modifiers"] if m not in ("Free_State",)]
-    if extra:
-        return [], f"modifier {', '.join(extra)} is not applied by the plan"
+    plain = _plain_zone_reason(item, " (uniform zones only)")
+    if plain:
+        return [], plain
     names, r = _item_drf(item, ctx)
     if names is None:
         return [], r or "no datum reference frame"

@@ -17,7 +17,7 @@ LOCATION_NONE_REASON = ("Location_None: the file gives this dimension no value a
 
 def size_entries(item, ctx, src) -> tuple[list, str]:
     """(plan entries, '') or ([], reason) of a radius / spherical size dimension."""
-    from .pmi_plan import _cylinders, _faces_ok, _mm
+    from .pmi_plan import _cylinders, _drawn_shift, _faces_ok, _mm
     from .pmi_positions import _spheres
     from .size_features import cad_size
 
@@ -50,10 +50,8 @@ def size_entries(item, ctx, src) -> tuple[list, str]:
     for k, (shape, g) in enumerate(groups, start=1):
         r0, _, _ = cad_size(ctx.model, g, shape)
         cad = 2 * r0 if size == "diameter" else r0
-        shift = nominal - cad
-        if abs(shift) <= 1e-3 * nominal + 1e-6:
-            shift = 0.0
-        elif not item["lower"] <= -shift <= item["upper"]:
+        shift = _drawn_shift(item, cad)
+        if shift is None:
             return [], (f"the nominal {nominal:g} differs from the CAD {shape}'s {size} "
                         f"{cad:.4f} by more than its limits")
         name = f"{item['id']}_{size}" + (f"_{k}" if len(groups) > 1 else "")
