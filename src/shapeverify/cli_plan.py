@@ -143,6 +143,13 @@ def write_pmi_plan(model_path: Path, output: Optional[Path]) -> None:
                      "under 'unread': inspect them by hand" if unread else "")
                   + (f"; plan: {output}" if output else ""),
                   markup=False, highlight=False, soft_wrap=True)
+    if not any(res.pmi.get(k) for k in ("datums", "tolerances", "dimensions", "unread")):
+        console.print(f"note: {model_path.name} holds no semantic PMI (no datum, geometric "
+                      "tolerance or dimension that OpenCASCADE's XCAF reads), so the plan is a "
+                      "best fit with no characteristics. A drawing, or PMI shown only as "
+                      "graphics, cannot become a plan: use the part's STEP AP242 edition with "
+                      "semantic PMI, or write the plan by hand (README: Inspection plans).",
+                      style="yellow", markup=False, highlight=False, soft_wrap=True)
 
 
 def print_pmi(model_path: Path, m=None) -> None:
