@@ -40,8 +40,10 @@ demo: $(STAMP)
 # only when Python may write bytecode; with PYTHONDONTWRITEBYTECODE=1 in the environment (as on
 # the test machines) every worker rewrote all ~460 test modules at every run (collection: 15.8 s
 # of CPU per worker, 7.5 s with the cache)
+# --durations=40: the run ends with its 40 slowest tests, so every log (CI's too) says where the
+# suite's time went
 test: $(STAMP) browser
-	PYTHONDONTWRITEBYTECODE= $(BIN)/python -m pytest -q -n $(WORKERS) --dist loadfile --no-loadscope-reorder
+	PYTHONDONTWRITEBYTECODE= $(BIN)/python -m pytest -q -n $(WORKERS) --dist loadfile --no-loadscope-reorder --durations=40
 
 # the quick tests only: no test marked slow, no browser, no real data (README: how long)
 test-fast: $(STAMP)
