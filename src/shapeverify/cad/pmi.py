@@ -494,10 +494,145 @@ def _max_tolerances(path, tolerances) -> None:
         logger.warning("%s: maximum tolerance of %s not read: %s", path.name, gid, why)
 
 
+def _guarded(failed: list, kind: str, k: int, lab, read, *args):
+    """``read(lab, *args)``; if it raises, the label is recorded in ``failed`` (an ``unread``
+    entry with the error) and None returned: one PMI record OpenCASCADE or this module cannot
+    read never costs the file's others (a file from another CAD system encodes what ours
+    never met)."""
+    try:
+        return read(lab, *args)
+    except Exception as exc:        # noqa: BLE001 -- reported in ``unread`` with the error
+        typ, name = _label_identity(lab, kind)
+        logger.warning("PMI %s label %d (%s %r) could not be read: %s: %s", kind, k, typ, name,
+                       type(exc).__name__, exc)
+        failed.append({"kind": kind, "type": typ, "name": name, "entity": f"XCAF label {k}",
+                       "reason": f"reading this {kind.replace('_', ' ')} failed "
+                                 f"({type(exc).__name__}: {exc}); it is not checked: inspect "
+                                 "it by hand (an error of shapeverify on this file's encoding: "
+                                 "please report it with the file)"})
+        return None
+
+
+def _label_identity(lab, kind: str) -> tuple[str, str]:
+    """(type, name) of a PMI label as far as they can be read ('Unknown', '' otherwise)."""
+    from OCP.XCAFDoc import XCAFDoc_Datum, XCAFDoc_Dimension, XCAFDoc_GeomTolerance
+
+    try:
+        if kind == "datum":
+            o = _attr(lab, XCAFDoc_Datum).GetObject()
+            return "Datum", o.GetName().ToCString() if o.GetName() is not None else ""
+        if kind == "geometric_tolerance":
+            o = _attr(lab, XCAFDoc_GeomTolerance).GetObject()
+            return _enum_name(o.GetType(), _GT_PREFIX), _semantic_name(o)
+        o = _attr(lab, XCAFDoc_Dimension).GetObject()
+        return _enum_name(o.GetType(), _DIM_PREFIX), _semantic_name(o)
+    except Exception:               # noqa: BLE001 -- the identity is a courtesy
+        return "Unknown", ""
+
+
+def _read_datum(lab, index, edges, faces, datums: dict) -> None:
+    """Add one datum label to ``datums`` ({letter: record}; a letter has a label per use)."""
+    from OCP.XCAFDoc import XCAFDoc_Datum
+
+    a = _attr(lab, XCAFDoc_Datum)
+    if a is None:
+        return
+    o = a.GetObject()
+    name = o.GetName().ToCString() if o.GetName() is not None else ""
+    first, _ = _ref_labels(lab)
+    fs, other = _faces_of(first, index)
+    d = datums.setdefault(name, {"kind": "datum", "type": "Datum", "name": name,
+                                 "faces": [], "other": [], "targets": [], "labels": 0})
+    d["labels"] += 1
+    if o.IsDatumTarget():
+        t = {"type": _enum_name(o.GetDatumTargetType()),
+             "number": int(o.GetDatumTargetNumber()), "faces": fs, "other": other,
+             **_target_params(o)}
+        if not fs and "edge" in other:      # a line drawn on a face (NIST FTC 06 J, K)
+            from .pmi_edges import edge_record
+
+            t["edges"] = [edge_record(e, index, edges.map, faces) for e in _edges_of(first)]
+        d["targets"].append(t)
+        return
+    if not fs:                  # a datum feature named by its edge (a hole's rim)
+        probe = {"faces": []}
+        edges.resolve(probe, first)
+        fs = probe["faces"]
+        for key in ("attached", "edge_reason"):
+            if probe.get(key):
+                d[key] = probe[key]
+    d["faces"].extend(f for f in fs if f not in d["faces"])
+    d["other"].extend(other)
+
+
+def _read_tolerance(lab, k: int, index, edges) -> dict | None:
+    """The record of one geometric tolerance label (None: not a tolerance)."""
+    from OCP.XCAFDoc import XCAFDoc_Datum, XCAFDoc_DimTolTool, XCAFDoc_GeomTolerance
+
+    a = _attr(lab, XCAFDoc_GeomTolerance)
+    if a is None:
+        return None
+    o = a.GetObject()
+    first, _ = _ref_labels(lab)
+    fs, other = _faces_of(first, index)
+    drf = []
+    for dl in _labels(XCAFDoc_DimTolTool.GetDatumOfTolerLabels_s, lab):
+        da = _attr(dl, XCAFDoc_Datum)
+        if da is None:
+            continue
+        do = da.GetObject()
+        drf.append({"name": do.GetName().ToCString() if do.GetName() is not None else "",
+                    "order": int(do.GetPosition()),
+                    "modifiers": [_enum_name(m) for m in _seq(do.GetModifiers())]})
+    mat = _enum_name(o.GetMaterialRequirementModifier())
+    item = {"id": f"GT{k}", "kind": "geometric_tolerance",
+            "type": _enum_name(o.GetType(), _GT_PREFIX), "name": _semantic_name(o),
+            "value": float(o.GetValue()),
+            "value_type": _enum_name(o.GetTypeOfValue()),
+            "zone_modifier": _enum_name(o.GetZoneModifier()),
+            "zone_modifier_value": float(o.GetValueOfZoneModifier()),
+            "material": None if mat == "None" else mat,
+            "max_value": float(o.GetMaxValueModifier()),
+            "modifiers": [_enum_name(m, "XCAFDimTolObjects_GeomToleranceModif_")
+                          for m in _seq(o.GetModifiers())],
+            "datums": _unique_drf(drf), "faces": fs, "other": other}
+    edges.resolve(item, first)
+    return item
+
+
+def _read_dimension(lab, k: int, index, edges) -> dict | None:
+    """The record of one dimension label (None: not a dimension)."""
+    from OCP.XCAFDoc import XCAFDoc_Dimension
+
+    a = _attr(lab, XCAFDoc_Dimension)
+    if a is None:
+        return None
+    o = a.GetObject()
+    first, second = _ref_labels(lab)
+    fs, other = _faces_of(first, index)
+    fs2, other2 = _faces_of(second, index)
+    item = {"id": f"DIM{k}", "kind": "dimension",
+            "type": _enum_name(o.GetType(), _DIM_PREFIX), "name": _semantic_name(o),
+            "nominal": float(o.GetValue()), "lower": None, "upper": None,
+            "qualifier": _enum_name(o.GetQualifier()),
+            "modifiers": [_enum_name(m, "XCAFDimTolObjects_DimensionModif_")
+                          for m in _seq(o.GetModifiers())],
+            "faces": fs, "faces2": fs2, "other": other + other2}
+    if o.IsDimWithPlusMinusTolerance():
+        item["lower"], item["upper"] = -float(o.GetLowerTolValue()), float(o.GetUpperTolValue())
+    elif o.IsDimWithRange():
+        item["lower"] = float(o.GetLowerBound()) - item["nominal"]
+        item["upper"] = float(o.GetUpperBound()) - item["nominal"]
+    elif o.IsDimWithClassOfTolerance():
+        item["class_of_tolerance"] = True
+    edges.resolve(item, first)
+    edges.resolve(item, second, "faces2")
+    return item
+
+
 def read_pmi_here(path) -> dict:
     """:func:`read_pmi` in this process (what the importer child runs)."""
-    from OCP.XCAFDoc import (XCAFDoc_Datum, XCAFDoc_Dimension, XCAFDoc_DimTolTool,
-                             XCAFDoc_DocumentTool, XCAFDoc_GeomTolerance)
+    from OCP.XCAFDoc import XCAFDoc_DocumentTool
 
     from .occ_import import _init_ocp, _shape_faces
 
@@ -509,39 +644,11 @@ def read_pmi_here(path) -> dict:
     edges = _Edges(shape, faces, index)
     tool = XCAFDoc_DocumentTool.DimTolTool_s(doc.Main())
 
+    failed: list = []       # labels whose reading raised: listed in ``unread``, never lost
     # datums: one entry per letter (OpenCASCADE writes a datum label per use)
     datums: dict = {}
-    for lab in _labels(tool.GetDatumLabels):
-        a = _attr(lab, XCAFDoc_Datum)
-        if a is None:
-            continue
-        o = a.GetObject()
-        name = o.GetName().ToCString() if o.GetName() is not None else ""
-        first, _ = _ref_labels(lab)
-        fs, other = _faces_of(first, index)
-        d = datums.setdefault(name, {"kind": "datum", "type": "Datum", "name": name,
-                                     "faces": [], "other": [], "targets": [], "labels": 0})
-        d["labels"] += 1
-        if o.IsDatumTarget():
-            t = {"type": _enum_name(o.GetDatumTargetType()),
-                 "number": int(o.GetDatumTargetNumber()), "faces": fs, "other": other,
-                 **_target_params(o)}
-            if not fs and "edge" in other:      # a line drawn on a face (NIST FTC 06 J, K)
-                from .pmi_edges import edge_record
-
-                t["edges"] = [edge_record(e, index, edges.map, faces)
-                              for e in _edges_of(first)]
-            d["targets"].append(t)
-        else:
-            if not fs:                  # a datum feature named by its edge (a hole's rim)
-                probe = {"faces": []}
-                edges.resolve(probe, first)
-                fs = probe["faces"]
-                for key in ("attached", "edge_reason"):
-                    if probe.get(key):
-                        d[key] = probe[key]
-            d["faces"].extend(f for f in fs if f not in d["faces"])
-            d["other"].extend(other)
+    for k, lab in enumerate(_labels(tool.GetDatumLabels), start=1):
+        _guarded(failed, "datum", k, lab, _read_datum, index, edges, faces, datums)
     datum_list = []
     for k, (name, d) in enumerate(sorted(datums.items())):
         seen, targets = set(), []
@@ -573,67 +680,12 @@ def read_pmi_here(path) -> dict:
             if parts:
                 d["unattached"] = "; ".join(parts)
 
-    tolerances = []
-    for k, lab in enumerate(_labels(tool.GetGeomToleranceLabels), start=1):
-        a = _attr(lab, XCAFDoc_GeomTolerance)
-        if a is None:
-            continue
-        o = a.GetObject()
-        first, _ = _ref_labels(lab)
-        fs, other = _faces_of(first, index)
-        drf = []
-        for dl in _labels(XCAFDoc_DimTolTool.GetDatumOfTolerLabels_s, lab):
-            da = _attr(dl, XCAFDoc_Datum)
-            if da is None:
-                continue
-            do = da.GetObject()
-            drf.append({"name": do.GetName().ToCString() if do.GetName() is not None else "",
-                        "order": int(do.GetPosition()),
-                        "modifiers": [_enum_name(m) for m in _seq(do.GetModifiers())]})
-        drf = _unique_drf(drf)
-        mat = _enum_name(o.GetMaterialRequirementModifier())
-        tolerances.append({
-            "id": f"GT{k}", "kind": "geometric_tolerance",
-            "type": _enum_name(o.GetType(), _GT_PREFIX), "name": _semantic_name(o),
-            "value": float(o.GetValue()),
-            "value_type": _enum_name(o.GetTypeOfValue()),
-            "zone_modifier": _enum_name(o.GetZoneModifier()),
-            "zone_modifier_value": float(o.GetValueOfZoneModifier()),
-            "material": None if mat == "None" else mat,
-            "max_value": float(o.GetMaxValueModifier()),
-            "modifiers": [_enum_name(m, "XCAFDimTolObjects_GeomToleranceModif_")
-                          for m in _seq(o.GetModifiers())],
-            "datums": drf, "faces": fs, "other": other})
-        edges.resolve(tolerances[-1], first)
-
-    dimensions = []
-    for k, lab in enumerate(_labels(tool.GetDimensionLabels), start=1):
-        a = _attr(lab, XCAFDoc_Dimension)
-        if a is None:
-            continue
-        o = a.GetObject()
-        first, second = _ref_labels(lab)
-        fs, other = _faces_of(first, index)
-        fs2, other2 = _faces_of(second, index)
-        item = {"id": f"DIM{k}", "kind": "dimension",
-                "type": _enum_name(o.GetType(), _DIM_PREFIX), "name": _semantic_name(o),
-                "nominal": float(o.GetValue()), "lower": None, "upper": None,
-                "qualifier": _enum_name(o.GetQualifier()),
-                "modifiers": [_enum_name(m, "XCAFDimTolObjects_DimensionModif_")
-                              for m in _seq(o.GetModifiers())],
-                "faces": fs, "faces2": fs2, "other": other + other2}
-        if o.IsDimWithPlusMinusTolerance():
-            item["lower"], item["upper"] = -float(o.GetLowerTolValue()), \
-                float(o.GetUpperTolValue())
-        elif o.IsDimWithRange():
-            item["lower"] = float(o.GetLowerBound()) - item["nominal"]
-            item["upper"] = float(o.GetUpperBound()) - item["nominal"]
-        elif o.IsDimWithClassOfTolerance():
-            item["class_of_tolerance"] = True
-        edges.resolve(item, first)
-        edges.resolve(item, second, "faces2")
-        dimensions.append(item)
-
+    tolerances = [t for k, lab in enumerate(_labels(tool.GetGeomToleranceLabels), start=1)
+                  if (t := _guarded(failed, "geometric_tolerance", k, lab, _read_tolerance,
+                                    k, index, edges)) is not None]
+    dimensions = [d for k, lab in enumerate(_labels(tool.GetDimensionLabels), start=1)
+                  if (d := _guarded(failed, "dimension", k, lab, _read_dimension, k, index,
+                                    edges)) is not None]
     _attach_dimension_groups(caf, path, index, dimensions)
     _unit_slip(path, tolerances)
     composites_missed = _mark_composites(path, tolerances)
@@ -654,7 +706,9 @@ def read_pmi_here(path) -> dict:
                 path.name, len(datum_list), len(tolerances), len(dimensions), len(used),
                 len(faces))
     try:
-        unread = unread_pmi_of_file(path, tolerances, dimensions)
+        unread = unread_pmi_of_file(path, tolerances + [f for f in failed if f["kind"] ==
+                                                        "geometric_tolerance"],
+                                    dimensions + [f for f in failed if f["kind"] == "dimension"])
     except (OSError, ValueError, RecursionError) as e:   # never lose the PMI that was read
         logger.warning("%s: could not compare the PMI read with the file's text: %s",
                        path.name, e)
@@ -662,6 +716,8 @@ def read_pmi_here(path) -> dict:
     from .step_text import clear as _forget_text
 
     _forget_text()  # the text was parsed once for the four readers (step_text); let it go
+    unread = [{k: f[k] for k in ("kind", "type", "name", "entity", "reason")}
+              for f in failed] + unread
     return {"source": str(path), "n_faces": len(faces), "datums": datum_list,
             "tolerances": tolerances, "dimensions": dimensions, "unread": unread,
             **({"composites_unmatched": composites_missed} if composites_missed else {}),

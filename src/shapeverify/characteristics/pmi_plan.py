@@ -1070,6 +1070,25 @@ def _unused_datum(name: str, ctx, unsupported: list) -> str:
             f"only by PMI items the plan does not check ({', '.join(ids)})")
 
 
+def _failure(what: str, exc: Exception) -> str:
+    return (f"{what} failed ({type(exc).__name__}: {exc}); it is not checked: inspect it by "
+            "hand (an error of shapeverify on this file's PMI: please report it with the file)")
+
+
+def _guarded(plan_item, item, *args, what: str = "planning it"):
+    """``plan_item(item, *args)`` -- (entries or spec, reason) -- or, if it raises, (empty,
+    the error as the reason): a PMI item that the plan's code cannot handle is listed as not
+    checked, never lost, and never costs the file's other items (a file from another CAD
+    system encodes what the NIST files we test on do not)."""
+    try:
+        return plan_item(item, *args)
+    except Exception as exc:        # noqa: BLE001 -- reported as the item's reason
+        logger.warning("PMI %s (%s %s): %s failed: %s: %s", item.get("id"), item.get("kind"),
+                       item.get("type"), what, type(exc).__name__, exc)
+        return (None if what == "datum" else []), _failure(
+            "planning it" if what != "datum" else "reading this datum's feature", exc)
+
+
 def pmi_plan(path, *, model=None, pmi=None, timeout: float | None = 600.0) -> PmiPlan:
     """The plan (and the rows of ``info --pmi``) from a STEP file's semantic PMI.
 
@@ -1109,22 +1128,28 @@ def pmi_plan(path, *, model=None, pmi=None, timeout: float | None = 600.0) -> Pm
     ctx = _Ctx(pmi, model, fmap)
     datums = {d["name"]: d for d in pmi["datums"]}
     for name, d in datums.items():
-        spec, reason = _datum_spec(d, ctx)
+        spec, reason = _guarded(_datum_spec, d, ctx, what="datum")
         if spec is None:
             ctx.datum_why[name] = reason
         else:
             ctx.datum_specs[name] = spec
-    alignment, drf, why = _alignment(ctx, datums)
+    try:
+        alignment, drf, why = _alignment(ctx, datums)
+    except Exception as exc:        # noqa: BLE001 -- every datum says why; a best fit stands
+        logger.warning("%s: the alignment from the PMI failed: %s: %s", path.name,
+                       type(exc).__name__, exc)
+        alignment, drf = {"type": "best_fit", "faces": "all"}, None
+        why = {n: _failure("setting up the datum reference frame", exc) for n in datums}
     chars, unsupported, rows = [], [], []
     used = set(drf or ())
     for item in pmi["tolerances"]:
-        entries, reason = _tolerance(item, ctx, drf, why)
+        entries, reason = _guarded(_tolerance, item, ctx, drf, why)
         chars.extend(entries)
         if not entries:
             unsupported.append({"pmi": _src(item), "reason": reason})
         rows.append(_row(item, ctx, entries, reason))
     for item in pmi["dimensions"]:
-        entries, reason = _dimension(item, ctx)
+        entries, reason = _guarded(_dimension, item, ctx)
         chars.extend(entries)
         if not entries:
             unsupported.append({"pmi": _src(item), "reason": reason})
