@@ -131,3 +131,29 @@ def test_pdf_without_a_plan_draws_the_inspections_own_pose_and_deviations(panel,
         from PIL import Image
         img = np.asarray(Image.open(pages[0]).convert("L"))
         assert img.shape[0] > img.shape[1] and img.std() > 5     # portrait, not blank
+
+
+def test_characteristic_whose_evaluation_raises_is_not_measured_and_the_part_not_passed(
+        panel, monkeypatch):
+    """An evaluator that raised anything but ValueError (an IndexError on a part's geometry
+    the suite never met) stopped the whole inspection: no verdict, no other characteristic.
+    It is now that characteristic's 'not measured' reason; the others stand, and the part,
+    with a characteristic not measured, does not pass."""
+    from shapeverify.characteristics import registry
+
+    prep, d = panel
+    scan = virtual_scan(prep, pixel=1.0, noise=0.02, motion=(1.0, 2.0), rng=4)
+    good = sv.inspect(prep, scan.scan, tolerance=0.2, plan=d / "plan.yaml")
+    assert good.verdict == "pass", good.reasons
+
+    def broken(c, ctx):
+        raise IndexError("index 7 is out of bounds for axis 0 with size 7")
+
+    monkeypatch.setitem(registry._EVALUATORS, "hole", broken)
+    res = sv.inspect(prep, scan.scan, tolerance=0.2, plan=d / "plan.yaml")
+    h1, skin = res.characteristics
+    assert h1.verdict == "undecided" and h1.measured is None
+    assert "IndexError: index 7 is out of bounds" in h1.details["reason"]
+    g_skin = good.characteristics[1]
+    assert (skin.measured, skin.verdict) == (g_skin.measured, g_skin.verdict)
+    assert res.verdict != "pass", res.reasons

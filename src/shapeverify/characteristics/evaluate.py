@@ -670,6 +670,11 @@ def evaluate_characteristics(prep, scan, plan, alignment: AlignmentResult, exclu
             if "feature" in str(exc) or "face" in str(exc):
                 raise ValueError(f"characteristic {c.name!r}: {exc}") from None
             r = _not_measured(c, str(exc))
+        except Exception as exc:    # noqa: BLE001 -- the characteristic says so, the rest stand
+            logger.debug("characteristic %s", c.name, exc_info=True)
+            r = _not_measured(c, f"its evaluation failed ({type(exc).__name__}: {exc}): an "
+                                 "error of shapeverify on this part and scan, please report it "
+                                 "with them; the characteristic is not measured")
         out.append(_untrusted(r, alignment))
     sec = None if plan.section is None else _section(plan.section, S)
     return tuple(out), S, sec
