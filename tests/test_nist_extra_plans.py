@@ -172,11 +172,41 @@ def test_perfect_ftc11_ring_fails_no_characteristic_of_its_plan(files, plans):
 
     prep, X = _perfect_scan(files["nist_ftc_11"], 0.5)
     res = evaluate_plan(prep, X, plans["nist_ftc_11"].plan, init=np.eye(4))
-    assert len(res.characteristics) == 7
+    assert len(res.characteristics) == 8
     for c in res.characteristics:
         assert c.verdict in ("pass", "undecided"), c
         if c.type == "circular_runout":      # datum A (a plane) sets datum B's direction
             assert c.verdict == "pass" and c.uncertainty < 0.3, c
+
+
+def test_ftc11_fillet_radius_is_the_tube_of_its_torus_and_fails_when_it_grows(files, plans):
+    """FTC 11 DIM5, "R1.5 ± 0.04" on a fillet (face 5: a torus about the ring's axis, spine
+    radius 30 at z = 1.5) was unsupported ("not cylinders or spheres"). It is the least-squares
+    torus's tube radius now.  The scan's points within 0.1 mm of the tube are moved to a tube
+    of 1.5 + delta about the same spine (the truth, by construction): the value follows
+    delta, and +0.06 fails."""
+    import numpy as np
+
+    from shapeverify.characteristics import evaluate_plan
+
+    plan = plans["nist_ftc_11"].plan
+    (entry,) = [c for c in plan.characteristics if c.pmi is not None
+                and c.pmi.model_dump().get("id") == "DIM5"]
+    assert (entry.type, entry.shape, entry.size, list(entry.faces)) == (
+        "feature_size", "torus", "radius", ["face:5"])
+    assert (entry.nominal, entry.lower, entry.upper) == (1.5, -0.04, 0.04)
+    prep, X = _perfect_scan(files["nist_ftc_11"], 0.5)
+    c, a, R = np.array([0.0, 0.0, 1.5]), np.array([0.0, 0.0, 1.0]), 30.0
+    w = X - c - np.outer((X - c) @ a, a)
+    spine = c + w * (R / np.linalg.norm(w, axis=1))[:, None]
+    near = np.abs(np.linalg.norm(X - spine, axis=1) - 1.5) < 0.1
+    for delta, verdict in ((0.0, "pass"), (0.06, "fail"), (-0.03, "pass")):
+        Y = X.copy()
+        Y[near] = spine[near] + (X[near] - spine[near]) * ((1.5 + delta) / 1.5)
+        res = evaluate_plan(prep, Y, plan, init=np.eye(4))
+        (r,) = [x for x in res.characteristics if x.name == entry.name]
+        assert abs(r.measured - (1.5 + delta)) < 0.005, r
+        assert r.uncertainty < 0.01 and r.verdict == verdict, r
 
 
 def _faces_holding(path, points):

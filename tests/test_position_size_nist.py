@@ -38,14 +38,15 @@ def ftc06(shared_data):
     P, N, t = random_points(V, T, 1.0, rng, with_triangles=True)
     P = P + rng.normal(0.0, 0.02, len(P))[:, None] * N
     M = rigid_exp([0.04, 0.02, -0.03, 2.0, 1.0, -3.0])
-    return dict(plan=plan, data=data, prep=prep, P=P, face=F[t], M=M)
+    return dict(plan=plan, data=data, prep=prep, P=P, face=F[t], M=M, all=r.data)
 
 
-def _run(d, P):
+def _run(d, P, plan=None):
     from shapeverify.characteristics import evaluate_plan
 
     M = d["M"]
-    res = evaluate_plan(d["prep"], P @ M[:3, :3].T + M[:3, 3], d["plan"], init=np.linalg.inv(M))
+    res = evaluate_plan(d["prep"], P @ M[:3, :3].T + M[:3, 3], plan or d["plan"],
+                        init=np.linalg.inv(M))
     assert res.alignment.details.get("converged", True), res.alignment.details
     return {c.name: c for c in res.characteristics}
 
@@ -81,3 +82,27 @@ def test_ftc06_ball_moved_0_8_mm_fails_its_position_only(ftc06):
     assert 1.2 < g1.measured <= 1.65
     assert g2.verdict == "pass", (g2.measured, g2.uncertainty)
     assert res["DIM33_diameter_1"].verdict != "fail"
+
+
+def test_ftc06_fillet_radius_of_tubes_and_balls_is_planned_per_face_group_and_passes(ftc06):
+    """DIM42, "R3.175 ± 0.508" on 30 fillet faces (straight tubes: cylinders; tubes about an
+    axis: tori; corners: spheres) was unsupported ("not cylinders or spheres").  Each group of
+    faces of one cylinder, torus or sphere is a feature_size entry now; the perfect scan
+    passes each one that has points enough (a corner ball of 11 points is not measured)."""
+    from collections import Counter
+
+    from shapeverify.characteristics.plan import load_plan
+
+    entries = [c for c in ftc06["all"]["characteristics"] if c["pmi"]["id"] == "DIM42"]
+    assert Counter(c["shape"] for c in entries) == {"cylinder": 15, "torus": 6, "sphere": 2}
+    assert {(c["nominal"], c["lower"], c["upper"]) for c in entries} == {(3.175, -0.508, 0.508)}
+    assert sorted(f for c in entries for f in c["faces"]) == sorted(
+        set(f for c in entries for f in c["faces"]))        # each face in one group
+    plan = load_plan({**ftc06["all"], "characteristics": entries})
+    res = _run(ftc06, ftc06["P"], plan)
+    measured = [c for c in res.values() if c.measured is not None]
+    assert len(measured) >= 21
+    for c in measured:
+        assert c.verdict == "pass" and abs(c.measured - 3.175) < 0.1, c
+    assert all(c.verdict == "undecided" for c in res.values() if c.measured is None)
+

@@ -1,5 +1,6 @@
 """Plan entries of PMI sizes of radii and spheres (:mod:`.pmi_plan`, :mod:`.size_features`):
-``Size_Radius`` on cylindrical faces (each coaxial group of one radius) or on a sphere,
+``Size_Radius`` on cylindrical faces (each coaxial group of one radius), on a sphere or on a
+torus (a fillet about an axis: its tube's radius),
 ``Size_SphericalDiameter`` / ``Size_SphericalRadius`` on spheres, each with the drawing's ±
 limits; and the reason of a ``Location_None`` (a dimension the file gives no value)."""
 from __future__ import annotations
@@ -40,9 +41,17 @@ def size_entries(item, ctx, src) -> tuple[list, str]:
         try:
             groups += [("sphere", g) for g in _spheres(ctx.model, other)]
         except ValueError:
-            kinds = sorted({ctx.feats[f].kind for f in other})
-            return [], (f"{t} on faces that are not cylinders or spheres ({', '.join(kinds)}: "
-                        "e.g. a fillet's torus)")
+            # a fillet: tubes about an axis (tori), and balls where they meet (spheres)
+            tori, rest = _tori(ctx.model, other, ctx.size) if t == "Size_Radius" else ([], [1])
+            try:
+                balls = _spheres(ctx.model, rest) if rest and tori else None
+            except ValueError:
+                balls = None
+            if (balls is None and rest) or not tori:
+                kinds = sorted({ctx.feats[f].kind for f in other})
+                return [], (f"{t} on faces that are not cylinders, spheres or tori "
+                            f"({', '.join(kinds)})")
+            groups += [("torus", g) for g in tori] + [("sphere", g) for g in balls or []]
     if t != "Size_Radius" and any(s != "sphere" for s, _ in groups):
         return [], f"{t} on faces that are not spherical"
     nominal = float(item["nominal"])
@@ -60,3 +69,30 @@ def size_entries(item, ctx, src) -> tuple[list, str]:
                     "lower": _mm(item["lower"] + shift), "upper": _mm(item["upper"] + shift),
                     "nominal": _mm(nominal), "pmi": src})
     return out, ""
+
+
+def _tori(model, faces, size: float) -> tuple[list[list[int]], list[int]]:
+    """(the faces that are tori, grouped by their torus: a fillet's faces about one axis;
+    the faces that are not) (:func:`.size_features.cad_torus`)."""
+    import numpy as np
+
+    from .size_features import cad_torus
+
+    tol = 1e-6 * size
+    groups: list = []
+    rest = []
+    for f in faces:
+        t = cad_torus(model, [f])
+        if t is None:
+            rest.append(f)
+            continue
+        for g in groups:
+            u = g[0]
+            if (np.linalg.norm(t.center - u.center) <= tol and abs(abs(t.axis @ u.axis) - 1)
+                    <= 1e-9 and abs(t.major_radius - u.major_radius) <= tol
+                    and abs(t.minor_radius - u.minor_radius) <= tol):
+                g[1].append(f)
+                break
+        else:
+            groups.append((t, [f]))
+    return [g[1] for g in groups], rest

@@ -542,13 +542,14 @@ class PositionZone(_Char):
 
 
 class FeatureSize(_Char):
-    """Size (radius or diameter, ``size``) of a cylinder (coaxial faces of one radius) or a
-    sphere (``shape``) against ``lower``/``upper`` limits of deviation (mm) from the CAD's
-    size (``nominal``: the drawing's, for the report); :mod:`.size_features`."""
+    """Size (radius or diameter, ``size``) of a cylinder (coaxial faces of one radius), a
+    sphere, or a torus's tube (a fillet's radius) (``shape``) against ``lower``/``upper``
+    limits of deviation (mm) from the CAD's size (``nominal``: the drawing's, for the report);
+    :mod:`.size_features`."""
 
     type: Literal["feature_size"]
     faces: FaceList
-    shape: Literal["cylinder", "sphere"]
+    shape: Literal["cylinder", "sphere", "torus"]
     size: Literal["radius", "diameter"]
     lower: float
     upper: float

@@ -1,27 +1,36 @@
 """Size of a radius or a sphere (issue 28 item 3, NIST FTC 06 ``Size_Radius``,
-``Size_SphericalDiameter``, ``Size_SphericalRadius``): the two-point-free, least-squares size
-(ISO 14405-1 (GG)) of one feature -- a group of coaxial cylindrical faces of one radius, or the
-spherical faces of one sphere -- against the drawing's ± limits.
+``Size_SphericalDiameter``, ``Size_SphericalRadius``; FTC 11's fillet ``Size_Radius``): the
+two-point-free, least-squares size (ISO 14405-1 (GG)) of one feature -- a group of coaxial
+cylindrical faces of one radius, the spherical faces of one sphere, or a torus's faces (a
+fillet about an axis: its tube's radius) -- against the drawing's ± limits.
 
 ``shape: cylinder``: the Tukey least-squares cylinder of the feature's kept points, its axis
 started at the CAD's (:func:`shapeverify.fitting.fit_cylinder`); ``shape: sphere``: the
-Tukey least-squares sphere (:func:`shapeverify.fitting.fit_sphere`).  ``size: radius`` reports
-the radius, ``diameter`` twice it; the nominal is the CAD's (the same fit of the faces' own grid
-points), the deviation ``measured - nominal`` within ``[lower, upper]``.  Uncertainty (k):
-the linearised least-squares covariance of the radius from the weighted residuals (a partial
-arc or cap is poorly conditioned and says so in a large U)."""
+Tukey least-squares sphere (:func:`shapeverify.fitting.fit_sphere`); ``shape: torus``: the
+Tukey least-squares torus started at the CAD's (:func:`shapeverify.fitting.torus.fit_torus`),
+its minor radius.  ``size: radius`` reports the radius, ``diameter`` twice it; the nominal is
+the CAD's (the same fit of the faces' own grid points), the deviation ``measured - nominal``
+within ``[lower, upper]``.  Uncertainty (k): the linearised least-squares covariance of the
+radius from the weighted residuals (a partial arc or cap -- a fillet's quarter tube -- is
+poorly conditioned and says so in a large U)."""
 from __future__ import annotations
 
 import numpy as np
 
-__all__ = ["eval_feature_size", "radius_uncertainty", "cad_size"]
+__all__ = ["eval_feature_size", "radius_uncertainty", "cad_size", "cad_torus"]
 
 
-def radius_uncertainty(P: np.ndarray, centre, axis, residuals, weights) -> float:
+def radius_uncertainty(P: np.ndarray, centre, axis, residuals, weights,
+                       major: float | None = None) -> float:
     """Standard uncertainty of a fitted radius (sandwich covariance of the linearised fit):
-    a sphere (``axis`` None: centre 3 + radius) or a cylinder (axis point 2, tilt 2, radius)."""
+    a sphere (``axis`` None: centre 3 + radius), a cylinder (axis point 2, tilt 2, radius) or,
+    with ``major`` (the spine's radius), a torus's minor radius (centre 3, tilt 2, R, r)."""
     q = P - np.asarray(centre, float)
-    if axis is None:
+    if major is not None:
+        from ..fitting.torus import torus_jacobian
+
+        J = torus_jacobian(P, centre, axis, major)[1]
+    elif axis is None:
         rn = np.linalg.norm(q, axis=1)
         ud = q / np.where(rn > 0, rn, 1.0)[:, None]
         J = np.column_stack([-ud, -np.ones(len(P))])
@@ -45,9 +54,14 @@ def radius_uncertainty(P: np.ndarray, centre, axis, residuals, weights) -> float
     return float(np.sqrt(max((Hinv @ (Jb.T @ Jb) @ Hinv)[-1, -1], 0.0)))
 
 
-def _fit(P, shape, axis=None):
+def _fit(P, shape, axis=None, torus=None):
     from ..fitting import fit_cylinder, fit_sphere
 
+    if shape == "torus":
+        from ..fitting.torus import fit_torus
+
+        f = fit_torus(P, start=torus, loss="tukey")
+        return f, np.asarray(f.center, float), np.asarray(f.axis, float), float(f.minor_radius)
     if shape == "sphere":
         f = fit_sphere(P, loss="tukey")
         return f, np.asarray(f.center, float), None, float(f.radius)
@@ -57,16 +71,39 @@ def _fit(P, shape, axis=None):
 
 def cad_size(model, faces, shape) -> tuple[float, np.ndarray | None, float]:
     """(CAD radius, axis or None, largest residual) of the faces' grid points fitted as one
-    cylinder or sphere (least squares)."""
+    cylinder or sphere (least squares); of a torus, (minor radius, the CAD's
+    :class:`~shapeverify.fitting.torus.TorusFit`, largest residual)."""
     from ..fitting import fit_cylinder, fit_sphere
     from .features import _face_grid
 
     X = np.concatenate([_face_grid(model.faces[f])[0] for f in faces])
+    if shape == "torus":
+        t = cad_torus(model, faces)
+        if t is None:
+            return float("nan"), None, float("inf")
+        return t.minor_radius, t, float(np.abs(t.residuals).max())
     if shape == "sphere":
         f = fit_sphere(X)
         return float(f.radius), None, float(np.abs(f.residuals).max())
     f = fit_cylinder(X)
     return float(f.radius), np.asarray(f.axis, float), float(np.abs(f.residuals).max())
+
+
+def cad_torus(model, faces):
+    """The one torus of the faces (their grid points fitted from the first face's torus,
+    :func:`shapeverify.fitting.torus.torus_of_surface`), or None."""
+    from ..fitting.torus import fit_torus, torus_of_surface
+    from .features import _face_grid
+
+    f0 = model.faces[faces[0]]
+    t = torus_of_surface(f0.surface, f0.uv_bounds)
+    if t is None or len(faces) == 1:
+        return t
+    X = np.concatenate([_face_grid(model.faces[f])[0] for f in faces])
+    try:
+        return fit_torus(X, start=t)
+    except ValueError:
+        return None
 
 
 def eval_feature_size(c, ctx):
@@ -88,8 +125,12 @@ def eval_feature_size(c, ctx):
     if n < 20:
         return _not_measured(c, f"only {n} scan points on faces {fl}")
     P = ctx.S.X[m]
-    f, centre, axis, r = _fit(P, c.shape, axis0)
-    u_r = radius_uncertainty(P, centre, axis, f.residuals, f.weights)
+    if c.shape == "torus":
+        f, centre, axis, r = _fit(P, c.shape, torus=axis0)
+        u_r = radius_uncertainty(P, centre, axis, f.residuals, f.weights, f.major_radius)
+    else:
+        f, centre, axis, r = _fit(P, c.shape, axis0)
+        u_r = radius_uncertainty(P, centre, axis, f.residuals, f.weights)
     scale = 2.0 if c.size == "diameter" else 1.0
     nominal = scale * r0 if c.nominal is None else float(c.nominal)
     meas = scale * r
