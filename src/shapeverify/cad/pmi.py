@@ -494,6 +494,12 @@ def _max_tolerances(path, tolerances) -> None:
         logger.warning("%s: maximum tolerance of %s not read: %s", path.name, gid, why)
 
 
+def _object(lab, attribute):
+    """The XCAF object of a label's ``attribute`` (a datum, tolerance or dimension), or None."""
+    a = _attr(lab, attribute)
+    return None if a is None else a.GetObject()
+
+
 def _guarded(failed: list, kind: str, k: int, lab, read, *args):
     """``read(lab, *args)``; if it raises, the label is recorded in ``failed`` (an ``unread``
     entry with the error) and None returned: one PMI record OpenCASCADE or this module cannot
@@ -519,12 +525,12 @@ def _label_identity(lab, kind: str) -> tuple[str, str]:
 
     try:
         if kind == "datum":
-            o = _attr(lab, XCAFDoc_Datum).GetObject()
+            o = _object(lab, XCAFDoc_Datum)
             return "Datum", o.GetName().ToCString() if o.GetName() is not None else ""
         if kind == "geometric_tolerance":
-            o = _attr(lab, XCAFDoc_GeomTolerance).GetObject()
+            o = _object(lab, XCAFDoc_GeomTolerance)
             return _enum_name(o.GetType(), _GT_PREFIX), _semantic_name(o)
-        o = _attr(lab, XCAFDoc_Dimension).GetObject()
+        o = _object(lab, XCAFDoc_Dimension)
         return _enum_name(o.GetType(), _DIM_PREFIX), _semantic_name(o)
     except Exception:               # noqa: BLE001 -- the identity is a courtesy
         return "Unknown", ""
@@ -534,10 +540,9 @@ def _read_datum(lab, index, edges, faces, datums: dict) -> None:
     """Add one datum label to ``datums`` ({letter: record}; a letter has a label per use)."""
     from OCP.XCAFDoc import XCAFDoc_Datum
 
-    a = _attr(lab, XCAFDoc_Datum)
-    if a is None:
+    o = _object(lab, XCAFDoc_Datum)
+    if o is None:
         return
-    o = a.GetObject()
     name = o.GetName().ToCString() if o.GetName() is not None else ""
     first, _ = _ref_labels(lab)
     fs, other = _faces_of(first, index)
@@ -569,18 +574,16 @@ def _read_tolerance(lab, k: int, index, edges) -> dict | None:
     """The record of one geometric tolerance label (None: not a tolerance)."""
     from OCP.XCAFDoc import XCAFDoc_Datum, XCAFDoc_DimTolTool, XCAFDoc_GeomTolerance
 
-    a = _attr(lab, XCAFDoc_GeomTolerance)
-    if a is None:
+    o = _object(lab, XCAFDoc_GeomTolerance)
+    if o is None:
         return None
-    o = a.GetObject()
     first, _ = _ref_labels(lab)
     fs, other = _faces_of(first, index)
     drf = []
     for dl in _labels(XCAFDoc_DimTolTool.GetDatumOfTolerLabels_s, lab):
-        da = _attr(dl, XCAFDoc_Datum)
-        if da is None:
+        do = _object(dl, XCAFDoc_Datum)
+        if do is None:
             continue
-        do = da.GetObject()
         drf.append({"name": do.GetName().ToCString() if do.GetName() is not None else "",
                     "order": int(do.GetPosition()),
                     "modifiers": [_enum_name(m) for m in _seq(do.GetModifiers())]})
@@ -604,10 +607,9 @@ def _read_dimension(lab, k: int, index, edges) -> dict | None:
     """The record of one dimension label (None: not a dimension)."""
     from OCP.XCAFDoc import XCAFDoc_Dimension
 
-    a = _attr(lab, XCAFDoc_Dimension)
-    if a is None:
+    o = _object(lab, XCAFDoc_Dimension)
+    if o is None:
         return None
-    o = a.GetObject()
     first, second = _ref_labels(lab)
     fs, other = _faces_of(first, index)
     fs2, other2 = _faces_of(second, index)

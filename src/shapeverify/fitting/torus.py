@@ -31,6 +31,7 @@ import numpy as np
 
 from ._element_base import (_check_loss, _check_points, _ElementFit, _fit_stats, _irls, _lm,
                             _perp_basis, _unit)
+from .cylinders_cones import _axial
 from .spheres_circles import _pratt
 
 __all__ = ["TorusFit", "fit_torus", "torus_of_surface", "torus_jacobian"]
@@ -46,22 +47,15 @@ class TorusFit(_ElementFit):
     minor_radius: float
 
 
-def _parts(x, c, a):
-    q = x - c
-    h = q @ a
-    w = q - np.outer(h, a)
-    rho = np.linalg.norm(w, axis=1)
-    rho = np.where(rho > 0, rho, 1e-300)
-    return q, h, w / rho[:, None], rho
-
-
 def torus_jacobian(points, center, axis, major_radius) -> tuple[np.ndarray, np.ndarray]:
     """(distances without the minor radius ``s``, (N, 7) Jacobian of the distance) at a torus:
     columns: the centre's x, y, z, the axis turned towards the two vectors of
     :func:`._element_base._perp_basis`, ``R``, ``r`` (module docstring)."""
     x = np.asarray(points, np.float64)
     a = _unit(np.asarray(axis, np.float64))
-    q, h, e, rho = _parts(x, np.asarray(center, np.float64), a)
+    c = np.asarray(center, np.float64)
+    h, e, rho = _axial(x, c, a)
+    q = x - c
     g = rho - major_radius
     s = np.sqrt(g * g + h * h)
     s = np.where(s > 0, s, 1e-300)
