@@ -64,6 +64,15 @@ def _bernstein_matrices(p: int, s0: np.ndarray, ds: np.ndarray) -> np.ndarray:
     return np.einsum("mk,xka->xma", Bm, A)
 
 
+def _to_bernstein(Mu, Mv, C):
+    """Bézier nets (X, Y, p+1, q+1, 4) of the polynomials C (X, Y, p+1, q+1, 4) (power basis,
+    homogeneous) on sub-boxes: ``sum_ab Mu[x, m, a] Mv[y, l, b] C[x, y, a, b, w]``, one index
+    contracted at a time (one einsum over both loops over every (a, b) pair of every output:
+    3-4x the CPU, 0.07 s of an inspection's first exact query on the example panel)."""
+    half = np.einsum("ylb,xyabw->xyalw", Mv, C)
+    return np.einsum("xma,xyalw->xymlw", Mu, half)
+
+
 def _nets(Cs, p, q, us, vs):
     """Bézier nets of one span's polynomial Cs (p+1, q+1, 4) on the sub-intervals
     us (X, 2), vs (Y, 2) of its local parameters: (X, Y, p+1, q+1, 4) homogeneous."""
@@ -158,10 +167,9 @@ class PatchBounds:
             u_lo, u_hi = np.maximum(b_u[iu], ua), np.minimum(b_u[iu + 1], ub)
             v_lo, v_hi = np.maximum(b_v[jv], va), np.minimum(b_v[jv + 1], vb)
             # one net per span: control polygon lengths -> sub-boxes per span row / column
-            N1 = np.einsum("ima,jlb,ijabw->ijmlw",
-                           _bernstein_matrices(p, u_lo - m_u[iu], u_hi - u_lo),
-                           _bernstein_matrices(q, v_lo - m_v[jv], v_hi - v_lo),
-                           C[np.ix_(iu, jv)])
+            N1 = _to_bernstein(_bernstein_matrices(p, u_lo - m_u[iu], u_hi - u_lo),
+                               _bernstein_matrices(q, v_lo - m_v[jv], v_hi - v_lo),
+                               C[np.ix_(iu, jv)])
             w1 = N1[..., 3]
             P1 = N1[..., :3] / np.where(w1 > 0, w1, 1.0)[..., None]
             lu = np.linalg.norm(np.diff(P1, axis=2), axis=-1).sum(axis=2).max(axis=2)
@@ -186,7 +194,7 @@ class PatchBounds:
             for x0_ in range(0, X, step):
                 xs = slice(x0_, min(X, x0_ + step))
                 Cx = C[iu[su[xs]]][:, jv[sv]]             # (x, Y, p+1, q+1, 4)
-                nets = np.einsum("xma,ylb,xyabw->xymlw", Mu[xs], Mv, Cx)
+                nets = _to_bernstein(Mu[xs], Mv, Cx)
                 nx = nets.shape[0]
                 nets = nets.reshape(nx * Y, p + 1, q + 1, 4)
                 w = nets[..., 3]
