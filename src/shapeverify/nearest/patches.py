@@ -260,6 +260,35 @@ class PatchBounds:
         logger.debug("patch bounds: %d patches (%d outside the trims dropped), %d nodes, "
                      "size %.4g mm", m, n_all - m, n_nodes, size)
 
+    #: what a ``.svm`` file stores (:meth:`to_arrays`), in :meth:`arrays` order
+    FIELDS = ("face", "inner", "centre", "axes", "half", "uvbox", "node_lo", "node_hi",
+              "node_child", "node_first", "node_count")
+    #: the rules the bounds were made by (:data:`_MAX_SUB`, :data:`_LEAF`, the hull and the
+    #: margin): stored with them; stored bounds of another rule are made again
+    RULE = 1
+
+    def to_arrays(self) -> dict:
+        """The arrays by name (:data:`FIELDS`), for a prepared-model file."""
+        return dict(zip(self.FIELDS, self.arrays()))
+
+    @classmethod
+    def from_arrays(cls, arrays, n_faces: int) -> "PatchBounds":
+        """The bounds :meth:`to_arrays` gave, checked (:func:`check_arrays`) so that the
+        kernels, which index them without bounds checks, stay inside them.
+
+        Raises
+        ------
+        ValueError
+            What is wrong with them.
+        """
+        problem = check_arrays(arrays, n_faces)
+        if problem is not None:
+            raise ValueError(problem)
+        self = cls.__new__(cls)
+        for name in cls.FIELDS:
+            setattr(self, name, arrays[name])
+        return self
+
     def __len__(self) -> int:
         return int(self.face.shape[0])
 
@@ -278,3 +307,58 @@ class PatchBounds:
         d = q[:, None, :] - self.centre[None]
         loc = np.abs(np.einsum("nkc,kac->nka", d, self.axes)) - self.half[None]
         return np.sqrt((np.maximum(loc, 0.0) ** 2).sum(axis=2))
+
+
+_KINDS = {"face": (np.int32, 1), "inner": (np.bool_, 1), "centre": (np.float64, 2),
+          "axes": (np.float64, 3), "half": (np.float64, 2), "uvbox": (np.float64, 2),
+          "node_lo": (np.float64, 2), "node_hi": (np.float64, 2), "node_child": (np.int64, 1),
+          "node_first": (np.int64, 1), "node_count": (np.int64, 1)}
+
+
+def check_arrays(arrays, n_faces: int) -> str | None:
+    """What is wrong with stored patch bounds (None: nothing), in time linear in their size:
+    dtypes and shapes; faces in range; finite boxes (a half extent may be inf: a patch that is
+    never pruned); a hierarchy whose root is node 0, whose inner nodes name a pair of later
+    nodes that no other node names (a tree: every walk ends, no node is met twice) and whose
+    leaves list patches in range, at most as many in all as there are patches (the kernel's
+    candidate buffer holds that many)."""
+    a = {}
+    for name, (dtype, ndim) in _KINDS.items():
+        v = arrays.get(name)
+        if v is None:
+            return f"the patch bounds lack {name}"
+        v = np.asarray(v)
+        if v.dtype != dtype or v.ndim != ndim:
+            return f"the patch bounds' {name} is {v.dtype} with {v.ndim} dimensions"
+        a[name] = np.ascontiguousarray(v)
+    k, m = a["face"].shape[0], a["node_child"].shape[0]
+    shapes = {"inner": (k,), "centre": (k, 3), "axes": (k, 3, 3), "half": (k, 3),
+              "uvbox": (k, 4), "node_lo": (m, 3), "node_hi": (m, 3), "node_first": (m,),
+              "node_count": (m,)}
+    for name, shape in shapes.items():
+        if a[name].shape != shape:
+            return f"the patch bounds' {name} is {a[name].shape}, not {shape}"
+    if k and (a["face"].min() < 0 or a["face"].max() >= n_faces):
+        return "a patch names a face out of range"
+    if not (np.isfinite(a["centre"]).all() and np.isfinite(a["axes"]).all()
+            and np.isfinite(a["uvbox"]).all() and not np.isnan(a["half"]).any()
+            and not np.isnan(a["node_lo"]).any() and not np.isnan(a["node_hi"]).any()):
+        return "the patch bounds hold NaN or infinite boxes"
+    if k and m == 0:
+        return "the patch bounds have patches but no hierarchy"
+    child, first, count = a["node_child"], a["node_first"], a["node_count"]
+    inner = np.flatnonzero(child >= 0)
+    if np.any((child < 0) & (child != -1)):
+        return "a hierarchy node's child index is out of range"
+    if inner.size:
+        c = child[inner]
+        if np.any(c <= inner) or c.max() + 1 >= m:
+            return "a hierarchy node's child index is out of range"
+        if np.bincount(c, minlength=m).max() > 1 or np.intersect1d(c, c + 1).size:
+            return "the patch hierarchy is not a tree"
+    leaf = child < 0
+    f, n = first[leaf], count[leaf]
+    if (np.any(f < 0) or np.any(n < 0) or np.any(f > k) or np.any(n > k)
+            or np.any(f + n > k) or int(n.sum()) > k):
+        return "a hierarchy leaf lists patches out of range"
+    return None
