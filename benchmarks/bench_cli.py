@@ -279,12 +279,19 @@ def make_inputs(work: Path, env: dict) -> dict:
                                       ("o3d", "open3d_inspect.py"), ("floor", "numba_floor.py"),
                                       ("lib", "library_inspect.py"),
                                       ("breakdown", "breakdown.py"),
-                                      ("cli_breakdown", "cli_breakdown.py"))}
+                                      ("cli_breakdown", "cli_breakdown.py"),
+                                      ("plan", "plan.yaml"))}
     paths["o3d"].write_text(OPEN3D_SCRIPT)
     paths["floor"].write_text(NUMBA_FLOOR)
     paths["lib"].write_text(LIBRARY)
     paths["breakdown"].write_text(BREAKDOWN)
     paths["cli_breakdown"].write_text(CLI_BREAKDOWN)
+    # the warm-up's plan of the example panel (its hole and its whole skin)
+    paths["plan"].write_text(subprocess.run(
+        [sys.executable, "-c", "from shapeverify._warmup_commands import PLAN; "
+         "from shapeverify.cad.examples import PANEL_HOLE as h; "
+         "print(PLAN.format(x=h[0], y=h[1]), end='')"],
+        env=env, capture_output=True, text=True, check=True).stdout)
     if all(paths[k].is_file() for k in ("step", "svm", "scan", "model")):
         return paths
     code = f"""
@@ -430,6 +437,10 @@ def main() -> None:
     ours = measure("plain `shapeverify inspect` (no worker; SHAPEVERIFY_NO_WORKER=1): prepared "
                    "model, 30,000 points, JSON report", inspect_argv, work, cold, args.repeat)
     ours_json = json.loads((work / "r.json").read_text())
+    planned = measure("plain `shapeverify inspect --plan` (no worker): the same with the "
+                      "warm-up's plan of the panel (a hole, the skin's profile)",
+                      inspect_argv[:-2] + ["--plan", paths["plan"], "--json", work / "rp.json"],
+                      work, cold, args.repeat)
     info = measure("plain `shapeverify info` (no worker): STEP file, summary cached", info_argv,
                    work, cold, args.repeat)
     # the resident worker, in a socket directory of this run's own; always stopped
@@ -518,7 +529,7 @@ def main() -> None:
                      f"{auto['rounds']} rounds from no worker): {what} | {a['median']:.2f} | "
                      f"{a['min']:.2f}-{a['max']:.2f} | {peer['median'] / a['median']:.2f} | "
                      f"{auto['load']:.1f} |")
-    for r in (info, info_warm, floor, bare):
+    for r in (planned, info, info_warm, floor, bare):
         lines.append(row(r, ratio=False))
 
     def goal(value, limit):

@@ -1,6 +1,7 @@
 """Where the plain first inspect's CPU goes: cli_start.main as `python -m shapeverify inspect
 panel.svm scan.ply --tolerance 0.2 --json r_bd.json` runs it, timers on its parts (inclusive).
-Run from WORK (the inputs of bench_cli.make_inputs): PYTHONPATH=src python cli_first_breakdown.py
+Run from WORK (the inputs of bench_cli.make_inputs): PYTHONPATH=src python cli_first_breakdown.py [MODEL.svm]
+(MODEL.svm: the prepared model, default panel.svm; a tree's own `prepare` writes its own).
 """
 import os, sys, time, json, resource, importlib
 def cpu():
@@ -8,7 +9,7 @@ def cpu():
 T0 = cpu()
 acc = {}
 def add(k, v): acc[k] = acc.get(k, 0.0) + v
-sys.argv = ["shapeverify", "inspect", "panel.svm", "scan.ply", "--tolerance", "0.2", "--json", "r_bd.json"]
+sys.argv = ["shapeverify", "inspect", sys.argv[1] if len(sys.argv) > 1 else "panel.svm", "scan.ply", "--tolerance", "0.2", "--json", "r_bd.json"]
 os.environ["SHAPEVERIFY_WORKER"] = "0"
 import importlib.util
 def wrap(modname, attr, key):

@@ -116,3 +116,57 @@ def test_scipy_spatial_without_the_docstring_rewrite_queries_as_brute_force():
     assert proc.returncode == 0, proc.stderr[-3000:]
     out = json.loads(proc.stdout.splitlines()[-1])
     assert out["same_index"] and out["dist_err"] < 1e-12 and out["restored"]
+
+
+NUMBA_CONFIG = r'''
+import json, sys
+from shapeverify._start_shortcuts import import_numba
+import_numba()
+import numba.core.config as config
+before = "yaml" in sys.modules
+config.reload_config()          # numba reads its environment (and a config file) again
+import yaml                     # PyYAML itself, for whoever imports it next
+print(json.dumps({"yaml_at_import": before, "debug_cache": config.DEBUG_CACHE,
+                  "real_yaml": hasattr(yaml, "__file__") and yaml.safe_load("a: 1") == {"a": 1}}))
+'''
+
+
+def _numba_config(cwd: Path) -> dict:
+    env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
+    env["PYTHONPATH"] = os.pathsep.join([str(Path(__file__).parents[1] / "src"),
+                                         env.get("PYTHONPATH", "")])
+    proc = subprocess.run([sys.executable, "-c", NUMBA_CONFIG], cwd=cwd, env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    return json.loads(proc.stdout.splitlines()[-1])
+
+
+def test_numba_imports_without_pyyaml_and_still_reads_its_config_file(tmp_path):
+    # no config file: numba imported, PyYAML not (the command's start skips its 18 modules)
+    (tmp_path / "plain").mkdir()
+    plain = _numba_config(tmp_path / "plain")
+    assert plain["yaml_at_import"] is False and plain["debug_cache"] == 0
+    assert plain["real_yaml"]
+    # a .numba_config.yaml in the working directory counts as with a plain ``import numba``
+    (tmp_path / "cfg").mkdir()
+    (tmp_path / "cfg" / ".numba_config.yaml").write_text("debug_cache: 1\n")
+    cfg = _numba_config(tmp_path / "cfg")
+    assert cfg["debug_cache"] == 1 and cfg["real_yaml"]
+
+
+INSPECT_IMPORTS = r'''
+import json, sys
+from shapeverify import cli_start
+cli_start.preimport()
+print(json.dumps(sorted(m for m in sys.modules if m == "yaml" or m.startswith("yaml."))))
+'''
+
+
+def test_the_inspect_start_does_not_import_pyyaml():
+    env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
+    env["PYTHONPATH"] = os.pathsep.join([str(Path(__file__).parents[1] / "src"),
+                                         env.get("PYTHONPATH", "")])
+    proc = subprocess.run([sys.executable, "-c", INSPECT_IMPORTS], env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    assert json.loads(proc.stdout.splitlines()[-1]) == []

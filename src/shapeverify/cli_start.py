@@ -100,9 +100,10 @@ def preimport(modules=INSPECT_MODULES) -> None:
     gc.disable()
     try:
         from shapeverify._start_shortcuts import (defer_numba_registries,
-                                                   import_kernel_env_modules,
+                                                   import_kernel_env_modules, import_numba,
                                                    import_scipy_spatial)
 
+        import_numba()              # without PyYAML (numba reads a config file with it)
         defer_numba_registries()    # cached kernels load without numba's registries (~0.2 s)
         import_scipy_spatial()      # without scipy's docstring rewrite (0.1-0.2 s)
         import_kernel_env_modules()  # what the kernels' environments name

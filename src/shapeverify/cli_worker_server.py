@@ -115,9 +115,10 @@ class Worker:
             import typer.main
 
             from shapeverify._start_shortcuts import (defer_numba_registries,
-                                                       import_kernel_env_modules,
+                                                       import_kernel_env_modules, import_numba,
                                                        import_scipy_spatial)
 
+            import_numba()              # without PyYAML (numba reads a config file with it)
             defer_numba_registries()    # cached kernels load without numba's registries
             import_scipy_spatial()      # without scipy's docstring rewrite
             import_kernel_env_modules()  # what the kernels' environments name

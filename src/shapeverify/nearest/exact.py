@@ -182,9 +182,12 @@ class ExactCAD:
     spacing : float
         Model point spacing (mm): other faces are tried when their candidate point is at most
         this much farther than the nearest model point.
+    patches : PatchBounds, optional
+        The faces' patch bounds made before for this model and spacing (a prepared model's
+        file stores them, :meth:`Prepared.save`): not made again.
     """
 
-    def __init__(self, model, spacing: float):
+    def __init__(self, model, spacing: float, patches=None):
         self.spacing = float(spacing)
         faces = model.faces
         if not faces:
@@ -255,9 +258,9 @@ class ExactCAD:
         self.ch_c = np.array(ch_c, dtype=np.float64).reshape(-1, 3)
         self.ch_r = np.array(ch_r, dtype=np.float64)
         # bounds of every face, patch by patch: the search over them makes the answer global
-        self.patches = PatchBounds(faces, self.tab, (self.seg_off, self.x0, self.y0, self.x1,
-                                                     self.y1), _PATCH * self.spacing,
-                                    skip=getattr(model, "supplemental", ()))
+        self.patches = patches if patches is not None else PatchBounds(
+            faces, self.tab, (self.seg_off, self.x0, self.y0, self.x1, self.y1),
+            patch_size(self.spacing), skip=getattr(model, "supplemental", ()))
 
     def derivatives(self, faces, uv) -> np.ndarray:
         """Derivatives (N, 3, 3, 3) from the patch tables, ``[:, k, l]`` = d^(k+l)S/du^k dv^l
@@ -466,11 +469,17 @@ class ExactCloud:
         return (foot, normal, dist, np.full(n, -1, dtype=np.int32), np.zeros((n, 2)), onb)
 
 
-def for_model(model, spacing: float):
-    """The exact refiner for a model's kind ("cad", "mesh" or "points")."""
+def patch_size(spacing: float) -> float:
+    """Longest control-polygon edge (mm) of the patch bounds for a model point spacing."""
+    return _PATCH * float(spacing)
+
+
+def for_model(model, spacing: float, patches=None):
+    """The exact refiner for a model's kind ("cad", "mesh" or "points"); ``patches``: a CAD
+    model's patch bounds made before (:class:`ExactCAD`)."""
     kind = getattr(model, "kind", "cad")
     if kind == "cad":
-        return ExactCAD(model, spacing)
+        return ExactCAD(model, spacing, patches)
     if kind == "mesh":
         return ExactMesh(model)
     if kind == "points":

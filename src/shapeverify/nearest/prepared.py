@@ -28,7 +28,11 @@ the SHA-256 of all other arrays (``sha256``, :func:`._svm_checks.payload_digest`
 compares it (files written before it existed load without), then checks the arrays' sizes,
 index ranges and that the tree is a tree (:func:`._svm_checks.check_structure`), so a damaged or
 crafted file is a :class:`~shapeverify.errors.ModelFileError`, never a crash or an endless
-query.
+query.  A CAD model's file also holds the exact refiner's patch bounds (``exact_patch_*``,
+:class:`~shapeverify.nearest.patches.PatchBounds`; ``meta["exact_patches"]``: their rule and
+patch size), checked the same way (:func:`~shapeverify.nearest.patches.check_arrays`): the
+first exact query of a process does not make them again (0.14 s of the first ``inspect`` of
+the example panel).  Files without them, or of another rule, make them on first use.
 
 References
 ----------
@@ -57,7 +61,8 @@ from shapeverify._renamed import renamed_keywords
 from . import dvg as _dvg
 from ._svm_checks import check_structure, payload_digest
 from ._malloc import PREPARE_MMAP_THRESHOLD, lean_malloc, release_memory  # noqa: F401
-from .exact import for_model
+from .exact import for_model, patch_size
+from .patches import PatchBounds
 
 logger = logging.getLogger(__name__)
 
@@ -177,6 +182,8 @@ class Prepared:
         self.model_spacing = float(spacing)
         self.reach = float(reach)
         self._exact = None
+        #: the exact refiner's patch bounds read from the ``.svm`` file (None: made on first use)
+        self._stored_patches = None
         #: (4, 4) float64 or None: the fixture pose T_model_scan of a production line where every
         #: part sits in the same place (``prepare --fixture T.json``); ``inspect`` starts there
         #: when no ``init`` is given.  Saved in the ``.svm``.
@@ -265,7 +272,7 @@ class Prepared:
     def _closest_exact(self, q: np.ndarray) -> Closest:
         if self._exact is None:
             t0 = time.perf_counter()
-            self._exact = for_model(self.model, self.spacing)
+            self._exact = for_model(self.model, self.spacing, self._stored_patches)
             logger.debug("exact refiner for %s ready in %.2f s", self.model.kind,
                          time.perf_counter() - t0)
         idx, _ = self._fast.nearest(q)
@@ -293,11 +300,28 @@ class Prepared:
                   "rec": self._fast.rec, "rows": self._rows, "boundary": self._boundary}
         arrays.update({f"tree_{k}": np.asarray(v) for k, v in self._fast.tree.arrays().items()})
         arrays.update({f"model_{k}": v for k, v in model_to_arrays(self.model).items()})
+        patches = self._patch_bounds()
+        if patches is not None:     # what the first exact query would make again: stored
+            arrays.update({f"{_PATCH_KEY}{k}": v for k, v in patches.to_arrays().items()})
+            meta["exact_patches"] = {"rule": PatchBounds.RULE,
+                                     "size": patch_size(self.model_spacing)}
         meta["sha256"] = payload_digest(arrays)
         arrays["meta"] = np.frombuffer(json.dumps(meta).encode(), dtype=np.uint8)
         path = Path(os.fspath(path))
         with open(path, "wb") as fh:
             np.savez(fh, **arrays)
+
+    def _patch_bounds(self):
+        """A CAD model's patch bounds for the exact refiner (made now if not yet); None for
+        other kinds or a model without faces."""
+        if getattr(self.model, "kind", "cad") != "cad":
+            return None
+        if self._exact is None:
+            try:
+                self._exact = for_model(self.model, self.spacing, self._stored_patches)
+            except ValueError:      # no faces: no exact refiner
+                return None
+        return self._exact.patches
 
     def __repr__(self) -> str:
         return (f"Prepared(model={self.model!r}, n_points={self.n_points}, "
@@ -524,6 +548,27 @@ def _structure(held, h, maxd, cad):
     return face, rows, boundary, fast
 
 
+#: the prefix of the exact refiner's patch bounds in a ``.svm`` file
+_PATCH_KEY = "exact_patch_"
+
+
+def _read_patches(arrays: dict, info, model, spacing: float, path):
+    """The patch bounds a ``.svm`` file stores, checked (a damaged or crafted file: a
+    ModelFileError); None when it stores none, or bounds of another rule or patch size (older
+    files: made again on first use)."""
+    from shapeverify.errors import ModelFileError
+
+    if not arrays or getattr(model, "kind", "cad") != "cad":
+        return None
+    if not (isinstance(info, dict) and info.get("rule") == PatchBounds.RULE
+            and info.get("size") == patch_size(spacing)):
+        return None
+    try:
+        return PatchBounds.from_arrays(arrays, len(model.faces))
+    except ValueError as exc:
+        raise ModelFileError(f"{path}: .svm file is damaged: {exc}") from None
+
+
 def load_prepared(source) -> Prepared:
     """Read a ``.svm`` file written by :meth:`Prepared.save`.
 
@@ -636,6 +681,8 @@ def _load_prepared(src, path, n_bytes: int) -> Prepared:
     boundary = np.ascontiguousarray(arrays["boundary"], dtype=np.bool_)
     model = model_from_arrays({k[6:]: arrays[k] for k in arrays if k.startswith("model_")},
                               where=str(path))
+    stored_patches = {k[len(_PATCH_KEY):]: arrays[k] for k in arrays
+                      if k.startswith(_PATCH_KEY)}
     del arrays
     if not (rows.shape == (n, 4) and boundary.shape == (n,) and tree.n_points == n):
         raise ModelFileError(f"{path}: .svm file is inconsistent (arrays do not all hold {n} "
@@ -646,6 +693,8 @@ def _load_prepared(src, path, n_bytes: int) -> Prepared:
     if problem is not None:
         raise ModelFileError(f"{path}: .svm file is damaged: {problem}")
     prep = Prepared(model, _dvg.DVG(rec, tree), rows, boundary, spacing, reach)
+    prep._stored_patches = _read_patches(stored_patches, meta.get("exact_patches"), model,
+                                         spacing, path)
     fixture = meta.get("fixture")
     if fixture is not None:
         try:
