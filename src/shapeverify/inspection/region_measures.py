@@ -48,6 +48,9 @@ from ._cluster_kernels import cell_areas
 
 __all__ = ["out_area", "fitted_peak", "seen_among", "on_a_wall", "CELL_BOUND", "SLOPE_RADIUS"]
 
+#: A quadratic whose weaker curvature is under this share of its stronger one (or of the other
+#: sign) is a valley or a ridge: its extremum is taken across it (``_stationary``).
+VALLEY_FLAT = 0.2
 #: Half size of the square that bounds a point's cell, in spacings.
 CELL_BOUND = 1.5
 #: A point whose neighbours within reach leave an empty sector wider than this (degrees) lies
@@ -475,11 +478,25 @@ def _fit(center, e1, e2, tree, ev_idx, points, values, radius):
 
 def _stationary(c, radius):
     """The extremum ``(x, y)`` of the quadratic ``c`` when it is one of the sign of ``c[0]``
-    (a dent's minimum, a bump's maximum) within ``radius``; else None."""
+    (a dent's minimum, a bump's maximum) within ``radius``; else None.
+
+    A groove or a ridge (one curvature of that sign, the other ``VALLEY_FLAT`` times weaker or
+    of the other sign: the floor runs on along the groove) has its extremum across it: the
+    point of the valley's floor nearest the centre.  (Its value at the fit's centre, a core
+    point up to a spacing off the floor, read a groove 3-10 % shallow at 1/5 of its half-width.)"""
     H = np.array([[2 * c[3], c[4]], [c[4], 2 * c[5]]])
-    if not (np.linalg.det(H) > 0 and np.sign(H[0, 0]) == -np.sign(c[0])):
+    sign = -np.sign(c[0])                       # the curvature of an extremum on c's side
+    if np.linalg.det(H) > 0 and np.sign(H[0, 0]) == sign:
+        s = np.linalg.solve(H, -c[1:3])
+        if np.hypot(*s) <= radius:
+            return s
+    lam, vec = np.linalg.eigh(H)
+    k = int(np.argmax(sign * lam))
+    other = lam[1 - k]
+    if not (sign * lam[k] > 0 and sign * other < VALLEY_FLAT * sign * lam[k]):
         return None
-    s = np.linalg.solve(H, -c[1:3])
+    v = vec[:, k]
+    s = -(v @ c[1:3]) / lam[k] * v
     return s if np.hypot(*s) <= radius else None
 
 
@@ -514,12 +531,13 @@ def _peak_at(center, normal, tree, ev_idx, points, values, radius):
     return best
 
 
-def fitted_peak(center, normal, tree, ev_idx, points, values, spacing, area):
+def fitted_peak(center, normal, tree, ev_idx, points, values, spacing, area, half_width=None):
     """``(extreme, uncertainty, position, standard error of the fit alone, its residual sigma)``
     of a region
     (module docstring), or None when there are too few points around ``center`` for a
     quadratic."""
-    r = float(np.clip(np.sqrt(area / np.pi) / 3.0, MIN_PEAK_RADIUS * spacing,
+    size = np.sqrt(area / np.pi) if half_width is None else min(np.sqrt(area / np.pi), half_width)
+    r = float(np.clip(size / 3.0, MIN_PEAK_RADIUS * spacing,
                       MAX_PEAK_RADIUS * spacing))
     k = min(MIN_PEAK_POINTS, ev_idx.size)
     d, _ = tree.query(center, k=k)
