@@ -5,7 +5,7 @@ is 0.9 of its half-width, the whole cos^2 profile across it, and a parabola thro
 short of the floor; and a valley has no isolated extremum, so the fit's value at its centre (a
 core point up to a spacing off the floor) was taken.  A 0.5 mm groove of half-width 7.5 mm read
 -3..-9.5 % on a lattice at 1/5 of its half-width (-13 % on the NIST CTC 01 part).  Now the window
-is a third of the region's half-width where its worst point lies (its distance to the nearest
+is at most half the region's half-width where its worst point lies (its distance to the nearest
 in-tolerance point, ``regions._describe``) and a valley's extremum is its floor across it
 (``region_measures._stationary``).  Truth: the depth; the out-of-tolerance area ``2 w L + pi w^2``
 (``w`` where ``|profile|`` = tolerance).

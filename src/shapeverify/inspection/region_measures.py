@@ -536,8 +536,13 @@ def fitted_peak(center, normal, tree, ev_idx, points, values, spacing, area, hal
     of a region
     (module docstring), or None when there are too few points around ``center`` for a
     quadratic."""
-    size = np.sqrt(area / np.pi) if half_width is None else min(np.sqrt(area / np.pi), half_width)
-    r = float(np.clip(size / 3.0, MIN_PEAK_RADIUS * spacing,
+    size = np.sqrt(area / np.pi) / 3.0
+    if half_width is not None:
+        # a groove's half-width, far under its equivalent radius (a third of that spanned its
+        # whole profile); half of it: a third held too few points at 1/15 of the half-width,
+        # and the worst of many noisy fits along the floor read +2..+7.5 %
+        size = min(size, half_width / 2.0)
+    r = float(np.clip(size, MIN_PEAK_RADIUS * spacing,
                       MAX_PEAK_RADIUS * spacing))
     k = min(MIN_PEAK_POINTS, ev_idx.size)
     d, _ = tree.query(center, k=k)
