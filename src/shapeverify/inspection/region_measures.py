@@ -28,9 +28,11 @@ of the scan, beside the part) counts nothing.
 the local surface is not.  A quadratic ``d(x, y)`` is fitted by least squares (3-sigma spike
 rejection) to the deviations within ``r`` of a centre in its tangent plane, the centre is moved
 to the fitted extremum and the fit repeated (at most ``PEAK_STEPS`` times).  ``r`` is a third of
-the region's equivalent radius, at least ``MIN_PEAK_RADIUS`` spacings and enough for
-``MIN_PEAK_POINTS`` points, at most ``MAX_PEAK_RADIUS`` spacings: a dent's top is a paraboloid
-only near its peak.  The stated uncertainty (one standard uncertainty) combines the fit's
+the region's equivalent radius or half its half-width at the centre (a groove's), whichever is
+less, at least ``MIN_PEAK_RADIUS`` spacings and enough for ``MIN_PEAK_POINTS`` points, at most
+``MAX_PEAK_RADIUS`` spacings: a dent's top is a paraboloid only near its peak.  A valley or ridge
+(one curvature only) has its extremum on its floor across it; a fit with no extremum in its
+window is tried wider.  The stated uncertainty (one standard uncertainty) combines the fit's
 standard error at the peak and its model error, a quarter of the change of the peak when the fit
 reaches 1.5 times as far (the quartic term's bias grows fivefold).  The extreme never exceeds the
 largest measured value by more than twice the fit's standard error, nor at all when the fit's
