@@ -277,8 +277,15 @@ def run(args):
                 area_t, ext_t = truth(defect, prep, V, Tp, tol)
                 extra = ""
                 if kind == "edge":
-                    na = [np.mean(ind._tri_geometry(V, T[F == f])[3], axis=0) for f in defect.faces]
-                    extra = f" faces {defect.faces}"
+                    # the faces' normals near the site: the angle between them at the edge
+                    na = []
+                    for f in defect.faces:
+                        near = np.min([defect.dist(V[T[:, j]]) for j in range(3)], axis=0) < W
+                        tf = T[(F == f) & near] if np.any((F == f) & near) else T[F == f]
+                        m = np.mean(ind._tri_geometry(V, tf)[3], axis=0)
+                        na.append(m / np.linalg.norm(m))
+                    ang = np.degrees(np.arccos(np.clip(na[0] @ na[1], -1.0, 1.0)))
+                    extra = f" faces {tuple(int(f) for f in defect.faces)}, normals {ang:.0f} deg apart"
                 print(f"\n{name} {kind} W {W:.4g} s {s:.4g}: true area {area_t:.5g}, "
                       f"true extreme {ext_t:+.4g}{extra}", flush=True)
                 for sampler in args.samplers:
