@@ -820,8 +820,15 @@ def _describe(idx, core, med, points, values, face, normals, tree, ev_idx, spaci
     # the extreme: the fitted peak of the local surface around the worst core point
     k = int(np.argmax(np.abs(med)))
     extreme, uncertainty, at = float(med[k]), float("nan"), points[core[k]].copy()
+    # the region's half-width there: the nearest in-tolerance point (a groove's is its
+    # half-width, a round dent's its radius; the fit's window is a third of it)
+    near = np.asarray(tree.query_ball_point(points[core[k]], np.sqrt(area / np.pi) + spacing),
+                      np.int64)
+    near = near[within[ev_idx[near]]]
+    half = float(np.min(np.linalg.norm(tree.data[near] - points[core[k]], axis=1))) \
+        if near.size else np.sqrt(area / np.pi)
     peak = fitted_peak(points[core[k]], normals[core[k]], tree, ev_idx, points, values, spacing,
-                       area)
+                       area, half_width=half)
     if peak is not None and (peak[0] > limit[k] if above else peak[0] < limit[k]):
         extreme, uncertainty, at, se, sigma = peak
         noise = local_noise(tree, ev_idx, values, points[core[k]],
