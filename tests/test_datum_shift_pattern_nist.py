@@ -23,7 +23,7 @@ def _faces(refs):
 
 @pytest.fixture(scope="module")
 def ftc08(shared_data):
-    from independent_scans import random_points, read_shape, tessellate
+    from independent_scans import file_tessellation, random_points
     from model_cache import cached_prepared
     from nist_plans import nist_plan
 
@@ -45,7 +45,9 @@ def ftc08(shared_data):
             faces |= _faces(data["datums"][n]["faces"])
     data["alignment"] = {"type": "best_fit", "faces": [f"face:{f}" for f in sorted(faces)]}
     prep = cached_prepared(path, spacing=1.0, allow_incomplete=True, features=True)
-    V, T, F = tessellate(read_shape(path), 0.01)
+    # (the tessellation the other NIST modules of this part use: read once per run,
+    # bitwise, tests/model_cache.py)
+    V, T, F = file_tessellation(path, 0.01)
     keep = [inv[f] for f in faces]
     T, F = T[np.isin(F, keep)], F[np.isin(F, keep)]
     rng = np.random.default_rng(8)

@@ -25,7 +25,7 @@ KEEP = ("GT20", "GT21", "GT22", "GT23")
 
 @pytest.fixture(scope="module")
 def ftc06(shared_data):
-    from independent_scans import random_points, read_shape, tessellate
+    from independent_scans import file_tessellation, random_points
     from model_cache import cached_prepared
     from nist_plans import nist_plan
 
@@ -51,7 +51,9 @@ def ftc06(shared_data):
     # the plan's alignment is a best fit of every face: of the scanned ones here
     data["alignment"] = {"type": "best_fit", "faces": [f"face:{f}" for f in sorted(faces)]}
     prep = cached_prepared(path, spacing=1.0, allow_incomplete=True, features=True)
-    V, T, F = tessellate(read_shape(path), 0.01)
+    # (the tessellation the other NIST modules of this part use: read once per run,
+    # bitwise, tests/model_cache.py)
+    V, T, F = file_tessellation(path, 0.01)
     pmi_faces = [inv[f] for f in faces]
     T, F = T[np.isin(F, pmi_faces)], F[np.isin(F, pmi_faces)]
     rng = np.random.default_rng(6)

@@ -20,7 +20,7 @@ FTC06 = "nist_ftc_06_asme1_ap242-e1.stp"
 
 @pytest.fixture(scope="module")
 def ftc06(shared_data):
-    from independent_scans import random_points, read_shape, tessellate
+    from independent_scans import file_tessellation, random_points
     from model_cache import cached_prepared
     from nist_plans import nist_plan
 
@@ -34,7 +34,9 @@ def ftc06(shared_data):
     faces = {21, 106, 45, 44, 8}           # GT15, its datum A; C and D fix the best fit
     data["alignment"] = {"type": "best_fit", "faces": [f"face:{f}" for f in sorted(faces)]}
     prep = cached_prepared(path, spacing=1.0, allow_incomplete=True, features=True)
-    V, T, F = tessellate(read_shape(path), 0.01)
+    # (the tessellation the other NIST modules of this part use: read once per run,
+    # bitwise, tests/model_cache.py)
+    V, T, F = file_tessellation(path, 0.01)
     keep = np.isin(F, [inv[f] for f in faces])
     T, F = T[keep], F[keep]
     rng = np.random.default_rng(15)

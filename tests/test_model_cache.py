@@ -113,3 +113,30 @@ def test_cached_features_are_bitwise_model_features_of_a_fresh_import(tmp_path, 
         assert _feature_fields(model_features(m)) == want
         prep = model_cache.cached_prepared(step, spacing=6.0, features=True)
         assert _feature_fields(model_features(prep)) == want
+
+
+def test_a_part_is_prepared_and_its_features_computed_once_per_spacing(tmp_path, monkeypatch):
+    """``allow_incomplete=True`` on a complete model shares the entry without it (the same
+    preparation, bitwise); the prepared model's features are the model entry's (one features
+    file per part, not one more per spacing); an incomplete model keeps its own key."""
+    from shapeverify.characteristics.features import model_features
+
+    monkeypatch.setenv("SHAPEVERIFY_TEST_CACHE", str(tmp_path / "cache"))
+    step = example_part_step(tmp_path / "panel.step")
+    plain = model_cache.cached_prepared(step, spacing=6.0, features=True)
+    allowed = model_cache.cached_prepared(step, spacing=6.0, allow_incomplete=True,
+                                          features=True)
+    direct = _arrays(prepare(load_model(step), spacing=6.0, allow_incomplete=True),
+                     tmp_path / "direct.svm")
+    got = _arrays(allowed, tmp_path / "allowed.svm")
+    assert not [k for k in direct if not np.array_equal(got[k], direct[k], equal_nan=True)]
+    assert _feature_fields(model_features(allowed)) == _feature_fields(
+        model_features(load_model(step)))
+    assert _feature_fields(model_features(plain)) == _feature_fields(model_features(allowed))
+    made = sorted(p.name.split("-")[1] + p.suffix for p in (tmp_path / "cache").rglob("*")
+                  if p.is_file() and "lock" not in p.name)
+    assert made == ["model.pkl", "model.svmodel", "prepared.svm"], made
+    # an incomplete model: allow_incomplete is part of the key (without it prepare refuses)
+    monkeypatch.setattr("shapeverify.cad.completeness.is_incomplete", lambda m: True)
+    model_cache.cached_prepared(step, spacing=6.0, allow_incomplete=True)
+    assert len(list((tmp_path / "cache").rglob("*-prepared-*.svm"))) == 2
