@@ -585,14 +585,17 @@ def _section(sec, S: _Scan):
 
 
 def _largest_tolerance(plan) -> float:
-    """The largest ``tol`` anywhere in the plan's characteristics (mm; 0.2 if none)."""
+    """The largest ``tol`` anywhere in the plan's characteristics (mm; 0.2 if none is above
+    0: a position of zone 0 at MMC, all of it bonus, was the only tolerance of a plan and the
+    evaluation distance of 5 x 0 mm raised)."""
     found = []
 
     def walk(x):
         if isinstance(x, dict):
             for k, v in x.items():
                 if k == "tol" and isinstance(v, (int, float)):
-                    found.append(abs(float(v)))
+                    if abs(float(v)) > 0:
+                        found.append(abs(float(v)))
                 else:
                     walk(v)
         elif isinstance(x, (list, tuple)):
