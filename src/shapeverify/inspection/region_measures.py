@@ -100,6 +100,10 @@ PEAK_STEPS = 4
 MIN_CONDITION = 0.02
 #: The radius grows by this factor (at most ``GROW_STEPS`` times) until the points fix a quadratic.
 GROW = 1.25
+#: a wider window's fit is taken only when its residual sigma is at most ``GROW_FIT`` times the
+#: first window's (or ``GROW_FIT_SHARE`` of the first value, for a noise-free first fit)
+GROW_FIT = 3.0
+GROW_FIT_SHARE = 0.1
 GROW_STEPS = 4
 #: Points whose cells are computed at once (memory: about 30 neighbours each).
 CHUNK = 20000
@@ -554,7 +558,12 @@ def fitted_peak(center, normal, tree, ev_idx, points, values, spacing, area, hal
     first = None
     for _ in range(GROW_STEPS + 1):
         fit = _peak_at(center, normal, tree, ev_idx, points, values, r)
-        if fit is not None and (first is None or (fit[4] and abs(fit[0]) > abs(first[0]))):
+        # a wider window's fit must fit as the first did (a box 3 mm tall on the panel, lattice
+        # at 1 mm: the first window on its flat top had no extremum, sigma 0.02; the wider one
+        # took in the walls, sigma 0.85, and peaked at 3.61)
+        if fit is not None and (first is None or (
+                fit[4] and abs(fit[0]) > abs(first[0])
+                and fit[3] <= max(GROW_FIT * first[3], GROW_FIT_SHARE * abs(first[0])))):
             first, r_first = fit, r
         # a quadratic with no extremum in its window is no peak of the data (a random scan at
         # 1/5 of a dent's radius, its centre between points: the fit from a core point 4.7 mm
