@@ -42,16 +42,16 @@ def size_entries(item, ctx, src) -> tuple[list, str]:
             groups += [("sphere", g) for g in _spheres(ctx.model, other)]
         except ValueError:
             # a fillet: tubes about an axis (tori), and balls where they meet (spheres)
-            tori, rest = _tori(ctx.model, other, ctx.size) if t == "Size_Radius" else ([], [1])
+            tori, rest = _tori(ctx.model, other, ctx.size) if t == "Size_Radius" else ([], [])
             try:
-                balls = _spheres(ctx.model, rest) if rest and tori else None
+                balls = _spheres(ctx.model, rest) if tori else None
             except ValueError:
                 balls = None
-            if (balls is None and rest) or not tori:
+            if balls is None:
                 kinds = sorted({ctx.feats[f].kind for f in other})
                 return [], (f"{t} on faces that are not cylinders, spheres or tori "
                             f"({', '.join(kinds)})")
-            groups += [("torus", g) for g in tori] + [("sphere", g) for g in balls or []]
+            groups += [("torus", g) for g in tori] + [("sphere", g) for g in balls]
     if t != "Size_Radius" and any(s != "sphere" for s, _ in groups):
         return [], f"{t} on faces that are not spherical"
     nominal = float(item["nominal"])

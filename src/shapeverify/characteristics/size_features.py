@@ -76,12 +76,12 @@ def cad_size(model, faces, shape) -> tuple[float, np.ndarray | None, float]:
     from ..fitting import fit_cylinder, fit_sphere
     from .features import _face_grid
 
-    X = np.concatenate([_face_grid(model.faces[f])[0] for f in faces])
-    if shape == "torus":
+    if shape == "torus":        # its own grid points, fitted from the surface's torus
         t = cad_torus(model, faces)
         if t is None:
             return float("nan"), None, float("inf")
         return t.minor_radius, t, float(np.abs(t.residuals).max())
+    X = np.concatenate([_face_grid(model.faces[f])[0] for f in faces])
     if shape == "sphere":
         f = fit_sphere(X)
         return float(f.radius), None, float(np.abs(f.residuals).max())
