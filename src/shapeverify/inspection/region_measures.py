@@ -778,6 +778,10 @@ def seen_around(tree, ev_idx, values, normals, points, members, above, lo_lim, h
     deep = gi[np.abs(values[gi]) <= 0.5 * lim]
     if deep.size < 2 * SEEN_K + 2:
         return 0.0
+    lim_of = (lambda i: np.abs(hi_lim[i])) if above else (lambda i: np.abs(lo_lim[i]))
+    deep = deep[facing(tree, ev_idx, values, normals, points, deep, lim_of, spacing)]
+    if deep.size < 2 * SEEN_K + 2:
+        return 0.0
     dtree = cKDTree(points[deep])
     # the reference: the surface around the component, between SEEN_INNER and SEEN_WINDOW
     # spacings from its points (the deep points at a defect's rim have lost the neighbours
@@ -804,6 +808,40 @@ def seen_around(tree, ev_idx, values, normals, points, members, above, lo_lim, h
 #: Deep points looked at around a component's points, and the reach of the members around each,
 #: in spacings (``seen_among``).
 AMONG_REACH = 1.5
+#: A deep point counts only where the surface its ``AMONG_K`` nearest deep neighbours form
+#: (scan positions; looked for within ``AMONG_WINDOW`` spacings of its foot) is a surface, not a
+#: row (its second spread at least ``AMONG_FLAT`` of its first), and faces the way its CAD
+#: normal does, within ``AMONG_FACING`` (cosine: 45 degrees).
+AMONG_K = 8
+AMONG_WINDOW = 3.0
+AMONG_FLAT = 0.1
+AMONG_FACING = 0.7
+
+
+def facing(tree, ev_idx, values, normals, points, idx, lim_of, spacing) -> np.ndarray:
+    """Whether the surface through each deep point ``idx`` and its deep neighbours (a plane
+    through their scan positions ``foot + d n``) faces along its CAD normal (``AMONG_*``).
+
+    Under a layer it does: the part's own surface.  A dent on a convex edge pushes the points of
+    one face nearer the other, which they then read against: their feet gather on a curve of
+    that face, their scan positions lie in a sheet seen edge-on from it (the dented neighbour
+    face), at every depth from 0 to the dent's; the deep ones among the dent's other points are
+    that sheet (or, on a lattice, one row of it: no surface at all), not a surface under a layer
+    (the wavy cube, a dent on its 90 degree edge: all its points were read as a reflection and
+    the dented part showed no region)."""
+    lists = tree.query_ball_point(points[idx], AMONG_WINDOW * spacing)
+    near = ev_idx[np.unique(np.concatenate([np.asarray(x, np.int64) for x in lists]))]
+    near = near[np.abs(values[near]) <= 0.5 * lim_of(near)]
+    if near.size < 5:
+        return np.zeros(idx.size, bool)
+    S = points[near] + values[near, None] * normals[near]
+    k = min(AMONG_K, near.size)
+    _, j = cKDTree(S).query(points[idx] + values[idx, None] * normals[idx], k=k)
+    Q = S[j.reshape(idx.size, k)]
+    Q = Q - Q.mean(axis=1, keepdims=True)
+    lam, V = np.linalg.eigh(np.einsum("ika,ikb->iab", Q, Q))
+    return (lam[:, 1] >= AMONG_FLAT * lam[:, 2]) & \
+        (np.abs(np.einsum("ia,ia->i", V[:, :, 0], normals[idx])) >= AMONG_FACING)
 
 
 def seen_among(tree, ev_idx, values, normals, points, members, above, lo_lim, hi_lim,
@@ -821,7 +859,9 @@ def seen_among(tree, ev_idx, values, normals, points, members, above, lo_lim, hi
     sampling or the defect's size.  A layer (a reflection, a ghost) lies over the surface: the
     surface's own points are seen among its points, however sparsely the surface is sampled
     under it (:func:`seen_around` measures that density against the surface around, and a
-    reflection's component sits where the surface under it happens to be sparse)."""
+    reflection's component sits where the surface under it happens to be sparse).  A deep point
+    counts only on a surface facing the way the part does there (:func:`facing`), here as in
+    :func:`seen_around`."""
     members = np.asarray(members)
     members = members[values[members] > hi_lim[members]] if above else \
         members[values[members] < lo_lim[members]]
@@ -857,4 +897,9 @@ def seen_among(tree, ev_idx, values, normals, points, members, above, lo_lim, hi
                     np.diff(np.where(np.isfinite(ang), ang, 0.0), axis=1), -np.inf)
     last = np.take_along_axis(ang, (n_ok - 1)[:, None], axis=1)[:, 0]
     widest = np.maximum(gaps.max(axis=1), ang[:, 0] + 2.0 * np.pi - last)
-    return int(np.count_nonzero(widest < np.pi))
+    among = deep[sel][widest < np.pi]
+    if among.size == 0:
+        return 0
+    lim_of = (lambda i: np.abs(hi_lim[i])) if above else (lambda i: np.abs(lo_lim[i]))
+    return int(np.count_nonzero(facing(tree, ev_idx, values, normals, points, among, lim_of,
+                                        spacing)))

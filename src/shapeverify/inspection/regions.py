@@ -16,7 +16,9 @@ on the impeller's blades.
 points.  Every evaluated point near an out-of-tolerance one gets the median deviation of its 9
 nearest evaluated points within ``MEDIAN_RADIUS = 3 s``; a **core** point is one whose median is
 beyond the limit (on that side).  Core points closer than ``LINK_FACTOR = 2.5 s`` on the same
-side are linked; a connected component is a defect region when its *dense* core points (each
+side are linked, their feet or their measured points (a dent on a convex edge: the points pushed
+in from one face lie nearer the other, their feet jump across the edge, the dented surface stays
+whole: two lobes and no region once); a connected component is a defect region when its *dense* core points (each
 standing for at most ``SPARSE_AREA = 3 s^2``: stray points beside the part or in a shadow stand
 for no measured surface) number at least ``min_points`` and cover at least ``min_points x s^2``.
 The region's points are the out-of-tolerance points on its side within the link distance of
@@ -89,8 +91,8 @@ from ..measures._grid_kernels import (any_within, count_within, kernel_array, ke
                                       mark_within, nearest_other)
 from ..measures.spacing import (median_spacing, nanmedian_rows,  # noqa: F401 (re-exported)
                                 nearest_distances, neighbourhood_median)
-from .region_measures import (CELL_BOUND, MAX_PEAK_RADIUS, fitted_peak, local_noise, out_area,
-                              seen_among, seen_around, seen_under)
+from .region_measures import (CELL_BOUND, MAX_PEAK_RADIUS, facing, fitted_peak, local_noise,
+                              out_area, seen_among, seen_around, seen_under)
 
 logger = logging.getLogger(__name__)
 
@@ -448,7 +450,13 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
     n_layer_comp = np.zeros(0, np.int64)
     if core.size:
         pc = points[core]
-        pairs = cKDTree(pc).query_pairs(link, output_type="ndarray")
+        # linked where their feet are near, and where the measured points are: a dent on a
+        # convex edge pushes one face's points nearer the other face, their feet jump across
+        # the edge, while the dented surface itself stays connected
+        sc = pc + values[core, None] * normals[core]
+        pairs = np.unique(np.concatenate([cKDTree(pc).query_pairs(link, output_type="ndarray"),
+                                          cKDTree(sc).query_pairs(link, output_type="ndarray")]),
+                          axis=0)
         if pairs.size:
             pairs = pairs[core_up[pairs[:, 0]] == core_up[pairs[:, 1]]]
         n_comp, labels = linked_components(core.size, pairs)
@@ -460,8 +468,9 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
         comp_n = np.bincount(labels, weights=dense.astype(np.float64), minlength=n_comp)
         keep = np.flatnonzero((comp_area >= min_points * spacing ** 2) & (comp_n >= min_points))
         if keep.size:
-            layer = _over_measured_surface(tree, ev_idx, values, pc, core_med, core_up, labels,
-                                           keep, lo_lim[core], hi_lim[core], spacing)
+            layer = _over_measured_surface(tree, ev_idx, values, normals, points, core,
+                                           core_med, core_up, labels, keep, lo_lim, hi_lim,
+                                           spacing)
             sheets = []
             for k, c in enumerate(keep):
                 at = labels == c
@@ -545,8 +554,8 @@ def _uniform_limits(values, ev_idx, out_idx, lo_lim, hi_lim) -> bool:
     return beyond.size == out_idx.size and bool(np.array_equal(ev_idx[beyond], out_idx))
 
 
-def _over_measured_surface(tree, ev_idx, values, pc, med, up, labels, comps, lo, hi,
-                           spacing) -> np.ndarray:
+def _over_measured_surface(tree, ev_idx, values, normals, points, core, med, up, labels, comps,
+                           lo_lim, hi_lim, spacing) -> np.ndarray:
     """(len(comps),) bool: is the component a layer over in-tolerance measured surface (a
     reflection, a ghost of multipath, a second view misplaced)?  At each core point count the
     evaluated points within ``LAYER_RADIUS`` spacings whose deviation is deep inside the
@@ -554,8 +563,12 @@ def _over_measured_surface(tree, ev_idx, values, pc, med, up, labels, comps, lo,
     part's surface seen *under* the out-of-tolerance points.  A component is a layer when at
     its median core point they are at least 2 and ``LAYER_SHARE`` of the points there, and
     there are ``LAYER_DENSITY`` times as many points there as on the in-tolerance surface
-    around it (two layers, not a small pit whose rim is within reach).  A real defect replaces the surface: inside it no such points are seen,
-    and at its rim they lie on one side only."""
+    around it (two layers, not a small pit whose rim is within reach).  A real defect replaces
+    the surface: inside it no such points are seen, and at its rim they lie on one side only.
+    The points under count only on a surface facing the way the part does
+    (:func:`.region_measures.facing`: not the sheet of a convex edge's dented neighbour face,
+    whose feet crowd onto a curve of this face)."""
+    pc, lo, hi = points[core], lo_lim[core], hi_lim[core]
     out = np.zeros(comps.size, bool)
     sel = np.flatnonzero(np.isin(labels, comps))
     if sel.size == 0:
@@ -570,6 +583,12 @@ def _over_measured_surface(tree, ev_idx, values, pc, med, up, labels, comps, lo,
     m = med[sel][row]
     lim = np.where(up[sel], hi[sel], lo[sel])[row]
     lower = (np.abs(v) <= 0.5 * np.abs(lim)) & (np.abs(v - m) > 0.5 * np.abs(m))
+    for side, lim_all in ((True, hi_lim), (False, lo_lim)):
+        at = lower & (up[sel][row] == side)
+        if at.any():
+            cand, inv = np.unique(flat[at], return_inverse=True)
+            lower[at] = facing(tree, ev_idx, values, normals, points, cand,
+                               lambda i: np.abs(lim_all[i]), spacing)[inv]
     n_lower = np.bincount(row, weights=lower.astype(np.float64), minlength=sel.size)
     # the share of the points there (the density of a thin part's two sides or of a ghost
     # over it is not the scan's spacing)
