@@ -13,10 +13,12 @@ The k-d tree is scipy's own class, ``scipy.spatial._ckdtree.cKDTree`` (what
 from __future__ import annotations
 
 import sys
+import threading
 
 __all__ = ["bare_scipy_extension", "cKDTree", "kdtree_class"]
 
 _CLASS = []
+_LOCK = threading.Lock()
 
 
 def cKDTree(*args, **kwargs):  # noqa: N802 - the name of the class it stands for
@@ -37,8 +39,9 @@ def kdtree_class() -> type:
     placeholders (:func:`bare_scipy_extension`); the module is then taken out of
     ``sys.modules``, so that a later ``import scipy.spatial`` imports it as its submodule
     (Cython hands back the module already made: the same class)."""
-    if not _CLASS:
-        _CLASS.append(_load_kdtree())
+    with _LOCK:
+        if not _CLASS:
+            _CLASS.append(_load_kdtree())
     return _CLASS[0]
 
 
@@ -93,6 +96,10 @@ def bare_scipy_extension(name: str, keep: bool = True):
     stand_ins = [(parent, attr, mod) for parent, attr, mod in
                  ((scipy, "sparse", sparse), (scipy._lib, "_util", util))
                  if mod.__name__ not in sys.modules]
+    import _imp
+
+    # the placeholders are in sys.modules for the load only: another thread's import waits
+    _imp.acquire_lock()
     try:
         for parent, attr, mod in stand_ins:
             sys.modules[mod.__name__] = mod
@@ -114,4 +121,5 @@ def bare_scipy_extension(name: str, keep: bool = True):
                 del sys.modules[mod.__name__]
             if parent.__dict__.get(attr) is mod:
                 delattr(parent, attr)
+        _imp.release_lock()
     return module
