@@ -170,3 +170,78 @@ def test_the_inspect_start_does_not_import_pyyaml():
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 0, proc.stderr[-3000:]
     assert json.loads(proc.stdout.splitlines()[-1]) == []
+
+
+BARE_KDTREE = r'''
+import json, sys
+import numpy as np
+from shapeverify._lazy import cKDTree, kdtree_class
+rng = np.random.default_rng(7)
+P, Q = rng.normal(size=(2000, 3)), rng.normal(size=(50, 3))
+tree = cKDTree(P)
+d, i = tree.query(Q, k=3)
+heavy = sorted(m for m in ("scipy.spatial", "scipy.sparse", "scipy.linalg", "scipy._lib._util",
+                           "scipy._lib._array_api", "numpy.f2py", "numpy.testing")
+               if m in sys.modules)
+D = np.linalg.norm(Q[:, None, :] - P[None, :, :], axis=2)
+bi = np.argsort(D, axis=1)[:, :3]
+# what the placeholders stood for, used after the load: scipy.sparse's matrices
+coo = tree.sparse_distance_matrix(cKDTree(Q), 0.5, output_type="coo_matrix")
+dense = np.where(D.T <= 0.5, D.T, 0.0)
+import scipy.spatial
+print(json.dumps({"heavy": heavy, "same_index": bool((i == bi).all()),
+                  "dist_err": float(np.abs(d - np.take_along_axis(D, bi, 1)).max()),
+                  "coo_err": float(np.abs(coo.toarray() - dense).max()),
+                  "coo_type": type(coo).__name__,
+                  "same_class": scipy.spatial.cKDTree is kdtree_class()
+                                and scipy.spatial._ckdtree.cKDTree is kdtree_class(),
+                  "kdtree_subclass": issubclass(scipy.spatial.KDTree, kdtree_class())}))
+'''
+
+
+def test_the_bare_kdtree_queries_as_brute_force_without_scipy_spatial_and_is_scipys_class():
+    env = dict(os.environ)
+    env["PYTHONPATH"] = os.pathsep.join([str(Path(__file__).parents[1] / "src"),
+                                         env.get("PYTHONPATH", "")])
+    proc = subprocess.run([sys.executable, "-c", BARE_KDTREE], env=env, capture_output=True,
+                          text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    out = json.loads(proc.stdout.splitlines()[-1])
+    assert out["heavy"] == []       # the tree came without scipy.spatial, sparse, linalg
+    assert out["same_index"] and out["dist_err"] < 1e-12
+    assert out["coo_type"] == "coo_matrix" and out["coo_err"] < 1e-12
+    assert out["same_class"] and out["kdtree_subclass"]
+
+
+INSPECT_SCIPY = r'''
+import json, sys
+from shapeverify import cli_start
+cli_start.preimport()
+import numpy as np
+from numba import njit
+@njit
+def smallest_eigenvalue(S):
+    w, _ = np.linalg.eigh(S)
+    return w[0]
+S = np.array([[4.0, 1.0, 0.5], [1.0, 3.0, 0.2], [0.5, 0.2, 2.0]])
+print(json.dumps({"heavy": sorted(m for m in ("scipy.spatial", "scipy.sparse", "scipy.linalg",
+                                              "numpy.f2py") if m in sys.modules),
+                  "eig_err": float(abs(smallest_eigenvalue(S) - np.linalg.eigvalsh(S)[0]))}))
+import scipy.linalg
+from scipy.linalg import cython_lapack
+print(json.dumps({"lu": float(np.abs(scipy.linalg.lu_factor(S)[0]).max()),
+                  "lapack": cython_lapack is sys.modules["scipy.linalg.cython_lapack"]}))
+'''
+
+
+def test_the_inspect_start_imports_no_scipy_package_and_numba_still_finds_lapack():
+    env = {k: v for k, v in os.environ.items() if not k.startswith("NUMBA_")}
+    env["PYTHONPATH"] = os.pathsep.join([str(Path(__file__).parents[1] / "src"),
+                                         env.get("PYTHONPATH", "")])
+    proc = subprocess.run([sys.executable, "-c", INSPECT_SCIPY], env=env,
+                          capture_output=True, text=True, timeout=600)
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    first, later = (json.loads(line) for line in proc.stdout.splitlines()[-2:])
+    assert first["heavy"] == []
+    assert first["eig_err"] < 1e-12     # numba's eigh through the bare cython_lapack
+    assert later["lapack"] and later["lu"] > 0     # scipy.linalg imports as usual afterwards

@@ -102,9 +102,23 @@ class _quiet_llvm_lock:
 
 
 def import_kernel_env_modules() -> None:
-    """Import :data:`KERNEL_ENV_MODULES` (those this numba has)."""
+    """Import :data:`KERNEL_ENV_MODULES` (those this numba has).  ``numba.np.arraymath`` asks
+    at import whether BLAS is there (``import scipy.linalg.cython_blas``), and the noise
+    kernels' ``eigh`` looks up LAPACK's ``dsyevd`` in ``scipy.linalg.cython_lapack`` on its
+    first call: both compiled modules are loaded by themselves first
+    (:func:`shapeverify._lazy.bare_scipy_extension`, ~0.01 s), without the package
+    ``scipy.linalg`` (its array-API layer and the rest, ~0.1 s), which nothing of an
+    inspection uses."""
     import importlib
 
+    if "scipy.linalg" not in sys.modules:
+        from shapeverify._lazy import bare_scipy_extension
+
+        for name in ("scipy.linalg.cython_blas", "scipy.linalg.cython_lapack"):
+            try:
+                bare_scipy_extension(name)
+            except Exception:   # noqa: BLE001 - then numba imports scipy.linalg as before
+                pass
     for name in KERNEL_ENV_MODULES:
         try:
             importlib.import_module(name)

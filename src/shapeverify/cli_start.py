@@ -83,7 +83,7 @@ def end(code) -> None:
 #: what ``inspect`` imports before its work (the resident worker's preload imports the same)
 INSPECT_MODULES = ("shapeverify.cli", "shapeverify.cli_common", "shapeverify.inspection",
                    "shapeverify.nearest", "shapeverify.options", "shapeverify.pipeline",
-                   "shapeverify.registration", "scipy.spatial")
+                   "shapeverify.registration")
 
 
 def preimport(modules=INSPECT_MODULES) -> None:
@@ -99,13 +99,13 @@ def preimport(modules=INSPECT_MODULES) -> None:
     was = gc.isenabled()
     gc.disable()
     try:
+        from shapeverify._lazy import kdtree_class
         from shapeverify._start_shortcuts import (defer_numba_registries,
-                                                   import_kernel_env_modules, import_numba,
-                                                   import_scipy_spatial)
+                                                   import_kernel_env_modules, import_numba)
 
         import_numba()              # without PyYAML (numba reads a config file with it)
         defer_numba_registries()    # cached kernels load without numba's registries (~0.2 s)
-        import_scipy_spatial()      # without scipy's docstring rewrite (0.1-0.2 s)
+        kdtree_class()              # scipy's k-d tree without scipy.spatial (0.1-0.2 s)
         import_kernel_env_modules()  # what the kernels' environments name
         for name in modules:
             importlib.import_module(name)

@@ -98,8 +98,8 @@ class Worker:
 
     # ------------------------------------------------------------------ preparation
     def preload(self) -> None:
-        """Import the command line and the pipeline, scipy.spatial and numba (cached kernels load
-        without numba's registries: :mod:`shapeverify._start_shortcuts`), so that a request
+        """Import the command line and the pipeline, scipy's k-d tree and numba (cached kernels
+        load without numba's registries: :mod:`shapeverify._start_shortcuts`), so that a request
         pays only its own work."""
         import contextlib
         import gc
@@ -114,13 +114,16 @@ class Worker:
         with contextlib.redirect_stdout(sink), contextlib.redirect_stderr(sink):
             import typer.main
 
+            from shapeverify._lazy import kdtree_class
             from shapeverify._start_shortcuts import (defer_numba_registries,
-                                                       import_kernel_env_modules, import_numba,
-                                                       import_scipy_spatial)
+                                                       import_kernel_env_modules, import_numba)
 
             import_numba()              # without PyYAML (numba reads a config file with it)
             defer_numba_registries()    # cached kernels load without numba's registries
-            import_scipy_spatial()      # without scipy's docstring rewrite
+            # scipy's k-d tree and BLAS/LAPACK modules without the packages scipy.spatial,
+            # scipy.sparse and scipy.linalg (0.1-0.2 s): a plain inspect needs none of them, a
+            # command that does (a plan, a mesh) imports them at its first use
+            kdtree_class()
             import_kernel_env_modules()  # what the kernels' environments name
             from shapeverify import cli, cli_common  # noqa: F401
             import shapeverify.inspection  # noqa: F401
@@ -128,7 +131,6 @@ class Worker:
             import shapeverify.options  # noqa: F401
             import shapeverify.pipeline  # noqa: F401
             import shapeverify.registration  # noqa: F401
-            import scipy.spatial  # noqa: F401
             # the click command typer builds from the app on every call (~0.05 s): built once
             self.command = typer.main.get_command(cli.app)
         _keep_prepared_models()

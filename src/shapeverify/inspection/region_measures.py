@@ -43,7 +43,7 @@ uncertainty the difference).
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
+from shapeverify._lazy import cKDTree
 
 from ..measures.spacing import nanmedian_rows
 from ._cluster_kernels import cell_areas

@@ -33,6 +33,7 @@ Bergström (2011), thesis §7.3 (trimmed surfaces) and Paper I §4 (exact refine
 from __future__ import annotations
 
 import logging
+from itertools import chain
 
 import numpy as np
 from numpy.polynomial import polynomial as P
@@ -365,10 +366,10 @@ class ExactMesh:
             reach = np.linalg.norm(q - fast.points[idx], axis=1) + self.radius
             reach = reach * (1 + 1e-12) + 1e-12
             lists = self.kd.query_ball_point(q, reach) if n else np.zeros(0, dtype=object)
-            counts = np.fromiter((len(c) for c in lists), dtype=np.int64, count=n)
+            counts = np.fromiter(map(len, lists), dtype=np.int64, count=n)
             ptr = np.zeros(n + 1, dtype=np.int64)
             np.cumsum(counts, out=ptr[1:])
-            cand = (np.fromiter((t for c in lists for t in c), dtype=np.int64,
+            cand = (np.fromiter(chain.from_iterable(lists), dtype=np.int64,
                                 count=int(ptr[-1])) if n else np.zeros(0, dtype=np.int64))
             lo, hi = ptr[:-1], ptr[1:]
         m = int((hi - lo).max()) if n else 0

@@ -26,7 +26,7 @@ exact symmetric copies of this one (the model maps onto itself under the motion 
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial import cKDTree
+from shapeverify._lazy import cKDTree
 
 from . import _irls
 
