@@ -88,36 +88,6 @@ def test_a_cache_miss_still_compiles_with_the_registries_deferred(tmp_path):
     assert out["k32"] == out["brute_k"]
 
 
-SCIPY = r'''
-import json, sys
-import numpy as np
-from shapeverify._start_shortcuts import import_scipy_spatial
-import_scipy_spatial()
-import scipy._lib._array_api as aa, scipy._lib._util as uu
-from scipy._lib._docscrape import FunctionDoc
-from scipy.spatial import cKDTree
-rng = np.random.default_rng(5)
-P, Q = rng.normal(size=(2000, 3)), rng.normal(size=(50, 3))
-d, i = cKDTree(P).query(Q, k=3)
-D = np.linalg.norm(Q[:, None, :] - P[None, :, :], axis=2)
-bi = np.argsort(D, axis=1)[:, :3]
-print(json.dumps({"same_index": bool((i == bi).all()),
-                  "dist_err": float(np.abs(d - np.take_along_axis(D, bi, 1)).max()),
-                  "restored": aa.FunctionDoc is FunctionDoc and uu.FunctionDoc is FunctionDoc}))
-'''
-
-
-def test_scipy_spatial_without_the_docstring_rewrite_queries_as_brute_force():
-    env = dict(os.environ)
-    env["PYTHONPATH"] = os.pathsep.join([str(Path(__file__).parents[1] / "src"),
-                                         env.get("PYTHONPATH", "")])
-    proc = subprocess.run([sys.executable, "-c", SCIPY], env=env, capture_output=True,
-                          text=True, timeout=300)
-    assert proc.returncode == 0, proc.stderr[-3000:]
-    out = json.loads(proc.stdout.splitlines()[-1])
-    assert out["same_index"] and out["dist_err"] < 1e-12 and out["restored"]
-
-
 NUMBA_CONFIG = r'''
 import json, sys
 from shapeverify._start_shortcuts import import_numba

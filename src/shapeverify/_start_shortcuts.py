@@ -1,4 +1,4 @@
-"""Two costs of a command's first kernel that its answer does not need (issue 32 item 7).
+"""Costs of a command's first kernel that its answer does not need (issue 32 item 7).
 
 Installed by the command line before it imports the inspection
 (:func:`shapeverify.cli_start.preimport`) and by the resident worker's preload; the library
@@ -14,10 +14,6 @@ itself leaves numba and scipy as they are.
   On a cache miss numba refreshes as before and compiles (its compiler refreshes too).  While
   a kernel loads, llvmlite's lock callbacks (numba's compile-timing events) are off.  The
   kernels run the same machine code: the same answers.
-* :func:`import_scipy_spatial`: as they import, ``scipy.linalg``, ``scipy.special`` and
-  ``scipy.spatial`` rewrite ~230 docstrings (``FunctionDoc`` parses each one to append a note on
-  array-API support), 0.1-0.2 s of CPU; imported here with that rewrite skipped, the docstrings
-  stay as written.  Nothing else changes.
 * :func:`import_numba`: ``import numba`` with PyYAML left unimported.  numba imports ``yaml``
   only to read a ``.numba_config.yaml`` in the working directory (18 modules, ~0.02-0.03 s of
   CPU); its config module gets a stand-in that imports PyYAML when numba reads such a file, so
@@ -30,7 +26,7 @@ import sys
 import types
 
 __all__ = ["KERNEL_ENV_MODULES", "defer_numba_registries", "import_kernel_env_modules",
-           "import_numba", "import_scipy_spatial"]
+           "import_numba"]
 
 #: numba's modules that the cached kernels of an inspection name in their environments (the
 #: functions they inlined from numba's array, math, sort and linalg implementations): a kernel
@@ -124,42 +120,6 @@ def import_kernel_env_modules() -> None:
             importlib.import_module(name)
         except ImportError:
             pass
-
-
-class _DocAsWritten(dict):
-    """Stands for scipy's ``FunctionDoc`` while scipy imports: every section an empty list
-    (the notes appended to it are dropped), ``str`` a signature line and the doc as written."""
-
-    def __init__(self, func, *args, **kwargs):
-        super().__init__()
-        self._doc = getattr(func, "__doc__", None) or ""
-
-    def __missing__(self, key):
-        return self.setdefault(key, [])
-
-    def __str__(self):
-        return "\n" + self._doc
-
-
-def import_scipy_spatial() -> None:
-    """``import scipy.spatial`` without scipy's docstring rewrite (see the module); a plain
-    import when scipy is already imported or its internals differ."""
-    if "scipy.spatial" in sys.modules:
-        return
-    try:
-        import scipy._lib._array_api as array_api
-        import scipy._lib._util as util
-    except ImportError:
-        array_api = util = None
-    mods = [m for m in (array_api, util) if m is not None and hasattr(m, "FunctionDoc")]
-    saved = [m.FunctionDoc for m in mods]
-    try:
-        for m in mods:
-            m.FunctionDoc = _DocAsWritten
-        import scipy.spatial  # noqa: F401
-    finally:
-        for m, f in zip(mods, saved):
-            m.FunctionDoc = f
 
 
 class _YamlOnUse(types.ModuleType):
