@@ -83,25 +83,33 @@ def _doctest_in_tmpdir(request, tmp_path, doctest_namespace):
         os.chdir(old)
 
 
-#: Test files that take minutes (the warm-up on a fresh numba cache, NIST parts imported and
-#: prepared, the README's examples), about longest first: collected first, so that under ``make
+#: Test files that take minutes or close to a minute (NIST parts imported and prepared, the
+#: README's examples, the warm-up's test), about longest first (the fresh clone's
+#: ``--durations=40`` of 2026-12-07: test_nist_extra_plans.py, over 210 s, was handed out in
+#: alphabetical order; test_warmup_coverage.py, 248 s then, is about 35 s with make's warm-up
+#: snapshot): collected first, so that under ``make
 #: test`` (pytest-xdist, ``--dist loadfile --no-loadscope-reorder``: whole files handed out in
 #: collection order) they start at once on the workers instead of last, where one of them would
 #: leave the other cores idle at the end.  (Without ``--no-loadscope-reorder`` xdist hands out
 #: the files with the most tests first, whatever this order, and these files have few tests.)
 #: The order of the rest is unchanged; in one process the order makes no difference to the
 #: results.
-LONG_FILES = ("test_warmup_coverage.py", "test_datum_targets_nist.py", "test_nearest_exact.py",
-              "test_features_nist.py", "test_pmi.py", "test_plan_nist.py", "test_holes_nist.py",
-              "test_material_impeller.py", "test_gdt_nist.py", "test_readme.py",
-              "test_fuzz_cad.py", "test_pmi_edges_nist.py", "test_position_size_nist.py",
-              "test_svm_integrity.py", "test_import_trimmed_periodic.py",
-              "test_stereo_measure.py", "test_registration_restart.py",
-              "test_registration_random_pose.py", "test_alignment_any_start.py",
-              "test_plan_placements.py", "test_characteristics.py", "test_fuzz_readers.py",
-              "test_views_several.py", "test_registration_symmetric.py",
-              "test_registration_global.py", "test_cli_worker.py", "test_cli_batch_quiet.py",
-              "test_cloud_reference.py", "test_io_scanners.py")
+LONG_FILES = ("test_nist_extra_plans.py", "test_datum_targets_nist.py", "test_nearest_exact.py",
+              "test_features_nist.py", "test_pmi.py", "test_plan_nist.py",
+              "test_nist_plan_end_to_end.py", "test_holes_nist.py", "test_material_impeller.py",
+              "test_gdt_nist.py", "test_readme.py", "test_ctc04_dimensions.py",
+              "test_uncertainty_coverage.py", "test_warmup_coverage.py", "test_fuzz_cad.py",
+              "test_perpendicularity_projected_ftc07.py", "test_position_max_projected.py",
+              "test_pmi_edges_nist.py", "test_position_size_nist.py", "test_svm_integrity.py",
+              "test_symmetry_ftc10.py", "test_supplemental_faces.py",
+              "test_datum_shift_pattern_nist.py", "test_datum_hole_wall.py",
+              "test_import_trimmed_periodic.py", "test_stereo_measure.py",
+              "test_registration_restart.py", "test_registration_random_pose.py",
+              "test_alignment_any_start.py", "test_plan_placements.py", "test_characteristics.py",
+              "test_fuzz_readers.py", "test_thin_features_ctc03.py", "test_views_several.py",
+              "test_registration_symmetric.py", "test_registration_global.py",
+              "test_cli_worker.py", "test_cli_batch_quiet.py", "test_cloud_reference.py",
+              "test_io_scanners.py")
 
 
 def pytest_collection_modifyitems(session, config, items):

@@ -57,13 +57,16 @@ def _scan(path, res, model, fmap, rng):
     return np.vstack([P, P2]), np.vstack([N, N2]), data, F[t], P.shape[0]
 
 
-def _evaluate(model, X, data):
+def _evaluate(path, X, data):
     import yaml
 
-    import shapeverify as sv
+    from model_cache import cached_prepared
+
     from shapeverify.characteristics import evaluate_plan
 
-    prep = sv.prepare(model, spacing=1.5)
+    # prepare(load_model(path), spacing=1.5) with the model's features, built once per code
+    # version (tests/model_cache.py, bitwise the same; it was prepared again for each scan)
+    prep = cached_prepared(path, spacing=1.5, features=True)
     return evaluate_plan(prep, X, yaml.safe_dump(data), init=np.eye(4)).characteristics
 
 
@@ -99,7 +102,7 @@ def test_perfect_ctc04_countersinks_pass_and_one_opened_by_1_2_deg_fails(ctc04):
     rng = np.random.default_rng(4)
     P, N, data, tri_face, n_cone = _scan(path, res, model, fmap, rng)
     noise = rng.normal(0.0, 0.02, len(P))[:, None] * N
-    got = _evaluate(model, P + noise, data)
+    got = _evaluate(path, P + noise, data)
     assert len(got) == 60
     for c in got:
         assert c.verdict == "pass", c
@@ -122,7 +125,7 @@ def test_perfect_ctc04_countersinks_pass_and_one_opened_by_1_2_deg_fails(ctc04):
     psi = np.radians(45.6)
     Q = P.copy()
     Q[on] = apex + np.outer(s * np.cos(psi), a) + (s * np.sin(psi))[:, None] * radial
-    got = {c.name: c for c in _evaluate(model, Q + noise, data)}
+    got = {c.name: c for c in _evaluate(path, Q + noise, data)}
     bad = got.pop(first["name"])
     assert bad.verdict == "fail" and abs(bad.measured - 91.2) < 0.1, bad
     dia = next(c for c in data["characteristics"] if c["type"] == "cone_diameter"

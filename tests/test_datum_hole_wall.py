@@ -34,7 +34,7 @@ def ftc10(tmp_path_factory):
 
 def test_ftc10_datum_holes_give_a_pose_certain_to_their_walls_noise(ftc10):
     import shapeverify as sv
-    from independent_scans import random_points, read_shape, tessellate
+    from independent_scans import file_tessellation, random_points
     from model_cache import cached_prepared
     from nist_plans import cached_pmi_plan
     from shapeverify.characteristics.plan import load_plan
@@ -44,8 +44,12 @@ def test_ftc10_datum_holes_give_a_pose_certain_to_their_walls_noise(ftc10):
     assert res.data["alignment"]["type"] == "datums"
     assert res.data["alignment"]["secondary"].startswith("hole:")
     assert res.data["alignment"]["tertiary"].startswith("hole:")
-    prep = cached_prepared(ftc10)
-    V, T, _ = tessellate(read_shape(ftc10), 0.001)
+    # the model's features (the plan's datum holes) and OpenCASCADE's tessellation once per code
+    # version, shared with test_hole_rim_below_spacing_reads_garbage.py (tests/model_cache.py:
+    # bitwise what model_features and tessellate give; computed here, the features were 27 s of
+    # this test's 45 s)
+    prep = cached_prepared(ftc10, features=True)
+    V, T, _ = file_tessellation(ftc10, 0.001)
     rng = np.random.default_rng(0)
     P, N = random_points(V, T, 1.0, rng)
     X = P + rng.normal(0.0, 0.02, len(P))[:, None] * N

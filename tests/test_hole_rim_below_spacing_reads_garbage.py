@@ -65,7 +65,7 @@ def test_rim_of_a_resolved_hole_keeps_its_U(r0, s):
 
 @pytest.mark.slow
 def test_ftc10_perfect_holes_at_1_5mm_are_not_read_from_garbage(tmp_path):
-    from independent_scans import random_points, read_shape, tessellate
+    from independent_scans import file_tessellation, random_points
     from model_cache import cached_prepared
 
     from shapeverify.characteristics.features import model_features
@@ -73,9 +73,11 @@ def test_ftc10_perfect_holes_at_1_5mm_are_not_read_from_garbage(tmp_path):
     p = tmp_path / "nist_ftc_10_asme1_ap242-e2.stp"
     with gzip.open(DATA / (p.name + ".gz"), "rb") as src, open(p, "wb") as dst:
         shutil.copyfileobj(src, dst)
-    prep = cached_prepared(p, features=False)
+    # features and tessellation once per code version, shared with test_datum_hole_wall.py
+    # (tests/model_cache.py: bitwise what model_features and tessellate give)
+    prep = cached_prepared(p, features=True)
     feats = {f.id: f for f in model_features(prep.model)}
-    V, T, _ = tessellate(read_shape(p), 0.001)
+    V, T, _ = file_tessellation(p, 0.001)
     rng = np.random.default_rng(3)
     P, N = random_points(V, T, 1.5, rng)
     P = P + rng.normal(0.0, 0.03, len(P))[:, None] * N

@@ -510,9 +510,12 @@ def test_ftc10_split_bosses_coplanar_sides_and_3x_cylindricity_are_planned_per_f
 
 
 def _model(path):
-    from shapeverify.cad.load import load_model
+    """``load_model(path)``, imported once per code version (tests/model_cache.py, bitwise the
+    same; the plans fixture imported it already): FTC 10 was imported again by each of three
+    tests."""
+    from model_cache import cached_model
 
-    return load_model(path)
+    return cached_model(path)
 
 
 def test_perfect_ftc10_passes_its_split_bosses_coplanar_distances_and_3x_cylindricity(
@@ -524,8 +527,8 @@ def test_perfect_ftc10_passes_its_split_bosses_coplanar_distances_and_3x_cylindr
     import numpy as np
     import yaml
 
-    import shapeverify as sv
-    from independent_scans import random_points, read_shape, tessellate
+    from independent_scans import file_tessellation, random_points
+    from model_cache import cached_prepared
     from shapeverify.characteristics import evaluate_plan
     from shapeverify.characteristics.pmi_plan import _face_map
 
@@ -546,9 +549,11 @@ def test_perfect_ftc10_passes_its_split_bosses_coplanar_distances_and_3x_cylindr
             continue
         for s in c.get("faces") or [c.get("feature")]:
             faces.update(s if isinstance(s, list) else [s])
-    prep = sv.prepare(model, spacing=1.5)
+    # prepare(model, spacing=1.5) with the model's features, once per code version and shared
+    # with test_perfect_ftc10_passes_gt23_... (tests/model_cache.py, bitwise the same)
+    prep = cached_prepared(path, spacing=1.5, features=True)
     rng = np.random.default_rng(7)
-    V, T, F = tessellate(read_shape(path), 0.002)
+    V, T, F = file_tessellation(path, 0.002)       # shared with the GT23 test below
     P, N = random_points(V, T, 1.5, rng)
     dense = np.flatnonzero(np.isin(F, [inv[int(f.split(":")[1])] for f in faces]))
     P2, N2 = random_points(V, T, 0.25, rng, tris=dense)

@@ -28,7 +28,7 @@ L = 10.795
 
 @pytest.fixture(scope="module")
 def ftc07(tmp_path_factory):
-    from independent_scans import random_points, read_shape, tessellate
+    from independent_scans import file_tessellation, random_points
     from model_cache import cached_model, cached_pmi, cached_prepared
 
     from shapeverify.characteristics.pmi_plan import _face_map, pmi_plan
@@ -36,15 +36,17 @@ def ftc07(tmp_path_factory):
     path = tmp_path_factory.mktemp("ftc07") / GZ.name[:-3]
     with gzip.open(GZ, "rb") as src, open(path, "wb") as dst:
         shutil.copyfileobj(src, dst)
-    model, pmi = cached_model(path), cached_pmi(path)
+    # the model's features once per code version for the plan and the prepared model's copy
+    # (tests/model_cache.py: bitwise what model_features gives; each was computing them)
+    model, pmi = cached_model(path, features=True), cached_pmi(path)
     res = pmi_plan(path, model=model, pmi=pmi)
     inv = {v: k for k, v in _face_map(pmi, model).items()}
     data = dict(res.data)
     data["characteristics"] = [c for c in data["characteristics"] if c["pmi"]["id"] == "GT4"]
     data.pop("unsupported", None)
     data["alignment"] = {"type": "best_fit", "faces": [f"face:{f}" for f in sorted(FACES)]}
-    prep = cached_prepared(path, spacing=1.0)
-    V, T, F = tessellate(read_shape(path), 0.01)
+    prep = cached_prepared(path, spacing=1.0, features=True)
+    V, T, F = file_tessellation(path, 0.01)
     keep = np.isin(F, [inv[f] for f in FACES])
     T, F = T[keep], F[keep]
     rng = np.random.default_rng(7)

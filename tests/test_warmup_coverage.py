@@ -64,27 +64,6 @@ def _cache_state(cache: Path) -> dict:
             for p in cache.rglob("*") if p.is_file()}
 
 
-def _sources_stamp() -> str:
-    """SHA-256 of what a numba cache entry of the package depends on: every source file of the
-    ``shapeverify`` in use (path, size and mtime -- numba's own test of a stale entry -- and
-    bytes), where it lives (a ``NUMBA_CACHE_DIR`` holds a folder per source folder), numba's
-    and Python's versions."""
-    import hashlib
-
-    import numba
-
-    import shapeverify
-
-    root = Path(shapeverify.__file__).resolve().parent
-    h = hashlib.sha256(json.dumps([str(root), numba.__version__, sys.version,
-                                   sys.executable]).encode())
-    for p in sorted(root.rglob("*.py")):
-        st = p.stat()
-        h.update(f"{p.relative_to(root)}\0{st.st_size}\0{st.st_mtime_ns}\0".encode())
-        h.update(p.read_bytes())
-    return h.hexdigest()
-
-
 def _files(d: Path) -> dict:
     import hashlib
 
@@ -104,36 +83,72 @@ def _warm_up_into(root: Path) -> None:
     assert proc.returncode == 0, proc.stdout[-2000:] + proc.stderr[-3000:]
 
 
+def snapshot_dir() -> Path:
+    """Where ``make``'s set-up keeps its snapshot of the warm-up's cache (``python -m
+    shapeverify.warmup --snapshot``): ``$SHAPEVERIFY_WARMUP_SNAPSHOT``, else the checkout's
+    ``.venv/warmup-snapshot``."""
+    env = os.environ.get("SHAPEVERIFY_WARMUP_SNAPSHOT")
+    return Path(env) if env else Path(__file__).resolve().parents[1] / ".venv" / "warmup-snapshot"
+
+
+def _usable_snapshot(snap: Path, stamp: str) -> dict | None:
+    """The manifest of the snapshot ``snap`` if it is of these sources (``stamp``) and its files
+    are the ones it lists, bit for bit; else None."""
+    try:
+        manifest = json.loads((snap / "manifest.json").read_text())
+    except (OSError, ValueError):
+        return None
+    if manifest.get("stamp") != stamp or not manifest.get("files"):
+        return None
+    return manifest if _files(snap / "numba") == manifest["files"] else None
+
+
 @pytest.fixture(scope="module")
 def warmed(tmp_path_factory):
-    """A fresh numba cache directory filled by the warm-up, and the environment that uses it.
+    """A numba cache directory holding what the warm-up, and only the warm-up, wrote to an empty
+    cache, in a folder of its own, and the environment that uses it.
 
-    The warm-up on an empty cache is minutes of compiling (278 s of a 28-minute suite), and
-    its result depends only on the sources and numba: it is kept, untouched, in the suite's
-    cache (tests/model_cache.py's folder of this code version, keyed by the sources' bytes,
-    sizes and mtimes, their folder, numba and Python) with the list of its files and their
-    SHA-256, and each run gets a copy of exactly what the warm-up wrote -- its own directory,
-    which the commands below then use (and must not add to).  A kept result whose files
-    differ from its list (a copy someone changed) is made again."""
+    The warm-up on an empty cache is minutes of compiling (216 s of the fresh clone's 21-minute
+    suite), and ``make test`` has just done it: its set-up runs ``python -m shapeverify.warmup
+    --snapshot .venv/warmup-snapshot``, which copies the cache files it wrote, when the cache
+    held none before it, with the sources' stamp and the files' SHA-256 (before any test can add
+    kernels to the cache).  A snapshot of these sources (:func:`sources_stamp`: their bytes,
+    sizes, mtimes, folder, numba, Python) whose files are those it lists is copied here.  Else
+    (pytest run by hand, sources edited since): the warm-up runs on a fresh, empty cache
+    directory; its result is kept, untouched, in the suite's cache (tests/model_cache.py's
+    folder of this code version, keyed by the same stamp) with the list of its files and their
+    SHA-256, and each run gets a copy (a kept result whose files differ from its list is made
+    again).  Either way the commands below use a copy of exactly what a warm-up wrote to an
+    empty cache (and must not add to it)."""
     import shutil
 
     from model_cache import _locked, cache_root
 
-    keep = cache_root() / f"warmup-{_sources_stamp()[:24]}"
-    listed = keep / "files.json"
-    with _locked(keep):
-        if not (listed.is_file() and json.loads(listed.read_text()) == _files(keep / "made")):
-            shutil.rmtree(keep, ignore_errors=True)
-            tmp = keep.with_name(f"{keep.name}.{os.getpid()}")
-            shutil.rmtree(tmp, ignore_errors=True)
-            _warm_up_into(tmp / "made")
-            listed_tmp = tmp / "files.json"
-            listed_tmp.write_text(json.dumps(_files(tmp / "made")))
-            os.replace(tmp, keep)
+    from shapeverify.warmup import sources_stamp
+
+    stamp = sources_stamp()
     root = tmp_path_factory.mktemp("warm")
-    shutil.copytree(keep / "made", root, dirs_exist_ok=True)
     cache = root / "numba"
-    assert _files(root) == json.loads(listed.read_text())
+    snap = snapshot_dir()
+    manifest = _usable_snapshot(snap, stamp)
+    if manifest is not None:
+        shutil.copytree(snap / "numba", cache)
+        assert _files(cache) == manifest["files"]
+    else:
+        keep = cache_root() / f"warmup-{stamp[:24]}"
+        listed = keep / "files.json"
+        with _locked(keep):
+            if not (listed.is_file()
+                    and json.loads(listed.read_text()) == _files(keep / "made")):
+                shutil.rmtree(keep, ignore_errors=True)
+                tmp = keep.with_name(f"{keep.name}.{os.getpid()}")
+                shutil.rmtree(tmp, ignore_errors=True)
+                _warm_up_into(tmp / "made")
+                listed_tmp = tmp / "files.json"
+                listed_tmp.write_text(json.dumps(_files(tmp / "made")))
+                os.replace(tmp, keep)
+        shutil.copytree(keep / "made", root, dirs_exist_ok=True)
+        assert _files(root) == json.loads(listed.read_text())
     assert any(cache.rglob("*.nbc")), "the warm-up wrote nothing to the fresh cache"
     env = {**os.environ, "NUMBA_CACHE_DIR": str(cache),
            "SHAPEVERIFY_CACHE_DIR": str(root / "summaries"), "COLUMNS": "120"}

@@ -35,7 +35,7 @@ from pathlib import Path
 logger = logging.getLogger(__name__)
 
 __all__ = ["COLD_SECONDS", "compile_notices", "install_compile_notices", "input_variants",
-           "warm_up", "main"]
+           "warm_up", "cache_files", "sources_stamp", "write_snapshot", "main"]
 
 #: measured CPU seconds (fastest, slowest) of compiling everything a command needs with an empty
 #: cache, on one core of the 2-core development machines (benchmarks/results_coldstart.md: 14-20 s
@@ -246,10 +246,91 @@ def _far_queries(svm: Path) -> None:
         prep.closest(q, exact=exact)
 
 
+def _package_root() -> Path:
+    return Path(__file__).resolve().parent
+
+
+def cache_files() -> dict[Path, str]:
+    """numba's cache files (``*.nbi`` indexes, ``*.nbc`` kernels) of this package's sources,
+    where this process's numba keeps them (``NUMBA_CACHE_DIR`` or ``__pycache__`` beside each
+    source folder): path -> the name of that file in a ``NUMBA_CACHE_DIR`` (its folder's
+    ``<folder>_<SHA-1 of the source folder>``, numba's own naming, then the file's name)."""
+    from numba.core import config
+    from numba.core.caching import _CacheLocator
+
+    out = {}
+    for folder in sorted({p.parent for p in _package_root().rglob("*.py")}):
+        sub = _CacheLocator.get_suitable_cache_subpath(str(folder / "__init__.py"))
+        where = Path(config.CACHE_DIR) / sub if config.CACHE_DIR else folder / "__pycache__"
+        if where.is_dir():
+            for f in sorted(where.iterdir()):
+                if f.suffix in (".nbi", ".nbc") and f.is_file():
+                    out[f] = f"{sub}/{f.name}"
+    return out
+
+
+def sources_stamp() -> str:
+    """SHA-256 of what a numba cache entry of the package depends on: every source file of the
+    ``shapeverify`` in use (path, size, mtime and bytes), where it lives (a ``NUMBA_CACHE_DIR``
+    holds a folder per source folder), numba's and Python's versions and the interpreter."""
+    import hashlib
+    import json
+
+    import numba
+
+    root = _package_root()
+    h = hashlib.sha256(json.dumps([str(root), numba.__version__, sys.version,
+                                   sys.executable]).encode())
+    for p in sorted(root.rglob("*.py")):
+        st = p.stat()
+        h.update(f"{p.relative_to(root)}\0{st.st_size}\0{st.st_mtime_ns}\0".encode())
+        h.update(p.read_bytes())
+    return h.hexdigest()
+
+
+def write_snapshot(dest: Path, files: dict[Path, str]) -> None:
+    """A copy of the cache files ``files`` (:func:`cache_files`) in ``dest/numba``, laid out as
+    a ``NUMBA_CACHE_DIR``, with ``dest/manifest.json``: the :func:`sources_stamp` they were
+    compiled from and each copied file's SHA-256.  Written to a temporary folder beside
+    ``dest`` and renamed, so ``dest`` is whole or absent."""
+    import hashlib
+    import json
+    import shutil
+
+    dest = Path(dest)
+    tmp = dest.with_name(f"{dest.name}.{os.getpid()}")
+    shutil.rmtree(tmp, ignore_errors=True)
+    sums = {}
+    for src, name in files.items():
+        (tmp / "numba" / name).parent.mkdir(parents=True, exist_ok=True)
+        shutil.copy2(src, tmp / "numba" / name)
+        sums[name] = hashlib.sha256((tmp / "numba" / name).read_bytes()).hexdigest()
+    (tmp / "manifest.json").write_text(json.dumps({"stamp": sources_stamp(), "files": sums}))
+    shutil.rmtree(dest, ignore_errors=True)
+    os.replace(tmp, dest)
+
+
 def main(argv=None) -> int:
-    """``python -m shapeverify.warmup [--quiet]``: the set-up step; it reports through this
-    module's logger, shown on standard output unless ``--quiet``."""
-    argv = sys.argv[1:] if argv is None else argv
+    """``python -m shapeverify.warmup [--quiet] [--snapshot DIR]``: the set-up step; it reports
+    through this module's logger, shown on standard output unless ``--quiet``.
+
+    ``--snapshot DIR`` (``make``'s set-up: ``.venv/warmup-snapshot``): when numba's cache held
+    no entry of the package before the warm-up, a copy of what the warm-up wrote, and only
+    that (:func:`write_snapshot`), taken before anything else can add to the cache; the suite's
+    test that the warm-up leaves nothing to compile (tests/test_warmup_coverage.py) runs its
+    commands on a copy of it instead of compiling everything again (3-4 minutes of CPU).  With
+    entries there already (an earlier run, the tests), no snapshot: DIR is removed."""
+    argv = list(sys.argv[1:] if argv is None else argv)
+    snapshot = None
+    if "--snapshot" in argv:
+        i = argv.index("--snapshot")
+        if i + 1 >= len(argv):
+            print("usage: python -m shapeverify.warmup [--quiet] [--snapshot DIR]",
+                  file=sys.stderr)
+            return 2
+        snapshot = Path(argv[i + 1])
+        del argv[i:i + 2]
+        before = cache_files()
     if not ("--quiet" in argv or "-q" in argv):
         handler = logging.StreamHandler(sys.stdout)
         handler.setFormatter(logging.Formatter("%(message)s"))
@@ -262,6 +343,17 @@ def main(argv=None) -> int:
                 os.environ.get("NUMBA_CACHE_DIR") or "__pycache__ beside the sources")
     seconds = warm_up(lambda text: logger.info("  warm-up: %s", text))
     logger.info("shapeverify: kernels ready (%.0f s)", seconds)
+    if snapshot is not None:
+        import shutil
+
+        made = cache_files()
+        if before or not made:
+            shutil.rmtree(snapshot, ignore_errors=True)
+            logger.info("  no snapshot of the warm-up's cache: %s", "the cache held entries "
+                        "before it" if before else "it wrote no cache file")
+        else:
+            write_snapshot(snapshot, made)
+            logger.info("  snapshot of the %d cache files it wrote: %s", len(made), snapshot)
     return 0
 
 
