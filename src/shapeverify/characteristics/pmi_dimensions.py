@@ -5,7 +5,10 @@ face or several faces of one plane (NIST FTC 10 DIM8: a face against four counte
 at one depth) --, each with the
 dimension's nominal and ± limits; a ``Size_Thickness`` on planar faces that lie in two
 parallel planes (NIST CTC 03: one face against four coplanar ones) a ``distance`` between the
-two planes.  Anything else stays unsupported, with the reason."""
+two planes; a ``Location_LinearDistance`` from a plane to the circle where a hole's wall meets
+its drill point (NIST FTC 06 DIM49, FTC 07 DIM5, FTC 10 DIM16: a drilled hole's depth) a
+``distance`` whose second side is ``{cylinder, cone}`` (:mod:`.drill_point`).  Anything else
+stays unsupported, with the reason."""
 from __future__ import annotations
 
 import numpy as np
@@ -75,7 +78,8 @@ def _junction(recs) -> str:
     if got is None:
         return ""
     return (f"the circle (\u2300{2 * got[4]:.6g}) where face {got[0][0]} (Cylinder) meets face "
-            f"{got[1][0]} (Cone), e.g. a drilled hole's depth to its point")
+            f"{got[1][0]} (Cone), a drilled hole's depth to its point, measured from faces of "
+            "one plane: the other side names none")
 
 
 def _depth_entry(item, ctx, src: dict, name) -> tuple[list, str] | None:
