@@ -83,15 +83,16 @@ def eval_depth_to_circle(c, ctx):
     from .evaluate import _not_measured
     from .gdt import _on
     from .gdt_size import _dim_result, _tilt_sd, lsq_plane
+    from .gdt_size import _side as plane_side
     from .size_features import radius_uncertainty
 
     circle = c.faces[1]
-    fp, fy, fk = _side(ctx, c.faces[0]), _side(ctx, circle.cylinder), _side(ctx, circle.cone)
+    fp = plane_side(ctx, c.faces[0], c, "distance")       # planar, coplanar faces
+    fy, fk = _side(ctx, circle.cylinder), _side(ctx, circle.cone)
     planes, cyls = [ctx.feats[f] for f in fp], [ctx.feats[f] for f in fy]
-    if any(p.kind != "plane" for p in planes) or any(q.kind != "cylinder" for q in cyls):
-        raise ValueError(f"{c.name}: a depth to a drill point is from planar faces {c.faces[0]} "
-                         f"to cylinder faces {circle.cylinder}, got "
-                         f"{[p.kind for p in planes]}, {[q.kind for q in cyls]}")
+    if any(q.kind != "cylinder" for q in cyls):
+        raise ValueError(f"{c.name}: the wall of a hole to its drill point is cylinder faces, "
+                         f"got {circle.cylinder} ({[q.kind for q in cyls]})")
     apex0, a0, psi0 = cached_cad_cone(c, ctx, fk)
     pl0, R0 = planes[0], 0.5 * float(cyls[0].diameter)
     n0 = np.asarray(pl0.axis, float)
