@@ -202,7 +202,7 @@ def test_plan_from_pmi_checks_distances_angles_and_drawn_diameters_with_the_draw
         _file(shared_data, name)
         got[name] = load_plan(nist_plans[name][3])
     dist = {c.pmi.id: c for c in got[NIST[2]].characteristics if c.type == "distance"}
-    assert set(dist) == {"DIM35", "DIM40", "DIM43", "DIM44", "DIM47", "DIM48"}
+    assert set(dist) == {"DIM35", "DIM40", "DIM43", "DIM44", "DIM47", "DIM48", "DIM49", "DIM50"}
     for c in dist.values():
         assert (c.lower, c.upper) == (c.pmi.model_extra["lower"], c.pmi.model_extra["upper"])
         assert c.nominal == pytest.approx(c.pmi.model_extra["nominal"], abs=1e-9)
@@ -211,11 +211,12 @@ def test_plan_from_pmi_checks_distances_angles_and_drawn_diameters_with_the_draw
     assert dist["DIM40"].nominal == 14.224
     assert dist["DIM40"].pmi.model_extra["cad_distance"] == pytest.approx(14.2875, abs=1e-9)
     assert all("cad_distance" not in c.pmi.model_extra for k, c in dist.items() if k != "DIM40")
-    why = {u.pmi.id: u.reason for u in got[NIST[2]].unsupported}
-    # its second side is the circle where a hole's wall meets its drill point: named, not
-    # mapped (a hole depth; the plan has no characteristic for it yet)
-    assert ("the circle (\u23006.35) where face 20 (Cylinder) meets face 18 (Cone)"
-            in why["DIM49"])
+    # DIM49, DIM50: a hole's depth, its second side the circle where the hole's wall meets
+    # its drill point (were unsupported: "no characteristic for a distance to such a circle")
+    circles = {k: c.faces[1] for k, c in dist.items() if not isinstance(c.faces[1], (str, list))}
+    assert set(circles) == {"DIM49", "DIM50"}
+    assert (circles["DIM49"].cylinder, circles["DIM49"].cone) == ("face:20", "face:18")
+    assert not {"DIM49", "DIM50"} & {u.pmi.id for u in got[NIST[2]].unsupported}
     ang = [c for c in got[NIST[0]].characteristics if c.type == "angle"]
     assert [(c.pmi.id, c.nominal, c.lower, c.upper) for c in ang] == [("DIM3", 60.0, -0.5, 0.5)]
     drawn = [c for c in got[NIST[3]].characteristics

@@ -51,11 +51,13 @@ def test_edges_whose_faces_are_not_the_nominal_apart_keep_the_edge_reason():
     assert why == "" and got[0]["faces"] == ["face:0", "face:5"]
 
 
-def test_side_at_the_circle_where_a_hole_meets_its_drill_point_is_named_as_such():
+def test_side_at_the_circle_where_a_hole_meets_its_drill_point_is_a_depth_to_that_circle():
     """FTC 06 DIM49 (12.7 ±1.27 from face 125 to where the ⌀6.35 hole's wall, face 20, meets
-    its drill point, face 18) said "not the rim of a cylinder"; the reason now names that
-    circle and admits the missing characteristic; an edge that is not square to the
-    cylinder's axis keeps the reader's reason."""
+    its drill point, face 18) said "not the rim of a cylinder", then "no characteristic for a
+    distance to such a circle yet"; it is now a ``distance`` whose second side is
+    ``{cylinder, cone}``.  A plane not square to the hole's axis, or a nominal off the CAD's
+    depth by more than the limits, keeps it unsupported with that reason; an edge that is not
+    square to the cylinder's axis keeps the reader's reason."""
     t = np.linspace(0.0, np.pi, 9)
     ring = np.column_stack([76.2 + 3.175 * np.cos(t), np.full(9, 72.39),
                             -158.75 + 3.175 * np.sin(t)])
@@ -63,22 +65,36 @@ def test_side_at_the_circle_where_a_hole_meets_its_drill_point_is_named_as_such(
            "cylinders": {20: [[76.2, 85.09, -158.75], [0.0, -1.0, 0.0], 3.175]},
            "points": ring.tolist()}
     ctx = _ctx()
-    ctx.feats[125] = _plane([76.2, 85.09, -158.75], [0, 1, 0])
-    ctx.fmap[125] = 125
+    ctx.feats[125] = _plane([70.0, 85.09, -150.0], [0, 1, 0])
+    ctx.fmap.update({125: 125, 18: 18, 20: 20, 265: 265, 19: 19})
     item = {"id": "DIM49", "type": "Location_LinearDistance", "nominal": 12.7, "lower": -1.27,
             "upper": 1.27, "modifiers": [], "faces": [125], "faces2": [], "other": ["edge"],
             "edges2": [rec], "edge_reason2": "the reader's reason"}
-    got, why = between_entries(item, ctx, {"id": "DIM49"}, lambda n: n)
-    assert got == [] and why == (
-        "it is not between two faces (its second side: the circle (\u23006.35) where face 20 "
-        "(Cylinder) meets face 18 (Cone), e.g. a drilled hole's depth to its point: the plan "
-        "has no characteristic for a distance to such a circle yet (issue 28 item 3))")
-    # FTC 10 DIM16: the circle in two halves and edges of thread faces on it: the same
+    src = {"kind": "dimension", "type": "Location_LinearDistance", "id": "DIM49"}
+    got, why = between_entries(item, ctx, src, lambda n: n)
+    assert why == "" and len(got) == 1, why
+    e = got[0]
+    assert e["type"] == "distance" and e["name"] == "DIM49_distance"
+    assert e["faces"] == ["face:125", {"cylinder": "face:20", "cone": "face:18"}]
+    assert (e["nominal"], e["lower"], e["upper"]) == (12.7, -1.27, 1.27)
+    assert "cad_distance" not in e["pmi"]              # 85.09 - 72.39 = 12.7 exactly
+    from shapeverify.characteristics.plan import load_plan
+
+    plan = load_plan({"characteristics": got})          # the schema takes the circle side
+    assert plan.characteristics[0].faces[1].cone == "face:18"
+    # FTC 10 DIM16: the circle in two halves (two cone faces) and edges of thread faces on it
     other = {"curve": "BSplineCurve", "faces": [265], "kinds": ["Cylinder"],
              "cylinders": {265: [[76.2, 85.09, -158.75], [0.0, 1.0, 0.0], 3.175]},
              "points": ring[::-1].tolist()}
-    item2 = {**item, "edges2": [other, rec]}
-    assert between_entries(item2, ctx, {"id": "DIM49"}, lambda n: n)[1] == why
+    half = {**rec, "faces": [19, 20], "points": (ring * [1, 1, -1] + [0, 0, -317.5]).tolist()}
+    got2, _ = between_entries({**item, "edges2": [other, rec, half]}, ctx, {}, lambda n: n)
+    assert got2[0]["faces"][1] == {"cylinder": "face:20", "cone": ["face:18", "face:19"]}
+    # the nominal off the CAD's depth by more than the limits; a tilted plane
+    got, why = between_entries({**item, "nominal": 15.0}, ctx, {}, lambda n: n)
+    assert got == [] and "the nominal depth 15 differs from the CAD's 12.7000 mm" in why
+    ctx.feats[125] = _plane([70.0, 85.09, -150.0], [0, np.cos(0.01), np.sin(0.01)])
+    got, why = between_entries(item, ctx, {}, lambda n: n)
+    assert got == [] and "the plane is 0.573 deg from square to the hole's axis" in why
     ring[:, 1] += 0.2 * np.sin(t)                       # not in a plane square to the axis
     rec["points"] = ring.tolist()
     got, why = between_entries(item, ctx, {"id": "DIM49"}, lambda n: n)

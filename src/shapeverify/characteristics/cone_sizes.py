@@ -8,7 +8,8 @@ Definitions (degrees)
   make one angle with its axis, so the axis ``a`` is the normal of the plane the normal vectors
   span (least squares); every generator runs through the apex ``A``, perpendicular to the
   surface normal, so ``N_i . A = N_i . X_i`` (least squares, 3 unknowns); the half angle ``psi``
-  is the mean of ``atan2(rho, h)`` (``h = (X - A) . a``, ``rho`` the distance from the axis).
+  is the mean of ``atan2(rho, h)`` (``h = (X - A) . a``, ``rho`` the distance from the axis)
+  over the points not at the apex.
   ``err``: the largest distance of the grid points from that cone (a cone when ~0).
 * **measured**: the half angle of the Tukey least-squares cone of the kept scan points of the
   faces (:func:`shapeverify.fitting.fit_cone`, orthogonal distances, axis started at the
@@ -45,7 +46,11 @@ def cone_from_normals(X, N) -> tuple[np.ndarray, np.ndarray, float, float]:
     if np.mean(h) < 0:
         a, h = -a, -h
     rho = np.linalg.norm(q - np.outer(h, a), axis=1)
-    psi = float(np.mean(np.arctan2(rho, h)))
+    # a grid point at the apex has no angle (atan2(0, 0): NIST FTC 07's drill points read
+    # 58.47 deg for 59 and were "not one cone")
+    r = np.hypot(rho, h)
+    away = r > 1e-9 * max(float(r.max()), 1.0)
+    psi = float(np.mean(np.arctan2(rho[away], h[away])))
     err = float(np.max(np.abs(rho * np.cos(psi) - h * np.sin(psi))))
     return A, a, psi, err
 

@@ -144,7 +144,12 @@ def _dim_result(c, nominal, value, U, details):
 
 
 def eval_distance(c, ctx: EvalContext):
-    """distance between two parallel planar faces (module docstring)."""
+    """distance between two parallel planar faces (module docstring); to the circle where a
+    hole's wall meets its drill point: :func:`.drill_point.eval_depth_to_circle`."""
+    if not isinstance(c.faces[1], (str, int, list)):
+        from .drill_point import eval_depth_to_circle
+
+        return eval_depth_to_circle(c, ctx)
     fidx, pts, bad = _two_planes(c, ctx, "distance")
     if bad is not None:
         return bad

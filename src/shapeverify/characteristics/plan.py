@@ -30,7 +30,8 @@ GD&T types (issue 28; docs/characteristics.md): ``straightness``, ``circularity`
 (``features: [hole:N | face:N | [face:N, ...]]``, ``tol``, ``datums``, ``material: M | L`` with
 ``size: {lower, upper}``); ``circular_runout``, ``total_runout`` (``faces``, ``tol``,
 ``datums``); ``width``, ``distance``, ``angle`` (two ``faces``, ``lower``, ``upper``, the last two an optional
-``nominal``); ``surface_profile`` takes
+``nominal``; a ``distance``'s second side may be ``{cylinder: face:N, cone: face:M}``, the
+circle where a hole's wall meets its drill point); ``surface_profile`` takes
 ``datums`` too.  The datum letters come from the plan's table
 ``datums: {A: {faces: [face:0]}, B: {faces: [face:3, face:4]}, ...}`` (fitted by
 :mod:`.drf`).  Every type is one row of :mod:`.registry`.

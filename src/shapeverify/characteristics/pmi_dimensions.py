@@ -5,7 +5,10 @@ face or several faces of one plane (NIST FTC 10 DIM8: a face against four counte
 at one depth) --, each with the
 dimension's nominal and ± limits; a ``Size_Thickness`` on planar faces that lie in two
 parallel planes (NIST CTC 03: one face against four coplanar ones) a ``distance`` between the
-two planes.  Anything else stays unsupported, with the reason."""
+two planes; a ``Location_LinearDistance`` from a plane to the circle where a hole's wall meets
+its drill point (NIST FTC 06 DIM49, FTC 07 DIM5, FTC 10 DIM16: a drilled hole's depth) a
+``distance`` whose second side is ``{cylinder, cone}`` (:mod:`.drill_point`).  Anything else
+stays unsupported, with the reason."""
 from __future__ import annotations
 
 import numpy as np
@@ -45,26 +48,86 @@ def _edge_sides(item, ctx) -> list | None:
     return hits[0] if len(hits) == 1 else None
 
 
-def _junction(recs) -> str:
-    """'' or what a side is when its edges lie on the circle where a cylinder meets a cone
-    (NIST FTC 06 DIM49: a drilled hole's depth, plane to where its ⌀6.35 wall meets the drill
-    point; FTC 10 DIM16 the same circle in two halves and four edges of thread faces): every
-    edge's points on the cylinder of the first cylinder-cone edge, in one plane square to its
-    axis."""
+def _junction_circle(recs):
+    """None, or (cylinder faces, cone faces, centre, axis, radius) of a side whose edges lie on
+    the circle where a cylinder meets a cone (NIST FTC 06 DIM49: a drilled hole's depth, plane
+    to where its ⌀6.35 wall meets the drill point; FTC 10 DIM16 the same circle in two halves
+    and four edges of thread faces): every edge's points on the cylinder of the first
+    cylinder-cone edge, in one plane square to its axis; the faces (the file's numbers) those
+    of the cylinder-cone edges."""
     meet = [r for r in recs if sorted(r["kinds"]) == ["Cone", "Cylinder"]
             and len(r["cylinders"]) == 1]
     if not meet:
-        return ""
+        return None
     (i, (c, a, rad)), = meet[0]["cylinders"].items()
+    a = np.asarray(a, float)
     q = np.concatenate([np.asarray(r["points"], float) for r in recs]) - np.asarray(c, float)
-    h = q @ np.asarray(a, float)
+    h = q @ a
     rho = np.linalg.norm(q - np.outer(h, a), axis=1)
     if np.ptp(h) > 1e-4 * rad or np.max(np.abs(rho - rad)) > 1e-3 * rad:
+        return None
+    cyl = list(dict.fromkeys(r["faces"][r["kinds"].index("Cylinder")] for r in meet))
+    cone = list(dict.fromkeys(r["faces"][r["kinds"].index("Cone")] for r in meet))
+    return cyl, cone, np.asarray(c, float) + float(np.mean(h)) * a, a, float(rad)
+
+
+def _junction(recs) -> str:
+    """'' or what a side is when its edges lie on the circle where a cylinder meets a cone
+    (:func:`_junction_circle`)."""
+    got = _junction_circle(recs)
+    if got is None:
         return ""
-    cone = meet[0]["faces"][meet[0]["kinds"].index("Cone")]
-    return (f"the circle (\u2300{2 * rad:.6g}) where face {i} (Cylinder) meets face {cone} "
-            "(Cone), e.g. a drilled hole's depth to its point: the plan has no characteristic "
-            "for a distance to such a circle yet (issue 28 item 3)")
+    return (f"the circle (\u2300{2 * got[4]:.6g}) where face {got[0][0]} (Cylinder) meets face "
+            f"{got[1][0]} (Cone), a drilled hole's depth to its point, measured from faces of "
+            "one plane: the other side names none")
+
+
+def _depth_entry(item, ctx, src: dict, name) -> tuple[list, str] | None:
+    """None unless one side of a ``Location_LinearDistance`` is the circle where a hole's wall
+    meets its drill point (:func:`_junction_circle`) and the other names faces; then (the
+    ``distance`` entry from the plane to that circle, '') or ([], why)
+    (:mod:`.drill_point`)."""
+    from .drill_point import SQUARE_DEG
+    from .face_groups import plane_groups
+
+    k = 1 if item.get("faces") and not item.get("faces2") else 0
+    got = _junction_circle(item.get(("edges", "edges2")[k]) or [])
+    if got is None or not item.get(("faces2", "faces")[k]):
+        return None
+    cyl, cone, centre, axis, rad = got
+    where = (f"its {('first', 'second')[k]} side: the circle (\u2300{2 * rad:.6g}) where face "
+             f"{cyl[0]} (Cylinder) meets face {cone[0]} (Cone), a drilled hole's depth to its "
+             "point")
+    plane = [ctx.fmap.get(f) for f in item[("faces2", "faces")[k]]]
+    cyl, cone = [ctx.fmap.get(f) for f in cyl], [ctx.fmap.get(f) for f in cone]
+    if None in plane + cyl + cone:
+        return [], "a face it names could not be imported (see the import's warnings)"
+    plane = list(dict.fromkeys(plane))
+    if {ctx.feats[f].kind for f in plane} != {"plane"} or \
+            len(plane_groups(ctx.feats, plane, max(ctx.size, 1.0))) != 1:
+        return [], (f"{where}; its other side is not one plane (the depth is measured from a "
+                    "plane)")
+    p = ctx.feats[plane[0]]
+    ang = float(np.degrees(np.arccos(min(1.0, abs(float(p.axis @ axis))))))
+    if ang > SQUARE_DEG:
+        return [], (f"{where}; the plane is {ang:.3g} deg from square to the hole's axis (a "
+                    f"depth is measured from a plane square to it within {SQUARE_DEG} deg)")
+    nom = float(item["nominal"])
+    cad = abs(float((centre - p.center) @ p.axis))
+    entry = {"name": name(f"{item['id']}_distance"), "type": "distance",
+             "faces": [f"face:{plane[0]}" if len(plane) == 1 else [f"face:{f}" for f in plane],
+                       {"cylinder": f"face:{cyl[0]}" if len(cyl) == 1 else
+                        [f"face:{f}" for f in cyl],
+                        "cone": f"face:{cone[0]}" if len(cone) == 1 else
+                        [f"face:{f}" for f in cone]}],
+             "lower": _mm(item["lower"]), "upper": _mm(item["upper"]), "nominal": _mm(nom),
+             "pmi": {**src, "attached": "the circle where the hole's wall meets its drill point"}}
+    if abs(cad - nom) > 1e-4 * max(nom, 1.0) + 1e-6:
+        if not item["lower"] <= cad - nom <= item["upper"]:
+            return [], (f"{where}; the nominal depth {nom:g} differs from the CAD's {cad:.4f} "
+                        "mm by more than its limits")
+        entry["pmi"] = {**entry["pmi"], "cad_distance": _mm(cad)}
+    return [entry], ""
 
 
 def _planes(item, ctx) -> tuple[list | None, str]:
@@ -116,6 +179,10 @@ def between_entries(item, ctx, src: dict, name) -> tuple[list, str]:
         return [], f"{t} without \u00b1 limits (a basic or reference dimension)"
     if item["modifiers"]:
         return [], f"dimension modifiers {', '.join(item['modifiers'])}"
+    if t == "Location_LinearDistance":
+        depth = _depth_entry(item, ctx, src, name)
+        if depth is not None:
+            return depth
     sides, why = _planes(item, ctx)
     if sides is None:
         return [], why

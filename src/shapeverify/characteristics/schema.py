@@ -15,6 +15,7 @@ __all__ = ["Tol", "PmiSource", "Unsupported", "Vec3", "FeatureId", "FeatureRef",
            "Straightness",
            "Circularity", "Cylindricity", "Parallelism", "Perpendicularity", "Angularity",
            "Position", "CircularRunout", "TotalRunout", "Concentricity", "Width", "SizeLimits", "Distance",
+           "DrillCircle",
            "Angle", "LineProfile", "PositionZone",
            "FeatureSize", "Symmetry"]
 
@@ -656,16 +657,37 @@ class Width(_TwoPlanes):
     type: Literal["width"]
 
 
+_Faces = Union[FeatureId, int, str, list[Union[FeatureId, int, str]]]
+
+
+class DrillCircle(_Strict):
+    """The circle where a hole's cylindrical wall (``cylinder``: a face or the faces of one
+    cylinder) meets its drill point (``cone``: a face or the faces of one cone)."""
+
+    cylinder: _Faces
+    cone: _Faces
+
+
 class Distance(_TwoPlanes):
     """The distance (mm) between two parallel planar sides, either facing (a step or a
     width), between their least-squares planes.  A side is a face, or a list of coplanar
     planar faces fitted as one plane (``faces: [face:68, [face:70, face:72]]``: a thickness
-    to a face split in four)."""
+    to a face split in four).  The second side may be the circle where a hole's wall meets
+    its drill point, ``{cylinder: face:20, cone: face:18}``: a drilled hole's depth, from the
+    plane to that circle's centre (:mod:`.drill_point`)."""
 
     type: Literal["distance"]
-    faces: Annotated[list[Union[FeatureId, int, str, list[Union[FeatureId, int, str]]]],
+    faces: Annotated[list[Union[FeatureId, int, str, list[Union[FeatureId, int, str]],
+                                DrillCircle]],
                      Field(min_length=2, max_length=2)]
     nominal: Optional[float] = Field(default=None, gt=0)
+
+    @model_validator(mode="after")
+    def _circle_second(self):
+        if isinstance(self.faces[0], DrillCircle):
+            raise ValueError("a distance's first side is a plane; a drill point's circle "
+                             "({cylinder, cone}) is its second side")
+        return self
 
 
 class Angle(_TwoPlanes):
