@@ -9,12 +9,21 @@ datum axes then reads ~0.15 mm of position on a perfect part.
 Method (a parametric bootstrap of the DRF, then a linear propagation)
 --------------------------------------------------------------------
 1. :func:`frame_motions`: every datum feature's points are put on their CAD feet (exact
-   closest points) and given fresh Gaussian noise of the scan's sigma along the CAD normal
-   (a point datum: fresh deviations); the DRF is fitted on them (:func:`.drf.fit_drf`, the
-   same association criteria) :data:`REPLICATES` times.  As the simulated datums are nominal,
-   each fit's correction ``T_r`` *is* that fit's error: a small rigid motion ``xi_r = (omega,
-   t)``.  Their mean (a tangent plane's outward offset) and covariance describe where the
-   noise puts the frame.  Seeded: deterministic.  Cached per DRF.
+   closest points, once per datum) and given fresh Gaussian noise of the scan's sigma along
+   the CAD normal (a point datum: fresh deviations; replicate r's noise is the same in every
+   DRF naming the datum); each datum is fitted on them with its own association criterion
+   (:func:`.drf._fit`) :data:`REPLICATES` times, and one pass of the DRF's lexicographic
+   solution (:func:`.drf.one_pass`) linearised at the nominal datums turns the fits into the
+   frame's correction.  As the simulated datums are nominal, that correction *is* the
+   fit's error: a small rigid motion ``xi_r = (omega, t)``.  Their mean (a tangent plane's
+   outward offset) and covariance describe where the noise puts the frame.  A datum's fit
+   depends only on its own points and the datums before it, so it is made once per
+   (datums up to it, replicate) and shared by the DRFs that start with them (D, D|B, D|B|C).
+   Against the full iterated :func:`.drf.fit_drf` on the same simulated datums (FTC 10):
+   the motions' standard deviations agree within a few % (D|B|C, A|B|C, A|B; D|E-F-G's
+   pattern +10 %); what one linearised pass leaves out is second order in the frame's turn
+   (e.g. a secondary tangent plane that may not follow the primary's tilt).
+   Seeded: deterministic.  Cached per DRF.
 2. :func:`datum_u`: a characteristic gives the points its value is read from (``P``, DRF
    frame) and the unit directions its zone measures at each (``D``: a profile's normals, a
    position's two directions across the axis, a planes zone's normal).  A motion moves point
@@ -26,11 +35,10 @@ Method (a parametric bootstrap of the DRF, then a linear propagation)
    (95.45 % for k = 2): a magnitude, so a quantile, not k standard deviations.
 3. The characteristic combines it in quadrature with its own part.
 
-Cost: two passes of the DRF fit per replicate and DRF (within 1e-6 of the converged fit on
-nominal datums), then a (samples x points) product per characteristic on at most
-:data:`MAX_POINTS` points.  Measured (load ~10 on 2 cores, located characteristics only, true
-pose): FTC 10 (19 located, 8 DRFs) 4.1 -> 18.9 s CPU; CTC 03 (9 located, 5 DRFs, one with an
-axis datum of free direction: mating cylinders by LP) 6.2 -> 29 s.
+Cost: one fit per (datums up to it, replicate), then a (samples x points) product per
+characteristic on at most :data:`MAX_POINTS` points (see benchmarks/bench_datum_noise.py for
+the measured cost of whole plans; the first version, two passes of :func:`.drf.fit_drf` per
+replicate and DRF, made FTC 10's plan ~2.7x and CTC 03's ~2x slower).
 
 Check (20 independent perfect scans of FTC 10, OCC tessellation by area at 1 mm, 0.02 mm
 noise): (characteristic, seed) with value > U 45/380 (11.8 %) -> 14/380 (3.7 %); GT17/19/21
@@ -38,6 +46,7 @@ noise): (characteristic, seed) with value > U 45/380 (11.8 %) -> 14/380 (3.7 %);
 """
 from __future__ import annotations
 
+import zlib
 from math import erf, sqrt
 
 import numpy as np
@@ -53,54 +62,110 @@ MAX_POINTS = 1500
 SEED = 20261207
 
 
-def _simulated(f, feet, normals, sigma, rng):
-    """The datum feature ``f`` with its points on their CAD feet plus fresh noise."""
+def _feet(f, ctx):
+    """(feet, CAD normals) of the datum feature ``f``'s points and of its ``points2`` (exact
+    closest points; cached per datum)."""
+    key = ("drf_noise_feet", f.name)
+    if key not in ctx.cache:
+        out = []
+        for P in (f.points, f.points2):
+            if P is None or not len(P):
+                out.append((np.zeros((0, 3)), np.zeros((0, 3))))
+                continue
+            cl = ctx.prep.closest(np.asarray(P, float), exact=True)
+            out.append((np.asarray(cl.points, float), np.asarray(cl.normals, float)))
+        ctx.cache[key] = out
+    return ctx.cache[key]
+
+
+def _simulated(f, feet, sigma, r):
+    """The datum feature ``f`` with its points on their CAD feet plus fresh noise: replicate
+    ``r``'s, the same in every DRF that names the datum."""
     import dataclasses
 
+    rng = np.random.default_rng([SEED, zlib.crc32(f.name.encode()), r])
+    (P, N), (P2, N2) = feet
     new = {}
     if len(f.points):
-        new["points"] = feet[0] + rng.normal(0.0, sigma, len(feet[0]))[:, None] * normals[0]
+        new["points"] = P + rng.normal(0.0, sigma, len(P))[:, None] * N
     if f.points2 is not None and len(f.points2):
-        new["points2"] = feet[1] + rng.normal(0.0, sigma, len(feet[1]))[:, None] * normals[1]
+        new["points2"] = P2 + rng.normal(0.0, sigma, len(P2))[:, None] * N2
     if f.deviations is not None:
         new["deviations"] = rng.normal(0.0, sigma, len(f.deviations))
     return dataclasses.replace(f, **new)
 
 
+def _fit_at(g, SN):
+    """(DatumFit, G, r) of the simulated datum ``g`` in the free motions ``SN``; an axis's rows
+    taken at the middle of its points' height, where the converged fit holds it: a circle of
+    a direction fixed by the datums before it is fitted on the points projected along that
+    direction, which the frame's turn shears -- the inscribed (circumscribed) circle of the
+    sheared projection is centred at the middle of the points' height range."""
+    from .drf import _axis_rows, _fit
+    from .gdt_zones import tangent_basis
+
+    fit, G, r = _fit(g, g.points, SN)
+    if g.kind == "axis" and len(g.points):
+        d0 = np.asarray(g.direction, float) / np.linalg.norm(g.direction)
+        h = (g.points - fit.point) @ fit.direction
+        c = fit.point + 0.5 * (h.min() + h.max()) * fit.direction
+        G, r = _axis_rows(fit.direction, c, d0, np.asarray(g.point, float), tangent_basis(d0))
+    return fit, G, r
+
+
 def frame_motions(names, ctx) -> np.ndarray:
     """(m, 6) motions ``(omega, t)`` of the DRF ``names`` fitted on simulated noisy nominal
-    datum features (step 1 of the module docstring); cached in ``ctx.cache``."""
+    datum features (step 1 of the module docstring); cached in ``ctx.cache``.
+
+    One pass of the DRF's fit (:func:`.drf.one_pass`), linearised at the nominal datums: each
+    datum fitted in the degrees of freedom the datums before it leave free at their nominal
+    geometry, its rows ``G`` those of its nominal (noise-free) fit, its right side ``r`` the
+    noisy fit's -- the converged fit's structure (a primary plane's noisy normal, 1e-4 off,
+    would let a secondary hole's axis turn, fitted as a cylinder where the converged fit takes
+    a circle, and its turn rows would fix the rotation about the primary's normal that the
+    tertiary fixes).  A datum's fit in replicate r
+    depends only on its simulated points and the datums before it: it is made once per
+    (datums up to it, r) and shared by every DRF that starts with them."""
     key = ("drf_noise", tuple(names))
     if key in ctx.cache:
         return ctx.cache[key]
-    from .drf import fit_drf
+    from .drf import one_pass
     from .gdt import datum_features
 
     feats = datum_features(names, ctx)
-    feet = []
-    for f in feats:
-        fs = []
-        for P in (f.points, f.points2):
-            if P is None or not len(P):
-                fs.append((np.zeros((0, 3)), np.zeros((0, 3))))
-                continue
-            cl = ctx.prep.closest(np.asarray(P, float), exact=True)
-            fs.append((np.asarray(cl.points, float), np.asarray(cl.normals, float)))
-        feet.append(fs)
+    feet = [_feet(f, ctx) for f in feats]
     sigma = float(ctx.S.noise)
-    rng = np.random.default_rng(SEED)
+    L = float(ctx.prep.model.size) or 1.0
+    Sc = np.diag([1 / L] * 3 + [1.0] * 3)
+
+    def nominal(i, f, SN):
+        k = ("drf_noise_free", tuple(names[:i + 1]))
+        if k not in ctx.cache:
+            fit, G, r = _fit_at(_simulated(f, feet[i], 0.0, 0), SN)
+            ctx.cache[k] = (SN, G)
+        return None, ctx.cache[k][1], np.zeros(len(ctx.cache[k][1]))
+
+    try:
+        one_pass(feats, Sc, L, nominal)
+    except ValueError:
+        ctx.cache[key] = np.zeros((0, 6))
+        return ctx.cache[key]
     out = []
-    for _ in range(REPLICATES):
-        sim = [_simulated(f, (a[0], b[0]), (a[1], b[1]), sigma, rng)
-               for f, (a, b) in zip(feats, feet)]
+    for r in range(REPLICATES):
+
+        def fit_one(i, f, SN, r=r):
+            k = ("drf_noise_fit", tuple(names[:i + 1]), r)
+            if k not in ctx.cache:
+                free, G = ctx.cache[("drf_noise_free", tuple(names[:i + 1]))]
+                fit, _, rhs = _fit_at(_simulated(f, feet[i], sigma, r), free)
+                ctx.cache[k] = (fit, G, rhs)
+            return ctx.cache[k]
+
         try:
-            # two passes: the simulated datums are nominal, the second pass is within 1e-6
-            T = fit_drf(sim, size=float(ctx.prep.model.size), max_iterations=2).T
+            xi = one_pass(feats, Sc, L, fit_one)[0]
         except ValueError:
             continue
-        R = T[:3, :3]
-        w = 0.5 * np.array([R[2, 1] - R[1, 2], R[0, 2] - R[2, 0], R[1, 0] - R[0, 1]])
-        out.append(np.r_[w, T[:3, 3]])
+        out.append(Sc @ xi)
     ctx.cache[key] = np.array(out).reshape(-1, 6)
     return ctx.cache[key]
 
