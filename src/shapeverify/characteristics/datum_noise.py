@@ -36,13 +36,19 @@ Method (a parametric bootstrap of the DRF, then a linear propagation)
 3. The characteristic combines it in quadrature with its own part.
 
 Cost: one fit per (datums up to it, replicate), then a (samples x points) product per
-characteristic on at most :data:`MAX_POINTS` points (see benchmarks/bench_datum_noise.py for
-the measured cost of whole plans; the first version, two passes of :func:`.drf.fit_drf` per
-replicate and DRF, made FTC 10's plan ~2.7x and CTC 03's ~2x slower).
+characteristic on at most :data:`MAX_POINTS` points.  Whole plans, evaluate_plan CPU at the
+true pose (benchmarks/bench_datum_noise.py, load 3-5 on 2 cores): FTC 10 (8 DRFs, 19 located)
+11.8 -> 16.6 s (+40 %, mean of seeds 0-9), CTC 03 e2 22.6 -> 28.1 s (+24 %, seeds 1-2); the
+first version (two passes of :func:`.drf.fit_drf` per replicate and DRF) took 30 and 45 s.
+What is left is mostly scipy's linprog (its wrapper 3/4 of each small LP's time): FTC 10's
+A|J (a midplane, 32 width fits) 1.1 s, D|B|C 0.8 s, D|E-F-G 0.8 s.
 
-Check (20 independent perfect scans of FTC 10, OCC tessellation by area at 1 mm, 0.02 mm
-noise): (characteristic, seed) with value > U 45/380 (11.8 %) -> 14/380 (3.7 %); GT17/19/21
-(positions to D|B|C) 29/60 -> 5/60.
+Check (benchmarks/bench_datum_noise.py: independent perfect scans of FTC 10, OCC
+tessellation by area at 1 mm, 0.02 mm noise, seeds 0-9, the whole plan): (characteristic,
+seed) with value > U 36/280 (12.9 %) -> 16/280 (5.7 %), of which 10 are GT10 (a profile that
+reads 3.5 mm on every perfect scan, with or without this module) and 3/190 of those with a
+DRF; GT17/19/21 (positions to D|B|C) 17/30 -> 0/30; no verdict changed.  The first version
+(two passes of :func:`.drf.fit_drf` per replicate and DRF, 20 scans) gave 45/380 -> 14/380.
 """
 from __future__ import annotations
 
