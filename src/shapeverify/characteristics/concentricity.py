@@ -58,8 +58,9 @@ def median_offsets(theta, r, max_gap: float = MAX_GAP) -> tuple[np.ndarray, np.n
 def eval_concentricity(c, ctx):
     """concentricity of a surface of revolution about the DRF's datum axis (module
     docstring)."""
+    from .datum_noise import datum_u
     from .gdt import (_check_revolution, _cylinder_points, _datum_feature, _faces,
-                      _frame_points, _result, _sections, mating_centre_u)
+                      _frame_points, _result, _sections)
     from .evaluate import _not_measured
     from .support import extreme_quantile
 
@@ -101,12 +102,9 @@ def eval_concentricity(c, ctx):
     value = 2.0 * float(np.concatenate(meds).max())
     zq = extreme_quantile(n_med, ctx.k)
     # a median distance is half the difference of two radii (each with the scan's noise):
-    # sigma / sqrt(2); the value doubles it.  The datum axis's own noise: as for runout
-    hd = (np.asarray(nom.points, float) - p0) @ a0
-    Ud = 0.0
-    if hd.size > 2 and np.ptp(hd) > 0:
-        lever = max(1.0, float(np.linalg.norm(q, axis=1).max()) / float(np.ptp(hd)))
-        Ud = mating_centre_u(hd.size, ctx.S.noise, ctx.k) * lever
+    # sigma / sqrt(2); the value doubles it.  The datums' noise moves the median points
+    # across the axis (:mod:`.datum_noise`)
+    Ud = datum_u(drf, ctx, X, np.stack([e1, e2]))
     U = float(np.hypot(2.0 * zq * ctx.S.noise / np.sqrt(2.0), Ud))
     return _result(c, ctx, value, U,
                    {"faces": fidx, "n": int(X.shape[0]), "n_median_points": int(n_med),

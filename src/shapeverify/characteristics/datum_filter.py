@@ -27,7 +27,7 @@ __all__ = ["RADIUS", "filter_plane_points"]
 #: 01/03/04 (perfect, hole, tilt) with no verdict changed and the located zones of the perfect
 #: parts 0.04-0.13 mm smaller (FTC 07 GT22 0.268 -> 0.170 in 0.152), not on CTC 02/05 and
 #: FTC 11 (``benchmarks/ab_datum_filter.py``; benchmarks/results_plan.md, sweep9).  The U of
-#: the datum's offset (:func:`.gdt._datum_offsets`) is still the raw tangent plane's.
+#: the datums (:mod:`.datum_noise`) simulates the raw points' noise, not the filtered.
 RADIUS = 0.0
 
 

@@ -423,6 +423,30 @@ def _hold_free(xi, N, Sc, L: float):
     return xi - N @ s
 
 
+def one_pass(feats, Sc, L: float, fit_one):
+    """One pass of the lexicographic solution (module docstring): ``fit_one(i, f, Sc @ N)`` gives
+    datum ``i``'s (DatumFit, G, r) in the degrees of freedom ``N`` the datums before it left
+    free.  Returns the scaled correction ``xi`` (the motion is ``Sc @ xi``), the free motions
+    ``N``, the fits and, per datum, the motions it constrained."""
+    xi = np.zeros(6)
+    N = np.eye(6)
+    fits, cons = [], []
+    for i, f in enumerate(feats):
+        fit, G, r = fit_one(i, f, Sc @ N)
+        fits.append(fit)
+        A = G @ Sc @ N
+        if A.size == 0 or N.shape[1] == 0:
+            cons.append(np.zeros((6, 0)))
+            continue
+        y = np.linalg.lstsq(A, r - G @ Sc @ xi, rcond=None)[0]
+        xi = xi + N @ y
+        _, s, vt = np.linalg.svd(A, full_matrices=True)
+        rank = int(np.sum(s > 1e-9 * max(1.0, s.max() if s.size else 1.0)))
+        cons.append(Sc @ N @ vt[:rank].T)
+        N = N @ vt[rank:].T
+    return _hold_free(xi, N, Sc, L), N, fits, cons
+
+
 def fit_drf(features, size: float = 100.0, max_iterations: int = 8) -> DRF:
     """Fit a datum reference frame (see the module docstring).
 
@@ -450,26 +474,14 @@ def fit_drf(features, size: float = 100.0, max_iterations: int = 8) -> DRF:
     T = np.eye(4)
     fits, N, it = (), np.eye(6), 0
     for it in range(1, max_iterations + 1):
-        xi = np.zeros(6)
-        N = np.eye(6)
-        fits, cons = [], []
-        for f in feats:
+
+        def fit_moved(i, f, SN, T=T):
             X = f.points @ T[:3, :3].T + T[:3, 3] if len(f.points) else f.points
             if f.points2 is not None:
                 f = _with_points2(f, f.points2 @ T[:3, :3].T + T[:3, 3])
-            fit, G, r = _fit(f, X, Sc @ N)
-            fits.append(fit)
-            A = G @ Sc @ N
-            if A.size == 0 or N.shape[1] == 0:
-                cons.append(np.zeros((6, 0)))
-                continue
-            y = np.linalg.lstsq(A, r - G @ Sc @ xi, rcond=None)[0]
-            xi = xi + N @ y
-            _, s, vt = np.linalg.svd(A, full_matrices=True)
-            rank = int(np.sum(s > 1e-9 * max(1.0, s.max() if s.size else 1.0)))
-            cons.append(Sc @ N @ vt[:rank].T)
-            N = N @ vt[rank:].T
-        xi = _hold_free(xi, N, Sc, L)
+            return _fit(f, X, SN)
+
+        xi, N, fits, cons = one_pass(feats, Sc, L, fit_moved)
         step = Sc @ xi
         T = rigid_exp(step) @ T
         if np.linalg.norm(step[:3]) * L + np.linalg.norm(step[3:]) < 1e-10:

@@ -54,19 +54,21 @@ characteristic's DRF (:meth:`.drf.DRF.apply`) when it names datums.
   DRF and their deviations taken again from the CAD (exact closest points).
 
 Uncertainty (k, ISO 14253-1) of a zone width taken from extreme points: ``2 z_n sigma`` per
-zone (:func:`.support.extreme_quantile`, sigma the scan noise), combined with the datum part:
-a datum plane fitted on its high points turns (:func:`_datum_part`) and shifts by the largest
-of its noisy deviations (:func:`_datum_offsets`); the shift enters location (position,
-profile in a DRF), the turn every zone over the feature's extent.  For position
-``2 z_n sigma`` per axis end of a mating cylinder (it rests on extreme points too); a short
-feature's mating circle (CAD direction) moves only with the difference of its extremes
-(:func:`mating_centre_u`).  Free directions of the DRF stay at the plan's alignment.
+zone (:func:`.support.extreme_quantile`, sigma the scan noise), combined in quadrature with
+the datum part (``details['u_datums']``): the datum features' fits re-made on simulated noisy
+datums move the frame, which moves the points the value is read from (:mod:`.datum_noise`;
+the translation enters location -- position, profile in a DRF, symmetry -- the turn every
+zone).  For position ``2 z_n sigma`` per axis end of a mating cylinder (it rests on extreme
+points too); a short feature's mating circle (CAD direction) moves only with the difference of
+its extremes (:func:`mating_centre_u`).  Free directions of the DRF stay at the plan's
+alignment.  Runout keeps its own datum-axis part (:func:`runout_datum_u`).
 """
 from __future__ import annotations
 
 import numpy as np
 
 from .alignment import face_indices
+from .datum_noise import datum_u
 from .drf import DatumFeature, fit_drf
 from .evaluate import CharacteristicResult, EvalContext, _not_measured, _profile
 from .gdt_zones import (MIN_COVERAGE, angular_coverage, circles_zone, cylinders_zone,
@@ -212,12 +214,20 @@ def _faces_arc(model, fidx, f) -> float:
     return angular_coverage(G, f.center, f.axis)
 
 
+def datum_features(names, ctx: EvalContext) -> list:
+    """The datum features (:class:`.drf.DatumFeature`) of the datum letters ``names``, with
+    their scan points (cached per evaluation)."""
+    key = ("drf_features", tuple(names))
+    if key not in ctx.cache:
+        ctx.cache[key] = [_datum_feature(n, ctx.plan.datums[n], ctx) for n in names]
+    return ctx.cache[key]
+
+
 def drf_of(names, ctx: EvalContext):
     """The fitted DRF of the datum letters ``names`` (cached per evaluation)."""
     key = ("drf", tuple(names))
     if key not in ctx.cache:
-        fs = [_datum_feature(n, ctx.plan.datums[n], ctx) for n in names]
-        ctx.cache[key] = fit_drf(fs, size=float(ctx.prep.model.size))
+        ctx.cache[key] = fit_drf(datum_features(names, ctx), size=float(ctx.prep.model.size))
     return ctx.cache[key]
 
 
@@ -230,45 +240,6 @@ def _frame_points(c, ctx, fidx):
         return X, m, None
     drf = drf_of(names, ctx)
     return drf.apply(X), m, drf
-
-
-def _datum_part(drf, ctx, extent: float, zq: float) -> float:
-    """Expanded (k) change of a zone's half-width over ``extent`` mm from the datum planes'
-    own noise: a tangent plane rests on the extreme points near its ends, whose difference
-    has the standard deviation ``sqrt(2) (pi / sqrt(6)) sigma / sqrt(2 ln n)`` (the Gumbel
-    spread of the largest of n normal deviates); it tilts by that over the datum's length
-    ``L_d``, which moves the zone's ends by ``extent / L_d`` times it."""
-    if drf is None:
-        return 0.0
-    out = 0.0
-    for d in drf.datums:
-        if d.kind not in ("plane", "midplane"):
-            continue
-        spec = ctx.plan.datums[d.name]
-        fidx = face_indices(ctx.prep.model, spec.faces) if spec.faces else None
-        P = ctx.S.X[ctx.S.on(fidx)] if fidx is not None else np.zeros((0, 3))
-        Ld = float(np.ptp(P @ tangent_basis(d.direction).T, axis=0).max()) if len(P) > 2 else 0
-        if Ld > 0:
-            out = max(out, ctx.k * _extremes_sd(ctx.S.noise, len(P)) * extent / Ld)
-    return out
-
-
-def _datum_offsets(drf, ctx, axis=None) -> float:
-    """Expanded (k) shift of the frame from where the noise puts the datum planes: a tangent
-    plane rests on the largest of its n noisy deviations, ``z_n sigma``
-    (:func:`.support.extreme_quantile`); combined in quadrature over the plane datums (those
-    across ``axis`` only, when given: they move an axis sideways)."""
-    if drf is None:
-        return 0.0
-    tot = 0.0
-    for d in drf.datums:
-        if d.kind not in ("plane", "midplane"):
-            continue
-        if axis is not None and abs(float(d.direction @ axis)) > 0.5:
-            continue
-        n = max(d.n, 2)
-        tot += (extreme_quantile(n, ctx.k) * ctx.S.noise) ** 2
-    return float(np.sqrt(tot))
 
 
 def _result(c, ctx, value, U, details, drf=None, lower=0.0, upper=None, nominal=0.0):
@@ -312,18 +283,21 @@ def eval_surface_profile(c, ctx: EvalContext):
         from .datum_shift import profile_with_shift
 
         d, shift = profile_with_shift(c, ctx, X, drf, d, np.asarray(cl.normals, float))
-    d = d[np.isfinite(d)]
+    ok = np.isfinite(d)
+    # the datums' noise moves the points along their CAD normals; a composite's lower
+    # segment floats (only the frame's turn counts)
+    Ud = datum_u(drf, ctx, X[ok], np.asarray(cl.normals, float)[ok][:, None],
+                 floating=comp is not None)
+    d = d[ok]
     i = int(np.argmax(np.abs(d)))
     value = 2.0 * float(abs(d[i]))
     zq = extreme_quantile(d.size, ctx.k)
-    ext = float(np.ptp(X, axis=0).max())
-    U = float(np.sqrt((2.0 * zq * ctx.S.noise) ** 2 + (2.0 * _datum_part(drf, ctx, ext, zq)) ** 2
-                      + (0.0 if comp else 2.0 * _datum_offsets(drf, ctx)) ** 2))
+    U = float(np.hypot(2.0 * zq * ctx.S.noise, Ud))
     lo, hi = (0.0, float(c.tol)) if c.tol is not None else (0.0, float(c.upper - c.lower))
     return _result(c, ctx, value, U, {"n": int(d.size), "min": float(d.min()),
                                       "max": float(d.max()), "noise": ctx.S.noise,
                                       "extreme_quantile": zq, "faces": fl or "all",
-                                      "excluded": ctx.S.excluded(fl),
+                                      "u_datums": Ud, "excluded": ctx.S.excluded(fl),
                                       **({"datum_shift": shift} if shift else {}),
                                       **({"composite": comp} if comp else {})},
                    drf, 0.0, hi)
@@ -453,8 +427,8 @@ def eval_orientation(c, ctx: EvalContext):
             _, nt, (_, hi) = planes_zone(X, n0, list(tangent_basis(n0)))
             Xz = X + np.outer(hi - X @ nt, nt)
         width, n, _ = planes_zone(Xz, n0, turns[:2])
-        ext = float(np.ptp(X @ tangent_basis(n0).T, axis=0).max())
-        U = float(np.hypot(2.0 * zq * ctx.S.noise, 2.0 * _datum_part(drf, ctx, ext, zq)))
+        Ud = datum_u(drf, ctx, X, n0[None], floating=True)
+        U = float(np.hypot(2.0 * zq * ctx.S.noise, Ud))
         ang = float(np.degrees(np.arccos(np.clip(abs(n0 @ drf.datums[0].direction), 0, 1))))
         return _result(c, ctx, width, U, {"faces": fidx, "n": int(X.shape[0]),
                                           "normal": n.tolist(), "turns": len(turns),
@@ -462,6 +436,7 @@ def eval_orientation(c, ctx: EvalContext):
                                           "definition": "minimum zone, orientation fixed by "
                                                         "the DRF", "noise": ctx.S.noise,
                                           "tangent_plane": bool(c.tangent_plane),
+                                          "u_datums": Ud,
                                           "excluded": ctx.S.excluded(fidx)}, drf)
     if kinds == {"plane"} and c.zone == "median_plane":
         return _median_plane_orientation(c, ctx, fidx, drf)
@@ -478,7 +453,7 @@ def eval_orientation(c, ctx: EvalContext):
             rim = np.concatenate([_edge_tree(ctx, int(i))[0].data for i in fidx])
             ends, a, how = _lsq_axis_ends(X, f, rim)
         ext = float(np.linalg.norm(ends[1] - ends[0]))
-        u_axis, reach, proj = 2.0 * zq * ctx.S.noise, ext, None
+        u_axis, proj = 2.0 * zq * ctx.S.noise, None
         if getattr(c, "projected", None) is not None:
             # Ⓟ: the fitted axis between the mouth and projected mm beyond; its tilt (what the
             # ends across the axis measure) is known to u_axis / ext, read over the length
@@ -487,12 +462,12 @@ def eval_orientation(c, ctx: EvalContext):
             except ValueError as exc:
                 return _not_measured(c, f"faces {fidx}: {exc}")
             u_axis *= float(c.projected) / max(ext, 1e-9)
-            reach = float(c.projected)
             proj = {"length": float(c.projected), "mouth": mouth}
         B = tangent_basis(f.axis)
         e2 = (ends[1] - ends[0]) @ B.T
         value = float(np.linalg.norm(e2))
-        U = float(np.hypot(u_axis, 2.0 * _datum_part(drf, ctx, reach, zq)))
+        Ud = datum_u(drf, ctx, ends, B, floating=True)
+        U = float(np.hypot(u_axis, Ud))
         least = _least_material(X, f, hole) if c.material == "L" else float("nan")
         bonus, note = _bonus(c, hole, mating, least, f.diameter)
         return _result(c, ctx, value, U, {"faces": fidx, "n": int(X.shape[0]),
@@ -500,7 +475,7 @@ def eval_orientation(c, ctx: EvalContext):
                                           "hole": hole, "mating_diameter": mating,
                                           "axis_fit": how, "bonus": bonus, "note": note,
                                           "noise": ctx.S.noise, "projected": proj,
-                                          "excluded": ctx.S.excluded(fidx)}, drf,
+                                          "u_datums": Ud, "excluded": ctx.S.excluded(fidx)}, drf,
                        0.0, float(c.tol) + bonus)
     raise ValueError(f"{c.name}: {c.type} of faces {fidx} ({sorted(kinds)}) with a {c.zone} "
                      "zone: planes need zone: planes, cylinders zone: diameter")
@@ -529,13 +504,13 @@ def _median_plane_orientation(c, ctx: EvalContext, fidx, drf):
     turns = [t for t in turns if np.linalg.norm(t) > 1e-9]
     width, n, _ = planes_zone(M, n0, turns[:2])
     zq = extreme_quantile(max(M.shape[0], 2), ctx.k)
-    ext = float(np.ptp(M @ tangent_basis(n0).T, axis=0).max())
+    Ud = datum_u(drf, ctx, M, n0[None], floating=True)
     # a median point's height is the mean of a scan point's and the other side's interpolated
     # one: its noise is at most the scan's (sigma sqrt(1/4 + 1/4) when the interpolation
     # carries a point's full noise); the scan's sigma is taken (conservative)
-    U = float(np.hypot(2.0 * zq * ctx.S.noise, 2.0 * _datum_part(drf, ctx, ext, zq)))
+    U = float(np.hypot(2.0 * zq * ctx.S.noise, Ud))
     ang = float(np.degrees(np.arccos(np.clip(abs(n0 @ drf.datums[0].direction), 0, 1))))
-    return _result(c, ctx, width, U, {"faces": fidx, "sides": [one, two],
+    return _result(c, ctx, width, U, {"faces": fidx, "sides": [one, two], "u_datums": Ud,
                                       "n": int(M.shape[0]), "n_sides": [len(X1), len(X2)],
                                       "normal": n.tolist(), "turns": len(turns),
                                       "angle_to_primary_deg": ang,
@@ -588,7 +563,6 @@ def eval_position(c, ctx: EvalContext):
         # cylinder's ends also take its tilt: 2 z_n sigma
         u_axis = (mating_centre_u(X.shape[0], ctx.S.noise, ctx.k) if "circle" in how
                   else 2.0 * zq * ctx.S.noise)
-        reach = ext
         proj = getattr(c, "projected", None)
         if proj is not None:
             try:
@@ -596,9 +570,8 @@ def eval_position(c, ctx: EvalContext):
             except ValueError as exc:
                 return _not_measured(c, f"{ref}: {exc}")
             # the ends extrapolated up to L past the fitted segment: an end's error grows as
-            # (1 + 2 L / extent) times (the far one), the datums' turn over extent + L
+            # (1 + 2 L / extent) times (the far one); the datums' at the projected ends
             u_axis *= 1.0 + 2.0 * float(proj) / max(ext, 1e-9)
-            reach = ext + float(proj)
         q = ends - f.center
         off = q - np.outer(q @ f.axis, f.axis)
         zone = {}
@@ -606,18 +579,23 @@ def eval_position(c, ctx: EvalContext):
             u = _across(c.direction, f.axis)
             value = 2.0 * float(np.abs(off @ u).max())
             zone = {"zone_normal": u.tolist()}
+            dirs = u[None]
         else:
             value = 2.0 * float(np.linalg.norm(off, axis=1).max())
+            dirs = tangent_basis(f.axis)
         bonus, note = _bonus(c, hole, mating, least, f.diameter, own_size)
-        u_turn = 2.0 * _datum_part(drf, ctx, reach, zq)
-        U = float(np.sqrt(u_axis ** 2 + u_turn ** 2
-                          + (2.0 * _datum_offsets(drf, ctx, f.axis)) ** 2))
+        # the datums' noise (:mod:`.datum_noise`): the frame moves the ends across the axis;
+        # a composite's lower segment floats (only the frame's turn counts)
+        u_dat = datum_u(drf, ctx, ends, dirs)
+        u_turn = (datum_u(drf, ctx, ends, dirs, floating=True)
+                  if getattr(c, "composite", None) == "lower" else u_dat)
+        U = float(np.hypot(u_axis, u_dat))
         tol = float(c.tol) + bonus
         cap = getattr(c, "max_tol", None)
         if cap is not None and tol > float(cap):   # ASME Y14.5-2009 §7.3.4: "MAX"
             tol = float(cap)
         rows.append({"centre": f.center.tolist(), "axis": f.axis.tolist(),
-                     "u_axis": float(u_axis), "u_turn": float(u_turn),
+                     "u_axis": float(u_axis), "u_turn": float(u_turn), "u_datums": u_dat,
                      "feature": ref if isinstance(ref, str) else list(ref), "faces": fidx,
                      "hole": hole, "value": value, "bonus": bonus, "tolerance": tol,
                      "n": int(X.shape[0]), "outliers": int(n_all - X.shape[0]),
@@ -866,7 +844,7 @@ def eval_runout(c, ctx: EvalContext):
     value = circ if c.type == "circular_runout" else total
     zq = extreme_quantile(X.shape[0], ctx.k)
     # the datum axis's own noise: a mating cylinder rests on extreme points (the Gumbel
-    # spread of _datum_part); it shifts and -- when no plane before it sets its direction --
+    # spread of :func:`_extremes_sd`); it shifts and -- when no plane before it sets its direction --
     # tilts the axis, which the indicator reads at each point along the surface normal
     hd = (np.asarray(nom.points, float) - p0) @ a0
     Ud = 0.0

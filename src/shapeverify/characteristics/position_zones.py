@@ -93,7 +93,8 @@ def eval_position_zone(c, ctx):
     """position_zone (module docstring)."""
     from .alignment import face_indices
     from .evaluate import _not_measured
-    from .gdt import _datum_offsets, _frame_points, _result
+    from .datum_noise import datum_u
+    from .gdt import _frame_points, _result
     from .support import extreme_quantile
 
     fidx = face_indices(ctx.prep.model, c.faces)
@@ -102,7 +103,6 @@ def eval_position_zone(c, ctx):
     if X.shape[0] == 0:
         return _not_measured(c, "no scan points on the feature's faces")
     F = np.asarray(ctx.S.face)[m]
-    Ud = 2.0 * _datum_offsets(drf, ctx)
     if c.zone == "planes":
         A, B, u, true, width, slot = width_sides(ctx.feats, fl)
         inA, inB = np.isin(F, A), np.isin(F, B)
@@ -111,6 +111,8 @@ def eval_position_zone(c, ctx):
                                     f"{int(inA.sum())}, {B}: {int(inB.sum())})")
         centre = width_centre(X[inA], X[inB], u, slot)
         value = 2.0 * abs(centre - true)
+        # the datums' noise moves the sides along u (:mod:`.datum_noise`)
+        Ud = datum_u(drf, ctx, X[inA | inB], np.asarray(u, float)[None])
         zq = extreme_quantile(int(min(inA.sum(), inB.sum())), ctx.k)
         U = float(np.hypot(np.sqrt(2.0) * zq * ctx.S.noise, Ud))
         details = {"direction": u.tolist(), "centre_offset": float(centre - true),
@@ -126,8 +128,9 @@ def eval_position_zone(c, ctx):
             return _not_measured(c, f"{X.shape[0]} scan points on the sphere (10 needed)")
         cm, rm = sphere_centre(X)
         value = 2.0 * float(np.linalg.norm(cm - c0))
+        Ud = datum_u(drf, ctx, cm[None], np.eye(3))
         U = float(np.hypot(2.0 * ctx.k * ctx.S.noise * np.sqrt(3.0 / X.shape[0]), Ud))
         details = {"centre": cm.tolist(), "cad_centre": c0.tolist(), "diameter": 2.0 * rm,
                    "cad_diameter": 2.0 * r0, "n": int(X.shape[0]), "noise": ctx.S.noise}
-    details["faces"] = fl
+    details["faces"], details["u_datums"] = fl, Ud
     return _result(c, ctx, value, U, details, drf, 0.0, float(c.tol))

@@ -59,7 +59,8 @@ def eval_line_profile(c, ctx):
     """line_profile (module docstring)."""
     from .alignment import face_indices
     from .evaluate import _not_measured
-    from .gdt import _datum_offsets, _datum_part, _frame_points, _result
+    from .datum_noise import datum_u
+    from .gdt import _frame_points, _result
     from .gdt import _on
     from .support import extreme_quantile
 
@@ -69,11 +70,12 @@ def eval_line_profile(c, ctx):
     if X.shape[0] == 0:
         return _not_measured(c, "no scan points on the profile's faces")
     if drf is not None:
-        d = np.asarray(ctx.prep.closest(X, exact=True).distances, float)
+        cl = ctx.prep.closest(X, exact=True)
+        d, nrm = np.asarray(cl.distances, float), np.asarray(cl.normals, float)
     else:
-        d = np.asarray(ctx.S.d, float)[_on(ctx, fl)]
+        d, nrm = np.asarray(ctx.S.d, float)[_on(ctx, fl)], np.zeros_like(X)
     ok = np.isfinite(d)
-    X, d = X[ok], d[ok]
+    X, d, nrm = X[ok], d[ok], nrm[ok]
     n = np.asarray(c.normal, float)
     n = n / np.linalg.norm(n)
     offsets = (np.asarray(c.sections, float) if c.sections is not None
@@ -83,11 +85,12 @@ def eval_line_profile(c, ctx):
         return _not_measured(c, f"no section has {MIN_POINTS} scan points within "
                                 f"{c.slab:g} mm of its plane")
     zq = extreme_quantile(per[at]["n"], ctx.k)
-    ext = float(np.ptp(X, axis=0).max())
-    U = float(np.sqrt((2.0 * zq * ctx.S.noise) ** 2 + (2.0 * _datum_part(drf, ctx, ext, zq)) ** 2
-                      + (2.0 * _datum_offsets(drf, ctx)) ** 2))
+    # the datums' noise moves the points along their CAD normals (:mod:`.datum_noise`)
+    Ud = datum_u(drf, ctx, X, nrm[:, None])
+    U = float(np.hypot(2.0 * zq * ctx.S.noise, Ud))
     details = {"sections": per, "deciding_section": float(per[at]["offset"]),
                "normal": n.tolist(), "slab": float(c.slab), "n": int(d.size),
                "skipped_sections": sum(p["value"] is None for p in per),
-               "noise": ctx.S.noise, "extreme_quantile": zq, "faces": fl or "all"}
+               "noise": ctx.S.noise, "extreme_quantile": zq, "faces": fl or "all",
+               "u_datums": Ud}
     return _result(c, ctx, value, U, details, drf, 0.0, float(c.tol))

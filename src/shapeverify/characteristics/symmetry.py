@@ -42,8 +42,8 @@ def symmetry_value(X1, X2, u, centre: float) -> tuple[float, np.ndarray]:
 def eval_symmetry(c, ctx):
     """symmetry of a width's median points about the datum centre plane (module docstring)."""
     from .evaluate import _not_measured
-    from .gdt import _datum_part, _faces, _on, _result, drf_of
-    from .gdt_zones import tangent_basis
+    from .datum_noise import datum_u
+    from .gdt import _faces, _on, _result, drf_of
     from .position_zones import width_sides
     from .support import extreme_quantile
 
@@ -57,15 +57,10 @@ def eval_symmetry(c, ctx):
     value, M = symmetry_value(XA, XB, u, true)
     off = M @ u - true
     zq = extreme_quantile(max(M.shape[0], 2), ctx.k)
-    ext = float(np.ptp(M @ tangent_basis(u).T, axis=0).max())
     # a median point's height is the mean of two noisy heights (sigma / sqrt(2)); the value
-    # doubles it.  The datum planes across u shift the centre plane (their extreme points)
-    # and the datums turn it over the feature's extent (:func:`.gdt._datum_part`)
-    shift = [extreme_quantile(max(d.n, 2), ctx.k) * ctx.S.noise for d in drf.datums
-             if d.kind in ("plane", "midplane") and abs(float(d.direction @ u)) > 0.5]
-    U = float(np.sqrt((2.0 * zq * ctx.S.noise / np.sqrt(2.0)) ** 2
-                      + (2.0 * float(np.hypot.reduce(shift)) if shift else 0.0) ** 2
-                      + (2.0 * _datum_part(drf, ctx, ext, zq)) ** 2))
+    # doubles it.  The datums' noise moves the median points along u (:mod:`.datum_noise`)
+    Ud = datum_u(drf, ctx, M, np.asarray(u, float)[None])
+    U = float(np.hypot(2.0 * zq * ctx.S.noise / np.sqrt(2.0), Ud))
     return _result(c, ctx, value, U,
                    {"faces": fidx, "sides": {"A": A, "B": B}, "direction": u.tolist(),
                     "feature": "slot" if slot else "tab", "cad_width": width,
@@ -75,4 +70,5 @@ def eval_symmetry(c, ctx):
                     "definition": "median points of opposed elements (ASME Y14.5-2009 "
                                   "7.7.2) in two parallel planes centred on the datum centre "
                                   "plane: twice the largest distance from it",
-                    "noise": ctx.S.noise, "excluded": ctx.S.excluded(fidx)}, drf)
+                    "noise": ctx.S.noise, "u_datums": Ud,
+                    "excluded": ctx.S.excluded(fidx)}, drf)
