@@ -13,7 +13,8 @@ neighbourhood support (:mod:`.support`: a deviation its neighbours do not suppor
 from their median by more than the noise could make it), and less any points the caller
 excludes.  Every characteristic reports in ``details['excluded']`` how many points of its faces
 it left out and why (``beyond_evaluation_distance``, ``past_model_edge``,
-``unsupported_outliers``, ``excluded_by_caller``); the values below are taken on the kept points
+``unsupported_outliers``, ``excluded_by_caller``, ``on_supplemental_geometry``: points on the
+file's construction faces, :mod:`.supplemental_points`); the values below are taken on the kept points
 only, so one stray point does not decide a profile and no value is a cut-off.
 
 * **surface_profile** (ISO 1101 §18.6, profile of a surface): the zone is bounded by two surfaces
@@ -68,6 +69,7 @@ from .features import find_feature, model_features
 from .holes import measure_hole, plane_basis, position_coverage
 from . import registry
 from .plan import Plan, load_plan
+from .supplemental_points import on_supplemental
 from .support import extreme_quantile
 from .zones import decide, minimum_zone_flatness, worst_verdict, zone_decide
 
@@ -266,6 +268,12 @@ class _Scan:
             self.too_far = ~found | (np.abs(np.where(found, self.d, 0.0)) > evaluation_distance)
             self.on_boundary = np.asarray(cl.on_boundary, bool) & ~self.too_far
         self.evaluated = ~self.too_far & ~self.on_boundary
+        # points on the file's supplemental geometry (a scan of the whole file): not the part
+        ev = self.d[self.evaluated]
+        sigma = float(MAD_TO_SIGMA * np.median(np.abs(ev - np.median(ev)))) if ev.size else 0.0
+        self.on_supplemental = on_supplemental(prep.model, self.X, self.d, self.evaluated,
+                                               float(prep.model_spacing), sigma)
+        self.evaluated &= ~self.on_supplemental
         self.by_caller = np.zeros(self.d.shape[0], bool) if exclude is None else \
             np.asarray(exclude, bool) & self.evaluated
         sup = neighbourhood_support(self.feet, self.d, self.evaluated & ~self.by_caller)
@@ -291,7 +299,8 @@ class _Scan:
         return {"beyond_evaluation_distance": int(np.count_nonzero(on & self.too_far)),
                 "past_model_edge": int(np.count_nonzero(on & self.on_boundary)),
                 "excluded_by_caller": int(np.count_nonzero(on & self.by_caller)),
-                "unsupported_outliers": int(np.count_nonzero(on & self.unsupported))}
+                "unsupported_outliers": int(np.count_nonzero(on & self.unsupported)),
+                "on_supplemental_geometry": int(np.count_nonzero(on & self.on_supplemental))}
 
 
 def _same_evaluation(dev, scan, T, evaluation_distance) -> bool:
