@@ -320,18 +320,16 @@ def main(argv=None) -> int:
     test that the warm-up leaves nothing to compile (tests/test_warmup_coverage.py) runs its
     commands on a copy of it instead of compiling everything again (3-4 minutes of CPU).  With
     entries there already (an earlier run, the tests), no snapshot: DIR is removed."""
-    argv = list(sys.argv[1:] if argv is None else argv)
-    snapshot = None
-    if "--snapshot" in argv:
-        i = argv.index("--snapshot")
-        if i + 1 >= len(argv):
-            print("usage: python -m shapeverify.warmup [--quiet] [--snapshot DIR]",
-                  file=sys.stderr)
-            return 2
-        snapshot = Path(argv[i + 1])
-        del argv[i:i + 2]
+    import argparse
+
+    ap = argparse.ArgumentParser(prog="python -m shapeverify.warmup")
+    ap.add_argument("--quiet", "-q", action="store_true")
+    ap.add_argument("--snapshot", metavar="DIR", type=Path)
+    args, _ = ap.parse_known_args(sys.argv[1:] if argv is None else argv)
+    snapshot = args.snapshot
+    if snapshot is not None:
         before = cache_files()
-    if not ("--quiet" in argv or "-q" in argv):
+    if not args.quiet:
         handler = logging.StreamHandler(sys.stdout)
         handler.setFormatter(logging.Formatter("%(message)s"))
         logger.addHandler(handler)
