@@ -14,8 +14,8 @@ from their median by more than the noise could make it), and less any points the
 excludes.  Every characteristic reports in ``details['excluded']`` how many points of its faces
 it left out and why (``beyond_evaluation_distance``, ``past_model_edge``,
 ``unsupported_outliers``, ``excluded_by_caller``, ``on_supplemental_geometry``: points on the
-file's construction faces, :mod:`.supplemental_points`); the values below are taken on the kept points
-only, so one stray point does not decide a profile and no value is a cut-off.
+file's construction faces, :mod:`.supplemental_points`); the values below are taken on the kept
+points only, so one stray point does not decide a profile and no value is a cut-off.
 
 * **surface_profile** (ISO 1101 §18.6, profile of a surface): the zone is bounded by two surfaces
   offset ±t/2 from the true profile.  With a datum reference (``datum: true``, default) the
@@ -269,11 +269,12 @@ class _Scan:
             self.on_boundary = np.asarray(cl.on_boundary, bool) & ~self.too_far
         self.evaluated = ~self.too_far & ~self.on_boundary
         # points on the file's supplemental geometry (a scan of the whole file): not the part
-        ev = self.d[self.evaluated]
-        sigma = float(MAD_TO_SIGMA * np.median(np.abs(ev - np.median(ev)))) if ev.size else 0.0
-        self.on_supplemental = on_supplemental(prep.model, self.X, self.d, self.evaluated,
-                                               float(prep.model_spacing), sigma)
-        self.evaluated &= ~self.on_supplemental
+        self.on_supplemental = np.zeros(self.d.shape[0], bool)
+        if getattr(prep.model, "supplemental", ()):
+            self.on_supplemental = on_supplemental(prep.model, self.X, self.d, self.evaluated,
+                                                   float(prep.model_spacing),
+                                                   _mad_sigma(self.d[self.evaluated]))
+            self.evaluated &= ~self.on_supplemental
         self.by_caller = np.zeros(self.d.shape[0], bool) if exclude is None else \
             np.asarray(exclude, bool) & self.evaluated
         sup = neighbourhood_support(self.feet, self.d, self.evaluated & ~self.by_caller)
@@ -281,8 +282,7 @@ class _Scan:
         self.unsupported = sup.unsupported
         self.ok = self.evaluated & ~self.by_caller & ~self.unsupported
         dv = self.d[self.ok]
-        mad = float(MAD_TO_SIGMA * np.median(np.abs(dv - np.median(dv)))) if dv.size else \
-            float("nan")
+        mad = _mad_sigma(dv)
         # the scan's noise from neighbour differences (the part's form cancels); the spread
         # of the deviations where that cannot be had
         self.noise = sup.noise if np.isfinite(sup.noise) else mad
@@ -301,6 +301,11 @@ class _Scan:
                 "excluded_by_caller": int(np.count_nonzero(on & self.by_caller)),
                 "unsupported_outliers": int(np.count_nonzero(on & self.unsupported)),
                 "on_supplemental_geometry": int(np.count_nonzero(on & self.on_supplemental))}
+
+
+def _mad_sigma(x) -> float:
+    """Gaussian sigma of ``x`` from its median absolute deviation (NaN for none)."""
+    return float(MAD_TO_SIGMA * np.median(np.abs(x - np.median(x)))) if x.size else float("nan")
 
 
 def _same_evaluation(dev, scan, T, evaluation_distance) -> bool:
