@@ -778,8 +778,8 @@ def seen_around(tree, ev_idx, values, normals, points, members, above, lo_lim, h
     deep = gi[np.abs(values[gi]) <= 0.5 * lim]
     if deep.size < 2 * SEEN_K + 2:
         return 0.0
-    lim_of = (lambda i: np.abs(hi_lim[i])) if above else (lambda i: np.abs(lo_lim[i]))
-    deep = deep[facing(tree, ev_idx, values, normals, points, deep, lim_of, spacing)]
+    deep = deep[facing(tree, ev_idx, values, normals, points, deep,
+                       hi_lim if above else lo_lim, spacing)]
     if deep.size < 2 * SEEN_K + 2:
         return 0.0
     dtree = cKDTree(points[deep])
@@ -818,9 +818,10 @@ AMONG_FLAT = 0.1
 AMONG_FACING = 0.7
 
 
-def facing(tree, ev_idx, values, normals, points, idx, lim_of, spacing) -> np.ndarray:
+def facing(tree, ev_idx, values, normals, points, idx, lim, spacing) -> np.ndarray:
     """Whether the surface through each deep point ``idx`` and its deep neighbours (a plane
-    through their scan positions ``foot + d n``) faces along its CAD normal (``AMONG_*``).
+    through their scan positions ``foot + d n``) faces along its CAD normal (``AMONG_*``);
+    deep: ``|d|`` at most half ``|lim|`` (the per-point limit on the component's side).
 
     Under a layer it does: the part's own surface.  A dent on a convex edge pushes the points of
     one face nearer the other, which they then read against: their feet gather on a curve of
@@ -831,7 +832,7 @@ def facing(tree, ev_idx, values, normals, points, idx, lim_of, spacing) -> np.nd
     the dented part showed no region)."""
     lists = tree.query_ball_point(points[idx], AMONG_WINDOW * spacing)
     near = ev_idx[np.unique(np.concatenate([np.asarray(x, np.int64) for x in lists]))]
-    near = near[np.abs(values[near]) <= 0.5 * lim_of(near)]
+    near = near[np.abs(values[near]) <= 0.5 * np.abs(lim[near])]
     if near.size < 5:
         return np.zeros(idx.size, bool)
     S = points[near] + values[near, None] * normals[near]
@@ -900,6 +901,5 @@ def seen_among(tree, ev_idx, values, normals, points, members, above, lo_lim, hi
     among = deep[sel][widest < np.pi]
     if among.size == 0:
         return 0
-    lim_of = (lambda i: np.abs(hi_lim[i])) if above else (lambda i: np.abs(lo_lim[i]))
-    return int(np.count_nonzero(facing(tree, ev_idx, values, normals, points, among, lim_of,
-                                        spacing)))
+    return int(np.count_nonzero(facing(tree, ev_idx, values, normals, points, among,
+                                        hi_lim if above else lo_lim, spacing)))

@@ -589,8 +589,8 @@ def _over_measured_surface(tree, ev_idx, values, normals, points, core, med, up,
         at = lower & (up[sel][row] == side)
         if at.any():
             cand, inv = np.unique(flat[at], return_inverse=True)
-            lower[at] = facing(tree, ev_idx, values, normals, points, cand,
-                               lambda i: np.abs(lim_all[i]), spacing)[inv]
+            lower[at] = facing(tree, ev_idx, values, normals, points, cand, lim_all,
+                               spacing)[inv]
     n_lower = np.bincount(row, weights=lower.astype(np.float64), minlength=sel.size)
     # the share of the points there (the density of a thin part's two sides or of a ghost
     # over it is not the scan's spacing)
