@@ -69,21 +69,26 @@ def test_ftc10_gt10_passes_on_a_perfect_scan_of_the_whole_file(ftc10):
     assert c.measured < 0.5
 
 
-def test_ftc10_gt10_still_fails_with_a_bump_on_its_faces(ftc10):
-    """A 1 mm bump (6 mm across) in the middle of face 179 is measured."""
+@pytest.mark.parametrize("face", [177, 178, 179, 180])
+def test_ftc10_gt10_still_fails_with_a_bump_on_its_faces(ftc10, face):
+    """A 1 mm bump (6 mm across) in the middle of each of GT10's faces is measured whole:
+    2 max |d| about 2 mm.  The outlier rule once left out most of a bump this steep at this
+    spacing (face 178: 1.21 mm, pass; ``tests/test_steep_small_bump_is_not_an_outlier.py``).
+    Every scan point within 0.3 mm of the face is pushed, those sampled on a supplemental face
+    lying on it too (as on a real part: one surface)."""
     from shapeverify.characteristics import evaluate_plan
 
     prep, X, N, truth, plan = ftc10
     cl = prep.closest(X, exact=True)
-    on179 = (np.asarray(cl.face) == 179) & ~truth
-    mid = X[on179].mean(axis=0)
-    c0 = X[on179][np.argmin(np.linalg.norm(X[on179] - mid, axis=1))]
+    on = (np.asarray(cl.face) == face) & (np.abs(np.asarray(cl.distances)) < 0.3)
+    mid = X[on].mean(axis=0)
+    c0 = X[on][np.argmin(np.linalg.norm(X[on] - mid, axis=1))]
     r = np.linalg.norm(X - c0, axis=1)
-    bump = on179 & (r < 3.0)
+    bump = on & (r < 3.0)
     assert bump.sum() >= 15
     Y = X.copy()
     Y[bump] += (1.0 * np.cos(np.pi * r[bump] / 6.0) ** 2)[:, None] * \
         np.asarray(cl.normals)[bump]
     c, = evaluate_plan(prep, Y, plan, init=np.eye(4)).characteristics
     assert c.verdict == "fail", (c.measured, c.details)
-    assert c.measured > 1.5
+    assert c.measured == pytest.approx(2.0, abs=0.12), c.details["excluded"]

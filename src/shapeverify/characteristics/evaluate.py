@@ -277,7 +277,8 @@ class _Scan:
             self.evaluated &= ~self.on_supplemental
         self.by_caller = np.zeros(self.d.shape[0], bool) if exclude is None else \
             np.asarray(exclude, bool) & self.evaluated
-        sup = neighbourhood_support(self.feet, self.d, self.evaluated & ~self.by_caller)
+        sup = neighbourhood_support(self.feet, self.d, self.evaluated & ~self.by_caller,
+                                    faces=self.face)
         self.support = sup
         self.unsupported = sup.unsupported
         self.ok = self.evaluated & ~self.by_caller & ~self.unsupported
