@@ -72,7 +72,7 @@ STILL_UNSUPPORTED = {
     # depend on it (test_line_profile_plane.py)
     "nist_ctc_02": {},
     "nist_ctc_04": {},
-    "nist_ftc_07": {"GT10": "Statistical"},
+    "nist_ftc_07": {},
     # FTC 10 GT11: perpendicularity All Around an obround's contour (two planes, two
     # half-cylinders): no orientation zone for a half-cylinder (pmi_all_around.py)
     "nist_ftc_10": {"GT11": "part-cylinder R7.5, axis along the datum's normal"},
@@ -883,3 +883,36 @@ def test_ctc02_e2_gt19_line_profile_of_a_plane_covers_the_face(plans):
     c = next(c for c in plans["nist_ctc_02"].plan.characteristics if c.pmi.id == "GT19")
     assert (c.type, c.datums, c.faces) == ("line_profile", ["A", "B", "C"], ["face:18"])
     assert c.count > 10 and c.slab == 0.5
+
+
+@pytest.mark.slow
+def test_ftc07_statistical_position_is_planned_measured_and_said_to_be_statistical(files, plans):
+    """FTC 07 GT10 (position ⌀1.27 to A|B|C with ⟨ST⟩, three holes) was unsupported
+    ("modifier Statistical_Tolerance is not applied").  The statistical modifier does not change
+    the zone: the plan measures it as an arithmetic limit and says so in the plan's ``pmi`` and
+    the result's details; a perfect independent scan passes."""
+    import numpy as np
+    import yaml
+
+    from independent_scans import file_tessellation, random_points
+    from model_cache import cached_prepared
+    from shapeverify.characteristics import evaluate_plan
+    from shapeverify.characteristics.pmi_plan import STATISTICAL_NOTE
+
+    path, res = files["nist_ftc_07"], plans["nist_ftc_07"]
+    data = dict(res.data)
+    c, = [c for c in data["characteristics"] if c["pmi"]["id"] == "GT10"]
+    assert c["type"] == "position" and c["tol"] == pytest.approx(1.27) and len(c["features"]) == 3
+    assert c["pmi"]["modifiers"] == ["Statistical_Tolerance"]
+    assert c["pmi"]["statistical_note"] == STATISTICAL_NOTE
+    data["characteristics"] = [c]
+    data.pop("unsupported", None)
+    prep = cached_prepared(path, spacing=1.5, features=True)
+    rng = np.random.default_rng(3)
+    V, T, _ = file_tessellation(path, 0.002)
+    P, N = random_points(V, T, 1.0, rng)
+    X = P + rng.normal(0.0, 0.01, len(P))[:, None] * N
+    r, = evaluate_plan(prep, X, yaml.safe_dump(data), init=np.eye(4)).characteristics
+    assert r.verdict == "pass", (r.measured, r.uncertainty, r.details.get("reason"))
+    assert r.measured < 0.3
+    assert r.details["statistical"] == STATISTICAL_NOTE

@@ -693,6 +693,9 @@ def evaluate_characteristics(prep, scan, plan, alignment: AlignmentResult, exclu
             r = _not_measured(c, f"its evaluation failed ({type(exc).__name__}: {exc}): an "
                                  "error of shapeverify on this part and scan, please report it "
                                  "with them; the characteristic is not measured")
+        note = getattr(c.pmi, "statistical_note", None)    # an (ST) tolerance: say so
+        if note:
+            r.details["statistical"] = note
         out.append(_untrusted(r, alignment))
     sec = None if plan.section is None else _section(plan.section, S)
     return tuple(out), S, sec

@@ -269,6 +269,12 @@ def _drawn_shift(item, cad: float) -> float | None:
         return 0.0
     return shift if item["lower"] <= -shift <= item["upper"] else None
 
+#: what the plan says of a statistical tolerance (ASME Y14.5-2009 2.16, the (ST) symbol)
+STATISTICAL_NOTE = ("statistical tolerance (ST): the part is measured and judged against the "
+                    "zone as an arithmetic limit; the drawing asks the process to hold it "
+                    "statistically, which one part cannot show: see Cp/Cpk in the history")
+
+
 def _src(item: dict) -> dict:
     out = {"kind": item["kind"], "type": item["type"], "id": item["id"]}
     for key in ("attached", "attached2"):       # faces found from the edges it points at
@@ -289,6 +295,8 @@ def _src(item: dict) -> dict:
             out["material"] = item["material"]
         if item["modifiers"]:
             out["modifiers"] = list(item["modifiers"])
+        if "Statistical_Tolerance" in item["modifiers"]:
+            out["statistical_note"] = STATISTICAL_NOTE
         if item["zone_modifier"] != "None":
             out["zone_modifier"] = item["zone_modifier"]
         if item.get("composite"):
@@ -487,34 +495,35 @@ def _faces_ok(item, ctx, key="faces"):
 
 def unapplied_modifiers(item: dict) -> str:
     """Why an item is unsupported when it carries modifiers the plan does not apply (any but
-    Free_State, or a material modifier), or '' when it carries none."""
-    extra = [m for m in item["modifiers"] if m != "Free_State"] + \
+    :data:`_ANY_TYPE`, or a material modifier), or '' when it carries none."""
+    extra = [m for m in item["modifiers"] if m not in _ANY_TYPE] + \
         ([f"material {item['material']}"] if item["material"] else [])
     return f"modifiers {', '.join(extra)} are not applied by the plan" if extra else ""
 
 
-#: tolerance modifiers that do not change what a characteristic measures, per type
-#: (Free_State: a scan of the unrestrained part is a free-state measurement)
-_HARMLESS = {"ProfileOfSurface": {"All_Around", "All_Over", "Free_State"},
-             "Flatness": {"Free_State"}, "Position": {"Free_State"},
-             "Parallelism": {"Free_State", "Tangent_Plane"},
-             "Perpendicularity": {"Free_State", "Tangent_Plane"},
-             "Angularity": {"Free_State", "Tangent_Plane"}}
+#: tolerance modifiers that change what no characteristic measures: Free_State (a scan of the
+#: unrestrained part is a free-state measurement) and Statistical_Tolerance (the zone is the
+#: same; conformance is judged over the process, :data:`STATISTICAL_NOTE`)
+_ANY_TYPE = {"Free_State", "Statistical_Tolerance"}
+#: and those that do not for one type
+_HARMLESS = {"ProfileOfSurface": {"All_Around", "All_Over"}, "Flatness": set(), "Position": set(),
+             "Parallelism": {"Tangent_Plane"}, "Perpendicularity": {"Tangent_Plane"},
+             "Angularity": {"Tangent_Plane"}}
 
 
 def _plain_zone_reason(item, note: str = "") -> str:
     """'' or why a tolerance's zone is not the plain one the plan measures: a zone modifier
-    (``note`` appended), or a modifier other than Free_State."""
+    (``note`` appended), or a modifier other than :data:`_ANY_TYPE`."""
     if item["zone_modifier"] != "None":
         return f"a {item['zone_modifier']} zone modifier{note}"
-    extra = [m for m in item["modifiers"] if m != "Free_State"]
+    extra = [m for m in item["modifiers"] if m not in _ANY_TYPE]
     return f"modifier {', '.join(extra)} is not applied by the plan" if extra else ""
 
 
 def _modifier_reason(item) -> str:
     if item["type"] not in _HARMLESS:
         return ""
-    extra = [m for m in item["modifiers"] if m not in _HARMLESS[item["type"]]]
+    extra = [m for m in item["modifiers"] if m not in _HARMLESS[item["type"]] | _ANY_TYPE]
     return f"modifier {', '.join(extra)} is not applied by the plan" if extra else ""
 
 
@@ -801,7 +810,7 @@ def _orientation(item, ctx, faces, src) -> tuple[list, str]:
                     abs(ctx.feats[two[0]].axis @ f0.axis + 1) < 1e-6:
                 # a width (a feature of size): the zone holds its derived median plane
                 extra = ([f"material {item['material']}"] if item["material"] else []) + \
-                    [m for m in item["modifiers"] if m != "Free_State"]
+                    [m for m in item["modifiers"] if m not in _ANY_TYPE]
                 if extra:
                     return [], (f"{t.lower()} of a width's median plane with "
                                 f"{', '.join(extra)} (not applied)")
