@@ -27,15 +27,16 @@ ACROSS = 1.5
 FAR = 6.0
 RATIO = 4.0
 
-_SAMPLES: dict = {}
+#: the last model's samples: (model, spacing, samples) -- one entry, so a service or a batch
+#: going through many models keeps none of them alive
+_LAST: list = []
 
 
 def _samples(model, spacing: float):
-    """(points, normals, spacing) sampled on ``model``'s supplemental faces, kept per model."""
-    key = (id(model), float(spacing))
-    hit = _SAMPLES.get(key)
-    if hit is not None and hit[0] is model:
-        return hit[1]
+    """(points, normals, spacing) sampled on ``model``'s supplemental faces (the last model's
+    kept)."""
+    if _LAST and _LAST[0] is model and _LAST[1] == float(spacing):
+        return _LAST[2]
     from ..cad.model import Model
     from ..cad.sampling import sample_model
 
@@ -44,7 +45,7 @@ def _samples(model, spacing: float):
     mp = sample_model(sub, spacing)
     out = (np.asarray(mp.points, np.float64), np.asarray(mp.normals, np.float64),
            float(mp.spacing))
-    _SAMPLES[key] = (model, out)
+    _LAST[:] = [model, float(spacing), out]
     return out
 
 
