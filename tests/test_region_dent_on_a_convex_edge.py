@@ -117,3 +117,98 @@ def test_a_layer_over_an_edge_is_still_a_layer():
         limits=(np.full(n, -TOL), np.full(n, TOL)))
     assert regions == [], regions
     assert outliers.n_layer >= 0.9 * len(g)
+
+
+def _true_area(n=400_000):
+    """Brute force: the area of both faces where the displaced point (no noise) reads beyond
+    the limit against the nearer face: ``min(push, u)`` (``u``: distance from the edge)."""
+    rng = np.random.default_rng(9)
+    half = 3 * W
+    uv = np.column_stack([rng.uniform(0, half, n), rng.uniform(-half, half, n)])
+    r = np.hypot(*uv.T)
+    push = np.where(r < W, DEPTH * np.cos(np.pi * r / (2 * W)) ** 2, 0.0)
+    return 2 * (2 * half * half) * np.mean(np.minimum(push, uv[:, 0]) > TOL)
+
+
+def _edge_region_area(kind, seed):
+    feet, d, normals, face = _edge_dent_scan(kind, seed, W / 15)
+    n = len(d)
+    regions, _, _ = find_regions(feet, d, np.ones(n, bool), np.abs(d) <= TOL, face, normals,
+                                 limits=(np.full(n, -TOL), np.full(n, TOL)))
+    assert len(regions) == 1
+    return regions[0].area
+
+
+def test_dent_on_a_convex_edge_keeps_the_area_of_its_folded_points():
+    """The points folded over the edge (feet crowded onto a curve of the other face) are
+    measured where they were sampled (:mod:`.region_folds`).  Random, lattice and anisotropic
+    rows, 2 seeds each, 1/15 of the dent's radius: the area read 40-56 % low on the old code
+    (cells among the crowded feet; 48 % on average), 9-21 % low now (13 % on average)."""
+    truth = _true_area()
+    ratios = [_edge_region_area(kind, seed) / truth
+              for kind in ("random", "grid", "aniso") for seed in (0, 1)]
+    assert min(ratios) > 0.75 and np.mean(ratios) > 0.82, np.round(ratios, 3)
+
+
+@pytest.mark.xfail(strict=True, reason="issue 29 item 1: still 9-21 % low at the edge here (the "
+                   "points at the fold's corner, between the two crowds, stay where they are)")
+def test_dent_on_a_convex_edge_area_within_15_percent():
+    truth = _true_area()
+    ratios = [_edge_region_area(kind, seed) / truth
+              for kind in ("random", "grid", "aniso") for seed in (0, 1)]
+    assert np.all(np.abs(np.array(ratios) - 1.0) <= 0.15), np.round(ratios, 3)
+
+
+def _unfold(feet, d, normals, s):
+    from shapeverify.inspection.region_folds import unfolded
+    ev = np.arange(len(d))
+    return unfolded(feet, d, normals, ev, ev, s)
+
+
+def test_a_wall_standing_on_a_face_is_not_folded():
+    """The wall of an object lying on a flat part crowds its feet on the rim's line as a fold
+    does, but no CAD surface near it faces another way: its points keep their feet (a wall
+    stands for no area of the part)."""
+    rng = np.random.default_rng(4)
+    s = 0.05
+    flat = np.column_stack([rng.uniform(-1, 1, (1600, 2)), np.zeros(1600)])
+    wall = np.column_stack([np.zeros(400), rng.uniform(-1, 1, 400), rng.uniform(0, 0.5, 400)])
+    feet = np.vstack([flat, wall * [1, 1, 0]])
+    d = np.concatenate([rng.normal(0, NOISE, 1600), wall[:, 2]])
+    normals = np.tile([0.0, 0.0, 1.0], (2000, 1))
+    assert not _unfold(feet, d, normals, s)[3].any()
+
+
+def test_points_beside_an_edge_without_a_dent_are_not_folded():
+    """Beside an undented edge no foot lies in a crowd: nothing moves."""
+    s = W / 15
+    rng = np.random.default_rng(5)
+    X = []
+    for face in (0, 1):
+        uv = _faces("random", s, rng, 3 * W)
+        e = rng.normal(0.0, NOISE, len(uv))
+        X.append(np.column_stack([-uv[:, 0], uv[:, 1], e]) if face == 0 else
+                 np.column_stack([e, uv[:, 1], -uv[:, 0]]))
+    X = np.concatenate(X)
+    top = np.where((X[:, 0] <= 0) & (X[:, 2] <= 0), -X[:, 2] <= -X[:, 0], X[:, 2] >= X[:, 0])
+    feet = X.copy()
+    feet[top, 2] = 0.0
+    feet[~top, 0] = 0.0
+    normals = np.where(top[:, None], [0.0, 0.0, 1.0], [1.0, 0.0, 0.0])
+    d = np.einsum("ij,ij->i", X - feet, normals)
+    assert not _unfold(feet, d, normals, s)[3].any()
+
+
+def test_the_folded_points_move_back_to_where_they_were_sampled():
+    """The dent's points read against the other face move back onto their own face's plane,
+    near where they were sampled (the noise along the normal aside)."""
+    feet, d, normals, face = _edge_dent_scan("random", 0, W / 15)
+    X = feet + d[:, None] * normals
+    moved, _, _, fold = _unfold(feet, d, normals, W / 15)
+    assert fold.sum() > 50
+    # a folded point's scan position lies under its own face: its sampled place is that
+    # position with the push undone, on the plane z = 0 (face 0) or x = 0 (face 1)
+    on_top = face[fold] == 1                   # its foot was on the side face: it came from the top
+    P = moved[fold]
+    assert np.allclose(P[on_top, 2], 0.0) and np.allclose(P[~on_top, 0], 0.0)
+    assert np.allclose(P[on_top][:, :2], X[fold][on_top][:, :2])

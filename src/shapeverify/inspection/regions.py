@@ -92,6 +92,7 @@ from ..measures._grid_kernels import (any_within, count_within, kernel_array, ke
                                       mark_within, nearest_other)
 from ..measures.spacing import (median_spacing, nanmedian_rows,  # noqa: F401 (re-exported)
                                 nearest_distances, neighbourhood_median)
+from .region_folds import unfolded
 from .region_measures import (CELL_BOUND, MAX_PEAK_RADIUS, facing, fitted_peak, local_noise,
                               out_area, seen_among, seen_around, seen_under)
 
@@ -462,7 +463,13 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
         if pairs.size:
             pairs = pairs[core_up[pairs[:, 0]] == core_up[pairs[:, 1]]]
         n_comp, labels = linked_components(core.size, pairs)
-        a = area_per_point(tree, pc, r_area)
+        # points folded over a convex edge stand for the area where they were sampled (the
+        # points the kernel counts moved back: :mod:`.region_folds`)
+        around = ev_idx[np.unique(np.concatenate(
+            [np.asarray(x, np.int64) for x in tree.query_ball_point(pc, r_area)]))]
+        u_pts, _, _, fold = unfolded(points, values, normals, ev_idx, around, spacing)
+        a = area_per_point(cKDTree(u_pts[ev_idx]), u_pts[core], r_area) if fold.any() \
+            else area_per_point(tree, pc, r_area)
         # a defect is measured surface: core points where the scan is sparse (stray points
         # beside the part, in a shadow) support nothing
         dense = a <= SPARSE_AREA * spacing ** 2
@@ -834,7 +841,11 @@ def _describe(idx, core, med, points, values, face, normals, tree, ev_idx, spaci
     q = np.union1d(idx, nb[within[nb]])
     g = np.full(values.shape[0], np.nan)
     g[ev_idx] = (values[ev_idx] - hi_lim[ev_idx]) if above else (lo_lim[ev_idx] - values[ev_idx])
-    part, cell = out_area(tree, ev_idx, points, normals, g, q, spacing, values=values, above=above)
+    # points folded over a convex edge (their feet gather on a curve of the other face) are
+    # measured where they were sampled (:mod:`.region_folds`)
+    u_pts, u_nrm, u_val, fold = unfolded(points, values, normals, ev_idx, q, spacing)
+    u_tree = cKDTree(u_pts[ev_idx]) if fold.any() else tree
+    part, cell = out_area(u_tree, ev_idx, u_pts, u_nrm, g, q, spacing, values=u_val, above=above)
     part = np.where(cell <= 2.0 * sparse, part, 0.0)    # a point in a gap stands for no area
     area = float(np.sum(part))
 
