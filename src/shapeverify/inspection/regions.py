@@ -56,7 +56,9 @@ For each region:
   (mm^2): of the cell each of its points and their in-tolerance neighbours stands for (its
   Voronoi cell in its tangent plane), the part where ``|d| - |limit|`` continued by its local
   slope is positive (:func:`.region_measures.out_area`: the same area for random, lattice,
-  scanner-row and anisotropic sampling, the boundary interpolated between points in and out);
+  scanner-row and anisotropic sampling, the boundary interpolated between points in and out;
+  points folded over a convex edge, whose feet crowd onto a curve of the other face, measured
+  where they were sampled: :func:`.region_folds.unfolded`, for the core support too);
 * ``extreme``: the signed deviation at the region's worst point, the fitted peak of the local
   surface (a sampled dent's deepest point is missed by up to the spacing): from the core point
   of largest neighbourhood-median |deviation|, a quadratic ``d(x, y)`` is fitted in the tangent
