@@ -131,7 +131,7 @@ def test_a_one_mm_parts_region_area_keeps_three_significant_digits():
     assert 0 < area < 0.01                         # would print "0.0 mm²"
     _, texts = _text_extents(summary_figure(res, scan))
     column = "\n".join(t.get_text() for t, _ in texts)
-    from shapeverify.report.quantities import area_text
+    from shapeverify.quantities import area_text
 
     shown = area_text(area)
     assert shown.endswith("µm²") and shown in column

@@ -310,7 +310,7 @@ def _keep_inside(fig, axes, margin: float = 0.02) -> None:
 
 def _region_list(fig, regions, most: int = 6) -> None:
     """The numbered list of regions under the map (their labels on it are R1, R2, ...)."""
-    from shapeverify.report.quantities import area_text, length_text
+    from shapeverify.quantities import area_text, length_text
 
     lines = []
     for i, g in enumerate(regions[:most]):

@@ -93,10 +93,11 @@ class Coverage:
     def describe_gap(self) -> str:
         if not self.gaps:
             return ""
+        from ..quantities import area_text, point_text
+
         g = self.gaps[0]
-        c = g["centroid"]
-        return (f"the largest unseen area, {g['area']:.0f} mm², is around "
-                f"({c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f}) mm on face(s) "
+        return (f"the largest unseen area, {area_text(g['area'])}, is around "
+                f"{point_text(g['centroid'])} on face(s) "
                 f"{', '.join(str(f) for f in g['faces'][:6])}")
 
     def to_dict(self) -> dict:

@@ -498,9 +498,11 @@ def _evaluate(prep, scan, reg, opts: _Options, progress, timings) -> InspectionR
                      f"outliers ({outliers.n_low_weight} rejected by the registration) and left "
                      "out of the statistics")
     for fs in floating_surfaces(dev, spacing, beside=beside, exclude=joined)[:3]:
-        c = fs["centroid"]
-        notes.append(f"{fs['n']} scan points form a surface {fs['height'][0]:.2f}-{fs['height'][1]:.2f} mm "
-                     f"above the CAD around ({c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f}) mm, beyond the "
+        from ..quantities import length_text, point_text
+
+        lo, hi = fs["height"]
+        notes.append(f"{fs['n']} scan points form a surface {length_text(lo)} to "
+                     f"{length_text(hi)} above the CAD around {point_text(fs['centroid'])}, beyond the "
                      f"evaluation distance ({opts.evaluation_distance:g} mm): a reflection or a "
                      "foreign object? (not evaluated; raise the evaluation distance to evaluate it)")
     for d in _strings(getattr(reg, "undetermined", ())):

@@ -205,23 +205,25 @@ class DefectRegion:
                 "n_beyond": self.n_beyond, "area_beyond": self.area_beyond}
 
     def describe(self) -> str:
-        """One line for a reason or a label, e.g. 'dent: 120 points, 95.2 mm², -0.412 mm ...'."""
-        c = self.centroid
+        """One line for a reason or a label, e.g. 'dent: 120 points, 95.2 mm², -0.412 mm ...'
+        (lengths, areas and the point in the unit that keeps three significant digits)."""
+        from ..quantities import area_text, length_text, point_text
+
+        at = point_text(self.centroid)
+        faces = ", ".join(str(f) for f in self.faces[:5]) + (" ..." if len(self.faces) > 5 else "")
         if self.kind == "missing":
             return (f"material missing where the CAD has surface (a hole or cut-out the CAD does "
-                    f"not have, or a dropout of the scanner): {self.area:.1f} mm² seen through, "
-                    f"enclosed by seen surface, around ({c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f}) mm"
+                    f"not have, or a dropout of the scanner): {area_text(self.area)} seen "
+                    f"through, enclosed by seen surface, around {at}"
                     + (f" on face(s) {', '.join(str(f) for f in self.faces[:5])}" if self.faces else ""))
         what = ("material where the CAD has none" if self.kind == "material" else
                 "material added" if self.side == "above" else "material missing")
-        at = f"({c[0]:.1f}, {c[1]:.1f}, {c[2]:.1f})"
-        faces = ", ".join(str(f) for f in self.faces[:5]) + (" ..." if len(self.faces) > 5 else "")
-        dist = (f"up to {self.extreme:.3f} mm from the CAD surface" if self.kind == "material"
-                else f"extreme {self.extreme:+.3f} mm")
-        beyond = (f"; {self.n_beyond} of its points ({self.area_beyond:.1f} mm²) beyond the "
+        dist = (f"up to {length_text(self.extreme)} from the CAD surface"
+                if self.kind == "material" else f"extreme {length_text(self.extreme, signed=True)}")
+        beyond = (f"; {self.n_beyond} of its points ({area_text(self.area_beyond)}) beyond the "
                   "evaluation distance, measured to the CAD but not in the statistics"
                   if self.n_beyond else "")
-        return (f"{what}: {self.n} points, {self.area:.1f} mm², {dist} at {at} mm"
+        return (f"{what}: {self.n} points, {area_text(self.area)}, {dist} at {at}"
                 + (f" on face(s) {faces}" if faces else "") + beyond)
 
     def __repr__(self) -> str:

@@ -238,8 +238,11 @@ def _rule_coverage(f: _Facts):
     coverage, regions = f.coverage, f.regions
     if coverage is None or coverage.sufficient:
         return None
+    from ..quantities import area_text
+
     why = (f"incomplete: only {100 * coverage.fraction:.1f} % of the inspected CAD area "
-           f"({coverage.covered_area:.0f} of {coverage.area:.0f} mm²) has evaluated scan points; "
+           f"({area_text(coverage.covered_area)} of {area_text(coverage.area)}) has evaluated "
+           f"scan points; "
            f"at least {100 * coverage.min_coverage:.0f} % must be seen to pass or fail the part")
     gap = coverage.describe_gap()
     reasons = [why] + ([gap] if gap else []) + list(f.errors)

@@ -28,7 +28,7 @@ from .colours import CMAP, color_limit
 from .fcf import (FCF_CSS, composite_frames, composite_html, composite_pairs, drf_title,
                   frame_html, frames, group_by_drf)
 from .labels import free_labels
-from .quantities import area_text, length_text
+from ..quantities import area_text, length_text
 from .ply import check_scan_length
 
 logger = logging.getLogger(__name__)

@@ -21,7 +21,7 @@ from ..verdict_table import verdict_style
 from .colours import CMAP, color_limit
 from .ply import check_scan_length
 from .png_frames import draw_panel, panel_height
-from .quantities import area_text, length_text
+from ..quantities import area_text, length_text
 
 logger = logging.getLogger(__name__)
 

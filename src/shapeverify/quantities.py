@@ -1,15 +1,16 @@
-"""Lengths and areas as text in the unit that keeps three significant digits.
+"""Lengths, areas and points as text in the unit that keeps three significant digits.
 
 A 1 mm part's dent region printed "area 0.0 mm²", a 40 m part's "12345678.9 mm²" (issue 32):
-the reports write areas in µm², mm² or m² and lengths in µm, mm or m, whichever shows the value
-with three significant digits and no exponent.
+the reports and the verdict's reasons write areas in µm², mm² or m² and lengths in µm, mm or m,
+whichever shows the value with three significant digits and no exponent.  A leaf module: the
+inspection's reasons and the reports both read it.
 """
 
 from __future__ import annotations
 
 import math
 
-__all__ = ["area_text", "length_text", "number_text"]
+__all__ = ["area_text", "length_text", "number_text", "point_text"]
 
 
 def number_text(v: float, signed: bool = False) -> str:
@@ -63,3 +64,29 @@ def length_text(mm: float, signed: bool = False) -> str:
     if abs(v) >= 10_000:
         return f"{number_text(v / 1e3, signed)} m"
     return f"{number_text(v, signed)} mm"
+
+
+def point_text(xyz) -> str:
+    """A point's coordinates (mm) in one unit (:func:`length_text`'s, from the largest), with the
+    decimals that give its largest coordinate three significant digits.
+
+    >>> point_text((0.8123, 0.0331, 0.305)), point_text((-2316.3, 18882.8, -5006.9))
+    ('(0.812, 0.033, 0.305) mm', '(-2.3, 18.9, -5) m')
+    >>> point_text((0.0012, -0.0004, 0.0))
+    '(1.2, -0.4, 0) µm'
+    """
+    v = [float(c) for c in xyz]
+    big = max((abs(c) for c in v if math.isfinite(c)), default=0.0)
+    unit, f = ("µm", 1e3) if 0 < big < 0.01 else ("m", 1e-3) if big >= 10_000 else ("mm", 1.0)
+    v = [c * f for c in v]
+    big *= f
+    digits = 0 if big == 0 or big >= 100 else max(0, 2 - int(math.floor(math.log10(big))))
+
+    def one(c):
+        if not math.isfinite(c):
+            return str(c)
+        t = f"{c:.{digits}f}"
+        t = t.rstrip("0").rstrip(".") if "." in t else t
+        return "0" if t in ("-0", "") else t
+
+    return f"({', '.join(one(c) for c in v)}) {unit}"
