@@ -234,8 +234,9 @@ def _fit(f: DatumFeature, X, N):
         if cover < MIN_COVERAGE and f.arc is not None and f.arc < MIN_COVERAGE:
             return _fit_arc(f, X, cover, _turn_sine(d0, N), d0, p0, B)
         if cover < MIN_COVERAGE:
-            raise ValueError(f"datum {f.name}: the scan covers {cover:.0f} degrees of its "
-                             f"circumference (its axis needs {MIN_COVERAGE:.0f})")
+            raise ValueError(f"datum {f.name}: the scan covers {np.floor(10 * cover) / 10:.1f} "
+                             f"degrees of its circumference (its axis needs "
+                             f"{MIN_COVERAGE:.0f})")
         if turn:
             _, c, a, (lo, hi) = cylinders_zone(X, p0, d0, kind)
             form, name = hi - lo, f"axis of the {what} cylinder"

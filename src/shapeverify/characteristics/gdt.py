@@ -370,9 +370,10 @@ def _coverage_check(X, feat):
     characteristic is then not measured) below :data:`.gdt_zones.MIN_COVERAGE` degrees."""
     cover = angular_coverage(X, feat.center, feat.axis)
     if cover < MIN_COVERAGE:
-        raise ValueError(f"the scan covers {cover:.0f} degrees of the circumference of the "
-                         f"cylinder (a mating cylinder needs {MIN_COVERAGE:.0f}: scan it from "
-                         "more sides)")
+        # rounded down: 239.6 read "covers 240 degrees ... needs 240"
+        raise ValueError(f"the scan covers {np.floor(10 * cover) / 10:.1f} degrees of the "
+                         f"circumference of the cylinder (a mating cylinder needs "
+                         f"{MIN_COVERAGE:.0f}: scan it from more sides)")
 
 
 def _least_material(X, feat, hole: bool) -> float:
