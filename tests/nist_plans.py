@@ -1,6 +1,7 @@
 """A NIST PMI test part's plan and face numbering, for the tests that run part of a plan on an
 independent scan (tests/test_datum_targets_ftc06.py, test_median_plane_ftc06.py,
-test_datum_shift_pattern_nist.py)."""
+test_datum_shift_pattern_nist.py, test_perpendicularity_projected_ftc07.py,
+test_symmetry_ftc10.py)."""
 from __future__ import annotations
 
 from types import SimpleNamespace
@@ -39,3 +40,36 @@ def cached_pmi_plan(path):
     from shapeverify.characteristics.pmi_plan import pmi_plan
 
     return pmi_plan(path, model=cached_model(path, features=True), pmi=cached_pmi(path))
+
+
+def one_tolerance_on_faces(gz, folder, gid: str, faces, deflection: float = 0.01):
+    """One geometric tolerance ``gid`` of a bundled NIST file (``gz``, gunzipped into
+    ``folder``) as a plan aligned by a best fit of the CAD faces ``faces`` (the file's face
+    numbers), with what a test needs to scan those faces independently: ``path``, ``data`` (the
+    plan), ``prep`` (prepared at 1 mm), ``inv`` (the file's face -> the model's) and the
+    tessellation ``V, T, F`` of those faces only (``F``: each triangle's model face)."""
+    import gzip
+    import shutil
+
+    import numpy as np
+    from independent_scans import file_tessellation
+    from model_cache import cached_model, cached_pmi, cached_prepared
+
+    from shapeverify.characteristics.pmi_plan import _face_map, pmi_plan
+
+    path = folder / gz.name[:-3]
+    with gzip.open(gz, "rb") as src, open(path, "wb") as dst:
+        shutil.copyfileobj(src, dst)
+    # the model's features once per code version for the plan and the prepared model's copy
+    # (tests/model_cache.py: bitwise what model_features gives)
+    model, pmi = cached_model(path, features=True), cached_pmi(path)
+    res = pmi_plan(path, model=model, pmi=pmi)
+    inv = {v: k for k, v in _face_map(pmi, model).items()}
+    data = dict(res.data)
+    data["characteristics"] = [c for c in data["characteristics"] if c["pmi"]["id"] == gid]
+    data.pop("unsupported", None)
+    data["alignment"] = {"type": "best_fit", "faces": [f"face:{f}" for f in sorted(faces)]}
+    prep = cached_prepared(path, spacing=1.0, features=True)
+    V, T, F = file_tessellation(path, deflection)
+    keep = np.isin(F, [inv[f] for f in faces])
+    return SimpleNamespace(path=path, data=data, prep=prep, inv=inv, V=V, T=T[keep], F=F[keep])

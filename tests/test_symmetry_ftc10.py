@@ -10,8 +10,6 @@ twice that (brute force: the median points of two planes 0.4 mm off the datum ce
 """
 from __future__ import annotations
 
-import gzip
-import shutil
 from pathlib import Path
 
 import numpy as np
@@ -27,28 +25,13 @@ FACES = {183, 185, 213, 181, 187, 178, 180}
 
 @pytest.fixture(scope="module")
 def ftc10(tmp_path_factory):
-    from independent_scans import file_tessellation, random_points
-    from model_cache import cached_model, cached_pmi, cached_prepared
+    from independent_scans import random_points
+    from nist_plans import one_tolerance_on_faces
 
     from shapeverify.characteristics.plan import load_plan
-    from shapeverify.characteristics.pmi_plan import _face_map, pmi_plan
 
-    path = tmp_path_factory.mktemp("ftc10") / GZ.name[:-3]
-    with gzip.open(GZ, "rb") as src, open(path, "wb") as dst:
-        shutil.copyfileobj(src, dst)
-    # the model's features once per code version for the plan and the prepared model's copy
-    # (tests/model_cache.py: bitwise what model_features gives; each was computing them)
-    model, pmi = cached_model(path, features=True), cached_pmi(path)
-    res = pmi_plan(path, model=model, pmi=pmi)
-    inv = {v: k for k, v in _face_map(pmi, model).items()}
-    data = dict(res.data)
-    data["characteristics"] = [c for c in data["characteristics"] if c["pmi"]["id"] == "GT9"]
-    data.pop("unsupported", None)
-    data["alignment"] = {"type": "best_fit", "faces": [f"face:{f}" for f in sorted(FACES)]}
-    prep = cached_prepared(path, spacing=1.0, features=True)
-    V, T, F = file_tessellation(path, 0.01)
-    keep = np.isin(F, [inv[f] for f in FACES])
-    T, F = T[keep], F[keep]
+    one = one_tolerance_on_faces(GZ, tmp_path_factory.mktemp("ftc10"), "GT9", FACES)
+    data, prep, inv, V, T, F = one.data, one.prep, one.inv, one.V, one.T, one.F
     rng = np.random.default_rng(9)
     P, N, t = random_points(V, T, 0.5, rng, with_triangles=True)
     P = P + rng.normal(0.0, 0.02, len(P))[:, None] * N
