@@ -7,8 +7,9 @@ independent one samples a tessellation).
 ``--against`` runs another version of ``support.py`` beside (e.g. ``git show
 HEAD~1:src/shapeverify/characteristics/support.py > /tmp/old_support.py``).  Prints, per bump
 height, in how many scans the bump's sampled extreme is lost (and the worst kept/sampled ratio),
-and per spike mix how many spikes stay, how many clean points are left out and the largest kept
-|d|.
+per spike mix how many spikes stay, how many clean points are left out and the largest kept
+|d|, and per layer (points over the still-scanned surface: a reflection) how many of its points
+stay.
 """
 from __future__ import annotations
 
@@ -66,6 +67,22 @@ def spikes(rule, seeds):
                f"out, largest kept |d| {worst:.2f}")
 
 
+def layers(rule, seeds):
+    """k points 0.5 mm over a disc of the panel, the surface under them still scanned (a
+    reflection): how many of them stay (a layer is not a defect)."""
+    for k, rad in ((4, 1.5), (8, 2.0), (15, 3.0), (30, 4.0)):
+        kept = 0
+        for seed in range(seeds):
+            rng = np.random.default_rng(300 + seed)
+            feet, d = panel(rng)
+            a, r = rng.uniform(0, 2 * np.pi, k), rad * np.sqrt(rng.uniform(0, 1, k))
+            lp = np.column_stack([SIZE / 2 + r * np.cos(a), SIZE / 2 + r * np.sin(a), np.zeros(k)])
+            n = len(d)
+            feet, d = np.vstack([feet, lp]), np.r_[d, 0.5 + rng.normal(0, NOISE, k)]
+            kept += np.count_nonzero(~rule(feet, d, np.ones(len(d), bool)).unsupported[n:])
+        yield f"layer of {k} points 0.5 mm over a {rad} mm disc: {kept}/{k * seeds} stay"
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--seeds", type=int, default=40)
@@ -81,7 +98,8 @@ def main():
         spec.loader.exec_module(mod)
         rules["against"] = mod.neighbourhood_support
     for name, rule in rules.items():
-        for line in [*bumps(rule, a.seeds), *spikes(rule, a.seeds // 2)]:
+        for line in [*bumps(rule, a.seeds), *spikes(rule, a.seeds // 2),
+                     *layers(rule, a.seeds // 2)]:
             print(f"{name:8s} {line}", flush=True)
 
 
