@@ -211,15 +211,14 @@ def _rescue(cand, pts, d, face, spacing, thr) -> np.ndarray:
     bracket keeps, round by round, and then those not in a :data:`GROUP` of same-sided
     points within 2 :data:`RADIUS` spacings of each other that all pass when they may bracket
     each other (``d``: deviations from the scan's median)."""
+    from ..inspection.regions import linked_components
     from ..measures._grid_kernels import kernel_array, mark_within
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
     from scipy.spatial import cKDTree
 
     held = np.ones(len(pts), bool)
     held[cand] = False
     # a layer over the measured surface (a reflection): the surface is seen beside its points,
-    # within a spacing; a defect replaces the surface there, it is not rescued
+    # within BESIDE spacings; a defect replaces the surface there, it is not rescued
     bulk = np.flatnonzero(held & (np.abs(d) <= thr))
     if bulk.size:
         seen = cKDTree(pts[bulk]).query_ball_point(pts[cand], BESIDE * spacing,
@@ -242,9 +241,7 @@ def _rescue(cand, pts, d, face, spacing, thr) -> np.ndarray:
     pairs = cKDTree(pts[cand]).query_pairs(2.0 * RADIUS * spacing, output_type="ndarray")
     a, b = cand[pairs[:, 0]], cand[pairs[:, 1]]
     pairs = pairs[(np.sign(d[a]) == np.sign(d[b])) & (face[a] == face[b])]
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])),
-                       shape=(cand.size, cand.size))
-    _, label = connected_components(graph, directed=False)
+    _, label = linked_components(cand.size, pairs)
     size = np.bincount(label)
     near = np.bincount(pairs.ravel(), minlength=cand.size)     # same-sided within 2 RADIUS
     most = np.zeros(size.size, np.int64)
@@ -266,10 +263,12 @@ def _unlikely_by_chance(cand, most, pts, d, spacing) -> np.ndarray:
     many scattered at random: ``n P(Poisson(lam) >= most) < ALPHA`` with ``lam`` the expected
     number there.  Among the scattered outliers of a poor scan (10 % of its points) groups form
     by chance and are not taken for a surface."""
-    from scipy.spatial import cKDTree
+    from ..measures._grid_kernels import count_within, kernel_array
     from scipy.stats import poisson
 
-    around = cKDTree(pts).query_ball_point(pts[cand], 2.0 * RADIUS * spacing, return_length=True)
+    around = np.empty(cand.size, np.int64)
+    count_within(kernel_array(pts), kernel_array(pts[cand]), 2.0 * RADIUS * spacing, len(pts),
+                 around)
     side = d[cand] > 0
     n_side = np.where(side, np.count_nonzero(side), np.count_nonzero(~side))
     lam = n_side / len(pts) * float(np.mean(around))
