@@ -54,9 +54,10 @@ def test_the_points_found_on_supplemental_faces_are_those_sampled_there(ftc10):
     found = on_supplemental(prep.model, X, d, near, float(prep.model_spacing), NOISE)
     # no point of the part is taken (the triangle each point was drawn on says where it is)
     assert not (found & ~truth).any()
-    # and the supplemental points within 3 mm of the part, but off it, are found
+    # and the supplemental points within 3 mm of the part, but off it, are found: all of
+    # them (140), those on the curved faces too (133 of 140 by the tangent planes of samples)
     want = truth & near & (np.abs(d) >= 0.3)
-    assert found[want].mean() >= 0.95, (found[want].sum(), want.sum())
+    assert want.sum() > 100 and found[want].all(), (found[want].sum(), want.sum())
 
 
 def test_ftc10_gt10_passes_on_a_perfect_scan_of_the_whole_file(ftc10):
@@ -69,15 +70,10 @@ def test_ftc10_gt10_passes_on_a_perfect_scan_of_the_whole_file(ftc10):
     assert c.measured < 0.5
 
 
-@pytest.mark.parametrize("face", [177, 178, 179, 180])
-def test_ftc10_gt10_still_fails_with_a_bump_on_its_faces(ftc10, face):
-    """A 1 mm bump (6 mm across) in the middle of each of GT10's faces is measured whole:
-    2 max |d| about 2 mm.  The outlier rule once left out most of a bump this steep at this
-    spacing (face 178: 1.21 mm, pass; ``tests/test_steep_small_bump_is_not_an_outlier.py``).
-    Every scan point within 0.3 mm of the face is pushed, those sampled on a supplemental face
-    lying on it too (as on a real part: one surface)."""
-    from shapeverify.characteristics import evaluate_plan
-
+def _bumped(ftc10, face, height):
+    """The scan with a bump ``height cos^2(pi r / 6)`` (6 mm across) in the middle of ``face``:
+    every scan point within 0.3 mm of the face is pushed along its normal, those sampled on a
+    supplemental face lying on it too (as on a real part: one surface)."""
     prep, X, N, truth, plan = ftc10
     cl = prep.closest(X, exact=True)
     on = (np.asarray(cl.face) == face) & (np.abs(np.asarray(cl.distances)) < 0.3)
@@ -87,8 +83,33 @@ def test_ftc10_gt10_still_fails_with_a_bump_on_its_faces(ftc10, face):
     bump = on & (r < 3.0)
     assert bump.sum() >= 15
     Y = X.copy()
-    Y[bump] += (1.0 * np.cos(np.pi * r[bump] / 6.0) ** 2)[:, None] * \
+    Y[bump] += (height * np.cos(np.pi * r[bump] / 6.0) ** 2)[:, None] * \
         np.asarray(cl.normals)[bump]
-    c, = evaluate_plan(prep, Y, plan, init=np.eye(4)).characteristics
+    return Y
+
+
+@pytest.mark.parametrize("face", [177, 178, 179, 180])
+def test_ftc10_gt10_still_fails_with_a_bump_on_its_faces(ftc10, face):
+    """A 1 mm bump (6 mm across) in the middle of each of GT10's faces is measured whole:
+    2 max |d| about 2 mm.  The outlier rule once left out most of a bump this steep at this
+    spacing (face 178: 1.21 mm, pass; ``tests/test_steep_small_bump_is_not_an_outlier.py``)."""
+    from shapeverify.characteristics import evaluate_plan
+
+    prep, X, N, truth, plan = ftc10
+    c, = evaluate_plan(prep, _bumped(ftc10, face, 1.0), plan, init=np.eye(4)).characteristics
     assert c.verdict == "fail", (c.measured, c.details)
     assert c.measured == pytest.approx(2.0, abs=0.12), c.details["excluded"]
+
+
+def test_a_point_on_a_curved_supplemental_face_is_found_beside_a_1_5_mm_bump(ftc10):
+    """A 1.5 mm bump on face 177 read 4.12 mm, not 2 x 1.5: one scan point sampled on a curved
+    supplemental face 2.06 mm off the part was not found (the tangent plane of the nearest
+    sample of those faces is off by up to spacing^2 x curvature / 8 there), and the outlier
+    rescue kept it, within the bump's range.  The exact distance to the supplemental faces
+    finds it."""
+    from shapeverify.characteristics import evaluate_plan
+
+    prep, X, N, truth, plan = ftc10
+    c, = evaluate_plan(prep, _bumped(ftc10, 177, 1.5), plan, init=np.eye(4)).characteristics
+    assert c.verdict == "fail", (c.measured, c.details)
+    assert 2.7 <= c.measured <= 3.3, (c.measured, c.uncertainty, c.details["excluded"])
