@@ -49,7 +49,8 @@ propagated through the characteristic's dependence on the pose: ``g^T C g`` with
 points that make the value: ``s / sqrt(n)`` for means; the hole's edge scatter; a single point's
 noise for extreme values: a zone width taken from the largest of ``n`` deviations carries the
 ``k``-level quantile of the largest of ``n`` normal deviates, ``z_n sigma`` per side,
-:func:`.support.extreme_quantile`, about 5 sigma at 10^5 points).  Verdict: ``pass`` inside
+:func:`.support.extreme_quantile`, about 5 sigma at 10^5 points; flatness takes the noise's
+expected part off its width and keeps only its spread in U, :mod:`.zone_noise`).  Verdict: ``pass`` inside
 ``[lower + U, upper - U]``, ``fail``
 outside ``[lower - U, upper + U]``, else ``undecided`` (:func:`.zones.decide`).  Zone widths
 (profile, flatness, position) have only the upper limit.
@@ -70,6 +71,7 @@ from .holes import measure_hole, plane_basis, position_coverage
 from . import registry
 from .plan import Plan, load_plan
 from .supplemental_points import on_supplemental
+from .zone_noise import corrected_width
 from .support import extreme_quantile
 from .zones import decide, minimum_zone_flatness, worst_verdict, zone_decide
 
@@ -445,12 +447,12 @@ def _flatness(c, S: _Scan, feats, k, on=None, margin=None):
         return _not_measured(c, f"fewer than 3 scan points on {f.id}")
     P = S.X[m]
     width, n = minimum_zone_flatness(P, f.axis)
-    # the zone is set by the extreme points on both sides: the noise part is twice the
-    # k-level quantile of the largest of n noisy deviations (.support.extreme_quantile)
-    zq = extreme_quantile(P.shape[0], k)
-    U = 2.0 * zq * S.noise
+    # the zone is set by the extreme points on both sides: their expected noise is taken off
+    # and its spread is U (.zone_noise)
+    width, U, noise = corrected_width(width, P, n, S.noise, k)
     details = {"feature": f.id, "n": int(m.sum()), "normal": n.tolist(),
-               "definition": "minimum zone", "noise": S.noise, "extreme_quantile": zq,
+               "definition": "minimum zone, less the noise's expected part", "noise": S.noise,
+               **noise,
                "excluded": {**S.excluded(fl),
                             "near_edge": int(np.count_nonzero(S.on(fl) & ~m))}}
     if margin is not None:

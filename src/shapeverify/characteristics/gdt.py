@@ -54,7 +54,9 @@ characteristic's DRF (:meth:`.drf.DRF.apply`) when it names datums.
   DRF and their deviations taken again from the CAD (exact closest points).
 
 Uncertainty (k, ISO 14253-1) of a zone width taken from extreme points: ``2 z_n sigma`` per
-zone (:func:`.support.extreme_quantile`, sigma the scan noise), combined in quadrature with
+zone (:func:`.support.extreme_quantile`, sigma the scan noise; a planar orientation zone
+instead takes the noise's expected part off its width and keeps its spread, :mod:`.zone_noise`),
+combined in quadrature with
 the datum part (``details['u_datums']``): the datum features' fits re-made on simulated noisy
 datums move the frame, which moves the points the value is read from (:mod:`.datum_noise`;
 the translation enters location -- position, profile in a DRF, symmetry -- the turn every
@@ -70,6 +72,7 @@ import numpy as np
 from .alignment import face_indices
 from .datum_noise import datum_u
 from .drf import DatumFeature, fit_drf
+from .zone_noise import corrected_width
 from .evaluate import CharacteristicResult, EvalContext, _not_measured, _profile
 from .gdt_zones import (MIN_COVERAGE, angular_coverage, circles_zone, cylinders_zone,
                         planes_zone, tangent_basis)
@@ -429,13 +432,21 @@ def eval_orientation(c, ctx: EvalContext):
             Xz = X + np.outer(hi - X @ nt, nt)
         width, n, _ = planes_zone(Xz, n0, turns[:2])
         Ud = datum_u(drf, ctx, X, n0[None], floating=True)
-        U = float(np.hypot(2.0 * zq * ctx.S.noise, Ud))
+        noise = {}
+        if c.tangent_plane:
+            U = float(np.hypot(2.0 * zq * ctx.S.noise, Ud))
+        else:       # the extremes' expected noise taken off, its spread in U (.zone_noise)
+            width, u_noise, noise = corrected_width(width, Xz, n, ctx.S.noise, ctx.k)
+            U = float(np.hypot(u_noise, Ud))
         ang = float(np.degrees(np.arccos(np.clip(abs(n0 @ drf.datums[0].direction), 0, 1))))
         return _result(c, ctx, width, U, {"faces": fidx, "n": int(X.shape[0]),
                                           "normal": n.tolist(), "turns": len(turns),
                                           "angle_to_primary_deg": ang,
                                           "definition": "minimum zone, orientation fixed by "
-                                                        "the DRF", "noise": ctx.S.noise,
+                                                        "the DRF" + ("" if c.tangent_plane else
+                                                                     ", less the noise's "
+                                                                     "expected part"),
+                                          "noise": ctx.S.noise, **noise,
                                           "tangent_plane": bool(c.tangent_plane),
                                           "u_datums": Ud,
                                           "excluded": ctx.S.excluded(fidx)}, drf)
