@@ -14,39 +14,23 @@ a bump is ``h cos^2(pi r / 6)`` (6 mm across) along the normal at the middle of 
 from __future__ import annotations
 
 import argparse
-import gzip
 import importlib.util
-import shutil
 import sys
 import time
 from pathlib import Path
 
 import numpy as np
-import yaml
 
 ROOT = Path(__file__).resolve().parents[1]
-FTC10 = ROOT / "tests" / "data" / "nist_extra" / "nist_ftc_10_asme1_ap242-e2.stp.gz"
 NOISE = 0.02
 
 
 def scan(tmp: Path):
     sys.path.insert(0, str(ROOT / "tests"))
-    from independent_scans import file_tessellation, random_points
-    from model_cache import cached_prepared
-    from nist_plans import cached_pmi_plan
+    from nist_plans import ftc10_gt10_scan
 
-    path = tmp / FTC10.name[:-3]
-    with gzip.open(FTC10, "rb") as src, open(path, "wb") as dst:
-        shutil.copyfileobj(src, dst)
-    prep = cached_prepared(path, spacing=1.0, features=True)
-    V, T, F = file_tessellation(path, 0.002)
-    rng = np.random.default_rng(0)
-    P, N, t = random_points(V, T, 1.0, rng, with_triangles=True)
-    X = P + rng.normal(0.0, NOISE, len(P))[:, None] * N
-    data = dict(cached_pmi_plan(path).data)
-    data.pop("unsupported", None)
-    data["characteristics"] = [c for c in data["characteristics"] if c["name"] == "GT10_profile"]
-    return prep, X, np.isin(F[t], prep.model.supplemental), yaml.safe_dump(data)
+    prep, X, _, truth, plan = ftc10_gt10_scan(tmp, NOISE)
+    return prep, X, truth, plan
 
 
 def bumped(prep, X, cl, face, height):

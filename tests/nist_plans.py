@@ -73,3 +73,34 @@ def one_tolerance_on_faces(gz, folder, gid: str, faces, deflection: float = 0.01
     V, T, F = file_tessellation(path, deflection)
     keep = np.isin(F, [inv[f] for f in faces])
     return SimpleNamespace(path=path, data=data, prep=prep, inv=inv, V=V, T=T[keep], F=F[keep])
+
+
+def ftc10_gt10_scan(folder, noise: float = 0.02):
+    """NIST FTC 10 (bundled, gunzipped into ``folder``) scanned whole as an independent sampler
+    scans it -- OpenCASCADE's tessellation of every face of the file at 0.002 mm, 1 point/mm^2
+    at random (seed 0), ``noise`` along the normal -- and its plan cut to the profile GT10:
+    ``(prep, X, N, on_supplemental, plan_yaml)`` (``on_supplemental``: the points drawn on the
+    file's supplemental faces).  For tests/test_scan_points_on_supplemental_geometry.py and
+    benchmarks/check_supplemental_points.py."""
+    import gzip
+    import shutil
+    from pathlib import Path
+
+    import numpy as np
+    import yaml
+    from independent_scans import file_tessellation, random_points
+    from model_cache import cached_prepared
+
+    gz = Path(__file__).parent / "data" / "nist_extra" / "nist_ftc_10_asme1_ap242-e2.stp.gz"
+    path = folder / gz.name[:-3]
+    with gzip.open(gz, "rb") as src, open(path, "wb") as dst:
+        shutil.copyfileobj(src, dst)
+    prep = cached_prepared(path, spacing=1.0, features=True)
+    V, T, F = file_tessellation(path, 0.002)
+    rng = np.random.default_rng(0)
+    P, N, t = random_points(V, T, 1.0, rng, with_triangles=True)
+    X = P + rng.normal(0.0, noise, len(P))[:, None] * N
+    data = dict(cached_pmi_plan(path).data)
+    data.pop("unsupported", None)
+    data["characteristics"] = [c for c in data["characteristics"] if c["name"] == "GT10_profile"]
+    return prep, X, N, np.isin(F[t], prep.model.supplemental), yaml.safe_dump(data)

@@ -9,38 +9,20 @@ sampler makes it) has points on them; the planned profile GT10 (1.5 mm to A|B|C,
 """
 from __future__ import annotations
 
-import gzip
-import shutil
-from pathlib import Path
 
 import numpy as np
 import pytest
-import yaml
 
 pytestmark = pytest.mark.slow           # FTC 10's import, features and plan (cached per run)
 
-FTC10 = Path(__file__).parent / "data" / "nist_extra" / "nist_ftc_10_asme1_ap242-e2.stp.gz"
 NOISE = 0.02
 
 
 @pytest.fixture(scope="module")
 def ftc10(tmp_path_factory):
-    from independent_scans import file_tessellation, random_points
-    from model_cache import cached_prepared
-    from nist_plans import cached_pmi_plan
+    from nist_plans import ftc10_gt10_scan
 
-    path = tmp_path_factory.mktemp("ftc10") / FTC10.name[:-3]
-    with gzip.open(FTC10, "rb") as src, open(path, "wb") as dst:
-        shutil.copyfileobj(src, dst)
-    prep = cached_prepared(path, spacing=1.0, features=True)
-    V, T, F = file_tessellation(path, 0.002)
-    rng = np.random.default_rng(0)
-    P, N, t = random_points(V, T, 1.0, rng, with_triangles=True)
-    X = P + rng.normal(0.0, NOISE, len(P))[:, None] * N
-    data = dict(cached_pmi_plan(path).data)
-    data.pop("unsupported", None)
-    data["characteristics"] = [c for c in data["characteristics"] if c["name"] == "GT10_profile"]
-    return prep, X, N, np.isin(F[t], prep.model.supplemental), yaml.safe_dump(data)
+    return ftc10_gt10_scan(tmp_path_factory.mktemp("ftc10"), NOISE)
 
 
 def test_the_points_found_on_supplemental_faces_are_those_sampled_there(ftc10):
