@@ -21,9 +21,12 @@ corrected) and only its uncertainty stays:
    sigma)`` over the points within :data:`WINDOW` sigma of ``max s`` (all of a flat face, a
    few around a bump's top), integrated for the mean and the variance; the bias of a side is
    that mean less ``max s``; the same for the lowest side;
-3. **value** = width - both biases.  A side whose measured extreme stands apart from the
-   fitted surface plus noise (above the ``1 - APART`` quantile of its expected extreme: a sharp
-   feature the fits flatten, a small bump's top) is not corrected;
+3. **value** = width - both biases, but not below the width of the fitted surface (which the
+   fits' own noise only widens: on a small flat face the expected noise can take all of the
+   width, 36 of 200 faces of 40 points read below 0 without it).  A side whose measured
+   extreme stands apart from the fitted surface plus noise (above the ``1 - APART`` quantile
+   of its expected extreme: a sharp feature the fits flatten, a small bump's top) is not
+   corrected;
 4. **U** (k) = ``k sqrt(var_top + var_bottom)`` (the spread of the two extremes) + ``2 z
    sigma_s`` (``z`` the k-level extreme quantile of the competing points, ``sigma_s`` the local
    fits' noise: the fitted surface's own noise flattens the competition, so the correction is
@@ -39,12 +42,12 @@ the 50 scans ``|error| <= U``):
 =========================== ================ ================ ====== =======
 surface                     raw error        corrected error  U      covered
 =========================== ================ ================ ====== =======
-flat                        +0.148 +- 0.008  +0.031 +- 0.009  0.054  50
-tilt 0.2 deg                +0.098 +- 0.012  +0.016 +- 0.014  0.058  50
+flat                        +0.148 +- 0.008  +0.036 +- 0.006  0.054  50
+tilt 0.2 deg                +0.098 +- 0.012  +0.024 +- 0.009  0.058  50
 bump 0.3 mm, 6 mm across    +0.085 +- 0.020  +0.026 +- 0.020  0.077  50
-bump 0.1 mm, 3 mm across    +0.091 +- 0.018  -0.016 +- 0.032  0.065  47
+bump 0.1 mm, 3 mm across    +0.091 +- 0.018  -0.014 +- 0.032  0.065  48
 dent 0.1 mm, 10 mm across   +0.094 +- 0.014  +0.009 +- 0.020  0.081  50
-wave 0.1 mm over 40 mm      +0.126 +- 0.010  +0.018 +- 0.009  0.059  50
+wave 0.1 mm over 40 mm      +0.126 +- 0.010  +0.021 +- 0.007  0.059  50
 =========================== ================ ================ ====== =======
 
 The old U (``2 z_n sigma``) was 0.177 for all of them; at 0.05 mm noise, at 0.7 mm and at
@@ -88,6 +91,8 @@ class NoisePart:
     sigma : the zone's own noise (mm), from the local fits' residuals
     apart : per side, whether its measured extreme stands apart from the fitted surface (not
         corrected)
+    fitted_zone : the width of the fitted surface (mm): larger than the true one by the fits'
+        own noise, the value's floor
     """
 
     bias: float
@@ -96,11 +101,13 @@ class NoisePart:
     fit_sigma: float
     sigma: float
     apart: tuple = ()
+    fitted_zone: float = 0.0
 
     def to_dict(self) -> dict:
         return {"noise_bias": self.bias, "u_noise": self.u,
                 "competitors": list(self.competitors), "fit_sigma": self.fit_sigma,
                 "zone_noise": self.sigma, "extreme_apart": list(self.apart),
+                "fitted_zone": self.fitted_zone,
                 "fit_neighbours": NEIGHBOURS,
                 "rule": "width less the expected noise of its extremes (zone_noise.py)"}
 
@@ -154,7 +161,8 @@ def noise_part(T, v, sigma: float, k: float = 2.0) -> NoisePart:
     s_fit = max(fit_sig)
     zc = extreme_quantile(max(max(comps), 1), k)
     u = k * float(np.sqrt(sum(variances))) + 2.0 * zc * s_fit + sum(over)
-    return NoisePart(bias, float(u), tuple(comps), float(s_fit), float(sigma), tuple(apart))
+    return NoisePart(bias, float(u), tuple(comps), float(s_fit), float(sigma), tuple(apart),
+                     float(s.max() - s.min()))
 
 
 def _fitted(T, v, sigma, k):
@@ -177,15 +185,18 @@ def _fitted(T, v, sigma, k):
 
 def corrected_width(width: float, X, normal, sigma: float, k: float = 2.0):
     """``(value, u_noise, details)``: ``width``, the zone of points ``X`` across the unit
-    ``normal`` (mm), less its expected noise part (never below 0: a flat face's noise can take
-    all of it), the noise's expanded uncertainty, and the details a result records
-    (``zone_of_points``: the width of the points as measured)."""
+    ``normal`` (mm), less its expected noise part -- but not below the width of the fitted
+    surface, which the fits' own noise only widens (on a small flat face the noise's expected
+    part can take all of the width: 36 of 200 faces of 40 points read below 0) -- the noise's
+    expanded uncertainty, and the details a result records (``zone_of_points``: the width of
+    the points as measured)."""
     from .gdt_zones import tangent_basis
 
     X = np.asarray(X, np.float64)
     normal = np.asarray(normal, np.float64)
     p = noise_part(X @ tangent_basis(normal).T, X @ normal, sigma, k)
-    return max(float(width) - p.bias, 0.0), p.u, {"zone_of_points": float(width), **p.to_dict()}
+    value = max(float(width) - p.bias, p.fitted_zone)
+    return value, p.u, {"zone_of_points": float(width), **p.to_dict()}
 
 
 def _local_fit(T, w, idx):
