@@ -364,9 +364,13 @@ def test_cylindricity_of_the_boss_equals_slsqp_on_its_points(gdt_ctx):
     ctx, res = gdt_ctx
     X, _ = _cylinder_points(ctx.S.X[_on(ctx, [3])], ctx.feats[3])
     assert X.shape[0] == res["CYL"].details["n"]
-    assert res["CYL"].measured == pytest.approx(
+    d = res["CYL"].details
+    assert d["zone_of_points"] == pytest.approx(
         _slsqp_cylinder_at(X, np.array([75.0, 58.0, 10.0]), np.array([0, 0, 1.0]), 8.0),
         abs=TOL)
+    # the value is the points' zone less the noise's expected part (zone_noise.py)
+    assert res["CYL"].measured == pytest.approx(
+        max(d["zone_of_points"] - d["noise_bias"], d["fitted_zone"]), abs=1e-12)
 
 
 @pytest.mark.slow
@@ -383,7 +387,13 @@ def test_circularity_of_the_boss_equals_enumeration_in_its_sections(gdt_ctx):
     B = tangent_basis(f.axis)
     vals = [circles_zone((X[i] - f.center) @ B.T, np.zeros(2))[0] for i in _sections(h)
             if i.size >= 6]
-    assert res["CIRC"].measured == pytest.approx(max(vals), abs=1e-12)
+    d = res["CIRC"].details
+    assert d["zone_of_points"] == pytest.approx(max(vals), abs=1e-12)
+    assert d["sections"] == pytest.approx(vals, abs=1e-12)
+    # the value: the largest section's zone less its noise's expected part (zone_noise.py)
+    j = d["section"]
+    assert res["CIRC"].measured == pytest.approx(max(vals[j] - d["noise_bias"], d["fitted_zone"]), abs=1e-12)
+    assert res["CIRC"].measured == pytest.approx(max(d["sections_corrected"]), abs=1e-12)
     idx = _sections(h)[4]
     Q = ((X[idx] - f.center) @ B.T)
     Q = Q[np.argsort(np.arctan2(Q[:, 1], Q[:, 0]))][:: max(1, idx.size // 12)][:12]
@@ -450,8 +460,13 @@ def test_straightness_of_the_base_line_elements_equals_a_scan_of_the_angle(gdt_c
             vals.append(_brute_one_turn(
                 lambda t: np.ptp(Y @ (np.cos(t) * np.array([0, 0, 1.0]) + np.sin(t) * u)),
                 -0.01, 0.01))
-    assert r.measured == pytest.approx(max(vals), abs=TOL)
+    assert r.details["zone_of_points"] == pytest.approx(max(vals), abs=TOL)
     assert r.details["lines"] == pytest.approx(vals, abs=TOL)
+    # the value: the largest line's zone less its noise's expected part (zone_noise.py)
+    j = r.details["line"]
+    assert r.measured == pytest.approx(
+        max(r.details["lines"][j] - r.details["noise_bias"],
+            r.details["fitted_zone"]), abs=1e-12)
 
 
 @pytest.mark.slow

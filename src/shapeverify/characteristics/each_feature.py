@@ -33,6 +33,9 @@ def each_feature(evaluate, c, ctx):
                "verdict": r.verdict}
         if "n" in r.details:
             row["n"] = r.details["n"]
+        for key in ("zone_of_points", "noise_bias", "fitted_zone"):     # a zone less its noise (.zone_noise)
+            if key in r.details:
+                row[key] = r.details[key]
         if r.measured is None:
             row["reason"] = r.details.get("reason")
         rows.append(row)

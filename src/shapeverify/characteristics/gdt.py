@@ -54,9 +54,13 @@ characteristic's DRF (:meth:`.drf.DRF.apply`) when it names datums.
   DRF and their deviations taken again from the CAD (exact closest points).
 
 Uncertainty (k, ISO 14253-1) of a zone width taken from extreme points: ``2 z_n sigma`` per
-zone (:func:`.support.extreme_quantile`, sigma the scan noise; a planar orientation zone
-instead takes the noise's expected part off its width and keeps its spread, :mod:`.zone_noise`),
-combined in quadrature with
+zone (:func:`.support.extreme_quantile`, sigma the scan noise) where the zone is one-sided or
+about a nominal (profile, position); a two-sided zone read from extreme points -- a planar
+orientation zone, circularity and cylindricity (radii from the zone's centre or axis over
+``(R theta, h)``, :func:`.zone_noise.cylinder_coords`), straightness of line elements, circular
+and total runout on cylinders or on faces square to the axis -- instead takes the noise's
+expected part off its width and keeps its spread (:mod:`.zone_noise`; ``zone_of_points``: the
+width of the points as read), combined in quadrature with
 the datum part (``details['u_datums']``): the datum features' fits re-made on simulated noisy
 datums move the frame, which moves the points the value is read from (:mod:`.datum_noise`;
 the translation enters location -- position, profile in a DRF, symmetry -- the turn every
@@ -72,7 +76,7 @@ import numpy as np
 from .alignment import face_indices
 from .datum_noise import datum_u
 from .drf import DatumFeature, fit_drf
-from .zone_noise import corrected_width
+from .zone_noise import corrected_spread, corrected_width, cylinder_coords
 from .evaluate import CharacteristicResult, EvalContext, _not_measured, _profile
 from .gdt_zones import (MIN_COVERAGE, angular_coverage, circles_zone, cylinders_zone,
                         planes_zone, tangent_basis)
@@ -515,12 +519,13 @@ def _median_plane_orientation(c, ctx: EvalContext, fidx, drf):
     turns = [np.cross(w, n0) for w in drf.free_rotations()]
     turns = [t for t in turns if np.linalg.norm(t) > 1e-9]
     width, n, _ = planes_zone(M, n0, turns[:2])
-    zq = extreme_quantile(max(M.shape[0], 2), ctx.k)
     Ud = datum_u(drf, ctx, M, n0[None], floating=True)
     # a median point's height is the mean of a scan point's and the other side's interpolated
     # one: its noise is at most the scan's (sigma sqrt(1/4 + 1/4) when the interpolation
-    # carries a point's full noise); the scan's sigma is taken (conservative)
-    U = float(np.hypot(2.0 * zq * ctx.S.noise, Ud))
+    # carries a point's full noise); the zone's own noise (from the local fits' residuals,
+    # .zone_noise) sets the expected part taken off the width, the scan's sigma when too few
+    width, u_noise, noise = corrected_width(width, M, n, ctx.S.noise, ctx.k)
+    U = float(np.hypot(u_noise, Ud))
     ang = float(np.degrees(np.arccos(np.clip(abs(n0 @ drf.datums[0].direction), 0, 1))))
     return _result(c, ctx, width, U, {"faces": fidx, "sides": [one, two], "u_datums": Ud,
                                       "n": int(M.shape[0]), "n_sides": [len(X1), len(X2)],
@@ -528,7 +533,8 @@ def _median_plane_orientation(c, ctx: EvalContext, fidx, drf):
                                       "angle_to_primary_deg": ang,
                                       "definition": "minimum zone of the derived median "
                                                     "plane's points, orientation fixed by the "
-                                                    "DRF", "noise": ctx.S.noise,
+                                                    "DRF, less the noise's expected part",
+                                      "noise": ctx.S.noise, **noise,
                                       "excluded": ctx.S.excluded(fidx)}, drf)
 
 
@@ -848,13 +854,43 @@ def eval_runout(c, ctx: EvalContext):
     total = float(d.max() - d.min())
     w = max(float(np.ptp(h)), float(np.ptp(r))) / 10.0 + 1e-9
     cell = np.floor(h / w).astype(np.int64) * 1_000_003 + np.floor(r / w).astype(np.int64)
-    circ = 0.0
-    for k in np.unique(cell):
-        dk = d[cell == k]
-        if dk.size >= 2:
-            circ = max(circ, float(dk.max() - dk.min()))
-    value = circ if c.type == "circular_runout" else total
-    zq = extreme_quantile(X.shape[0], ctx.k)
+    # the noise's expected part of each range taken off (.zone_noise) over the surface's
+    # coordinates: (R theta, h) on cylinders and cones, the plane's own on faces square to
+    # the axis; faces of both kinds together keep the old rule (2 z_n sigma, no correction)
+    kinds = {ctx.feats[i].kind for i in fidx}
+    T = per = None
+    if kinds <= {"cylinder", "cone"}:
+        T, _, per = cylinder_coords(np.asarray(foot.points, float), p0, a0)
+    elif kinds == {"plane"}:
+        T = (np.asarray(foot.points, float) - p0) @ tangent_basis(a0).T
+
+    def zone(sel):
+        dk = d[sel]
+        if T is None:
+            raw = float(dk.max() - dk.min())
+            return raw, 2.0 * extreme_quantile(d.size, ctx.k) * ctx.S.noise, {}
+        return corrected_spread(float(dk.max() - dk.min()), T[sel], dk, ctx.S.noise, ctx.k,
+                                per)
+
+    if c.type == "circular_runout":
+        rows, circ = [], 0.0
+        for key in np.unique(cell):
+            sel = cell == key
+            if np.count_nonzero(sel) >= 2:
+                rows.append(zone(sel))
+                circ = max(circ, float(np.ptp(d[sel])))
+        j = int(np.argmax([z[0] for z in rows]))
+        value, u_noise, noise = rows[j]
+        noise = {**noise, "zone_of_points": circ,
+                 "circles_corrected": [z[0] for z in rows]}
+    else:
+        circ = 0.0
+        for key in np.unique(cell):
+            dk = d[cell == key]
+            if dk.size >= 2:
+                circ = max(circ, float(dk.max() - dk.min()))
+        value, u_noise, noise = zone(np.ones(d.size, bool))
+        noise = {**noise, "zone_of_points": total}
     # the datum axis's own noise: a mating cylinder rests on extreme points (the Gumbel
     # spread of :func:`_extremes_sd`); it shifts and -- when no plane before it sets its direction --
     # tilts the axis, which the indicator reads at each point along the surface normal
@@ -865,12 +901,14 @@ def eval_runout(c, ctx: EvalContext):
         Ud = runout_datum_u(hd.size, ctx.S.noise, ctx.k, np.asarray(foot.points, float),
                             np.asarray(foot.normals, float), mid, a0,
                             0.0 if tilt_fixed else float(np.ptp(hd)))
-    return _result(c, ctx, value, float(np.hypot(2.0 * zq * ctx.S.noise, Ud)),
+    return _result(c, ctx, value, float(np.hypot(u_noise, Ud)),
                    {"faces": fidx, "n": int(X.shape[0]), "circular": circ, "total": total,
                     "axis_point": p0.tolist(), "axis": a0.tolist(),
                     "definition": "range of the normal deviations from the CAD surface of "
-                                  "revolution, per circle and overall",
-                    "u_datum_axis": Ud,
+                                  "revolution, per circle and overall" +
+                                  (", less the noise's expected part" if noise.get("rule")
+                                   else ""),
+                    "u_datum_axis": Ud, **noise,
                     "noise": ctx.S.noise, "excluded": ctx.S.excluded(fidx)}, drf)
 
 
@@ -909,6 +947,31 @@ def _sections(h, n: int = 10):
     return [np.flatnonzero((h >= edges[i]) & (h < edges[i + 1])) for i in range(n)]
 
 
+def circularity_zone(X, center, axis, noise: float, k: float = 2.0):
+    """Circularity of cylinder points ``X`` (CAD axis through ``center`` along ``axis``): the
+    largest over the :func:`_sections` (6 points or more) of the concentric circles' zone,
+    each less its noise's expected part (:mod:`.zone_noise`: the radial distances from the
+    section's zone centre over ``(R theta, h)``, theta wrapping).  ``(value, u_noise,
+    details)``, ``None`` with no section; ``details['sections']``: the zones of the points,
+    ``zone_of_points`` their largest."""
+    axis = np.asarray(axis, float) / np.linalg.norm(axis)
+    B = tangent_basis(axis)
+    h = (X - center) @ axis
+    raw, rows = [], []
+    for idx in _sections(h):
+        if idx.size >= 6:
+            w, c2, _ = circles_zone((X[idx] - center) @ B.T, np.zeros(2))
+            T, rho, per = cylinder_coords(X[idx], center + c2 @ B, axis)
+            raw.append(float(w))
+            rows.append(corrected_spread(w, T, rho, noise, k, per))
+    if not rows:
+        return None
+    j = int(np.argmax([r[0] for r in rows]))
+    value, u, det = rows[j]
+    return value, u, {**det, "zone_of_points": float(max(raw)), "sections": raw,
+                      "sections_corrected": [r[0] for r in rows], "section": j}
+
+
 def eval_circularity(c, ctx: EvalContext):
     fidx = _faces(c, ctx)
     X, _, _ = _frame_points(c, ctx, fidx)
@@ -916,19 +979,24 @@ def eval_circularity(c, ctx: EvalContext):
     if f.kind != "cylinder":
         raise ValueError(f"{c.name}: circularity of a {f.kind} face (give cylinder faces)")
     X, _ = _cylinder_points(X, f)
-    B = tangent_basis(f.axis)
-    h = (X - f.center) @ f.axis
-    vals = []
-    for idx in _sections(h):
-        if idx.size >= 6:
-            vals.append(circles_zone((X[idx] - f.center) @ B.T, np.zeros(2))[0])
-    if not vals:
+    z = circularity_zone(X, f.center, f.axis, ctx.S.noise, ctx.k)
+    if z is None:
         return _not_measured(c, "no cross-section with 6 scan points")
-    value = float(max(vals))
-    zq = extreme_quantile(max(X.shape[0] // max(len(vals), 1), 2), ctx.k)
-    return _result(c, ctx, value, 2.0 * zq * ctx.S.noise,
-                   {"faces": fidx, "sections": vals, "n": int(X.shape[0]),
-                    "noise": ctx.S.noise})
+    value, U, det = z
+    return _result(c, ctx, value, U,
+                   {"faces": fidx, "n": int(X.shape[0]), "noise": ctx.S.noise,
+                    "definition": "largest cross-section's concentric circles zone, less the "
+                                  "noise's expected part", **det})
+
+
+def cylindricity_zone(X, center, axis, noise: float, k: float = 2.0):
+    """Cylindricity of points ``X`` (start: the CAD axis): the coaxial cylinders' zone less
+    its noise's expected part (:mod:`.zone_noise`, the radial distances from the zone's axis
+    over ``(R theta, h)``).  ``(value, u_noise, details)``."""
+    w, p, a, _ = cylinders_zone(X, center, axis, "zone")
+    T, rho, per = cylinder_coords(X, p, a)
+    value, u, det = corrected_spread(w, T, rho, noise, k, per)
+    return value, u, {**det, "axis": a.tolist(), "point": p.tolist()}
 
 
 def eval_cylindricity(c, ctx: EvalContext):
@@ -939,11 +1007,11 @@ def eval_cylindricity(c, ctx: EvalContext):
         return _not_measured(c, f"cylindricity needs cylinder faces with 8 points "
                                 f"({f.kind}, {X.shape[0]} points)")
     X, _ = _cylinder_points(X, f)
-    value, p, a, _ = cylinders_zone(X, f.center, f.axis, "zone")
-    zq = extreme_quantile(X.shape[0], ctx.k)
-    return _result(c, ctx, value, 2.0 * zq * ctx.S.noise,
-                   {"faces": fidx, "n": int(X.shape[0]), "axis": a.tolist(),
-                    "point": p.tolist(), "noise": ctx.S.noise})
+    value, U, det = cylindricity_zone(X, f.center, f.axis, ctx.S.noise, ctx.k)
+    return _result(c, ctx, value, U,
+                   {"faces": fidx, "n": int(X.shape[0]), "noise": ctx.S.noise,
+                    "definition": "coaxial cylinders zone, less the noise's expected part",
+                    **det})
 
 
 def eval_straightness(c, ctx: EvalContext):
@@ -980,14 +1048,23 @@ def eval_straightness(c, ctx: EvalContext):
         _, _, vt = np.linalg.svd((X - X.mean(0)) @ B.T, full_matrices=False)
         u = vt[0] @ B
     v = np.cross(n0, u)
-    vals = []
+    vals, rows = [], []
     for idx in _sections(X @ v):
         if idx.size >= 3:
-            vals.append(planes_zone(X[idx], n0, [u])[0])
+            w, nz, _ = planes_zone(X[idx], n0, [u])
+            vals.append(float(w))
+            # the line element's band of points, its noise's expected part taken off
+            # (.zone_noise: over the face's coordinates, the band a tenth of it across)
+            rows.append(corrected_width(w, X[idx], nz, ctx.S.noise, ctx.k))
     if not vals:
         return _not_measured(c, "no line element with 3 scan points")
-    return _result(c, ctx, float(max(vals)), 2.0 * zq * ctx.S.noise,
-                   {"faces": fidx, "direction": u.tolist(), "lines": vals})
+    j = int(np.argmax([r[0] for r in rows]))
+    value, U, noise = rows[j]
+    return _result(c, ctx, value, U,
+                   {"faces": fidx, "direction": u.tolist(), "lines": vals,
+                    **noise, "zone_of_points": float(max(vals)),
+                    "lines_corrected": [r[0] for r in rows], "line": j,
+                    "noise": ctx.S.noise})
 
 
 def line_element_zone(t, d) -> float:
@@ -1031,10 +1108,14 @@ def _straightness_of_line(c, ctx: EvalContext, fidx):
     if t.size < 3 or np.ptp(t) < 0.5 * L:
         return _not_measured(c, f"{t.size} scan points on the line element (at least 3 over "
                                 "half its length)")
-    value = line_element_zone(t, d)
-    zq = extreme_quantile(max(t.size, 2), ctx.k)
-    return _result(c, ctx, value, 2.0 * zq * ctx.S.noise,
-                   {"faces": fidx, "n": int(t.size), "through": at.tolist(),
+    # the band's points along the line (t) and across it in the face (q.s), their deviations
+    # (d): the zone of two lines in (t, d) is the planes zone of these turned about the
+    # across direction only; its noise's expected part is taken off (.zone_noise)
+    P = np.column_stack([t, q[sel] @ s, d])
+    width, nz, _ = planes_zone(P, [0.0, 0.0, 1.0], [[1.0, 0.0, 0.0]])
+    value, U, noise = corrected_width(width, P, nz, ctx.S.noise, ctx.k)
+    return _result(c, ctx, value, U,
+                   {"faces": fidx, "n": int(t.size), "through": at.tolist(), **noise,
                     "direction": u.tolist(), "section_normal": s.tolist(), "band": band,
                     "length": L, "span": float(np.ptp(t)), "noise": ctx.S.noise,
                     "definition": "minimum zone of two parallel lines in the section plane "

@@ -63,7 +63,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["NoisePart", "noise_part", "corrected_width", "NEIGHBOURS", "WINDOW"]
+__all__ = ["NoisePart", "noise_part", "corrected_width", "corrected_spread", "cylinder_coords",
+           "NEIGHBOURS", "WINDOW"]
 
 #: neighbours of each local linear fit (the point included)
 NEIGHBOURS = 32
@@ -112,11 +113,13 @@ class NoisePart:
                 "rule": "width less the expected noise of its extremes (zone_noise.py)"}
 
 
-def noise_part(T, v, sigma: float, k: float = 2.0) -> NoisePart:
+def noise_part(T, v, sigma: float, k: float = 2.0, period=None) -> NoisePart:
     """The noise part of the width ``max v - min v`` of heights ``v`` (mm) of points at
     surface coordinates ``T`` ((N, 2), mm: across a plane zone's normal; arc length and
     height on a cylinder) (module docstring).  ``sigma``: the scan's noise (mm); NaN or 0, or
-    fewer points than a fit needs: no correction, ``u = 2 z_n sigma`` as before.
+    fewer points than a fit needs: no correction, ``u = 2 z_n sigma`` as before.  ``period``:
+    the first coordinate wraps with this period (mm: ``2 pi r`` for the arc length on a
+    circle), so a point near ``theta = 0`` has its neighbours across the seam.
 
     >>> rng = np.random.default_rng(0)
     >>> T = np.column_stack([rng.uniform(0, 100, 5000), rng.uniform(0, 50, 5000)])
@@ -135,9 +138,9 @@ def noise_part(T, v, sigma: float, k: float = 2.0) -> NoisePart:
         u = 2.0 * extreme_quantile(max(n, 2), k) * (sigma if np.isfinite(sigma) else 0.0)
         return NoisePart(0.0, float(u), (n, n), float("nan"), float(sigma))
     sig0 = sigma
-    s, g, sigma = _fitted(T, v, sigma, k)
+    s, g, sigma = _fitted(T, v, sigma, k, period)
     if sigma > sig0:     # a rougher zone than the scan: its wider window fitted
-        s, g, sigma = _fitted(T, v, sigma, k)
+        s, g, sigma = _fitted(T, v, sigma, k, period)
     biases, variances, comps, fit_sig = [], [], [], []
     apart, over = [], []
     for h, measured in ((s, v.max()), (-s, -v.min())):
@@ -165,7 +168,7 @@ def noise_part(T, v, sigma: float, k: float = 2.0) -> NoisePart:
                      float(s.max() - s.min()))
 
 
-def _fitted(T, v, sigma, k):
+def _fitted(T, v, sigma, k, period=None):
     """The local fits of the points within reach of either extreme, and the zone's own noise:
     ``1.4826 median |v - s| / sqrt(1 - g)`` over them (a wall seen obliquely carries less of a
     scanner's line-of-sight noise across its normal than the scan's sigma says; a rough face
@@ -174,7 +177,7 @@ def _fitted(T, v, sigma, k):
 
     reach = (WINDOW + 2.0 * extreme_quantile(v.size, k)) * sigma
     near = np.flatnonzero((v >= v.max() - reach) | (v <= v.min() + reach))
-    s, g = _local_fit(T, v, near)
+    s, g = _local_fit(T, v, near, period)
     if near.size >= MIN_OWN:
         r = (v[near] - s) / np.sqrt(np.clip(1.0 - g, 1e-3, None))
         own = 1.4826 * float(np.median(np.abs(r)))
@@ -194,25 +197,61 @@ def corrected_width(width: float, X, normal, sigma: float, k: float = 2.0):
 
     X = np.asarray(X, np.float64)
     normal = np.asarray(normal, np.float64)
-    p = noise_part(X @ tangent_basis(normal).T, X @ normal, sigma, k)
+    return corrected_spread(width, X @ tangent_basis(normal).T, X @ normal, sigma, k)
+
+
+def corrected_spread(width: float, T, v, sigma: float, k: float = 2.0, period=None):
+    """``(value, u_noise, details)`` as :func:`corrected_width`, the heights ``v`` (mm; their
+    spread is the zone: radial distances from a zone's axis, deviations across a line) and
+    the surface coordinates ``T`` given (:func:`noise_part`; ``period``: the first one wraps,
+    :func:`cylinder_coords`)."""
+    p = noise_part(T, v, sigma, k, period)
     value = max(float(width) - p.bias, p.fitted_zone)
     return value, p.u, {"zone_of_points": float(width), **p.to_dict()}
 
 
-def _local_fit(T, w, idx):
+def cylinder_coords(X, point, axis):
+    """``(T, rho, period)`` of points ``X`` about the axis through ``point`` along ``axis``:
+    surface coordinates ``T = (R theta, h)`` (``R`` the median radius, ``h`` along the axis),
+    the radial distances ``rho`` (the heights of a circularity, cylindricity or runout zone on
+    a cylinder) and the arc's period ``2 pi R`` (``theta`` wraps: :func:`noise_part`)."""
+    from .gdt_zones import tangent_basis
+
+    X = np.asarray(X, np.float64)
+    a = np.asarray(axis, np.float64) / np.linalg.norm(axis)
+    q = X - np.asarray(point, np.float64)
+    h = q @ a
+    e1, e2 = tangent_basis(a)
+    x, y = q @ e1, q @ e2
+    rho = np.hypot(x, y)
+    R = float(np.median(rho)) if rho.size else 0.0
+    theta = np.mod(np.arctan2(y, x), 2.0 * np.pi)
+    return np.column_stack([R * theta, h]), rho, 2.0 * np.pi * R
+
+
+def _local_fit(T, w, idx, period=None):
     """Heights ``w[idx]`` replaced by the intercept of a least-squares plane ``w ~ a + b.t``
     over the :data:`NEIGHBOURS` nearest points (``t``: surface coordinates ``T``, centred on
-    the point), and the intercept's variance factor ``(A^T A)^-1_00``."""
+    the point), and the intercept's variance factor ``(A^T A)^-1_00``.  ``period``: the first
+    coordinate wraps (the points are searched among copies shifted by one period each way)."""
     from scipy.spatial import cKDTree
 
-    tree = cKDTree(T)
+    if period is not None and period > 0:
+        shift = np.array([period, 0.0])
+        Ts = np.concatenate([T, T + shift, T - shift])
+        tree = cKDTree(Ts)
+        w = np.concatenate([w, w, w])
+        T, Tq = Ts, T
+    else:
+        tree = cKDTree(T)
+        Tq = T
     s = np.empty(idx.size)
     g = np.empty(idx.size)
     for a in range(0, idx.size, CHUNK):
         part = idx[a:a + CHUNK]
-        _, nb = tree.query(T[part], k=NEIGHBOURS)
-        dx = T[nb, 0] - T[part, 0][:, None]
-        dy = T[nb, 1] - T[part, 1][:, None]
+        _, nb = tree.query(Tq[part], k=NEIGHBOURS)
+        dx = T[nb, 0] - Tq[part, 0][:, None]
+        dy = T[nb, 1] - Tq[part, 1][:, None]
         wn = w[nb]
         # the normal equations of [1, dx, dy] (a degenerate, collinear neighbourhood gets a
         # tiny ridge on its slopes), solved for the intercept by Cramer's rule
