@@ -823,7 +823,10 @@ def eval_runout(c, ctx: EvalContext):
     each circle (points whose CAD feet share a cell of the meridian plane, a tenth of the
     face's extent) -- its maximum -- and over all points.  On a cylinder that is the radial
     range, on a face square to the axis the axial range; every face must be a surface of
-    revolution about the datum axis."""
+    revolution about the datum axis.  Each range is taken less its noise's expected part
+    (:mod:`.zone_noise` over ``(R theta, h)`` on cylinders and cones, the plane's coordinates on
+    faces square to the axis; both kinds at once: the old ``2 z_n sigma`` in U, no correction);
+    ``zone_of_points``: the range of the points."""
     fidx = _faces(c, ctx)
     X, m, drf = _frame_points(c, ctx, fidx)
     nom = None                          # the datum axis's nominal (the DRF puts it there)
@@ -879,6 +882,8 @@ def eval_runout(c, ctx: EvalContext):
             if np.count_nonzero(sel) >= 2:
                 rows.append(zone(sel))
                 circ = max(circ, float(np.ptp(d[sel])))
+        if not rows:        # every circle a single point: no range (as before)
+            rows.append((0.0, 2.0 * extreme_quantile(d.size, ctx.k) * ctx.S.noise, {}))
         j = int(np.argmax([z[0] for z in rows]))
         value, u_noise, noise = rows[j]
         noise = {**noise, "zone_of_points": circ,
