@@ -12,6 +12,8 @@ import dataclasses
 import itertools
 
 import numpy as np
+
+from shapeverify.characteristics.zone_noise import corrected_value
 import pytest
 from scipy.optimize import minimize, minimize_scalar
 
@@ -353,8 +355,8 @@ def test_perpendicularity_of_the_bracket_wall_equals_brute_force_on_its_points(g
     assert r.details["zone_of_points"] == pytest.approx(brute, abs=TOL)
     # the value is the points' zone less the noise's expected part (zone_noise.py)
     assert 0 < r.details["noise_bias"] < r.details["zone_of_points"]
-    assert r.measured == pytest.approx(max(brute - r.details["noise_bias"],
-                                           r.details["fitted_zone"]), abs=TOL)
+    assert r.measured == pytest.approx(
+        corrected_value(brute, r.details["noise_bias"], r.details["fitted_zone"]), abs=TOL)
 
 
 @pytest.mark.slow
@@ -370,7 +372,7 @@ def test_cylindricity_of_the_boss_equals_slsqp_on_its_points(gdt_ctx):
         abs=TOL)
     # the value is the points' zone less the noise's expected part (zone_noise.py)
     assert res["CYL"].measured == pytest.approx(
-        max(d["zone_of_points"] - d["noise_bias"], d["fitted_zone"]), abs=1e-12)
+        corrected_value(d["zone_of_points"], d["noise_bias"], d["fitted_zone"]), abs=1e-12)
 
 
 @pytest.mark.slow
@@ -392,7 +394,8 @@ def test_circularity_of_the_boss_equals_enumeration_in_its_sections(gdt_ctx):
     assert d["sections"] == pytest.approx(vals, abs=1e-12)
     # the value: the largest section's zone less its noise's expected part (zone_noise.py)
     j = d["section"]
-    assert res["CIRC"].measured == pytest.approx(max(vals[j] - d["noise_bias"], d["fitted_zone"]), abs=1e-12)
+    assert res["CIRC"].measured == pytest.approx(
+        corrected_value(vals[j], d["noise_bias"], d["fitted_zone"]), abs=1e-12)
     assert res["CIRC"].measured == pytest.approx(max(d["sections_corrected"]), abs=1e-12)
     idx = _sections(h)[4]
     Q = ((X[idx] - f.center) @ B.T)
@@ -465,8 +468,8 @@ def test_straightness_of_the_base_line_elements_equals_a_scan_of_the_angle(gdt_c
     # the value: the largest line's zone less its noise's expected part (zone_noise.py)
     j = r.details["line"]
     assert r.measured == pytest.approx(
-        max(r.details["lines"][j] - r.details["noise_bias"],
-            r.details["fitted_zone"]), abs=1e-12)
+        corrected_value(r.details["lines"][j], r.details["noise_bias"],
+                        r.details["fitted_zone"]), abs=1e-12)
 
 
 @pytest.mark.slow

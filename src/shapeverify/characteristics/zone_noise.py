@@ -21,9 +21,10 @@ corrected) and only its uncertainty stays:
    sigma)`` over the points within :data:`WINDOW` sigma of ``max s`` (all of a flat face, a
    few around a bump's top), integrated for the mean and the variance; the bias of a side is
    that mean less ``max s``; the same for the lowest side;
-3. **value** = width - both biases, but not below the width of the fitted surface (which the
-   fits' own noise only widens: on a small flat face the expected noise can take all of the
-   width, 36 of 200 faces of 40 points read below 0 without it).  A side whose measured
+3. **value** = width - both biases; where that is not above 0 (on a small flat face the
+   expected noise can take all of the width: 36 of 200 faces of 40 points), the width of the
+   fitted surface (which the fits' own noise only widens), U reaching back down to 0.  A
+   side whose measured
    extreme stands apart from the fitted surface plus noise (above the ``1 - APART`` quantile
    of its expected extreme: a sharp feature the fits flatten, a small bump's top) is not
    corrected;
@@ -81,7 +82,8 @@ largest of 10 sections' corrected zones: that maximum keeps +0.04 on a perfect c
 bump is over-corrected on a cylinder (-0.03): the minimum-zone fit moves the axis towards the
 bump and balances its top against the opposite side's noisy extremes, so the points' zone
 already carries less noise than independent extremes would (the correction does not see the
-fit's choice).  A profile (``2 max |d|``) is not corrected: there the two sides compete for one extreme, and a 0.1 mm
+fit's choice).  A profile (``2 max |d|``) is not corrected: there the two sides compete for
+one extreme, and a 0.1 mm
 bump 3 mm across (5 sigma) was under-read by 0.07 +- 0.06 (4 of 20 within U) when tried.
 """
 from __future__ import annotations
@@ -90,8 +92,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-__all__ = ["NoisePart", "noise_part", "corrected_width", "corrected_spread", "cylinder_coords",
-           "NEIGHBOURS", "WINDOW"]
+__all__ = ["NoisePart", "noise_part", "corrected_width", "corrected_spread", "corrected_value",
+           "cylinder_coords", "NEIGHBOURS", "WINDOW"]
 
 #: neighbours of each local linear fit (the point included)
 NEIGHBOURS = 32
@@ -215,11 +217,11 @@ def _fitted(T, v, sigma, k, period=None):
 
 def corrected_width(width: float, X, normal, sigma: float, k: float = 2.0):
     """``(value, u_noise, details)``: ``width``, the zone of points ``X`` across the unit
-    ``normal`` (mm), less its expected noise part -- but not below the width of the fitted
-    surface, which the fits' own noise only widens (on a small flat face the noise's expected
-    part can take all of the width: 36 of 200 faces of 40 points read below 0) -- the noise's
-    expanded uncertainty, and the details a result records (``zone_of_points``: the width of
-    the points as measured)."""
+    ``normal`` (mm), less its expected noise part -- where that takes all of the width (on a
+    small flat face: 36 of 200 faces of 40 points), the width of the fitted surface, which the
+    fits' own noise only widens, with U reaching back down to the corrected width -- the
+    noise's expanded uncertainty, and the details a result records (``zone_of_points``: the
+    width of the points as measured)."""
     from .gdt_zones import tangent_basis
 
     X = np.asarray(X, np.float64)
@@ -233,8 +235,22 @@ def corrected_spread(width: float, T, v, sigma: float, k: float = 2.0, period=No
     the surface coordinates ``T`` given (:func:`noise_part`; ``period``: the first one wraps,
     :func:`cylinder_coords`)."""
     p = noise_part(T, v, sigma, k, period)
-    value = max(float(width) - p.bias, p.fitted_zone)
-    return value, p.u, {"zone_of_points": float(width), **p.to_dict()}
+    value = corrected_value(width, p.bias, p.fitted_zone)
+    # where the expected noise takes all of the width, U reaches back down to the corrected width
+    lift = value - (float(width) - p.bias)
+    return value, p.u + lift, {"zone_of_points": float(width), **p.to_dict(),
+                               "u_noise": p.u + lift}
+
+
+def corrected_value(width: float, bias: float, fitted_zone: float) -> float:
+    """``width - bias`` where that is above 0; else the fitted surface's width (which the fits'
+    noise only widens): a zone that the expected noise takes all of is not read as 0.
+
+    >>> round(corrected_value(0.15, 0.11, 0.03), 6), corrected_value(0.10, 0.11, 0.03)
+    (0.04, 0.03)
+    """
+    rest = float(width) - float(bias)
+    return rest if rest > 0.0 else float(fitted_zone)
 
 
 def cylinder_coords(X, point, axis):
