@@ -212,8 +212,7 @@ def _rescue(cand, pts, d, face, spacing, thr) -> np.ndarray:
     points within 2 :data:`RADIUS` spacings of each other that all pass when they may bracket
     each other (``d``: deviations from the scan's median)."""
     from ..measures._grid_kernels import kernel_array, mark_within
-    from scipy.sparse import coo_matrix
-    from scipy.sparse.csgraph import connected_components
+    from ..measures.components import linked_components
     from scipy.spatial import cKDTree
 
     held = np.ones(len(pts), bool)
@@ -242,11 +241,7 @@ def _rescue(cand, pts, d, face, spacing, thr) -> np.ndarray:
     pairs = cKDTree(pts[cand]).query_pairs(2.0 * RADIUS * spacing, output_type="ndarray")
     a, b = cand[pairs[:, 0]], cand[pairs[:, 1]]
     pairs = pairs[(np.sign(d[a]) == np.sign(d[b])) & (face[a] == face[b])]
-    # (inspection.regions.linked_components is the same union-find without scipy.sparse, but
-    # characteristics may not import the inspection package: tests/test_import_cycles.py)
-    graph = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])),
-                       shape=(cand.size, cand.size))
-    _, label = connected_components(graph, directed=False)
+    _, label = linked_components(cand.size, pairs)
     size = np.bincount(label)
     near = np.bincount(pairs.ravel(), minlength=cand.size)     # same-sided within 2 RADIUS
     most = np.zeros(size.size, np.int64)

@@ -89,7 +89,7 @@ from shapeverify._lazy import cKDTree
 
 from .._arrays import bounds
 from .._renamed import grouped_keywords
-from ._cluster_kernels import component_labels
+from ..measures.components import linked_components
 from ..measures._grid_kernels import (any_within, count_within, kernel_array, kernel_sums,
                                       mark_within, nearest_other)
 from ..measures.spacing import (median_spacing, nanmedian_rows,  # noqa: F401 (re-exported)
@@ -799,16 +799,6 @@ def _neighbourhood_tree(points, out_idx, ev_idx, ev_pts, reach):
         mark_within(ev_k, out_k, r, near)
     keep = np.flatnonzero(near)
     return ev_idx[keep], cKDTree(ev_pts[keep], balanced_tree=False, compact_nodes=False)
-
-
-def linked_components(n: int, pairs: np.ndarray) -> tuple[int, np.ndarray]:
-    """Connected components of ``n`` points linked by ``pairs`` ((k, 2) indices, e.g. from
-    ``cKDTree.query_pairs``): ``(count, labels (n,))``.  The clustering of regions, material,
-    floating surfaces and coverage gaps."""
-    labels = np.empty(n, np.int32)
-    pairs = kernel_array(np.asarray(pairs).reshape(-1, 2), np.int64)
-    # union-find: scipy.sparse.csgraph.connected_components' labels without its set-up cost
-    return int(component_labels(int(n), pairs, labels)), labels
 
 
 _nanmedian_rows = nanmedian_rows      # its earlier name (tests/test_inspect_fast_paths.py)
