@@ -1076,7 +1076,15 @@ def line_element_zone(t, d) -> float:
     """Minimum zone (two parallel lines, their distance) of the 2D points ``(t_i, d_i)``: a
     line element's points along it (``t``) and across it (``d``)."""
     P = np.column_stack([np.asarray(t, float), np.zeros(len(t)), np.asarray(d, float)])
-    return float(planes_zone(P, [0.0, 0.0, 1.0], [[1.0, 0.0, 0.0]])[0])
+    return _two_lines_zone(P)[0]
+
+
+def _two_lines_zone(P):
+    """``(width, normal)`` of points ``(along, across, deviation)``: the planes zone turned
+    about the across direction only, which is the zone of two lines in ``(along,
+    deviation)`` (the across coordinate does not change it)."""
+    width, n, _ = planes_zone(P, [0.0, 0.0, 1.0], [[1.0, 0.0, 0.0]])
+    return float(width), n
 
 
 def _straightness_of_line(c, ctx: EvalContext, fidx):
@@ -1117,7 +1125,7 @@ def _straightness_of_line(c, ctx: EvalContext, fidx):
     # (d): the zone of two lines in (t, d) is the planes zone of these turned about the
     # across direction only; its noise's expected part is taken off (.zone_noise)
     P = np.column_stack([t, q[sel] @ s, d])
-    width, nz, _ = planes_zone(P, [0.0, 0.0, 1.0], [[1.0, 0.0, 0.0]])
+    width, nz = _two_lines_zone(P)
     value, U, noise = corrected_width(width, P, nz, ctx.S.noise, ctx.k)
     return _result(c, ctx, value, U,
                    {"faces": fidx, "n": int(t.size), "through": at.tolist(), **noise,
