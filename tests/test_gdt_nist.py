@@ -86,7 +86,8 @@ def test_ftc08_hole_moved_0p3_mm_fails_exactly_its_position(ftc08):
     file's GEOMETRIC_TOLERANCE_RELATIONSHIP; it matched once the file's inch was read right):
     located, the hole reads twice the offset, about 0.6 mm; GT21, the lower segment over this
     one hole, floats its zone framework to the best place, where the moved axis fits: it reads
-    about 0, and GT20 passes.  The hole is also datum K of the profile GT17
+    only the hole's tilt (the noise's, within its U: a 3.4 mm hole of ~25 points), and GT20
+    passes.  The hole is also datum K of the profile GT17
     (D|K(M)|L(M)): its frame moves with the hole, and a hole of its nominal size has no
     departure from its MMB size to shift it back (:mod:`shapeverify.characteristics.
     datum_shift`), so GT17 fails; nothing else fails."""
@@ -100,7 +101,7 @@ def test_ftc08_hole_moved_0p3_mm_fails_exactly_its_position(ftc08):
     r = res["GT21_position"]
     assert r.details["composite"]["segment"] == "lower"
     assert r.details["composite"]["located"] == pytest.approx(0.6, abs=0.1)
-    assert r.measured < 0.05 and r.verdict == "pass"
+    assert 0.0 < r.measured <= r.uncertainty and r.verdict == "pass"
     assert res["GT20_position"].verdict == "pass"
 
 
