@@ -397,6 +397,7 @@ def _print_result(result) -> None:
     chars = d.get("characteristics") or []
     if chars:
         from shapeverify.characteristics.evaluate import format_value as _fmt_value
+        from shapeverify.characteristics.zone_noise import noise_note
         from shapeverify.report.fcf import fcf_text
         plan = getattr(getattr(result, "plan", None), "plan", None)    # the Plan, if any
         entries = {e.name: e for e in getattr(plan, "characteristics", ())}
@@ -407,7 +408,8 @@ def _print_result(result) -> None:
         for c in chars:
             ct.add_row(str(c.get("name")), str(c.get("type")),
                        fcf_text(c, entries.get(c.get("name"))),
-                       _fmt_value(c.get("measured")),
+                       _fmt_value(c.get("measured")) + (f"\n({_note})" if (
+                           _note := noise_note(c.get("details"))) else ""),
                        _fmt_value(c.get("deviation"), signed=True),
                        format_limits(c.get("lower"), c.get("upper")),
                        _fmt_value(c.get("uncertainty")), str(c.get("verdict")))

@@ -381,7 +381,7 @@ _ROW_BASE, _ROW_LINE = 0.008, 0.0125     # a row's height: fractions of the tabl
 _TABLE_ROOM = 0.95                       # of the table's axes, under the header row
 _COLS = ["characteristic", "feature control frame", "nominal", "measured", "zone",
          "deviation", "U", "verdict"]
-_WIDTHS = [0.15, 0.25, 0.10, 0.11, 0.10, 0.11, 0.08, 0.10]
+_WIDTHS = [0.15, 0.22, 0.10, 0.14, 0.10, 0.11, 0.08, 0.10]
 _FCF_COL = 1
 _FRAME_H, _FRAME_FONT, _FRAME_MIN_FONT = 10.5, 8.0, 5.5   # points
 
@@ -410,6 +410,7 @@ def _table_entries(result):
     grouped by datum reference frame (:func:`shapeverify.report.fcf.group_by_drf`), each
     group under its heading."""
     from ..report.fcf import composite_frames, composite_pairs, frames, group_by_drf
+    from .zone_noise import noise_note
 
     plan = {c.name: c for c in result.plan.characteristics}
     fs_of = {c.name: frames(c, plan.get(c.name)) for c in result.characteristics}
@@ -423,7 +424,9 @@ def _table_entries(result):
             role[up], role[lo] = ("upper", lo, both), ("lower", up)
     items = []
     for c in result.characteristics:
-        cells = [c.name, "", _fmt(c.nominal), _fmt(c.measured), _zone(c), _fmt(c.deviation),
+        note = noise_note(c.details, sep="\n")
+        measured = _fmt(c.measured) + (f"\n{note}" if note else "")
+        cells = [c.name, "", _fmt(c.nominal), measured, _zone(c), _fmt(c.deviation),
                  _fmt(c.uncertainty, 3), c.verdict]
         items.append((cells, fs_of[c.name], _colour(c.verdict), role.get(c.name)))
     out = []

@@ -93,7 +93,7 @@ from dataclasses import dataclass
 import numpy as np
 
 __all__ = ["NoisePart", "noise_part", "corrected_width", "corrected_spread", "corrected_value",
-           "cylinder_coords", "NEIGHBOURS", "WINDOW"]
+           "noise_note", "cylinder_coords", "NEIGHBOURS", "WINDOW"]
 
 #: neighbours of each local linear fit (the point included)
 NEIGHBOURS = 32
@@ -251,6 +251,28 @@ def corrected_value(width: float, bias: float, fitted_zone: float) -> float:
     """
     rest = float(width) - float(bias)
     return rest if rest > 0.0 else float(fitted_zone)
+
+
+def noise_note(details, sep: str = " ") -> str | None:
+    """What a report prints under a zone corrected for its noise (the ``details`` of a
+    result, or None where nothing was taken off): the points' own zone and the noise's
+    expected part, so that a flatness reading 0.04 where the points span 0.15 says why;
+    ``sep`` between its parts (a narrow table cell: a new line).
+
+    >>> noise_note({"zone_of_points": 0.152, "noise_bias": 0.118, "fitted_zone": 0.01})
+    'points 0.1520 − noise 0.1180'
+    >>> noise_note({"zone_of_points": 0.10, "noise_bias": 0.11, "fitted_zone": 0.03})
+    'points 0.1000, all noise: fitted 0.0300'
+    >>> noise_note({"zone_of_points": 0.10, "noise_bias": 0.0}) is None
+    True
+    """
+    w, b = (details or {}).get("zone_of_points"), (details or {}).get("noise_bias")
+    if w is None or b is None or not float(b) > 0.0:
+        return None
+    if float(w) - float(b) > 0.0:
+        return f"points {float(w):.4f}{sep}− noise {float(b):.4f}"
+    return (f"points {float(w):.4f},{sep}all noise:{sep}fitted "
+            f"{float(details.get('fitted_zone', 0.0)):.4f}")
 
 
 def cylinder_coords(X, point, axis):

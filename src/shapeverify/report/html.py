@@ -84,6 +84,8 @@ def _characteristics_table(chars, plan_result, fmt) -> str:
     """The characteristics (their JSON dicts) grouped by datum reference frame ("DRF A|B|C",
     then those without datums), each row with its feature control frame(s)
     (:mod:`shapeverify.report.fcf`): frame, nominal, measured, zone, deviation, U, verdict."""
+    from shapeverify.characteristics.zone_noise import noise_note
+
     plan = getattr(plan_result, "plan", None)
     entries = {c.name: c for c in getattr(plan, "characteristics", ())}
     items = [(c, frames(c, entries.get(c["name"]))) for c in chars]
@@ -118,8 +120,10 @@ def _characteristics_table(chars, plan_result, fmt) -> str:
                               f'{html.escape(str(lo))}">{composite_html(*joined[lo])}</td>')
             elif c["name"] in joined:           # drawn in its upper's row
                 frame_cell = ""
-            cells = (html.escape(str(c["name"])), fmt(c.get("nominal")),
-                     fmt(c.get("measured")), zone, fmt(c.get("deviation"), True),
+            note = noise_note(c.get("details"))
+            measured = fmt(c.get("measured")) + (f'<br><span class="note">{html.escape(note)}'
+                                                 '</span>' if note else "")
+            cells = (html.escape(str(c["name"])), fmt(c.get("nominal")), measured, zone, fmt(c.get("deviation"), True),
                      fmt(c.get("uncertainty")), f'<b class="v-{v}">{v}</b>')
             out.append(f'<tr data-name="{html.escape(str(c["name"]))}">'
                        + f"<td>{cells[0]}</td>" + frame_cell
@@ -553,7 +557,9 @@ def render_html(result, model=None, *, max_points: int = MAX_POINTS, title: str 
                      f'{html.escape(str(al.get("type", "–")))}, rms {_fmt(al.get("rms"), 4)} mm. '
                      'Verdicts by the ISO 14253-1 decision rule: a value conforms only when it lies '
                      'inside the limits by more than its uncertainty U, fails only when outside by '
-                     'more than U; otherwise it is undecided.</p>' + char_tab + '</div>')
+                     'more than U; otherwise it is undecided. A zone read from extreme points '
+                     '(flatness, orientation, form, runout) has the scan noise\'s expected part '
+                     'taken off: "points 0.15 − noise 0.11" under its value.</p>' + char_tab + '</div>')
     pf = sorted(result.per_face.items(), key=lambda kv: kv[1].in_tolerance_fraction)
     pf_tab = _table(
         [(str(f), _fmt(st.n), _fmt(st.mean, 4, True), _fmt(st.std), _fmt(st.min, 4, True),
