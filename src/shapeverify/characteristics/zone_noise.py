@@ -176,12 +176,12 @@ def noise_part(T, v, sigma: float, k: float = 2.0, period=None) -> NoisePart:
         top = float(h.max())
         comp = h >= top - WINDOW * sigma
         b, var, below = _extreme_moments(h[comp] - top, sigma, measured - top)
-        if below > 1.0 - APART:
+        apart.append(below > 1.0 - APART)
+        if apart[-1]:
             # the measured extreme stands apart from the fitted surface plus noise: a sharp
             # feature (a small bump's top) the local fits flatten; its own noise, not the
             # competition the fits show, is what it carries: not corrected, sigma in U
             b, var = 0.0, sigma ** 2
-        apart.append(below > 1.0 - APART)
         # a measured extreme over the expected one may be a small sharp feature's top that
         # the fits flatten (not apart enough to tell): the value may be up to it
         over.append(0.0 if apart[-1] else max(measured - top - b, 0.0))
