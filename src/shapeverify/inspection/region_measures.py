@@ -47,6 +47,7 @@ from shapeverify._lazy import cKDTree
 
 from ..measures.spacing import nanmedian_rows
 from ._cluster_kernels import cell_areas
+from .region_folds import may_be_folded
 
 __all__ = ["out_area", "fitted_peak", "seen_among", "on_a_wall", "CELL_BOUND", "SLOPE_RADIUS"]
 
@@ -674,6 +675,11 @@ def seen_under(tree, ev_idx, values, normals, points, core, above, lo_lim, hi_li
     lim = np.abs(hi_lim[gi] if above else lo_lim[gi])
     # (sums of products, not a BLAS product: OpenBLAS threads for a few thousand rows and spins)
     deep = gi[(np.abs(values[gi]) <= 0.5 * lim) & (_dot(normals[gi], n) > 0.5)]
+    if deep.size >= 8:
+        # nor points that may be another face's pushed beyond the limit (a dent on a convex
+        # edge: :func:`.region_folds.behind_other_face`)
+        deep = deep[~may_be_folded(tree, ev_idx, values, normals, points, deep,
+                                   (hi_lim if above else lo_lim,), spacing)[0]]
     if deep.size < 8:
         return 0.0
     e1, e2 = _basis(n[None])
@@ -829,7 +835,12 @@ def facing(tree, ev_idx, values, normals, points, idx, lim, spacing) -> np.ndarr
     face), at every depth from 0 to the dent's; the deep ones among the dent's other points are
     that sheet (or, on a lattice, one row of it: no surface at all), not a surface under a layer
     (the wavy cube, a dent on its 90 degree edge: all its points were read as a reflection and
-    the dented part showed no region)."""
+    the dented part showed no region).  At a coarser spacing that sheet is one row along a
+    curve of this face, which the plane test passes (its curve spans a plane facing the
+    normal): a deep point whose scan position may be the other face's, pushed beyond the limit
+    (:func:`.region_folds.behind_other_face`), counts neither (the dent at 1/5 of its radius:
+    3-6 such points made it a layer in 2 of 8 scans)."""
+    idx = np.asarray(idx, np.int64)
     lists = tree.query_ball_point(points[idx], AMONG_WINDOW * spacing)
     near = ev_idx[np.unique(np.concatenate([np.asarray(x, np.int64) for x in lists]))]
     near = near[np.abs(values[near]) <= 0.5 * np.abs(lim[near])]
@@ -841,8 +852,14 @@ def facing(tree, ev_idx, values, normals, points, idx, lim, spacing) -> np.ndarr
     Q = S[j.reshape(idx.size, k)]
     Q = Q - Q.mean(axis=1, keepdims=True)
     lam, V = np.linalg.eigh(np.einsum("ika,ikb->iab", Q, Q))
-    return (lam[:, 1] >= AMONG_FLAT * lam[:, 2]) & \
+    ok = (lam[:, 1] >= AMONG_FLAT * lam[:, 2]) & \
         (np.abs(np.einsum("ia,ia->i", V[:, :, 0], normals[idx])) >= AMONG_FACING)
+    if ok.any():
+        # nor a point of the other face pushed in beyond the limit (a row of them, one
+        # spacing apart along a curve of this face, passes the plane test above)
+        ok[ok] = ~may_be_folded(tree, ev_idx, values, normals, points, idx[ok], (lim,),
+                                spacing)[0]
+    return ok
 
 
 def seen_among(tree, ev_idx, values, normals, points, members, above, lo_lim, hi_lim,

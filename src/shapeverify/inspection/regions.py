@@ -15,12 +15,15 @@ on the impeller's blades.
 **Defect or outlier.**  A defect is a place where the *surface* is out of tolerance, not a few
 points.  Every evaluated point near an out-of-tolerance one gets the median deviation of its 9
 nearest evaluated points within ``MEDIAN_RADIUS = 3 s``; a **core** point is one whose median is
-beyond the limit (on that side).  Core points closer than ``LINK_FACTOR = 2.5 s`` on the same
-side are linked, their feet or their measured points (a dent on a convex edge: the points pushed
-in from one face lie nearer the other, their feet jump across the edge, the dented surface stays
+beyond the limit (on that side; an in-tolerance point that may be another face's pushed beyond
+that limit, at a dented convex edge, has no vote there: :func:`.region_folds.behind_other_face`).
+Core points closer than ``LINK_FACTOR = 2.5 s`` on the same side are linked, their feet or
+their measured points (a dent on a convex edge: the points pushed in from one face lie nearer
+the other, their feet jump across the edge, the dented surface stays
 whole: two lobes and no region once); a connected component is a defect region when its *dense* core points (each
 standing for at most ``SPARSE_AREA = 3 s^2``: stray points beside the part or in a shadow stand
-for no measured surface) number at least ``min_points`` and cover at least ``min_points x s^2``.
+for no measured surface) number at least ``min_points`` and cover at least ``min_points x s^2``
+(each core point's area measured along the surface: :func:`area_per_point`).
 The region's points are the out-of-tolerance points on its side within the link distance of
 its core points; every other out-of-tolerance point is a measurement outlier (counted, excluded
 from the statistics, never failing the part).  Scattered bad points among good ones (uniform
@@ -91,12 +94,12 @@ from .._arrays import bounds
 from .._renamed import grouped_keywords
 from ..measures.components import linked_components
 from ..measures._grid_kernels import (any_within, count_within, kernel_array, kernel_sums,
-                                      mark_within, nearest_other)
+                                      kernel_sums_unfolded, mark_within, nearest_other)
 from ..measures.spacing import (median_spacing, nanmedian_rows,  # noqa: F401 (re-exported)
                                 nearest_distances, neighbourhood_median)
-from .region_folds import unfolded
-from .region_measures import (CELL_BOUND, MAX_PEAK_RADIUS, facing, fitted_peak, local_noise,
-                              out_area, seen_among, seen_around, seen_under)
+from .region_folds import may_be_folded, unfolded
+from .region_measures import (CELL_BOUND, MAX_PEAK_RADIUS, facing, fitted_peak,
+                              local_noise, out_area, seen_among, seen_around, seen_under)
 
 logger = logging.getLogger(__name__)
 
@@ -444,13 +447,31 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
         # answers without the medians of the points around isolated outliers)
         near &= (n_out >= 2) | ~within[ev_idx]
     cand = np.sort(ev_idx[near])
-    med = neighbourhood_median(tree, ev_idx, values, points[cand], MEDIAN_RADIUS * spacing)
+    # (points that may be another face's pushed beyond a limit have no vote on that side)
+    v_lo, v_hi = _without_folded(tree, ev_idx, values, normals, points, cand, within,
+                                 lo_lim, hi_lim, spacing)
+    med_lo = neighbourhood_median(tree, ev_idx, v_lo, points[cand], MEDIAN_RADIUS * spacing)
+    med_hi = med_lo if v_hi is v_lo else \
+        neighbourhood_median(tree, ev_idx, v_hi, points[cand], MEDIAN_RADIUS * spacing)
     with np.errstate(invalid="ignore"):
-        up = med > hi_lim[cand]
-        down = med < lo_lim[cand]
+        up = med_hi > hi_lim[cand]
+        down = med_lo < lo_lim[cand]
+        both = up & down                  # (only where the two differ: the farther beyond)
+        up[both] = (med_hi - hi_lim[cand])[both] >= (lo_lim[cand] - med_lo)[both]
+        down &= ~up
+    med = np.where(up, med_hi, med_lo)
     core = cand[up | down]
     core_med = med[up | down]
     core_up = up[up | down]
+    # the medians of all measured values around: the extreme's centre is the core point of
+    # the largest, its fallback value that median where it lies beyond the limit (else the
+    # core's own)
+    meas_med = rank_med = core_med
+    if not (v_lo is values and v_hi is values) and core.size:
+        rank_med = neighbourhood_median(tree, ev_idx, values, points[core], MEDIAN_RADIUS * spacing)
+        with np.errstate(invalid="ignore"):
+            beyond = np.where(core_up, rank_med > hi_lim[core], rank_med < lo_lim[core])
+        meas_med = np.where(beyond, rank_med, core_med)
 
     regions = []
     member = np.zeros(values.shape[0], bool)
@@ -471,9 +492,10 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
         # points the kernel counts moved back: :mod:`.region_folds`)
         around = ev_idx[np.unique(np.concatenate(
             [np.asarray(x, np.int64) for x in tree.query_ball_point(pc, r_area)]))]
-        u_pts, _, _, fold = unfolded(points, values, normals, ev_idx, around, spacing)
-        a = area_per_point(cKDTree(u_pts[ev_idx]), u_pts[core], r_area) if fold.any() \
-            else area_per_point(tree, pc, r_area)
+        # (measured along the surface: near a sharp edge a ball holds more than a disc of it)
+        u_pts, u_nrm, _, fold = unfolded(points, values, normals, ev_idx, around, spacing)
+        a = area_per_point(cKDTree(u_pts[ev_idx]) if fold.any() else tree, u_pts[core], r_area,
+                           _unit(u_nrm[ev_idx]), _unit(u_nrm[core]))
         # a defect is measured surface: core points where the scan is sparse (stray points
         # beside the part, in a shadow) support nothing
         dense = a <= SPARSE_AREA * spacing ** 2
@@ -543,9 +565,10 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
                     continue
                 sel = labels == comp
                 member[idx] = True
-                regions.append(_describe(idx, core[sel], core_med[sel], points, values, face,
+                regions.append(_describe(idx, core[sel], meas_med[sel], points, values, face,
                                          normals, tree, ev_idx, spacing, lo_lim, hi_lim,
-                                         within, beyond=search.beyond))
+                                         within, beyond=search.beyond,
+                                         above=bool(core_up[sel][0]), rank=rank_med[sel]))
     small = ~member[out_idx]
     outliers = Outliers(out_idx[small], _low_weight(weights, out_idx[small]),
                         _layer_points(points, out_idx[small], values, core, labels, n_layer_comp,
@@ -554,6 +577,31 @@ def find_regions(points: np.ndarray, values: np.ndarray, evaluated: np.ndarray,
     logger.debug("regions: %d out-of-tolerance points -> %d regions, %d outliers (spacing %.3g mm)",
                  out_idx.size, len(regions), outliers.n, spacing)
     return regions, outliers, float(spacing)
+
+
+def _without_folded(tree, ev_idx, values, normals, points, cand, within, lo_lim, hi_lim,
+                    spacing):
+    """``(below, above)``: ``values`` with NaN (no vote in the neighbourhood medians on that
+    side) at the in-tolerance points around ``cand`` that may be another face's points pushed
+    beyond the lower (upper) limit (:func:`.region_folds.behind_other_face`): on a dented
+    convex edge the other face's points sampled within the limit of the edge have their feet
+    among this face's dented points, in tolerance, and outvoted them (the wavy cube at 1/5 of
+    the dent's radius, anisotropic rows along the edge: each face's out-of-tolerance part one
+    row wide, a row of such feet beside it, 1 core point).  ``values`` itself where there are
+    none."""
+    d, j = tree.query(points[cand], k=min(9, ev_idx.size),
+                      distance_upper_bound=MEDIAN_RADIUS * spacing)
+    nb = ev_idx[np.unique(j[np.isfinite(d)])]
+    nb = nb[within[nb]]
+    out = []
+    for amb in may_be_folded(tree, ev_idx, values, normals, points, nb, (lo_lim, hi_lim), spacing):
+        if amb.any():
+            v = values.copy()
+            v[nb[amb]] = np.nan
+            out.append(v)
+        else:
+            out.append(values)
+    return tuple(out)
 
 
 def _uniform_limits(values, ev_idx, out_idx, lo_lim, hi_lim) -> bool:
@@ -766,7 +814,8 @@ def _layer_points(points, idx, values, core, labels, comps, link) -> int:
     return int(np.count_nonzero(np.isfinite(d)))
 
 
-def area_per_point(tree: cKDTree, p: np.ndarray, radius: float) -> np.ndarray:
+def area_per_point(tree: cKDTree, p: np.ndarray, radius: float, tree_normals=None,
+                   p_normals=None) -> np.ndarray:
     """Surface area (mm^2) each of the points ``p`` stands for among the points of ``tree``.
 
     The density is a smooth kernel sum, ``w(d) = (1 - d^2/R^2)^2`` over the points within ``R``
@@ -774,12 +823,32 @@ def area_per_point(tree: cKDTree, p: np.ndarray, radius: float) -> np.ndarray:
     jumps by a ring of lattice points as ``R`` or the lattice shifts (the area of one dent read
     300-390 mm^2 on the same scan written once, twice, or twice 0.02 mm apart).  The point
     itself counts half (a lattice point has itself in its disc, a random sample one more).
+
+    With the CAD normals (``tree_normals`` (len(tree.data), 3) and ``p_normals`` (len(p), 3),
+    unit) ``d`` is measured along the surface (:func:`..measures._grid_kernels.kernel_sums_unfolded`:
+    the two tangent planes unfolded about the line where they meet), so the disc is a disc of
+    the surface: near a sharp edge a ball of radius ``R`` also holds the other face's points
+    within ``R`` in space, ``sqrt(u^2 + v^2)`` (``u``, ``v`` their distances from the edge)
+    instead of ``u + v`` along the surface, and a point ``R/2`` from a 90 degree edge stood for
+    0.7-0.8 of its area (a dent on the wavy cube's edge at 1/5 of its radius: too little
+    support, no region).  On a smooth surface the two differ by ``O(d^4 / rho^2)``; points whose
+    normals are more than ``SAME_SIDE_ANGLE`` apart (the other side of a thin wall) keep the
+    distance in space, as without normals.
     """
     s = np.empty(p.shape[0])
-    if p.shape[0]:
+    if p.shape[0] and tree_normals is not None:
+        kernel_sums_unfolded(kernel_array(tree.data), kernel_array(tree_normals), kernel_array(p),
+                             kernel_array(p_normals), float(radius), SAME_SIDE_COS, s)
+    elif p.shape[0]:
         kernel_sums(kernel_array(tree.data), kernel_array(p), float(radius), s)
     s -= 0.5
     return (np.pi * radius ** 2 / 3.0) / np.maximum(s, 0.5)
+
+
+def _unit(v):
+    """Rows of ``v`` scaled to unit length (zero rows stay zero)."""
+    v = np.asarray(v, np.float64)
+    return v / np.maximum(np.linalg.norm(v, axis=1), 1e-300)[:, None]
 
 
 def _neighbourhood_tree(points, out_idx, ev_idx, ev_pts, reach):
@@ -811,12 +880,13 @@ def _low_weight(weights, idx):
 
 
 def _describe(idx, core, med, points, values, face, normals, tree, ev_idx, spacing,
-              lo_lim, hi_lim, within, beyond=None, above=None) -> DefectRegion:
+              lo_lim, hi_lim, within, beyond=None, above=None, rank=None) -> DefectRegion:
     """Size, area, severity, extreme and position of one region: its out-of-tolerance points
     (scan indices ``idx``) and its core points ``core`` with their neighbourhood medians
     ``med`` (:mod:`.region_measures` measures the area and the extreme).  ``beyond`` ((N,)
     bool): the points beyond the evaluation distance (:mod:`.beyond`), counted in ``n_beyond``
-    and ``area_beyond``; ``above``: the region's side (None: the sign of ``med[0]``)."""
+    and ``area_beyond``; ``above``: the region's side (None: the sign of ``med[0]``);
+    ``rank``: the medians that choose the extreme's centre (None: ``med``)."""
     above = bool(med[0] > 0) if above is None else bool(above)
     v = values[idx]
     r_area = AREA_RADIUS * spacing
@@ -844,7 +914,7 @@ def _describe(idx, core, med, points, values, face, normals, tree, ev_idx, spaci
     area = float(np.sum(part))
 
     # the extreme: the fitted peak of the local surface around the worst core point
-    k = int(np.argmax(np.abs(med)))
+    k = int(np.argmax(np.abs(med if rank is None else rank)))
     extreme, uncertainty, at = float(med[k]), float("nan"), points[core[k]].copy()
     # the region's half-width there: the nearest in-tolerance point (a groove's is its
     # half-width, a round dent's its radius; the fit's window is a third of it)

@@ -244,6 +244,60 @@ def kernel_sums(ref, q, radius, out):
 
 
 @njit(cache=True, nogil=True)
+def kernel_sums_unfolded(ref, ref_n, q, q_n, radius, min_cos, out):
+    """:func:`kernel_sums` with each distance measured along the surface: the two points'
+    tangent planes (unit normals ``ref_n``, ``q_n``) unfolded about the line where they meet,
+    ``d^2 = |D|^2 + 2 |D.n_q| |D.n_r| / (1 + n_q.n_r)`` (``D`` the offset; exact on a
+    dihedral edge, the chord on one plane).  Pairs whose normals are not more than ``min_cos``
+    alike (the other side of a thin wall) keep the chord.  The unfolded distance is never
+    shorter than the chord: the grid's search radius holds every point counted.
+
+    ref, ref_n : (n, 3) float64, n >= 1; q, q_n : (m, 3) float64; radius : float > 0;
+    min_cos : float > -1; out : (m,) float64, written.
+    """
+    lo, dims, h, start, order, pts = _grid(ref, radius * (1.0 + MARGIN))
+    ny, nz = dims[1], dims[2]
+    r2 = radius * radius
+    buf = np.empty(64)
+    for i in range(q.shape[0]):
+        x, y, z = q[i, 0], q[i, 1], q[i, 2]
+        ax, ay, az = q_n[i, 0], q_n[i, 1], q_n[i, 2]
+        x0, x1, y0, y1, z0, z1 = _block(x, y, z, lo, dims, h)
+        n = 0
+        for ix in range(x0, x1 + 1):
+            for iy in range(y0, y1 + 1):
+                base = (ix * ny + iy) * nz
+                for j in range(start[base + z0], start[base + z1 + 1] if z1 >= z0 else 0):
+                    dx = pts[j, 0] - x
+                    dy = pts[j, 1] - y
+                    dz = pts[j, 2] - z
+                    d2 = dx * dx + dy * dy + dz * dz
+                    if d2 > r2:
+                        continue
+                    k = order[j]
+                    bx, by, bz = ref_n[k, 0], ref_n[k, 1], ref_n[k, 2]
+                    c = ax * bx + ay * by + az * bz
+                    if c > min_cos:
+                        d2 += 2.0 * abs(dx * ax + dy * ay + dz * az) * \
+                            abs(dx * bx + dy * by + dz * bz) / (1.0 + c)
+                        if d2 > r2:
+                            continue
+                    if n == buf.shape[0]:
+                        bigger = np.empty(2 * n)
+                        bigger[:n] = buf
+                        buf = bigger
+                    buf[n] = np.sqrt(d2)
+                    n += 1
+        d = np.sort(buf[:n])
+        s = 0.0
+        for k in range(n):
+            t = d[k] / radius
+            u = 1.0 - t * t
+            s += u * u
+        out[i] = s
+
+
+@njit(cache=True, nogil=True)
 def count_within(ref, q, r, cap, out):
     """``out[i]`` = how many rows of ``ref`` are closer than ``r`` to ``q[i]`` (strictly),
     counted up to ``cap``: ``out[i] >= k`` (k <= cap) is ``np.isfinite(cKDTree(ref).query(q,
