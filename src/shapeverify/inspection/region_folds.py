@@ -42,6 +42,7 @@ from __future__ import annotations
 import numpy as np
 from shapeverify._lazy import cKDTree
 
+from ..measures._grid_kernels import any_within, count_within, kernel_array
 from ..measures.spacing import nanmedian_rows
 
 __all__ = ["unfolded", "behind_other_face", "may_be_folded", "FOLD_REACH", "FOLD_ANGLE",
@@ -187,21 +188,39 @@ def behind_other_face(points, values, normals, ev_idx, idx, lims, spacing) -> np
     out = np.zeros((len(lims), idx.size), bool)
     if idx.size == 0 or ev_idx.size < 2:
         return out
-    planes = _other_planes(points, values, normals, ev_idx, idx, spacing)
+    # first what is needed for that median: more than half of OTHER_K points beyond
+    # OTHER_SHARE of the limit within FOLD_REACH of the scan position (any face; a grid count)
+    need = OTHER_K // 2 + 1
+    S_ev = kernel_array(points[ev_idx] + values[ev_idx, None] * normals[ev_idx])
+    S_idx = kernel_array(points[idx] + values[idx, None] * normals[idx])
+    v_ev = values[ev_idx]
+    maybe = np.zeros((len(lims), idx.size), bool)
+    for k, lim in enumerate(lims):
+        with np.errstate(invalid="ignore"):
+            half = (v_ev * lim[ev_idx] > 0) & (np.abs(v_ev) > OTHER_SHARE * np.abs(lim[ev_idx]))
+        if np.count_nonzero(half) >= need:
+            n = np.empty(idx.size, np.int64)
+            count_within(kernel_array(S_ev[half]), S_idx, FOLD_REACH * spacing * (1.0 + 1e-9),
+                         need, n)
+            maybe[k] = n >= need
+    sel = np.flatnonzero(maybe.any(axis=0))
+    if sel.size == 0:
+        return out
+    planes = _other_planes(points, values, normals, ev_idx, idx[sel], spacing)
     if planes is None:
         return out
     _, _, T, vmax, vo = planes
     # the noise of the deviations around (nearest-neighbour differences: the form cancels)
     _, nn = cKDTree(points[ev_idx]).query(points[ev_idx], k=2)
-    v = values[ev_idx]
-    sigma = 1.4826 * float(np.median(np.abs(v - v[nn[:, 1]]))) / np.sqrt(2.0)
+    sigma = 1.4826 * float(np.median(np.abs(v_ev - v_ev[nn[:, 1]]))) / np.sqrt(2.0)
     # the standard error of a median of OTHER_K values: 1.2533 sigma / sqrt(OTHER_K)
     margin = OTHER_Z * 1.2533 * sigma / np.sqrt(OTHER_K)
     with np.errstate(invalid="ignore"):
         for k, lim in enumerate(lims):
-            li = lim[idx]
-            out[k] = ((T * li > 0) & (np.abs(T) > np.abs(li)) & (np.abs(T) <= FOLD_DEPTH * vmax)
-                      & (vo * li > 0) & (np.abs(vo) > OTHER_SHARE * np.abs(li) + margin))
+            li = lim[idx[sel]]
+            out[k, sel] = (maybe[k, sel] & (T * li > 0) & (np.abs(T) > np.abs(li))
+                           & (np.abs(T) <= FOLD_DEPTH * vmax) & (vo * li > 0)
+                           & (np.abs(vo) > OTHER_SHARE * np.abs(li) + margin))
     return out
 
 
@@ -211,6 +230,7 @@ def may_be_folded(tree, ev_idx, values, normals, points, idx, lims, spacing) -> 
     idx = np.asarray(idx, np.int64)
     if idx.size == 0:
         return np.zeros((len(lims), 0), bool)
-    lists = tree.query_ball_point(points[idx], FOLD_AROUND * spacing)
-    around = ev_idx[np.unique(np.concatenate([np.asarray(x, np.int64) for x in lists]))]
-    return behind_other_face(points, values, normals, around, idx, lims, spacing)
+    near = np.empty(tree.data.shape[0], bool)
+    any_within(kernel_array(points[idx]), kernel_array(tree.data),
+               FOLD_AROUND * spacing * (1.0 + 1e-9), near)
+    return behind_other_face(points, values, normals, ev_idx[near], idx, lims, spacing)
