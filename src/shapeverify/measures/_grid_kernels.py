@@ -203,10 +203,33 @@ def mark_within(ref, q, r, out):
 
 
 @njit(cache=True, nogil=True)
+def _pushed(buf, n, d):
+    """``buf`` with ``d`` written at ``n`` (doubled first when full)."""
+    if n == buf.shape[0]:
+        bigger = np.empty(2 * n)
+        bigger[:n] = buf
+        buf = bigger
+    buf[n] = d
+    return buf
+
+
+@njit(cache=True, nogil=True)
+def _kernel_sum(dist, radius):
+    """The sum of ``(1 - (d / radius)^2)^2`` over the distances ``dist``, added in order of
+    increasing ``d`` (the order that makes the sum independent of how the points are stored)."""
+    d = np.sort(dist)
+    s = 0.0
+    for k in range(d.size):
+        t = d[k] / radius
+        u = 1.0 - t * t
+        s += u * u
+    return s
+
+
+@njit(cache=True, nogil=True)
 def kernel_sums(ref, q, radius, out):
     """``out[i]`` = the sum of ``(1 - (d / radius)^2)^2`` over the rows of ``ref`` at distance
-    ``d <= radius`` from ``q[i]``, added in order of increasing ``d`` (the order that makes the
-    sum independent of how the points are stored).
+    ``d <= radius`` from ``q[i]`` (:func:`_kernel_sum`).
 
     ref : (n, 3) float64, n >= 1; q : (m, 3) float64; radius : float > 0; out : (m,) float64,
     written.
@@ -228,19 +251,9 @@ def kernel_sums(ref, q, radius, out):
                     dz = z - pts[j, 2]
                     d2 = dx * dx + dy * dy + dz * dz
                     if d2 <= r2:
-                        if n == buf.shape[0]:
-                            bigger = np.empty(2 * n)
-                            bigger[:n] = buf
-                            buf = bigger
-                        buf[n] = np.sqrt(d2)
+                        buf = _pushed(buf, n, np.sqrt(d2))
                         n += 1
-        d = np.sort(buf[:n])
-        s = 0.0
-        for k in range(n):
-            t = d[k] / radius
-            u = 1.0 - t * t
-            s += u * u
-        out[i] = s
+        out[i] = _kernel_sum(buf[:n], radius)
 
 
 @njit(cache=True, nogil=True)
@@ -282,19 +295,9 @@ def kernel_sums_unfolded(ref, ref_n, q, q_n, radius, min_cos, out):
                             abs(dx * bx + dy * by + dz * bz) / (1.0 + c)
                         if d2 > r2:
                             continue
-                    if n == buf.shape[0]:
-                        bigger = np.empty(2 * n)
-                        bigger[:n] = buf
-                        buf = bigger
-                    buf[n] = np.sqrt(d2)
+                    buf = _pushed(buf, n, np.sqrt(d2))
                     n += 1
-        d = np.sort(buf[:n])
-        s = 0.0
-        for k in range(n):
-            t = d[k] / radius
-            u = 1.0 - t * t
-            s += u * u
-        out[i] = s
+        out[i] = _kernel_sum(buf[:n], radius)
 
 
 @njit(cache=True, nogil=True)
