@@ -203,57 +203,16 @@ def mark_within(ref, q, r, out):
 
 
 @njit(cache=True, nogil=True)
-def _pushed(buf, n, d):
-    """``buf`` with ``d`` written at ``n`` (doubled first when full)."""
-    if n == buf.shape[0]:
-        bigger = np.empty(2 * n)
-        bigger[:n] = buf
-        buf = bigger
-    buf[n] = d
-    return buf
-
-
-@njit(cache=True, nogil=True)
-def _kernel_sum(dist, radius):
-    """The sum of ``(1 - (d / radius)^2)^2`` over the distances ``dist``, added in order of
-    increasing ``d`` (the order that makes the sum independent of how the points are stored)."""
-    d = np.sort(dist)
-    s = 0.0
-    for k in range(d.size):
-        t = d[k] / radius
-        u = 1.0 - t * t
-        s += u * u
-    return s
-
-
-@njit(cache=True, nogil=True)
 def kernel_sums(ref, q, radius, out):
     """``out[i]`` = the sum of ``(1 - (d / radius)^2)^2`` over the rows of ``ref`` at distance
-    ``d <= radius`` from ``q[i]`` (:func:`_kernel_sum`).
+    ``d <= radius`` from ``q[i]``, added in order of increasing ``d`` (the order that makes the
+    sum independent of how the points are stored).
 
     ref : (n, 3) float64, n >= 1; q : (m, 3) float64; radius : float > 0; out : (m,) float64,
     written.
     """
-    lo, dims, h, start, order, pts = _grid(ref, radius * (1.0 + MARGIN))
-    ny, nz = dims[1], dims[2]
-    r2 = radius * radius
-    buf = np.empty(64)
-    for i in range(q.shape[0]):
-        x, y, z = q[i, 0], q[i, 1], q[i, 2]
-        x0, x1, y0, y1, z0, z1 = _block(x, y, z, lo, dims, h)
-        n = 0
-        for ix in range(x0, x1 + 1):
-            for iy in range(y0, y1 + 1):
-                base = (ix * ny + iy) * nz
-                for j in range(start[base + z0], start[base + z1 + 1] if z1 >= z0 else 0):
-                    dx = x - pts[j, 0]
-                    dy = y - pts[j, 1]
-                    dz = z - pts[j, 2]
-                    d2 = dx * dx + dy * dy + dz * dz
-                    if d2 <= r2:
-                        buf = _pushed(buf, n, np.sqrt(d2))
-                        n += 1
-        out[i] = _kernel_sum(buf[:n], radius)
+    none = np.empty((0, 3))
+    kernel_sums_unfolded(ref, none, q, none, radius, 1.0, out)
 
 
 @njit(cache=True, nogil=True)
@@ -262,19 +221,20 @@ def kernel_sums_unfolded(ref, ref_n, q, q_n, radius, min_cos, out):
     tangent planes (unit normals ``ref_n``, ``q_n``) unfolded about the line where they meet,
     ``d^2 = |D|^2 + 2 |D.n_q| |D.n_r| / (1 + n_q.n_r)`` (``D`` the offset; exact on a
     dihedral edge, the chord on one plane).  Pairs whose normals are not more than ``min_cos``
-    alike (the other side of a thin wall) keep the chord.  The unfolded distance is never
-    shorter than the chord: the grid's search radius holds every point counted.
+    alike (the other side of a thin wall) keep the chord, as do all pairs when ``ref_n`` has
+    no rows (:func:`kernel_sums`).  The unfolded distance is never shorter than the chord: the
+    grid's search radius holds every point counted.
 
-    ref, ref_n : (n, 3) float64, n >= 1; q, q_n : (m, 3) float64; radius : float > 0;
-    min_cos : float > -1; out : (m,) float64, written.
+    ref, ref_n : (n, 3) float64, n >= 1 (``ref_n``: n or 0 rows); q, q_n : (m, 3) float64;
+    radius : float > 0; min_cos : float > -1; out : (m,) float64, written.
     """
     lo, dims, h, start, order, pts = _grid(ref, radius * (1.0 + MARGIN))
     ny, nz = dims[1], dims[2]
     r2 = radius * radius
+    unfold = ref_n.shape[0] > 0
     buf = np.empty(64)
     for i in range(q.shape[0]):
         x, y, z = q[i, 0], q[i, 1], q[i, 2]
-        ax, ay, az = q_n[i, 0], q_n[i, 1], q_n[i, 2]
         x0, x1, y0, y1, z0, z1 = _block(x, y, z, lo, dims, h)
         n = 0
         for ix in range(x0, x1 + 1):
@@ -287,17 +247,29 @@ def kernel_sums_unfolded(ref, ref_n, q, q_n, radius, min_cos, out):
                     d2 = dx * dx + dy * dy + dz * dz
                     if d2 > r2:
                         continue
-                    k = order[j]
-                    bx, by, bz = ref_n[k, 0], ref_n[k, 1], ref_n[k, 2]
-                    c = ax * bx + ay * by + az * bz
-                    if c > min_cos:
-                        d2 += 2.0 * abs(dx * ax + dy * ay + dz * az) * \
-                            abs(dx * bx + dy * by + dz * bz) / (1.0 + c)
-                        if d2 > r2:
-                            continue
-                    buf = _pushed(buf, n, np.sqrt(d2))
+                    if unfold:
+                        ax, ay, az = q_n[i, 0], q_n[i, 1], q_n[i, 2]
+                        k = order[j]
+                        bx, by, bz = ref_n[k, 0], ref_n[k, 1], ref_n[k, 2]
+                        c = ax * bx + ay * by + az * bz
+                        if c > min_cos:
+                            d2 += 2.0 * abs(dx * ax + dy * ay + dz * az) * \
+                                abs(dx * bx + dy * by + dz * bz) / (1.0 + c)
+                            if d2 > r2:
+                                continue
+                    if n == buf.shape[0]:
+                        bigger = np.empty(2 * n)
+                        bigger[:n] = buf
+                        buf = bigger
+                    buf[n] = np.sqrt(d2)
                     n += 1
-        out[i] = _kernel_sum(buf[:n], radius)
+        d = np.sort(buf[:n])
+        s = 0.0
+        for k in range(n):
+            t = d[k] / radius
+            u = 1.0 - t * t
+            s += u * u
+        out[i] = s
 
 
 @njit(cache=True, nogil=True)
