@@ -43,7 +43,7 @@ import numpy as np
 from shapeverify._lazy import cKDTree
 
 from ..measures._grid_kernels import any_within, count_within, kernel_array
-from ..measures.spacing import nanmedian_rows
+from ..measures.spacing import nanmedian_rows, neighbour_noise
 
 __all__ = ["unfolded", "behind_other_face", "may_be_folded", "FOLD_REACH", "FOLD_ANGLE",
            "FOLD_CROWD", "FOLD_EXCESS", "CROWD_RADIUS", "FOLD_DEPTH", "OTHER_K", "OTHER_SHARE",
@@ -211,8 +211,7 @@ def behind_other_face(points, values, normals, ev_idx, idx, lims, spacing) -> np
         return out
     _, _, T, vmax, vo = planes
     # the noise of the deviations around (nearest-neighbour differences: the form cancels)
-    _, nn = cKDTree(points[ev_idx]).query(points[ev_idx], k=2)
-    sigma = 1.4826 * float(np.median(np.abs(v_ev - v_ev[nn[:, 1]]))) / np.sqrt(2.0)
+    sigma = neighbour_noise(points[ev_idx], v_ev)
     # the standard error of a median of OTHER_K values: 1.2533 sigma / sqrt(OTHER_K)
     margin = OTHER_Z * 1.2533 * sigma / np.sqrt(OTHER_K)
     with np.errstate(invalid="ignore"):

@@ -45,7 +45,7 @@ from __future__ import annotations
 import numpy as np
 from shapeverify._lazy import cKDTree
 
-from ..measures.spacing import nanmedian_rows
+from ..measures.spacing import nanmedian_rows, neighbour_noise
 from ._cluster_kernels import cell_areas
 from .region_folds import may_be_folded
 
@@ -219,8 +219,7 @@ def _noise_among(points, values, idx) -> float:
     |d_i - d_j| / sqrt 2`` over nearest foot-point neighbours (0 under 6 points)."""
     if idx.size < 6:
         return 0.0
-    _, j = cKDTree(points[idx]).query(points[idx], k=2)
-    return float(1.4826 * np.median(np.abs(values[idx] - values[idx[j[:, 1]]])) / np.sqrt(2.0))
+    return neighbour_noise(points[idx], values[idx])
 
 
 def _steep_slopes(points, values, normals, nb, ok, qq, e1, e2, n0, gx, gy, radius, noise=0.0):
@@ -590,9 +589,7 @@ def local_noise(tree, ev_idx, values, center, radius) -> float:
     i = np.sort(np.asarray(tree.query_ball_point(center, radius), np.int64))
     if i.size < 6:
         return float("nan")
-    p, v = tree.data[i], values[ev_idx[i]]
-    _, j = cKDTree(p).query(p, k=2)
-    return float(1.4826 * np.median(np.abs(v - v[j[:, 1]])) / np.sqrt(2.0))
+    return neighbour_noise(tree.data[i], values[ev_idx[i]])
 
 
 #: The in-tolerance surface seen at a point: it lies in a Delaunay triangle of the deep-in-tolerance

@@ -22,7 +22,8 @@ from ._grid_kernels import kernel_array, nearest_other
 if TYPE_CHECKING:
     from scipy.spatial import cKDTree
 
-__all__ = ["median_spacing", "nearest_distances", "neighbourhood_median", "nanmedian_rows"]
+__all__ = ["median_spacing", "nearest_distances", "neighbourhood_median", "nanmedian_rows",
+           "neighbour_noise"]
 
 
 def median_spacing(tree: cKDTree | None, points: np.ndarray, max_samples: int = 1500) -> float:
@@ -95,3 +96,13 @@ def nanmedian_rows(a: np.ndarray) -> np.ndarray:
         med = (srt[rows, np.maximum(lo, 0)] + srt[rows, np.minimum(h, a.shape[1] - 1)]) / 2.0
     med[c == 0] = np.nan
     return med
+
+
+def neighbour_noise(p: np.ndarray, v: np.ndarray) -> float:
+    """Noise sigma (mm) of values ``v`` at points ``p`` ((n, 3), n >= 2): ``1.4826 median
+    |v_i - v_j| / sqrt 2`` over each point and its nearest neighbour (the form cancels in a
+    neighbour's difference; a step between a few pairs does not move the median)."""
+    from shapeverify._lazy import cKDTree
+
+    _, j = cKDTree(p).query(p, k=2)
+    return float(1.4826 * np.median(np.abs(v - v[j[:, 1]])) / np.sqrt(2.0))
