@@ -355,6 +355,17 @@ def _lsq_axis_ends(X, feat, rim):
                      "mating fit does not fix its tilt)")
 
 
+def _tilted_axis_ends(ctx, fidx, X, feat, ends, a, how):
+    """``(ends, a, how)`` of :func:`_axis_ends` where its axis may tilt; where a short
+    feature's mating fit kept the CAD direction (which does not see a tilt), the least-squares
+    cylinder's axis over the faces' length (:func:`_lsq_axis_ends`), defined by all the
+    points: what a zone that reads the axis' tilt (an orientation, a projected zone, a
+    composite's lower segment) needs."""
+    if "CAD direction" in how:
+        return _lsq_axis_ends(X, feat, _faces_rim(ctx, fidx))
+    return ends, a, how
+
+
 def _cylinder_points(X, feat):
     """The points of a cylinder feature less the gross outliers of a robust fit: a residual
     from the Tukey least-squares cylinder (:func:`shapeverify.fitting.fit_cylinder`) more than
@@ -462,11 +473,9 @@ def eval_orientation(c, ctx: EvalContext):
         hole = _is_hole(X, ctx.S.normals[m], f)
         X, _ = _cylinder_points(X, f)
         ends, mating, _, a, how = _axis_ends(X, f, hole)
-        if "CAD direction" in how:
-            # a short hole's mating fit keeps the CAD direction: its orientation would read 0
-            # by construction (NIST CTC 03's GT11 on a hole through a 1.9 mm sheet); the
-            # least-squares cylinder's axis is defined by all the points
-            ends, a, how = _lsq_axis_ends(X, f, _faces_rim(ctx, fidx))
+        # (a short hole's orientation would read 0 by construction: NIST CTC 03's GT11 on a
+        # hole through a 1.9 mm sheet)
+        ends, a, how = _tilted_axis_ends(ctx, fidx, X, f, ends, a, how)
         ext = float(np.linalg.norm(ends[1] - ends[0]))
         u_axis, proj = 2.0 * zq * ctx.S.noise, None
         if getattr(c, "projected", None) is not None:
@@ -572,12 +581,11 @@ def eval_position(c, ctx: EvalContext):
         n_all = X.shape[0]
         X, _ = _cylinder_points(X, f)
         ends, mating, _, a, how = _axis_ends(X, f, hole)
-        if getattr(c, "composite", None) == "lower" and "CAD direction" in how:
+        if getattr(c, "composite", None) == "lower":
             # a lower segment's framework floats: what it reads of one feature is the axis'
-            # tilt, and a short feature's mating fit keeps the CAD direction, so it read 0 by
-            # construction (NIST FTC 08 GT19/21/24/26: 2e-8); the least-squares cylinder's
-            # axis is defined by all the points
-            ends, a, how = _lsq_axis_ends(X, f, _faces_rim(ctx, fidx))
+            # tilt, which a short feature's CAD direction would make 0 by construction (NIST
+            # FTC 08 GT19/21/24/26: 2e-8)
+            ends, a, how = _tilted_axis_ends(ctx, fidx, X, f, ends, a, how)
         least = _least_material(X, f, hole) if c.material == "L" else float("nan")
         zq = extreme_quantile(X.shape[0], ctx.k)
         ext = float(np.linalg.norm(ends[1] - ends[0]))
@@ -706,8 +714,7 @@ def _projected_ends(c, ctx, fidx, feat, X, ends, a, how):
         raise ValueError(f"projected_direction {d.tolist()} is not along the hole's axis "
                          f"{n.tolist()}")
     rim = _faces_rim(ctx, fidx)
-    if "CAD direction" in how:
-        ends, a, how = _lsq_axis_ends(X, feat, rim)
+    ends, a, how = _tilted_axis_ends(ctx, fidx, X, feat, ends, a, how)
     a = np.asarray(a, float)
     a = a if a @ n > 0 else -a
     h0 = float(((rim - feat.center) @ n).max())
